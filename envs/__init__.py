@@ -1,0 +1,1 @@
+"""Gymnasium environments of hgo_mj (installed as ``hgo_mj.envs``)."""

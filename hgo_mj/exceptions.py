@@ -1,0 +1,23 @@
+"""The errors hgo_mj raises.
+
+Every error says what was expected and what was found. They subclass the builtin
+errors a caller would catch anyway (``ValueError``, ``RuntimeError``).
+"""
+
+from __future__ import annotations
+
+
+class HgoError(Exception):
+    """Base class of every error raised on purpose by hgo_mj."""
+
+
+class DimensionError(HgoError, ValueError):
+    """An array has the wrong shape or length."""
+
+
+class DesignError(HgoError, ValueError):
+    """A parameter, gain or design choice is invalid (not Hurwitz, negative, NaN, unknown...)."""
+
+
+class DivergenceError(HgoError, RuntimeError):
+    """A simulation or an observer left the finite numbers."""

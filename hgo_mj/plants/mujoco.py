@@ -1,0 +1,148 @@
+"""MuJoCo as the true plant."""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from .._validate import finite_scalar, vector
+from ..exceptions import DesignError, DivergenceError
+from ..systems.base import System
+from .base import Array, Plant
+
+_DIRECT_SENSORS = {
+    int(mujoco.mjtSensor.mjSENS_JOINTPOS): "qpos",
+    int(mujoco.mjtSensor.mjSENS_JOINTVEL): "qvel",
+}
+
+
+def model_path(name: str) -> Path:
+    """Absolute path of an MJCF file shipped under ``models/`` (works from a wheel install)."""
+    path = Path(str(resources.files("hgo_mj.models").joinpath(name)))
+    if not path.is_file():
+        shipped = sorted(p.name for p in Path(str(resources.files("hgo_mj.models"))).glob("*.xml"))
+        raise DesignError(f"no MJCF model named {name!r}; shipped models: {shipped}")
+    return path
+
+
+def _multiple(name: str, period: float, base: float) -> int:
+    ratio = period / base
+    n = round(ratio)
+    if n < 1 or abs(ratio - n) > 1e-9 * max(1.0, ratio):
+        raise DesignError(
+            f"{name} = {period:g} must be a positive integer multiple of the physics step "
+            f"{base:g}; found ratio {ratio:.9g}")
+    return n
+
+
+class MujocoPlant(Plant):
+    """An MJCF model simulated by MuJoCo, with the state and outputs of a :class:`System`.
+
+    Parameters
+    ----------
+    system : type[System]
+        A MuJoCo system class (``model_file`` set); its parameters are read from the compiled
+        model with ``from_mjmodel``.
+    dt : float
+        Control period: ``step(u)`` holds ``u`` for ``dt`` and runs ``dt / physics_dt`` MuJoCo
+        steps. Must be a multiple of ``physics_dt``.
+    physics_dt : float, optional
+        MuJoCo timestep; default: the MJCF's ``<option timestep>``.
+    outputs : sequence of str, optional
+        MJCF sensor names to return from :meth:`outputs`; default ``system.output_names``.
+    model_file : str or Path, optional
+        Another MJCF file for the same system (e.g. a modified copy); default the shipped one.
+
+    Notes
+    -----
+    ``jointpos``/``jointvel`` sensors are read straight from ``qpos``/``qvel`` (exactly what
+    MuJoCo's sensor computes, without a second ``mj_forward``); other sensor types trigger
+    ``mj_forward`` before ``sensordata`` is read.
+    """
+
+    def __init__(self, system: type[System], dt: float = 0.001, *, physics_dt: float | None = None,
+                 outputs: Any = None, model_file: str | Path | None = None) -> None:
+        if system.model_file is None:
+            raise DesignError(f"{system.__name__} is not a MuJoCo system; use OdePlant")
+        path = Path(model_file) if model_file is not None else model_path(system.model_file)
+        self.model = mujoco.MjModel.from_xml_path(str(path))
+        if physics_dt is not None:
+            self.model.opt.timestep = finite_scalar("physics_dt", physics_dt, positive=True)
+        self.physics_dt = float(self.model.opt.timestep)
+        self.dt = finite_scalar("dt", dt, positive=True)
+        self.substeps = _multiple("dt", self.dt, self.physics_dt)
+        self.data = mujoco.MjData(self.model)
+        self.system = system.from_mjmodel(self.model)
+        m = self.model
+
+        def _id(kind: Any, name: str, what: str) -> int:
+            i = mujoco.mj_name2id(m, kind, name)
+            if i < 0:
+                raise DesignError(f"{path.name} has no {what} named {name!r}")
+            return i
+
+        jids = [_id(mujoco.mjtObj.mjOBJ_JOINT, j, "joint") for j in system.joints]
+        self._qadr = np.array([m.jnt_qposadr[j] for j in jids], dtype=np.intp)
+        self._vadr = np.array([m.jnt_dofadr[j] for j in jids], dtype=np.intp)
+        self._aid = [_id(mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator") for a in system.actuators]
+        self._nq = len(jids)
+        self._output_names = tuple(outputs) if outputs is not None else system.output_names
+        self._sensor_src: list[tuple[str, int]] = []
+        self._needs_forward = False
+        for name in self._output_names:
+            s = _id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
+            kind = _DIRECT_SENSORS.get(int(m.sensor_type[s]))
+            if kind is not None and m.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_JOINT:
+                j = m.sensor_objid[s]
+                adr = m.jnt_qposadr[j] if kind == "qpos" else m.jnt_dofadr[j]
+                self._sensor_src.append((kind, int(adr)))
+            else:
+                self._sensor_src.append(("sensordata", int(m.sensor_adr[s])))
+                self._needs_forward = True
+        self._x0 = vector("system.default_x0", system.default_x0, 2 * self._nq)
+        self.t = 0.0
+        self.reset()
+
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        return self._output_names
+
+    def reset(self, x0: Any = None) -> None:
+        x0 = self._x0 if x0 is None else vector("x0", x0, 2 * self._nq)
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[self._qadr] = x0[: self._nq]
+        d.qvel[self._vadr] = x0[self._nq:]
+        mujoco.mj_forward(m, d)
+        self.t = 0.0
+
+    def step(self, u: Any) -> None:
+        m, d, ctrl = self.model, self.data, self.data.ctrl
+        for i, a in enumerate(self._aid):
+            ui = float(u[i])
+            if ui != ui or ui in (math.inf, -math.inf):
+                raise DivergenceError(f"input u[{i}] must be finite; found {ui}")
+            ctrl[a] = ui
+        for _ in range(self.substeps):
+            mujoco.mj_step(m, d)
+        self.t = d.time
+
+    @property
+    def state(self) -> Array:
+        d = self.data
+        x = np.empty(2 * self._nq)
+        x[: self._nq] = d.qpos[self._qadr]
+        x[self._nq:] = d.qvel[self._vadr]
+        return x
+
+    def outputs(self) -> Array:
+        d = self.data
+        if self._needs_forward:
+            mujoco.mj_forward(self.model, d)
+        srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
+        return np.array([srcs[k][a] for k, a in self._sensor_src])

@@ -1,0 +1,120 @@
+"""The analytic model an observer designs against.
+
+A :class:`System` holds, for one plant family,
+
+* the physical ODE ``dx/dt = f(t, x, u, params)`` and output ``y = h(x)``;
+* for single-output systems, the observability normal form (paper 000, eq. 1)
+
+  .. math:: z = (y, \\dot y, \\dots, y^{(n-1)}), \\qquad z_n' = \\varphi(z, u)
+
+  with the map ``to_normal`` from physical state to ``z``, its inverse ``from_normal`` and
+  ``phi``;
+* for MuJoCo plants, the MJCF file and the joints whose ``(qpos, qvel)`` form the state, and
+  ``from_mjmodel`` which reads the parameters from the compiled ``MjModel`` so that the model
+  and the MJCF cannot drift apart.
+
+Conventions: state vectors are 1-D ``(n,)``; ``dynamics`` is the fast private path (no checks),
+``f`` the validating public one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._validate import check_params, vector
+from ..exceptions import DesignError
+
+Array = NDArray[np.float64]
+
+
+class System:
+    """Base class of the analytic models. Subclasses fill in the class attributes below."""
+
+    #: registry name, e.g. ``"pendulum"``
+    name: ClassVar[str] = ""
+    #: one line for ``hgo-mj list``
+    summary: ClassVar[str] = ""
+    #: paper and equation the model comes from
+    reference: ClassVar[str] = ""
+    state_names: ClassVar[tuple[str, ...]] = ()
+    input_names: ClassVar[tuple[str, ...]] = ()
+    #: names of the measured outputs; for MuJoCo plants these are MJCF ``<sensor>`` names
+    output_names: ClassVar[tuple[str, ...]] = ()
+    param_names: ClassVar[tuple[str, ...]] = ()
+    #: parameter values used when none are given (ODE systems; MuJoCo systems read the MjModel)
+    default_params: ClassVar[Mapping[str, float]] = {}
+    #: default initial state of the plant
+    default_x0: ClassVar[tuple[float, ...]] = ()
+    #: order ``n`` of the observability normal form of the first output, or ``None``
+    normal_form_order: ClassVar[int | None] = None
+    #: MJCF file under ``models/`` (``None`` for ODE plants)
+    model_file: ClassVar[str | None] = None
+    #: MJCF joints whose ``qpos`` then ``qvel`` form the state ``x`` (MuJoCo plants)
+    joints: ClassVar[tuple[str, ...]] = ()
+    #: MJCF actuators driven by ``u``, in order (MuJoCo plants)
+    actuators: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, **params: Any) -> None:
+        merged = {**self.default_params, **params}
+        self.params: dict[str, float] = check_params(type(self).__name__, merged, self.param_names)
+
+    # ---------------------------------------------------------------- dynamics
+    @staticmethod
+    def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
+        """Fast path of ``dx/dt``: no validation. Subclasses implement it."""
+        raise NotImplementedError
+
+    @staticmethod
+    def output(x: Array, p: Mapping[str, float]) -> Array:
+        """Fast path of ``y = h(x)``. Subclasses implement it."""
+        raise NotImplementedError
+
+    def f(self, t: float, x: Any, u: Any, params: Mapping[str, float] | None = None) -> Array:
+        """``dx/dt = f(t, x, u, params)`` with shapes and finiteness checked."""
+        x = vector("x", x, len(self.state_names))
+        u = vector("u", u, len(self.input_names))
+        p = self.params if params is None else check_params(
+            type(self).__name__, params, self.param_names)
+        return np.asarray(self.dynamics(float(t), x, u, p), dtype=float)
+
+    def h(self, x: Any) -> Array:
+        """The clean measured outputs ``y = h(x)``."""
+        x = vector("x", x, len(self.state_names))
+        return np.asarray(self.output(x, self.params), dtype=float)
+
+    # ------------------------------------------------------------- normal form
+    def _require_normal_form(self) -> int:
+        if self.normal_form_order is None:
+            raise DesignError(
+                f"{type(self).__name__} has no single-output observability normal form "
+                f"(outputs: {list(self.output_names)})")
+        return self.normal_form_order
+
+    def to_normal(self, x: Any, u: Any = None) -> Array:
+        """Map the physical state to ``z = (y, y', ..., y^(n-1))``."""
+        self._require_normal_form()
+        raise NotImplementedError
+
+    def from_normal(self, z: Any, u: Any = None) -> Array:
+        """Inverse of :meth:`to_normal`."""
+        self._require_normal_form()
+        raise NotImplementedError
+
+    def phi(self, z: Any, u: Any = None) -> float:
+        """``y^(n) = phi(z, u)`` in normal-form coordinates."""
+        self._require_normal_form()
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ MuJoCo
+    @classmethod
+    def from_mjmodel(cls, model: Any) -> System:
+        """Read the parameters from a compiled ``mujoco.MjModel``."""
+        raise DesignError(f"{cls.__name__} is not a MuJoCo system (model_file is None)")
+
+    def __repr__(self) -> str:
+        ps = ", ".join(f"{k}={v:.6g}" for k, v in self.params.items())
+        return f"{type(self).__name__}({ps})"
