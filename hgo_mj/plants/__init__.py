@@ -1,0 +1,35 @@
+"""Plants: MuJoCo models and ODE systems, built by name with :func:`make_plant`."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .._validate import reject_unknown
+from ..exceptions import DesignError
+from .base import Plant
+from .mujoco import MujocoPlant, model_path
+from .ode import OdePlant
+
+
+def make_plant(name: str, dt: float | None = None, *, physics_dt: float | None = None,
+               **params: Any) -> Plant:
+    """Build the plant of a registered system.
+
+    MuJoCo systems take their parameters from their MJCF (edit the file, or pass
+    ``model_file=``); ODE systems take parameter overrides as keywords.
+    """
+    from ..systems import SYSTEMS
+
+    if name not in SYSTEMS:
+        raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}")
+    cls = SYSTEMS[name]
+    if cls.model_file is not None:
+        reject_unknown(f"plant {name!r} (MuJoCo: parameters come from {cls.model_file})",
+                       params, ["model_file", "outputs"])
+        return MujocoPlant(cls, 0.001 if dt is None else dt, physics_dt=physics_dt, **params)
+    system = cls(**params)
+    return OdePlant(system, getattr(cls, "default_dt", 0.01) if dt is None else dt,
+                    physics_dt=physics_dt)
+
+
+__all__ = ["MujocoPlant", "OdePlant", "Plant", "make_plant", "model_path"]

@@ -1,0 +1,258 @@
+"""The ``hgo-mj`` command: ``run``, ``list``, ``demo``.
+
+``hgo-mj run scenario.toml`` or ``hgo-mj run --plant NAME --observer KIND:k=v,... ...`` runs a
+headless study and writes ``trajectory.npz``, ``metrics.json``, ``figure.png`` and
+``summary.txt`` into ``--out``. Bad input exits with status 2 and one line naming the
+parameter, what was expected and what was found.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+from ._validate import reject_unknown
+from .exceptions import DesignError, HgoError
+
+SCENARIO_KEYS = {
+    "plant": ["name", "dt", "physics_dt", "params", "x0"],
+    "sensor": ["stages"],
+    "input": ["type"],  # plus the signal's own parameters
+    "run": ["duration", "sample_period", "control_period", "seed", "out", "t_transient", "band"],
+}
+
+
+def parse_value(text: str) -> Any:
+    """Parse one ``key=value`` value as a TOML value (``1e-3``, ``[1, 2]``, ``true``, ``"s"``);
+    a bare word that is no TOML value is taken as a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        if text.replace("_", "").replace("-", "").isalnum():
+            return text
+        raise DesignError(f"cannot parse value {text!r}; expected a number, [list], true/false "
+                          f"or a word") from None
+
+
+def parse_spec(spec: str, key: str) -> dict[str, Any]:
+    """``"kind:a=1,b=[1,2]"`` -> ``{key: "kind", "a": 1, "b": [1, 2]}``."""
+    kind, _, rest = spec.partition(":")
+    out: dict[str, Any] = {key: kind.strip()}
+    depth, item, items = 0, "", []
+    for ch in rest:
+        depth += ch in "[{"
+        depth -= ch in "]}"
+        if ch == "," and depth == 0:
+            items.append(item)
+            item = ""
+        else:
+            item += ch
+    if item.strip():
+        items.append(item)
+    for it in items:
+        name, eq, value = it.partition("=")
+        if not eq:
+            raise DesignError(f"expected key=value in {spec!r}; found {it!r}")
+        out[name.strip()] = parse_value(value.strip())
+    return out
+
+
+def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
+    if args.scenario:
+        path = Path(args.scenario)
+        if not path.is_file():
+            raise DesignError(f"scenario file {str(path)!r} does not exist")
+        with open(path, "rb") as fh:
+            try:
+                sc = tomllib.load(fh)
+            except tomllib.TOMLDecodeError as exc:
+                raise DesignError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
+    else:
+        sc = {}
+    sc.setdefault("plant", {})
+    sc.setdefault("run", {})
+    if args.plant:
+        sc["plant"]["name"] = args.plant
+    if args.observer:
+        sc["observers"] = [parse_spec(s, "type") for s in args.observer]
+    if args.sensor:
+        sc["sensor"] = {"stages": [parse_spec(s, "stage") for s in args.sensor]}
+    if args.input:
+        sc["input"] = parse_spec(args.input, "type")
+    for key in ("duration", "sample_period", "control_period", "seed", "out"):
+        v = getattr(args, key)
+        if v is not None:
+            sc["run"][key] = v
+    if args.dt is not None:
+        sc["plant"]["dt"] = args.dt
+    return sc
+
+
+def run_scenario(sc: dict[str, Any], name: str = "run") -> tuple[Any, dict[str, Any], Path]:
+    """Build everything a scenario names, simulate, and write the results. Returns
+    ``(trajectory, metrics, out_dir)``."""
+    from .inputs import Constant, make_signal
+    from .metrics import all_metrics, format_table
+    from .observers import make_observer
+    from .plants import make_plant
+    from .plotting import plot_trajectory
+    from .sensors import SensorChain
+    from .simulate import simulate
+
+    reject_unknown("scenario", sc, ["plant", "sensor", "observers", "input", "run", "name"])
+    for section, keys in SCENARIO_KEYS.items():
+        if section in sc and section != "input":
+            if not isinstance(sc[section], dict):
+                raise DesignError(f"scenario [{section}] must be a table; found {sc[section]!r}")
+            reject_unknown(f"scenario [{section}]", sc[section], keys)
+    pl = sc["plant"]
+    if "name" not in pl:
+        raise DesignError("scenario needs a plant: [plant] name = ... or --plant NAME "
+                          "(see `hgo-mj list`)")
+    plant = make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
+                       **pl.get("params", {}))
+    run = sc["run"]
+    seed = run.get("seed", 0)
+    if not isinstance(seed, int):
+        raise DesignError(f"run.seed must be an integer; found {seed!r}")
+    sensor = SensorChain.from_spec(sc.get("sensor", {}).get("stages", []), seed=seed)
+    observers = {}
+    for i, spec in enumerate(sc.get("observers", [])):
+        spec = dict(spec)
+        kind = spec.pop("type", None)
+        if kind is None:
+            raise DesignError(f"observer #{i + 1} needs type = ...")
+        label = spec.pop("name", f"{kind}_{i}")
+        if label in observers:
+            raise DesignError(f"two observers are named {label!r}; give each a distinct name")
+        observers[label] = make_observer(kind, plant.system, **spec)
+    inp = dict(sc.get("input", {"type": "constant"}))
+    kind = inp.pop("type", "constant")
+    if kind == "constant" and "value" not in inp:
+        inputs = Constant([0.0] * len(plant.input_names))
+    else:
+        inputs = make_signal(kind, **inp)
+    if "duration" not in run:
+        raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
+    traj = simulate(plant, sensor, observers, inputs, run["duration"],
+                    sample_period=run.get("sample_period"),
+                    control_period=run.get("control_period"), x0=pl.get("x0"), seed=seed,
+                    metadata={"scenario": sc.get("name", name), "scenario_spec": sc})
+    mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
+    metrics = all_metrics(traj, **mkw)
+    out = Path(run.get("out", f"runs/{name}"))
+    out.mkdir(parents=True, exist_ok=True)
+    traj.save(out / "trajectory.npz")
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=float) + "\n")
+    plot_trajectory(traj, out / "figure.png",
+                    title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}")
+    table = format_table(metrics)
+    (out / "summary.txt").write_text(table + "\n")
+    return traj, metrics, out
+
+
+DEMO = {
+    "name": "demo",
+    "plant": {"name": "elastic_joint", "dt": 0.001, "x0": [0.3, 0.3, 0.0, 0.0]},
+    "sensor": {"stages": [
+        {"stage": "gaussian", "std": 2e-4},
+        {"stage": "quantize", "counts_per_rev": 16384},
+    ]},
+    "observers": [
+        {"type": "high_gain", "name": "hgo_k60", "k": 60.0},
+        {"type": "high_gain", "name": "hgo_k200", "k": 200.0},
+    ],
+    "input": {"type": "multisine", "amplitudes": [1.0, 0.5], "frequencies": [0.5, 2.0],
+              "phases": [0.0, 1.0]},
+    "run": {"duration": 5.0, "seed": 0, "out": "runs/demo", "t_transient": 1.0},
+}
+
+
+def cmd_list() -> str:
+    from .inputs import SIGNALS
+    from .observers import OBSERVERS
+    from .sensors import STAGES
+    from .systems import SYSTEMS
+
+    def sig(cls: Any) -> str:
+        ps = [p for p in inspect.signature(cls.__init__).parameters.values()
+              if p.name not in ("self", "system") and p.kind != p.VAR_KEYWORD]
+        return ", ".join(p.name if p.default is p.empty else f"{p.name}={p.default!r}"
+                         for p in ps)
+
+    lines = ["PLANTS (hgo-mj run --plant NAME)"]
+    for name, cls in SYSTEMS.items():
+        kind = f"MuJoCo models/{cls.model_file}" if cls.model_file else "ODE"
+        lines.append(f"  {name:<26} {cls.summary}  [{kind}; {cls.reference}]")
+    lines.append("\nSENSOR STAGES (--sensor NAME:key=value,...; applied in the order given)")
+    for name, cls in STAGES.items():
+        lines.append(f"  {name:<14} {cls.summary}  ({sig(cls)})")
+    lines.append("\nOBSERVERS (--observer KIND:key=value,...)")
+    for name, cls in OBSERVERS.items():
+        lines.append(f"  {name:<14} {cls.summary}  [{cls.reference}]\n"
+                     f"  {'':<14} ({sig(cls)})")
+    lines.append("\nINPUTS (--input KIND:key=value,...)")
+    for name, cls in SIGNALS.items():
+        lines.append(f"  {name:<14} {cls.summary}  ({sig(cls)})")
+    return "\n".join(lines)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="hgo-mj", description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="run a scenario (TOML file and/or flags)")
+    r.add_argument("scenario", nargs="?", help="TOML scenario file")
+    r.add_argument("--plant", help="plant name (see `hgo-mj list`)")
+    r.add_argument("--dt", type=float, help="plant step (control hold), seconds")
+    r.add_argument("--observer", action="append",
+                   help="KIND:key=value,... e.g. high_gain:k=50 (repeatable)")
+    r.add_argument("--sensor", action="append",
+                   help="STAGE:key=value,... e.g. gaussian:std=1e-3 (repeatable, in order)")
+    r.add_argument("--input", help="KIND:key=value,... e.g. multisine:amplitudes=[1],"
+                   "frequencies=[0.5]")
+    r.add_argument("--duration", type=float)
+    r.add_argument("--sample-period", dest="sample_period", type=float)
+    r.add_argument("--control-period", dest="control_period", type=float)
+    r.add_argument("--seed", type=int)
+    r.add_argument("--out", help="output folder (default runs/run)")
+    sub.add_parser("list", help="plants, sensor stages, observers and inputs")
+    d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
+    d.add_argument("--out", default="runs/demo")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "list":
+            print(cmd_list())
+            return 0
+        if args.command == "demo":
+            sc = json.loads(json.dumps(DEMO))
+            sc["run"]["out"] = args.out
+            name = "demo"
+        else:
+            sc = scenario_from_args(args)
+            name = "run"
+        _, metrics, out = run_scenario(sc, name)
+    except (HgoError, ValueError) as exc:
+        print(f"hgo-mj: error: {exc}", file=sys.stderr)
+        return 2
+    from .metrics import format_table
+
+    print(format_table(metrics))
+    print(f"\nwrote {out}/trajectory.npz, metrics.json, figure.png, summary.txt")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

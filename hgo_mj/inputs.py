@@ -1,0 +1,213 @@
+"""Input signals ``u(t)`` and controllers ``u(t, x_hat)``.
+
+Open-loop signals are callables ``signal(t) -> u`` (1-D array). A :class:`Controller` wraps a
+feedback law that sees only an observer's estimate (or, when asked, the true state, for
+comparison). Every signal validates its parameters and reports them with ``params()``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._validate import finite_scalar, reject_unknown, vector
+from .exceptions import DesignError, DimensionError
+
+Array = NDArray[np.float64]
+
+
+class Signal:
+    """Base class of open-loop inputs: ``signal(t)`` returns a fresh 1-D array."""
+
+    name = ""
+    summary = ""
+
+    def __call__(self, t: float) -> Array:
+        raise NotImplementedError
+
+    def params(self) -> dict[str, Any]:
+        return {}
+
+
+def _channels(name: str, value: Any) -> Array:
+    return vector(name, np.atleast_1d(np.asarray(value, dtype=float)))
+
+
+class Constant(Signal):
+    """``u(t) = value``."""
+
+    name = "constant"
+    summary = "constant input"
+
+    def __init__(self, value: Any = 0.0) -> None:
+        self.value = _channels("Constant.value", value)
+
+    def __call__(self, t: float) -> Array:
+        return self.value.copy()
+
+    def params(self) -> dict[str, Any]:
+        return {"value": self.value.tolist()}
+
+
+class Schedule(Signal):
+    """Piecewise-constant input: ``u = values[i]`` for ``times[i] <= t < times[i+1]``.
+
+    Paper 000's substrate inflow is ``Schedule([0, 30, 50], [0.08, 0.02, 0.08])`` (hours).
+    """
+
+    name = "schedule"
+    summary = "piecewise-constant schedule (paper 000's u profile)"
+
+    def __init__(self, times: Sequence[float], values: Any) -> None:
+        self.times = vector("Schedule.times", times)
+        vals = np.asarray(values, dtype=float)
+        self.values = vals.reshape(len(self.times), -1) if vals.ndim <= 1 else vals
+        if self.values.shape[0] != self.times.size or self.times.size == 0:
+            raise DimensionError(f"Schedule needs one value per time; found {self.times.size} "
+                                 f"times and {self.values.shape[0]} values")
+        if not np.all(np.isfinite(self.values)):
+            raise DesignError("Schedule.values must be finite")
+        if np.any(np.diff(self.times) <= 0):
+            raise DesignError(f"Schedule.times must increase strictly; found {self.times.tolist()}")
+
+    def __call__(self, t: float) -> Array:
+        i = max(int(np.searchsorted(self.times, t, side="right")) - 1, 0)
+        return self.values[i].copy()
+
+    def params(self) -> dict[str, Any]:
+        return {"times": self.times.tolist(), "values": self.values.tolist()}
+
+
+class Multisine(Signal):
+    """``u(t) = offset + sum_i a_i sin(2 pi f_i t + phase_i)`` (one channel; paper 001's ``u``
+    ``sin 2t + 0.1 cos 10t`` is ``Multisine([1, .1], [2/(2pi), 10/(2pi)], [0, pi/2])``)."""
+
+    name = "multisine"
+    summary = "sum of sinusoids (paper 001's input)"
+
+    def __init__(self, amplitudes: Any, frequencies: Any, phases: Any = None,
+                 offset: float = 0.0) -> None:
+        self.amplitudes = vector("Multisine.amplitudes", amplitudes)
+        self.frequencies = vector("Multisine.frequencies", frequencies, self.amplitudes.size)
+        self.phases = (np.zeros(self.amplitudes.size) if phases is None
+                       else vector("Multisine.phases", phases, self.amplitudes.size))
+        if np.any(self.frequencies < 0):
+            raise DesignError(f"Multisine.frequencies must be >= 0; found "
+                              f"{self.frequencies.tolist()}")
+        self.offset = finite_scalar("Multisine.offset", offset)
+        self._w = (2 * math.pi * self.frequencies).tolist()
+        self._a = self.amplitudes.tolist()
+        self._ph = self.phases.tolist()
+
+    def __call__(self, t: float) -> Array:
+        s = self.offset
+        for a, w, ph in zip(self._a, self._w, self._ph):
+            s += a * math.sin(w * t + ph)
+        return np.array([s])
+
+    def params(self) -> dict[str, Any]:
+        return {"amplitudes": self.amplitudes.tolist(), "frequencies": self.frequencies.tolist(),
+                "phases": self.phases.tolist(), "offset": self.offset}
+
+
+class Chirp(Signal):
+    """Linear chirp from ``f0`` to ``f1`` Hz over ``duration``: ``a sin(2 pi (f0 t + (f1-f0)
+    t^2 / (2 T)))``, then held at ``f1``."""
+
+    name = "chirp"
+    summary = "linear frequency sweep"
+
+    def __init__(self, amplitude: float, f0: float, f1: float, duration: float,
+                 offset: float = 0.0) -> None:
+        self.amplitude = finite_scalar("Chirp.amplitude", amplitude)
+        self.f0 = finite_scalar("Chirp.f0", f0, nonnegative=True)
+        self.f1 = finite_scalar("Chirp.f1", f1, nonnegative=True)
+        self.duration = finite_scalar("Chirp.duration", duration, positive=True)
+        self.offset = finite_scalar("Chirp.offset", offset)
+
+    def __call__(self, t: float) -> Array:
+        T = self.duration
+        tt = min(t, T)
+        phase = self.f0 * tt + (self.f1 - self.f0) * tt * tt / (2 * T) + self.f1 * max(t - T, 0.0)
+        return np.array([self.offset + self.amplitude * math.sin(2 * math.pi * phase)])
+
+    def params(self) -> dict[str, Any]:
+        return {"amplitude": self.amplitude, "f0": self.f0, "f1": self.f1,
+                "duration": self.duration, "offset": self.offset}
+
+
+class PRBS(Signal):
+    """Pseudo-random binary sequence: ``offset ± amplitude``, switching with probability 1/2 every
+    ``period`` seconds, drawn once from ``seed`` (a fixed sequence, independent of the run)."""
+
+    name = "prbs"
+    summary = "pseudo-random binary sequence"
+
+    def __init__(self, amplitude: float, period: float, seed: int = 0, offset: float = 0.0,
+                 length: int = 4096) -> None:
+        self.amplitude = finite_scalar("PRBS.amplitude", amplitude)
+        self.period = finite_scalar("PRBS.period", period, positive=True)
+        self.offset = finite_scalar("PRBS.offset", offset)
+        self.seed = int(seed)
+        self.length = int(length)
+        rng = np.random.default_rng(self.seed)
+        self._levels = np.where(rng.random(self.length) < 0.5, -1.0, 1.0)
+
+    def __call__(self, t: float) -> Array:
+        i = int(math.floor(t / self.period + 1e-9)) % self.length
+        return np.array([self.offset + self.amplitude * self._levels[i]])
+
+    def params(self) -> dict[str, Any]:
+        return {"amplitude": self.amplitude, "period": self.period, "seed": self.seed,
+                "offset": self.offset, "length": self.length}
+
+
+class Controller:
+    """A feedback law ``law(t, x) -> u`` fed with an observer's estimate.
+
+    Parameters
+    ----------
+    law : callable
+        ``law(t, x) -> u``; ``x`` is the estimate in physical coordinates.
+    source : {"estimate", "true"}
+        Feed the estimate of ``observer`` (default) or the true state (for comparison).
+    observer : str, optional
+        Name of the observer whose estimate is used; default the first one.
+    """
+
+    name = "controller"
+    summary = "feedback law on the estimate (or the true state)"
+
+    def __init__(self, law: Callable[[float, Array], Any], source: str = "estimate",
+                 observer: str | None = None) -> None:
+        if not callable(law):
+            raise DesignError(f"Controller.law must be callable; found {type(law).__name__}")
+        if source not in ("estimate", "true"):
+            raise DesignError(f"Controller.source must be 'estimate' or 'true'; found {source!r}")
+        self.law, self.source, self.observer = law, source, observer
+
+    def __call__(self, t: float, x: Array) -> Array:
+        return np.atleast_1d(np.asarray(self.law(t, x), dtype=float))
+
+    def params(self) -> dict[str, Any]:
+        return {"source": self.source, "observer": self.observer,
+                "law": getattr(self.law, "__name__", repr(self.law))}
+
+
+SIGNALS: dict[str, type[Signal]] = {
+    c.name: c for c in (Constant, Schedule, Multisine, Chirp, PRBS)}
+
+
+def make_signal(kind: str, **params: Any) -> Signal:
+    """Build an open-loop signal by registry name; unknown names and keywords are listed."""
+    if kind not in SIGNALS:
+        raise DesignError(f"unknown input {kind!r}; valid: {sorted(SIGNALS)}")
+    import inspect
+
+    sig = inspect.signature(SIGNALS[kind].__init__)
+    reject_unknown(f"input {kind!r}", params, [p for p in sig.parameters if p != "self"])
+    return SIGNALS[kind](**params)

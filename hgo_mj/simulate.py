@@ -1,0 +1,280 @@
+"""The loop: plant, sensor chain, observers, input; and the :class:`Trajectory` it returns.
+
+Timing (all periods exact integer multiples of each other)::
+
+    physics_dt | plant.dt | sample_period | control_period
+
+Row ``k`` of a trajectory is the sample instant ``t_k = k * sample_period``: the true state
+``x(t_k)``, the clean and measured outputs, the input ``u(t_k)`` applied over the next sample,
+and for each observer its estimate of ``x(t_k)`` *before* it consumes ``y(t_k)`` (a
+continuous-time observer with the measurement held between samples: row 0 is the initial
+estimate). Every observer sees the same measurement stream.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._validate import finite_scalar, vector
+from .exceptions import DesignError, DimensionError, DivergenceError
+from .inputs import Controller
+from .observers.base import Observer
+from .plants.base import Plant
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class ObserverRecord:
+    """One observer's columns in a :class:`Trajectory`."""
+
+    x_hat: Array
+    z_hat: Array
+    diagnostics: dict[str, Array] = field(default_factory=dict)
+    #: mean wall time of one ``update`` call, seconds
+    update_time: float = float("nan")
+
+
+@dataclass
+class Trajectory:
+    """Numpy columns of one run; ``save``/``load`` use one ``.npz`` with JSON metadata."""
+
+    t: Array
+    x: Array
+    y_clean: Array
+    y_meas: Array
+    u: Array
+    observers: dict[str, ObserverRecord]
+    state_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    def error(self, observer: str) -> Array:
+        """``x - x_hat`` of one observer, shape ``(T, n)``."""
+        return self.x - self.observers[observer].x_hat
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        cols: dict[str, Any] = {"t": self.t, "x": self.x, "y_clean": self.y_clean,
+                                "y_meas": self.y_meas, "u": self.u}
+        obs_meta = {}
+        for name, rec in self.observers.items():
+            cols[f"obs/{name}/x_hat"] = rec.x_hat
+            cols[f"obs/{name}/z_hat"] = rec.z_hat
+            for d, v in rec.diagnostics.items():
+                cols[f"obs/{name}/diag/{d}"] = v
+            obs_meta[name] = {"diagnostics": list(rec.diagnostics), "update_time": rec.update_time}
+        meta = {"state_names": self.state_names, "output_names": self.output_names,
+                "input_names": self.input_names, "observers": obs_meta,
+                "metadata": self.metadata}
+        cols["__meta__"] = np.array(json.dumps(meta))
+        with open(path, "wb") as fh:
+            np.savez_compressed(fh, **cols)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Trajectory:
+        with np.load(Path(path), allow_pickle=False) as z:
+            meta = json.loads(str(z["__meta__"]))
+            observers = {
+                name: ObserverRecord(
+                    x_hat=z[f"obs/{name}/x_hat"], z_hat=z[f"obs/{name}/z_hat"],
+                    diagnostics={d: z[f"obs/{name}/diag/{d}"] for d in om["diagnostics"]},
+                    update_time=float(om["update_time"]))
+                for name, om in meta["observers"].items()}
+            return cls(t=z["t"], x=z["x"], y_clean=z["y_clean"], y_meas=z["y_meas"], u=z["u"],
+                       observers=observers, state_names=tuple(meta["state_names"]),
+                       output_names=tuple(meta["output_names"]),
+                       input_names=tuple(meta["input_names"]), metadata=meta["metadata"])
+
+
+def package_versions() -> dict[str, str]:
+    """Versions of the packages a result depends on, for its metadata."""
+    out = {"python": platform.python_version()}
+    for pkg in ("hgo_mj", "mujoco", "numpy", "scipy", "gymnasium", "rerun-sdk"):
+        try:
+            out[pkg] = importlib_metadata.version(pkg)
+        except importlib_metadata.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def _ratio(name: str, period: float, base: float, base_name: str) -> int:
+    r = period / base
+    n = round(r)
+    if n < 1 or abs(r - n) > 1e-9 * max(1.0, r):
+        raise DesignError(f"{name} = {period:g} must be a positive integer multiple of "
+                          f"{base_name} = {base:g}; found ratio {r:.9g}")
+    return n
+
+
+def _named_observers(observers: Any) -> dict[str, Observer]:
+    if observers is None:
+        return {}
+    if isinstance(observers, Observer):
+        observers = [observers]
+    if isinstance(observers, Mapping):
+        items = list(observers.items())
+    else:
+        items = []
+        for i, ob in enumerate(observers):
+            items.append((f"{ob.name or type(ob).__name__}_{i}", ob))
+    for name, ob in items:
+        if not isinstance(ob, Observer):
+            raise DesignError(f"observer {name!r} must be an Observer; found {type(ob).__name__}")
+    return dict(items)
+
+
+def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
+             observers: Mapping[str, Observer] | Sequence[Observer] | Observer | None,
+             inputs: Callable[..., Any], duration: float, *, sample_period: float | None = None,
+             control_period: float | None = None, x0: Any = None, seed: int | None = None,
+             metadata: Mapping[str, Any] | None = None) -> Trajectory:
+    """Run plant, sensor chain and observers together and return the :class:`Trajectory`.
+
+    Parameters
+    ----------
+    plant : Plant
+        The true plant; ``plant.dt`` is its step (a multiple of its physics step).
+    sensor : SensorChain or callable ``(t, y) -> y_meas`` or None
+        Applied to the clean outputs at every sample; ``None`` measures exactly. A chain with a
+        ``reset`` method is reset (and re-seeded with ``seed``) first.
+    observers : mapping name -> Observer, sequence, single Observer, or None
+        Every observer is reset to its own initial estimate and fed the same ``y_meas``.
+    inputs : callable
+        An open-loop signal ``u(t)`` or a :class:`~hgo_mj.inputs.Controller` (fed the named
+        observer's estimate, or the true state).
+    duration : float
+        Simulated time; the trajectory has ``round(duration / sample_period) + 1`` rows.
+    sample_period, control_period : float, optional
+        Defaults: ``plant.dt`` and ``sample_period``; each a multiple of the one before.
+    x0 : array_like, optional
+        Initial true state (default ``plant.system.default_x0``).
+    seed : int, optional
+        Seed of the sensor chain's generator: the same seed gives a bit-identical run.
+
+    Raises
+    ------
+    DivergenceError
+        If an estimate leaves the finite numbers; the partial trajectory is attached to the
+        exception as ``exc.trajectory``.
+    """
+    Ts = plant.dt if sample_period is None else finite_scalar("sample_period", sample_period,
+                                                               positive=True)
+    steps = _ratio("sample_period", Ts, plant.dt, "plant.dt")
+    Tc = Ts if control_period is None else finite_scalar("control_period", control_period,
+                                                         positive=True)
+    every = _ratio("control_period", Tc, Ts, "sample_period")
+    duration = finite_scalar("duration", duration, positive=True)
+    N = int(round(duration / Ts))
+    obs = _named_observers(observers)
+    if isinstance(inputs, Controller):
+        if inputs.source == "estimate":
+            if not obs:
+                raise DesignError("a Controller on the estimate needs at least one observer")
+            ctrl_obs = obs[inputs.observer] if inputs.observer is not None else next(
+                iter(obs.values()))
+        controller = True
+    elif callable(inputs):
+        controller = False
+    else:
+        raise DesignError(f"inputs must be a signal u(t) or a Controller; found "
+                          f"{type(inputs).__name__}")
+
+    plant.reset(x0)
+    if sensor is not None and hasattr(sensor, "reset"):
+        sensor.reset(seed)
+    for ob in obs.values():
+        ob.reset()
+    n, m, p = len(plant.state_names), len(plant.output_names), len(plant.input_names)
+
+    T = N + 1
+    t_col = np.arange(T) * Ts
+    X, Yc, Ym, U = (np.empty((T, n)), np.empty((T, m)), np.empty((T, m)), np.empty((T, p)))
+    rec = {}
+    for name, ob in obs.items():
+        nx = len(ob.x_hat)
+        rec[name] = (np.empty((T, nx)), np.empty((T, ob.n)),
+                     {d: np.empty(T) for d in ob.diagnostics()}, [0.0])
+    items = [(ob, rec[name]) for name, ob in obs.items()]
+    perf = time.perf_counter
+    u = np.zeros(p)
+    for k in range(T):
+        t = float(t_col[k])
+        x = plant.state
+        yc = plant.outputs()
+        ym = sensor(t, yc) if sensor is not None else yc.copy()
+        if k % every == 0:
+            if controller:
+                src = x if inputs.source == "true" else ctrl_obs.x_hat
+                u = inputs(t, src)
+            else:
+                u = inputs(t)
+            u = np.asarray(u, dtype=float).reshape(-1)
+            if u.shape != (p,):
+                raise DimensionError(f"input must have {p} channel(s) {plant.input_names}; "
+                                     f"found shape {u.shape} at t={t:g}")
+        X[k], Yc[k], Ym[k], U[k] = x, yc, ym, u
+        for ob, (xh, zh, dg, _) in items:
+            xh[k] = ob.x_hat
+            zh[k] = ob.z_hat
+            for d, v in ob.diagnostics().items():
+                dg[d][k] = v
+        if k == N:
+            break
+        for ob, (_, _, _, tm) in items:
+            t0 = perf()
+            ob.update(ym, u, Ts)
+            tm[0] += perf() - t0
+        for _ in range(steps):
+            plant.step(u)
+
+    records = {name: ObserverRecord(x_hat=xh, z_hat=zh, diagnostics=dg,
+                                    update_time=tm[0] / max(N, 1))
+               for name, (xh, zh, dg, tm) in rec.items()}
+    meta = {"plant": type(plant.system).__name__, "system_params": plant.system.params,
+            "plant_dt": plant.dt, "physics_dt": getattr(plant, "physics_dt", plant.dt),
+            "sample_period": Ts, "control_period": Tc, "duration": duration, "seed": seed,
+            "x0": plant_x0(plant, x0),
+            "sensor": sensor.describe() if hasattr(sensor, "describe") else repr(sensor),
+            "observers": {name: {"type": type(ob).__name__, **ob.params()}
+                          for name, ob in obs.items()},
+            "input": {"type": type(inputs).__name__,
+                      **(inputs.params() if hasattr(inputs, "params") else {})},
+            "versions": package_versions(), **(dict(metadata) if metadata else {})}
+    traj = Trajectory(t=t_col, x=X, y_clean=Yc, y_meas=Ym, u=U, observers=records,
+                      state_names=tuple(plant.state_names), output_names=tuple(plant.output_names),
+                      input_names=tuple(plant.input_names), metadata=meta)
+    for name, r in records.items():
+        bad = ~np.all(np.isfinite(r.x_hat), axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            exc = DivergenceError(f"observer {name!r} estimate left the finite numbers at "
+                                  f"t={t_col[k]:g} (row {k}): {r.x_hat[k].tolist()}")
+            exc.trajectory = traj  # type: ignore[attr-defined]
+            raise exc
+    return traj
+
+
+def plant_x0(plant: Plant, x0: Any) -> list[float]:
+    if x0 is not None:
+        return vector("x0", x0).tolist()
+    return [float(v) for v in plant.system.default_x0]
+
+
+__all__ = ["ObserverRecord", "Trajectory", "simulate", "package_versions"]

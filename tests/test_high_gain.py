@@ -1,0 +1,166 @@
+"""The plain high-gain observer (paper 000, eq. 2) against its linear error dynamics (eq. 3, 6)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from hgo_mj.design import binomial_coefficients, check_hurwitz, hgo_gains, observer_matrix
+from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.inputs import Multisine
+from hgo_mj.observers import HighGainObserver, make_observer
+from hgo_mj.plants.ode import OdePlant
+from hgo_mj.simulate import simulate
+
+
+def test_gains_are_p_i_k_to_the_i():
+    np.testing.assert_allclose(hgo_gains([3, 3, 1], 10.0), [30.0, 300.0, 1000.0])
+    np.testing.assert_array_equal(binomial_coefficients(4), [4, 6, 4, 1])
+    # eq. 6: A_k = k K Abar K^-1 with K = diag(1, k, ..., k^(n-1))
+    p, k = np.array([2.0, 1.5, 0.5]), 7.0
+    Abar = np.diag(np.ones(2), 1)
+    Abar[:, 0] = -p
+    K = np.diag(k ** np.arange(3))
+    np.testing.assert_allclose(observer_matrix(p, k), k * K @ Abar @ np.linalg.inv(K), rtol=1e-12)
+
+
+def test_non_hurwitz_p_names_the_roots():
+    with pytest.raises(DesignError, match=r"roots \[.*\] have non-negative real part"):
+        check_hurwitz([-0.2, 1.01])
+    with pytest.raises(DesignError, match="k must be > 0; found -1"):
+        hgo_gains([2, 1], -1)
+
+
+def _steady_amplitude(t, e, t_from):
+    sel = t >= t_from
+    return 0.5 * (e[sel].max() - e[sel].min())
+
+
+@pytest.mark.parametrize("n", [2, 3, 4])
+def test_disturbance_transfer_matches_eq3(chain, n):
+    """e1(s) = w(s) / (s + k)^n for y^(n) = w (paper 000, eq. 3, binomial p).
+
+    The plant starts on the periodic orbit y = sin(omega t), so y^(n) = w is a pure sinusoid
+    and no polynomial drift enters through the held measurement.
+    """
+    k, f = 6.0, 0.4
+    omega = 2 * np.pi * f
+    x0 = [omega**i * np.sin(i * np.pi / 2) for i in range(n)]
+    plant = OdePlant(chain(n)(), dt=1e-3, physics_dt=1e-3)
+    ob = HighGainObserver(plant.system, k=k)
+    w = Multisine([omega**n], [f], [n * np.pi / 2])
+    traj = simulate(plant, None, {"hgo": ob}, w, duration=20.0, x0=x0)
+    e1 = traj.error("hgo")[:, 0]
+    s = 1j * omega
+    continuous = abs(s + k) ** -n * omega**n  # eq. 3 with |w| = omega^n
+    # The observer sees y through a zero-order hold of dt, (1 - e^{-s dt}) / (s dt): the output
+    # error is y - T(s) ZOH(s) y with T = 1 - s^n / (s + k)^n, which tends to eq. 3 as dt -> 0.
+    T = 1 - (s / (s + k)) ** n
+    sampled = abs(1 - T * (1 - np.exp(-s * 1e-3)) / (s * 1e-3))
+    assert abs(sampled - continuous) < 0.06 * continuous
+    assert _steady_amplitude(traj.t, e1, 12.0) == pytest.approx(sampled, rel=2e-3)
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_noise_transfer_matches_eq3(chain, n):
+    """(y + nu) - y_hat = s^n / (s + k)^n nu for the plant at rest (paper 000, eq. 3)."""
+    k, f = 5.0, 1.5
+    plant = OdePlant(chain(n)(), dt=1e-3, physics_dt=1e-3)
+    ob = HighGainObserver(plant.system, k=k)
+    nu = lambda t, y: y + np.sin(2 * np.pi * f * t)  # noqa: E731 - a sensor as a plain callable
+    traj = simulate(plant, nu, {"hgo": ob}, Multisine([0.0], [0.0]), duration=20.0)
+    out_err = traj.y_meas[:, 0] - traj.observers["hgo"].x_hat[:, 0]
+    omega = 2 * np.pi * f
+    expected = omega ** n / abs(1j * omega + k) ** n
+    assert _steady_amplitude(traj.t, out_err, 12.0) == pytest.approx(expected, rel=2e-2)
+
+
+@pytest.mark.parametrize("method", ["exact", "rk4"])
+def test_error_follows_linear_error_dynamics_eq6(chain, method):
+    """e' = A_k e + B w(t) (eq. 6) integrated by solve_ivp against the sampled observer."""
+    n, k, dt = 3, 8.0, 1e-4
+    plant = OdePlant(chain(n)(), dt=dt, physics_dt=dt)
+    ob = HighGainObserver(plant.system, k=k, p=[3.0, 3.5, 1.2], method=method)
+    w = Multisine([1.0, 0.3], [0.3, 1.1], [0.2, 0.0])
+    x0 = np.array([0.5, -0.2, 0.1])
+    traj = simulate(plant, None, {"hgo": ob}, w, duration=3.0, x0=x0)
+    A = observer_matrix([3.0, 3.5, 1.2], k)
+    sol = solve_ivp(lambda t, e: A @ e + np.array([0, 0, w(t)[0]]), (0, 3.0), x0,
+                    t_eval=traj.t, rtol=1e-10, atol=1e-12, method="DOP853")
+    err = traj.error("hgo")
+    # sampling with a held y differs from the continuous observer by O(k dt): scale by |e|max
+    scale = np.abs(sol.y.T).max(axis=0)
+    assert np.all(np.abs(err - sol.y.T).max(axis=0) <= 2e-3 * scale)
+
+
+def test_model_term_makes_observer_exact_on_known_phi(chain):
+    plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
+    omega = 2 * np.pi
+    w = Multisine([-2.0 * omega**2], [1.0])  # y = 2 sin(omega t) from x0 below
+    free = HighGainObserver(plant.system, k=5.0)
+    model = HighGainObserver(plant.system, k=5.0, model=True, method="rk4")
+    traj = simulate(plant, None, {"free": free, "model": model}, w, duration=5.0,
+                    x0=[0.0, 2.0 * omega])
+    e_free = np.abs(traj.error("free")[2000:]).max()
+    e_model = np.abs(traj.error("model")[2000:]).max()
+    # what is left with the model term is the effect of the held measurement alone
+    assert e_model < 1e-2 * e_free
+
+
+def test_euler_with_too_long_period_is_refused_with_the_bound():
+    ob = HighGainObserver(order=2, k=50.0, method="euler")
+    assert ob.max_stable_period() == pytest.approx(0.04, rel=1e-6)  # |1 - k dt| < 1, double pole
+    with pytest.raises(DesignError, match=r"largest stable period is 0\.04"):
+        ob.update(np.array([1.0]), np.zeros(0), 0.05)
+    warn = HighGainObserver(order=2, k=50.0, method="euler", on_unstable="warn")
+    with pytest.warns(RuntimeWarning, match="unstable"):
+        warn.update(np.array([1.0]), np.zeros(0), 0.05)
+    assert HighGainObserver(order=2, k=50.0, method="exact").max_stable_period() == np.inf
+
+
+def test_dropout_holds_prediction_and_counts():
+    ob = HighGainObserver(order=2, k=10.0, z_hat0=[1.0, 2.0])
+    x = ob.update(np.array([np.nan]), np.zeros(0), 0.1)
+    np.testing.assert_allclose(x, [1.2, 2.0])  # open-loop chain of integrators
+    assert ob.dropouts_ == 1 and np.all(np.isfinite(ob.x_hat))
+    ob.reset()
+    assert ob.dropouts_ == 0
+    np.testing.assert_array_equal(ob.z_hat, [1.0, 2.0])
+
+
+def test_saturation_clips_reported_estimate_only():
+    ob = HighGainObserver(order=2, k=100.0, z_bounds=([-1, -5], [1, 5]))
+    ob.update(np.array([0.9]), np.zeros(0), 0.01)
+    assert ob.z_hat[1] == 5.0 and ob._z[1] > 5.0
+
+
+def test_update_returns_fresh_arrays():
+    ob = HighGainObserver(order=2, k=10.0)
+    a = ob.update(np.array([1.0]), np.zeros(0), 1e-3)
+    b = ob.update(np.array([1.0]), np.zeros(0), 1e-3)
+    assert not np.shares_memory(a, b) and not np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("kwargs, exc, match", [
+    ({"order": 2, "k": 0.0}, DesignError, "k must be > 0"),
+    ({"order": 2, "k": float("nan")}, DesignError, "k must be finite"),
+    ({"order": 2, "k": 1.0, "p": [1, 2, 1]}, DimensionError, "p must have n = 2"),
+    ({"order": 2, "k": 1.0, "p": [1, -1]}, DesignError, "Hurwitz"),
+    ({"order": 2, "k": 1.0, "method": "rk45"}, DesignError, "method must be one of"),
+    ({"order": 2, "k": 1.0, "z_bounds": ([1, 1], [0, 2])}, DesignError, "lower < upper"),
+    ({"k": 1.0}, DesignError, "needs a system or an explicit order"),
+    ({"order": 2, "k": 1.0, "model": True}, DesignError, "model=True needs a system"),
+])
+def test_bad_input(kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        HighGainObserver(**kwargs)
+
+
+def test_order_mismatch_and_unknown_names(chain):
+    with pytest.raises(DimensionError, match="order 3 does not match"):
+        HighGainObserver(chain(2)(), k=1.0, order=3)
+    with pytest.raises(DesignError, match=r"unknown observer 'hgo'; valid: \['high_gain'"):
+        make_observer("hgo", None, k=1.0)
+    with pytest.raises(DesignError, match="unexpected keyword argument 'gain'"):
+        make_observer("high_gain", None, order=2, gain=1.0)
