@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from math import factorial
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -10,6 +12,7 @@ from hgo_mj.design import binomial_coefficients, check_hurwitz, hgo_gains, obser
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.inputs import Multisine
 from hgo_mj.observers import HighGainObserver, make_observer
+from hgo_mj.observers.high_gain import matched_gain
 from hgo_mj.plants.ode import OdePlant
 from hgo_mj.simulate import simulate
 
@@ -37,29 +40,74 @@ def _steady_amplitude(t, e, t_from):
     return 0.5 * (e[sel].max() - e[sel].min())
 
 
+def _sampled_chain(n, dt):
+    """Phi = e^{A dt} and S = int_0^dt e^{A s} ds of the chain of integrators, in closed form."""
+    Phi = np.array([[dt ** (j - i) / factorial(j - i) if j >= i else 0.0 for j in range(n)]
+                    for i in range(n)])
+    S = np.array([[dt ** (j - i + 1) / factorial(j - i + 1) if j >= i else 0.0
+                   for j in range(n)] for i in range(n)])
+    return Phi, S
+
+
+@pytest.mark.parametrize("method", ["exact", "rk4"])
 @pytest.mark.parametrize("n", [2, 3, 4])
-def test_disturbance_transfer_matches_eq3(chain, n):
+def test_disturbance_transfer_matches_eq3(chain, n, method):
     """e1(s) = w(s) / (s + k)^n for y^(n) = w (paper 000, eq. 3, binomial p).
 
-    The plant starts on the periodic orbit y = sin(omega t), so y^(n) = w is a pure sinusoid
-    and no polynomial drift enters through the held measurement.
+    The plant starts on the periodic orbit y = sin(omega t), so y^(n) = w is a pure sinusoid.
+    Sampling at dt changes eq. 3 by O(k dt); the test predicts the sampled amplitude exactly:
+    for ``exact`` the error obeys e_{k+1} = (Phi - Ld C) e_k + S B w_k; for
+    ``rk4`` the observer sees y through a zero-order hold, (1 - e^{-s dt}) / (s dt).
     """
-    k, f = 6.0, 0.4
+    k, f, dt = 6.0, 0.4, 1e-3
     omega = 2 * np.pi * f
     x0 = [omega**i * np.sin(i * np.pi / 2) for i in range(n)]
-    plant = OdePlant(chain(n)(), dt=1e-3, physics_dt=1e-3)
-    ob = HighGainObserver(plant.system, k=k)
+    plant = OdePlant(chain(n)(), dt=dt, physics_dt=dt)
+    ob = HighGainObserver(plant.system, k=k, method=method)
     w = Multisine([omega**n], [f], [n * np.pi / 2])
     traj = simulate(plant, None, {"hgo": ob}, w, duration=20.0, x0=x0)
     e1 = traj.error("hgo")[:, 0]
     s = 1j * omega
     continuous = abs(s + k) ** -n * omega**n  # eq. 3 with |w| = omega^n
-    # The observer sees y through a zero-order hold of dt, (1 - e^{-s dt}) / (s dt): the output
-    # error is y - T(s) ZOH(s) y with T = 1 - s^n / (s + k)^n, which tends to eq. 3 as dt -> 0.
-    T = 1 - (s / (s + k)) ** n
-    sampled = abs(1 - T * (1 - np.exp(-s * 1e-3)) / (s * 1e-3))
+    if method == "exact":
+        Phi, S = _sampled_chain(n, dt)
+        M = Phi - np.outer(matched_gain(binomial_coefficients(n), k, dt), np.eye(n)[0])
+        z = np.exp(s * dt)
+        sampled = abs(np.linalg.solve(z * np.eye(n) - M, S[:, -1])[0]) * omega**n
+    else:
+        T = 1 - (s / (s + k)) ** n
+        sampled = abs(1 - T * (1 - np.exp(-s * dt)) / (s * dt))
     assert abs(sampled - continuous) < 0.06 * continuous
-    assert _steady_amplitude(traj.t, e1, 12.0) == pytest.approx(sampled, rel=2e-3)
+    assert _steady_amplitude(traj.t, e1, 12.0) == pytest.approx(sampled, rel=3e-3)
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5])
+@pytest.mark.parametrize("kdt", [1e-3, 0.05, 0.5, 3.0])
+def test_matched_gain_places_the_sampled_poles(n, kdt):
+    """eig(Phi - Ld C) = exp(k dt r_i), and Ld / dt -> (p_i k^i) as k dt -> 0."""
+    rng = np.random.default_rng(n)
+    roots = -rng.uniform(0.5, 2.0, n)
+    p = np.poly(roots)[1:]
+    k, dt = 20.0, kdt / 20.0
+    Ld = matched_gain(p, k, dt)
+    Phi, _ = _sampled_chain(n, dt)
+    # compare characteristic polynomials (eigenvalues of near-repeated roots are ill-conditioned)
+    charpoly = np.poly(Phi - np.outer(Ld, np.eye(n)[0]))
+    np.testing.assert_allclose(charpoly, np.poly(np.exp(k * dt * roots)), rtol=1e-9, atol=1e-11)
+    if kdt <= 1e-3:
+        np.testing.assert_allclose(Ld / dt, hgo_gains(p, k), rtol=5 * n * kdt)
+
+
+@pytest.mark.parametrize("n", [2, 3, 4])
+def test_exact_update_tracks_polynomials_without_lag(chain, n):
+    """y^(n) = 0: the sampled-data observer's error decays to zero; the held measurement of the
+    rk4 update leaves a lag of about dt/2 times y' (the sawtooth a hold makes)."""
+    plant = OdePlant(chain(n)(), dt=1e-3, physics_dt=1e-3)
+    x0 = [1.0, 10.0] + [0.0] * (n - 2)  # a ramp, 10 units per second
+    obs = {m: HighGainObserver(plant.system, k=40.0, method=m) for m in ("exact", "rk4")}
+    traj = simulate(plant, None, obs, Multisine([0.0], [0.0]), duration=2.0, x0=x0)
+    assert np.abs(traj.error("exact")[-1]).max() < 1e-9
+    assert abs(traj.error("rk4")[-1, 0]) > 1e-3  # ~ dt/2 * 10
 
 
 @pytest.mark.parametrize("n", [2, 3])
@@ -116,7 +164,12 @@ def test_euler_with_too_long_period_is_refused_with_the_bound():
     warn = HighGainObserver(order=2, k=50.0, method="euler", on_unstable="warn")
     with pytest.warns(RuntimeWarning, match="unstable"):
         warn.update(np.array([1.0]), np.zeros(0), 0.05)
+    # the sampled-data update is stable for every period
     assert HighGainObserver(order=2, k=50.0, method="exact").max_stable_period() == np.inf
+    ob = HighGainObserver(order=2, k=50.0, method="exact")
+    for _ in range(50):
+        x = ob.update(np.array([1.0]), np.zeros(0), 1.0)
+    np.testing.assert_allclose(x, [1.0, 0.0], atol=1e-12)
 
 
 def test_dropout_holds_prediction_and_counts():

@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
+from math import factorial
 from typing import Any
 
 import numpy as np
-from scipy.linalg import expm
 
 from .._validate import finite_scalar, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
@@ -61,29 +61,79 @@ def affine_step(M: Array, b: Array) -> Callable[..., tuple[float, ...]]:
     return scope["step"]
 
 
-def discretize(F: Array, G: Array, dt: float, method: str) -> tuple[Array, Array]:
-    """One-step map of ``z' = F z + G w`` with ``w`` held over ``dt``: ``z+ = Md z + Gd w``.
+def sampled_chain(n: int, dt: float) -> tuple[Array, Array]:
+    """``Phi = e^{A dt}`` and ``S = int_0^dt e^{A s} ds`` of the chain of ``n`` integrators."""
+    Phi = np.zeros((n, n))
+    S = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            Phi[i, j] = dt ** (j - i) / factorial(j - i)
+            S[i, j] = dt ** (j - i + 1) / factorial(j - i + 1)
+    return Phi, S
 
-    ``exact`` is the zero-order-hold solution (matrix exponential); ``euler`` and ``rk4`` are
-    what those integrators compute on this linear ODE (Taylor polynomials of degree 1 and 4).
+
+def matched_gain(p: Array, k: float, dt: float) -> Array:
+    """Gain ``Ld`` placing the eigenvalues of ``Phi - Ld C`` at ``exp(k r_i dt)``, ``r_i`` the
+    roots of ``s^n + p_1 s^(n-1) + ... + p_n``: the sampled-data observer whose error at the
+    samples decays exactly as the continuous one's modes (pole matching).
+
+    Ackermann's formula in the scaled coordinates ``diag(1, dt, ..., dt^(n-1))``, in which the
+    sampled chain does not depend on ``dt``, applied to ``Phi - I`` so that the tiny
+    ``(k dt)^n`` terms are not lost to cancellation near ``z = 1``.
+    As ``k dt -> 0``, ``Ld / dt -> (p_i k^i)``: the continuous gains of paper 000, eq. 2.
     """
-    n = F.shape[0]
+    n = p.size
+    # Pole placement for N = Phi - I (nilpotent; scaled: N_ij = 1/(j-i)! for j > i) with the
+    # eigenvalues w_i = exp(k r_i dt) - 1 computed by expm1: no cancellation when k dt is small.
+    N = sampled_chain(n, 1.0)[0] - np.eye(n)
+    w = np.expm1(k * dt * np.roots(np.concatenate(([1.0], p))))
+    q = np.zeros((n, n))
+    for c in np.real(np.poly(w)):  # Horner: q(N) = N^n + c_1 N^(n-1) + ... + c_n I
+        q = q @ N + c * np.eye(n)
+    obs = np.array([np.linalg.matrix_power(N, i)[0] for i in range(n)])  # C N^i
+    en = np.zeros(n)
+    en[-1] = 1.0
+    return q @ np.linalg.solve(obs, en) / dt ** np.arange(n)
+
+
+def one_step_map(p: Array, k: float, dt: float, method: str,
+                 closed: bool = True) -> tuple[Array, Array, Array]:
+    """One sample of the observer: ``z+ = M z + b y + g w`` with ``y`` and ``w = phi`` held.
+
+    * ``exact``: the sampled-data observer. Between samples the chain is propagated exactly
+      (``Phi = e^{A dt}``, ``g = S B``) and the correction ``Ld (y_k - z_1(t_k))`` uses the
+      pole-matched gain of :func:`matched_gain`: ``M = Phi - Ld C`` has eigenvalues
+      ``exp(k r_i dt)``, stable for every ``dt``, and a polynomial output of degree < n is
+      tracked without the lag and sawtooth that a held measurement causes.
+    * ``euler``: forward Euler of the continuous observer, ``M = I + dt (A - L C)`` with
+      ``L = (p_i k^i)`` (paper 004, eq. 53, for this observer); unstable for long ``dt``.
+    * ``rk4``: classical RK4 of the continuous observer with the measurement held, i.e. the
+      degree-4 Taylor polynomial of ``e^{(A - L C) dt}``; unstable for long ``dt``.
+
+    ``closed=False`` gives the open-loop prediction (no correction), used over a dropout.
+    """
+    n = p.size
+    Phi, S = sampled_chain(n, dt)
+    B = np.zeros(n)
+    B[-1] = 1.0
     if method == "exact":
-        aug = np.zeros((n + G.shape[1], n + G.shape[1]))
-        aug[:n, :n] = F * dt
-        aug[:n, n:] = G * dt
-        E = expm(aug)
-        return E[:n, :n], E[:n, n:]
+        b = matched_gain(p, k, dt) if closed else np.zeros(n)
+        M = Phi.copy()
+        M[:, 0] -= b
+        return M, b, S @ B
+    L = p * k ** np.arange(1, n + 1) if closed else np.zeros(n)
+    F = np.diag(np.ones(n - 1), 1)
+    F[:, 0] -= L
     order = 1 if method == "euler" else 4
-    Md = np.eye(n)
-    S = np.eye(n) * dt  # sum_{j<order} dt^{j+1} F^j / (j+1)!
+    M = np.eye(n)
+    Sm = np.eye(n) * dt  # sum_{j<order} dt^{j+1} F^j / (j+1)!
     term = np.eye(n)
     for j in range(1, order + 1):
         term = term @ F * dt / j
-        Md = Md + term
+        M = M + term
         if j < order:
-            S = S + term * dt / (j + 1)
-    return Md, S @ G
+            Sm = Sm + term * dt / (j + 1)
+    return M, Sm @ L, Sm @ B
 
 
 def spectral_radius(M: Array) -> float:
@@ -110,9 +160,10 @@ class HighGainObserver(Observer):
     model : bool
         Add the model term ``phi(sat(z_hat), u)`` of Gauthier et al. (needs a system).
     method : {"exact", "euler", "rk4"}
-        How ``update`` integrates over one sample with ``y`` held: ``exact`` is the
-        zero-order-hold solution of the linear part (the model term, if any, held at its value
-        at the start of the sample); ``euler`` and ``rk4`` are those integrators.
+        How ``update`` advances one sample (see :func:`one_step_map`): ``exact`` is the
+        sampled-data observer (chain propagated exactly, pole-matched correction, stable for
+        every period; the model term, if any, held at its start-of-sample value); ``euler`` and
+        ``rk4`` integrate the continuous observer with the measurement held.
     z_bounds : (array_like, array_like), optional
         Saturation of the estimate against peaking (Khalil, sec. 14.5): the reported
         ``z_hat``/``x_hat`` and the argument of the model term are clipped to these bounds;
@@ -177,59 +228,45 @@ class HighGainObserver(Observer):
                                   f"upper {hi.tolist()}")
             self.z_bounds = (lo, hi)
         self.L = hgo_gains(self.p, self.k_)
-        self._steps: dict[float, tuple[Callable, Callable, Array]] = {}
+        self._steps: dict[float, tuple[Callable, Callable, Array, Array]] = {}
         self._init = (x_hat0, z_hat0)
         self.reset(x_hat0, z_hat0=z_hat0)
 
     # ------------------------------------------------------------------ setup
-    def _matrices(self) -> tuple[Array, Array]:
-        """``F = A - L C`` and ``G = [L, B]`` of ``z' = F z + L y + B phi``."""
-        n = self.n
-        F = np.diag(np.ones(n - 1), 1)
-        F[:, 0] -= self.L
-        G = np.zeros((n, 2))
-        G[:, 0] = self.L
-        G[-1, 1] = 1.0
-        return F, G
-
     def max_stable_period(self) -> float:
-        """Largest sample period for which ``method``'s one-step error map is stable (inf: exact)."""
+        """Largest sample period for which ``method``'s one-step error map is stable."""
         if self.method == "exact":
             return float("inf")
-        F, G = self._matrices()
-        lo, hi = 0.0, 1.0
-        while spectral_radius(discretize(F, G, hi, self.method)[0]) < 1.0:
+
+        def stable(dt: float) -> bool:
+            return spectral_radius(one_step_map(self.p, self.k_, dt, self.method)[0]) < 1.0
+
+        lo, hi = 0.0, 1.0 / self.k_
+        while stable(hi):
             lo, hi = hi, hi * 2.0
-            if hi > 1e9:
+            if hi > 1e6 / self.k_:
                 return float("inf")
         for _ in range(60):
             mid = 0.5 * (lo + hi)
-            if spectral_radius(discretize(F, G, mid, self.method)[0]) < 1.0:
-                lo = mid
-            else:
-                hi = mid
+            lo, hi = (mid, hi) if stable(mid) else (lo, mid)
         return lo
 
-    def _compile(self, dt: float) -> tuple[Callable, Callable, Array]:
+    def _compile(self, dt: float) -> tuple[Callable, Callable, Array, Array]:
         dt = finite_scalar("dt", dt, positive=True)
-        F, G = self._matrices()
-        Md, Gd = discretize(F, G, dt, self.method)
-        rho = spectral_radius(Md)
+        M, b, g = one_step_map(self.p, self.k_, dt, self.method)
+        rho = spectral_radius(M)
         if rho >= 1.0 and self.on_unstable != "ignore":
-            msg = (f"{self.method} integration of the high-gain observer (n={self.n}, k={self.k_:g})"
-                   f" with sample period {dt:g} is unstable: spectral radius of the one-step error "
+            msg = (f"{self.method} update of the high-gain observer (n={self.n}, k={self.k_:g}) "
+                   f"with sample period {dt:g} is unstable: spectral radius of the one-step error "
                    f"map {rho:.4g} >= 1; the largest stable period is "
-                   f"{self.max_stable_period():.4g} (or use method='exact')")
+                   f"{self.max_stable_period():.4g}")
             if self.on_unstable == "raise":
                 raise DesignError(msg)
             warnings.warn(msg, RuntimeWarning, stacklevel=3)
-        # open loop (dropout): same integration without output injection
-        F0 = np.diag(np.ones(self.n - 1), 1)
-        Md0, Gd0 = discretize(F0, G, dt, self.method)
-        entry = (affine_step(Md, Gd[:, 0]), affine_step(Md0, np.zeros(self.n)), Gd[:, 1].copy(),
-                 Gd0[:, 1].copy())
-        self._steps[dt] = entry  # type: ignore[assignment]
-        return entry  # type: ignore[return-value]
+        M0, _, g0 = one_step_map(self.p, self.k_, dt, self.method, closed=False)  # dropout
+        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.n)), g, g0)
+        self._steps[dt] = entry
+        return entry
 
     # -------------------------------------------------------------- interface
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
@@ -248,7 +285,7 @@ class HighGainObserver(Observer):
         entry = self._steps.get(dt)
         if entry is None:
             entry = self._compile(dt)
-        closed, open_, gphi, gphi0 = entry  # type: ignore[misc]
+        closed, open_, gphi, gphi0 = entry
         z = self._z
         if yi != yi:  # NaN: sensor dropout, predict without correction
             self.dropouts_ += 1
@@ -266,11 +303,13 @@ class HighGainObserver(Observer):
         return self.x_hat
 
     def _rk4_model(self, y: float, u: Any, dt: float) -> tuple[float, ...]:
-        F, G = self._matrices()
-        L, B = G[:, 0], G[:, 1]
+        L = self.L
 
         def rhs(z: Array) -> Array:
-            return F @ z + L * y + B * float(self.system.phi(self._saturate(z), u))  # type: ignore
+            dz = np.empty_like(z)
+            dz[:-1] = z[1:]
+            dz[-1] = float(self.system.phi(self._saturate(z), u))  # type: ignore[union-attr]
+            return dz + L * (y - z[0])
 
         z = np.array(self._z)
         k1 = rhs(z)

@@ -1,0 +1,959 @@
+"""Sensor models: turn a plant's clean outputs ``y`` into what a real sensor reports.
+
+A :class:`SensorChain` applies a sequence of :class:`Stage` objects **in the order they are
+given**, every stage drawing its random numbers from the one seeded
+:class:`numpy.random.Generator` owned by the chain, so that the same seed gives bit-identical
+measurement sequences.  Each stage returns a new array and never modifies its input.
+
+The order matters (quantizing then adding a bias is not the same as biasing then quantizing).
+The recommended physical order, from the plant to the observer, is::
+
+    delay -> sample_hold -> bias -> drift -> gaussian / uniform noise -> outliers
+          -> quantize -> saturate -> dropout
+
+i.e. the signal is transported and sampled, the transducer adds its offset, drift and noise
+(and rare spikes), the ADC or encoder quantizes and clips, and finally the link may lose the
+sample (a lost sample is NaN, never a silent zero).
+
+Stages (registry name in parentheses): :class:`GaussianNoise` (``gaussian``),
+:class:`UniformNoise` (``uniform``), :class:`Bias` (``bias``), :class:`RandomWalkDrift`
+(``drift``), :class:`Quantization` (``quantize``), :class:`SampleHold` (``sample_hold``),
+:class:`Delay` (``delay``), :class:`Dropout` (``dropout``), :class:`Outliers` (``outliers``),
+:class:`Saturation` (``saturate``).  Build them by name with :func:`make_stage` or a whole
+chain from a JSON-like list with :meth:`SensorChain.from_spec`.
+
+Parameters marked *per channel* accept a scalar (the same for every output channel) or a 1-D
+sequence with one entry per channel; a length that does not match ``y`` raises
+:class:`~hgo_mj.exceptions.DimensionError` when the stage is called.
+
+References
+----------
+.. [000] E. Bullinger, A. Ilchmann, F. Allgöwer, "A simple adaptive observer for nonlinear
+   systems", NOLCOS 1998: measurement noise given as a power spectral density (0.25e-6)
+   with a sample time (0.01 h), as Simulink's band-limited white noise block, whose variance
+   is ``psd / sample_time``.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._validate import finite_scalar, reject_unknown
+from .exceptions import DesignError, DimensionError
+
+Array = NDArray[np.float64]
+
+__all__ = [
+    "STAGES",
+    "Bias",
+    "Delay",
+    "Dropout",
+    "GaussianNoise",
+    "Outliers",
+    "Quantization",
+    "RandomWalkDrift",
+    "SampleHold",
+    "Saturation",
+    "SensorChain",
+    "Stage",
+    "UniformNoise",
+    "encoder",
+    "make_stage",
+]
+
+_EXPECT = {
+    "real": "finite",
+    "nonneg": ">= 0",
+    "positive": "> 0",
+    "prob": "in [0, 1]",
+    "extended": "a real number or +-inf (not NaN)",
+}
+
+
+def _channel_param(where: str, value: Any, kind: str = "real") -> float | Array:
+    """Validate a per-channel parameter: a scalar (all channels) or a 1-D sequence (one each).
+
+    Parameters
+    ----------
+    where : str
+        ``"Class.param"``, used in error messages.
+    value : float or array_like
+        The value given by the user.
+    kind : {"real", "nonneg", "positive", "prob", "extended"}
+        ``real``: finite; ``nonneg``: finite and >= 0; ``positive``: finite and > 0;
+        ``prob``: in [0, 1]; ``extended``: not NaN (+-inf allowed).
+
+    Returns
+    -------
+    float or ndarray
+        A float for a scalar, otherwise a read-only 1-D float array.
+
+    Raises
+    ------
+    DesignError
+        Not a number, NaN, infinite (unless ``extended``) or out of range.
+    DimensionError
+        More than one dimension, or an empty sequence.
+    """
+    if value is None or isinstance(value, (str, bytes)):
+        raise DesignError(f"{where} must be a real number or a 1-D sequence of them (one per "
+                          f"channel); found {value!r}")
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise DesignError(f"{where} must be a real number or a 1-D sequence of them (one per "
+                          f"channel); found {value!r}") from None
+    if a.ndim > 1:
+        raise DimensionError(f"{where} must be a scalar or 1-D (one entry per channel); "
+                             f"found shape {a.shape}")
+    if a.ndim == 1 and a.size == 0:
+        raise DimensionError(f"{where} must be a scalar or hold one entry per channel; "
+                             f"found an empty sequence")
+    found = a.item() if a.ndim == 0 else a.tolist()
+    if np.any(np.isnan(a)):
+        what = "not NaN" if kind == "extended" else "finite"
+        raise DesignError(f"{where} must be {what}; found {found}")
+    if kind != "extended" and not np.all(np.isfinite(a)):
+        raise DesignError(f"{where} must be finite; found {found}")
+    bad = ((kind == "nonneg" and np.any(a < 0))
+           or (kind == "positive" and np.any(a <= 0))
+           or (kind == "prob" and np.any((a < 0) | (a > 1))))
+    if bad:
+        raise DesignError(f"{where} must be {_EXPECT[kind]}; found {found}")
+    if a.ndim == 0:
+        return float(a)
+    a.setflags(write=False)
+    return a
+
+
+def _json(value: float | Array) -> float | list[float]:
+    """A per-channel parameter as plain JSON data (float or list of floats)."""
+    return value if isinstance(value, float) else [float(v) for v in value]
+
+
+def _copy(value: float | Array) -> float | Array:
+    return value if isinstance(value, float) else value.copy()
+
+
+class Stage:
+    """One step of a sensor chain (base class).
+
+    Subclasses implement :meth:`__call__` and, when they keep state, :meth:`reset`.  They
+    validate their parameters in ``__init__`` and record them (as JSON-friendly values) in
+    ``self._params`` for :meth:`params`.
+
+    Attributes
+    ----------
+    name : str
+        Registry key (see :data:`STAGES`).
+    summary : str
+        One-line description, for ``hgo-mj list``.
+    """
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+
+    def __init__(self) -> None:
+        self._params: dict[str, Any] = {}
+        self._n: int | None = None      # channel count fixed by per-channel parameters
+        self._n_from = ""               # name of the parameter that fixed it
+
+    # -- helpers for subclasses ------------------------------------------------------------
+    def _channels(self, **values: float | Array) -> None:
+        """Fix the channel count from the per-channel (array) parameters; they must agree."""
+        for pname, v in values.items():
+            if isinstance(v, float):
+                continue
+            if self._n is None:
+                self._n, self._n_from = v.shape[0], pname
+            elif v.shape[0] != self._n:
+                cls = type(self).__name__
+                raise DimensionError(
+                    f"{cls}.{pname} has {v.shape[0]} entries but {cls}.{self._n_from} has "
+                    f"{self._n}; per-channel parameters must have the same length")
+
+    def _mismatch(self, n: int) -> None:
+        raise DimensionError(
+            f"{type(self).__name__}.{self._n_from} has {self._n} entries (one per channel) "
+            f"but y has {n} channels")
+
+    # -- interface -------------------------------------------------------------------------
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        """Apply the stage.
+
+        Parameters
+        ----------
+        t : float
+            Time of the sample, seconds.
+        y : ndarray, shape (n,)
+            Input samples, a 1-D float array (not modified).
+        rng : numpy.random.Generator
+            The chain's generator; the only source of randomness.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            A new array.
+        """
+        raise NotImplementedError
+
+    def reset(self) -> None:
+        """Clear the internal state (delay buffers, drift, held values, counters)."""
+
+    def params(self) -> dict[str, Any]:
+        """The constructor parameters, as JSON-friendly values."""
+        return {k: (list(v) if isinstance(v, list) else v) for k, v in self._params.items()}
+
+    def noise_variance(self) -> float | Array | None:
+        """Variance this stage adds as white noise (``None`` if it adds none).
+
+        Used by :meth:`SensorChain.noise_variance` for a default measurement covariance.
+        """
+        return None
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self._params.items())
+        return f"{type(self).__name__}({args})"
+
+
+class GaussianNoise(Stage):
+    """Additive white Gaussian noise.
+
+    Give **either** ``std`` **or** ``psd`` together with ``sample_time``; the latter follows
+    Simulink's band-limited white noise block: ``variance = psd / sample_time``.
+
+    Parameters
+    ----------
+    std : float or array_like, optional
+        Standard deviation, >= 0, per channel.
+    psd : float or array_like, optional
+        Noise power spectral density (height of the PSD), >= 0, per channel.
+    sample_time : float, optional
+        Sample time of the band-limited noise, > 0 (only with ``psd``).
+    """
+
+    name = "gaussian"
+    summary = "additive white Gaussian noise: std=, or psd= with sample_time= (var = psd/Ts)"
+
+    def __init__(self, std: float | ArrayLike | None = None, *,
+                 psd: float | ArrayLike | None = None,
+                 sample_time: float | None = None) -> None:
+        super().__init__()
+        if (std is None) == (psd is None):
+            found = "both" if std is not None else "neither"
+            raise DesignError("GaussianNoise needs exactly one of std= or psd= (with "
+                              f"sample_time=); found {found}")
+        if std is not None:
+            if sample_time is not None:
+                raise DesignError("GaussianNoise.sample_time goes with psd=, not with std=; "
+                                  f"found std={std!r} and sample_time={sample_time!r}")
+            self._std = _channel_param("GaussianNoise.std", std, "nonneg")
+            self._variance = self._std * self._std
+            self._params = {"std": _json(self._std)}
+            self._channels(std=self._std)
+        else:
+            if sample_time is None:
+                raise DesignError("GaussianNoise.sample_time must be given with psd= "
+                                  "(variance = psd / sample_time); found None")
+            psd_v = _channel_param("GaussianNoise.psd", psd, "nonneg")
+            ts = finite_scalar("GaussianNoise.sample_time", sample_time, positive=True)
+            self._variance = psd_v / ts
+            self._std = (math.sqrt(self._variance) if isinstance(self._variance, float)
+                         else np.sqrt(self._variance))
+            self._params = {"psd": _json(psd_v), "sample_time": ts}
+            self._channels(psd=psd_v)
+
+    @property
+    def variance(self) -> float | Array:
+        """Noise variance, per channel (``std**2`` or ``psd / sample_time``)."""
+        return _copy(self._variance)
+
+    @property
+    def std(self) -> float | Array:
+        """Noise standard deviation, per channel."""
+        return _copy(self._std)
+
+    def noise_variance(self) -> float | Array:
+        return self.variance
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        out = rng.standard_normal(n)
+        out *= self._std
+        out += y
+        return out
+
+
+class UniformNoise(Stage):
+    """Additive white noise uniform on ``[-half_width, half_width]``.
+
+    Parameters
+    ----------
+    half_width : float or array_like
+        Half width of the interval, >= 0, per channel.
+    """
+
+    name = "uniform"
+    summary = "additive white noise uniform on [-half_width, half_width] (var = hw^2/3)"
+
+    def __init__(self, half_width: float | ArrayLike) -> None:
+        super().__init__()
+        self._hw = _channel_param("UniformNoise.half_width", half_width, "nonneg")
+        self._params = {"half_width": _json(self._hw)}
+        self._channels(half_width=self._hw)
+
+    @property
+    def variance(self) -> float | Array:
+        """Noise variance ``half_width**2 / 3``, per channel."""
+        return self._hw * self._hw / 3.0
+
+    def noise_variance(self) -> float | Array:
+        return self.variance
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        out = rng.random(n)          # [0, 1)
+        out *= 2.0
+        out -= 1.0                   # [-1, 1)
+        out *= self._hw
+        out += y
+        return out
+
+
+class Bias(Stage):
+    """Constant additive offset.
+
+    Parameters
+    ----------
+    offset : float or array_like
+        Offset, per channel.
+    """
+
+    name = "bias"
+    summary = "constant additive offset"
+
+    def __init__(self, offset: float | ArrayLike) -> None:
+        super().__init__()
+        self._offset = _channel_param("Bias.offset", offset, "real")
+        self._params = {"offset": _json(self._offset)}
+        self._channels(offset=self._offset)
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        return y + self._offset
+
+
+class RandomWalkDrift(Stage):
+    """Bias that performs a random walk (integrated white noise).
+
+    At each call ``b += N(0, sigma**2 * dt)`` with ``dt`` the time since the previous call
+    (``dt = 0`` on the first call after construction or :meth:`reset`); the output is
+    ``y + b``.  Every call draws ``n`` normal numbers, whatever ``dt``, so the generator stream
+    does not depend on the call times.
+
+    Parameters
+    ----------
+    sigma : float or array_like
+        Random-walk intensity, >= 0, in output units per sqrt(second), per channel.
+    initial : float or array_like, default 0
+        Initial bias, per channel.
+
+    Raises
+    ------
+    DesignError
+        At call time, if ``t`` decreases (call :meth:`reset` before restarting a simulation).
+    """
+
+    name = "drift"
+    summary = "random-walk bias: b += N(0, sigma^2 dt) each call, output y + b"
+
+    def __init__(self, sigma: float | ArrayLike, initial: float | ArrayLike = 0.0) -> None:
+        super().__init__()
+        self._sigma = _channel_param("RandomWalkDrift.sigma", sigma, "nonneg")
+        self._initial = _channel_param("RandomWalkDrift.initial", initial, "real")
+        self._params = {"sigma": _json(self._sigma), "initial": _json(self._initial)}
+        self._channels(sigma=self._sigma, initial=self._initial)
+        self._b: Array | None = None
+        self._t = 0.0
+
+    @property
+    def bias(self) -> Array | None:
+        """Current drift value per channel (``None`` before the first call)."""
+        return None if self._b is None else self._b.copy()
+
+    def reset(self) -> None:
+        self._b = None
+        self._t = 0.0
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        z = rng.standard_normal(n)
+        if self._b is None:
+            self._b = np.zeros(n)
+            self._b += self._initial
+        else:
+            if n != self._b.shape[0]:
+                raise DimensionError(f"RandomWalkDrift: y changed length from "
+                                     f"{self._b.shape[0]} to {n} without reset()")
+            dt = t - self._t
+            if dt < 0:
+                raise DesignError(f"RandomWalkDrift: time must not decrease; found t={t} after "
+                                  f"t={self._t} (call reset() before restarting)")
+            z *= self._sigma
+            z *= math.sqrt(dt)
+            self._b += z
+        self._t = t
+        return y + self._b
+
+
+class Quantization(Stage):
+    """Round to a resolution: ``resolution * round(y / resolution)``.
+
+    Give **either** ``resolution`` **or** ``counts_per_rev`` (an encoder with ``N`` counts per
+    revolution, ``resolution = 2*pi/N``).  Ties round to even (:func:`numpy.rint`).
+
+    Parameters
+    ----------
+    resolution : float or array_like, optional
+        Quantization step, > 0, per channel.
+    counts_per_rev : int or array_like of int, optional
+        Encoder counts per revolution, a positive integer, per channel.
+    """
+
+    name = "quantize"
+    summary = "round to a resolution= (or encoder counts_per_rev=, step 2*pi/N)"
+
+    def __init__(self, resolution: float | ArrayLike | None = None, *,
+                 counts_per_rev: int | ArrayLike | None = None) -> None:
+        super().__init__()
+        if (resolution is None) == (counts_per_rev is None):
+            found = "both" if resolution is not None else "neither"
+            raise DesignError("Quantization needs exactly one of resolution= or "
+                              f"counts_per_rev=; found {found}")
+        if resolution is not None:
+            self._res = _channel_param("Quantization.resolution", resolution, "positive")
+            self._params = {"resolution": _json(self._res)}
+            self._channels(resolution=self._res)
+        else:
+            c = _channel_param("Quantization.counts_per_rev", counts_per_rev, "positive")
+            ca = np.asarray(c)
+            if np.any(ca != np.round(ca)):
+                found = c if isinstance(c, float) else c.tolist()
+                raise DesignError("Quantization.counts_per_rev must be a positive integer; "
+                                  f"found {found}")
+            self._res = (2.0 * math.pi / c) if isinstance(c, float) else 2.0 * np.pi / c
+            self._params = {"counts_per_rev": (int(c) if isinstance(c, float)
+                                               else [int(v) for v in c])}
+            self._channels(counts_per_rev=c)
+
+    @property
+    def resolution(self) -> float | Array:
+        """Quantization step, per channel."""
+        return _copy(self._res)
+
+    @property
+    def variance(self) -> float | Array:
+        """Variance of the quantization error under the uniform model, ``resolution**2/12``."""
+        return self._res * self._res / 12.0
+
+    def noise_variance(self) -> float | Array:
+        return self.variance
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        out = y / self._res
+        np.rint(out, out=out)
+        out *= self._res
+        return out
+
+
+class SampleHold(Stage):
+    """Sample at its own ``period`` and hold between samples (zero-order hold).
+
+    The stage samples its input on the first call and whenever ``floor((t + eps) / period)``
+    changes, with ``eps = min(1e-9 * max(1, |t|), 1e-3 * period)`` so that times such as
+    ``0.1 + 0.1 + 0.1`` sample on time; otherwise it returns the held sample.
+
+    Parameters
+    ----------
+    period : float
+        Sampling period, seconds, > 0.
+    """
+
+    name = "sample_hold"
+    summary = "sample every period= seconds and hold in between (zero-order hold)"
+
+    def __init__(self, period: float) -> None:
+        super().__init__()
+        self._period = finite_scalar("SampleHold.period", period, positive=True)
+        self._params = {"period": self._period}
+        self._k: int | None = None
+        self._held: Array | None = None
+
+    def reset(self) -> None:
+        self._k = None
+        self._held = None
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        eps = min(1e-9 * max(1.0, abs(t)), 1e-3 * self._period)
+        k = math.floor((t + eps) / self._period)
+        if self._held is None or k != self._k:
+            if self._held is not None and y.shape[0] != self._held.shape[0]:
+                raise DimensionError(f"SampleHold: y changed length from "
+                                     f"{self._held.shape[0]} to {y.shape[0]} without reset()")
+            self._k = k
+            self._held = y.copy()
+        return self._held.copy()
+
+
+class Delay(Stage):
+    """Transport delay of ``delay`` seconds.
+
+    Returns the input that arrived at the latest call time ``t_k <= t - delay`` (with a
+    tolerance of ``1e-9 * max(1, |t|)`` so that exact multiples of the call period work).
+    Before any such input exists, returns the **first** input received since construction or
+    :meth:`reset`.  Called every ``Ts`` with ``delay = m * Ts``, the output is exactly the
+    input from ``m`` calls ago.  The buffer only keeps the entries still needed.
+
+    Parameters
+    ----------
+    delay : float
+        Delay, seconds, >= 0.
+
+    Raises
+    ------
+    DesignError
+        At call time, if ``t`` decreases (call :meth:`reset` before restarting a simulation).
+    """
+
+    name = "delay"
+    summary = "transport delay of delay= seconds (first input until the buffer fills)"
+
+    def __init__(self, delay: float) -> None:
+        super().__init__()
+        self._delay = finite_scalar("Delay.delay", delay, nonnegative=True)
+        self._params = {"delay": self._delay}
+        self._buf: deque[tuple[float, Array]] = deque()
+        self._first: Array | None = None
+
+    def reset(self) -> None:
+        self._buf.clear()
+        self._first = None
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        buf = self._buf
+        if self._first is None:
+            self._first = y.copy()
+            buf.append((t, self._first))
+        else:
+            if y.shape[0] != self._first.shape[0]:
+                raise DimensionError(f"Delay: y changed length from {self._first.shape[0]} "
+                                     f"to {y.shape[0]} without reset()")
+            if t < buf[-1][0]:
+                raise DesignError(f"Delay: time must not decrease; found t={t} after "
+                                  f"t={buf[-1][0]} (call reset() before restarting)")
+            buf.append((t, y.copy()))
+        target = t - self._delay + 1e-9 * max(1.0, abs(t))
+        while len(buf) > 1 and buf[1][0] <= target:
+            buf.popleft()
+        # buf[0] is either the latest entry with t_k <= target or, when none exists yet, the
+        # first input (an entry is only dropped once its successor is old enough).
+        return buf[0][1].copy()
+
+
+class Dropout(Stage):
+    """Lose samples: with probability ``p`` per call and channel the sample becomes NaN.
+
+    A lost sample is NaN, never a silent zero; the observer must handle it.
+
+    Parameters
+    ----------
+    p : float or array_like
+        Dropout probability in [0, 1], per channel.
+
+    Attributes
+    ----------
+    count : int
+        Number of samples dropped since construction or :meth:`reset`.
+    """
+
+    name = "dropout"
+    summary = "with probability p= per sample and channel, the sample becomes NaN"
+
+    def __init__(self, p: float | ArrayLike) -> None:
+        super().__init__()
+        self._p = _channel_param("Dropout.p", p, "prob")
+        self._params = {"p": _json(self._p)}
+        self._channels(p=self._p)
+        self.count = 0
+
+    def reset(self) -> None:
+        self.count = 0
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        hit = rng.random(n) < self._p
+        out = y.copy()
+        k = int(np.count_nonzero(hit))
+        if k:
+            out[hit] = np.nan
+            self.count += k
+        return out
+
+
+class Outliers(Stage):
+    """Rare spikes: with probability ``p`` per call and channel, add ``+-magnitude``.
+
+    The sign is random (+ or - with probability 1/2).  Every call draws ``2 n`` uniform
+    numbers, hit or not.
+
+    Parameters
+    ----------
+    p : float or array_like
+        Outlier probability in [0, 1], per channel.
+    magnitude : float or array_like
+        Size of a spike, >= 0, per channel.
+
+    Attributes
+    ----------
+    count : int
+        Number of outliers added since construction or :meth:`reset`.
+    """
+
+    name = "outliers"
+    summary = "with probability p= per sample and channel, add +-magnitude= (random sign)"
+
+    def __init__(self, p: float | ArrayLike, magnitude: float | ArrayLike) -> None:
+        super().__init__()
+        self._p = _channel_param("Outliers.p", p, "prob")
+        self._mag = _channel_param("Outliers.magnitude", magnitude, "nonneg")
+        self._params = {"p": _json(self._p), "magnitude": _json(self._mag)}
+        self._channels(p=self._p, magnitude=self._mag)
+        self.count = 0
+
+    def reset(self) -> None:
+        self.count = 0
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        u = rng.random((2, n))
+        hit = u[0] < self._p
+        out = y.copy()
+        k = int(np.count_nonzero(hit))
+        if k:
+            spike = np.where(u[1] < 0.5, -1.0, 1.0)
+            spike *= self._mag
+            out[hit] += spike[hit]
+            self.count += k
+        return out
+
+
+class Saturation(Stage):
+    """Clip to ``[low, high]``.
+
+    Parameters
+    ----------
+    low, high : float or array_like
+        Limits, per channel, ``low < high``; ``-inf`` / ``+inf`` give a one-sided clip.
+        NaN samples stay NaN.
+    """
+
+    name = "saturate"
+    summary = "clip to [low=, high=] (either may be infinite)"
+
+    def __init__(self, low: float | ArrayLike, high: float | ArrayLike) -> None:
+        super().__init__()
+        self._low = _channel_param("Saturation.low", low, "extended")
+        self._high = _channel_param("Saturation.high", high, "extended")
+        self._channels(low=self._low, high=self._high)
+        if np.any(np.asarray(self._low) >= np.asarray(self._high)):
+            raise DesignError(f"Saturation needs low < high; found low={_json(self._low)}, "
+                              f"high={_json(self._high)}")
+        self._params = {"low": _json(self._low), "high": _json(self._high)}
+
+    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
+        n = y.shape[0]
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        out = np.maximum(y, self._low)          # NaN propagates; cheaper than np.clip
+        np.minimum(out, self._high, out=out)
+        return out
+
+
+#: Registry of the stages by name (the ``stage`` key of a spec).
+STAGES: dict[str, type[Stage]] = {
+    cls.name: cls
+    for cls in (Delay, SampleHold, Bias, RandomWalkDrift, GaussianNoise, UniformNoise,
+                Outliers, Quantization, Saturation, Dropout)
+}
+
+
+def make_stage(name: str, /, **params: Any) -> Stage:
+    """Build a stage from its registry name and keyword parameters.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`STAGES` (``"gaussian"``, ``"delay"``, ...).
+    **params
+        The stage's constructor parameters.
+
+    Returns
+    -------
+    Stage
+
+    Raises
+    ------
+    DesignError
+        Unknown name (the message lists the valid names), unknown or missing keyword (the
+        message lists the valid keywords), or an invalid value.
+    """
+    cls = STAGES.get(name) if isinstance(name, str) else None
+    if cls is None:
+        raise DesignError(f"unknown sensor stage {name!r}; valid: {sorted(STAGES)}")
+    sig = inspect.signature(cls.__init__)
+    accepted = [p for p in list(sig.parameters.values())[1:]
+                if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    reject_unknown(f"{cls.__name__} ({name!r})", params, [p.name for p in accepted])
+    missing = [p.name for p in accepted if p.default is p.empty and p.name not in params]
+    if missing:
+        raise DesignError(f"{cls.__name__} ({name!r}): missing parameter(s) {missing}; "
+                          f"valid: {sorted(p.name for p in accepted)}")
+    return cls(**params)
+
+
+def encoder(counts_per_rev: int, std: float = 0.0) -> list[Stage]:
+    """Stages of an incremental encoder: optional Gaussian noise, then quantization.
+
+    Parameters
+    ----------
+    counts_per_rev : int
+        Counts per revolution (resolution ``2*pi/counts_per_rev`` rad).
+    std : float, default 0
+        Standard deviation of noise added before quantization (omitted when 0).
+
+    Returns
+    -------
+    list of Stage
+    """
+    stages: list[Stage] = []
+    if finite_scalar("encoder.std", std, nonnegative=True) > 0:
+        stages.append(GaussianNoise(std=std))
+    stages.append(Quantization(counts_per_rev=counts_per_rev))
+    return stages
+
+
+def _check_seed(seed: Any) -> int | None:
+    if seed is None:
+        return None
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise DesignError(f"seed must be a non-negative integer or None; found {seed!r}")
+    return int(seed)
+
+
+class SensorChain:
+    """A sequence of sensor stages applied in order, with one seeded random generator.
+
+    Parameters
+    ----------
+    stages : sequence of Stage, default ()
+        Applied in the order given (see the module docstring for the recommended order).
+    seed : int or None, default None
+        Seed of the chain's :func:`numpy.random.default_rng`.  The same seed gives
+        bit-identical output sequences.  ``None`` draws fresh OS entropy (at construction and
+        at every :meth:`reset` without a seed).
+
+    Examples
+    --------
+    >>> chain = SensorChain([Bias(0.1), GaussianNoise(std=0.01)], seed=0)
+    >>> chain(0.0, np.zeros(2)).shape
+    (2,)
+    """
+
+    def __init__(self, stages: Sequence[Stage] = (), seed: int | None = None) -> None:
+        stages = tuple(stages)
+        for i, s in enumerate(stages):
+            if not isinstance(s, Stage):
+                raise DesignError(f"SensorChain stage {i} must be a Stage (see make_stage); "
+                                  f"found {type(s).__name__}")
+        self._stages: tuple[Stage, ...] = stages
+        self._seed0 = _check_seed(seed)
+        self._seed = self._seed0
+        self._rng = np.random.default_rng(self._seed)
+        self._dropout_stages = tuple(s for s in stages if isinstance(s, Dropout))
+
+    @property
+    def stages(self) -> tuple[Stage, ...]:
+        """The stages, in the order they are applied."""
+        return self._stages
+
+    @property
+    def seed(self) -> int | None:
+        """Seed of the current random stream (``None``: OS entropy)."""
+        return self._seed
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """The chain's random generator (shared by all stages)."""
+        return self._rng
+
+    @property
+    def dropouts(self) -> int:
+        """Total number of samples dropped by the :class:`Dropout` stages since the reset."""
+        return sum(s.count for s in self._dropout_stages)
+
+    def __len__(self) -> int:
+        return len(self._stages)
+
+    def __repr__(self) -> str:
+        return f"SensorChain({list(self._stages)!r}, seed={self._seed!r})"
+
+    def __call__(self, t: float, y: ArrayLike) -> Array:
+        """Measure: apply every stage in order to the clean outputs ``y`` at time ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Time, seconds (non-decreasing between resets for the stateful stages).
+        y : array_like, shape (n,)
+            Clean plant outputs, one entry per channel (not modified).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            The measurement, a new array (NaN where a sample was dropped).
+
+        Raises
+        ------
+        DimensionError
+            ``y`` is not 1-D, or does not match a per-channel parameter.
+        """
+        try:
+            y = np.asarray(y, dtype=float)
+        except (TypeError, ValueError):
+            raise DimensionError("SensorChain: y must be a 1-D array of numbers; "
+                                 f"found {y!r}") from None
+        if y.ndim != 1:
+            raise DimensionError("SensorChain: y must be 1-D (one entry per output channel); "
+                                 f"found shape {y.shape}")
+        if not self._stages:
+            return y.copy()
+        t = float(t)
+        if not math.isfinite(t):
+            raise DesignError(f"SensorChain: t must be finite; found {t}")
+        rng = self._rng
+        for s in self._stages:
+            y = s(t, y, rng)
+        return y
+
+    def reset(self, seed: int | None = None) -> None:
+        """Re-seed the generator and reset every stage.
+
+        Parameters
+        ----------
+        seed : int or None, default None
+            New seed; ``None`` re-uses the constructor's seed (which, if itself ``None``,
+            means fresh OS entropy).
+        """
+        self._seed = self._seed0 if seed is None else _check_seed(seed)
+        self._rng = np.random.default_rng(self._seed)
+        for s in self._stages:
+            s.reset()
+
+    def describe(self) -> list[dict[str, Any]]:
+        """The chain as JSON-friendly data: ``[{"stage": name, **params}, ...]``.
+
+        :meth:`from_spec` rebuilds an equivalent chain from it.
+        """
+        return [{"stage": s.name, **s.params()} for s in self._stages]
+
+    @classmethod
+    def from_spec(cls, spec: Sequence[Mapping[str, Any]], seed: int | None = None
+                  ) -> SensorChain:
+        """Build a chain from a list of dicts such as ``{"stage": "gaussian", "std": 0.01}``.
+
+        Parameters
+        ----------
+        spec : sequence of mapping
+            One mapping per stage, in order, each with a ``"stage"`` key (a registry name)
+            and the stage's parameters.
+        seed : int or None, default None
+            Seed of the chain.
+
+        Raises
+        ------
+        DesignError
+            A malformed entry, a missing ``"stage"`` key, or an invalid stage (see
+            :func:`make_stage`).
+        """
+        if isinstance(spec, (Mapping, str, bytes)) or not isinstance(spec, Sequence):
+            raise DesignError("sensor spec must be a list of dicts like "
+                              f"{{'stage': 'gaussian', 'std': 0.01}}; found {spec!r}")
+        stages = []
+        for i, item in enumerate(spec):
+            if not isinstance(item, Mapping):
+                raise DesignError(f"sensor spec[{i}] must be a dict like "
+                                  f"{{'stage': 'gaussian', 'std': 0.01}}; found {item!r}")
+            if "stage" not in item:
+                raise DesignError(f"sensor spec[{i}] has no 'stage' key (one of "
+                                  f"{sorted(STAGES)}); found keys {sorted(map(str, item))}")
+            params = {k: v for k, v in item.items() if k != "stage"}
+            stages.append(make_stage(item["stage"], **params))
+        return cls(stages, seed=seed)
+
+    def noise_variance(self, n_outputs: int) -> Array:
+        """Per-channel variance of the white noise the chain adds.
+
+        The sum of the variances of the :class:`GaussianNoise` and :class:`UniformNoise`
+        stages plus ``resolution**2 / 12`` for each :class:`Quantization` stage; bias, drift,
+        outliers, saturation, delay, sample-hold and dropout are not counted.  A default for
+        a Kalman filter's measurement covariance.
+
+        Parameters
+        ----------
+        n_outputs : int
+            Number of output channels, >= 1.
+
+        Returns
+        -------
+        ndarray, shape (n_outputs,)
+
+        Raises
+        ------
+        DimensionError
+            A per-channel parameter whose length is not ``n_outputs``.
+        """
+        if (isinstance(n_outputs, bool) or not isinstance(n_outputs, (int, np.integer))
+                or n_outputs < 1):
+            raise DesignError(f"n_outputs must be a positive integer; found {n_outputs!r}")
+        var = np.zeros(int(n_outputs))
+        for s in self._stages:
+            v = s.noise_variance()
+            if v is None:
+                continue
+            if not isinstance(v, float) and v.shape[0] != n_outputs:
+                raise DimensionError(f"{type(s).__name__}.{s._n_from} has {v.shape[0]} "
+                                     f"entries (one per channel) but n_outputs is {n_outputs}")
+            var += v
+        return var

@@ -1,0 +1,118 @@
+"""Ibrir's inverted pendulum with the pivot acceleration as input (``models/cart_pendulum.xml``)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import DesignError
+from ._mujoco import _TOL, _MjReader, _MujocoSystem
+from .base import Array
+
+
+class CartPendulum(_MujocoSystem):
+    r"""Inverted pendulum whose pivot acceleration is the input (Ibrir 2007, eq. 66).
+
+    In time-scaled units (:math:`g/l = 1`) the paper's model is
+
+    .. math::
+
+        \dot x_1 = x_2, \qquad \dot x_2 = \sin x_1 + u \cos x_1, \qquad y = x_1,
+
+    with :math:`x_1` the angle from the upright position and :math:`u` the normalised
+    acceleration of the pivot. The analytic model keeps the parameters the MJCF sets,
+
+    .. math::
+
+        J \ddot x_1 = m l \left(g \sin x_1 + a\, u \cos x_1\right) - d \dot x_1,
+
+    with :math:`m` the bob mass, :math:`l` the pivot-to-bob distance, :math:`J` the inertia
+    about the pivot, :math:`d` the hinge damping and :math:`a` the pivot acceleration per unit
+    input (gear over the translating mass, signed). The shipped model has :math:`g = l = m =
+    a = 1`, :math:`d = 0` and :math:`J = 1 + 10^{-12}`: eq. 66. The state is already the
+    normal form :math:`z = (y, \dot y)` and :math:`\varphi(z, u) = \ddot x_1`.
+
+    The pivot rides a carriage 1e9 times heavier than the bob, driven by a force equal to the
+    translating mass times ``u``: the carriage acceleration equals ``a u`` up to the bob's
+    reaction, a relative :math:`m / M_t \approx 10^{-9}` that the analytic model leaves out.
+
+    Parameters (``param_names``): ``g``, ``length``, ``mass``, ``inertia`` (about the pivot),
+    ``damping``, ``accel_gain``; read by :meth:`from_mjmodel` from body ``pole``, joints
+    ``hinge`` and ``slider``, actuator ``acceleration``.
+
+    References
+    ----------
+    .. [1] S. Ibrir, "On observer design for nonlinear systems", Int. J. Control (2007),
+       Section 4.1, eq. (66).
+    """
+
+    name = "cart_pendulum"
+    summary = "inverted pendulum driven by pivot acceleration, Ibrir 2007 eq. 66 (MuJoCo)"
+    reference = "Ibrir (2007), On observer design for nonlinear systems, eq. 66"
+    state_names = ("angle", "angular_velocity")
+    input_names = ("acceleration",)
+    output_names = ("angle",)
+    param_names = ("g", "length", "mass", "inertia", "damping", "accel_gain")
+    _positive = ("length", "mass", "inertia")
+    default_x0 = (0.1, 0.0)
+    normal_form_order = 2
+    model_file = "cart_pendulum.xml"
+    joints = ("hinge",)
+    actuators = ("acceleration",)
+
+    @classmethod
+    def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
+        r = _MjReader(model, cls.__name__)
+        r.parent("pole", "carriage")
+        r.parent("carriage", None)
+        _, dof, anchor, axis = r.joint("hinge")
+        mass, r_perp, inertia = r.about_axis("pole", anchor, axis)
+        length = r.along("the bob", r_perp, -r.down)  # upright at q = 0: COM above the pivot
+        if not length > 0:
+            raise DesignError(f"{cls.__name__}: the bob must be above the pivot at angle 0; "
+                              f"found it {-length:g} below")
+        js, sdof, _, e = r.joint("slider", kind="slide")
+        if int(model.jnt_bodyid[js]) != r.body("carriage"):
+            raise DesignError(f"{cls.__name__}: joint 'slider' must move body 'carriage'")
+        # Bob displacement per radian at angle 0 is axis x r; its component along the slider
+        # gives the sign with which the pivot acceleration enters: J x1'' = -m (e . axis x r) ...
+        coupling = -float(e @ np.cross(axis, r_perp / length))
+        if abs(abs(coupling) - 1.0) > _TOL:
+            raise DesignError(f"{cls.__name__}: the slider axis must lie in the pendulum's "
+                              f"swing plane; found |e . (axis x r)| = {abs(coupling):.6g}")
+        translating = float(model.body_subtreemass[r.body("carriage")]) + r.armature(sdof)
+        gain = coupling * r.gear("acceleration", "slider") / translating
+        return {"g": r.g, "length": length, "mass": mass, "inertia": inertia,
+                "damping": r.damping(dof), "accel_gain": gain}
+
+    @staticmethod
+    def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
+        th, w = float(x[0]), float(x[1])
+        acc = (p["mass"] * p["length"] * (p["g"] * math.sin(th)
+                                          + p["accel_gain"] * float(u[0]) * math.cos(th))
+               - p["damping"] * w) / p["inertia"]
+        return np.array([w, acc])
+
+    @staticmethod
+    def output(x: Array, p: Mapping[str, float]) -> Array:
+        return np.array([float(x[0])])
+
+    def to_normal(self, x: Any, u: Any = None) -> Array:
+        """``z = (x1, x2)``: the state itself."""
+        self._require_normal_form()
+        self._u(u, required=False)
+        return self._x(x)
+
+    def from_normal(self, z: Any, u: Any = None) -> Array:
+        """Inverse of :meth:`to_normal` (the identity)."""
+        self._u(u, required=False)
+        return self._z(z)
+
+    def phi(self, z: Any, u: Any = None) -> float:
+        r""":math:`\ddot y = (m l (g \sin z_1 + a u \cos z_1) - d z_2) / J`."""
+        z = self._z(z)
+        u = self._u(u, required=True)
+        return float(self.dynamics(0.0, z, u, self.params)[1])

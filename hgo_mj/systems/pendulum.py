@@ -1,0 +1,91 @@
+"""The torque-driven pendulum (``models/pendulum.xml``)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ._mujoco import _MjReader, _MujocoSystem
+from .base import Array
+
+
+class Pendulum(_MujocoSystem):
+    r"""Rigid pendulum on a horizontal hinge with a torque motor and viscous damping.
+
+    .. math::
+
+        J \ddot\theta = -m g l_c \sin\theta - d \dot\theta + b u, \qquad y = \theta
+
+    with :math:`\theta` the angle from hanging down, :math:`J` the inertia about the hinge,
+    :math:`m` the mass, :math:`l_c` the hinge-to-COM distance, :math:`d` the damping and
+    :math:`b` the actuator gear. The state is already the observability normal form
+    :math:`z = (y, \dot y)`, with
+
+    .. math:: \varphi(z, u) = \frac{b u - m g l_c \sin z_1 - d z_2}{J}.
+
+    Parameters (``param_names``): ``mass`` [kg], ``com_distance`` [m], ``inertia``
+    [kg m^2], ``damping`` [N m s/rad], ``gear`` [-], ``g`` [m/s^2]; read from
+    ``models/pendulum.xml`` by :meth:`from_mjmodel` (body ``pole``, joint ``hinge``,
+    actuator ``torque``).
+
+    References
+    ----------
+    .. [1] H. K. Khalil, *Nonlinear Systems*, 3rd ed., Prentice Hall, 2002, Example 1.2.1
+       (pendulum equation).
+    .. [2] E. Bullinger, A. Ilchmann, F. Allgöwer, "A simple adaptive observer for nonlinear
+       systems", NOLCOS 1998, eq. (1): the observability normal form.
+    """
+
+    name = "pendulum"
+    summary = "torque-driven pendulum with damping (MuJoCo)"
+    reference = "Khalil, Nonlinear Systems (2002), Example 1.2.1"
+    state_names = ("angle", "angular_velocity")
+    input_names = ("torque",)
+    output_names = ("angle",)
+    param_names = ("mass", "com_distance", "inertia", "damping", "gear", "g")
+    _positive = ("mass", "com_distance", "inertia")
+    default_x0 = (0.5, 0.0)
+    normal_form_order = 2
+    model_file = "pendulum.xml"
+    joints = ("hinge",)
+    actuators = ("torque",)
+
+    @classmethod
+    def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
+        r = _MjReader(model, cls.__name__)
+        _, dof, anchor, axis = r.joint("hinge")
+        mass, r_perp, inertia = r.about_axis("pole", anchor, axis)
+        return {"mass": mass, "com_distance": r.along("the pole's COM", r_perp, r.down),
+                "inertia": inertia, "damping": r.damping(dof),
+                "gear": r.gear("torque", "hinge"), "g": r.g}
+
+    @staticmethod
+    def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
+        th, w = float(x[0]), float(x[1])
+        acc = (p["gear"] * float(u[0]) - p["mass"] * p["g"] * p["com_distance"] * math.sin(th)
+               - p["damping"] * w) / p["inertia"]
+        return np.array([w, acc])
+
+    @staticmethod
+    def output(x: Array, p: Mapping[str, float]) -> Array:
+        return np.array([float(x[0])])
+
+    def to_normal(self, x: Any, u: Any = None) -> Array:
+        """``z = (theta, theta')``: the state itself."""
+        self._require_normal_form()
+        self._u(u, required=False)
+        return self._x(x)
+
+    def from_normal(self, z: Any, u: Any = None) -> Array:
+        """Inverse of :meth:`to_normal` (the identity)."""
+        self._u(u, required=False)
+        return self._z(z)
+
+    def phi(self, z: Any, u: Any = None) -> float:
+        r""":math:`\ddot y = (b u - m g l_c \sin z_1 - d z_2) / J`."""
+        z = self._z(z)
+        u = self._u(u, required=True)
+        return float(self.dynamics(0.0, z, u, self.params)[1])

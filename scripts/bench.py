@@ -1,0 +1,113 @@
+"""Speed of the parts, measured side by side in one run, as ratios to a bare ``mj_step`` loop.
+
+Usage: ``python scripts/bench.py [--write BENCHMARKS.md]``. Each figure is the best of several
+repeats (the machine is shared; the minimum is the least disturbed). Targets (issue 2):
+
+* a plant step adds at most 30% to a bare ``mj_step`` loop on the same model;
+* a high-gain observer update for n <= 4 costs at most one bare pendulum ``mj_step``;
+* ``simulate`` of the pendulum with the sensor chain and one high-gain observer at 1 kHz runs
+  at least 100k loop steps per second, i.e. within 4.5x of a bare ``mj_step`` loop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+
+import mujoco
+import numpy as np
+
+from hgo_mj.inputs import Multisine
+from hgo_mj.observers import HighGainObserver
+from hgo_mj.plants import MujocoPlant, model_path
+from hgo_mj.sensors import GaussianNoise, Quantization, SensorChain
+from hgo_mj.simulate import package_versions, simulate
+from hgo_mj.systems.pendulum import Pendulum
+
+
+def best_per_call(fn, number: int, repeat: int = 7) -> float:
+    """Best over ``repeat`` runs of the mean seconds per call of ``fn`` called ``number`` times."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn(number)
+        best = min(best, (time.perf_counter() - t0) / number)
+    return best
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--write", help="append the results to this markdown file")
+    ap.add_argument("--steps", type=int, default=20000)
+    args = ap.parse_args()
+    N = args.steps
+
+    m = mujoco.MjModel.from_xml_path(str(model_path("pendulum.xml")))
+    d = mujoco.MjData(m)
+
+    def bare(n):
+        for _ in range(n):
+            mujoco.mj_step(m, d)
+
+    plant = MujocoPlant(Pendulum, dt=m.opt.timestep)
+    u = np.array([0.1])
+
+    def plant_steps(n):
+        for _ in range(n):
+            plant.step(u)
+
+    rows = []
+    t_bare = best_per_call(bare, N)
+    rows.append(("bare mj_step (pendulum.xml)", t_bare, 1.0, ""))
+    t_plant = best_per_call(plant_steps, N)
+    rows.append(("MujocoPlant.step (1 substep)", t_plant, t_plant / t_bare, "<= 1.3"))
+
+    y = np.array([0.1])
+    for n in (2, 4):
+        ob = HighGainObserver(order=n, k=50.0)
+        ob.update(y, u, 1e-3)
+
+        def upd(k, ob=ob):
+            for _ in range(k):
+                ob.update(y, u, 1e-3)
+
+        t_ob = best_per_call(upd, N)
+        rows.append((f"HighGainObserver.update, n={n}", t_ob, t_ob / t_bare, "<= 1.0"))
+
+    def sim(k):
+        p = MujocoPlant(Pendulum, dt=0.001)
+        s = SensorChain([GaussianNoise(std=1e-3), Quantization(counts_per_rev=4096)], seed=0)
+        ob = {"hgo": HighGainObserver(p.system, k=50.0)}
+        simulate(p, s, ob, Multisine([0.2], [0.5]), duration=k * 0.001)
+
+    t_sim = best_per_call(sim, N, repeat=3)
+    rows.append(("simulate loop step (pendulum, 2-stage sensor, 1 HGO, 1 kHz)", t_sim,
+                 t_sim / t_bare, "<= 4.5"))
+
+    lines = [
+        f"Command: `python scripts/bench.py` ({N} steps per figure, best of repeats)",
+        f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"{platform.platform()}",
+        "Versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
+        f"Physics step of pendulum.xml: {m.opt.timestep} s, integrator "
+        f"{mujoco.mjtIntegrator(m.opt.integrator).name}",
+        "",
+        "| what | time per call [us] | ratio to bare mj_step | target |",
+        "|---|---:|---:|---|",
+    ]
+    for name, t, r, target in rows:
+        lines.append(f"| {name} | {t * 1e6:.2f} | {r:.2f} | {target} |")
+    lines.append(f"\nsimulate: {1.0 / t_sim:,.0f} loop steps per second (target >= 100,000)")
+    text = "\n".join(lines)
+    print(text)
+    if args.write:
+        with open(args.write, "a") as fh:
+            fh.write("\n" + text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

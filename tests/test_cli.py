@@ -1,0 +1,130 @@
+"""The `hgo-mj` command: run (flags and TOML), list, demo, and its errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hgo_mj.cli import main, parse_spec
+from hgo_mj.simulate import Trajectory
+
+SCENARIO = """
+name = "pend"
+[plant]
+name = "pendulum"
+x0 = [0.4, 0.0]
+[sensor]
+stages = [{stage = "gaussian", std = 1e-3}, {stage = "quantize", counts_per_rev = 4096}]
+[[observers]]
+type = "high_gain"
+name = "slow"
+k = 15.0
+[[observers]]
+type = "high_gain"
+name = "fast"
+k = 60.0
+[input]
+type = "multisine"
+amplitudes = [0.2]
+frequencies = [0.5]
+[run]
+duration = 2.0
+seed = 4
+t_transient = 0.5
+"""
+
+
+def test_parse_spec():
+    assert parse_spec("high_gain:k=5,p=[2, 1],method=rk4,model=true", "type") == {
+        "type": "high_gain", "k": 5, "p": [2, 1], "method": "rk4", "model": True}
+
+
+def test_run_toml_writes_results(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO)
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "slow" in printed and "fast" in printed and "rmse" in printed
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics) == {"slow", "fast"}
+    traj = Trajectory.load(out / "trajectory.npz")
+    assert len(traj) == 2001 and traj.metadata["scenario"] == "pend"
+    assert traj.metadata["seed"] == 4
+    np.testing.assert_allclose(metrics["fast"]["rmse"],
+                               np.sqrt(np.mean(traj.error("fast")[traj.t >= 0.5] ** 2, axis=0)))
+    assert (out / "figure.png").stat().st_size > 10_000
+
+
+def test_flags_equal_toml(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO)
+    main(["run", str(path), "--out", str(tmp_path / "a")])
+    main(["run", "--plant", "pendulum", "--sensor", "gaussian:std=1e-3",
+          "--sensor", "quantize:counts_per_rev=4096", "--observer", "high_gain:name=slow,k=15",
+          "--observer", "high_gain:name=fast,k=60",
+          "--input", "multisine:amplitudes=[0.2],frequencies=[0.5]", "--duration", "2",
+          "--seed", "4", "--out", str(tmp_path / "b")])
+    a = Trajectory.load(tmp_path / "a" / "trajectory.npz")
+    b = Trajectory.load(tmp_path / "b" / "trajectory.npz")
+    # the TOML starts at x0 = (0.4, 0); the flags at the model's default state
+    assert not np.array_equal(a.x, b.x)
+    assert a.y_meas.shape == b.y_meas.shape
+
+
+def test_list_names_everything(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for word in ("elastic_joint", "cart_pendulum", "bioreactor_bullinger", "gaussian", "quantize",
+                 "dropout", "high_gain", "paper 000", "multisine"):
+        assert word in out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["run", "--plant", "pendulm", "--duration", "1"],
+     "unknown plant 'pendulm'; valid: ['besancon_ex1'"),
+    (["run", "--plant", "pendulum", "--observer", "kalman:k=1", "--duration", "1"],
+     "unknown observer 'kalman'; valid: ['high_gain'"),
+    (["run", "--plant", "pendulum", "--observer", "high_gain:k=1,p=[-1,1]", "--duration", "1"],
+     "Hurwitz"),
+    (["run", "--plant", "pendulum", "--sample-period", "0.0015", "--duration", "1"],
+     "sample_period = 0.0015 must be a positive integer multiple"),
+    (["run", "--plant", "pendulum", "--sensor", "gaussian:std=-0.1", "--duration", "1"],
+     "std must be >= 0; found -0.1"),
+    (["run", "--plant", "pendulum", "--observer", "high_gain:k=nan", "--duration", "1"],
+     "k must be finite"),
+    (["run", "--plant", "pendulum"], "needs run.duration"),
+    (["run", "missing.toml"], "does not exist"),
+])
+def test_bad_input_exits_2_with_one_line(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hgo-mj: error:") and message in err and "Traceback" not in err
+
+
+def test_nan_in_scenario_file(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO.replace("k = 15.0", "k = nan"))
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "k must be finite; found nan" in capsys.readouterr().err
+
+
+def test_unknown_scenario_key(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO.replace("seed = 4", "seed = 4\nsed = 5"))
+    assert main(["run", str(path)]) == 2
+    assert "unknown parameter(s) ['sed']" in capsys.readouterr().err
+
+
+def test_console_script_demo(tmp_path):
+    res = subprocess.run([sys.executable, "-m", "hgo_mj.cli", "demo", "--out",
+                          str(tmp_path / "demo")], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert "hgo_k60" in res.stdout and "hgo_k200" in res.stdout
+    metrics = json.loads((tmp_path / "demo" / "metrics.json").read_text())
+    # the demo's point: the higher gain tracks the link velocity better despite the encoder
+    assert metrics["hgo_k200"]["rmse"][2] < metrics["hgo_k60"]["rmse"][2]

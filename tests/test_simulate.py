@@ -1,0 +1,163 @@
+"""The loop, the trajectory file, inputs and metrics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
+from hgo_mj.inputs import PRBS, Chirp, Constant, Controller, Multisine, Schedule, make_signal
+from hgo_mj.metrics import all_metrics, format_table, observer_metrics, settling_time
+from hgo_mj.observers import HighGainObserver
+from hgo_mj.plants.ode import OdePlant
+from hgo_mj.sensors import GaussianNoise, SensorChain
+from hgo_mj.simulate import Trajectory, simulate
+
+
+@pytest.fixture
+def setup(chain):
+    def make(seed=3):
+        plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
+        obs = {"a": HighGainObserver(plant.system, k=10.0),
+               "b": HighGainObserver(plant.system, k=40.0)}
+        sensor = SensorChain([GaussianNoise(std=0.01)], seed=seed)
+        return plant, sensor, obs
+    return make
+
+
+def test_rows_timing_and_shapes(setup):
+    plant, sensor, obs = setup()
+    traj = simulate(plant, sensor, obs, Multisine([1.0], [1.0]), 0.5, sample_period=0.002,
+                    control_period=0.01)
+    assert len(traj) == 251 and traj.t[-1] == pytest.approx(0.5)
+    assert traj.x.shape == (251, 2) and traj.y_meas.shape == (251, 1) and traj.u.shape == (251, 1)
+    assert traj.observers["a"].x_hat.shape == (251, 2)
+    assert set(traj.observers["a"].diagnostics) == {"k", "dropouts"}
+    # the input is held over the control period (5 samples)
+    assert np.all(traj.u[0:5] == traj.u[0]) and traj.u[5, 0] != traj.u[0, 0]
+    # row 0 holds the initial estimate, before any measurement
+    np.testing.assert_array_equal(traj.observers["a"].x_hat[0], [0.0, 0.0])
+    # both observers saw the same measurements: their first update used the same y
+    assert traj.metadata["sample_period"] == 0.002 and traj.metadata["seed"] is None
+
+
+def test_same_seed_bit_identical_different_seed_differs(setup):
+    runs = []
+    for seed in (5, 5, 6):
+        plant, sensor, obs = setup()
+        runs.append(simulate(plant, sensor, obs, Multisine([1.0], [1.0]), 1.0, seed=seed))
+    np.testing.assert_array_equal(runs[0].y_meas, runs[1].y_meas)
+    np.testing.assert_array_equal(runs[0].observers["b"].x_hat, runs[1].observers["b"].x_hat)
+    assert not np.array_equal(runs[0].y_meas, runs[2].y_meas)
+
+
+def test_save_load_round_trip(setup, tmp_path):
+    plant, sensor, obs = setup()
+    traj = simulate(plant, sensor, obs, Multisine([1.0], [1.0]), 0.3, seed=1,
+                    metadata={"scenario": "unit"})
+    path = traj.save(tmp_path / "t.npz")
+    back = Trajectory.load(path)
+    for col in ("t", "x", "y_clean", "y_meas", "u"):
+        np.testing.assert_array_equal(getattr(back, col), getattr(traj, col))
+    for name in traj.observers:
+        np.testing.assert_array_equal(back.observers[name].x_hat, traj.observers[name].x_hat)
+        np.testing.assert_array_equal(back.observers[name].diagnostics["k"],
+                                      traj.observers[name].diagnostics["k"])
+    assert back.metadata["scenario"] == "unit" and back.metadata["seed"] == 1
+    assert "mujoco" in back.metadata["versions"] and back.state_names == ("x1", "x2")
+
+
+def test_controller_sees_the_estimate_or_the_truth(setup):
+    seen = {}
+
+    def law(t, x):
+        seen.setdefault("x", []).append(np.array(x))
+        return [-4.0 * x[0] - 4.0 * x[1]]
+
+    for source in ("estimate", "true"):
+        seen.clear()
+        plant, sensor, obs = setup()
+        traj = simulate(plant, sensor, obs, Controller(law, source=source, observer="b"), 2.0,
+                        x0=[1.0, 0.0], seed=0)
+        got = np.array(seen["x"])
+        ref = traj.observers["b"].x_hat if source == "estimate" else traj.x
+        np.testing.assert_array_equal(got, ref)
+        assert abs(traj.x[-1, 0]) < 0.2  # the feedback stabilised the double integrator
+
+
+def test_divergence_raises_with_partial_trajectory(chain):
+    class Exploding(HighGainObserver):
+        def update(self, y, u, dt):
+            super().update(y, u, dt)
+            self._z = (np.inf, 0.0)
+            return self.x_hat
+
+    plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
+    with pytest.raises(DivergenceError, match=r"observer 'bad' estimate left the finite numbers "
+                                              r"at t=0.001") as info:
+        simulate(plant, None, {"bad": Exploding(plant.system, k=1.0)}, Constant([0.0]), 0.01)
+    assert len(info.value.trajectory) == 11
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"sample_period": 0.0015}, "sample_period = 0.0015 must be a positive integer multiple of "
+                                "plant.dt = 0.001"),
+    ({"control_period": 0.0025, "sample_period": 0.001}, "control_period"),
+    ({"duration": -1.0}, "duration must be > 0"),
+])
+def test_bad_periods(setup, kwargs, match):
+    plant, sensor, obs = setup()
+    kw = {"duration": 0.1, **kwargs}
+    with pytest.raises(DesignError, match=match):
+        simulate(plant, sensor, obs, Constant([0.0]), **kw)
+
+
+def test_input_of_wrong_width(setup):
+    plant, sensor, obs = setup()
+    with pytest.raises(DimensionError, match=r"input must have 1 channel\(s\)"):
+        simulate(plant, sensor, obs, Constant([0.0, 1.0]), 0.1)
+
+
+def test_signals():
+    sch = Schedule([0, 30, 50], [0.08, 0.02, 0.08])
+    assert [sch(t)[0] for t in (0, 29.99, 30, 49.9, 50, 80)] == [0.08, 0.08, 0.02, 0.02, 0.08, 0.08]
+    ms = Multisine([1.0, 0.1], [2 / (2 * np.pi), 10 / (2 * np.pi)], [0.0, np.pi / 2])
+    t = 0.37
+    assert ms(t)[0] == pytest.approx(np.sin(2 * t) + 0.1 * np.cos(10 * t), abs=1e-14)
+    ch = Chirp(1.0, 0.0, 2.0, 10.0)
+    # instantaneous frequency f0 + (f1 - f0) t / T: zero crossings get denser
+    tt = np.linspace(0, 10, 20001)
+    sig = np.array([ch(v)[0] for v in tt])
+    zc = tt[1:][np.diff(np.sign(sig)) != 0]
+    assert np.diff(zc)[-1] < 0.5 * np.diff(zc)[1]
+    pr = PRBS(0.5, 0.1, seed=2)
+    levels = {pr(0.1 * i + 0.05)[0] for i in range(100)}
+    assert levels == {-0.5, 0.5}
+    assert pr(0.05)[0] == PRBS(0.5, 0.1, seed=2)(0.05)[0]
+    with pytest.raises(DesignError, match=r"unknown input 'sine'; valid: \['chirp'"):
+        make_signal("sine")
+    with pytest.raises(DesignError, match=r"unknown parameter\(s\) \['freq'\]"):
+        make_signal("multisine", amplitudes=[1], freq=[1])
+    with pytest.raises(DesignError, match="must increase strictly"):
+        Schedule([0, 0], [1, 2])
+
+
+def test_metrics_on_a_known_error():
+    t = np.linspace(0, 10, 1001)
+    err = np.where(t < 2, 1.0, 0.01)[:, None]
+    np.testing.assert_array_equal(settling_time(t, err, 0.05), [2.0])
+    np.testing.assert_array_equal(settling_time(t, np.ones((1001, 1)), 0.05), [np.inf])
+
+
+def test_observer_metrics(setup):
+    plant, sensor, obs = setup()
+    traj = simulate(plant, None, obs, Multisine([1.0], [0.5]), 4.0, x0=[1.0, 0.0])
+    m = all_metrics(traj, t_transient=1.0)
+    assert m["b"]["rmse"][1] < m["a"]["rmse"][1]  # a higher gain tracks the unmodelled y'' better
+    assert m["a"]["peak"][0] == pytest.approx(1.0)  # the initial error
+    assert m["a"]["update_time"] > 0
+    assert "hgo" not in format_table(m) and "a " in format_table(m)
+    with pytest.raises(DesignError, match="no observer 'c'"):
+        observer_metrics(traj, "c")
+    with pytest.raises(DesignError, match="leaves no samples"):
+        observer_metrics(traj, "a", t_transient=100.0)
