@@ -287,10 +287,7 @@ class GaussianNoise(Stage):
         n = y.shape[0]
         if self._n is not None and n != self._n:
             self._mismatch(n)
-        out = rng.standard_normal(n)
-        out *= self._std
-        out += y
-        return out
+        return y + self._std * rng.standard_normal(n)
 
 
 class UniformNoise(Stage):
@@ -478,10 +475,7 @@ class Quantization(Stage):
         n = y.shape[0]
         if self._n is not None and n != self._n:
             self._mismatch(n)
-        out = y / self._res
-        np.rint(out, out=out)
-        out *= self._res
-        return out
+        return np.rint(y / self._res) * self._res
 
 
 class SampleHold(Stage):

@@ -203,50 +203,64 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         ob.reset()
     n, m, p = len(plant.state_names), len(plant.output_names), len(plant.input_names)
 
-    T = N + 1
-    t_col = np.arange(T) * Ts
-    X, Yc, Ym, U = (np.empty((T, n)), np.empty((T, m)), np.empty((T, m)), np.empty((T, p)))
-    rec = {}
-    for name, ob in obs.items():
-        nx = len(ob.x_hat)
-        rec[name] = (np.empty((T, nx)), np.empty((T, ob.n)),
-                     {d: np.empty(T) for d in ob.diagnostics()}, [0.0])
-    items = [(ob, rec[name]) for name, ob in obs.items()]
+    # rows are collected in lists and stacked once at the end (cheaper than row assignment)
+    X: list[Array] = []
+    Yc: list[Array] = []
+    Ym: list[Array] = []
+    U: list[Array] = []
+    names = list(obs)
+    xh_rows: list[list[Array]] = [[] for _ in names]
+    zh_rows: list[list[Array]] = [[] for _ in names]
+    dg_rows: list[list[Any]] = [[] for _ in names]
+    wall = [0.0] * len(names)
+    obs_list = list(obs.values())
+    x_hat = [ob.x_hat for ob in obs_list]  # update() returns the next one
     perf = time.perf_counter
     u = np.zeros(p)
-    for k in range(T):
-        t = float(t_col[k])
-        x = plant.state
-        yc = plant.outputs()
-        ym = sensor(t, yc) if sensor is not None else yc.copy()
-        if k % every == 0:
-            if controller:
-                src = x if inputs.source == "true" else ctrl_obs.x_hat
-                u = inputs(t, src)
-            else:
-                u = inputs(t)
-            u = np.asarray(u, dtype=float).reshape(-1)
-            if u.shape != (p,):
-                raise DimensionError(f"input must have {p} channel(s) {plant.input_names}; "
-                                     f"found shape {u.shape} at t={t:g}")
-        X[k], Yc[k], Ym[k], U[k] = x, yc, ym, u
-        for ob, (xh, zh, dg, _) in items:
-            xh[k] = ob.x_hat
-            zh[k] = ob.z_hat
-            for d, v in ob.diagnostics().items():
-                dg[d][k] = v
-        if k == N:
-            break
-        for ob, (_, _, _, tm) in items:
-            t0 = perf()
-            ob.update(ym, u, Ts)
-            tm[0] += perf() - t0
-        for _ in range(steps):
-            plant.step(u)
+    failure: Exception | None = None
+    try:
+        for k in range(N + 1):
+            t = k * Ts
+            x = plant.state
+            yc = plant.outputs()
+            ym = sensor(t, yc) if sensor is not None else yc.copy()
+            if k % every == 0:
+                if controller:
+                    u = inputs(t, x if inputs.source == "true" else ctrl_obs.x_hat)
+                else:
+                    u = inputs(t)
+                u = np.asarray(u, dtype=float).reshape(-1)
+                if u.shape != (p,):
+                    raise DimensionError(f"input must have {p} channel(s) {plant.input_names}; "
+                                         f"found shape {u.shape} at t={t:g}")
+            X.append(x)
+            Yc.append(yc)
+            Ym.append(ym)
+            U.append(u)
+            for i, ob in enumerate(obs_list):
+                xh_rows[i].append(x_hat[i])
+                zh_rows[i].append(ob.z_hat)
+                dg_rows[i].append(ob.diagnostics())
+            if k == N:
+                break
+            for i, ob in enumerate(obs_list):
+                t0 = perf()
+                x_hat[i] = ob.update(ym, u, Ts)
+                wall[i] += perf() - t0
+            for _ in range(steps):
+                plant.step(u)
+    except (DivergenceError, FloatingPointError) as exc:
+        failure = exc  # keep what was simulated: the partial trajectory goes with the error
 
-    records = {name: ObserverRecord(x_hat=xh, z_hat=zh, diagnostics=dg,
-                                    update_time=tm[0] / max(N, 1))
-               for name, (xh, zh, dg, tm) in rec.items()}
+    rows = len(X)
+    records = {}
+    for i, name in enumerate(names):
+        diag = {d: np.array([r[d] for r in dg_rows[i]], dtype=float) for d in dg_rows[i][0]}
+        records[name] = ObserverRecord(
+            x_hat=np.array(xh_rows[i], dtype=float).reshape(rows, -1),
+            z_hat=np.array(zh_rows[i], dtype=float).reshape(rows, -1), diagnostics=diag,
+            update_time=wall[i] / max(rows - 1, 1))
+    t_col = np.arange(rows) * Ts
     meta = {"plant": type(plant.system).__name__, "system_params": plant.system.params,
             "plant_dt": plant.dt, "physics_dt": getattr(plant, "physics_dt", plant.dt),
             "sample_period": Ts, "control_period": Tc, "duration": duration, "seed": seed,
@@ -257,9 +271,15 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
             "input": {"type": type(inputs).__name__,
                       **(inputs.params() if hasattr(inputs, "params") else {})},
             "versions": package_versions(), **(dict(metadata) if metadata else {})}
-    traj = Trajectory(t=t_col, x=X, y_clean=Yc, y_meas=Ym, u=U, observers=records,
-                      state_names=tuple(plant.state_names), output_names=tuple(plant.output_names),
+    traj = Trajectory(t=t_col, x=np.array(X).reshape(rows, n), y_clean=np.array(Yc).reshape(rows, m),
+                      y_meas=np.array(Ym).reshape(rows, m), u=np.array(U).reshape(rows, p),
+                      observers=records, state_names=tuple(plant.state_names),
+                      output_names=tuple(plant.output_names),
                       input_names=tuple(plant.input_names), metadata=meta)
+    if failure is not None:
+        exc = DivergenceError(f"simulation stopped at t={(rows - 1) * Ts:g}: {failure}")
+        exc.trajectory = traj  # type: ignore[attr-defined]
+        raise exc from failure
     for name, r in records.items():
         bad = ~np.all(np.isfinite(r.x_hat), axis=1)
         if bad.any():

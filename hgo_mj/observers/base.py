@@ -83,7 +83,7 @@ class Observer:
         if self.system is None:
             return z.copy()
         try:
-            x = self.system.from_normal(z, self._u)
+            x = self.system.from_normal_unchecked(z, self._u)
         except DesignError:
             self.inverse_failures_ += 1
             if self._x_last is None:

@@ -297,7 +297,7 @@ class HighGainObserver(Observer):
         else:
             znew, g = closed(yi, *z), gphi
         if self.model and g is not None:
-            ph = float(self.system.phi(self._saturate(np.array(z)), u))  # type: ignore[union-attr]
+            ph = float(self.system.phi_unchecked(self._saturate(np.array(z)), u))  # type: ignore[union-attr]
             znew = tuple(a + b * ph for a, b in zip(znew, g))
         self._z = znew
         return self.x_hat
@@ -308,7 +308,7 @@ class HighGainObserver(Observer):
         def rhs(z: Array) -> Array:
             dz = np.empty_like(z)
             dz[:-1] = z[1:]
-            dz[-1] = float(self.system.phi(self._saturate(z), u))  # type: ignore[union-attr]
+            dz[-1] = float(self.system.phi_unchecked(self._saturate(z), u))  # type: ignore[union-attr]
             return dz + L * (y - z[0])
 
         z = np.array(self._z)

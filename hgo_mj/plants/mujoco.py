@@ -89,6 +89,11 @@ class MujocoPlant(Plant):
         jids = [_id(mujoco.mjtObj.mjOBJ_JOINT, j, "joint") for j in system.joints]
         self._qadr = np.array([m.jnt_qposadr[j] for j in jids], dtype=np.intp)
         self._vadr = np.array([m.jnt_dofadr[j] for j in jids], dtype=np.intp)
+        # contiguous joints (the usual case) are read with slices, cheaper than fancy indexing
+        self._slices = None
+        if np.all(np.diff(self._qadr) == 1) and np.all(np.diff(self._vadr) == 1):
+            self._slices = (slice(int(self._qadr[0]), int(self._qadr[-1]) + 1),
+                            slice(int(self._vadr[0]), int(self._vadr[-1]) + 1))
         self._aid = [_id(mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator") for a in system.actuators]
         self._nq = len(jids)
         self._output_names = tuple(outputs) if outputs is not None else system.output_names
@@ -116,6 +121,8 @@ class MujocoPlant(Plant):
         x0 = self._x0 if x0 is None else vector("x0", x0, 2 * self._nq)
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
+        self._warnings = (d.warning[int(mujoco.mjtWarning.mjWARN_BADCTRL)],
+                          d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)])
         d.qpos[self._qadr] = x0[: self._nq]
         d.qvel[self._vadr] = x0[self._nq:]
         mujoco.mj_forward(m, d)
@@ -125,16 +132,25 @@ class MujocoPlant(Plant):
         m, d, ctrl = self.model, self.data, self.data.ctrl
         for i, a in enumerate(self._aid):
             ui = float(u[i])
-            if ui != ui or ui in (math.inf, -math.inf):
+            if not math.isfinite(ui):
                 raise DivergenceError(f"input u[{i}] must be finite; found {ui}")
             ctrl[a] = ui
         for _ in range(self.substeps):
             mujoco.mj_step(m, d)
+        bad_ctrl, bad_qacc = self._warnings
+        if bad_ctrl.number or bad_qacc.number:  # MuJoCo zeroed ctrl or reset the state
+            raise DivergenceError(
+                f"MuJoCo found a non-finite or huge {'control' if bad_ctrl.number else 'acceleration'}"
+                f" near t={d.time:g} and reset it (mjWARN_BAD{'CTRL' if bad_ctrl.number else 'QACC'});"
+                f" input was {[float(v) for v in u]}")
         self.t = d.time
 
     @property
     def state(self) -> Array:
         d = self.data
+        if self._slices is not None:
+            qs, vs = self._slices
+            return np.concatenate((d.qpos[qs], d.qvel[vs]))
         x = np.empty(2 * self._nq)
         x[: self._nq] = d.qpos[self._qadr]
         x[self._nq:] = d.qvel[self._vadr]

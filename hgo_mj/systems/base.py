@@ -109,6 +109,15 @@ class System:
         self._require_normal_form()
         raise NotImplementedError
 
+    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
+        """:meth:`from_normal` without validation, for an observer's per-sample use (``z`` a
+        float array of length ``n``). Subclasses override it with a fast path."""
+        return self.from_normal(z, u)
+
+    def phi_unchecked(self, z: Array, u: Array) -> float:
+        """:meth:`phi` without validation (the model term of observers). Overridable."""
+        return self.phi(z, u)
+
     # ------------------------------------------------------------------ MuJoCo
     @classmethod
     def from_mjmodel(cls, model: Any) -> System:

@@ -155,3 +155,9 @@ class ElasticJoint(_MujocoSystem):
         z = self._z(z)
         u = self._u(u, required=True)
         return self._phi(z, u, self.params)
+
+    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
+        return self._from_normal(z, self.params)
+
+    def phi_unchecked(self, z: Array, u: Array) -> float:
+        return self._phi(z, u, self.params)

@@ -89,3 +89,9 @@ class Pendulum(_MujocoSystem):
         z = self._z(z)
         u = self._u(u, required=True)
         return float(self.dynamics(0.0, z, u, self.params)[1])
+
+    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
+        return z
+
+    def phi_unchecked(self, z: Array, u: Array) -> float:
+        return float(self.dynamics(0.0, z, u, self.params)[1])
