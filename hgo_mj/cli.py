@@ -168,10 +168,10 @@ DEMO = {
         {"stage": "quantize", "counts_per_rev": 16384},
     ]},
     "observers": [
-        {"type": "high_gain", "name": "hgo_k60", "k": 60.0},
+        {"type": "high_gain", "name": "hgo_k25", "k": 25.0},
         {"type": "high_gain", "name": "hgo_k200", "k": 200.0},
     ],
-    "input": {"type": "multisine", "amplitudes": [1.0, 0.5], "frequencies": [0.5, 2.0],
+    "input": {"type": "multisine", "amplitudes": [0.8, 0.3], "frequencies": [0.4, 1.5],
               "phases": [0.0, 1.0]},
     "run": {"duration": 5.0, "seed": 0, "out": "runs/demo", "t_transient": 1.0},
 }

@@ -23,8 +23,9 @@ def plot_trajectory(traj: Any, path: str | Path, *, title: str = "") -> Path:
         ax.plot(traj.t, traj.x[:, i], color=TRUE_COLOR, lw=1.6, label="true")
         for j, (oname, rec) in enumerate(traj.observers.items()):
             c = colors[j % len(colors)]
-            ax.plot(traj.t, rec.x_hat[:, i], color=c, lw=1.0, ls="--", label=oname)
-            ae.plot(traj.t, traj.x[:, i] - rec.x_hat[:, i], color=c, lw=0.9, label=oname)
+            ax.plot(traj.t, rec.x_hat[:, i], color=c, lw=0.9, ls="--", alpha=0.85, label=oname)
+            ae.plot(traj.t, traj.x[:, i] - rec.x_hat[:, i], color=c, lw=0.7, alpha=0.7,
+                    label=oname)
         ax.set_ylabel(name)
         lo, hi = traj.x[:, i].min(), traj.x[:, i].max()
         pad = 0.5 * (hi - lo) + 1e-9

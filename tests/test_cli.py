@@ -124,7 +124,11 @@ def test_console_script_demo(tmp_path):
     res = subprocess.run([sys.executable, "-m", "hgo_mj.cli", "demo", "--out",
                           str(tmp_path / "demo")], capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
-    assert "hgo_k60" in res.stdout and "hgo_k200" in res.stdout
-    metrics = json.loads((tmp_path / "demo" / "metrics.json").read_text())
-    # the demo's point: the higher gain tracks the link velocity better despite the encoder
-    assert metrics["hgo_k200"]["rmse"][2] < metrics["hgo_k60"]["rmse"][2]
+    assert "hgo_k25" in res.stdout and "hgo_k200" in res.stdout
+    m = json.loads((tmp_path / "demo" / "metrics.json").read_text())
+    # the demo's point, state by state: the high gain wins on the link angle and velocity (the
+    # unmodelled fourth derivative matters less), the low gain on the motor velocity, which
+    # needs the third derivative of the link angle and so carries the encoder noise times k^3
+    assert m["hgo_k200"]["rmse"][0] < 0.5 * m["hgo_k25"]["rmse"][0]
+    assert m["hgo_k200"]["rmse"][2] < 0.5 * m["hgo_k25"]["rmse"][2]
+    assert m["hgo_k25"]["rmse"][3] < 0.8 * m["hgo_k200"]["rmse"][3]

@@ -35,7 +35,7 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
     work = tmp_path / "elsewhere"
     work.mkdir()
     res = _run([str(venv / "bin" / "hgo-mj"), "demo", "--out", "demo_out"], cwd=work)
-    assert "hgo_k60" in res.stdout
+    assert "hgo_k25" in res.stdout
     for f in ("trajectory.npz", "metrics.json", "figure.png", "summary.txt"):
         assert (work / "demo_out" / f).stat().st_size > 0
     probe = ("import hgo_mj, hgo_mj.envs, importlib.util;"

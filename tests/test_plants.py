@@ -1,0 +1,92 @@
+"""MujocoPlant and OdePlant: timing, outputs, state, validation, divergence."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
+from hgo_mj.inputs import Constant
+from hgo_mj.observers import HighGainObserver
+from hgo_mj.plants import MujocoPlant, make_plant, model_path
+from hgo_mj.simulate import simulate
+from hgo_mj.systems import ElasticJoint, Pendulum
+
+
+def test_control_period_runs_substeps_with_u_held():
+    a = MujocoPlant(Pendulum, dt=0.005)
+    b = MujocoPlant(Pendulum, dt=0.001)
+    assert a.substeps == 5
+    a.step([0.2])
+    for _ in range(5):
+        b.step([0.2])
+    np.testing.assert_array_equal(a.state, b.state)
+    assert a.t == pytest.approx(0.005)
+
+
+def test_outputs_are_the_named_sensors_after_the_step():
+    plant = MujocoPlant(ElasticJoint, dt=0.001,
+                        outputs=("link_angle", "motor_angle", "motor_velocity"))
+    plant.reset([0.1, 0.2, 0.3, -0.4])
+    for _ in range(7):
+        plant.step([0.5])
+    # reference: MuJoCo's own sensors, evaluated at the current state
+    m, d = plant.model, plant.data
+    mujoco.mj_forward(m, d)
+    ref = [d.sensor(name).data[0] for name in plant.output_names]
+    np.testing.assert_array_equal(plant.outputs(), ref)
+    np.testing.assert_array_equal(plant.state[[0, 1, 3]], ref)
+
+
+def test_state_is_a_copy():
+    plant = make_plant("pendulum")
+    x = plant.state
+    x[0] = 99.0
+    assert plant.state[0] != 99.0
+
+
+@pytest.mark.parametrize("kwargs, exc, match", [
+    ({"dt": 0.0015}, DesignError, r"dt = 0.0015 must be a positive integer multiple of the "
+                                  r"physics step 0.001"),
+    ({"dt": -1.0}, DesignError, "dt must be > 0"),
+    ({"outputs": ("angle", "speed")}, DesignError, "pendulum.xml has no sensor named 'speed'"),
+])
+def test_bad_construction(kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        MujocoPlant(Pendulum, **kwargs)
+
+
+def test_bad_reset_and_input():
+    plant = make_plant("pendulum")
+    with pytest.raises(DimensionError, match="x0 must have length 2; found length 3"):
+        plant.reset([0.0, 0.0, 0.0])
+    with pytest.raises(DivergenceError, match=r"input u\[0\] must be finite; found nan"):
+        plant.step([np.nan])
+    with pytest.raises(DesignError, match="parameters come from pendulum.xml"):
+        make_plant("pendulum", mass=2.0)
+    with pytest.raises(DesignError, match="no MJCF model named 'nope.xml'"):
+        model_path("nope.xml")
+
+
+def test_mujoco_reset_on_huge_input_is_an_error_with_the_partial_run():
+    """MuJoCo silently zeroes a huge control; hgo_mj refuses to pass that on."""
+    plant = make_plant("pendulum")
+    ob = HighGainObserver(plant.system, k=10.0)
+    u = lambda t: np.array([0.0 if t < 0.0095 else 1e12])  # noqa: E731
+    with pytest.raises(DivergenceError, match="mjWARN_BADCTRL") as info:
+        simulate(plant, None, {"hgo": ob}, u, 0.05)
+    traj = info.value.trajectory
+    assert len(traj) == 11 and np.all(np.isfinite(traj.x))
+
+
+def test_ode_plant_divergence_names_the_time(chain):
+    from hgo_mj.plants.ode import OdePlant
+
+    plant = OdePlant(chain(2)(), dt=0.1)
+    plant.reset([1e308, 1e308])
+    with pytest.raises(DivergenceError, match="left the finite numbers at t=0.1"):
+        with np.errstate(over="ignore", invalid="ignore"):
+            plant.step([1e308])
+    with pytest.raises(DesignError, match="must be a System instance"):
+        OdePlant(Constant, dt=0.1)
