@@ -59,9 +59,20 @@ def main() -> int:
         for _ in range(n):
             plant.step(u)
 
+    me = mujoco.MjModel.from_xml_path(str(model_path("pendulum.xml")))
+    me.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    de = mujoco.MjData(me)
+
+    def bare_euler(n):
+        for _ in range(n):
+            mujoco.mj_step(me, de)
+
     rows = []
     t_bare = best_per_call(bare, N)
-    rows.append(("bare mj_step (pendulum.xml)", t_bare, 1.0, ""))
+    rows.append(("bare mj_step (pendulum.xml, RK4 as shipped)", t_bare, 1.0, ""))
+    t_euler = best_per_call(bare_euler, N)
+    rows.append(("bare mj_step, same model with the Euler integrator (reference only)", t_euler,
+                 t_euler / t_bare, ""))
     t_plant = best_per_call(plant_steps, N)
     rows.append(("MujocoPlant.step (1 substep)", t_plant, t_plant / t_bare, "<= 1.3"))
 

@@ -61,7 +61,7 @@ def test_bad_reset_and_input():
     plant = make_plant("pendulum")
     with pytest.raises(DimensionError, match="x0 must have length 2; found length 3"):
         plant.reset([0.0, 0.0, 0.0])
-    with pytest.raises(DivergenceError, match=r"input u\[0\] must be finite; found nan"):
+    with pytest.raises(DivergenceError, match=r"input u\[0\] must be finite .*; found nan"):
         plant.step([np.nan])
     with pytest.raises(DesignError, match="parameters come from pendulum.xml"):
         make_plant("pendulum", mass=2.0)
@@ -69,15 +69,22 @@ def test_bad_reset_and_input():
         model_path("nope.xml")
 
 
-def test_mujoco_reset_on_huge_input_is_an_error_with_the_partial_run():
-    """MuJoCo silently zeroes a huge control; hgo_mj refuses to pass that on."""
+def test_huge_input_is_an_error_with_the_partial_run():
+    """MuJoCo would silently zero a huge control; hgo_mj refuses it, keeping the run so far."""
     plant = make_plant("pendulum")
     ob = HighGainObserver(plant.system, k=10.0)
     u = lambda t: np.array([0.0 if t < 0.0095 else 1e12])  # noqa: E731
-    with pytest.raises(DivergenceError, match="mjWARN_BADCTRL") as info:
+    with pytest.raises(DivergenceError, match="MuJoCo would zero it") as info:
         simulate(plant, None, {"hgo": ob}, u, 0.05)
     traj = info.value.trajectory
     assert len(traj) == 11 and np.all(np.isfinite(traj.x))
+
+
+def test_mujoco_state_reset_is_an_error():
+    plant = make_plant("pendulum")
+    plant.data.qvel[0] = np.inf  # what an unstable simulation produces
+    with pytest.raises(DivergenceError, match="reset the simulation .mjWARN_BADQ"):
+        plant.step([0.0])
 
 
 def test_ode_plant_divergence_names_the_time(chain):

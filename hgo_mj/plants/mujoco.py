@@ -15,6 +15,9 @@ from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
 from .base import Array, Plant
 
+#: MuJoCo's mjMAXVAL: a larger control is zeroed with the warning mjWARN_BADCTRL
+_MAX_CTRL = 1e10
+
 _DIRECT_SENSORS = {
     int(mujoco.mjtSensor.mjSENS_JOINTPOS): "qpos",
     int(mujoco.mjtSensor.mjSENS_JOINTVEL): "qvel",
@@ -110,7 +113,6 @@ class MujocoPlant(Plant):
                 self._sensor_src.append(("sensordata", int(m.sensor_adr[s])))
                 self._needs_forward = True
         self._x0 = vector("system.default_x0", system.default_x0, 2 * self._nq)
-        self.t = 0.0
         self.reset()
 
     @property
@@ -121,29 +123,34 @@ class MujocoPlant(Plant):
         x0 = self._x0 if x0 is None else vector("x0", x0, 2 * self._nq)
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        self._warnings = (d.warning[int(mujoco.mjtWarning.mjWARN_BADCTRL)],
-                          d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)])
+        w = mujoco.mjtWarning
+        self._bad = tuple(d.warning[int(k)] for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
+                                                       w.mjWARN_BADQACC))
         d.qpos[self._qadr] = x0[: self._nq]
         d.qvel[self._vadr] = x0[self._nq:]
         mujoco.mj_forward(m, d)
-        self.t = 0.0
 
     def step(self, u: Any) -> None:
         m, d, ctrl = self.model, self.data, self.data.ctrl
         for i, a in enumerate(self._aid):
             ui = float(u[i])
-            if not math.isfinite(ui):
-                raise DivergenceError(f"input u[{i}] must be finite; found {ui}")
+            if not -_MAX_CTRL < ui < _MAX_CTRL:  # also False for NaN
+                raise DivergenceError(f"input u[{i}] must be finite and below {_MAX_CTRL:g} in "
+                                      f"magnitude (MuJoCo would zero it); found {ui}")
             ctrl[a] = ui
         for _ in range(self.substeps):
             mujoco.mj_step(m, d)
-        bad_ctrl, bad_qacc = self._warnings
-        if bad_ctrl.number or bad_qacc.number:  # MuJoCo zeroed ctrl or reset the state
-            raise DivergenceError(
-                f"MuJoCo found a non-finite or huge {'control' if bad_ctrl.number else 'acceleration'}"
-                f" near t={d.time:g} and reset it (mjWARN_BAD{'CTRL' if bad_ctrl.number else 'QACC'});"
-                f" input was {[float(v) for v in u]}")
-        self.t = d.time
+        bad_qpos, bad_qvel, bad_qacc = self._bad
+        if bad_qpos.number or bad_qvel.number or bad_qacc.number:
+            # MuJoCo found NaN/inf/huge values and silently reset the simulation
+            which = [n for n, w in zip(("QPOS", "QVEL", "QACC"), self._bad) if w.number]
+            raise DivergenceError(f"MuJoCo found a non-finite or huge value near t={d.time:g} and "
+                                  f"reset the simulation (mjWARN_BAD{which[0]}); input was "
+                                  f"{[float(v) for v in u]}")
+
+    @property
+    def t(self) -> float:  # type: ignore[override]
+        return float(self.data.time)
 
     @property
     def state(self) -> Array:
