@@ -203,6 +203,11 @@ def cmd_list() -> str:
     lines.append("\nINPUTS (--input KIND:key=value,...)")
     for name, cls in SIGNALS.items():
         lines.append(f"  {name:<14} {cls.summary}  ({sig(cls)})")
+    from .reproduce import REPRODUCTIONS
+
+    lines.append("\nREPRODUCTIONS (hgo-mj reproduce NAME --out DIR)")
+    for name, (_, line) in REPRODUCTIONS.items():
+        lines.append(f"  {name:<14} {line}")
     return "\n".join(lines)
 
 
@@ -224,7 +229,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--control-period", dest="control_period", type=float)
     r.add_argument("--seed", type=int)
     r.add_argument("--out", help="output folder (default runs/run)")
-    sub.add_parser("list", help="plants, sensor stages, observers and inputs")
+    sub.add_parser("list", help="plants, sensor stages, observers, inputs and reproductions")
+    rp = sub.add_parser("reproduce", help="reproduce a paper's example (see `hgo-mj list`)")
+    rp.add_argument("name", help="reproduction name")
+    rp.add_argument("--out", help="output folder (default runs/reproduce/NAME)")
     d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
     d.add_argument("--out", default="runs/demo")
     return ap
@@ -235,6 +243,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "list":
             print(cmd_list())
+            return 0
+        if args.command == "reproduce":
+            from .reproduce import run_reproduction
+
+            out = Path(args.out or f"runs/reproduce/{args.name}")
+            summary = run_reproduction(args.name, out)
+            print(json.dumps(summary, indent=2, default=float))
+            print(f"\nwrote {out}/summary.json, report.txt and figures")
             return 0
         if args.command == "demo":
             sc = json.loads(json.dumps(DEMO))

@@ -201,6 +201,7 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         sensor.reset(seed)
     for ob in obs.values():
         ob.reset()
+        ob.check_period(Ts)  # a too-long period for a high gain is refused before the run
     n, m, p = len(plant.state_names), len(plant.output_names), len(plant.input_names)
 
     # rows are collected in lists and stacked once at the end (cheaper than row assignment)

@@ -93,6 +93,11 @@ class Observer:
         return np.array(x, dtype=float)
 
     # ----------------------------------------------------------- interface
+    def check_period(self, dt: float) -> None:
+        """Check that ``update`` is stable at the sample period ``dt`` (the runner calls this
+        before a run). Raises :class:`~hgo_mj.exceptions.DesignError` or warns, as the observer
+        is configured, naming the largest stable period. Default: nothing to check."""
+
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
         raise NotImplementedError
 

@@ -251,6 +251,10 @@ class HighGainObserver(Observer):
             lo, hi = (mid, hi) if stable(mid) else (lo, mid)
         return lo
 
+    def check_period(self, dt: float) -> None:
+        if dt not in self._steps:
+            self._compile(dt)
+
     def _compile(self, dt: float) -> tuple[Callable, Callable, Array, Array]:
         dt = finite_scalar("dt", dt, positive=True)
         M, b, g = one_step_map(self.p, self.k_, dt, self.method)

@@ -1,0 +1,33 @@
+"""Paper reproductions: ``hgo-mj reproduce NAME --out DIR``.
+
+Each reproduction is a module ``hgo_mj.reproduce.<name>`` with a function
+``run(out: pathlib.Path, *, rrd: pathlib.Path | None = None) -> dict`` that writes
+``out/summary.json``, PNG figures and ``out/report.txt`` and returns the summary. Its test
+asserts the summary's numbers against the paper within stated tolerances.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import Any
+
+from ..exceptions import DesignError
+
+#: name -> (module, one line)
+REPRODUCTIONS: dict[str, tuple[str, str]] = {
+    "bullinger1998": ("hgo_mj.reproduce.bullinger1998",
+                      "paper 000 sec. 4: adaptive-gain HGO on the bioreactor, 80 h, noisy"),
+    "ibrir2007": ("hgo_mj.reproduce.ibrir2007",
+                  "paper 004 sec. 4: Riccati and q-integral observers, LMI sampling bounds"),
+}
+
+
+def run_reproduction(name: str, out: str | Path, **kw: Any) -> dict[str, Any]:
+    """Run a registered reproduction; unknown names list the valid ones."""
+    if name not in REPRODUCTIONS:
+        raise DesignError(f"unknown reproduction {name!r}; valid: {sorted(REPRODUCTIONS)}")
+    module = importlib.import_module(REPRODUCTIONS[name][0])
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    return module.run(out, **kw)
