@@ -199,3 +199,32 @@ class _MujocoSystem(System):
                                   f"({list(self.input_names)}); found None")
             return None
         return vector("u", u, len(self.input_names))
+
+
+class _SecondOrderMujocoSystem(_MujocoSystem):
+    """A one-joint MuJoCo system whose state ``(q, q')`` already is its normal form
+    ``z = (y, y')``: ``to_normal``/``from_normal`` are the identity and
+    ``phi(z, u) = q''`` is the second row of :meth:`dynamics`."""
+
+    def to_normal(self, x: Any, u: Any = None) -> Array:
+        """``z = (q, q')``: the state itself."""
+        self._require_normal_form()
+        self._u(u, required=False)
+        return self._x(x)
+
+    def from_normal(self, z: Any, u: Any = None) -> Array:
+        """Inverse of :meth:`to_normal` (the identity)."""
+        self._u(u, required=False)
+        return self._z(z)
+
+    def phi(self, z: Any, u: Any = None) -> float:
+        """``y'' = phi(z, u)``: the acceleration of :meth:`dynamics`."""
+        z = self._z(z)
+        u = self._u(u, required=True)
+        return float(self.dynamics(0.0, z, u, self.params)[1])
+
+    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
+        return z
+
+    def phi_unchecked(self, z: Array, u: Array) -> float:
+        return float(self.dynamics(0.0, z, u, self.params)[1])

@@ -9,11 +9,11 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import DesignError
-from ._mujoco import _TOL, _MjReader, _MujocoSystem
+from ._mujoco import _TOL, _MjReader, _SecondOrderMujocoSystem
 from .base import Array
 
 
-class CartPendulum(_MujocoSystem):
+class CartPendulum(_SecondOrderMujocoSystem):
     r"""Inverted pendulum whose pivot acceleration is the input (Ibrir 2007, eq. 66).
 
     In time-scaled units (:math:`g/l = 1`) the paper's model is
@@ -100,25 +100,3 @@ class CartPendulum(_MujocoSystem):
     def output(x: Array, p: Mapping[str, float]) -> Array:
         return np.array([float(x[0])])
 
-    def to_normal(self, x: Any, u: Any = None) -> Array:
-        """``z = (x1, x2)``: the state itself."""
-        self._require_normal_form()
-        self._u(u, required=False)
-        return self._x(x)
-
-    def from_normal(self, z: Any, u: Any = None) -> Array:
-        """Inverse of :meth:`to_normal` (the identity)."""
-        self._u(u, required=False)
-        return self._z(z)
-
-    def phi(self, z: Any, u: Any = None) -> float:
-        r""":math:`\ddot y = (m l (g \sin z_1 + a u \cos z_1) - d z_2) / J`."""
-        z = self._z(z)
-        u = self._u(u, required=True)
-        return float(self.dynamics(0.0, z, u, self.params)[1])
-
-    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
-        return z
-
-    def phi_unchecked(self, z: Array, u: Array) -> float:
-        return float(self.dynamics(0.0, z, u, self.params)[1])

@@ -8,11 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from ._mujoco import _MjReader, _MujocoSystem
+from ._mujoco import _MjReader, _SecondOrderMujocoSystem
 from .base import Array
 
 
-class Pendulum(_MujocoSystem):
+class Pendulum(_SecondOrderMujocoSystem):
     r"""Rigid pendulum on a horizontal hinge with a torque motor and viscous damping.
 
     .. math::
@@ -73,25 +73,3 @@ class Pendulum(_MujocoSystem):
     def output(x: Array, p: Mapping[str, float]) -> Array:
         return np.array([float(x[0])])
 
-    def to_normal(self, x: Any, u: Any = None) -> Array:
-        """``z = (theta, theta')``: the state itself."""
-        self._require_normal_form()
-        self._u(u, required=False)
-        return self._x(x)
-
-    def from_normal(self, z: Any, u: Any = None) -> Array:
-        """Inverse of :meth:`to_normal` (the identity)."""
-        self._u(u, required=False)
-        return self._z(z)
-
-    def phi(self, z: Any, u: Any = None) -> float:
-        r""":math:`\ddot y = (b u - m g l_c \sin z_1 - d z_2) / J`."""
-        z = self._z(z)
-        u = self._u(u, required=True)
-        return float(self.dynamics(0.0, z, u, self.params)[1])
-
-    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
-        return z
-
-    def phi_unchecked(self, z: Array, u: Array) -> float:
-        return float(self.dynamics(0.0, z, u, self.params)[1])
