@@ -20,6 +20,12 @@ REPRODUCTIONS: dict[str, tuple[str, str]] = {
                       "paper 000 sec. 4: adaptive-gain HGO on the bioreactor, 80 h, noisy"),
     "ibrir2007": ("hgo_mj.reproduce.ibrir2007",
                   "paper 004 sec. 4: Riccati and q-integral observers, LMI sampling bounds"),
+    "besancon2004": ("hgo_mj.reproduce.besancon2004",
+                     "paper 001 sec. 4: adaptive high-gain observer, examples 1 and 2"),
+    "bastin_gevers1986": ("hgo_mj.reproduce.bastin_gevers1986",
+                          "paper 002 sec. 6: adaptive observer on the bioreactor"),
+    "jo_son2004": ("hgo_mj.reproduce.jo_son2004",
+                   "paper 003 eq. 28-31: adaptive observer in generalized canonical form"),
 }
 
 
