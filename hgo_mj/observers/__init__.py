@@ -5,11 +5,18 @@ from __future__ import annotations
 from typing import Any
 
 from ..exceptions import DesignError
+from .adaptive_gain import AdaptiveGainObserver
 from .base import Observer
-from .high_gain import HighGainObserver
+from .high_gain import HighGainObserver, MultiOutputHighGainObserver
+from .q_integral import QIntegralObserver
+from .riccati import RiccatiObserver
 
 OBSERVERS: dict[str, type[Observer]] = {
     HighGainObserver.name: HighGainObserver,
+    "adaptive_gain": AdaptiveGainObserver,
+    "high_gain_multi": MultiOutputHighGainObserver,
+    "riccati": RiccatiObserver,
+    "q_integral": QIntegralObserver,
 }
 
 
@@ -23,4 +30,6 @@ def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
         raise DesignError(f"observer {kind!r}: {exc}") from None
 
 
-__all__ = ["OBSERVERS", "HighGainObserver", "Observer", "make_observer"]
+__all__ = ["OBSERVERS", "AdaptiveGainObserver", "HighGainObserver",
+           "MultiOutputHighGainObserver", "Observer", "QIntegralObserver", "RiccatiObserver",
+           "make_observer"]

@@ -344,3 +344,344 @@ class HighGainObserver(Observer):
         return {"k": self.k_, "p": self.p.tolist(), "order": self.n, "output": self.output,
                 "model": self.model, "method": self.method,
                 "z_bounds": None if self.z_bounds is None else [b.tolist() for b in self.z_bounds]}
+
+
+_DERIVATIVE_WORDS = {"_angle": ("_angle", "_velocity", "_acceleration", "_jerk"),
+                     "_position": ("_position", "_velocity", "_acceleration", "_jerk")}
+
+
+def derivative_names(output: str, order: int) -> tuple[str, ...]:
+    """Names of ``(y, y', ..., y^(order-1))`` for an output named ``output``.
+
+    ``link1_angle`` gives ``link1_angle, link1_velocity, link1_acceleration, link1_jerk``
+    (``_position`` likewise); higher derivatives and other names get ``<name>_d<j>``.
+    """
+    for suffix, words in _DERIVATIVE_WORDS.items():
+        if output.endswith(suffix):
+            base = output[: -len(suffix)]
+            return tuple(base + words[j] if j < len(words) else f"{base}_d{j}" for j in range(order))
+    return tuple(output if j == 0 else f"{output}_d{j}" for j in range(order))
+
+
+def _per_chain(name: str, value: Any, m: int) -> list[Any]:
+    """A scalar (or None) for every chain, or a sequence with one entry per chain."""
+    if value is None or np.ndim(value) == 0:
+        return [value] * m
+    seq = list(value)
+    if len(seq) != m:
+        raise DimensionError(f"{name} must be a scalar or have one entry per chain ({m}); "
+                             f"found {len(seq)} entries")
+    return seq
+
+
+class MultiOutputHighGainObserver(Observer):
+    """One high-gain chain per measured output (paper 001, eq. 5), model-free by default.
+
+    Chain ``c`` of order ``n_c`` estimates ``z[c] = (y_c, y_c', ..., y_c^(n_c - 1))`` from the
+    measured channel ``outputs[c]`` with the gains of paper 000, eq. 2 (its own ``k_c``,
+    ``p_c``):
+
+    .. math::
+
+        \\dot{\\hat z}_{c,i} &= \\hat z_{c,i+1} + p_{c,i} k_c^i (y_c - \\hat z_{c,1}),
+            \\quad i = 1, \\dots, n_c - 1 \\\\
+        \\dot{\\hat z}_{c,n_c} &= p_{c,n_c} k_c^{n_c} (y_c - \\hat z_{c,1})
+            + [\\varphi_c(\\hat z, u)]
+
+    This is the block structure of paper 001, eq. 5 (block-diagonal ``A = diag(A_1, A_2, ...)``,
+    ``C = diag(C_1, C_2, ...)``), with the observer of eq. 4 designed for each block
+    (``lambda Lambda^-1 K_0 = (p_i k^i)``). The coupling between the chains (eq. 5 lets the
+    last component of ``phi_c`` depend on the other blocks) enters only through the optional
+    model term ``phi(z_hat, u)``, which returns the chains' top derivatives
+    ``(phi_1, phi_2, ...)``. Without it the chains are independent: each is exactly a
+    :class:`HighGainObserver` on its own channel, and only the orders need to be known
+    (paper 000's point).
+
+    **Estimate.** Model-free, what can be had is ``z_hat`` itself: the outputs and their
+    derivatives, so ``x_hat = z_hat`` with :attr:`state_names` derived from the output names
+    (``link1_angle, link1_velocity, link1_acceleration, link1_jerk, link2_angle, ...`` for the
+    two-link elastic arm with ``orders=(4, 4)``). These are *not* the plant's state columns
+    (the motor angles and velocities need the model's inverse map): :meth:`state_map` lists
+    which estimates coincide with a plant state (on the two-link arm: the link angles and
+    velocities), and ``Trajectory.error`` (which subtracts column by column) must not be used
+    with this observer on such a plant.
+
+    Parameters
+    ----------
+    system : System, optional
+        Names the outputs (for :attr:`state_names`) and bounds the channel indices. A system
+        may declare ``normal_form_orders``; otherwise ``orders`` is needed unless the system has
+        a single-output normal form (then one chain of that order).
+    k : float or sequence of float
+        High-gain parameter of every chain, or one per chain (each > 0).
+    orders : sequence of int, optional
+        Order ``n_c`` of each chain (the relative degree of output ``c``).
+    p : array_like or sequence of array_like, optional
+        Hurwitz coefficients: ``None`` (binomial, ``(s + 1)^n_c``), one array used for every
+        chain (all of that order), or one array (or ``None``) per chain.
+    outputs : sequence of int, optional
+        Measured channel of each chain (default ``0, 1, ...``), distinct.
+    phi : callable ``phi(z_hat, u) -> array`` of length ``len(orders)``, optional
+        Model term: the chains' top derivatives, evaluated at the full ``z_hat`` (chains
+        concatenated in order). With ``exact`` and ``euler`` it is held at its start-of-sample
+        value over the sample; ``rk4`` evaluates it at every stage.
+    method : {"exact", "euler", "rk4"}
+        As in :class:`HighGainObserver` (see :func:`one_step_map`), for every chain.
+    z_hat0 : array_like, optional
+        Initial estimate, length ``sum(orders)`` (default zero); ``x_hat0`` is the same thing
+        (``x_hat = z_hat``); give one of them.
+    on_unstable : {"raise", "warn", "ignore"}
+        What to do when a chain's one-step map at the sample period is unstable.
+
+    Attributes
+    ----------
+    dropouts_ : int
+        Samples at which at least one channel was NaN.
+    channel_dropouts_ : list of int
+        NaN samples per chain; a chain whose channel is NaN runs open loop over that sample
+        while the others correct as usual.
+
+    References
+    ----------
+    Paper 001 (Besançon, Zhang, Hammouri 2004), eq. 4 (high-gain observer) and eq. 5
+    (two-output block structure, after Besançon and Hammouri 1998); paper 000, eq. 2 (gains
+    ``p_i k^i``).
+    """
+
+    name = "high_gain_multi"
+    summary = "one Tornambè chain per output (paper 001 eq. 5), per-chain order/k/p, optional coupling"
+    reference = "paper 001 (Besançon et al. 2004), eq. 4-5; paper 000, eq. 2"
+    diagnostic_names = ()
+
+    def __init__(self, system: System | None = None, *, k: Any, orders: Any = None,
+                 p: Any = None, outputs: Any = None,
+                 phi: Callable[[Array, Array], Any] | None = None, method: str = "exact",
+                 z_hat0: Any = None, x_hat0: Any = None, on_unstable: str = "raise") -> None:
+        if system is not None and not isinstance(system, System):
+            raise DesignError(f"system must be a System instance or None; found "
+                              f"{type(system).__name__}")
+        if orders is None:
+            orders = getattr(system, "normal_form_orders", None)
+            if orders is None and system is not None and system.normal_form_order is not None:
+                orders = (system.normal_form_order,)
+            if orders is None:
+                where = "" if system is None else f" for {type(system).__name__}"
+                raise DesignError(f"{type(self).__name__} needs orders=[n_1, n_2, ...]{where} "
+                                  f"(one chain order per output)")
+        orders = [orders] if np.ndim(orders) == 0 else list(orders)
+        if not orders or any(isinstance(o, bool) or int(o) != o or o < 1 for o in orders):
+            raise DesignError(f"orders must be positive integers, one per chain; found {orders!r}")
+        self.orders = tuple(int(o) for o in orders)
+        m = len(self.orders)
+        outputs = list(range(m)) if outputs is None else (
+            [outputs] if np.ndim(outputs) == 0 else list(outputs))
+        if len(outputs) != m:
+            raise DimensionError(f"outputs must name one channel per chain ({m}); found "
+                                 f"{len(outputs)}")
+        if any(isinstance(o, bool) or int(o) != o or o < 0 for o in outputs) or \
+                len(set(outputs)) != m:
+            raise DesignError(f"outputs must be distinct non-negative channel indices; found "
+                              f"{outputs!r}")
+        self.outputs = tuple(int(o) for o in outputs)
+        if system is not None and max(self.outputs) >= len(system.output_names):
+            raise DimensionError(f"{type(system).__name__} has {len(system.output_names)} "
+                                 f"output(s) {list(system.output_names)}; found channel "
+                                 f"{max(self.outputs)}")
+        ks = _per_chain("k", k, m)
+        self.ks = tuple(finite_scalar(f"k[{c}]" if m > 1 else "k", kc, positive=True)
+                        for c, kc in enumerate(ks))
+        self.ps = self._chain_p(p)
+        if method not in METHODS:
+            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
+        if on_unstable not in ("raise", "warn", "ignore"):
+            raise DesignError(f"on_unstable must be 'raise', 'warn' or 'ignore'; "
+                              f"found {on_unstable!r}")
+        if phi is not None and not callable(phi):
+            raise DesignError(f"phi must be a callable phi(z_hat, u) or None; found "
+                              f"{type(phi).__name__}")
+        self.phi = phi
+        self.method = method
+        self.on_unstable = on_unstable
+        self.system = system
+        self.n = sum(self.orders)
+        self.output = self.outputs[0]
+        self._first = tuple(int(v) for v in np.cumsum((0,) + self.orders[:-1]))
+        self.L = [hgo_gains(pc, kc) for pc, kc in zip(self.ps, self.ks)]
+        self._u: Array = np.zeros(len(system.input_names)) if system is not None else np.zeros(0)
+        self._x_last = None
+        self.inverse_failures_ = 0
+        self._steps: dict[float, list[tuple[Callable, Callable, Array, Array]]] = {}
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
+        self._init = z_hat0 if z_hat0 is not None else x_hat0
+        self.reset()
+
+    def _chain_p(self, p: Any) -> tuple[Array, ...]:
+        m = len(self.orders)
+        if p is None:
+            per: list[Any] = [None] * m
+        elif all(v is not None and np.ndim(v) == 0 for v in p):
+            per = [p] * m  # one polynomial for every chain
+        else:
+            per = list(p)
+            if len(per) != m:
+                raise DimensionError(f"p must be one array for every chain or one per chain "
+                                     f"({m}); found {len(per)} entries")
+        out = []
+        for c, (n, pc) in enumerate(zip(self.orders, per)):
+            arr = binomial_coefficients(n) if pc is None else check_hurwitz(pc, f"p[{c}]")
+            if arr.size != n:
+                raise DimensionError(f"p[{c}] must have n_{c} = {n} coefficients (chain order); "
+                                     f"found {arr.size}")
+            out.append(arr)
+        return tuple(out)
+
+    # ------------------------------------------------------------------ naming
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        """Names of the measured channels the chains use."""
+        if self.system is None:
+            return tuple(f"y{o + 1}" for o in self.outputs)
+        return tuple(self.system.output_names[o] for o in self.outputs)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of ``z_hat`` (= ``x_hat``), chain after chain: each output and its derivatives."""
+        return tuple(name for out, n in zip(self.output_names, self.orders)
+                     for name in derivative_names(out, n))
+
+    def state_map(self) -> dict[int, int]:
+        """``{index in x_hat: index in system.state_names}`` for the estimates that are plant
+        states by name (two-link arm: link angles and velocities); empty without a system."""
+        if self.system is None:
+            return {}
+        plant = {name: j for j, name in enumerate(self.system.state_names)}
+        return {i: plant[name] for i, name in enumerate(self.state_names) if name in plant}
+
+    # ------------------------------------------------------------------ setup
+    def max_stable_period(self) -> float:
+        """Largest sample period at which every chain's one-step map is stable."""
+        return min(HighGainObserver(order=n, k=kc, p=pc, method=self.method,
+                                    on_unstable="ignore").max_stable_period()
+                   for n, kc, pc in zip(self.orders, self.ks, self.ps))
+
+    def check_period(self, dt: float) -> None:
+        if dt not in self._steps:
+            self._compile(dt)
+
+    def _compile(self, dt: float) -> list[tuple[Callable, Callable, Array, Array]]:
+        dt = finite_scalar("dt", dt, positive=True)
+        entries = []
+        for c, (n, kc, pc) in enumerate(zip(self.orders, self.ks, self.ps)):
+            M, b, g = one_step_map(pc, kc, dt, self.method)
+            rho = spectral_radius(M)
+            if rho >= 1.0 and self.on_unstable != "ignore":
+                msg = (f"{self.method} update of chain {c} ({self.output_names[c]}, n={n}, "
+                       f"k={kc:g}) of the multi-output high-gain observer with sample period "
+                       f"{dt:g} is unstable: spectral radius of the one-step error map "
+                       f"{rho:.4g} >= 1; the largest stable period is "
+                       f"{self.max_stable_period():.4g}")
+                if self.on_unstable == "raise":
+                    raise DesignError(msg)
+                warnings.warn(msg, RuntimeWarning, stacklevel=3)
+            M0, _, g0 = one_step_map(pc, kc, dt, self.method, closed=False)
+            entries.append((affine_step(M, b), affine_step(M0, np.zeros(n)), g, g0))
+        self._steps[dt] = entries
+        return entries
+
+    # -------------------------------------------------------------- interface
+    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
+        """Restart from ``z_hat0`` (or ``x_hat0``, the same here; default: the constructor's)."""
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
+        z0 = z_hat0 if z_hat0 is not None else x_hat0
+        if z0 is None:
+            z0 = self._init
+        z = np.zeros(self.n) if z0 is None else vector("z_hat0", z0, self.n)
+        self._z = [tuple(float(v) for v in z[f:f + n]) for f, n in zip(self._first, self.orders)]
+        self.dropouts_ = 0
+        self.channel_dropouts_ = [0] * len(self.orders)
+        self.inverse_failures_ = 0
+
+    def update(self, y: Any, u: Any, dt: float) -> Array:
+        """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
+        self._u = u
+        entries = self._steps.get(dt)
+        if entries is None:
+            entries = self._compile(dt)
+        ys = [float(y[o]) for o in self.outputs]
+        lost = False
+        for c, yc in enumerate(ys):
+            if yc != yc:
+                lost = True
+                self.channel_dropouts_[c] += 1
+            elif yc in (np.inf, -np.inf):
+                raise DivergenceError(f"measurement y[{self.outputs[c]}] is {yc}")
+        self.dropouts_ += lost
+        if self.phi is not None and self.method == "rk4":
+            self._rk4_model(ys, u, dt)
+            return self.x_hat
+        ph = None if self.phi is None else self._phi(self.z_hat, u)
+        new = []
+        for c, (yc, z, (closed, open_, g, g0)) in enumerate(zip(ys, self._z, entries)):
+            if yc != yc:
+                zc, gc = open_(0.0, *z), g0
+            else:
+                zc, gc = closed(yc, *z), g
+            if ph is not None:
+                zc = tuple(a + b * ph[c] for a, b in zip(zc, gc))
+            new.append(zc)
+        self._z = new
+        return self.x_hat
+
+    def _phi(self, z: Array, u: Any) -> Array:
+        ph = np.asarray(self.phi(z, u), dtype=float).reshape(-1)  # type: ignore[misc]
+        if ph.shape != (len(self.orders),):
+            raise DimensionError(f"phi(z_hat, u) must return one top derivative per chain "
+                                 f"({len(self.orders)}); found shape {ph.shape}")
+        return ph
+
+    def _rk4_model(self, ys: list[float], u: Any, dt: float) -> None:
+        n = self.n
+        top = [f + nc - 1 for f, nc in zip(self._first, self.orders)]
+        inner = np.setdiff1d(np.arange(n), top)  # z_i' = z_{i+1} inside a chain
+        Lfull = np.zeros(n)
+        first = np.array(self._first)
+        yv = np.zeros(len(self.orders))
+        for c, (f, nc) in enumerate(zip(self._first, self.orders)):
+            if ys[c] == ys[c]:  # a dropped channel runs open loop
+                Lfull[f:f + nc] = self.L[c]
+                yv[c] = ys[c]
+        chain_of = np.repeat(np.arange(len(self.orders)), self.orders)
+
+        def rhs(z: Array) -> Array:
+            dz = np.zeros(n)
+            dz[inner] = z[inner + 1]
+            dz[top] += self._phi(z, u)
+            return dz + Lfull * (yv - z[first])[chain_of]
+
+        z = np.concatenate([np.array(zc) for zc in self._z])
+        k1 = rhs(z)
+        k2 = rhs(z + dt / 2 * k1)
+        k3 = rhs(z + dt / 2 * k2)
+        k4 = rhs(z + dt * k3)
+        z = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        self._z = [tuple(z[f:f + nc].tolist()) for f, nc in zip(self._first, self.orders)]
+
+    @property
+    def z_hat(self) -> Array:
+        return np.array([v for zc in self._z for v in zc])
+
+    @property
+    def x_hat(self) -> Array:
+        """``z_hat`` itself (model-free: outputs and derivatives, see the class docstring)."""
+        return self.z_hat
+
+    def diagnostics(self) -> dict[str, float]:
+        return {"dropouts": float(self.dropouts_)}
+
+    def params(self) -> dict[str, Any]:
+        return {"k": list(self.ks), "orders": list(self.orders),
+                "p": [pc.tolist() for pc in self.ps], "outputs": list(self.outputs),
+                "phi": None if self.phi is None else getattr(self.phi, "__name__", repr(self.phi)),
+                "method": self.method, "state_names": list(self.state_names)}

@@ -1,0 +1,365 @@
+"""The q-integral observer of Ibrir (paper 004, section 2.2, eq. 37-48).
+
+The plant is augmented with ``q`` integrators of the measured output ``y = x_1 + w``,
+
+.. math::
+
+    \\dot\\xi_1 = \\xi_2, \\ \\dots, \\ \\dot\\xi_q = y, \\quad \\dot x_1 = x_2, \\ \\dots, \\
+    \\dot x_n = \\varphi(x, u), \\qquad \\tilde y = \\xi_1,
+
+a chain of ``N = n + q`` integrators whose output ``tilde y`` is the ``q``-th integral of the
+measurement (eq. 37-39; the paper prints ``ÿ = xi_1`` for ``tilde y = xi_1``). The Riccati
+observer (eq. 6) of that chain is the q-integral observer (eq. 40):
+
+.. math::
+
+    \\dot{\\hat\\eta} = \\tilde A \\hat\\eta + \\tilde B \\varphi(\\hat x, u)
+        + Z(\\gamma) \\tilde C' (\\tilde y - \\hat\\eta_1), \\qquad
+    Z(\\gamma) \\tilde C' = (\\alpha_i \\gamma^i)_{i=1..N}.
+
+The measurement noise ``w`` enters ``q`` integrators upstream of the observer's output: from
+``y`` to ``x_hat_j`` the observer is the filter
+
+.. math::
+
+    \\frac{\\hat x_j}{y}(s) = \\frac{s^{j-1} \\sum_{i=q+j}^{N} \\alpha_i \\gamma^i s^{N-i}}
+                                  {s^N + \\alpha_1 \\gamma s^{N-1} + \\dots + \\alpha_N \\gamma^N}
+
+(linear part, ``N = n + q``), of relative degree ``q + 1`` for every ``j`` (1 for the
+standard observer, ``q = 0``): high-frequency noise is attenuated by ``q`` more orders, while
+the DC gain of ``x_hat_1`` stays 1 (no bias).
+
+Implementation: ``tilde y`` grows without bound (``t^q``), so the state kept is
+``w = (tilde y_1 - xi_hat_1, ..., tilde y_q - xi_hat_q, x_hat)``, where ``tilde y_i`` are the
+integrators of ``y`` (``tilde y_1 = tilde y``). Its dynamics are closed and bounded:
+
+.. math::
+
+    \\dot\\varepsilon_i = \\varepsilon_{i+1} - l_i \\varepsilon_1 \\ (i < q), \\quad
+    \\dot\\varepsilon_q = y - \\hat x_1 - l_q \\varepsilon_1, \\quad
+    \\dot{\\hat x}_j = \\hat x_{j+1} + l_{q+j} \\varepsilon_1, \\quad
+    \\dot{\\hat x}_n = \\varphi(\\hat x, u) + l_N \\varepsilon_1,
+
+``l = Z(gamma) C'``; its matrix is ``S (A - l C) S`` with ``S = diag(I_q, -I_n)``, so it has the
+eigenvalues of the observer, ``gamma`` times the roots of (9).
+
+References
+----------
+.. [004] S. Ibrir, "On observer design for nonlinear systems", Int. J. Control, 2007,
+   section 2.2, eq. 37-48 (Corollary 2), and section 3 for the discrete-time form.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .._validate import finite_scalar
+from ..design import (
+    binomial_coefficients,
+    check_riccati_alpha,
+    lipschitz_condition,
+    min_gamma,
+    riccati_gains,
+    riccati_P,
+    riccati_Q,
+)
+from ..exceptions import DesignError, DimensionError, DivergenceError
+from ..systems.base import System
+from .base import Array, Observer
+from .high_gain import METHODS, affine_step, matched_gain, sampled_chain, spectral_radius
+from .riccati import chain_order, design_gamma
+
+
+def q_integral_matrices(gain: Array, q: int, closed: bool = True) -> tuple[Array, Array, Array]:
+    """``(F, b, g)`` of the continuous observer in the state ``w``: ``w' = F w + b y + g phi``.
+
+    ``closed=False``: the prediction without correction (over a dropout): ``l = 0`` and the
+    missing ``y`` replaced by the prediction ``x_hat_1``, so that ``eps' = (shift) eps``.
+    """
+    N = gain.size
+    F = np.diag(np.ones(N - 1), 1)
+    b = np.zeros(N)
+    g = np.zeros(N)
+    g[-1] = 1.0
+    if closed:
+        F[q - 1, q] = -1.0  # eps_q' = y - x_hat_1 - l_q eps_1
+        b[q - 1] = 1.0
+        F[:q, 0] -= gain[:q]
+        F[q:, 0] += gain[q:]
+    else:
+        F[q - 1, q] = 0.0  # eps_q' = x_hat_1 - x_hat_1 = 0
+    return F, b, g
+
+
+def q_integral_step_map(alpha: Array, gamma: float, q: int, dt: float, method: str,
+                        closed: bool = True) -> tuple[Array, Array, Array]:
+    """One sample of the q-integral observer in ``w``: ``w+ = M w + b y_k + g phi_k``.
+
+    * ``euler``: ``M = I + dt F`` (eq. 53 for the augmented chain, the integrals of ``y``
+      taken by the same Euler rule), ``b = dt b``, ``g = dt g``.
+    * ``rk4``: degree-4 Taylor polynomial of ``e^{F dt}`` (RK4 of a linear ODE), ``y`` held.
+    * ``exact``: the sampled-data observer of :func:`~hgo_mj.observers.high_gain.one_step_map`
+      on the augmented chain: the chain propagated exactly, the correction with the
+      pole-matched gain ``Ld`` (:func:`~hgo_mj.observers.high_gain.matched_gain`), and the
+      integrals of the held ``y`` exact; the error map has eigenvalues ``exp(gamma r_i dt)``,
+      stable for every period.
+    """
+    N = alpha.size
+    if method == "exact":
+        Phi, S = sampled_chain(N, dt)
+        Ld = matched_gain(alpha, gamma, dt) if closed else np.zeros(N)
+        M = np.zeros((N, N))
+        # eps+ = Phi_q eps - Phi[:q, q:] x_hat + s_q y - Ld[:q] eps_1 (s_q: last column of S_q)
+        M[:q, :q] = Phi[:q, :q]
+        M[:q, 0] -= Ld[:q]
+        M[q:, q:] = Phi[q:, q:]
+        M[q:, 0] += Ld[q:]
+        b = np.zeros(N)
+        if closed:
+            M[:q, q:] = -Phi[:q, q:]
+            b[:q] = S[:q, q - 1]
+        else:  # the integrators of y fed with the prediction: eps evolves by Phi_q alone
+            M[:q, q:] = 0.0
+        g = np.zeros(N)
+        g[q:] = S[q:, -1]
+        return M, b, g
+    F, bc, gc = q_integral_matrices(alpha * gamma ** np.arange(1, N + 1), q, closed)
+    order = 1 if method == "euler" else 4
+    M = np.eye(N)
+    Sm = np.eye(N) * dt
+    term = np.eye(N)
+    for j in range(1, order + 1):
+        term = term @ F * dt / j
+        M = M + term
+        if j < order:
+            Sm = Sm + term * dt / (j + 1)
+    return M, Sm @ bc, Sm @ gc
+
+
+class QIntegralObserver(Observer):
+    """q-integral observer of Ibrir (paper 004, eq. 37-48): the Riccati observer of the plant
+    augmented with ``q`` integrators of the measured output.
+
+    Corollary 2 (eq. 48): with ``W = sqrt(e' Z^{-1} e)``,
+    ``W' <= -(C_1/2) W + (C_2 / gamma^(q/2)) |w|``: the measurement noise ``w`` is injected
+    ``q`` integrators upstream of the output, and the estimates are filtered by ``q`` more orders
+    than with the standard observer (see the module docstring for the transfer functions).
+
+    Parameters
+    ----------
+    system : System, optional
+        Gives ``n``, the map back to physical coordinates and ``phi`` (model term). Without a
+        system give ``order`` (``n``) and ``model=False``.
+    gamma : float or "min"
+        High-gain parameter (> 0); ``"min"``: the smallest meeting condition (44) for ``rho``.
+    q : int
+        Number of integrators (>= 1).
+    alpha : array_like, optional
+        ``n + q`` coefficients, (9) Hurwitz and meeting (10); default binomial ``C(n+q, k)``
+        (the paper's example: ``q = 2``, ``alpha_k = C_4^k``).
+    rho : float, optional
+        Lipschitz constant of ``phi``: needed for ``gamma="min"``; with a numeric ``gamma`` a
+        warning says when condition (44) does not hold.
+    order : int, optional
+        ``n`` (the plant's order) when no system is given.
+    output : int
+        Measured channel.
+    model : bool
+        Use ``phi(x_hat, u)`` (default ``True``, as eq. 40).
+    method : {"exact", "euler", "rk4"}
+        See :func:`q_integral_step_map`. ``euler`` is eq. 53 applied to the augmented system.
+    x_hat0, z_hat0 : array_like, optional
+        Initial estimate of the plant's state (the integrator states start at zero error).
+    on_unstable : {"raise", "warn", "ignore"}
+        What to do when the one-step error map at the sample period is unstable.
+
+    Attributes
+    ----------
+    gamma_ : float
+        The high-gain parameter.
+    Z, Q : ndarray
+        ``Z(gamma)`` (the Riccati solution of the augmented chain, eq. 40) and ``Q(gamma)``.
+    L : ndarray
+        The gain ``Z(gamma) C'`` (length ``n + q``).
+    condition : dict or None
+        The two sides of (44) when ``rho`` is given.
+    w_ : ndarray
+        The internal state ``(tilde y_i - xi_hat_i)_{i<=q}`` then ``x_hat``.
+    dropouts_ : int
+        NaN samples (prediction without correction, the integrators fed with ``x_hat_1``).
+
+    References
+    ----------
+    Paper 004 (Ibrir 2007), section 2.2, eq. 37-48 (Corollary 2); section 3.
+    """
+
+    name = "q_integral"
+    summary = "Ibrir's q-integral observer: Riccati observer on y augmented with q integrators"
+    reference = "paper 004 (Ibrir 2007), eq. 37-48"
+    diagnostic_names = ("gamma",)
+
+    def __init__(self, system: System | None = None, *, gamma: Any, q: int = 1, alpha: Any = None,
+                 rho: float | None = None, order: int | None = None, output: int = 0,
+                 model: bool = True, method: str = "exact", x_hat0: Any = None,
+                 z_hat0: Any = None, on_unstable: str = "raise") -> None:
+        n = chain_order(type(self).__name__, system, order)
+        if isinstance(q, bool) or not isinstance(q, (int, np.integer, float)) or int(q) != q or q < 1:
+            raise DesignError(f"q (the number of output integrators) must be an integer >= 1; "
+                              f"found {q!r}")
+        q = int(q)
+        N = n + q
+        a = binomial_coefficients(N) if alpha is None else check_riccati_alpha(alpha)
+        if a.size != N:
+            raise DimensionError(f"alpha must have n + q = {n} + {q} = {N} coefficients; found "
+                                 f"{a.size}")
+        g, r = design_gamma(gamma, a, rho, type(self).__name__)
+        super().__init__(system, order, output)
+        if method not in METHODS:
+            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
+        if on_unstable not in ("raise", "warn", "ignore"):
+            raise DesignError(f"on_unstable must be 'raise', 'warn' or 'ignore'; "
+                              f"found {on_unstable!r}")
+        if model and system is None:
+            raise DesignError("model=True needs a system providing phi")
+        self.q = q
+        self.N = N
+        self.alpha = a
+        self.gamma_ = g
+        self.rho = r
+        self.gamma_spec = gamma if isinstance(gamma, str) else g
+        self.model = bool(model)
+        self.method = method
+        self.on_unstable = on_unstable
+        self.Q = riccati_Q(a, g)
+        self.Z = riccati_P(a, g)
+        self.L = riccati_gains(a, g)  # Z(gamma) C' from the ARE of the augmented chain
+        self.condition = None if r is None else lipschitz_condition(a, g, r)
+        if self.condition is not None and not self.condition["satisfied"]:
+            warnings.warn(f"QIntegralObserver: gamma = {g:g} does not meet condition (44) for "
+                          f"rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
+                          f"convergence is not guaranteed; min_gamma gives {min_gamma(a, r):.4g}",
+                          RuntimeWarning, stacklevel=2)
+        self._steps: dict[float, tuple[Callable, Callable, Array, Array, Array]] = {}
+        self._init = (x_hat0, z_hat0)
+        self.reset(x_hat0, z_hat0=z_hat0)
+
+    # ------------------------------------------------------------------ setup
+    def max_stable_period(self) -> float:
+        """Largest sample period for which ``method``'s one-step error map is stable."""
+        if self.method == "exact":
+            return float("inf")
+
+        def stable(dt: float) -> bool:
+            M = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)[0]
+            return spectral_radius(M) < 1.0
+
+        lo, hi = 0.0, 1.0 / self.gamma_
+        while stable(hi):
+            lo, hi = hi, hi * 2.0
+            if hi > 1e6 / self.gamma_:
+                return float("inf")
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+        return lo
+
+    def check_period(self, dt: float) -> None:
+        if dt not in self._steps:
+            self._compile(dt)
+
+    def _compile(self, dt: float) -> tuple[Callable, Callable, Array, Array, Array]:
+        dt = finite_scalar("dt", dt, positive=True)
+        M, b, g = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)
+        rho = spectral_radius(M)
+        if rho >= 1.0 and self.on_unstable != "ignore":
+            msg = (f"{self.method} update of the q-integral observer (n={self.n}, q={self.q}, "
+                   f"gamma={self.gamma_:g}) with sample period {dt:g} is unstable: spectral radius "
+                   f"of the one-step error map {rho:.4g} >= 1; the largest stable period is "
+                   f"{self.max_stable_period():.4g}")
+            if self.on_unstable == "raise":
+                raise DesignError(msg)
+            warnings.warn(msg, RuntimeWarning, stacklevel=3)
+        M0, _, g0 = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method,
+                                        closed=False)
+        F, bc, gc = q_integral_matrices(self.L, self.q)
+        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.N)), g, g0, F)
+        self._steps[dt] = entry
+        return entry
+
+    # -------------------------------------------------------------- interface
+    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
+        """Restart from ``x_hat0``/``z_hat0`` (default: those given to the constructor); the
+        integrals of ``y`` restart from zero, with zero error."""
+        if x_hat0 is None and z_hat0 is None:
+            x_hat0, z_hat0 = self._init
+        z0 = self._initial_z(x_hat0, z_hat0, u0)
+        self._w = (0.0,) * self.q + tuple(float(v) for v in z0)
+        self.dropouts_ = 0
+        self.inverse_failures_ = 0
+        self._x_last = None
+
+    def update(self, y: Any, u: Any, dt: float) -> Array:
+        """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
+        yi = float(y[self.output])
+        self._u = u
+        entry = self._steps.get(dt)
+        if entry is None:
+            entry = self._compile(dt)
+        closed, open_, gphi, gphi0, F = entry
+        w = self._w
+        if yi != yi:  # NaN: sensor dropout, predict without correction
+            self.dropouts_ += 1
+            wnew, g = open_(0.0, *w), gphi0
+        elif yi in (np.inf, -np.inf):
+            raise DivergenceError(f"measurement y[{self.output}] is {yi}")
+        elif self.model and self.method == "rk4":
+            wnew, g = self._rk4_model(F, yi, u, dt), None
+        else:
+            wnew, g = closed(yi, *w), gphi
+        if self.model and g is not None:
+            ph = float(self.system.phi_unchecked(np.array(w[self.q:]), u))  # type: ignore[union-attr]
+            wnew = tuple(a + b * ph for a, b in zip(wnew, g))
+        self._w = wnew
+        return self.x_hat
+
+    def _rk4_model(self, F: Array, y: float, u: Any, dt: float) -> tuple[float, ...]:
+        q = self.q
+        by = np.zeros(self.N)
+        by[q - 1] = y
+
+        def rhs(w: Array) -> Array:
+            dw = F @ w + by
+            dw[-1] += float(self.system.phi_unchecked(w[q:], u))  # type: ignore[union-attr]
+            return dw
+
+        w = np.array(self._w)
+        k1 = rhs(w)
+        k2 = rhs(w + dt / 2 * k1)
+        k3 = rhs(w + dt / 2 * k2)
+        k4 = rhs(w + dt * k3)
+        return tuple((w + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)).tolist())
+
+    @property
+    def w_(self) -> Array:
+        return np.array(self._w)
+
+    @property
+    def z_hat(self) -> Array:
+        return np.array(self._w[self.q:])
+
+    @property
+    def x_hat(self) -> Array:
+        z = self.z_hat
+        return z if self.system is None else self._physical(z)
+
+    def diagnostics(self) -> dict[str, float]:
+        return {"gamma": self.gamma_, "dropouts": float(self.dropouts_)}
+
+    def params(self) -> dict[str, Any]:
+        return {"gamma": self.gamma_, "gamma_spec": self.gamma_spec, "q": self.q,
+                "alpha": self.alpha.tolist(), "rho": self.rho, "order": self.n,
+                "output": self.output, "model": self.model, "method": self.method}
