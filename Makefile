@@ -4,6 +4,9 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.hgo_mj-installed
 
+# tiny matrices: multi-threaded BLAS only adds contention on a small machine
+export OPENBLAS_NUM_THREADS ?= 1
+
 .PHONY: demo test bench lint clean
 
 $(STAMP): pyproject.toml
