@@ -228,7 +228,7 @@ class HighGainObserver(Observer):
                                   f"upper {hi.tolist()}")
             self.z_bounds = (lo, hi)
         self.L = hgo_gains(self.p, self.k_)
-        self._steps: dict[float, tuple[Callable, Callable, Array, Array]] = {}
+        self._steps: dict[float, tuple[Callable, Callable, Callable, Callable]] = {}
         self._init = (x_hat0, z_hat0)
         self.reset(x_hat0, z_hat0=z_hat0)
 
@@ -255,7 +255,7 @@ class HighGainObserver(Observer):
         if dt not in self._steps:
             self._compile(dt)
 
-    def _compile(self, dt: float) -> tuple[Callable, Callable, Array, Array]:
+    def _compile(self, dt: float) -> tuple[Callable, Callable, Callable, Callable]:
         dt = finite_scalar("dt", dt, positive=True)
         M, b, g = one_step_map(self.p, self.k_, dt, self.method)
         rho = spectral_radius(M)
@@ -268,7 +268,10 @@ class HighGainObserver(Observer):
                 raise DesignError(msg)
             warnings.warn(msg, RuntimeWarning, stacklevel=3)
         M0, _, g0 = one_step_map(self.p, self.k_, dt, self.method, closed=False)  # dropout
-        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.n)), g, g0)
+        # the model term enters as z + g phi: compiled like the steps, in plain floats
+        eye = np.eye(self.n)
+        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.n)), affine_step(eye, g),
+                 affine_step(eye, g0))
         self._steps[dt] = entry
         return entry
 
@@ -301,10 +304,17 @@ class HighGainObserver(Observer):
         else:
             znew, g = closed(yi, *z), gphi
         if self.model and g is not None:
-            ph = float(self.system.phi_unchecked(self._saturate(np.array(z)), u))  # type: ignore[union-attr]
-            znew = tuple(a + b * ph for a, b in zip(znew, g))
+            # plain floats throughout: the system's unchecked phi takes the tuple z itself
+            # (saturated when z_bounds is set); g(phi, *z) = z + g phi, compiled by _compile
+            zs = z if self.z_bounds is None else self._saturate_floats(z)
+            znew = g(float(self.system.phi_unchecked(zs, u)), *znew)  # type: ignore[union-attr]
         self._z = znew
         return self.x_hat
+
+    def _saturate_floats(self, z: tuple[float, ...]) -> tuple[float, ...]:
+        """:meth:`_saturate` on a tuple of floats (the model term's argument), without numpy."""
+        lo, hi = self.z_bounds  # type: ignore[misc]
+        return tuple([min(max(v, a), b) for v, a, b in zip(z, lo.tolist(), hi.tolist())])
 
     def _rk4_model(self, y: float, u: Any, dt: float) -> tuple[float, ...]:
         L = self.L

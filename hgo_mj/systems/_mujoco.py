@@ -6,6 +6,7 @@ read from a compiled ``MjModel``, defaults from the shipped MJCF) and :class:`_M
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from importlib import resources
 from typing import Any, ClassVar
 
@@ -204,7 +205,18 @@ class _MujocoSystem(System):
 class _SecondOrderMujocoSystem(_MujocoSystem):
     """A one-joint MuJoCo system whose state ``(q, q')`` already is its normal form
     ``z = (y, y')``: ``to_normal``/``from_normal`` are the identity and
-    ``phi(z, u) = q''`` is the second row of :meth:`dynamics`."""
+    ``phi(z, u) = q''`` is the second row of :meth:`dynamics`.
+
+    Subclasses give the acceleration once, in plain floats, as :meth:`_acceleration`; their
+    :meth:`dynamics` and :meth:`phi_unchecked` (an observer's model term, once per sample) both
+    use it, so the model term builds no array.
+    """
+
+    @staticmethod
+    def _acceleration(q: float, v: float, u0: float, p: Mapping[str, float]) -> float:
+        """``q''`` at angle ``q``, velocity ``v`` and input ``u0``, in plain floats (the second
+        row of :meth:`dynamics`). Subclasses implement it."""
+        raise NotImplementedError
 
     def to_normal(self, x: Any, u: Any = None) -> Array:
         """``z = (q, q')``: the state itself."""
@@ -226,5 +238,7 @@ class _SecondOrderMujocoSystem(_MujocoSystem):
     def from_normal_unchecked(self, z: Array, u: Array) -> Array:
         return z
 
-    def phi_unchecked(self, z: Array, u: Array) -> float:
-        return float(self.dynamics(0.0, z, u, self.params)[1])
+    def phi_unchecked(self, z: Any, u: Array) -> float:
+        """:meth:`phi` without validation, in plain floats: ``z`` is any sequence of two
+        numbers (an observer passes its tuple of floats), ``u`` has one entry."""
+        return self._acceleration(z[0], z[1], float(u[0]), self.params)

@@ -89,12 +89,14 @@ class CartPendulum(_SecondOrderMujocoSystem):
                 "damping": r.damping(dof), "accel_gain": gain}
 
     @staticmethod
+    def _acceleration(q: float, v: float, u0: float, p: Mapping[str, float]) -> float:
+        return (p["mass"] * p["length"] * (p["g"] * math.sin(q) + p["accel_gain"] * u0 * math.cos(q))
+                - p["damping"] * v) / p["inertia"]
+
+    @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         th, w = float(x[0]), float(x[1])
-        acc = (p["mass"] * p["length"] * (p["g"] * math.sin(th)
-                                          + p["accel_gain"] * float(u[0]) * math.cos(th))
-               - p["damping"] * w) / p["inertia"]
-        return np.array([w, acc])
+        return np.array([w, CartPendulum._acceleration(th, w, float(u[0]), p)])
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
