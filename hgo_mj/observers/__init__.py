@@ -7,7 +7,16 @@ from typing import Any
 from ..exceptions import DesignError
 from .adaptive_gain import AdaptiveGainObserver
 from .base import Observer
+from .bastin_gevers import AOCF, BastinGeversObserver
+from .besancon import AffineForm, BesanconObserver
 from .high_gain import HighGainObserver, MultiOutputHighGainObserver
+from .jo_son import JoSonForm, JoSonObserver
+from .kalman import (
+    ExtendedKalmanFilter,
+    MujocoExtendedKalmanFilter,
+    MujocoUnscentedKalmanFilter,
+    UnscentedKalmanFilter,
+)
 from .q_integral import QIntegralObserver
 from .riccati import RiccatiObserver
 
@@ -17,6 +26,13 @@ OBSERVERS: dict[str, type[Observer]] = {
     "high_gain_multi": MultiOutputHighGainObserver,
     "riccati": RiccatiObserver,
     "q_integral": QIntegralObserver,
+    "bastin_gevers": BastinGeversObserver,
+    "jo_son": JoSonObserver,
+    "besancon": BesanconObserver,
+    "ekf": ExtendedKalmanFilter,
+    "ukf": UnscentedKalmanFilter,
+    "ekf_mujoco": MujocoExtendedKalmanFilter,
+    "ukf_mujoco": MujocoUnscentedKalmanFilter,
 }
 
 
@@ -30,6 +46,9 @@ def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
         raise DesignError(f"observer {kind!r}: {exc}") from None
 
 
-__all__ = ["OBSERVERS", "AdaptiveGainObserver", "HighGainObserver",
+__all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
+           "MujocoExtendedKalmanFilter", "MujocoUnscentedKalmanFilter", "UnscentedKalmanFilter",
+           "OBSERVERS", "AdaptiveGainObserver", "BastinGeversObserver", "JoSonForm",
+           "JoSonObserver", "HighGainObserver",
            "MultiOutputHighGainObserver", "Observer", "QIntegralObserver", "RiccatiObserver",
            "make_observer"]

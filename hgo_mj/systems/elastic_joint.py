@@ -107,6 +107,37 @@ class ElasticJoint(_MujocoSystem):
     def output(x: Array, p: Mapping[str, float]) -> Array:
         return np.array([float(x[0])])
 
+    @staticmethod
+    def jacobian(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
+        """:math:`\\partial f / \\partial x` of :meth:`dynamics`, shape (4, 4) (used by the
+        Kalman filters of :mod:`hgo_mj.observers.kalman`)."""
+        I, J, k = p["link_inertia"], p["motor_inertia"], p["stiffness"]
+        mgl = p["mass"] * p["g"] * p["com_distance"]
+        return np.array([[0.0, 0.0, 1.0, 0.0],
+                         [0.0, 0.0, 0.0, 1.0],
+                         [(-mgl * math.cos(float(x[0])) - k) / I, k / I, -p["link_damping"] / I, 0.0],
+                         [k / J, -k / J, 0.0, -p["motor_damping"] / J]])
+
+    @staticmethod
+    def param_jacobian(t: float, x: Array, u: Array, p: Mapping[str, float],
+                       names: tuple[str, ...]) -> Array:
+        """:math:`\\partial f / \\partial p` of :meth:`dynamics` for the parameters ``names``,
+        shape (4, len(names))."""
+        q, th, w, v, uu = (float(x[0]), float(x[1]), float(x[2]), float(x[3]), float(u[0]))
+        I, J = p["link_inertia"], p["motor_inertia"]
+        M, g, L, s = p["mass"], p["g"], p["com_distance"], math.sin(q)
+        qdd = (-M * g * L * s - p["stiffness"] * (q - th) - p["link_damping"] * w) / I
+        thdd = (p["stiffness"] * (q - th) - p["motor_damping"] * v + p["gear"] * uu) / J
+        d = {"stiffness": (-(q - th) / I, (q - th) / J), "mass": (-g * L * s / I, 0.0),
+             "com_distance": (-M * g * s / I, 0.0), "g": (-M * L * s / I, 0.0),
+             "link_damping": (-w / I, 0.0), "motor_damping": (0.0, -v / J),
+             "gear": (0.0, uu / J), "link_inertia": (-qdd / I, 0.0),
+             "motor_inertia": (0.0, -thdd / J)}
+        out = np.zeros((4, len(names)))
+        for j, nm in enumerate(names):
+            out[2, j], out[3, j] = d[nm]
+        return out
+
     # ------------------------------------------------------------- normal form (fast)
     @staticmethod
     def _to_normal(x: Array, p: Mapping[str, float]) -> Array:

@@ -63,13 +63,40 @@ class Pendulum(_SecondOrderMujocoSystem):
                 "gear": r.gear("torque", "hinge"), "g": r.g}
 
     @staticmethod
+    def _acceleration(q: float, v: float, u0: float, p: Mapping[str, float]) -> float:
+        return (p["gear"] * u0 - p["mass"] * p["g"] * p["com_distance"] * math.sin(q)
+                - p["damping"] * v) / p["inertia"]
+
+    @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         th, w = float(x[0]), float(x[1])
-        acc = (p["gear"] * float(u[0]) - p["mass"] * p["g"] * p["com_distance"] * math.sin(th)
-               - p["damping"] * w) / p["inertia"]
-        return np.array([w, acc])
+        return np.array([w, Pendulum._acceleration(th, w, float(u[0]), p)])
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
         return np.array([float(x[0])])
+
+    @staticmethod
+    def jacobian(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
+        """:math:`\\partial f / \\partial x` of :meth:`dynamics`, shape (2, 2) (used by the
+        Kalman filters of :mod:`hgo_mj.observers.kalman`)."""
+        J = p["inertia"]
+        return np.array([[0.0, 1.0],
+                         [-p["mass"] * p["g"] * p["com_distance"] * math.cos(float(x[0])) / J,
+                          -p["damping"] / J]])
+
+    @staticmethod
+    def param_jacobian(t: float, x: Array, u: Array, p: Mapping[str, float],
+                       names: tuple[str, ...]) -> Array:
+        """:math:`\\partial f / \\partial p` of :meth:`dynamics` for the parameters ``names``,
+        shape (2, len(names))."""
+        th, w, uu, J = float(x[0]), float(x[1]), float(u[0]), p["inertia"]
+        m, g, lc, s = p["mass"], p["g"], p["com_distance"], math.sin(th)
+        acc = (p["gear"] * uu - m * g * lc * s - p["damping"] * w) / J
+        d = {"mass": -g * lc * s / J, "com_distance": -m * g * s / J, "g": -m * lc * s / J,
+             "gear": uu / J, "damping": -w / J, "inertia": -acc / J}
+        out = np.zeros((2, len(names)))
+        for j, nm in enumerate(names):
+            out[1, j] = d[nm]
+        return out
 
