@@ -2,8 +2,12 @@
 
 ``hgo-mj run scenario.toml`` or ``hgo-mj run --plant NAME --observer KIND:k=v,... ...`` runs a
 headless study and writes ``trajectory.npz``, ``metrics.json``, ``figure.png`` and
-``summary.txt`` into ``--out``. Bad input exits with status 2 and one line naming the
-parameter, what was expected and what was found.
+``summary.txt`` into ``--out``; ``--rrd [FILE]`` also records it to a rerun file (default
+``OUT/run.rrd``), written in chunks of ``RRD_CHUNK_SECONDS`` (2) simulated seconds as the run
+goes, so a run stopped with Ctrl-C (exit status 130) leaves a readable recording up to its last
+chunk. ``hgo-mj demo``
+writes ``runs/demo/demo.rrd`` unless ``--no-rrd``. Bad input exits with status 2 and one line
+naming the parameter, what was expected and what was found.
 """
 
 from __future__ import annotations
@@ -97,9 +101,18 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
     return sc
 
 
-def run_scenario(sc: dict[str, Any], name: str = "run") -> tuple[Any, dict[str, Any], Path]:
+#: simulated seconds per chunk of a recording made during a run (at least 200 samples a chunk);
+#: each chunk costs about 2 ms (BENCHMARKS.md), so 1 s chunks would add 7% to a 1 kHz run
+RRD_CHUNK_SECONDS = 2.0
+
+
+def run_scenario(sc: dict[str, Any], name: str = "run",
+                 rrd: str | Path | None = None) -> tuple[Any, dict[str, Any], Path]:
     """Build everything a scenario names, simulate, and write the results. Returns
-    ``(trajectory, metrics, out_dir)``."""
+    ``(trajectory, metrics, out_dir)``.
+
+    With ``rrd``, the run is also recorded to that rerun file (:class:`hgo_mj.record.Recorder`)
+    chunk by chunk while it runs; the file is closed even when the run is interrupted."""
     from .inputs import Constant, make_signal
     from .metrics import all_metrics, format_table
     from .observers import make_observer
@@ -143,12 +156,34 @@ def run_scenario(sc: dict[str, Any], name: str = "run") -> tuple[Any, dict[str, 
         inputs = make_signal(kind, **inp)
     if "duration" not in run:
         raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
-    traj = simulate(plant, sensor, observers, inputs, run["duration"],
-                    sample_period=run.get("sample_period"),
-                    control_period=run.get("control_period"), x0=pl.get("x0"), seed=seed,
-                    metadata={"scenario": sc.get("name", name), "scenario_spec": sc})
-    mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
-    metrics = all_metrics(traj, **mkw)
+    rec = None
+    if rrd is not None:
+        from .record import Recorder
+        from .simulate import package_versions
+
+        rec = Recorder.for_plant(rrd, plant, list(observers),
+                                 recording_name=str(sc.get("name", name)))
+    try:
+        on_chunk = None
+        if rec is not None:
+            # what is known before the run, in case it is cut short; replaced at the end
+            rec.log_metadata({"scenario": sc.get("name", name), "seed": seed,
+                              "scenario_spec": sc, "versions": package_versions()})
+            ts = run.get("sample_period") or plant.dt
+            on_chunk = (max(RRD_CHUNK_SECONDS, 200 * float(ts)), rec.write_chunk)
+        traj = simulate(plant, sensor, observers, inputs, run["duration"],
+                        sample_period=run.get("sample_period"),
+                        control_period=run.get("control_period"), x0=pl.get("x0"), seed=seed,
+                        metadata={"scenario": sc.get("name", name), "scenario_spec": sc},
+                        on_chunk=on_chunk)
+        mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
+        metrics = all_metrics(traj, **mkw)
+        if rec is not None:
+            rec.log_metadata(traj.metadata)
+            rec.log_metrics(metrics)
+    finally:
+        if rec is not None:
+            rec.close()
     out = Path(run.get("out", f"runs/{name}"))
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / "trajectory.npz")
@@ -229,17 +264,40 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--control-period", dest="control_period", type=float)
     r.add_argument("--seed", type=int)
     r.add_argument("--out", help="output folder (default runs/run)")
+    r.add_argument("--rrd", nargs="?", const="", metavar="FILE",
+                   help="also record to a rerun .rrd file (default OUT/run.rrd)")
     sub.add_parser("list", help="plants, sensor stages, observers, inputs and reproductions")
     rp = sub.add_parser("reproduce", help="reproduce a paper's example (see `hgo-mj list`)")
     rp.add_argument("name", help="reproduction name")
     rp.add_argument("--out", help="output folder (default runs/reproduce/NAME)")
+    rp.add_argument("--rrd", nargs="?", const="", metavar="FILE",
+                    help="also record to a rerun .rrd file (default OUT/NAME.rrd)")
     d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
     d.add_argument("--out", default="runs/demo")
+    d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
+    d.add_argument("--no-rrd", dest="no_rrd", action="store_true", help="write no recording")
     return ap
+
+
+def _reproduction_kwargs(name: str, rrd: Path | None) -> dict[str, Any]:
+    """``rrd=`` for a reproduction's ``run()`` when asked for, if that ``run()`` takes it."""
+    if rrd is None:
+        return {}
+    import importlib
+
+    from .reproduce import REPRODUCTIONS
+
+    if name in REPRODUCTIONS:  # an unknown name is reported by run_reproduction
+        run = importlib.import_module(REPRODUCTIONS[name][0]).run
+        if "rrd" not in inspect.signature(run).parameters:
+            raise DesignError(f"reproduction {name!r} cannot record: expected run(out, *, rrd=None)"
+                              f"; found run{inspect.signature(run)}")
+    return {"rrd": rrd}
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    rrd: Path | None = None
     try:
         if args.command == "list":
             print(cmd_list())
@@ -248,25 +306,35 @@ def main(argv: list[str] | None = None) -> int:
             from .reproduce import run_reproduction
 
             out = Path(args.out or f"runs/reproduce/{args.name}")
-            summary = run_reproduction(args.name, out)
+            rrd = None if args.rrd is None else Path(args.rrd or out / f"{args.name}.rrd")
+            summary = run_reproduction(args.name, out, **_reproduction_kwargs(args.name, rrd))
             print(json.dumps(summary, indent=2, default=float))
-            print(f"\nwrote {out}/summary.json, report.txt and figures")
+            print(f"\nwrote {out}/summary.json, report.txt and figures"
+                  + (f", {rrd}" if rrd is not None else ""))
             return 0
         if args.command == "demo":
             sc = json.loads(json.dumps(DEMO))
             sc["run"]["out"] = args.out
             name = "demo"
+            rrd = None if args.no_rrd else Path(args.rrd or Path(args.out) / "demo.rrd")
         else:
             sc = scenario_from_args(args)
             name = "run"
-        _, metrics, out = run_scenario(sc, name)
+            rrd = None if args.rrd is None else Path(
+                args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")
+        _, metrics, out = run_scenario(sc, name, rrd=rrd)
     except (HgoError, ValueError) as exc:
         print(f"hgo-mj: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("hgo-mj: interrupted" + (f"; {rrd} holds the run up to its last chunk"
+                                       if rrd is not None else ""), file=sys.stderr)
+        return 130
     from .metrics import format_table
 
     print(format_table(metrics))
-    print(f"\nwrote {out}/trajectory.npz, metrics.json, figure.png, summary.txt")
+    print(f"\nwrote {out}/trajectory.npz, metrics.json, figure.png, summary.txt"
+          + (f", {rrd}" if rrd is not None else ""))
     return 0
 
 

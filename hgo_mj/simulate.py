@@ -144,7 +144,8 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
              observers: Mapping[str, Observer] | Sequence[Observer] | Observer | None,
              inputs: Callable[..., Any], duration: float, *, sample_period: float | None = None,
              control_period: float | None = None, x0: Any = None, seed: int | None = None,
-             metadata: Mapping[str, Any] | None = None) -> Trajectory:
+             metadata: Mapping[str, Any] | None = None,
+             on_chunk: tuple[float, Callable[[int, Trajectory], None]] | None = None) -> Trajectory:
     """Run plant, sensor chain and observers together and return the :class:`Trajectory`.
 
     Parameters
@@ -167,6 +168,14 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         Initial true state (default ``plant.system.default_x0``).
     seed : int, optional
         Seed of the sensor chain's generator: the same seed gives a bit-identical run.
+    on_chunk : (seconds, callback), optional
+        Hand the rows over as they are simulated: ``callback(first_row, chunk)`` is called with
+        a :class:`Trajectory` of the rows ``first_row ...`` each time ``seconds`` of simulated
+        time have been collected (at least one row), and once more with the rows left at the
+        end, also when the run stops on a :class:`DivergenceError`. A chunk's metadata holds
+        only ``sample_period`` and ``first_row``; its ``update_time`` is NaN. Used by
+        :class:`hgo_mj.record.Recorder` so that a run killed part-way leaves a recording of
+        everything up to its last chunk. The simulated values do not depend on it.
 
     Raises
     ------
@@ -183,6 +192,12 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
     duration = finite_scalar("duration", duration, positive=True)
     N = int(round(duration / Ts))
     obs = _named_observers(observers)
+    chunk_rows, chunk_cb = -1, None
+    if on_chunk is not None:
+        if not (isinstance(on_chunk, tuple) and len(on_chunk) == 2 and callable(on_chunk[1])):
+            raise DesignError(f"on_chunk must be a tuple (seconds, callback); found {on_chunk!r}")
+        chunk_s = finite_scalar("on_chunk seconds", on_chunk[0], positive=True)
+        chunk_rows, chunk_cb = max(int(round(chunk_s / Ts)), 1), on_chunk[1]
     if isinstance(inputs, Controller):
         if inputs.source == "estimate":
             if not obs:
@@ -219,6 +234,36 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
     perf = time.perf_counter
     u = np.zeros(p)
     failure: Exception | None = None
+
+    def build(k0: int, meta: dict[str, Any], update_time: list[float] | None = None) -> Trajectory:
+        """The rows collected in the lists (run rows ``k0 ...``) as a :class:`Trajectory`."""
+        rows = len(X)
+        records = {}
+        for i, name in enumerate(names):
+            dg = dg_rows[i]
+            diag = {d: np.array([r[d] for r in dg], dtype=float) for d in (dg[0] if dg else ())}
+            records[name] = ObserverRecord(
+                x_hat=np.array(xh_rows[i], dtype=float).reshape(rows, -1),
+                z_hat=np.array(zh_rows[i], dtype=float).reshape(rows, -1), diagnostics=diag,
+                update_time=float("nan") if update_time is None else update_time[i])
+        return Trajectory(
+            t=np.arange(k0, k0 + rows) * Ts, x=np.array(X).reshape(rows, n),
+            y_clean=np.array(Yc).reshape(rows, m), y_meas=np.array(Ym).reshape(rows, m),
+            u=np.array(U).reshape(rows, p), observers=records,
+            state_names=tuple(plant.state_names), output_names=tuple(plant.output_names),
+            input_names=tuple(plant.input_names), metadata=meta)
+
+    parts: list[Trajectory] = []  # chunks handed to on_chunk; their rows leave the lists
+
+    def emit(k0: int) -> None:
+        chunk = build(k0, {"sample_period": Ts, "first_row": k0})
+        for rows in (X, Yc, Ym, U, *xh_rows, *zh_rows, *dg_rows):
+            rows.clear()
+        parts.append(chunk)
+        chunk_cb(k0, chunk)
+
+    sent = 0  # rows already handed to on_chunk
+    next_chunk = chunk_rows
     try:
         for k in range(N + 1):
             t = k * Ts
@@ -242,6 +287,9 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                 xh_rows[i].append(x_hat[i])
                 zh_rows[i].append(ob.z_hat)
                 dg_rows[i].append(ob.diagnostics())
+            if k + 1 == next_chunk:
+                emit(sent)
+                sent, next_chunk = k + 1, k + 1 + chunk_rows
             if k == N:
                 break
             for i, ob in enumerate(obs_list):
@@ -253,15 +301,9 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
     except (DivergenceError, FloatingPointError) as exc:
         failure = exc  # keep what was simulated: the partial trajectory goes with the error
 
-    rows = len(X)
-    records = {}
-    for i, name in enumerate(names):
-        diag = {d: np.array([r[d] for r in dg_rows[i]], dtype=float) for d in dg_rows[i][0]}
-        records[name] = ObserverRecord(
-            x_hat=np.array(xh_rows[i], dtype=float).reshape(rows, -1),
-            z_hat=np.array(zh_rows[i], dtype=float).reshape(rows, -1), diagnostics=diag,
-            update_time=wall[i] / max(rows - 1, 1))
-    t_col = np.arange(rows) * Ts
+    if chunk_cb is not None and X:
+        emit(sent)
+    rows = sent + len(X)
     meta = {"plant": type(plant.system).__name__, "system_params": plant.system.params,
             "plant_dt": plant.dt, "physics_dt": getattr(plant, "physics_dt", plant.dt),
             "sample_period": Ts, "control_period": Tc, "duration": duration, "seed": seed,
@@ -272,11 +314,9 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
             "input": {"type": type(inputs).__name__,
                       **(inputs.params() if hasattr(inputs, "params") else {})},
             "versions": package_versions(), **(dict(metadata) if metadata else {})}
-    traj = Trajectory(t=t_col, x=np.array(X).reshape(rows, n), y_clean=np.array(Yc).reshape(rows, m),
-                      y_meas=np.array(Ym).reshape(rows, m), u=np.array(U).reshape(rows, p),
-                      observers=records, state_names=tuple(plant.state_names),
-                      output_names=tuple(plant.output_names),
-                      input_names=tuple(plant.input_names), metadata=meta)
+    update_time = [w / max(rows - 1, 1) for w in wall]
+    traj = build(0, meta, update_time) if not parts else _concatenate(parts, meta, update_time)
+    records, t_col = traj.observers, traj.t
     if failure is not None:
         exc = DivergenceError(f"simulation stopped at t={(rows - 1) * Ts:g}: {failure}")
         exc.trajectory = traj  # type: ignore[attr-defined]
@@ -290,6 +330,27 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
             exc.trajectory = traj  # type: ignore[attr-defined]
             raise exc
     return traj
+
+
+def _concatenate(parts: list[Trajectory], meta: dict[str, Any],
+                 update_time: list[float]) -> Trajectory:
+    """One trajectory of consecutive chunks."""
+    first = parts[0]
+    records = {}
+    for i, name in enumerate(first.observers):
+        recs = [c.observers[name] for c in parts]
+        records[name] = ObserverRecord(
+            x_hat=np.concatenate([r.x_hat for r in recs]),
+            z_hat=np.concatenate([r.z_hat for r in recs]),
+            diagnostics={d: np.concatenate([r.diagnostics[d] for r in recs])
+                         for d in recs[0].diagnostics}, update_time=update_time[i])
+    return Trajectory(t=np.concatenate([c.t for c in parts]),
+                      x=np.concatenate([c.x for c in parts]),
+                      y_clean=np.concatenate([c.y_clean for c in parts]),
+                      y_meas=np.concatenate([c.y_meas for c in parts]),
+                      u=np.concatenate([c.u for c in parts]), observers=records,
+                      state_names=first.state_names, output_names=first.output_names,
+                      input_names=first.input_names, metadata=meta)
 
 
 def plant_x0(plant: Plant, x0: Any) -> list[float]:

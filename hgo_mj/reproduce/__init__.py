@@ -4,6 +4,15 @@ Each reproduction is a module ``hgo_mj.reproduce.<name>`` with a function
 ``run(out: pathlib.Path, *, rrd: pathlib.Path | None = None) -> dict`` that writes
 ``out/summary.json``, PNG figures and ``out/report.txt`` and returns the summary. Its test
 asserts the summary's numbers against the paper within stated tolerances.
+
+Recording (``hgo-mj reproduce NAME --rrd [FILE]``): the command passes ``rrd=Path`` (default
+``OUT/NAME.rrd``) only when asked, and refuses a reproduction whose ``run`` has no ``rrd``
+parameter. With ``rrd`` given, ``run`` writes its main simulation(s) to that one file and
+leaves it closed, e.g. ``hgo_mj.record.record_trajectory(traj, rrd)`` for one trajectory, or
+for several runs ``with Recorder.for_trajectory(rrd, traj_a) as rec:
+rec.record_trajectory(traj_a)`` (runs with the same names can share a recorder; otherwise use
+one file per run, ``rrd.with_name(f"{rrd.stem}_{case}.rrd")``, and list them in the report).
+With ``rrd=None`` it writes no recording.
 """
 
 from __future__ import annotations

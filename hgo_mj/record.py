@@ -1,0 +1,1027 @@
+"""Headless rerun recordings (``.rrd``) of true versus estimated signals, for review.
+
+A :class:`Recorder` owns an explicit :class:`rerun.RecordingStream` (never rerun's global one)
+that writes to a file; no viewer is spawned and no display is needed. A reviewer opens the file
+later with ``rerun file.rrd``. Data goes in columns, batched: the entities sharing a block's rows
+are one Arrow record batch handed to rerun in one call (``rerun.chunk.Chunk.from_record_batch``
+and ``send_chunks``, which split it into one chunk per entity; ``send_columns`` is the same
+columnar path one entity a call), static styles and geometry one batch too. A per-step
+``rr.log`` would cost 36 to 120 microseconds a step here.
+
+Timelines: ``sim_time`` (simulated time, a duration), ``step`` (the sample index) and, for
+environments, ``episode``.
+
+Entities (names escaped with :func:`rerun.escape_entity_path_part`)::
+
+    /state/<state>              scalars [true, <observer 1>, <observer 2>, ...], one row a sample
+    /error/<state>              scalars [<observer 1>, ...]: x - x_hat
+    /sensor/<output>            scalars [clean, measured] (a dropout is NaN)
+    /input/<input>              scalar u
+    /observer/<obs>/gain        the gain diagnostic (``k``, ``gain``, ``gamma``; ``k_<x>`` -> gain/<x>)
+    /observer/<obs>/theta/<p>   parameter estimates (diagnostics ``theta...``), next to
+    /plant/param/<p>            the true parameter, when the system has one of that name
+    /observer/<obs>/diagnostics/<key>   every other diagnostic (dropouts, ...)
+    /env/<name>                 environment extras (reward, ...)
+    /world/true/<body>/<geom>   the MuJoCo model's geometry posed from the true state
+    /world/estimate/<obs>/<body>/<geom>   translucent ghost posed from that observer's estimate
+    /scenario, /metrics         text documents: scenario, seed, observer parameters, package
+                                versions; the metrics table
+
+One entity per state holds the truth and every estimate as instances (rather than one entity
+per observer and state): each entity row costs about 20 bytes of row id and time on top of its
+values, and this layout keeps a 10 s, 1 kHz pendulum recording with two observers under 3 MB.
+Diagnostics are logged where they change (and at the end of the run or episode), drawn as
+steps.
+Series styles (names, one colour per observer, the truth in a fixed colour) are logged once as
+static data, and a default blueprint is embedded: one time-series view per state (truth and
+every estimate), one per state's errors, the adaptive quantities, inputs and measurements, the
+3D view and the text documents.
+
+The 3D view is posed with a batched forward kinematics of the hinge and slide joints the
+system names (MuJoCo's ``mj_kinematics`` equations, vectorised over samples); joints the
+system does not name stay at the model's ``qpos0``. Poses are logged at ``pose_rate`` (default
+100 Hz, more than a viewer plays back in real time) to keep files small and cheap; every
+sample with ``pose_rate=None``.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+from numpy.typing import NDArray
+
+from .exceptions import DesignError, DimensionError
+
+Array = NDArray[np.float64]
+
+SIM_TIME = "sim_time"
+STEP = "step"
+EPISODE = "episode"
+
+#: colour of the true signals (the true robot keeps the MJCF's colours)
+TRUE_COLOR = (230, 230, 230)
+MEASURED_COLOR = (130, 130, 130)
+INPUT_COLOR = (255, 196, 0)
+EXTRA_COLOR = (120, 200, 255)
+#: one colour per observer, in order (tab10 without its grey)
+OBSERVER_COLORS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
+                   (140, 86, 75), (227, 119, 194), (188, 189, 34), (23, 190, 207))
+#: alpha of the estimate ghosts in the 3D view (0-255)
+GHOST_ALPHA = 90
+
+_GAIN_KEYS = ("k", "gain", "gamma")
+#: least wall time between two flushes started after blocks (``flush_each="start"``), seconds
+_FLUSH_INTERVAL = 0.25
+_THETA_PREFIXES = ("theta_hat_", "theta_hat", "theta_", "theta")
+
+
+def _part(name: str) -> str:
+    return rr.escape_entity_path_part(str(name))
+
+
+def observer_color(i: int) -> tuple[int, int, int]:
+    """Colour of the ``i``-th observer of a recording (the same in every view)."""
+    return OBSERVER_COLORS[i % len(OBSERVER_COLORS)]
+
+
+def diagnostic_path(observer: str, key: str, param_names: Sequence[str] = ()) -> tuple[str, str]:
+    """Entity path and kind (``"gain"``, ``"theta"`` or ``"other"``) of one diagnostic.
+
+    ``k``, ``gain`` and ``gamma`` go to ``/observer/<obs>/gain`` (``k_<x>``, ... below it); a key
+    that is a parameter name of the system, or starts with ``theta`` (``theta_hat_<p>``,
+    ``theta_<p>``, ``theta<p>``), to ``/observer/<obs>/theta/<p>``; anything else to
+    ``/observer/<obs>/diagnostics/<key>``.
+    """
+    o = _part(observer)
+    low = key.lower().rstrip("_")
+    if low in _GAIN_KEYS:
+        return f"/observer/{o}/gain", "gain"
+    for g in _GAIN_KEYS:
+        if low.startswith(g + "_"):
+            return f"/observer/{o}/gain/{_part(key[len(g) + 1:])}", "gain"
+    if key in param_names:
+        return f"/observer/{o}/theta/{_part(key)}", "theta"
+    for pre in _THETA_PREFIXES:
+        if low.startswith(pre) and len(key) > len(pre):
+            param = key[len(pre):].strip("_")
+            return f"/observer/{o}/theta/{_part(param or key)}", "theta"
+    if low == "theta":
+        return f"/observer/{o}/theta/theta", "theta"
+    return f"/observer/{o}/diagnostics/{_part(key)}", "other"
+
+
+def _theta_param(path: str) -> str:
+    return path.rsplit("/theta/", 1)[1]
+
+
+# --------------------------------------------------------------------------- kinematics
+def _qmul(a: Array, b: Array) -> Array:
+    """Quaternion products ``a * b`` (``w, x, y, z`` last axis), broadcasting."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack((aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw),
+                    axis=-1)
+
+
+def _qrot(q: Array, v: Array) -> Array:
+    """Rotate vectors ``v`` by unit quaternions ``q`` (``w, x, y, z``), broadcasting."""
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+class Kinematics:
+    """Batched forward kinematics of a MuJoCo model driven by some of its joints.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+        The compiled model.
+    joints : sequence of str
+        Hinge or slide joints whose positions :meth:`poses` takes, in order; every other joint
+        stays at ``qpos0``.
+
+    Notes
+    -----
+    The pose of body ``b`` with parent ``p`` follows ``mj_kinematics``: ``x_b = x_p + R_p
+    pos_b``, ``q_b = q_p body_quat_b``, then for each driven joint a hinge rotates about its
+    axis through its anchor by ``q - qpos0`` and a slide translates along its axis. Each body is
+    a handful of numpy operations on ``(T, 3)`` and ``(T, 4)`` arrays; a test holds it against
+    ``mj_kinematics``.
+    """
+
+    def __init__(self, model: Any, joints: Sequence[str]) -> None:
+        import mujoco
+
+        self.model = model
+        m = model
+        driven: dict[int, list[tuple[int, int]]] = {}  # body -> [(joint id, column)]
+        for col, name in enumerate(joints):
+            j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if j < 0:
+                raise DesignError(f"the model has no joint named {name!r}; joints: "
+                                  f"{[m.joint(i).name for i in range(m.njnt)]}")
+            jtype = int(m.jnt_type[j])
+            if jtype not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+                raise DesignError(f"joint {name!r} must be a hinge or slide joint to be posed; "
+                                  f"found {mujoco.mjtJoint(jtype).name}")
+            driven.setdefault(int(m.jnt_bodyid[j]), []).append((j, col))
+        for b in driven:
+            driven[b].sort()
+        self._driven = driven
+        self.njoints = len(joints)
+        moving = np.zeros(m.nbody, dtype=bool)
+        for b in range(1, m.nbody):
+            moving[b] = moving[m.body_parentid[b]] or b in driven
+        self.moving = moving
+        self._hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
+
+    def poses(self, q: Array) -> tuple[list[Array], list[Array]]:
+        """World positions and quaternions (``w, x, y, z``) of every body for the joint
+        positions ``q`` of shape ``(T, len(joints))``: lists over bodies of arrays of shape
+        ``(T, 3)`` and ``(T, 4)`` for bodies the joints move, ``(1, 3)`` and ``(1, 4)`` for the
+        others."""
+        m = self.model
+        q = np.asarray(q, dtype=float)
+        pos: list[Array] = [np.zeros((1, 3))]
+        quat: list[Array] = [np.array([[1.0, 0.0, 0.0, 0.0]])]
+        for b in range(1, m.nbody):
+            par = m.body_parentid[b]
+            xb, qb = pos[par], quat[par]
+            bpos, bquat = np.asarray(m.body_pos[b]), np.asarray(m.body_quat[b])
+            if bpos.any():
+                xb = xb + _qrot(qb, bpos)
+            if bquat[0] != 1.0:
+                qb = _qmul(qb, bquat)
+            for j, col in self._driven.get(b, ()):
+                a = q[:, col] - m.qpos0[m.jnt_qposadr[j]]
+                axis = np.asarray(m.jnt_axis[j])
+                if m.jnt_type[j] == self._hinge:
+                    anchor = np.asarray(m.jnt_pos[j])
+                    xanchor = xb + _qrot(qb, anchor) if anchor.any() else xb
+                    half = 0.5 * a[:, None]
+                    qb = _qmul(qb, np.concatenate((np.cos(half), np.sin(half) * axis), axis=1))
+                    xb = xanchor - _qrot(qb, anchor) if anchor.any() else xb
+                else:
+                    xb = xb + _qrot(qb, axis) * a[:, None]
+            if self.moving[b]:
+                n = q.shape[0]
+                xb = np.broadcast_to(xb, (n, 3))
+                qb = np.broadcast_to(qb, (n, 4))
+            pos.append(xb)
+            quat.append(qb / np.linalg.norm(qb, axis=-1, keepdims=True))
+        return pos, quat
+
+
+def _xyzw(q: Array) -> Array:
+    return np.concatenate((q[..., 1:], q[..., :1]), axis=-1)
+
+
+def _geom_color(m: Any, g: int) -> NDArray[np.float64]:
+    rgba = np.array(m.geom_rgba[g], dtype=float)
+    if m.geom_matid[g] >= 0 and np.allclose(rgba, (0.5, 0.5, 0.5, 1.0)):
+        rgba = np.array(m.mat_rgba[m.geom_matid[g]], dtype=float)
+    return rgba
+
+
+def _geom_shape(m: Any, g: int, rgba: Any, fill: Any) -> Any:
+    """The rerun archetype of geom ``g`` in its own frame, or ``None`` for a type not drawn."""
+    import mujoco
+
+    t = mujoco.mjtGeom
+    kind, size = int(m.geom_type[g]), np.array(m.geom_size[g], dtype=float)
+    col = [rgba]
+    if kind == t.mjGEOM_BOX:
+        return rr.Boxes3D(half_sizes=[size], colors=col, fill_mode=fill)
+    if kind == t.mjGEOM_SPHERE:
+        return rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=col, fill_mode=fill)
+    if kind == t.mjGEOM_ELLIPSOID:
+        return rr.Ellipsoids3D(half_sizes=[size], colors=col, fill_mode=fill)
+    if kind == t.mjGEOM_CAPSULE:
+        return rr.Capsules3D(lengths=[2 * size[1]], radii=[size[0]],
+                             translations=[[0.0, 0.0, -size[1]]], colors=col, fill_mode=fill)
+    if kind == t.mjGEOM_CYLINDER:
+        return rr.Cylinders3D(lengths=[2 * size[1]], radii=[size[0]], colors=col, fill_mode=fill)
+    if kind == t.mjGEOM_PLANE:
+        half = [size[0] or 2.0, size[1] or 2.0, 1e-3]
+        return rr.Boxes3D(half_sizes=[half], colors=col, fill_mode=fill)
+    if kind == t.mjGEOM_MESH and m.geom_dataid[g] >= 0:
+        k = m.geom_dataid[g]
+        v0, nv = m.mesh_vertadr[k], m.mesh_vertnum[k]
+        f0, nf = m.mesh_faceadr[k], m.mesh_facenum[k]
+        return rr.Mesh3D(vertex_positions=np.array(m.mesh_vert[v0:v0 + nv]),
+                         triangle_indices=np.array(m.mesh_face[f0:f0 + nf]), albedo_factor=rgba)
+    return None  # height fields, SDFs
+
+
+# --------------------------------------------------------------------------- SIGINT
+class _DeferSigint:
+    """Hold a SIGINT (Ctrl-C) until a block is written, so a chunk is never half-recorded."""
+
+    def __enter__(self) -> _DeferSigint:
+        self._old: Any = None
+        self._hit = False
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            self._old = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum: int, frame: Any) -> None:
+        self._hit = True
+
+    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+        if self._hit and et is None:
+            raise KeyboardInterrupt
+
+
+# --------------------------------------------------------------------------- recorder
+def _columns(name: str, a: Any, rows: int, width: int | None = None) -> Array:
+    arr = np.asarray(a, dtype=float)
+    if arr.ndim == 1 and width is not None:
+        arr = arr.reshape(-1, 1) if width == 1 else arr
+    if arr.ndim != 2 or arr.shape[0] != rows or (width is not None and arr.shape[1] != width):
+        want = f"({rows}, {width})" if width is not None else f"({rows}, n)"
+        raise DimensionError(f"{name} must have shape {want}; found {arr.shape}")
+    return arr
+
+
+_DESCRIPTORS: dict[str, tuple[dict[bytes, bytes], Any]] = {}
+
+
+def _descriptor(kind: str) -> tuple[dict[bytes, bytes], Any]:
+    """Arrow field metadata and datatype of one component, taken from rerun's own columns."""
+    if kind not in _DESCRIPTORS:
+        if kind == "scalar":
+            col = next(iter(rr.Scalars.columns(scalars=np.zeros(1))))
+        else:
+            cols = rr.Transform3D.columns(translation=np.zeros((1, 3), np.float32),
+                                          quaternion=np.zeros((1, 4), np.float32))
+            col = next(c for c in cols if c.component_descriptor().component.endswith(kind))
+        d = col.component_descriptor()
+        meta = {b"rerun:kind": b"data", b"rerun:component": d.component.encode(),
+                b"rerun:archetype": (d.archetype or "").encode(),
+                b"rerun:component_type": (d.component_type or "").encode()}
+        _DESCRIPTORS[kind] = (meta, col.as_arrow_array().type)
+    return _DESCRIPTORS[kind]
+
+
+_FIELDS: dict[tuple[str, str, Any], Any] = {}
+
+
+def _index_field(name: str, kind: str) -> Any:
+    """The Arrow field of a timeline column (cached)."""
+    key = (name, kind, None)
+    if key not in _FIELDS:
+        import pyarrow as pa
+
+        _FIELDS[key] = pa.field(name, pa.duration("ns") if kind == "duration" else pa.int64(),
+                                nullable=False, metadata={b"rerun:kind": b"index",
+                                                          b"rerun:index_name": name.encode()})
+    return _FIELDS[key]
+
+
+class _Batch:
+    """Columns of several entities on the same rows, sent as one Arrow record batch (rerun
+    splits it into one chunk per entity): one call instead of one ``send_columns`` each."""
+
+    def __init__(self, t: Array, steps: NDArray[np.int64], episode: int | None) -> None:
+        import pyarrow as pa
+
+        self.pa = pa
+        self.rows = t.size
+        self._offsets: dict[int, Any] = {}
+        ns = np.rint(t * 1e9).astype(np.int64).view("timedelta64[ns]")
+        self.fields = [_index_field(SIM_TIME, "duration"), _index_field(STEP, "sequence")]
+        self.arrays = [pa.array(ns), pa.array(steps.astype(np.int64, copy=False))]
+        if episode is not None:
+            self.fields.append(_index_field(EPISODE, "sequence"))
+            self.arrays.append(pa.array(np.full(t.size, int(episode), dtype=np.int64)))
+        self._n_index = len(self.fields)
+
+    def add(self, path: str, kind: str, values: Any) -> None:
+        """Add ``values`` of shape ``(rows,)`` or ``(rows, k)`` (scalars) or ``(rows, 3|4)``
+        (``translation``/``quaternion``) to the entity ``path``."""
+        pa = self.pa
+        meta, typ = _descriptor(kind)
+        v = np.asarray(values)
+        if kind == "scalar":
+            k = 1 if v.ndim == 1 else v.shape[1]
+            flat = pa.array(np.ascontiguousarray(v, dtype=np.float64).reshape(-1))
+        else:
+            k = 1
+            inner = typ.value_type
+            flat = pa.FixedSizeListArray.from_arrays(
+                pa.array(np.ascontiguousarray(v, dtype=np.float32).reshape(-1),
+                         type=inner.value_type), type=inner)
+        offsets = self._offsets.get(k)
+        if offsets is None:
+            offsets = self._offsets[k] = pa.array(np.arange(0, self.rows * k + 1, k, dtype=np.int32))
+        self.arrays.append(pa.ListArray.from_arrays(offsets, flat, type=typ))
+        key = (path, kind, typ)
+        field = _FIELDS.get(key)
+        if field is None:
+            field = _FIELDS[key] = pa.field(f"{path}:{meta[b'rerun:component'].decode()}", typ,
+                                            metadata={**meta, b"rerun:entity_path": path.encode()})
+        self.fields.append(field)
+
+    def send(self, stream: rr.RecordingStream) -> None:
+        if len(self.arrays) > self._n_index:
+            from rerun.chunk import Chunk
+
+            batch = self.pa.RecordBatch.from_arrays(self.arrays, schema=self.pa.schema(self.fields))
+            rr.send_chunks(Chunk.from_record_batch(batch), recording=stream)
+
+
+class Recorder:
+    """Write trajectories or environment episodes to a rerun recording (``.rrd``), headless.
+
+    Parameters
+    ----------
+    path : str or Path or None
+        The ``.rrd`` file to write (its folder is created). ``None`` only with ``stream``,
+        whose sinks the caller has set.
+    state_names, output_names, input_names : sequence of str
+        Names of the columns of ``x``, ``y`` and ``u``.
+    observers : sequence of str
+        Names of the observers, in order (their colours follow it).
+    model : mujoco.MjModel, optional
+        The plant's model: draws the 3D view. ``None`` (ODE plants): no 3D view.
+    joints : sequence of str
+        The joints whose positions are the first ``len(joints)`` columns of ``x`` and
+        ``x_hat`` (``System.joints``); required with ``model``.
+    params : mapping, optional
+        True parameter values of the system, drawn next to parameter estimates.
+    stream : rerun.RecordingStream, optional
+        The stream to write through; default a new one with ``application_id`` that is never
+        made the global or thread default.
+    application_id : str
+        Application id of a new stream (the viewer keys blueprints on it).
+    recording_name : str, optional
+        Name of the recording shown in the viewer.
+    pose_rate : float or None
+        Samples per unit of simulated time of the 3D poses (``None``: every sample).
+    flush_each : {"start", "wait", "none"}
+        After a block: ``"start"`` (default) starts a flush to the file without waiting for it,
+        at most every 0.25 s of wall time (rerun's own thread writes each block within a few
+        milliseconds anyway; a flush costs about 0.5 ms); ``"wait"`` blocks after every block
+        until it is written (costs the encoding time on the caller's thread); ``"none"`` leaves
+        it to rerun's sink. Either way a run killed part-way leaves every block before the
+        last in the file, and :meth:`close` always waits.
+
+    Examples
+    --------
+    >>> with Recorder.for_trajectory("run.rrd", traj) as rec:   # doctest: +SKIP
+    ...     rec.record_trajectory(traj)
+    """
+
+    def __init__(self, path: str | Path | None, *, state_names: Sequence[str],
+                 output_names: Sequence[str], input_names: Sequence[str],
+                 observers: Sequence[str] = (), model: Any = None, joints: Sequence[str] = (),
+                 params: Mapping[str, float] | None = None,
+                 stream: rr.RecordingStream | None = None, application_id: str = "hgo_mj",
+                 recording_name: str | None = None, pose_rate: float | None = 100.0,
+                 flush_each: str = "start") -> None:
+        self.state_names = tuple(str(s) for s in state_names)
+        self.output_names = tuple(str(s) for s in output_names)
+        self.input_names = tuple(str(s) for s in input_names)
+        self.observers = tuple(str(o) for o in observers)
+        if len(set(self.observers)) != len(self.observers):
+            raise DesignError(f"observer names must be distinct; found {list(self.observers)}")
+        self.params = {str(k): float(v) for k, v in (params or {}).items()
+                       if isinstance(v, (int, float))}
+        if pose_rate is not None and not (np.isfinite(pose_rate) and pose_rate > 0):
+            raise DesignError(f"pose_rate must be a positive number or None; found {pose_rate!r}")
+        self.pose_rate = pose_rate
+        if flush_each not in ("start", "wait", "none"):
+            raise DesignError(f"flush_each must be 'start', 'wait' or 'none'; found {flush_each!r}")
+        self.flush_each = flush_each
+        self.kinematics: Kinematics | None = None
+        if model is not None:
+            if not joints:
+                raise DesignError("a model needs the joints whose positions lead x; found none")
+            if 2 * len(joints) > len(self.state_names):
+                raise DimensionError(f"x must hold the positions and velocities of the joints "
+                                     f"{list(joints)}; found {len(self.state_names)} states")
+            self.kinematics = Kinematics(model, joints)
+        if stream is None:
+            if path is None:
+                raise DesignError("give a path for the .rrd file, or a stream with its sinks set")
+            stream = rr.RecordingStream(application_id, make_default=False,
+                                        make_thread_default=False)
+        elif not isinstance(stream, rr.RecordingStream):
+            raise DesignError(f"stream must be a rerun.RecordingStream; found "
+                              f"{type(stream).__name__}")
+        self.stream = stream
+        self.path = None if path is None else Path(path)
+        self._own_sink = self.path is not None
+        if self.path is not None:
+            if self.path.suffix != ".rrd":
+                raise DesignError(f"a recording path must end in .rrd; found {str(self.path)!r}")
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            stream.save(self.path)
+        if recording_name:
+            stream.send_recording_name(recording_name)
+        self._full: tuple[str, ...] | None = None  # observers with a full state estimate
+        self._diag: dict[tuple[str, str], tuple[str, str]] = {}
+        self._diag_last: dict[str, float] = {}
+        self._diag_pending: dict[str, float] = {}
+        self._last_row: tuple[float, int, int | None] | None = None
+        self._extra: dict[str, str] = {}
+        self._layout: tuple[Any, ...] | None = None
+        self._t_next = 0.0
+        self._step_next = 0
+        self._closed = False
+        self._static: list[tuple[str, Any]] = []
+        self._flushed = -np.inf
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def for_plant(cls, path: str | Path | None, plant: Any, observers: Sequence[str] = (),
+                  **kw: Any) -> Recorder:
+        """A recorder for runs of ``plant`` (a :class:`~hgo_mj.plants.base.Plant`); MuJoCo
+        plants get the 3D view from their model and ``system.joints``."""
+        model = getattr(plant, "model", None)
+        kw.setdefault("params", getattr(plant.system, "params", None))
+        kw.setdefault("joints", plant.system.joints if model is not None else ())
+        return cls(path, state_names=plant.state_names, output_names=plant.output_names,
+                   input_names=plant.input_names, observers=observers, model=model, **kw)
+
+    @classmethod
+    def for_trajectory(cls, path: str | Path | None, traj: Any, *, model: Any = None,
+                       joints: Sequence[str] | None = None, **kw: Any) -> Recorder:
+        """A recorder for ``traj``. Without ``model``, the MJCF of the system named in
+        ``traj.metadata["plant"]`` is loaded (the scenario's ``model_file`` if it names one);
+        ODE systems get no 3D view."""
+        meta = traj.metadata or {}
+        if model is None:
+            model, sys_joints = _model_for(meta)
+            joints = sys_joints if joints is None else joints
+        kw.setdefault("params", meta.get("system_params"))
+        kw.setdefault("recording_name", meta.get("scenario"))
+        return cls(path, state_names=traj.state_names, output_names=traj.output_names,
+                   input_names=traj.input_names, observers=list(traj.observers), model=model,
+                   joints=joints or (), **kw)
+
+    # ------------------------------------------------------------------ metadata
+    def log_metadata(self, metadata: Mapping[str, Any]) -> None:
+        """Log a run's metadata (scenario, seed, observer parameters, versions, ...) as the
+        text document ``/scenario`` and as recording properties."""
+        md = dict(metadata)
+        lines = [f"# {md.get('scenario', 'run')}", ""]
+        for key in ("plant", "seed", "duration", "sample_period", "control_period", "x0",
+                    "sensor", "system_params"):
+            if key in md:
+                lines.append(f"- **{key}**: `{json.dumps(md[key], default=str)}`")
+        if md.get("observers"):
+            lines += ["", "## Observers", ""]
+            lines += [f"- **{k}**: `{json.dumps(v, default=str)}`" for k, v in md["observers"].items()]
+        if md.get("input"):
+            lines += ["", f"**input**: `{json.dumps(md['input'], default=str)}`"]
+        if md.get("versions"):
+            lines += ["", "## Versions", ""]
+            lines += [f"- {k} {v}" for k, v in md["versions"].items()]
+        lines += ["", "## All metadata", "", "```json", json.dumps(md, indent=2, default=str), "```"]
+        self.stream.log("/scenario", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
+                        static=True, strict=True)
+        props = {k: json.dumps(md[k], default=str) if not isinstance(md[k], str) else md[k]
+                 for k in ("scenario", "plant", "seed", "observers", "versions") if k in md}
+        if props:
+            self.stream.send_property("hgo_mj", rr.AnyValues(**props))
+        self._flush()
+
+    def log_metrics(self, metrics: Mapping[str, Mapping[str, Any]]) -> None:
+        """Log the metrics table (:func:`hgo_mj.metrics.format_table`) as ``/metrics``."""
+        from .metrics import format_table
+
+        text = ("# Metrics\n\nerror e = x - x_hat per observer and state\n\n```\n"
+                + format_table(dict(metrics)) + "\n```\n\n```json\n"
+                + json.dumps(metrics, indent=2, default=float) + "\n```\n")
+        self.stream.log("/metrics", rr.TextDocument(text, media_type="text/markdown"),
+                        static=True, strict=True)
+        self._flush()
+
+    # ------------------------------------------------------------------ data
+    def record(self, t: Any, x: Any, y_clean: Any, y_meas: Any, u: Any,
+               estimates: Mapping[str, Any] | None = None,
+               diagnostics: Mapping[str, Mapping[str, Any]] | None = None, *,
+               step: Any = None, episode: int | None = None,
+               extra: Mapping[str, Any] | None = None, mark_end: bool = True) -> None:
+        """Record one block of rows (``T`` samples).
+
+        Parameters
+        ----------
+        t : array_like, shape (T,)
+            Simulated time of each row (the ``sim_time`` timeline).
+        x, y_clean, y_meas, u : array_like, shapes (T, n), (T, m), (T, m), (T, p)
+            True state, clean and measured outputs, input. ``y_clean`` may be ``None``.
+        estimates : mapping observer -> array (T, n), optional
+            The observers' ``x_hat``; an observer left out is NaN in this block (and its ghost
+            is not moved). An estimate of another width than ``x`` (an observer in its own
+            coordinates) goes to ``/observer/<obs>/x_hat`` instead.
+        diagnostics : mapping observer -> mapping key -> array (T,), optional
+            Run-time quantities (gain, parameter estimates, ...).
+        step : array_like of int or int, optional
+            The ``step`` timeline: an array, or the step of the first row (default: where the
+            last block ended).
+        episode : int, optional
+            Adds the ``episode`` timeline.
+        extra : mapping name -> array (T,) or (T, k), optional
+            More series, under ``/env/<name>``.
+        mark_end : bool
+            Log the diagnostics (which are logged where they change) at the block's last row
+            too, so their lines reach it; ``False`` leaves that row to the next block or to
+            :meth:`close` (blocks of one run: one Arrow batch less each).
+        """
+        t = np.asarray(t, dtype=float).reshape(-1)
+        T = t.size
+        if T == 0:
+            return
+        n, m, p = len(self.state_names), len(self.output_names), len(self.input_names)
+        x = _columns("x", x, T, n)
+        ym = _columns("y_meas", y_meas, T, m)
+        yc = None if y_clean is None else _columns("y_clean", y_clean, T, m)
+        u = _columns("u", u, T, p)
+        given = dict(estimates or {})
+        unknown = set(given) - set(self.observers)
+        if unknown:
+            raise DesignError(f"estimates of unknown observer(s) {sorted(unknown)}; observers: "
+                              f"{list(self.observers)}")
+        est = {o: _columns(f"estimate of {o!r}", given[o], T) for o in self.observers if o in given}
+        if self._full is None:
+            self._full = tuple(o for o in self.observers if o not in est or est[o].shape[1] == n)
+            self._log_styles()
+        for o in self._full:
+            if o not in est:  # no estimate in this block: NaN, and no ghost pose
+                est[o] = np.full((T, n), np.nan)
+            elif est[o].shape[1] != n:
+                raise DimensionError(f"estimate of {o!r} must have shape ({T}, {n}); found "
+                                     f"{est[o].shape}")
+        diag = {o: dict(v) for o, v in (diagnostics or {}).items()}
+        unknown = set(diag) - set(self.observers)
+        if unknown:
+            raise DesignError(f"diagnostics of unknown observer(s) {sorted(unknown)}; observers: "
+                              f"{list(self.observers)}")
+        for o, d in diag.items():  # checked before anything of the block is sent
+            for key, v in d.items():
+                d[key] = np.asarray(v, dtype=float).reshape(-1)
+                if d[key].size != T:
+                    raise DimensionError(f"diagnostic {key!r} of {o!r} must have {T} rows; found "
+                                         f"{d[key].size}")
+        extra = {name: np.asarray(v, dtype=float) for name, v in (extra or {}).items()}
+        for name, v in extra.items():
+            if v.ndim not in (1, 2) or v.shape[0] != T:
+                raise DimensionError(f"extra {name!r} must have shape ({T},) or ({T}, k); found "
+                                     f"{v.shape}")
+        if step is None:
+            steps = self._step_next + np.arange(T, dtype=np.int64)
+        elif np.ndim(step) == 0:
+            steps = int(step) + np.arange(T, dtype=np.int64)
+        else:
+            steps = np.asarray(step, dtype=np.int64).reshape(-1)
+            if steps.size != T:
+                raise DimensionError(f"step must have {T} entries; found {steps.size}")
+        posed = [o for o in self._full if o in given]
+        with _DeferSigint():
+            self._record(t, steps, episode, x, yc, ym, u, est, diag, extra, posed, mark_end)
+            self._last_row = (float(t[-1]), int(steps[-1]), episode)
+            self._send_static()
+            self._step_next = int(steps[-1]) + 1
+            self._t_next = float(t[-1]) + (float(t[-1] - t[-2]) if T > 1 else 0.0)
+            self._send_blueprint()
+            self._flush()
+
+    def _record(self, t: Array, steps: NDArray[np.int64], episode: int | None, x: Array,
+                yc: Array | None, ym: Array, u: Array, est: dict[str, Array],
+                diag: dict[str, dict[str, Any]], extra: dict[str, Any], posed: list[str],
+                mark_end: bool) -> None:
+        batch = _Batch(t, steps, episode)
+        full = self._full or ()
+        for i, s in enumerate(self.state_names):
+            cols = [x[:, i]] + [est[o][:, i] for o in full]
+            batch.add(f"/state/{_part(s)}", "scalar", np.column_stack(cols))
+            if full:
+                batch.add(f"/error/{_part(s)}", "scalar",
+                          np.column_stack([x[:, i] - est[o][:, i] for o in full]))
+        for o in self.observers:
+            if o not in full and o in est:  # an estimate in other coordinates: logged as it is
+                batch.add(f"/observer/{_part(o)}/x_hat", "scalar", est[o])
+        for j, name in enumerate(self.output_names):
+            clean = yc[:, j] if yc is not None else np.full(t.size, np.nan)
+            batch.add(f"/sensor/{_part(name)}", "scalar", np.column_stack((clean, ym[:, j])))
+        for j, name in enumerate(self.input_names):
+            batch.add(f"/input/{_part(name)}", "scalar", u[:, j])
+        for name, v in extra.items():
+            path = self._extra.get(name)
+            if path is None:
+                path = self._extra[name] = f"/env/{_part(name)}"
+                self._static_log(path, rr.SeriesLines(names=[name], colors=[EXTRA_COLOR]))
+            batch.add(path, "scalar", v)
+        batch.send(self.stream)
+        sparse: dict[bytes, tuple[NDArray[np.bool_], list[tuple[str, Array]]]] = {}
+        for o, d in diag.items():
+            for key, v in d.items():
+                self._record_diagnostic(o, str(key), t.size, v, mark_end, sparse)
+        for mask, series in sparse.values():
+            b = _Batch(t[mask], steps[mask], episode)
+            for path, values in series:
+                b.add(path, "scalar", values)
+            b.send(self.stream)
+        if self.kinematics is not None:
+            self._record_poses(t, steps, episode, x, {o: est[o] for o in posed})
+
+    def _record_diagnostic(self, o: str, key: str, rows: int, v: Any, mark_end: bool,
+                           sparse: dict[bytes, tuple[NDArray[np.bool_], list[tuple[str, Array]]]]
+                           ) -> None:
+        """Queue a diagnostic (and the true parameter next to a parameter estimate)."""
+        ident = (o, key)
+        if ident not in self._diag:
+            path, kind = diagnostic_path(o, key, tuple(self.params))
+            self._diag[ident] = (path, kind)
+            i = self.observers.index(o)
+            self._static_log(path, rr.SeriesLines(names=[f"{o} {key}"], colors=[observer_color(i)],
+                                                  interpolation_mode="StepAfter"))
+            if kind == "theta" and _theta_param(path) in self.params:
+                param = _theta_param(path)
+                self._static_log(f"/plant/param/{param}", rr.SeriesLines(
+                    names=[f"{param} true"], colors=[TRUE_COLOR], interpolation_mode="StepAfter"))
+        path, kind = self._diag[ident]
+        self._sparse(path, v, mark_end, sparse)
+        if kind == "theta" and _theta_param(path) in self.params:
+            param = _theta_param(path)
+            self._sparse(f"/plant/param/{param}", np.full(rows, self.params[param]), mark_end,
+                         sparse)
+
+    def _sparse(self, path: str, v: Array, mark_end: bool,
+                sparse: dict[bytes, tuple[NDArray[np.bool_], list[tuple[str, Array]]]]) -> None:
+        """Queue the rows of a piecewise-constant series where it changes (drawn as steps),
+        and its last row when ``mark_end`` (else that row waits for :meth:`close`); rows are
+        grouped by mask, one batch each. A series queued twice in a block is kept once."""
+        if any(p == path for group in sparse.values() for p, _ in group[1]):
+            return
+        prev = np.empty_like(v)
+        prev[0] = self._diag_last.get(path, np.nan)
+        prev[1:] = v[:-1]
+        keep = ~((v == prev) | (np.isnan(v) & np.isnan(prev)))
+        if path not in self._diag_last:
+            keep[0] = True
+        keep[-1] |= mark_end
+        self._diag_last[path] = float(v[-1])
+        if keep[-1]:
+            self._diag_pending.pop(path, None)
+        else:
+            self._diag_pending[path] = float(v[-1])
+        if keep.any():
+            sparse.setdefault(keep.tobytes(), (keep, []))[1].append((path, v[keep]))
+
+    def _send_pending(self) -> None:
+        """Log the last row of every piecewise-constant series whose end is still pending."""
+        if self._diag_pending and self._last_row is not None:
+            t, step, episode = self._last_row
+            batch = _Batch(np.array([t]), np.array([step], dtype=np.int64), episode)
+            for path, value in self._diag_pending.items():
+                batch.add(path, "scalar", np.array([value]))
+            self._diag_pending.clear()
+            batch.send(self.stream)
+
+    def _record_poses(self, t: Array, steps: NDArray[np.int64], episode: int | None, x: Array,
+                      est: dict[str, Array]) -> None:
+        kin = self.kinematics
+        assert kin is not None
+        if self.pose_rate is None or t.size < 2:
+            sel = np.ones(t.size, dtype=bool)
+        else:
+            dt = float(np.median(np.diff(t)))
+            stride = max(int(round(1.0 / (self.pose_rate * dt))), 1) if dt > 0 else 1
+            sel = steps % stride == 0
+            sel[-1] = True  # the block's last sample, so the 3D view ends where the run does
+        nj = kin.njoints
+        q_true = x[sel, :nj]
+        sets = [("/world/true", q_true)]
+        for o in est:
+            q = est[o][sel, :nj].copy()
+            bad = ~np.isfinite(q)
+            q[bad] = q_true[bad]  # an undefined estimate puts the ghost's joint on the truth
+            sets.append((f"/world/estimate/{_part(o)}", q))
+            if o not in self._ghosts:  # drawn from its first pose on (never at the origin)
+                self._ghosts.add(o)
+                self._log_shapes(f"/world/estimate/{_part(o)}", observer_color(self.observers.index(o)))
+        bodies = np.flatnonzero(kin.moving & self._drawn)
+        batch = _Batch(t[sel], steps[sel], episode)
+        rows = q_true.shape[0]
+        pos, quat = kin.poses(np.concatenate([q for _, q in sets]))  # all sets in one pass
+        for i, (root, _) in enumerate(sets):
+            part = slice(i * rows, (i + 1) * rows)
+            for b in bodies:
+                path = f"{root}/{self._body_names[b]}"
+                batch.add(path, "translation", pos[b][part])
+                batch.add(path, "quaternion", _xyzw(quat[b][part]))
+        batch.send(self.stream)
+
+    # ------------------------------------------------------------------ styles and layout
+    def _static_log(self, path: str, archetype: Any) -> None:
+        """Queue static data (styles, geometry); :meth:`_send_static` sends the queue at once."""
+        self._static.append((path, archetype))
+
+    def _send_static(self) -> None:
+        """Send the queued static data as one Arrow record batch (one call, not one a log)."""
+        if not self._static:
+            return
+        import pyarrow as pa
+        from rerun.chunk import Chunk
+
+        fields, arrays = [], []
+        for path, arch in self._static:
+            for b in arch.as_component_batches():
+                d, a = b.component_descriptor(), b.as_arrow_array()
+                lst = pa.ListArray.from_arrays(pa.array([0, len(a)], pa.int32()), a)
+                fields.append(pa.field(f"{path}:{d.component}", lst.type, metadata={
+                    b"rerun:kind": b"data", b"rerun:entity_path": path.encode(),
+                    b"rerun:component": d.component.encode(),
+                    b"rerun:archetype": (d.archetype or "").encode(),
+                    b"rerun:component_type": (d.component_type or "").encode()}))
+                arrays.append(lst)
+        self._static.clear()
+        batch = pa.RecordBatch.from_arrays(arrays, schema=pa.schema(fields))
+        rr.send_chunks(Chunk.from_record_batch(batch, index=None), recording=self.stream)
+
+    def _log_styles(self) -> None:
+        full = self._full or ()
+        colors = [observer_color(self.observers.index(o)) for o in full]
+        for s in self.state_names:
+            self._static_log(f"/state/{_part(s)}", rr.SeriesLines(
+                names=[f"{s} true"] + [f"{s} {o}" for o in full], colors=[TRUE_COLOR] + colors,
+                widths=[2.0] + [1.0] * len(full)))
+            if full:
+                self._static_log(f"/error/{_part(s)}", rr.SeriesLines(
+                    names=[f"{s} error {o}" for o in full], colors=colors))
+        for o in self.observers:
+            if o not in full:
+                self._static_log(f"/observer/{_part(o)}/x_hat", rr.SeriesLines(
+                    colors=[observer_color(self.observers.index(o))]))
+        for name in self.output_names:
+            self._static_log(f"/sensor/{_part(name)}", rr.SeriesLines(
+                names=[f"{name} clean", f"{name} measured"], colors=[TRUE_COLOR, MEASURED_COLOR],
+                widths=[1.5, 1.0]))
+        for name in self.input_names:
+            self._static_log(f"/input/{_part(name)}", rr.SeriesLines(names=[name], colors=[INPUT_COLOR]))
+        if self.kinematics is not None:
+            self._log_geometry()
+
+    def _log_geometry(self) -> None:
+        kin = self.kinematics
+        assert kin is not None
+        m = kin.model
+        self._body_names = [_part(m.body(b).name or f"body{b}") for b in range(m.nbody)]
+        drawn = np.zeros(m.nbody, dtype=bool)
+        geoms: list[tuple[int, int, NDArray[np.float64]]] = []
+        for g in range(m.ngeom):
+            rgba = _geom_color(m, g)
+            if rgba[3] <= 0 or m.geom_group[g] > 2:  # what MuJoCo's viewer hides by default
+                continue
+            b = int(m.geom_bodyid[g])
+            geoms.append((g, b, rgba))
+            drawn[b] = True
+        self._drawn = drawn
+        self._static_log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP)
+        pos0, quat0 = kin.poses(np.zeros((1, kin.njoints)))  # static bodies ignore the joints
+        for b in np.flatnonzero(drawn & ~kin.moving):  # static bodies: posed once
+            self._static_log(f"/world/true/{self._body_names[b]}", rr.Transform3D(
+                translation=pos0[b][0], quaternion=rr.Quaternion(xyzw=_xyzw(quat0[b][0]))))
+        self._geoms = geoms
+        self._ghosts: set[str] = set()
+        self._log_shapes("/world/true", None)
+
+    def _log_shapes(self, root: str, color: tuple[int, int, int] | None) -> None:
+        """Log the geometry under ``root``: solid in the model's colours (``color=None``), or a
+        translucent ghost of the moving bodies in ``color``."""
+        kin = self.kinematics
+        assert kin is not None
+        m = kin.model
+        fill = (rr.components.FillMode.Solid if color is None
+                else rr.components.FillMode.TransparentFillMajorWireframe)
+        for g, b, rgba in self._geoms:
+            if color is not None and not kin.moving[b]:
+                continue  # a ghost of what does not move would sit on the truth
+            shape = _geom_shape(m, g, np.round(rgba * 255).astype(int).tolist() if color is None
+                                else [*color, GHOST_ALPHA], fill)
+            if shape is None:
+                continue
+            path = f"{root}/{self._body_names[b]}/{_part(m.geom(g).name or f'geom{g}')}"
+            self._static_log(path, rr.Transform3D(translation=np.array(m.geom_pos[g]),
+                                                  quaternion=rr.Quaternion(
+                                                      xyzw=_xyzw(np.array(m.geom_quat[g])))))
+            self._static_log(path, shape)
+
+    def blueprint(self) -> rrb.Blueprint:
+        """The default layout: 3D view and text documents, one view per state (truth and
+        estimates), one per state's errors, adaptive quantities, inputs and measurements."""
+        full = self._full or ()
+        states = [rrb.TimeSeriesView(origin=f"/state/{_part(s)}", name=f"{s}: true vs estimated")
+                  for s in self.state_names]
+        errors = [rrb.TimeSeriesView(origin=f"/error/{_part(s)}", name=f"{s}: error x - x_hat")
+                  for s in self.state_names] if full else []
+        gains = [p for p, k in self._diag.values() if k == "gain"]
+        thetas: dict[str, list[str]] = {}
+        other = [p for p, k in self._diag.values() if k == "other"]
+        for p, k in self._diag.values():
+            if k == "theta":
+                thetas.setdefault(_theta_param(p), []).append(p)
+        side: list[Any] = []
+        if gains:
+            side.append(rrb.TimeSeriesView(origin="/observer", contents=gains, name="gains"))
+        for param, paths in thetas.items():
+            true = [f"/plant/param/{param}"] if param in self.params else []
+            side.append(rrb.TimeSeriesView(origin="/observer", contents=true + paths,
+                                           name=f"{param}: true vs estimated"))
+        if other:
+            side.append(rrb.TimeSeriesView(origin="/observer", contents=other,
+                                           name="other diagnostics"))
+        side.append(rrb.TimeSeriesView(origin="/input", name="inputs"))
+        side.append(rrb.TimeSeriesView(origin="/sensor", name="outputs: clean and measured"))
+        if self._extra:
+            side.append(rrb.TimeSeriesView(origin="/env", name="environment"))
+        docs = rrb.Tabs(rrb.TextDocumentView(origin="/metrics", name="metrics"),
+                        rrb.TextDocumentView(origin="/scenario", name="scenario"))
+        if self.kinematics is not None:
+            left: Any = rrb.Vertical(
+                rrb.Spatial3DView(origin="/world", name="robot: true (solid), estimates (ghosts)"),
+                docs, row_shares=[3, 2])
+        else:
+            left = docs
+        columns: list[Any] = [left, rrb.Vertical(*states, name="states")]
+        if errors:
+            columns.append(rrb.Vertical(*errors, name="errors"))
+        columns.append(rrb.Vertical(*side, name="adaptive, inputs, outputs"))
+        return rrb.Blueprint(rrb.Horizontal(*columns), rrb.TimePanel(timeline=SIM_TIME))
+
+    def _send_blueprint(self) -> None:
+        layout = (tuple(self._diag.values()), tuple(self._extra))
+        if layout != self._layout:
+            self._layout = layout
+            self.stream.send_blueprint(self.blueprint(), make_active=True, make_default=True)
+
+    # ------------------------------------------------------------------ whole runs
+    def record_trajectory(self, traj: Any, *, metrics: bool | Mapping[str, Any] = True,
+                          chunk_seconds: float | None = None) -> None:
+        """Record a whole :class:`~hgo_mj.simulate.Trajectory`: its metadata, its rows (in
+        blocks of ``chunk_seconds`` of simulated time, default one block) and its metrics
+        (computed with :func:`hgo_mj.metrics.all_metrics` when ``metrics=True``)."""
+        if traj.metadata:
+            self.log_metadata(traj.metadata)
+        rows = len(traj)
+        block = rows
+        if chunk_seconds is not None and rows > 1:
+            block = max(int(round(chunk_seconds / float(traj.t[1] - traj.t[0]))), 1)
+        for k0 in range(0, rows, block):
+            self.write_chunk(0, traj, slice(k0, min(k0 + block, rows)), mark_end=k0 + block >= rows)
+        if metrics is True and traj.observers:
+            from .metrics import all_metrics
+
+            metrics = all_metrics(traj)
+        if metrics:
+            self.log_metrics(metrics)  # type: ignore[arg-type]
+
+    def write_chunk(self, first_row: int, chunk: Any, rows: slice = slice(None), *,
+                    mark_end: bool = False) -> None:
+        """Record rows of a :class:`~hgo_mj.simulate.Trajectory` whose first row is the run's
+        row ``first_row`` (the ``step`` timeline). This is the ``simulate(on_chunk=...)``
+        callback: ``simulate(..., on_chunk=(1.0, recorder.write_chunk))``; the diagnostics'
+        last row waits for the next chunk or :meth:`close` (see :meth:`record`)."""
+        obs = chunk.observers
+        missing = [o for o in self.observers if o not in obs]
+        if missing:
+            raise DesignError(f"the trajectory lacks the observer(s) {missing}; found {list(obs)}")
+        self.record(chunk.t[rows], chunk.x[rows], chunk.y_clean[rows], chunk.y_meas[rows],
+                    chunk.u[rows], {o: obs[o].x_hat[rows] for o in self.observers},
+                    {o: {k: v[rows] for k, v in obs[o].diagnostics.items()} for o in self.observers},
+                    step=first_row + (rows.start or 0), mark_end=mark_end)
+
+    def record_episode(self, episode: int, t: Any, x: Any, y_meas: Any, u: Any, *,
+                       y_clean: Any = None, estimates: Mapping[str, Any] | None = None,
+                       diagnostics: Mapping[str, Mapping[str, Any]] | None = None,
+                       extra: Mapping[str, Any] | None = None) -> None:
+        """Record one environment episode from numpy arrays, batched, at its end.
+
+        Episodes follow each other on ``sim_time`` and ``step`` (each placed after the last,
+        whatever its own ``t`` starts at); the ``episode`` timeline holds ``episode``. Arrays
+        as in :meth:`record`; ``extra`` (reward, ...) goes under ``/env/<name>``.
+        """
+        t = np.asarray(t, dtype=float).reshape(-1)
+        if t.size == 0:
+            return
+        self.record(t - t[0] + self._t_next, x, y_clean, y_meas, u, estimates, diagnostics,
+                    step=self._step_next, episode=int(episode), extra=extra)
+
+    # ------------------------------------------------------------------ lifetime
+    def _flush(self) -> None:
+        if self.flush_each == "start":
+            now = time.monotonic()
+            if now - self._flushed >= _FLUSH_INTERVAL:
+                self._flushed = now
+                self.stream.flush(timeout_sec=0.0)
+        elif self.flush_each == "wait":
+            self.stream.flush()
+
+    def flush(self) -> None:
+        """Wait until everything sent so far is written."""
+        self.stream.flush()
+
+    def close(self) -> None:
+        """Log what is pending, flush and close the file (idempotent). A stream handed in
+        without a path is flushed, not disconnected."""
+        if not self._closed:
+            self._closed = True
+            self._send_pending()
+            self.stream.flush()
+            if self._own_sink:
+                self.stream.disconnect()
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+def _model_for(meta: Mapping[str, Any]) -> tuple[Any, tuple[str, ...]]:
+    """The MJCF model and joints of the system a trajectory's metadata names, or ``None``."""
+    from .systems import SYSTEMS
+
+    cls = next((c for c in SYSTEMS.values() if c.__name__ == meta.get("plant")), None)
+    if cls is None or cls.model_file is None:
+        return None, ()
+    import mujoco
+
+    from .plants.mujoco import model_path
+
+    spec = meta.get("scenario_spec") or {}
+    model_file = (spec.get("plant", {}).get("params", {}) or {}).get("model_file")
+    path = Path(model_file) if model_file else model_path(cls.model_file)
+    return mujoco.MjModel.from_xml_path(str(path)), tuple(cls.joints)
+
+
+def record_trajectory(traj: Any, path: str | Path, *, model: Any = None,
+                      metrics: bool | Mapping[str, Any] = True, **kw: Any) -> Path:
+    """Write ``traj`` to the recording ``path`` (see :class:`Recorder`); returns the path."""
+    with Recorder.for_trajectory(path, traj, model=model, **kw) as rec:
+        rec.record_trajectory(traj, metrics=metrics)
+    return Path(path)
+
+
+__all__ = ["Recorder", "Kinematics", "record_trajectory", "diagnostic_path", "observer_color",
+           "SIM_TIME", "STEP", "EPISODE"]

@@ -1,0 +1,144 @@
+"""What a rerun recording adds to a run: a 10 s, 1 kHz pendulum run with two observers.
+
+Usage: ``python scripts/bench_record.py [--repeats N] [--write BENCHMARKS.md]``.
+
+Three variants of the same run (same seed, bit-identical trajectories) are timed side by side
+in one process, interleaved, ``--repeats`` times each:
+
+* ``plain``: ``simulate`` and ``all_metrics`` (what ``hgo-mj run`` computes anyway);
+* ``live``: the same with a :class:`hgo_mj.record.Recorder` fed a chunk every
+  ``hgo_mj.cli.RRD_CHUNK_SECONDS`` of simulated time (``on_chunk``, as ``hgo-mj run --rrd``
+  does), then the metadata, the metrics table and ``close``;
+* ``after``: the same, then :func:`hgo_mj.record.record_trajectory` with those metrics.
+
+Each time covers everything from building the recorder to the file being closed. The figure
+reported is the best of the repeats (the machine is shared; noise only adds), the median is
+shown beside it, and so is the process's CPU time (all threads: rerun encodes and writes on its
+own threads, which a second core absorbs in wall time). Targets (issue 6): recording adds at
+most 10% to the run, the file stays under 3 MB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from hgo_mj.cli import RRD_CHUNK_SECONDS
+from hgo_mj.inputs import make_signal
+from hgo_mj.metrics import all_metrics
+from hgo_mj.observers import make_observer
+from hgo_mj.plants import make_plant
+from hgo_mj.record import Recorder, record_trajectory
+from hgo_mj.sensors import SensorChain
+from hgo_mj.simulate import package_versions, simulate
+
+DURATION = 10.0
+
+
+def setup():
+    plant = make_plant("pendulum", 0.001)
+    sensor = SensorChain.from_spec([{"stage": "gaussian", "std": 1e-3},
+                                    {"stage": "quantize", "counts_per_rev": 4096}], seed=0)
+    obs = {"hgo_k15": make_observer("high_gain", plant.system, k=15.0),
+           "hgo_k60": make_observer("high_gain", plant.system, k=60.0)}
+    inputs = make_signal("multisine", amplitudes=[0.3], frequencies=[0.5])
+    return plant, sensor, obs, inputs
+
+
+def run_plain(path: Path) -> None:
+    plant, sensor, obs, inputs = setup()
+    traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1)
+    all_metrics(traj)
+
+
+def run_live(path: Path) -> None:
+    plant, sensor, obs, inputs = setup()
+    rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record")
+    traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
+                    on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
+    rec.log_metadata(traj.metadata)
+    rec.log_metrics(all_metrics(traj))
+    rec.close()
+
+
+def run_after(path: Path) -> None:
+    plant, sensor, obs, inputs = setup()
+    traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1)
+    record_trajectory(traj, path, metrics=all_metrics(traj))
+
+
+def timed(fn, path: Path) -> tuple[float, float]:
+    """Wall time and CPU time of the whole process (every thread, rerun's included)."""
+    w0, c0 = time.perf_counter(), time.process_time()
+    fn(path)
+    return time.perf_counter() - w0, time.process_time() - c0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--write", help="append the results to this markdown file")
+    args = ap.parse_args()
+    variants = {"plain": run_plain, "live": run_live, "after": run_after}
+    times: dict[str, list[float]] = {k: [] for k in variants}
+    cpu: dict[str, list[float]] = {k: [] for k in variants}
+    sizes: dict[str, int] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, fn in variants.items():  # warm-up: imports, first MjModel, rerun's threads
+            fn(Path(tmp) / f"warm_{name}.rrd")
+        for r in range(args.repeats):
+            for name, fn in variants.items():
+                path = Path(tmp) / f"{name}_{r}.rrd"
+                wall, used = timed(fn, path)
+                times[name].append(wall)
+                cpu[name].append(used)
+                if path.exists():
+                    sizes[name] = path.stat().st_size
+    best = {k: min(v) for k, v in times.items()}
+    med = {k: statistics.median(v) for k, v in times.items()}
+    best_cpu = {k: min(v) for k, v in cpu.items()}
+    v = package_versions()
+    lines = [
+        "## Issue 6: rerun recordings",
+        "",
+        f"Command: `python scripts/bench_record.py --repeats {args.repeats}` (each variant run "
+        f"{args.repeats} times, interleaved, after one warm-up; best and median)",
+        f"Machine: {platform.machine()}, {os.cpu_count()} cores, {platform.platform()}",
+        "Versions: " + ", ".join(f"{k} {v[k]}" for k in v),
+        f"Run: pendulum.xml, {DURATION:g} s at 1 kHz ({int(DURATION * 1000) + 1} samples), sensor "
+        "gaussian + quantize, two high-gain observers (k = 15, 60), multisine input.",
+        "",
+        "| variant | wall, best [ms] | wall, median [ms] | added to the run (wall, best) "
+        "| CPU, all threads, best [ms] | added (CPU) | file [MB] |",
+        "|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    labels = {"plain": "`simulate` and `all_metrics` (the run)",
+              "live": f"recorded during the run ({RRD_CHUNK_SECONDS:g} s chunks, as `hgo-mj run --rrd`)",
+              "after": "`simulate`, then `record_trajectory`"}
+    for k in variants:
+        added = "" if k == "plain" else f"{100 * (best[k] / best['plain'] - 1):+.1f}%"
+        added_cpu = "" if k == "plain" else f"{100 * (best_cpu[k] / best_cpu['plain'] - 1):+.1f}%"
+        size = f"{sizes[k] / 1e6:.2f}" if k in sizes else ""
+        lines.append(f"| {labels[k]} | {1e3 * best[k]:.1f} | {1e3 * med[k]:.1f} | {added} | "
+                     f"{1e3 * best_cpu[k]:.1f} | {added_cpu} | {size} |")
+    ok_t = all(best[k] <= 1.10 * best["plain"] for k in ("live", "after"))
+    ok_s = all(s < 3e6 for s in sizes.values())
+    lines += ["", f"Targets: at most +10% to the run (wall, best): {'met' if ok_t else 'NOT met'}; "
+              f"file under 3 MB: {'met' if ok_s else 'NOT met'}. Load average at the end: "
+              f"{os.getloadavg()[0]:.2f}."]
+    text = "\n".join(lines)
+    print(text)
+    if args.write:
+        with open(args.write, "a") as fh:
+            fh.write("\n" + text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

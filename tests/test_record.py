@@ -1,0 +1,532 @@
+"""Rerun recordings: written headless, read back with rerun's own reader and command line.
+
+The reader is ``rerun.chunk.RrdReader`` (rerun-sdk 0.41's Python reader of ``.rrd`` files: it
+streams the file's chunks as Arrow record batches), and ``rerun rrd verify`` / ``rerun rrd
+stats`` from the same package's command line.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import rerun as rr
+from rerun.chunk import RrdReader
+
+from hgo_mj.cli import RRD_CHUNK_SECONDS, main
+from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.inputs import make_signal
+from hgo_mj.observers import make_observer
+from hgo_mj.plants import make_plant
+from hgo_mj.plants.mujoco import model_path
+from hgo_mj.record import Kinematics, Recorder, diagnostic_path, record_trajectory
+from hgo_mj.sensors import SensorChain
+from hgo_mj.simulate import Trajectory, simulate
+
+RERUN = Path(sys.executable).parent / "rerun"
+
+
+# ----------------------------------------------------------------------------- reading back
+class Entity:
+    """What a recording holds for one entity: static components, and its temporal rows
+    (concatenated over chunks, sorted by ``step``)."""
+
+    def __init__(self) -> None:
+        self.static: dict[str, list] = {}
+        self._batches: list = []
+
+    def _rows(self) -> dict[str, np.ndarray | list]:
+        if not hasattr(self, "_cache"):
+            cols: dict[str, list] = {}
+            for rb in self._batches:
+                for name in rb.schema.names:
+                    if not name.startswith("rerun.controls"):
+                        cols.setdefault(name, []).extend(rb.column(name).to_pylist())
+            order = np.argsort(np.array(cols["step"]), kind="stable") if "step" in cols else None
+            out: dict[str, np.ndarray | list] = {}
+            for name, v in cols.items():
+                if name == "sim_time":
+                    arr = np.array([d.total_seconds() for d in v])
+                elif name in ("step", "episode"):
+                    arr = np.array(v, dtype=np.int64)
+                else:
+                    arr = np.array([np.array(r, dtype=float).reshape(-1) for r in v])
+                out[name] = arr[order] if order is not None else arr
+            self._cache = out
+        return self._cache
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._rows()[name]
+
+    @property
+    def rows(self) -> int:
+        return sum(rb.num_rows for rb in self._batches)
+
+
+def read_rrd(path: Path) -> tuple[dict[str, Entity], int]:
+    """Entities of the file's recording, and the number of blueprint stores in it."""
+    reader = RrdReader(path)
+    entities: dict[str, Entity] = {}
+    for chunk in reader.stream():
+        e = entities.setdefault(chunk.entity_path, Entity())
+        rb = chunk.to_record_batch()
+        if chunk.is_static:
+            for name in rb.schema.names:
+                if not name.startswith("rerun.controls"):
+                    e.static[name] = rb.column(name).to_pylist()[-1]
+        else:
+            e._batches.append(rb)
+    return entities, len(reader.blueprints())
+
+
+def blueprint_views(path: Path) -> list[tuple[str, str]]:
+    """(view class, space origin) of every view of the file's blueprint."""
+    reader = RrdReader(path)
+    views = []
+    for chunk in reader.stream(store=reader.blueprints()[-1]):
+        rb = chunk.to_record_batch()
+        if "ViewBlueprint:class_identifier" in rb.schema.names:
+            views.append((rb.column("ViewBlueprint:class_identifier").to_pylist()[0][0],
+                          rb.column("ViewBlueprint:space_origin").to_pylist()[0][0]))
+    return views
+
+
+def rerun_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(RERUN), *args], capture_output=True, text=True, timeout=60)
+
+
+# ----------------------------------------------------------------------------- fixtures
+def pendulum_run(duration: float = 2.0, *, on_chunk=None, seed: int = 3) -> Trajectory:
+    plant = make_plant("pendulum", 0.001)
+    sensor = SensorChain.from_spec([{"stage": "gaussian", "std": 1e-3},
+                                    {"stage": "dropout", "p": 0.01}], seed=seed)
+    obs = {"slow": make_observer("high_gain", plant.system, k=15.0),
+           "fast": make_observer("high_gain", plant.system, k=60.0)}
+    inputs = make_signal("multisine", amplitudes=[0.3], frequencies=[0.5])
+    return simulate(plant, sensor, obs, inputs, duration, x0=[0.5, 0.0], seed=seed,
+                    on_chunk=on_chunk, metadata={"scenario": "test_pendulum"})
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """A pendulum run recorded chunk by chunk during the run, and its trajectory."""
+    path = tmp_path_factory.mktemp("rec") / "pend.rrd"
+    plant_names = make_plant("pendulum", 0.001)
+    rec = Recorder.for_plant(path, plant_names, ["slow", "fast"], recording_name="test_pendulum")
+    traj = pendulum_run(on_chunk=(0.5, rec.write_chunk))
+    rec.log_metadata(traj.metadata)
+    from hgo_mj.metrics import all_metrics
+
+    rec.log_metrics(all_metrics(traj))
+    rec.close()
+    entities, blueprints = read_rrd(path)
+    return path, traj, entities, blueprints
+
+
+# ----------------------------------------------------------------------------- contents
+def test_entities_and_blueprint(recorded):
+    path, traj, ents, blueprints = recorded
+    for name in ("/state/angle", "/state/angular_velocity", "/error/angle", "/error/angular_velocity",
+                 "/sensor/angle", "/input/torque", "/observer/slow/gain", "/observer/fast/gain",
+                 "/observer/slow/diagnostics/dropouts", "/world/true/pole",
+                 "/world/true/pole/rod", "/world/true/pole/bob", "/world/true/world/mount",
+                 "/world/estimate/slow/pole", "/world/estimate/fast/pole/bob", "/scenario",
+                 "/metrics"):
+        assert name in ents, f"{name} missing; found {sorted(ents)}"
+    assert blueprints == 1
+    views = blueprint_views(path)
+    for view in [("3D", "/world"), ("TimeSeries", "/input"), ("TimeSeries", "/sensor"),
+                 ("TextDocument", "/metrics"), ("TextDocument", "/scenario")] + [
+            (kind, f"/{root}/{s}") for s in traj.state_names for kind, root in
+            (("TimeSeries", "state"), ("TimeSeries", "error"))]:
+        assert view in views, f"{view} missing; found {views}"
+    # styles logged once as static: names and one colour per observer, truth in a fixed colour
+    style = ents["/state/angle"].static
+    assert style["SeriesLines:names"] == ["angle true", "angle slow", "angle fast"]
+    assert len(set(style["SeriesLines:colors"])) == 3
+    assert ents["/error/angle"].static["SeriesLines:colors"] == style["SeriesLines:colors"][1:]
+    # geometry: solid truth, translucent ghosts (alpha in the low byte of the packed RGBA)
+    assert "Cylinders3D:radii" in ents["/world/true/pole/rod"].static
+    ghost = ents["/world/estimate/slow/pole/rod"].static["Cylinders3D:colors"][0]
+    assert 0 < ghost & 0xFF < 255
+    assert "/world/estimate/slow/world" not in " ".join(ents)  # fixed parts have no ghost
+    # metadata and metrics as text documents
+    scenario = ents["/scenario"].static["TextDocument:text"][0]
+    assert "test_pendulum" in scenario and "mujoco" in scenario and '"k": 60.0' in scenario
+    metrics = ents["/metrics"].static["TextDocument:text"][0]
+    assert "rmse" in metrics and "slow" in metrics and "fast" in metrics
+
+
+def test_rows_and_values_equal_the_trajectory(recorded):
+    _, traj, ents, _ = recorded
+    T = len(traj)
+    assert T == 2001
+    for s, name in enumerate(traj.state_names):
+        e = ents[f"/state/{name}"]
+        assert e.rows == T
+        np.testing.assert_array_equal(e["step"], np.arange(T))
+        np.testing.assert_allclose(e["sim_time"], traj.t, atol=1e-9)
+        vals = e["Scalars:scalars"]
+        np.testing.assert_array_equal(vals[:, 0], traj.x[:, s])
+        np.testing.assert_array_equal(vals[:, 1], traj.observers["slow"].x_hat[:, s])
+        np.testing.assert_array_equal(vals[:, 2], traj.observers["fast"].x_hat[:, s])
+        err = ents[f"/error/{name}"]["Scalars:scalars"]
+        np.testing.assert_array_equal(err[:, 1], traj.error("fast")[:, s])
+    sensor = ents["/sensor/angle"]["Scalars:scalars"]
+    np.testing.assert_array_equal(sensor[:, 0], traj.y_clean[:, 0])
+    np.testing.assert_array_equal(np.isnan(sensor[:, 1]), np.isnan(traj.y_meas[:, 0]))
+    assert np.isnan(traj.y_meas[:, 0]).any()  # dropouts are recorded as NaN
+    np.testing.assert_array_equal(ents["/input/torque"]["Scalars:scalars"][:, 0], traj.u[:, 0])
+
+
+def test_diagnostics_logged_where_they_change(recorded):
+    _, traj, ents, _ = recorded
+    gain = ents["/observer/fast/gain"]
+    assert np.all(gain["Scalars:scalars"] == 60.0)
+    assert gain.rows < 10 and gain["step"][-1] == len(traj) - 1
+    drops = ents["/observer/slow/diagnostics/dropouts"]
+    d = traj.observers["slow"].diagnostics["dropouts"]
+    changes = np.flatnonzero(np.diff(d)) + 1
+    assert set(changes) <= set(drops["step"].tolist())
+    np.testing.assert_array_equal(drops["Scalars:scalars"][:, 0], d[drops["step"]])
+
+
+def test_poses_follow_mj_kinematics(recorded):
+    _, traj, ents, _ = recorded
+    plant = make_plant("pendulum", 0.001)
+    m, d = plant.model, mujoco.MjData(plant.model)
+    pole = ents["/world/true/pole"]
+    steps = pole["step"]
+    assert 0 < pole.rows < len(traj) and steps[0] == 0 and steps[-1] == len(traj) - 1
+    bob = m.body("pole").id
+    for k in steps[:: max(len(steps) // 7, 1)]:
+        for root, q in (("/world/true/pole", traj.x[k, 0]),
+                        ("/world/estimate/fast/pole", traj.observers["fast"].x_hat[k, 0])):
+            row = int(np.flatnonzero(ents[root]["step"] == k)[0])
+            d.qpos[0] = q
+            mujoco.mj_kinematics(m, d)
+            quat = ents[root]["Transform3D:quaternion"][row]  # x, y, z, w
+            np.testing.assert_allclose(ents[root]["Transform3D:translation"][row], d.xpos[bob],
+                                       atol=1e-6)
+            np.testing.assert_allclose(np.abs(np.dot(quat, np.roll(d.xquat[bob], -1))), 1.0,
+                                       atol=1e-6)
+
+
+def test_rerun_command_line_reads_it(recorded):
+    path = recorded[0]
+    res = rerun_cli("rrd", "verify", str(path))
+    assert res.returncode == 0, res.stderr
+    stats = rerun_cli("rrd", "stats", str(path))
+    assert stats.returncode == 0, stats.stderr
+    for word in ("/state/angle", "/world/estimate/fast/pole", "sim_time", "step",
+                 "Transform3D:quaternion", "ViewBlueprint:class_identifier"):
+        assert word in stats.stdout
+
+
+def test_global_recording_is_untouched(tmp_path):
+    assert rr.get_global_data_recording() is None
+    record_trajectory(pendulum_run(0.2), tmp_path / "a.rrd")
+    assert rr.get_global_data_recording() is None
+    assert rr.get_thread_local_data_recording() is None
+
+
+def test_post_run_recording_equals_live_one(recorded, tmp_path):
+    _, traj, live, _ = recorded
+    path = record_trajectory(traj, tmp_path / "post.rrd")
+    post, blueprints = read_rrd(path)
+    assert blueprints == 1
+    np.testing.assert_array_equal(post["/state/angle"]["Scalars:scalars"],
+                                  live["/state/angle"]["Scalars:scalars"])
+    # poses at 100 Hz (every 10th sample) and at the end of each block (the live one has 5)
+    assert post["/world/true/pole"].rows == 2000 // 10 + 1
+    assert set(post["/world/true/pole"]["step"]) < set(live["/world/true/pole"]["step"])
+    # the same in blocks of 0.3 s
+    with Recorder.for_trajectory(tmp_path / "blocks.rrd", traj) as rec:
+        rec.record_trajectory(traj, chunk_seconds=0.3)
+    blocks, _ = read_rrd(tmp_path / "blocks.rrd")
+    for name in ("/state/angle", "/error/angular_velocity", "/observer/slow/diagnostics/dropouts"):
+        np.testing.assert_array_equal(blocks[name]["step"], post[name]["step"])
+        np.testing.assert_array_equal(blocks[name]["Scalars:scalars"], post[name]["Scalars:scalars"])
+
+
+def test_ode_plant_has_no_3d_view(tmp_path, chain):
+    from hgo_mj.plants import OdePlant
+
+    plant = OdePlant(chain(2)(), 0.01)
+    obs = {"hgo": make_observer("high_gain", plant.system, k=5.0)}
+    traj = simulate(plant, None, obs, make_signal("constant", value=[0.1]), 1.0, x0=[1.0, 0.0])
+    ents, blueprints = read_rrd(record_trajectory(traj, tmp_path / "ode.rrd"))
+    assert blueprints == 1
+    assert not any(e.startswith("/world") for e in ents)
+    assert ents[f"/state/{traj.state_names[0]}"].rows == len(traj)
+
+
+def test_record_episode_from_arrays(tmp_path):
+    """The environments' entry point: whole episodes from numpy arrays, with an episode timeline."""
+    plant = make_plant("elastic_joint", 0.002)
+    path = tmp_path / "env.rrd"
+    rng = np.random.default_rng(0)
+    lengths = (50, 30)
+    with Recorder.for_plant(path, plant, ["hgo"]) as rec:
+        for ep, T in enumerate(lengths):
+            t = np.arange(T) * 0.002
+            x = rng.normal(size=(T, 4))
+            rec.record_episode(ep, t, x, x[:, :1] + 0.01, rng.normal(size=(T, 1)),
+                               y_clean=x[:, :1], estimates={"hgo": x + 0.1},
+                               diagnostics={"hgo": {"k": np.full(T, 30.0),
+                                                    "theta_link_inertia": np.linspace(0, 1, T)}},
+                               extra={"reward": -np.abs(x[:, 0])})
+    ents, _ = read_rrd(path)
+    e = ents["/state/link_angle"]
+    assert e.rows == sum(lengths)
+    np.testing.assert_array_equal(e["episode"], np.repeat([0, 1], lengths))
+    np.testing.assert_array_equal(e["step"], np.arange(sum(lengths)))
+    assert np.all(np.diff(e["sim_time"]) > 0)  # episodes follow each other
+    np.testing.assert_allclose(ents["/error/link_angle"]["Scalars:scalars"][:, 0], -0.1)
+    assert ents["/env/reward"].rows == sum(lengths)
+    # a parameter estimate goes next to the true parameter
+    theta = ents["/observer/hgo/theta/link_inertia"]
+    assert theta.rows == sum(lengths)
+    true = ents["/plant/param/link_inertia"]["Scalars:scalars"]
+    np.testing.assert_allclose(true, plant.system.params["link_inertia"])
+    for body in ("link", "rotor"):
+        assert f"/world/estimate/hgo/{body}" in ents
+
+
+def test_episode_without_estimates(tmp_path):
+    """An environment whose observer gives no full-state estimate passes ``estimates=None``."""
+    plant = make_plant("pendulum", 0.001)
+    path = tmp_path / "noest.rrd"
+    with Recorder.for_plant(path, plant, ["hgo"]) as rec:
+        x = np.ones((4, 2))
+        rec.record_episode(0, np.arange(4) * 1e-3, x, x[:, :1], np.zeros((4, 1)))
+        rec.record_episode(1, np.arange(4) * 1e-3, x, x[:, :1], np.zeros((4, 1)),
+                           estimates={"hgo": 2 * x})
+    ents, _ = read_rrd(path)
+    vals = ents["/state/angle"]["Scalars:scalars"]
+    assert np.isnan(vals[:4, 1]).all() and np.all(vals[4:, 1] == 2.0) and np.all(vals[:, 0] == 1.0)
+    assert ents["/world/estimate/hgo/pole"].rows < ents["/world/true/pole"].rows
+
+
+@pytest.mark.parametrize("key, path", [
+    ("k", "/observer/o/gain"),
+    ("gamma", "/observer/o/gain"),
+    ("k_fast", "/observer/o/gain/fast"),
+    ("theta_hat_a1", "/observer/o/theta/a1"),
+    ("theta_mu_max", "/observer/o/theta/mu_max"),
+    ("a2", "/observer/o/theta/a2"),
+    ("theta", "/observer/o/theta/theta"),
+    ("dropouts", "/observer/o/diagnostics/dropouts"),
+    ("excitation", "/observer/o/diagnostics/excitation"),
+])
+def test_diagnostic_paths(key, path):
+    assert diagnostic_path("o", key, ("a1", "a2"))[0] == path
+
+
+def test_kinematics_matches_mj_kinematics():
+    xml = """<mujoco><worldbody>
+      <body name="a" pos="0.1 0.2 0.3" euler="0.3 0.2 0.1">
+        <joint name="s" type="slide" axis="1 1 0"/>
+        <joint name="h1" type="hinge" axis="0 0 1" pos="0.05 0 0"/>
+        <geom type="box" size=".1 .1 .1"/>
+        <body name="b" pos="0 0 -0.4" quat="0.9 0.1 0.3 0.2">
+          <joint name="h2" type="hinge" axis="0.3 1 0" pos="0 0.1 0.2"/>
+          <joint name="h3" type="hinge" axis="1 0 0"/>
+          <geom type="capsule" size=".02 .2"/>
+        </body>
+      </body></worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(1)
+    for joints in (("s", "h1", "h2", "h3"), ("h2",)):
+        kin = Kinematics(m, joints)
+        q = rng.uniform(-2, 2, size=(6, len(joints)))
+        pos, quat = kin.poses(q)
+        for k in range(6):
+            d.qpos[:] = m.qpos0
+            for c, j in enumerate(joints):
+                d.qpos[m.jnt_qposadr[m.joint(j).id]] = q[k, c]
+            mujoco.mj_kinematics(m, d)
+            for b in range(m.nbody):
+                r = min(k, pos[b].shape[0] - 1)
+                np.testing.assert_allclose(pos[b][r], d.xpos[b], atol=1e-12)
+                np.testing.assert_allclose(abs(np.dot(quat[b][r], d.xquat[b])), 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("model", ["elastic_joint_2link.xml", "cart_pendulum.xml"])
+def test_kinematics_of_shipped_models(model):
+    from hgo_mj.systems import SYSTEMS
+
+    joints = next(c.joints for c in SYSTEMS.values() if c.model_file == model)
+    m = mujoco.MjModel.from_xml_path(str(model_path(model)))
+    d = mujoco.MjData(m)
+    q = np.random.default_rng(2).uniform(-3, 3, size=(3, len(joints)))
+    pos, _ = Kinematics(m, joints).poses(q)
+    for k in range(3):
+        d.qpos[:] = m.qpos0
+        for c, j in enumerate(joints):
+            d.qpos[m.jnt_qposadr[m.joint(j).id]] = q[k, c]
+        mujoco.mj_kinematics(m, d)
+        np.testing.assert_allclose(np.array([p[min(k, len(p) - 1)] for p in pos]), d.xpos,
+                                   atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- errors
+def test_validation_errors(tmp_path):
+    plant = make_plant("pendulum", 0.001)
+    with pytest.raises(DesignError, match=r"must end in \.rrd; found '.*x\.txt'"):
+        Recorder.for_plant(tmp_path / "x.txt", plant)
+    with pytest.raises(DesignError, match="flush_each must be 'start', 'wait' or 'none'; found 'x'"):
+        Recorder.for_plant(tmp_path / "x.rrd", plant, flush_each="x")
+    with pytest.raises(DesignError, match="give a path"):
+        Recorder(None, state_names=["a"], output_names=["y"], input_names=["u"])
+    with pytest.raises(DesignError, match="no joint named 'nope'"):
+        Recorder.for_plant(tmp_path / "x.rrd", plant, joints=("nope",))
+    with pytest.raises(DesignError, match="stream must be a rerun.RecordingStream; found str"):
+        Recorder(None, state_names=["a"], output_names=["y"], input_names=["u"], stream="s")
+    with Recorder.for_plant(tmp_path / "y.rrd", plant, ["hgo"]) as rec:
+        T = 5
+        good = dict(t=np.arange(T) * 1e-3, x=np.zeros((T, 2)), y_clean=np.zeros((T, 1)),
+                    y_meas=np.zeros((T, 1)), u=np.zeros((T, 1)))
+        with pytest.raises(DimensionError, match=r"x must have shape \(5, 2\); found \(5, 3\)"):
+            rec.record(**{**good, "x": np.zeros((T, 3))}, estimates={"hgo": np.zeros((T, 2))})
+        with pytest.raises(DesignError, match=r"estimates of unknown observer\(s\) \['other'\]; "
+                                              r"observers: \['hgo'\]"):
+            rec.record(**good, estimates={"other": np.zeros((T, 2))})
+        with pytest.raises(DimensionError, match="diagnostic 'k' of 'hgo' must have 5 rows; found 4"):
+            rec.record(**good, estimates={"hgo": np.zeros((T, 2))},
+                       diagnostics={"hgo": {"k": np.zeros(4)}})
+        with pytest.raises(DimensionError, match=r"extra 'reward' must have shape \(5,\) or \(5, k\); "
+                                                 r"found \(6,\)"):
+            rec.record(**good, extra={"reward": np.zeros(6)})
+    assert read_rrd(tmp_path / "y.rrd")[0].get("/state/angle") is None  # nothing half-written
+
+
+def test_sigint_waits_for_the_block():
+    """Ctrl-C while a block is sent is held until the block is complete, then raised."""
+    import os
+
+    from hgo_mj.record import _DeferSigint
+
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with _DeferSigint():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.01)
+            done.append(True)
+    assert done == [True]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_simulate_on_chunk_validation():
+    plant = make_plant("pendulum", 0.001)
+    with pytest.raises(DesignError, match=r"on_chunk must be a tuple \(seconds, callback\)"):
+        simulate(plant, None, None, make_signal("constant", value=[0.0]), 0.1, on_chunk=print)
+    with pytest.raises(DesignError, match="on_chunk seconds must be > 0"):
+        simulate(plant, None, None, make_signal("constant", value=[0.0]), 0.1,
+                 on_chunk=(0.0, print))
+
+
+def test_simulate_chunks_cover_the_run_and_change_nothing():
+    seen: list[tuple[int, Trajectory]] = []
+    whole = pendulum_run(1.0, on_chunk=(0.3, lambda k, c: seen.append((k, c))))
+    plain = pendulum_run(1.0)
+    np.testing.assert_array_equal(whole.x, plain.x)
+    assert [k for k, _ in seen] == [0, 300, 600, 900]
+    np.testing.assert_array_equal(np.concatenate([c.x for _, c in seen]), whole.x)
+    np.testing.assert_array_equal(
+        np.concatenate([c.observers["fast"].diagnostics["k"] for _, c in seen]),
+        whole.observers["fast"].diagnostics["k"])
+    np.testing.assert_array_equal(np.concatenate([c.t for _, c in seen]), whole.t)
+
+
+# ----------------------------------------------------------------------------- command line
+RUN = ["run", "--plant", "pendulum", "--observer", "high_gain:name=slow,k=15",
+       "--observer", "high_gain:name=fast,k=60", "--sensor", "gaussian:std=1e-3",
+       "--input", "multisine:amplitudes=[0.2],frequencies=[0.5]", "--seed", "4"]
+
+
+def test_cli_run_rrd(tmp_path, capsys):
+    path = tmp_path / "r.rrd"
+    assert main([*RUN, "--duration", "1.5", "--out", str(tmp_path / "o"), "--rrd", str(path)]) == 0
+    assert str(path) in capsys.readouterr().out
+    traj = Trajectory.load(tmp_path / "o" / "trajectory.npz")
+    ents, blueprints = read_rrd(path)
+    assert blueprints == 1 and ents["/state/angle"].rows == len(traj) == 1501
+    np.testing.assert_array_equal(ents["/state/angle"]["Scalars:scalars"][:, 0], traj.x[:, 0])
+    assert "rmse" in ents["/metrics"].static["TextDocument:text"][0]
+    assert '"seed": 4' in ents["/scenario"].static["TextDocument:text"][0]
+    # a bare --rrd writes OUT/run.rrd
+    assert main([*RUN, "--duration", "0.1", "--out", str(tmp_path / "p"), "--rrd"]) == 0
+    assert (tmp_path / "p" / "run.rrd").stat().st_size > 0
+
+
+def test_cli_reproduce_rrd_contract(tmp_path, capsys, monkeypatch):
+    import types
+
+    from hgo_mj import reproduce
+
+    seen = {}
+
+    def run(out, *, rrd=None):
+        seen["rrd"] = rrd
+        return {"ok": 1}
+
+    def old_run(out):
+        return {"ok": 1}
+
+    for name, fn in (("fake_rec", run), ("fake_old", old_run)):
+        monkeypatch.setitem(sys.modules, f"hgo_mj.reproduce.{name}",
+                            types.SimpleNamespace(run=fn))
+        monkeypatch.setitem(reproduce.REPRODUCTIONS, name, (f"hgo_mj.reproduce.{name}", "fake"))
+    assert main(["reproduce", "fake_rec", "--out", str(tmp_path)]) == 0
+    assert seen["rrd"] is None
+    assert main(["reproduce", "fake_rec", "--out", str(tmp_path), "--rrd"]) == 0
+    assert seen["rrd"] == tmp_path / "fake_rec.rrd"
+    assert main(["reproduce", "fake_old", "--out", str(tmp_path), "--rrd", "x.rrd"]) == 2
+    assert "cannot record: expected run(out, *, rrd=None)" in capsys.readouterr().err
+
+
+def test_cli_sigint_leaves_a_readable_recording(tmp_path):
+    """Ctrl-C during ``hgo-mj run --rrd``: exit 130 and a file holding every whole chunk, equal
+    to the same run's first rows."""
+    path = tmp_path / "cut.rrd"
+    argv = [*RUN, "--duration", "120", "--out", str(tmp_path / "o")]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hgo_mj.cli", *argv, "--rrd", str(path)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        # a shell's background job may have inherited an ignored SIGINT
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    t0 = time.monotonic()
+    try:
+        while time.monotonic() - t0 < 25 and proc.poll() is None:
+            if path.exists() and path.stat().st_size > 1_200_000:  # a few chunks
+                break
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        rc = proc.wait(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert rc == 130, proc.stderr.read()
+    assert "holds the run up to its last chunk" in proc.stderr.read()
+    assert rerun_cli("rrd", "verify", str(path)).returncode == 0
+    ents, blueprints = read_rrd(path)
+    rows = ents["/state/angle"].rows
+    chunk = round(RRD_CHUNK_SECONDS / 1e-3)
+    assert blueprints == 1 and rows >= chunk and rows % chunk == 0  # whole chunks
+    for name in ("/state/angular_velocity", "/error/angle", "/sensor/angle", "/input/torque"):
+        assert ents[name].rows == rows
+    # the same scenario, run to the recorded length, gives the recorded values
+    assert main([*argv[:-4], "--duration", f"{(rows - 1) * 1e-3:.3f}",
+                 "--out", str(tmp_path / "ref")]) == 0
+    ref = Trajectory.load(tmp_path / "ref" / "trajectory.npz")
+    vals = ents["/state/angle"]["Scalars:scalars"]
+    np.testing.assert_array_equal(vals[:, 0], ref.x[:, 0])
+    np.testing.assert_array_equal(vals[:, 2], ref.observers["fast"].x_hat[:, 0])
