@@ -1,1 +1,57 @@
-"""Gymnasium environments of hgo_mj (installed as ``hgo_mj.envs``)."""
+"""Gymnasium environments of hgo_mj (installed as ``hgo_mj.envs``), registered on import.
+
+============================================  ==========================================
+id                                            class
+============================================  ==========================================
+``hgo_mj/PendulumSwingUp-v0``                 :class:`PendulumSwingUpEnv`
+``hgo_mj/CartPendulumBalance-v0``             :class:`CartPendulumBalanceEnv`
+``hgo_mj/ElasticJointReach-v0``               :class:`ElasticJointReachEnv`
+``hgo_mj/ElasticJoint2LinkReach-v0``          :class:`ElasticJoint2LinkReachEnv`
+============================================  ==========================================
+
+Each is a MuJoCo plant, a sensor chain and an observer in the loop (:class:`HgoEnv`) under a
+task; the agent acts on the observer's estimate by default. Use them after
+``import hgo_mj.envs``, or without importing anything through Gymnasium's module prefix::
+
+    env = gymnasium.make("hgo_mj.envs:hgo_mj/PendulumSwingUp-v0", observation="true")
+
+(Gymnasium 1.x loads no plugins by entry point; the ``module:id`` form imports the module.)
+The time limit is Gymnasium's ``TimeLimit``, added by ``gymnasium.make`` from
+``max_episode_steps``. Wrappers for other environments are in :mod:`hgo_mj.envs.wrappers`.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+from .core import INFO_LEVELS, OBSERVATION_MODES, HgoEnv, Task, sensor_chain
+from .environments import (
+    CartPendulumBalanceEnv,
+    ElasticJoint2LinkReachEnv,
+    ElasticJointReachEnv,
+    PendulumSwingUpEnv,
+)
+
+#: registered id -> environment class
+ENVIRONMENTS: dict[str, type[HgoEnv]] = {
+    "hgo_mj/PendulumSwingUp-v0": PendulumSwingUpEnv,
+    "hgo_mj/CartPendulumBalance-v0": CartPendulumBalanceEnv,
+    "hgo_mj/ElasticJointReach-v0": ElasticJointReachEnv,
+    "hgo_mj/ElasticJoint2LinkReach-v0": ElasticJoint2LinkReachEnv,
+}
+
+
+def register_all() -> None:
+    """Register every environment with Gymnasium (done on import; idempotent)."""
+    for env_id, cls in ENVIRONMENTS.items():
+        if env_id in gymnasium.registry:
+            continue
+        gymnasium.register(id=env_id, entry_point=f"{__name__}.environments:{cls.__name__}",
+                           max_episode_steps=cls.task_class.max_episode_steps)  # type: ignore[union-attr]
+
+
+register_all()
+
+__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "CartPendulumBalanceEnv",
+           "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "PendulumSwingUpEnv",
+           "Task", "register_all", "sensor_chain"]

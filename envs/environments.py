@@ -1,0 +1,292 @@
+"""The four environments: a :class:`~envs.core.Task` each, in the loop of :class:`~envs.core.HgoEnv`.
+
+The classes below carry only their documentation and their task; the loop, the arguments and
+the observation modes are :class:`~envs.core.HgoEnv`'s. Variants are made with
+:func:`functools.partial` or registration keywords, never by copying a class::
+
+    PendulumSwingUpTrue = functools.partial(PendulumSwingUpEnv, observation="true")
+"""
+
+from __future__ import annotations
+
+from .core import HgoEnv
+from .tasks import BalanceTask, Reach2LinkTask, ReachTask, SwingUpTask
+
+_ARGUMENTS = """
+    Common to every hgo_mj environment (:class:`~envs.core.HgoEnv`); pass them to
+    ``gymnasium.make``:
+
+    | Parameter         | Default      | Description                                          |
+    |-------------------|--------------|------------------------------------------------------|
+    | `observer`        | `"default"`  | observer name, `{"type": name, ...}`, instance, None |
+    | `observer_kwargs` | `None`       | parameters of a named observer, over the defaults    |
+    | `sensor`          | `"default"`  | `SensorChain`, `{"stage": name, ...}` spec(s), None  |
+    | `observation`     | `"estimate"` | `"estimate"`, `"measurement"`, `"true"`,             |
+    |                   |              | `"estimate+diagnostics"`                             |
+    | `physics_dt`      | see below    | MuJoCo timestep [s]                                  |
+    | `control_period`  | see below    | action hold [s], a multiple of `sample_period`       |
+    | `sample_period`   | see below    | sensor and observer period [s], multiple of physics  |
+    | `integrator`      | see below    | `"Euler"`, `"RK4"`, `"implicit"`, `"implicitfast"`   |
+    | `invalid_action`  | `"clip"`     | outside [-1, 1]: clip, or `"raise"`; NaN raises      |
+    | `info_level`      | `"basic"`    | `info`: `state`, `estimate`, `error`; `"full"` adds  |
+    |                   |              | time, measurement, diagnostics, goal, reward terms   |
+    | `record_path`     | `None`       | rerun `.rrd` file, each episode written at its end   |
+"""
+
+
+class PendulumSwingUpEnv(HgoEnv):
+    __doc__ = """Swing a torque-limited pendulum up and balance it, acting on an observer's estimate.
+
+    ## Description
+    The MuJoCo pendulum of ``models/pendulum.xml`` (a rod and bob, 0.25 kg, hinge-to-COM
+    distance 0.45 m, viscous hinge damping) hangs from a motor whose torque is limited to
+    ``max_torque`` = 0.5 N m, less than half the 1.10 N m the gravity load can reach: the
+    agent must pump energy in over several swings, then catch and hold the pendulum upright.
+    Only the hinge angle is measured, with Gaussian noise (standard deviation 0.01 rad); a
+    high-gain observer (paper 000, eq. 2) with the pendulum's model term (Gauthier et al.)
+    estimates the angle and angular velocity from it, and the agent sees that estimate by
+    default. The model-free observer (`observer_kwargs={"k": 20, "model": False}`, Tornambe's:
+    it knows only that the angle's second derivative is bounded) is about 2.5 microseconds
+    cheaper per step but its velocity error is about six times larger while the pendulum
+    swings (0.48 against 0.08 rad/s RMS under an energy-pumping swing-up), enough that a
+    swing-up controller acting on it fails to catch the pendulum.
+
+    ## Action Space
+    `Box(-1, 1, (1,), float32)`: the motor torque over ``max_torque``.
+
+    | Num | Action       | Min | Max | Actuator (MJCF) | Unit                |
+    |-----|--------------|-----|-----|-----------------|---------------------|
+    | 0   | motor torque | -1  | 1   | `torque`        | N m / `max_torque`  |
+
+    ## Observation Space
+    `Box(float64)`; the angle (0 hanging, pi upright) enters as its cosine and sine.
+
+    `observation="estimate"` (default) and `"true"`, shape `(3,)`; `"estimate+diagnostics"`
+    appends the observer's run-time quantities (for `high_gain`: the gain `k`):
+
+    | Num | Observation                | Min | Max | Unit  |
+    |-----|----------------------------|-----|-----|-------|
+    | 0   | cos(angle)                 | -1  | 1   | -     |
+    | 1   | sin(angle)                 | -1  | 1   | -     |
+    | 2   | angular velocity (clipped) | -50 | 50  | rad/s |
+
+    `observation="measurement"`, shape `(2,)`: cos and sin of the measured angle.
+
+    ## Rewards
+    `-(d^2 + 0.1 w^2 + 0.001 a^2)` per step, with `d` the angle from upright wrapped to
+    [-pi, pi) [rad], `w` the true angular velocity [rad/s], `a` the action (the torque limit
+    and the hinge damping bound `w`); with `info_level="full"`, `info` has the terms as
+    `reward_upright`, `reward_velocity`, `reward_control`.
+
+    ## Starting State
+    Angle and angular velocity uniform in [-`start_noise`, `start_noise`] (default 0.1 rad
+    and rad/s): hanging nearly still. The observer starts from its own initial estimate (zero).
+
+    ## Episode End
+    No termination; truncated after 250 steps (10 s) by `TimeLimit` (registration).
+
+    ## Arguments
+    | Parameter     | Default | Description                              |
+    |---------------|---------|------------------------------------------|
+    | `max_torque`  | `0.5`   | torque per unit action [N m]             |
+    | `start_noise` | `0.1`   | half width of the initial state draw     |
+""" + _ARGUMENTS + """
+    Defaults here: `physics_dt=0.02` with the `"Euler"` integrator and `control_period=0.04`
+    (two MuJoCo steps per `step`, as Gymnasium's InvertedPendulum-v5), `sample_period=0.04`;
+    observer `high_gain` with `k=10, model=True`; sensor `[{"stage": "gaussian", "std": 0.01}]`.
+
+    ## Version History
+    * v0: initial version.
+"""
+    task_class = SwingUpTask
+
+
+class CartPendulumBalanceEnv(HgoEnv):
+    __doc__ = """Balance Ibrir's inverted pendulum through its pivot acceleration, on an estimate.
+
+    ## Description
+    The pendulum of paper 004 (Ibrir 2007), eq. 66, in MuJoCo (``models/cart_pendulum.xml``):
+    `x1'' = sin x1 + u cos x1` in time-scaled units (`g / l = 1`; one time unit is
+    `sqrt(l / g)`, 0.226 s for a 0.5 m pendulum), `x1` the angle from upright and `u` the
+    pivot acceleration in units of `g`. The agent keeps the pendulum upright from a perturbed
+    start. Only the angle is measured (Gaussian noise, standard deviation 0.005 rad).
+
+    ## Action Space
+    `Box(-1, 1, (1,), float32)`: the pivot acceleration over `max_acceleration` (default 2 g).
+
+    | Num | Action             | Min | Max | Actuator (MJCF) | Unit                    |
+    |-----|--------------------|-----|-----|-----------------|-------------------------|
+    | 0   | pivot acceleration | -1  | 1   | `acceleration`  | g / `max_acceleration`  |
+
+    ## Observation Space
+    `Box(float64)`. `"estimate"` (default) and `"true"`, shape `(2,)`
+    (`"estimate+diagnostics"` appends the observer's run-time quantities):
+
+    | Num | Observation      | Min   | Max  | Unit              |
+    |-----|------------------|-------|------|-------------------|
+    | 0   | angle            | -2 pi | 2 pi | rad (0 upright)   |
+    | 1   | angular velocity | -50   | 50   | rad / time unit   |
+
+    `"measurement"`, shape `(1,)`: the measured angle [rad].
+
+    ## Rewards
+    `1 - x1^2 - 0.01 a^2` per step (with `info_level="full"`, `info` has `reward_alive`,
+    `reward_angle`, `reward_control`).
+
+    ## Starting State
+    Angle and angular velocity uniform in [-`start_noise`, `start_noise`] (default 0.2).
+
+    ## Episode End
+    Terminates when `|x1| > max_angle` (default 0.5 rad); truncated after 400 steps (20 time
+    units) by `TimeLimit`.
+
+    ## Arguments
+    | Parameter          | Default | Description                                     |
+    |--------------------|---------|-------------------------------------------------|
+    | `max_acceleration` | `2.0`   | pivot acceleration per unit action [g]          |
+    | `max_angle`        | `0.5`   | termination angle [rad]                         |
+    | `start_noise`      | `0.2`   | half width of the initial state draw            |
+""" + _ARGUMENTS + """
+    Defaults here: `physics_dt=0.01` (RK4, the MJCF's), `control_period=0.05`,
+    `sample_period=0.01`; observer `high_gain` with `k=10, model=True`; sensor Gaussian, std 0.005 rad.
+
+    ## Version History
+    * v0: initial version.
+"""
+    task_class = BalanceTask
+
+
+class ElasticJointReachEnv(HgoEnv):
+    __doc__ = """Bring the link of an elastic joint to a target angle, acting on an estimate.
+
+    ## Description
+    The single-link elastic joint of ``models/elastic_joint.xml`` (Spong's model: a motor
+    drives the link through a torsional spring of 10 N m/rad, joint resonance 8.6 Hz, gravity
+    load 1.18 N m). The agent must bring the *link* to a target angle drawn at reset and hold
+    it there with little residual vibration. Only the link angle is measured, by an encoder
+    (Gaussian noise of 0.001 rad, then 16384 counts per revolution); a fourth-order high-gain
+    observer estimates the link velocity and, through the normal form's inverse map, the motor
+    angle and velocity.
+
+    ## Action Space
+    `Box(-1, 1, (1,), float32)`: the motor torque over `max_torque` (default 2 N m).
+
+    | Num | Action       | Min | Max | Actuator (MJCF) | Unit               |
+    |-----|--------------|-----|-----|-----------------|--------------------|
+    | 0   | motor torque | -1  | 1   | `torque`        | N m / `max_torque` |
+
+    ## Observation Space
+    `Box(float64)`. `"estimate"` (default) and `"true"`, shape `(5,)`
+    (`"estimate+diagnostics"` appends the observer's run-time quantities):
+
+    | Num | Observation       | Min   | Max  | Unit  |
+    |-----|-------------------|-------|------|-------|
+    | 0   | link angle        | -2 pi | 2 pi | rad   |
+    | 1   | motor angle       | -2 pi | 2 pi | rad   |
+    | 2   | link velocity     | -50   | 50   | rad/s |
+    | 3   | motor velocity    | -50   | 50   | rad/s |
+    | 4   | target link angle | -pi   | pi   | rad   |
+
+    `"measurement"`, shape `(2,)`: measured link angle [rad], target link angle [rad].
+
+    ## Rewards
+    `-min(e^2 + 0.01 q'^2 + 0.01 (q' - theta')^2 + 0.001 a^2, max_cost)` per step: `e` the link
+    angle error [rad], `q'` the link velocity, `q' - theta'` the spring's deflection rate
+    [rad/s] (residual vibration), `a` the action; `max_cost` = 10 bounds a runaway (the link
+    whirling). With `info_level="full"`, `info` has the unbounded terms `reward_tracking`,
+    `reward_velocity`, `reward_vibration`, `reward_control`.
+
+    ## Starting State
+    Link and motor at the same angle, uniform in [-`start_noise`, `start_noise`] (0.1 rad),
+    at rest; target uniform in [-`target_range`, `target_range`] (1 rad).
+
+    ## Episode End
+    No termination; truncated after 300 steps (3 s) by `TimeLimit`.
+
+    ## Arguments
+    | Parameter      | Default | Description                              |
+    |----------------|---------|------------------------------------------|
+    | `max_torque`   | `2.0`   | torque per unit action [N m]             |
+    | `target_range` | `1.0`   | half width of the target draw [rad]      |
+    | `start_noise`  | `0.1`   | half width of the initial angle draw [rad] |
+    | `max_cost`     | `10.0`  | bound of the per-step cost               |
+""" + _ARGUMENTS + """
+    Defaults here: `physics_dt=0.001` (RK4, the MJCF's), `sample_period=0.002`,
+    `control_period=0.01`; observer `high_gain` with `k=80, model=True`; sensor Gaussian
+    (0.001 rad) then quantization (16384 counts per revolution).
+
+    ## Version History
+    * v0: initial version.
+"""
+    task_class = ReachTask
+
+
+class ElasticJoint2LinkReachEnv(HgoEnv):
+    __doc__ = """Bring both links of an elastic two-link arm to target angles, acting on an estimate.
+
+    ## Description
+    The planar two-link arm of ``models/elastic_joint_2link.xml``, each joint elastic (Spong's
+    reduced model, resonances 9.4 and 11.3 Hz), in a vertical plane. The agent brings both link
+    angles to targets drawn at reset. Both link angles are measured by encoders. With two
+    outputs there is no single-output normal form, so the default observer is model-free:
+    `high_gain_multi` with one chain of order 4 per link angle (paper 001, eq. 5), which
+    estimates each link angle and its first three derivatives; if `high_gain_multi` is not
+    registered, two `high_gain` chains of order 4 without a system, run together
+    (`ObserverBank`), give the same estimate. The motor angles are not estimated by either.
+
+    ## Action Space
+    `Box(-1, 1, (2,), float32)`: the motor torques over `max_torque` (default 6 and 2 N m).
+
+    | Num | Action         | Min | Max | Actuator (MJCF) | Unit                  |
+    |-----|----------------|-----|-----|-----------------|-----------------------|
+    | 0   | motor 1 torque | -1  | 1   | `torque1`       | N m / `max_torque[0]` |
+    | 1   | motor 2 torque | -1  | 1   | `torque2`       | N m / `max_torque[1]` |
+
+    ## Observation Space
+    `Box(float64)`. `"estimate"` (default) with the default observer, shape `(10,)`:
+
+    | Num | Observation                          | Min   | Max  | Unit    |
+    |-----|--------------------------------------|-------|------|---------|
+    | 0   | link 1 angle                         | -2 pi | 2 pi | rad     |
+    | 1   | link 1 velocity                      | -50   | 50   | rad/s   |
+    | 2   | link 1 acceleration                  | -1e3  | 1e3  | rad/s^2 |
+    | 3   | link 1 jerk                          | -1e5  | 1e5  | rad/s^3 |
+    | 4-7 | the same for link 2 (relative angle) |       |      |         |
+    | 8   | target link 1 angle                  | -pi   | pi   | rad     |
+    | 9   | target link 2 angle                  | -pi   | pi   | rad     |
+
+    `"true"`, shape `(10,)`: link 1, link 2, motor 1, motor 2 angles [rad, within +-2 pi],
+    then their velocities [rad/s, within +-50], then the two targets. `"measurement"`, shape
+    `(4,)`: the two measured link angles, the two targets. `env.unwrapped.observation_names`
+    names every entry.
+
+    ## Rewards
+    `-min(sum_i (e_i^2 + 0.01 q_i'^2 + 0.01 (q_i' - theta_i')^2 + 0.001 a_i^2), max_cost)` per
+    step, as in ElasticJointReach, summed over both joints.
+
+    ## Starting State
+    Each link and its motor at the same angle, uniform in [-0.1, 0.1] rad, at rest; targets
+    uniform in [-`target_range`, `target_range`] (0.8 rad) each.
+
+    ## Episode End
+    No termination; truncated after 300 steps (3 s) by `TimeLimit`.
+
+    ## Arguments
+    | Parameter      | Default      | Description                               |
+    |----------------|--------------|-------------------------------------------|
+    | `max_torque`   | `(6.0, 2.0)` | torques per unit action [N m]             |
+    | `target_range` | `0.8`        | half width of each target draw [rad]      |
+    | `start_noise`  | `0.1`        | half width of the initial angle draw [rad] |
+    | `max_cost`     | `10.0`       | bound of the per-step cost                |
+""" + _ARGUMENTS + """
+    Defaults here: `physics_dt=0.001` (RK4), `sample_period=0.002`, `control_period=0.01`;
+    observer `high_gain_multi` with `k=150, orders=(4, 4)`; sensor as in ElasticJointReach.
+
+    ## Version History
+    * v0: initial version.
+"""
+    task_class = Reach2LinkTask
+
+
+__all__ = ["CartPendulumBalanceEnv", "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv",
+           "PendulumSwingUpEnv"]

@@ -1,0 +1,269 @@
+"""The tasks of the environments: reward, termination, reset distribution and defaults.
+
+Each task is small: it never sees the observer, and its reward and termination use the true
+state only. The numbers (episode lengths, torque limits, observer gains, sensor noise) are the
+defaults of the environment classes in :mod:`envs.environments`, where they are documented.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hgo_mj._validate import finite_scalar
+from hgo_mj.exceptions import DesignError
+from hgo_mj.observers import HighGainObserver, Observer
+
+from ._observers import ObserverBank
+from .core import Task
+
+_TWO_PI = 2.0 * math.pi
+
+
+def _wrap(a: float) -> float:
+    """Angle wrapped to ``[-pi, pi)``."""
+    return (a + math.pi) % _TWO_PI - math.pi
+
+
+def _range(name: str, value: float, upper: float | None = None) -> float:
+    v = finite_scalar(name, value, nonnegative=True)
+    if upper is not None and v > upper:
+        raise DesignError(f"{name} must be at most {upper:g}; found {v:g}")
+    return v
+
+
+class SwingUpTask(Task):
+    """Swing the torque-limited pendulum up from hanging and balance it upright.
+
+    Reward per step ``-(d^2 + 0.1 w^2 + 0.001 a^2)`` with ``d`` the angle from upright wrapped
+    to ``[-pi, pi)``, ``w`` the angular velocity [rad/s] and ``a`` the action (torque over
+    ``max_torque``); range about ``[-16, 0]``.
+    """
+
+    plant = "pendulum"
+    physics_dt = 0.02
+    control_period = 0.04
+    sample_period = None
+    integrator = "Euler"
+    max_episode_steps = 250
+    default_observer = "high_gain"
+    observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        "high_gain": {"k": 10.0, "model": True},
+        "high_gain_multi": {"k": 20.0, "orders": (2,)},
+        "adaptive_gain": {"lam": 0.04, "lam_hat": 0.08, "gamma": 200.0, "k0": 20.0,
+                          "k_max": 60.0, "method": "exact"},
+        "riccati": {"gamma": 20.0},
+        "q_integral": {"gamma": 20.0, "q": 1},
+        "besancon": {"lam": 10.0},
+    }
+    default_sensor = ({"stage": "gaussian", "std": 0.01},)
+    periodic = frozenset({"angle"})
+    reward_terms = ("upright", "velocity", "control")
+
+    def __init__(self, max_torque: float = 0.5, start_noise: float = 0.1) -> None:
+        super().__init__((max_torque,))
+        self.max_torque = self.max_action[0]
+        self.start_noise = _range("start_noise", start_noise)
+
+    def initial_state(self, rng: np.random.Generator) -> list[float]:
+        s = self.start_noise
+        r0, r1 = rng.random(2).tolist()
+        return [s * (2.0 * r0 - 1.0), s * (2.0 * r1 - 1.0)]
+
+    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
+               ) -> tuple[float, dict[str, float]]:
+        d = _wrap(x[0] - math.pi)
+        a = u[0] / self.max_torque
+        upright, velocity, control = -d * d, -0.1 * x[1] * x[1], -0.001 * a * a
+        return upright + velocity + control, {"reward_upright": upright,
+                                              "reward_velocity": velocity,
+                                              "reward_control": control}
+
+    def params(self) -> dict[str, Any]:
+        return {"max_torque": self.max_torque, "start_noise": self.start_noise}
+
+
+class BalanceTask(Task):
+    """Keep Ibrir's inverted pendulum upright through the pivot acceleration.
+
+    Reward per step ``1 - x1^2 - 0.01 a^2`` while ``|x1| <= max_angle``; the episode ends when
+    ``|x1| > max_angle``.
+    """
+
+    plant = "cart_pendulum"
+    physics_dt = 0.01
+    control_period = 0.05
+    sample_period = 0.01
+    integrator = None
+    max_episode_steps = 400
+    default_observer = "high_gain"
+    observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        "high_gain": {"k": 10.0, "model": True},
+        "high_gain_multi": {"k": 10.0, "orders": (2,)},
+        "adaptive_gain": {"lam": 0.02, "lam_hat": 0.04, "gamma": 200.0, "k0": 10.0,
+                          "k_max": 40.0, "model": True, "method": "exact"},
+        "riccati": {"gamma": 6.0},
+        "q_integral": {"gamma": 6.0, "q": 1},
+        "besancon": {"lam": 10.0},
+    }
+    default_sensor = ({"stage": "gaussian", "std": 0.005},)
+    reward_terms = ("alive", "angle", "control")
+
+    def __init__(self, max_acceleration: float = 2.0, max_angle: float = 0.5,
+                 start_noise: float = 0.2) -> None:
+        super().__init__((max_acceleration,))
+        self.max_acceleration = self.max_action[0]
+        self.max_angle = finite_scalar("max_angle", max_angle, positive=True)
+        self.start_noise = _range("start_noise", start_noise, self.max_angle)
+
+    def initial_state(self, rng: np.random.Generator) -> list[float]:
+        s = self.start_noise
+        return rng.uniform(-s, s, 2).tolist()
+
+    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
+               ) -> tuple[float, dict[str, float]]:
+        a = u[0] / self.max_acceleration
+        angle, control = -x[0] * x[0], -0.01 * a * a
+        return 1.0 + angle + control, {"reward_alive": 1.0, "reward_angle": angle,
+                                       "reward_control": control}
+
+    def terminated(self, x: list[float]) -> bool:
+        return not abs(x[0]) <= self.max_angle
+
+    def params(self) -> dict[str, Any]:
+        return {"max_acceleration": self.max_acceleration, "max_angle": self.max_angle,
+                "start_noise": self.start_noise}
+
+
+class ReachTask(Task):
+    """Bring the link of the elastic joint to a target angle drawn at reset, without vibration.
+
+    Reward per step ``-min(e^2 + 0.01 q'^2 + 0.01 (q' - theta')^2 + 0.001 a^2, max_cost)``
+    with ``e`` the link angle error [rad], ``q'`` the link velocity and ``q' - theta'`` the
+    deflection rate of the spring [rad/s] (residual vibration), ``a`` the action; the bound
+    keeps a runaway (the link whirling) from dominating returns.
+    """
+
+    plant = "elastic_joint"
+    physics_dt = 0.001
+    control_period = 0.01
+    sample_period = 0.002
+    integrator = None
+    max_episode_steps = 300
+    default_observer = "high_gain"
+    observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        "high_gain": {"k": 80.0, "model": True},
+        "high_gain_multi": {"k": 80.0, "orders": (4,)},
+        "adaptive_gain": {"lam": 0.004, "lam_hat": 0.008, "gamma": 1000.0, "k0": 80.0,
+                          "k_max": 200.0, "model": True, "method": "exact"},
+        "riccati": {"gamma": 80.0},
+        "q_integral": {"gamma": 80.0, "q": 1},
+        "besancon": {"lam": 40.0},
+    }
+    default_sensor = ({"stage": "gaussian", "std": 0.001},
+                      {"stage": "quantize", "counts_per_rev": 16384})
+    goal_names = ("target_link_angle",)
+    reward_terms = ("tracking", "velocity", "vibration", "control")
+
+    def __init__(self, max_torque: float = 2.0, target_range: float = 1.0,
+                 start_noise: float = 0.1, max_cost: float = 10.0) -> None:
+        super().__init__((max_torque,))
+        self.max_torque = self.max_action[0]
+        self.target_range = _range("target_range", target_range, math.pi)
+        self.start_noise = _range("start_noise", start_noise)
+        self.max_cost = finite_scalar("max_cost", max_cost, positive=True)
+
+    def initial_state(self, rng: np.random.Generator) -> list[float]:
+        q = float(rng.uniform(-self.start_noise, self.start_noise))
+        return [q, q, 0.0, 0.0]
+
+    def sample_goal(self, rng: np.random.Generator) -> tuple[float, ...]:
+        return (float(rng.uniform(-self.target_range, self.target_range)),)
+
+    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
+               ) -> tuple[float, dict[str, float]]:
+        e = x[0] - goal[0]
+        a = u[0] / self.max_torque
+        defl = x[2] - x[3]
+        terms = {"reward_tracking": -e * e, "reward_velocity": -0.01 * x[2] * x[2],
+                 "reward_vibration": -0.01 * defl * defl, "reward_control": -0.001 * a * a}
+        return max(sum(terms.values()), -self.max_cost), terms
+
+    def params(self) -> dict[str, Any]:
+        return {"max_torque": self.max_torque, "target_range": self.target_range,
+                "start_noise": self.start_noise, "max_cost": self.max_cost}
+
+
+class Reach2LinkTask(Task):
+    """Bring both links of the elastic two-link arm to target angles drawn at reset.
+
+    Reward per step ``-min(sum_i (e_i^2 + 0.01 q_i'^2 + 0.01 (q_i' - theta_i')^2
+    + 0.001 a_i^2), max_cost)``.
+    """
+
+    plant = "elastic_joint_2link"
+    physics_dt = 0.001
+    control_period = 0.01
+    sample_period = 0.002
+    integrator = None
+    max_episode_steps = 300
+    default_observer = "high_gain_multi"
+    observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        "high_gain_multi": {"k": 150.0, "orders": (4, 4)},
+        # single-output observers, so that their own error says why they do not apply
+        "high_gain": {"k": 150.0},
+        "adaptive_gain": {"lam": 0.004, "lam_hat": 0.008, "gamma": 1000.0, "k0": 150.0},
+        "riccati": {"gamma": 150.0},
+        "q_integral": {"gamma": 150.0, "q": 1},
+        "besancon": {"lam": 40.0},
+    }
+    default_sensor = ({"stage": "gaussian", "std": 0.001},
+                      {"stage": "quantize", "counts_per_rev": 16384})
+    goal_names = ("target_link1_angle", "target_link2_angle")
+    reward_terms = ("tracking", "velocity", "vibration", "control")
+    #: gain of the fallback per-link observers
+    fallback_k: ClassVar[float] = 150.0
+
+    def __init__(self, max_torque: tuple[float, float] = (6.0, 2.0), target_range: float = 0.8,
+                 start_noise: float = 0.1, max_cost: float = 10.0) -> None:
+        mt = tuple(max_torque)
+        if len(mt) != 2:
+            raise DesignError(f"max_torque must give two torques (N m); found {max_torque!r}")
+        super().__init__(mt)
+        self.max_torque = self.max_action
+        self.target_range = _range("target_range", target_range, math.pi)
+        self.start_noise = _range("start_noise", start_noise)
+        self.max_cost = finite_scalar("max_cost", max_cost, positive=True)
+
+    def fallback_observer(self, system: Any, sample_period: float) -> Observer | None:
+        """Model-free high-gain chains of order 4, one per link angle (paper 000's point: only
+        the relative degree is known), when ``high_gain_multi`` is not registered."""
+        chains = [HighGainObserver(order=4, k=self.fallback_k, output=i) for i in range(2)]
+        return ObserverBank(chains, output_names=system.output_names)
+
+    def initial_state(self, rng: np.random.Generator) -> list[float]:
+        q1, q2 = rng.uniform(-self.start_noise, self.start_noise, 2).tolist()
+        return [q1, q2, q1, q2, 0.0, 0.0, 0.0, 0.0]
+
+    def sample_goal(self, rng: np.random.Generator) -> tuple[float, ...]:
+        return tuple(rng.uniform(-self.target_range, self.target_range, 2).tolist())
+
+    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
+               ) -> tuple[float, dict[str, float]]:
+        e1, e2 = x[0] - goal[0], x[1] - goal[1]
+        d1, d2 = x[4] - x[6], x[5] - x[7]
+        a1, a2 = u[0] / self.max_torque[0], u[1] / self.max_torque[1]
+        terms = {"reward_tracking": -(e1 * e1 + e2 * e2),
+                 "reward_velocity": -0.01 * (x[4] ** 2 + x[5] ** 2),
+                 "reward_vibration": -0.01 * (d1 * d1 + d2 * d2),
+                 "reward_control": -0.001 * (a1 * a1 + a2 * a2)}
+        return max(sum(terms.values()), -self.max_cost), terms
+
+    def params(self) -> dict[str, Any]:
+        return {"max_torque": list(self.max_torque), "target_range": self.target_range,
+                "start_noise": self.start_noise, "max_cost": self.max_cost}
+
+
+__all__ = ["BalanceTask", "Reach2LinkTask", "ReachTask", "SwingUpTask"]

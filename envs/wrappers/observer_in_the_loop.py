@@ -1,0 +1,208 @@
+"""Any hgo_mj observer in the loop of any Gymnasium environment: the agent sees the estimate."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
+from hgo_mj.observers import OBSERVERS, Observer, make_observer
+
+from .._observers import ObserverBank
+from ..core import sensor_chain
+from ._common import env_dt, reset_chain
+
+Array = NDArray[np.float64]
+
+
+class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
+    """Measure some signals of an environment, estimate its state with hgo_mj observers, and
+    hand the agent the estimate instead of the environment's observation.
+
+    At every step the observer consumes the current measurement ``y_k`` (the measured signals
+    through the sensor chain) and the input ``u_k`` (the action, or ``input(action)``) and
+    predicts the estimate at the next step, ``update(y_k, u_k, dt)``; the environment then
+    steps, and its new observation is measured for the next update. The agent's observation is
+    that estimate, rearranged by ``layout``.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        Any environment whose observation (or state) contains the signals a sensor would read.
+    measure : sequence of int or callable
+        The measured signals: indices into the environment's observation, or a function
+        ``measure(env, observation) -> array`` (e.g. reading ``env.unwrapped.data``).
+    observer : str, Observer or sequence of Observer
+        A registered observer name: one observer per measured channel, built without a system
+        (model-free) as ``make_observer(name, None, output=i, **observer_kwargs)``, e.g.
+        ``"high_gain"`` with ``observer_kwargs={"order": 2, "k": 30}``: a chain of order 2 per
+        signal estimates it and its velocity. Or an observer instance (e.g. one designed
+        against an hgo_mj system), or several, each reading its own channel; their estimates
+        are concatenated.
+    observer_kwargs : mapping, optional
+        Parameters of a named observer.
+    sensor : sensor spec, optional
+        The sensor chain on the measured signals (see :func:`envs.core.sensor_chain`);
+        default exact measurement. Seeded by ``reset(seed=...)``.
+    layout : sequence of int, optional
+        The agent's observation as indices into the concatenated estimate (default: the
+        estimate as it is). For InvertedPendulum-v5 measured at ``(0, 1)`` with two chains of
+        order 2 (estimate ``x, x', theta, theta'``), ``layout=(0, 2, 1, 3)`` restores the
+        environment's own order ``x, theta, x', theta'``.
+    input : callable, optional
+        ``input(action) -> u`` fed to the observer (default: the action as a float array).
+    init : {"measurement", "zero"}
+        Initial estimate of the per-channel chains built from a name: the first measurement
+        with zero derivatives (default), or zero. Observer instances start from their own
+        initial estimate.
+    dt : float, optional
+        Time between observations; default ``env.unwrapped.dt`` (MuJoCo environments).
+    bound : float
+        Half width of the observation space (the estimate is clipped to it; ``info`` keeps
+        the unclipped value).
+
+    Notes
+    -----
+    ``info`` gains ``"estimate"`` (the agent's estimate before ``layout`` and clipping),
+    ``"measurement"`` (the sensor's reading of the new observation, which the observer
+    consumes at the next step) and ``"true_observation"`` (the environment's own
+    observation).
+
+    Examples
+    --------
+    Gymnasium's inverted pendulum with only the cart position and pole angle measured:
+
+    >>> env = ObserverInTheLoop(  # doctest: +SKIP
+    ...     gymnasium.make("InvertedPendulum-v5"), measure=(0, 1),
+    ...     observer="high_gain", observer_kwargs={"order": 2, "k": 30.0},
+    ...     sensor=[{"stage": "gaussian", "std": 1e-3}], layout=(0, 2, 1, 3))
+    """
+
+    def __init__(self, env: gymnasium.Env, measure: Sequence[int] | Callable[..., Any], *,
+                 observer: str | Observer | Sequence[Observer] = "high_gain",
+                 observer_kwargs: Mapping[str, Any] | None = None, sensor: Any = None,
+                 layout: Sequence[int] | None = None,
+                 input: Callable[[Any], Any] | None = None,  # noqa: A002 - the observer's u
+                 init: str = "measurement", dt: float | None = None, bound: float = 1e6) -> None:
+        super().__init__(env)
+        if callable(measure):
+            self._measure_fn: Callable[..., Any] | None = measure
+            self._idx = None
+            probe = None
+        else:
+            space = env.observation_space
+            if not isinstance(space, spaces.Box) or len(space.shape) != 1:
+                raise DesignError(f"measure= as indices needs a 1-D Box observation space; found "
+                                  f"{space} (give a function measure(env, obs) instead)")
+            idx = [int(i) for i in measure]
+            n = space.shape[0]
+            if not idx or any(i < 0 or i >= n for i in idx) or len(set(idx)) != len(idx):
+                raise DimensionError(f"measure must be distinct entries of the {n}-entry "
+                                     f"observation; found {list(measure)}")
+            self._measure_fn = None
+            self._idx = np.array(idx, dtype=np.intp)
+            probe = len(idx)
+        if init not in ("measurement", "zero"):
+            raise DesignError(f"init must be 'measurement' or 'zero'; found {init!r}")
+        self.sensor = sensor_chain(sensor)
+        self.dt = env_dt(env, dt)
+        self._input = input
+        self._built = isinstance(observer, str)
+        self.observer = self._make(observer, observer_kwargs, probe)
+        self._init = init
+        self.observer.check_period(self.dt)
+        n_est = len(self.observer.state_names)
+        if layout is None:
+            lay = list(range(n_est))
+        else:
+            lay = [int(i) for i in layout]
+            if not lay or any(i < 0 or i >= n_est for i in lay):
+                raise DimensionError(f"layout must index the {n_est}-entry estimate "
+                                     f"{list(self.observer.state_names)}; found {list(layout)}")
+        self.layout = np.array(lay, dtype=np.intp)
+        self.observation_names = tuple(self.observer.state_names[i] for i in lay)
+        self.bound = float(bound)
+        self.observation_space = spaces.Box(-self.bound, self.bound, shape=(len(lay),),
+                                            dtype=np.float64)
+        self._y: Array | None = None
+        self._k = 0
+
+    def _make(self, observer: Any, kwargs: Mapping[str, Any] | None, m: int | None) -> Observer:
+        if isinstance(observer, Observer):
+            if kwargs:
+                raise DesignError("observer_kwargs apply to a named observer, not to an instance")
+            return observer
+        if isinstance(observer, str):
+            if observer not in OBSERVERS:
+                raise DesignError(f"unknown observer {observer!r}; valid: {sorted(OBSERVERS)}")
+            if m is None:
+                raise DesignError("a named observer needs measure= as indices (to know how many "
+                                  "channels); with measure(env, obs) give observer instances")
+            kw = dict(kwargs or {})
+            if "output" in kw:
+                raise DesignError("output is set per channel by the wrapper; do not give it")
+            members = [make_observer(observer, None, output=i, **kw) for i in range(m)]
+            names = [f"y{i}" for i in range(m)]
+            return ObserverBank(members, output_names=names)
+        members = list(observer)
+        if not members or not all(isinstance(o, Observer) for o in members):
+            raise DesignError(f"observer must be a registered name (one of {sorted(OBSERVERS)}), an "
+                              f"Observer or a sequence of them; found {observer!r}")
+        return members[0] if len(members) == 1 else ObserverBank(members)
+
+    # ------------------------------------------------------------------ loop
+    def _signals(self, obs: Any) -> Array:
+        if self._measure_fn is not None:
+            y = np.asarray(self._measure_fn(self.env, obs), dtype=float).reshape(-1)
+        else:
+            y = np.asarray(obs, dtype=float)[self._idx]
+        return self.sensor(self._k * self.dt, y)
+
+    def _u(self, action: Any) -> Array:
+        if self._input is not None:
+            return np.asarray(self._input(action), dtype=float).reshape(-1)
+        return np.asarray(action, dtype=float).reshape(-1)
+
+    def _observation(self, x_hat: Array) -> Array:
+        if not np.all(np.isfinite(x_hat)):
+            raise DivergenceError(f"the observer's estimate left the finite numbers at step "
+                                  f"{self._k}: {x_hat.tolist()}")
+        return np.clip(x_hat[self.layout], -self.bound, self.bound)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Array, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        reset_chain(self.sensor, seed)
+        self._k = 0
+        y = self._signals(obs)
+        self._y = y
+        ob = self.observer
+        if self._built and self._init == "measurement" and isinstance(ob, ObserverBank):
+            z0: list[float] = []
+            for o in ob.members:
+                yi = float(y[o.output])
+                z0 += [yi if yi == yi else 0.0] + [0.0] * (len(o.state_names) - 1)
+            ob.reset(z_hat0=z0)
+        else:
+            ob.reset()
+        x_hat = np.array(ob.x_hat, dtype=float)
+        info = dict(info)
+        info.update(estimate=x_hat.copy(), measurement=y.copy(), true_observation=np.array(obs))
+        return self._observation(x_hat), info
+
+    def step(self, action: Any) -> tuple[Array, Any, bool, bool, dict[str, Any]]:
+        if self._y is None:
+            raise DesignError("call reset() before step()")
+        x_hat = np.array(self.observer.update(self._y, self._u(action), self.dt), dtype=float)
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._k += 1
+        y = self._signals(obs)
+        self._y = y
+        info = dict(info)
+        info.update(estimate=x_hat.copy(), measurement=y.copy(), true_observation=np.array(obs))
+        return self._observation(x_hat), reward, terminated, truncated, info

@@ -1,0 +1,101 @@
+"""Sensor noise (hgo_mj's sensor stages) on any environment with a ``Box`` observation."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from hgo_mj.exceptions import DesignError, DimensionError
+
+from ..core import sensor_chain
+from ._common import env_dt, reset_chain
+
+Array = NDArray[np.floating]
+
+
+class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
+    """Pass (some entries of) a ``Box`` observation through an hgo_mj sensor chain.
+
+    The stages of :mod:`hgo_mj.sensors` (noise, bias, drift, quantization, sample-and-hold,
+    delay, dropout, outliers, saturation) act on the chosen entries in the order given, at the
+    time ``step_count * dt``. ``reset(seed=s)`` seeds the chain (a stream independent of the
+    environment's own); ``reset()`` resets the stages and lets the chain's generator continue,
+    so the same seed gives the same noise.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        An environment with a 1-D ``Box`` observation space.
+    sensor : SensorChain, stage spec or sequence of stage specs
+        As for the hgo_mj environments: ``[{"stage": "gaussian", "std": 0.01}, ...]``, stage
+        instances, or a :class:`~hgo_mj.sensors.SensorChain`.
+    indices : sequence of int, optional
+        The observation entries measured through the chain (default: all); the others pass
+        unchanged.
+    dt : float, optional
+        Time between observations [s] for the time-based stages; default ``env.unwrapped.dt``
+        (MuJoCo environments), else 1.
+
+    Notes
+    -----
+    The observation space is unchanged: noise can take an entry past a finite bound, and a
+    dropout stage makes entries NaN (outside every space); put an observer after a lossy
+    sensor (:class:`ObserverInTheLoop`). ``info["clean_observation"]`` holds the observation
+    before the sensor.
+
+    Examples
+    --------
+    >>> env = SensorNoise(gymnasium.make("InvertedPendulum-v5"),  # doctest: +SKIP
+    ...                   [{"stage": "gaussian", "std": 0.01}], indices=[0, 1])
+    """
+
+    def __init__(self, env: gymnasium.Env, sensor: Any, *, indices: Sequence[int] | None = None,
+                 dt: float | None = None) -> None:
+        super().__init__(env)
+        space = env.observation_space
+        if not isinstance(space, spaces.Box) or len(space.shape) != 1:
+            raise DesignError(f"SensorNoise needs a 1-D Box observation space; found {space}")
+        n = space.shape[0]
+        if indices is None:
+            idx = list(range(n))
+        else:
+            idx = [int(i) for i in indices]
+            if not idx or any(i < 0 or i >= n for i in idx) or len(set(idx)) != len(idx):
+                raise DimensionError(f"indices must be distinct entries of the {n}-entry "
+                                     f"observation; found {list(indices)}")
+        self.indices = np.array(idx, dtype=np.intp)
+        self._all = idx == list(range(n))
+        self.sensor = sensor_chain(sensor)
+        self.dt = env_dt(env, dt)
+        self._k = 0
+
+    def _measure(self, obs: Array) -> Array:
+        t = self._k * self.dt
+        clean = np.asarray(obs, dtype=float)
+        if self._all:
+            y = self.sensor(t, clean)
+        else:
+            y = clean.copy()
+            y[self.indices] = self.sensor(t, clean[self.indices])
+        return y.astype(self.observation_space.dtype, copy=False)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Array, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        reset_chain(self.sensor, seed)
+        self._k = 0
+        info = dict(info)
+        info["clean_observation"] = np.array(obs)
+        return self._measure(obs), info
+
+    def step(self, action: Any) -> tuple[Array, Any, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._k += 1
+        info = dict(info)
+        info["clean_observation"] = np.array(obs)
+        return self._measure(obs), reward, terminated, truncated, info

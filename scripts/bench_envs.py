@@ -1,0 +1,242 @@
+"""Speed of the hgo_mj environments against Gymnasium's InvertedPendulum-v5, side by side.
+
+Measured in one process, in interleaved short bursts (each configuration runs a burst in turn,
+many rounds; the best burst of each counts), timed with the thread's CPU clock
+(``time.thread_time``) so that time the process spends descheduled on a shared machine does
+not count; the load still slows every configuration alike through caches:
+
+* ``step``: one ``env.step`` of ``gymnasium.make(id)`` (so with Gymnasium's ``TimeLimit``,
+  ``OrderEnforcing`` and ``PassiveEnvChecker`` on both sides), zero action; the resets
+  between episodes (InvertedPendulum falls within a few dozen steps) are subtracted at the
+  measured reset cost;
+* ``reset``: one ``env.reset()``;
+* ``vector``: total environment steps per second of a ``SyncVectorEnv`` of 8 copies, zero
+  actions, autoreset included.
+
+PendulumSwingUp runs as registered (Gaussian sensor noise, the high-gain observer with the
+pendulum's model term, two Euler MuJoCo steps per ``step`` as InvertedPendulum-v5's
+``frame_skip=2``), and in variants that show what each part costs.
+
+Usage::
+
+    python scripts/bench_envs.py                      # print the table
+    python scripts/bench_envs.py --write BENCHMARKS.md  # also replace the section there
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import re
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import hgo_mj.envs  # noqa: F401  (registers the environments)
+import numpy as np
+
+from hgo_mj.simulate import package_versions
+
+SECTION = "## Issue 5: Gymnasium environments"
+
+CONFIGS: dict[str, tuple[str, dict[str, Any]]] = {
+    "InvertedPendulum-v5 (Gymnasium)": ("InvertedPendulum-v5", {}),
+    "PendulumSwingUp-v0 as registered (Gaussian noise, high_gain with model term)": (
+        "hgo_mj/PendulumSwingUp-v0", {}),
+    "PendulumSwingUp-v0, model-free high_gain (k=20)": (
+        "hgo_mj/PendulumSwingUp-v0", {"observer_kwargs": {"k": 20.0, "model": False}}),
+    "PendulumSwingUp-v0, info_level='full'": ("hgo_mj/PendulumSwingUp-v0", {"info_level": "full"}),
+    "PendulumSwingUp-v0, no observer, no noise, observation='true'": (
+        "hgo_mj/PendulumSwingUp-v0", {"observer": None, "sensor": None, "observation": "true"}),
+}
+REFERENCE = "InvertedPendulum-v5 (Gymnasium)"
+BARE = "PendulumSwingUp-v0, no observer, no noise, observation='true'"
+TARGET = "PendulumSwingUp-v0 as registered (Gaussian noise, high_gain with model term)"
+TARGET_ID = "hgo_mj/PendulumSwingUp-v0"
+
+
+CLOCK = time.thread_time
+
+
+def _step_burst(env: gym.Env, n: int) -> tuple[float, int]:
+    """CPU seconds of ``n`` steps, and the number of resets among them."""
+    a = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
+    resets = 0
+    t0 = CLOCK()
+    for _ in range(n):
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+            resets += 1
+    return CLOCK() - t0, resets
+
+
+def _reset_burst(env: gym.Env, n: int) -> float:
+    t0 = CLOCK()
+    for _ in range(n):
+        env.reset()
+    return (CLOCK() - t0) / n
+
+
+def _vector_burst(venv: gym.vector.VectorEnv, n: int) -> float:
+    """Environment steps per CPU second of a vector env (all copies together)."""
+    a = np.zeros(venv.action_space.shape, dtype=venv.action_space.dtype)
+    t0 = CLOCK()
+    for _ in range(n):
+        venv.step(a)
+    return n * venv.num_envs / (CLOCK() - t0)
+
+
+def _interleaved(fns: dict[str, Callable[[], float]], rounds: int, best: Callable[..., float]
+                 ) -> dict[str, float]:
+    results: dict[str, list[float]] = {k: [] for k in fns}
+    for _ in range(rounds):
+        for k, f in fns.items():
+            results[k].append(f())
+    return {k: best(v) for k, v in results.items()}
+
+
+def _parts(rounds: int, n: int) -> dict[str, float]:
+    """CPU seconds of the per-sample calls of PendulumSwingUp's loop, alone."""
+    reg = gym.make(TARGET_ID).unwrapped
+    free = gym.make(TARGET_ID, observer_kwargs={"k": 20.0, "model": False}).unwrapped
+    for e in (reg, free):
+        e.reset(seed=0)
+    y, u, ts = reg._y, np.array([0.1]), reg.sample_period
+    stage, rng = reg.sensor.stages[0], reg.sensor.rng
+
+    def burst(f: Callable[[], Any]) -> Callable[[], float]:
+        def go() -> float:
+            t0 = CLOCK()
+            for _ in range(n):
+                f()
+            return (CLOCK() - t0) / n
+        return go
+
+    return _interleaved({
+        "update_model": burst(lambda: reg.observer.update(y, u, ts)),
+        "update_free": burst(lambda: free.observer.update(y, u, ts)),
+        "stage": burst(lambda: stage(0.0, y, rng)),
+    }, rounds, min)
+
+
+def run(rounds: int = 200, steps: int = 200) -> dict[str, dict[str, float]]:
+    envs = {k: gym.make(i, **kw) for k, (i, kw) in CONFIGS.items()}
+    for e in envs.values():
+        e.reset(seed=0)
+        _step_burst(e, 200)  # warm up (first-step checks, compiled observer updates)
+    reset = _interleaved({k: (lambda e=e: _reset_burst(e, steps // 2)) for k, e in envs.items()},
+                         rounds, min)
+
+    def per_step(e: gym.Env, k: str) -> float:
+        cpu, resets = _step_burst(e, steps)
+        return (cpu - resets * reset[k]) / steps
+
+    step = _interleaved({k: (lambda e=e, k=k: per_step(e, k)) for k, e in envs.items()},
+                        rounds, min)
+    venvs = {}
+    for k, (i, kw) in CONFIGS.items():
+        venvs[k] = gym.vector.SyncVectorEnv([lambda i=i, kw=kw: gym.make(i, **kw)] * 8)
+        venvs[k].reset(seed=0)
+        _vector_burst(venvs[k], 50)
+    vec = _interleaved({k: (lambda v=v: _vector_burst(v, steps // 8)) for k, v in venvs.items()},
+                       rounds, max)
+    for v in venvs.values():
+        v.close()
+    out = {k: {"step": step[k], "reset": reset[k], "vector": vec[k]} for k in CONFIGS}
+    out["parts"] = _parts(rounds, steps)
+    return out
+
+
+def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
+    parts = res.pop("parts")
+    ref = res[REFERENCE]
+    tgt = res[TARGET]
+    lines = [
+        SECTION,
+        "",
+        f"Command: `python scripts/bench_envs.py --rounds {rounds} --steps {steps}` (interleaved "
+        f"bursts of thread CPU time, best burst of {rounds} per figure)",
+        f"Machine: {platform.machine()}, {_cores()} cores, {platform.platform()}",
+        "Versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
+        "",
+        "| environment | step [us] | step / IPv5 | reset [us] | reset / IPv5 | "
+        "SyncVectorEnv(8) steps per CPU s | vector / IPv5 |",
+        "|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for k, r in res.items():
+        lines.append(f"| {k} | {r['step'] * 1e6:.2f} | {r['step'] / ref['step']:.2f} | "
+                     f"{r['reset'] * 1e6:.2f} | {r['reset'] / ref['reset']:.2f} | "
+                     f"{r['vector']:,.0f} | {r['vector'] / ref['vector']:.2f} |")
+    ok = (tgt["step"] <= 0.5 * ref["step"], tgt["reset"] <= ref["reset"],
+          tgt["vector"] >= ref["vector"])
+    bare = res[BARE]
+    lines += [
+        "",
+        f"The loop alone (`{BARE.split(', ', 1)[1]}`) steps in {bare['step'] * 1e6:.1f} us "
+        f"({bare['step'] / ref['step']:.2f}x): two MuJoCo steps of the pendulum (about 3 us), "
+        f"the action, the state read, reward, observation and `info`, and Gymnasium's three "
+        f"wrappers. The sensor stage and the observer add "
+        f"{(tgt['step'] - bare['step']) * 1e6:.1f} us: the Gaussian stage of `hgo_mj.sensors` "
+        f"({parts['stage'] * 1e6:.1f} us alone: small-array numpy operations), "
+        f"`HighGainObserver.update` ({parts['update_model'] * 1e6:.1f} us alone with the "
+        f"model term, {parts['update_free'] * 1e6:.1f} us model-free), the estimate and "
+        f"error entries of `info` and the estimate's finiteness check. Every part is on its "
+        f"leanest path here (MjData read by cached addresses in Python floats, one "
+        f"`mj_step(m, d, nstep)` call, a generated straight-line observation encoder); the "
+        f"rest of the gap to 0.5x is the per-call cost of the sensor stage and observer "
+        f"interfaces, which only a batched or compiled sensor-and-observer path would "
+        f"remove. `info_level='full'` (measurement, diagnostics, reward terms) costs a "
+        f"`SyncVectorEnv` about 1 us per entry, copy and step, hence the default of three "
+        f"entries.",
+    ]
+    lines += [
+        "",
+        "| target (PendulumSwingUp-v0 as registered against InvertedPendulum-v5) | status |",
+        "|---|---|",
+        f"| step at most 0.5x | {'met' if ok[0] else 'NOT met'} "
+        f"({tgt['step'] / ref['step']:.2f}x) |",
+        f"| reset at most 1x | {'met' if ok[1] else 'NOT met'} "
+        f"({tgt['reset'] / ref['reset']:.2f}x) |",
+        f"| SyncVectorEnv of 8 at least the same steps/s | {'met' if ok[2] else 'NOT met'} "
+        f"({tgt['vector'] / ref['vector']:.2f}x) |",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _cores() -> int:
+    import os
+
+    return os.cpu_count() or 0
+
+
+def write_section(path: Path, text: str) -> None:
+    """Replace (or append) this script's section of ``path``."""
+    old = path.read_text() if path.exists() else ""
+    pattern = re.compile(rf"^{re.escape(SECTION)}\n.*?(?=^## |\Z)", re.S | re.M)
+    if pattern.search(old):
+        new = pattern.sub(lambda _: text + "\n", old, count=1)
+    else:
+        new = old.rstrip("\n") + "\n\n" + text
+    path.write_text(new.rstrip("\n") + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=200)
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--write", type=Path, help="replace the issue 5 section of this file")
+    args = ap.parse_args(argv)
+    res = run(args.rounds, args.steps)
+    text = table(res, args.rounds, args.steps)
+    print(text)
+    if args.write:
+        write_section(args.write, text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,386 @@
+"""Conformance of the hgo_mj Gymnasium environments, for every environment and every observer
+that applies to it; their behaviour (info, seeding, noise shared across modes) and bad input."""
+
+from __future__ import annotations
+
+import math
+import pickle
+import warnings
+
+import gymnasium as gym
+import hgo_mj.envs as envs
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.observers import OBSERVERS, make_observer
+from hgo_mj.systems import CartPendulum
+
+ENV_IDS = sorted(envs.ENVIRONMENTS)
+MODES = list(envs.OBSERVATION_MODES)
+
+
+_PLAIN: dict[str, envs.HgoEnv] = {}
+
+
+def _applies(env_id: str, kind: str) -> str | None:
+    """``None`` if the observer ``kind`` can be built for the environment's plant with the
+    task's defaults for it; otherwise why not (the observer's own error)."""
+    if env_id not in _PLAIN:
+        _PLAIN[env_id] = envs.ENVIRONMENTS[env_id](observer=None, observation="true")
+    env = _PLAIN[env_id]
+    try:
+        make_observer(kind, env.plant.system, **env.observer_params(kind))
+    except (DesignError, DimensionError) as exc:
+        return str(exc)
+    return None
+
+
+def _pairs() -> list:
+    out = []
+    for env_id in ENV_IDS:
+        for kind in sorted(OBSERVERS):
+            why = _applies(env_id, kind)
+            marks = [pytest.mark.skip(reason=f"does not apply: {why}")] if why else []
+            out.append(pytest.param(env_id, kind, marks=marks, id=f"{env_id.split('/')[1]}-{kind}"))
+    return out
+
+
+def _checked(env: gym.Env) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped)
+
+
+def _rollout(env: gym.Env, seed: int, n: int) -> list:
+    env.action_space.seed(seed)
+    obs, info = env.reset(seed=seed)
+    rows = [(obs, 0.0, False, False, info)]
+    for _ in range(n):
+        rows.append(env.step(env.action_space.sample()))
+        if rows[-1][2] or rows[-1][3]:
+            break
+    return rows
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, tuple | list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray):
+        return np.array_equal(a, b, equal_nan=True)
+    return a == b or (a != a and b != b)
+
+
+# --------------------------------------------------------------------------- registration
+def test_every_environment_is_registered_with_a_time_limit():
+    for env_id, cls in envs.ENVIRONMENTS.items():
+        spec = gym.spec(env_id)
+        assert spec.max_episode_steps == cls.task_class.max_episode_steps
+        assert spec.entry_point.startswith("hgo_mj.envs.")
+    env = gym.make("hgo_mj.envs:hgo_mj/PendulumSwingUp-v0", max_episode_steps=3)
+    env.reset(seed=0)
+    ends = [env.step(env.action_space.sample())[3] for _ in range(3)]
+    assert ends == [False, False, True]
+    assert isinstance(env, gym.wrappers.TimeLimit)
+
+
+# --------------------------------------------------------------------------- conformance
+@pytest.mark.parametrize("env_id,kind", _pairs())
+def test_check_env_for_every_observer_that_applies(env_id, kind):
+    env = gym.make(env_id, observer=kind)
+    _checked(env)
+    rows = _rollout(env, 3, 25)
+    for obs, *_ in rows:
+        assert obs in env.observation_space and np.all(np.isfinite(obs))
+    info = rows[-1][-1]
+    assert set(info) == {"state", "estimate", "error"}
+    names = env.unwrapped.error_names
+    assert info["error"].shape == (len(names),)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("mode", MODES)
+def test_check_env_for_every_observation_mode(env_id, mode):
+    env = gym.make(env_id, observation=mode, info_level="full")
+    _checked(env)
+    u = env.unwrapped
+    assert env.observation_space.shape == (len(u.observation_names),)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_trajectory_fresh_finite_observations(env_id):
+    a = _rollout(gym.make(env_id, info_level="full"), 7, 40)
+    b = _rollout(gym.make(env_id, info_level="full"), 7, 40)
+    assert _same(a, b)
+    c = _rollout(gym.make(env_id, info_level="full"), 8, 40)
+    assert not _same(a, c)
+    arrays = [r[0] for r in a] + [v for r in a for v in r[-1].values() if isinstance(v, np.ndarray)]
+    for i, x in enumerate(arrays):
+        assert np.all(np.isfinite(x))
+        for y in arrays[i + 1:]:
+            assert not np.shares_memory(x, y)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_sync_vector_env_runs_through_autoreset(env_id):
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync", max_episode_steps=4)
+    obs, info = venv.reset(seed=1)
+    assert obs.shape == (3, *venv.single_observation_space.shape)
+    venv.action_space.seed(1)
+    for _ in range(6):
+        obs, reward, term, trunc, info = venv.step(venv.action_space.sample())
+        assert np.all(np.isfinite(obs)) and reward.shape == (3,)
+    assert info["state"].shape[0] == 3
+    venv.close()
+
+
+def test_async_vector_env_with_spawn():
+    kw = {"vectorization_mode": "async", "vector_kwargs": {"context": "spawn"}}
+    venv = gym.make_vec("hgo_mj/ElasticJoint2LinkReach-v0", num_envs=2, max_episode_steps=3,
+                        **kw)
+    try:
+        obs, _ = venv.reset(seed=[1, 2])
+        for _ in range(4):
+            obs, reward, *_ = venv.step(np.zeros((2, 2), dtype=np.float32))
+        assert obs.shape == (2, 10) and np.all(np.isfinite(obs))
+        assert not np.array_equal(obs[0], obs[1])
+    finally:
+        venv.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_environments_pickle(env_id):
+    env = gym.make(env_id)
+    _rollout(env, 0, 3)
+    copy = pickle.loads(pickle.dumps(env))
+    assert _same(_rollout(env, 5, 10), _rollout(copy, 5, 10))
+
+
+def test_environment_with_an_observer_instance_pickles():
+    plant_env = envs.PendulumSwingUpEnv(observer=None, observation="true")
+    obs = make_observer("high_gain", plant_env.plant.system, k=12.0)
+    obs.check_period(0.04)  # fills the cache of compiled updates that pickle cannot store
+    env = envs.PendulumSwingUpEnv(observer=obs)
+    assert env.observer is not obs and env.observer._steps
+    first = _rollout(env, 1, 5)
+    copy = pickle.loads(pickle.dumps(env))
+    assert _same(first, _rollout(copy, 1, 5))
+
+
+def test_vector_copies_do_not_share_observer_or_sensor_instances():
+    from hgo_mj.sensors import GaussianNoise, SensorChain
+
+    plant_env = envs.PendulumSwingUpEnv(observer=None, observation="true")
+    obs = make_observer("high_gain", plant_env.plant.system, k=12.0)
+    chain = SensorChain([GaussianNoise(std=0.01)])
+    venv = gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=2, vectorization_mode="sync",
+                        observer=obs, sensor=chain)
+    a, b = (e.unwrapped for e in venv.envs)
+    assert a.observer is not b.observer and a.sensor is not b.sensor
+    seeded = venv.reset(seed=[3, 3])[0]
+    np.testing.assert_array_equal(seeded[0], seeded[1])
+
+
+# --------------------------------------------------------------------------- behaviour
+def test_info_error_is_state_minus_estimate():
+    env = gym.make("hgo_mj/ElasticJointReach-v0")
+    _, info = env.reset(seed=0)
+    for _ in range(20):
+        _, _, _, _, info = env.step(np.array([0.3], dtype=np.float32))
+    np.testing.assert_array_equal(info["error"], info["state"] - info["estimate"])
+    assert env.unwrapped.error_names == env.unwrapped.state_names
+
+
+def test_two_link_error_covers_the_estimated_states_only():
+    env = envs.ElasticJoint2LinkReachEnv()
+    _, info = env.reset(seed=0)
+    assert set(env.error_names) == {"link1_angle", "link2_angle", "link1_velocity",
+                                    "link2_velocity"}
+    est = dict(zip(env.estimate_names, info["estimate"]))
+    state = dict(zip(env.state_names, info["state"]))
+    for name, e in zip(env.error_names, info["error"]):
+        assert e == state[name] - est[name]
+
+
+def test_two_link_falls_back_to_per_link_chains(monkeypatch):
+    monkeypatch.delitem(OBSERVERS, "high_gain_multi", raising=False)
+    env = gym.make("hgo_mj/ElasticJoint2LinkReach-v0")
+    assert type(env.unwrapped.observer).__name__ == "ObserverBank"
+    assert env.unwrapped.estimate_names[:2] == ("link1_angle", "link1_velocity")
+    _checked(env)
+
+
+def test_every_mode_sees_the_same_sensor_noise():
+    runs = {}
+    for mode in ("estimate", "measurement", "true"):
+        env = gym.make("hgo_mj/PendulumSwingUp-v0", observation=mode, info_level="full")
+        runs[mode] = _rollout(env, 11, 20)
+    meas = [r[-1]["measurement"] for r in runs["measurement"]]
+    for mode in ("estimate", "true"):
+        assert _same(meas, [r[-1]["measurement"] for r in runs[mode]])
+    for (obs, *_rest), y in zip(runs["measurement"], meas):
+        np.testing.assert_allclose(obs, [math.cos(y[0]), math.sin(y[0])])
+
+
+def test_estimate_converges_on_the_pendulum():
+    env = gym.make("hgo_mj/PendulumSwingUp-v0")
+    env.reset(seed=0)
+    errs = [env.step(np.array([0.5], dtype=np.float32))[-1]["error"] for _ in range(100)]
+    rms = np.sqrt(np.mean(np.square(errs[25:]), axis=0))
+    assert rms[0] < 0.02 and rms[1] < 0.5  # rad, rad/s (sensor noise 0.01 rad)
+
+
+def test_reset_options_and_reward_from_true_state():
+    env = envs.ElasticJointReachEnv(info_level="full")
+    obs, info = env.reset(seed=0, options={"x0": [0.5, 0.5, 0.0, 0.0], "goal": [0.5]})
+    assert obs[-1] == 0.5 and info["state"][0] == 0.5
+    _, reward, _, _, info = env.step(np.zeros(1, dtype=np.float32))
+    terms = {k: v for k, v in info.items() if k.startswith("reward_")}
+    assert set(terms) == {"reward_tracking", "reward_velocity", "reward_vibration",
+                          "reward_control"}
+    assert reward == pytest.approx(sum(terms.values()))
+    env.reset(seed=0, options={"x0": [0.0, 0.0, 100.0, 0.0]})  # the link whirling
+    assert env.step(np.zeros(1, dtype=np.float32))[1] == -10.0  # bounded by max_cost
+
+
+def test_balance_terminates_when_the_pendulum_falls():
+    env = envs.CartPendulumBalanceEnv(max_angle=0.3)
+    env.reset(seed=0, options={"x0": [0.2, 0.3]})
+    done = [env.step(np.zeros(1, dtype=np.float32))[2] for _ in range(10)]
+    assert done[-1] and not done[0]
+
+
+def test_actions_outside_the_space_are_clipped_by_default():
+    a = envs.PendulumSwingUpEnv(sensor=None)
+    b = envs.PendulumSwingUpEnv(sensor=None)
+    a.reset(seed=0)
+    b.reset(seed=0)
+    assert _same(a.step(np.array([7.0]))[:4], b.step(np.array([1.0]))[:4])
+
+
+# --------------------------------------------------------------------------- bad input
+def test_unknown_observer_lists_the_valid_ones():
+    with pytest.raises(DesignError, match=r"unknown observer 'kalman'; valid: \[.*'high_gain'"):
+        gym.make("hgo_mj/PendulumSwingUp-v0", observer="kalman")
+    with pytest.raises(DesignError, match=r"needs a 'type'"):
+        envs.PendulumSwingUpEnv(observer={"k": 3.0})
+
+
+def test_unknown_sensor_stage_lists_the_valid_ones():
+    with pytest.raises(DesignError, match=r"unknown sensor stage 'laser'; valid: \[.*'gaussian'"):
+        gym.make("hgo_mj/PendulumSwingUp-v0", sensor=[{"stage": "laser", "std": 1.0}])
+    with pytest.raises(DesignError, match=r"unknown parameter\(s\) \['sigma'\]"):
+        envs.PendulumSwingUpEnv(sensor={"stage": "gaussian", "sigma": 1.0})
+
+
+def test_unknown_observation_mode():
+    with pytest.raises(DesignError, match=r"unknown observation mode 'pixels'; valid: "
+                                          r"\['estimate', 'measurement', 'true', "
+                                          r"'estimate\+diagnostics'\]"):
+        envs.PendulumSwingUpEnv(observation="pixels")
+    with pytest.raises(DesignError, match="needs an observer; found observer=None"):
+        envs.PendulumSwingUpEnv(observer=None)
+
+
+def test_periods_must_be_multiples():
+    with pytest.raises(DesignError, match=r"control_period = 0.03 must be a positive integer "
+                                          r"multiple of physics_dt = 0.02; found ratio 1.5"):
+        envs.PendulumSwingUpEnv(control_period=0.03)
+    with pytest.raises(DesignError, match=r"control_period = 0.04 must be a positive integer "
+                                          r"multiple of sample_period = 0.06"):
+        envs.PendulumSwingUpEnv(physics_dt=0.02, sample_period=0.06)
+
+
+def test_actions_outside_the_space_raise_when_asked():
+    env = envs.PendulumSwingUpEnv(invalid_action="raise")
+    env.reset(seed=0)
+    with pytest.raises(DesignError, match=r"action\[0\] = 1.5 is outside the action space"):
+        env.step(np.array([1.5]))
+    with pytest.raises(DesignError, match=r"action\[0\] is NaN"):
+        envs.PendulumSwingUpEnv().step(np.array([np.nan]))
+    with pytest.raises(DimensionError, match="action must have 1 entries; found 2"):
+        env.step(np.zeros(2))
+    with pytest.raises(DesignError, match="invalid_action must be one of"):
+        envs.PendulumSwingUpEnv(invalid_action="wrap")
+
+
+def test_observer_order_must_match_the_plant():
+    with pytest.raises(DimensionError, match="order 3 does not match Pendulum's normal form "
+                                             "order 2"):
+        gym.make("hgo_mj/PendulumSwingUp-v0", observer="high_gain", observer_kwargs={"order": 3})
+    with pytest.raises(DesignError, match="needs a single-output normal form; ElasticJoint2Link"):
+        envs.ElasticJoint2LinkReachEnv(observer="high_gain", observer_kwargs={"k": 5.0})
+    wrong = make_observer("high_gain", CartPendulum.from_mjmodel(
+        envs.CartPendulumBalanceEnv(observer=None, observation="true").plant.model), k=5.0)
+    with pytest.raises(DesignError, match="designed for CartPendulum; this environment's plant "
+                                          "is Pendulum"):
+        envs.PendulumSwingUpEnv(observer=wrong)
+
+
+def test_other_bad_arguments():
+    with pytest.raises(DesignError, match=r"unknown argument\(s\) \['torque'\]; valid: .*"
+                                          r"'max_torque'"):
+        envs.PendulumSwingUpEnv(torque=1.0)
+    with pytest.raises(DesignError, match="does not render"):
+        envs.PendulumSwingUpEnv(render_mode="human")
+    with pytest.raises(DesignError, match="info_level must be one of"):
+        envs.PendulumSwingUpEnv(info_level="all")
+    with pytest.raises(DesignError, match="unknown integrator 'Verlet'"):
+        envs.PendulumSwingUpEnv(integrator="Verlet")
+    with pytest.raises(DesignError, match=r"unknown reset option\(s\) \['state'\]"):
+        envs.PendulumSwingUpEnv().reset(options={"state": [0.0, 0.0]})
+    with pytest.raises(DimensionError, match="options\\['x0'\\] must have length 2"):
+        envs.PendulumSwingUpEnv().reset(options={"x0": [0.0]})
+    with pytest.raises(DesignError, match="max_action\\[0\\] must be > 0"):
+        envs.PendulumSwingUpEnv(max_torque=-1.0)
+
+
+# --------------------------------------------------------------------------- recording
+def test_record_path_writes_episodes(tmp_path):
+    record = pytest.importorskip("hgo_mj.record")
+    if not hasattr(record.Recorder, "record_episode"):
+        pytest.skip("hgo_mj.record has no Recorder.record_episode yet (issue 6)")
+    path = tmp_path / "episodes.rrd"
+    env = gym.make("hgo_mj/PendulumSwingUp-v0", record_path=path, max_episode_steps=5)
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        for _ in range(5):
+            env.step(env.action_space.sample())
+    env.close()
+    assert path.is_file() and path.stat().st_size > 0
+
+
+def test_readme_environment_examples_run():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = text[text.index("## Gymnasium environments"):]
+    blocks = re.findall(r"```py\n(.*?)```", section, re.S)
+    assert len(blocks) == 2
+    scope: dict = {}
+    for code in blocks:
+        exec(compile(code, "README.md", "exec"), scope)
+    assert scope["env"].observation_space.shape == (4,)
+
+
+def test_a_task_in_the_loop_and_a_variant_by_partial():
+    from functools import partial
+
+    from hgo_mj.envs.tasks import SwingUpTask
+
+    env = envs.HgoEnv(task=SwingUpTask(max_torque=0.3))
+    assert env.task.max_action == (0.3,) and env.spec is None
+    gym.register(id="hgo_mj_test/PendulumSwingUpTrue-v0", max_episode_steps=10,
+                 entry_point=partial(envs.PendulumSwingUpEnv, observation="true"))
+    try:
+        variant = gym.make("hgo_mj_test/PendulumSwingUpTrue-v0")
+        _checked(variant)
+        assert variant.unwrapped.observation_mode == "true"
+    finally:
+        del gym.registry["hgo_mj_test/PendulumSwingUpTrue-v0"]
+    with pytest.raises(DesignError, match="give task parameters"):
+        envs.PendulumSwingUpEnv(task=SwingUpTask(), max_torque=0.2)

@@ -1,0 +1,129 @@
+"""The wrappers on Gymnasium's own InvertedPendulum-v5: sensor noise, and high-gain observers
+estimating the velocities from noisy position measurements well enough to balance it."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from hgo_mj.envs.wrappers import ObserverInTheLoop, SensorNoise
+
+from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.observers import HighGainObserver
+
+pytest.importorskip("gymnasium.envs.mujoco.inverted_pendulum_v5")
+
+NOISE = [{"stage": "gaussian", "std": 1e-3}]
+
+
+def _ip() -> gym.Env:
+    return gym.make("InvertedPendulum-v5")
+
+
+def _lqr_gain() -> np.ndarray:
+    """LQR gain of InvertedPendulum-v5 about upright, for one env step (two MuJoCo steps)."""
+    m = _ip().unwrapped.model
+    nv = m.nv
+
+    def f(x, a):
+        d = mujoco.MjData(m)
+        d.qpos[:], d.qvel[:], d.ctrl[:] = x[:nv], x[nv:], a
+        mujoco.mj_step(m, d, 2)
+        return np.concatenate([d.qpos, d.qvel])
+
+    x0, eps = np.zeros(2 * nv), 1e-6
+    A = np.column_stack([(f(x0 + eps * e, 0.0) - f(x0 - eps * e, 0.0)) / (2 * eps)
+                         for e in np.eye(2 * nv)])
+    B = ((f(x0, eps) - f(x0, -eps)) / (2 * eps)).reshape(-1, 1)
+    Q, R = np.diag([1.0, 10.0, 0.1, 0.1]), np.eye(1) * 10.0
+    P = sla.solve_discrete_are(A, B, Q, R)
+    return np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+
+
+def _balance(env: gym.Env, K: np.ndarray, seed: int = 1) -> tuple[int, np.ndarray]:
+    obs, info = env.reset(seed=seed)
+    errors, n = [], 0
+    while True:
+        a = np.clip(-K @ obs, -3.0, 3.0).astype(np.float32)
+        obs, _, terminated, truncated, info = env.step(a)
+        n += 1
+        errors.append(info["true_observation"] - obs)
+        if terminated or truncated:
+            return n, np.array(errors)
+
+
+def _estimated_ip(k: float = 40.0, layout=(0, 2, 1, 3), sensor=NOISE) -> ObserverInTheLoop:
+    return ObserverInTheLoop(_ip(), measure=(0, 1), observer="high_gain",
+                             observer_kwargs={"order": 2, "k": k}, sensor=sensor, layout=layout)
+
+
+def test_high_gain_observers_balance_inverted_pendulum_from_noisy_positions():
+    K = _lqr_gain()
+    steps, err = _balance(_estimated_ip(), K)
+    assert steps == 1000  # the whole episode, acting on the estimate only
+    rms = np.sqrt(np.mean(err[20:] ** 2, axis=0))
+    assert np.all(rms[:2] < 0.01)  # positions [m, rad]: the noise is 1e-3
+    assert np.all(rms[2:] < 0.2)   # estimated velocities [m/s, rad/s]
+
+
+def test_observer_in_the_loop_is_seeded_and_returns_fresh_arrays():
+    a, b = _estimated_ip(), _estimated_ip()
+    ra, rb = a.reset(seed=4), b.reset(seed=4)
+    np.testing.assert_array_equal(ra[0], rb[0])
+    prev = ra[0]
+    for _ in range(5):
+        sa, sb = a.step(np.array([0.5], dtype=np.float32)), b.step(np.array([0.5], np.float32))
+        np.testing.assert_array_equal(sa[0], sb[0])
+        np.testing.assert_array_equal(sa[-1]["measurement"], sb[-1]["measurement"])
+        assert not np.shares_memory(sa[0], prev) and sa[0] in a.observation_space
+        prev = sa[0]
+    assert a.observation_names == ("y0", "y1", "y0_d1", "y1_d1")
+
+
+def test_observer_in_the_loop_takes_instances_and_a_measure_function():
+    obs = [HighGainObserver(order=2, k=30.0, output=i) for i in range(2)]
+    env = ObserverInTheLoop(_ip(), measure=lambda e, o: e.unwrapped.data.qpos[:2].copy(),
+                            observer=obs)
+    first, _ = env.reset(seed=0)
+    assert first.shape == (4,) and np.all(first == 0.0)  # instances start from their own zero
+    out = env.step(np.zeros(1, dtype=np.float32))
+    assert np.all(np.isfinite(out[0]))
+
+
+def test_observer_in_the_loop_bad_input():
+    with pytest.raises(DesignError, match=r"unknown observer 'luenberger'; valid: \["):
+        ObserverInTheLoop(_ip(), measure=(0, 1), observer="luenberger")
+    with pytest.raises(DimensionError, match="measure must be distinct entries of the 4-entry"):
+        ObserverInTheLoop(_ip(), measure=(0, 9), observer_kwargs={"order": 2, "k": 5.0})
+    with pytest.raises(DimensionError, match="layout must index the 4-entry estimate"):
+        _estimated_ip(layout=(0, 4))
+    with pytest.raises(DesignError, match="output is set per channel"):
+        ObserverInTheLoop(_ip(), measure=(0,), observer_kwargs={"order": 2, "k": 5.0, "output": 1})
+    with pytest.raises(DesignError, match=r"unknown sensor stage 'sonar'"):
+        _estimated_ip(sensor=[{"stage": "sonar"}])
+
+
+def test_sensor_noise_on_inverted_pendulum():
+    env = SensorNoise(_ip(), [{"stage": "gaussian", "std": 0.01}], indices=[0, 1])
+    obs, info = env.reset(seed=3)
+    noise = [obs - info["clean_observation"]]
+    for _ in range(300):
+        obs, _, term, trunc, info = env.step(np.zeros(1, dtype=np.float32))
+        noise.append(obs - info["clean_observation"])
+        if term or trunc:
+            obs, info = env.reset()
+            noise.append(obs - info["clean_observation"])
+    noise = np.array(noise)
+    assert np.all(noise[:, 2:] == 0.0)  # velocities pass unchanged
+    assert np.std(noise[:, :2]) == pytest.approx(0.01, rel=0.15)
+    again = SensorNoise(_ip(), [{"stage": "gaussian", "std": 0.01}], indices=[0, 1])
+    np.testing.assert_array_equal(again.reset(seed=3)[0], env.reset(seed=3)[0])
+
+
+def test_sensor_noise_bad_input():
+    with pytest.raises(DimensionError, match="indices must be distinct entries"):
+        SensorNoise(_ip(), NOISE, indices=[0, 0])
+    with pytest.raises(DesignError, match="needs a 1-D Box observation space"):
+        SensorNoise(gym.make("FrozenLake-v1"), NOISE)
