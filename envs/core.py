@@ -32,6 +32,7 @@ from __future__ import annotations
 import copy
 import inspect
 import math
+import pickle
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
@@ -299,43 +300,63 @@ class _MjIO:
                 break
         #: ``(array, address)`` of each output, or ``None``: use ``plant.outputs()``
         self.out = [(d.qpos if k == "q" else d.qvel, a) for k, a in direct] or None
+        self._direct = direct
         if not np.any(m.geom_contype) and not np.any(m.geom_conaffinity):
             m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        self._compile()
+
+    def _compile(self) -> None:
+        """Straight-line ``step(u) -> t``, ``read_x() -> list`` and ``read_y() -> list`` for
+        this model's addresses (no loop over one-entry lists: a step has a few microseconds)."""
+        d = self.d
+        self.qpos, self.qvel, self.ctrl = d.qpos, d.qvel, d.ctrl  # views, valid while d lives
+        #: the time the next ``step`` must reach at least (MuJoCo's silent reset detection)
+        self.next_time = [float("inf")]
+        scope: dict[str, Any] = {"qpos": self.qpos, "qvel": self.qvel, "ctrl": self.ctrl,
+                                 "d": d, "m": self.m, "mj_step": mujoco.mj_step,
+                                 "nxt": self.next_time, "diverged": self._diverged}
+        writes = "".join(f"    ctrl[{a}] = u[{i}]\n" for i, a in enumerate(self.aadr))
+        xs = [f"qpos.item({a})" for a in self.qadr] + [f"qvel.item({a})" for a in self.vadr]
+        src = (f"def step(u):\n{writes}    mj_step(m, d, {self.substeps})\n    t = d.time\n"
+               f"    if t < nxt[0]:\n        diverged(u, t)\n"
+               f"    nxt[0] = t + {self.advance!r}\n    return t\n"
+               f"def read_x():\n    return [{', '.join(xs)}]\n")
+        if self.out is not None:
+            ys = [f"{'qpos' if k == 'q' else 'qvel'}.item({a})" for k, a in self._direct]
+            src += f"def read_y():\n    return [{', '.join(ys)}]\n"
+        exec(compile(src, "<environment io>", "exec"), scope)  # noqa: S102 - numbers only
+        self.step: Callable[[list[float]], float] = scope["step"]
+        self.read_x: Callable[[], list[float]] = scope["read_x"]
+        plant = self.plant
+        self.read_y: Callable[[], list[float]] = (
+            scope["read_y"] if self.out is not None else (lambda: plant.outputs().tolist()))
 
     def reset(self, x0: list[float]) -> None:
         m, d = self.m, self.d
         mujoco.mj_resetData(m, d)
-        qpos, qvel, n = d.qpos, d.qvel, self.nq
+        qpos, qvel, n = self.qpos, self.qvel, self.nq
         for i, a in enumerate(self.qadr):
             qpos[a] = x0[i]
         for i, a in enumerate(self.vadr):
             qvel[a] = x0[n + i]
         if self.out is None:
             mujoco.mj_forward(m, d)
+        self.next_time[0] = d.time + self.advance
 
-    def step(self, u: list[float]) -> None:
+    def _diverged(self, u: list[float], t: float) -> None:
         d = self.d
-        ctrl = d.ctrl
-        for i, a in enumerate(self.aadr):
-            ctrl[a] = u[i]
-        t = d.time
-        mujoco.mj_step(self.m, d, self.substeps)
-        if d.time < t + self.advance:
-            w = mujoco.mjtWarning
-            bad = [n for n in ("QPOS", "QVEL", "QACC")
-                   if d.warning[int(getattr(w, "mjWARN_BAD" + n))].number]
-            raise DivergenceError(f"MuJoCo found a non-finite or huge value (mjWARN_BAD"
-                                  f"{bad[0] if bad else '?'}) and reset the simulation near "
-                                  f"t={t:g}; input was {u}")
+        w = mujoco.mjtWarning
+        bad = [n for n in ("QPOS", "QVEL", "QACC")
+               if d.warning[int(getattr(w, "mjWARN_BAD" + n))].number]
+        raise DivergenceError(f"MuJoCo found a non-finite or huge value (mjWARN_BAD"
+                              f"{bad[0] if bad else '?'}) and reset the simulation near "
+                              f"t={t:g}; input was {u}")
 
     def state(self) -> list[float]:
-        qpos, qvel = self.d.qpos, self.d.qvel
-        return [qpos.item(a) for a in self.qadr] + [qvel.item(a) for a in self.vadr]
+        return self.read_x()
 
     def outputs(self) -> Array:
-        if self.out is None:
-            return self.plant.outputs()
-        return np.array([arr.item(a) for arr, a in self.out])
+        return np.array(self.read_y())
 
 
 class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
@@ -482,8 +503,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             est = {name: i for i, name in enumerate(self.estimate_names)}
             pairs = [(j, est[name]) for j, name in enumerate(self.state_names) if name in est]
             self._err_identity = self.estimate_names == self.state_names
-            self._err_x = np.array([j for j, _ in pairs], dtype=np.intp)
-            self._err_h = np.array([i for _, i in pairs], dtype=np.intp)
+            self._err = _error_function(pairs)
             self.error_names = tuple(self.state_names[j] for j, _ in pairs)
             diag = self.observer.diagnostics()
             self.diagnostic_names = tuple(k for k in diag if k != "dropouts")
@@ -513,13 +533,22 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             observation]
         self._diag_on = observation == "estimate+diagnostics"
 
-        # ---- run-time state
+        # ---- run-time state (Python floats: a step builds arrays only for what it returns)
         self._goal: tuple[float, ...] = ()
-        self._y: Array = np.zeros(len(self.output_names))
+        #: the last measurement and the observer's estimate, lists of floats
+        self._y: list[float] = [0.0] * len(self.output_names)
         self._y_held: list[float] = [0.0] * len(self.output_names)
-        self._x_hat: Array | None = None
+        self._x_hat: list[float] | None = None
         self._stages = self.sensor.stages
+        self._apply = [s.apply_list for s in self._stages]
         self._rng = self.sensor.rng
+        self._update = None if self.observer is None else _list_update(self.observer)
+        lean = (self._mode == 0 and not self._diag_on and not self._full_info
+                and record_path is None)
+        #: what a step needs, in one attribute (unpacked at once: a step has microseconds)
+        self._hot = (nu, self._scale, self._io.step, self._io.read_y, self._io.read_x,
+                     self._update, self._apply, ts, self._n_samples, task, lean,
+                     getattr(self, "_err", None), self._encode)
         self._episode = -1
         self._recorder: Any = None
         self.record_path = None if record_path is None else Path(record_path)
@@ -617,13 +646,13 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
                                  f"{m} output(s) {list(self.output_names)}")
 
     # ------------------------------------------------------------------ the loop
-    def _measure(self) -> Array:
-        y = self._io.outputs()
-        if self._stages:
+    def _measure(self) -> list[float]:
+        y = self._io.read_y()
+        if self._apply:
             t = self._io.d.time
             rng = self._rng
-            for s in self._stages:
-                y = s(t, y, rng)
+            for f in self._apply:
+                y = f(t, y, rng)
         return y
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -664,18 +693,18 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         obs = self.observer
         if obs is not None:
             obs.reset()
-            self._x_hat = obs.x_hat
+            xh = getattr(obs, "x_hat_list", None)
+            self._x_hat = xh() if xh is not None else np.asarray(obs.x_hat, dtype=float).tolist()
         y = self._measure()
         self._y = y
         if self._mode == 2:
-            self._y_held = [v if v == v else 0.0 for v in y.tolist()]
+            self._y_held = [v if v == v else 0.0 for v in y]
         self._episode += 1
-        xl = self._io.state()
-        x = np.array(xl)
-        info = self._info(x, y, self._x_hat, 0.0)
+        xl = self._io.read_x()
+        info = self._info(xl, y, self._x_hat, 0.0)
         if self._rec_rows is not None:
-            self._record_row(0.0, x, y, None, 0.0)
-        return self._observe(xl, y), info
+            self._record_row(0.0, np.array(xl), np.array(y), None, 0.0)
+        return self._observe(xl, y, self._x_hat), info
 
     def _options(self, options: Mapping[str, Any], x0: list[float], goal: tuple[float, ...]
                  ) -> tuple[list[float], tuple[float, ...]]:
@@ -704,39 +733,47 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         except TypeError:
             raise DimensionError(f"action must be a sequence of {self._nu} number(s); found "
                                  f"{action!r}") from None
-        if na != self._nu:
-            raise DimensionError(f"action must have {self._nu} entries; found {na}")
-        u = []
-        for i, scale in enumerate(self._scale):
-            v = float(action[i])
+        (nu, scale, io_step, read_y, read_x, update, apply, ts, n_samples, task, lean,
+         err, encode) = self._hot
+        if na == 1 == nu:
+            v = float(action[0])
             if not -1.0 <= v <= 1.0:
-                v = self._invalid(i, v)
-            u.append(v * scale)
-        io, obs, ts, stages = self._io, self.observer, self.sample_period, self._stages
-        y, x_hat = self._y, self._x_hat
-        ua = np.array(u)
-        d = io.d
-        for _ in range(self._n_samples):
-            if obs is not None:
-                x_hat = obs.update(y, ua, ts)
-            io.step(u)
-            out = io.out
-            y = np.array([a.item(i) for a, i in out]) if out is not None else io.plant.outputs()
-            if stages:
-                t, rng = d.time, self._rng
-                for s in stages:
-                    y = s(t, y, rng)
+                v = self._invalid(0, v)
+            u = [v * scale[0]]
+        else:
+            if na != nu:
+                raise DimensionError(f"action must have {nu} entries; found {na}")
+            u = []
+            for i, sc in enumerate(scale):
+                v = float(action[i])
+                if not -1.0 <= v <= 1.0:
+                    v = self._invalid(i, v)
+                u.append(v * sc)
+        y, x_hat, rng = self._y, self._x_hat, self._rng
+        t = 0.0
+        for _ in range(n_samples):
+            if update is not None:
+                x_hat = update(y, u, ts)
+            t = io_step(u)
+            y = read_y()
+            for f in apply:
+                y = f(t, y, rng)
         self._y, self._x_hat = y, x_hat
-        qpos, qvel = d.qpos, d.qvel
-        xl = [qpos.item(a) for a in io.qadr] + [qvel.item(a) for a in io.vadr]
-        reward, terms = self.task.reward(xl, u, self._goal)
-        x = np.array(xl)
-        info = self._info(x, y, x_hat, io.d.time)
+        xl = read_x()
+        goal = self._goal
+        reward, terms = task.reward(xl, u, goal)
+        if lean:  # estimate observation, basic info, no recording: the common case, inline
+            if not math.isfinite(sum(x_hat)):  # type: ignore[arg-type]
+                self._observe(xl, y, x_hat)  # raises DivergenceError
+            return (np.array(encode(x_hat, goal)), reward, task.terminated(xl), False,
+                    {"state": np.array(xl), "estimate": np.array(x_hat),
+                     "error": np.array(err(xl, x_hat))})
+        info = self._info(xl, y, x_hat, t)
         if self._full_info:
             info.update(terms)
         if self._rec_rows is not None:
-            self._record_row(io.d.time, x, y, ua, reward)
-        return self._observe(xl, y), reward, self.task.terminated(xl), False, info
+            self._record_row(t, np.array(xl), np.array(y), np.array(u), reward)
+        return self._observe(xl, y, x_hat), reward, task.terminated(xl), False, info
 
     def _invalid(self, i: int, v: float) -> float:
         """An action entry outside [-1, 1]: NaN raises; clip or raise as configured."""
@@ -747,18 +784,18 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
                               f"(invalid_action='raise')")
         return 1.0 if v > 1.0 else -1.0
 
-    def _observe(self, xl: list[float], y: Array) -> Array:
+    def _observe(self, xl: list[float], y: list[float], x_hat: list[float] | None) -> Array:
         mode = self._mode
         if mode == 0:
-            vals = self._x_hat.tolist()  # type: ignore[union-attr]
-            if not math.isfinite(sum(vals)):
+            vals = x_hat
+            if not math.isfinite(sum(vals)):  # type: ignore[arg-type]
                 raise DivergenceError(f"the observer's estimate left the finite numbers at "
                                       f"t={self._io.d.time:g}: {vals}")
         elif mode == 1:
             vals = xl
         else:
             vals = self._y_held
-            for i, v in enumerate(y.tolist()):
+            for i, v in enumerate(y):
                 if v == v:
                     vals[i] = v
         out = self._encode(vals, self._goal)
@@ -769,15 +806,16 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
                 out.append(b if v > b else -b if v < -b else v)
         return np.array(out)
 
-    def _info(self, x: Array, y: Array, x_hat: Array | None, t: float) -> dict[str, Any]:
-        info: dict[str, Any] = {"state": x}
-        if x_hat is not None:
-            est = np.array(x_hat, dtype=float)
-            info["estimate"] = est
-            info["error"] = x - est if self._err_identity else x[self._err_x] - est[self._err_h]
+    def _info(self, xl: list[float], y: list[float], x_hat: list[float] | None, t: float
+              ) -> dict[str, Any]:
+        if x_hat is None:
+            info: dict[str, Any] = {"state": np.array(xl)}
+        else:
+            info = {"state": np.array(xl), "estimate": np.array(x_hat),
+                    "error": np.array(self._err(xl, x_hat))}
         if self._full_info:
             info["time"] = t
-            info["measurement"] = y.copy()
+            info["measurement"] = np.array(y)
             if x_hat is not None:
                 info["diagnostics"] = dict(self.observer.diagnostics())  # type: ignore[union-attr]
             if self._goal:
@@ -838,11 +876,54 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
     # ------------------------------------------------------------------ pickling
     def __reduce__(self) -> tuple[Callable[..., HgoEnv], tuple[Any, ...]]:
         """Pickle as the constructor call (like Gymnasium's MuJoCo environments): the copy is a
-        fresh environment to be ``reset``; an observer instance travels in its current state."""
+        fresh environment to be ``reset``; an observer instance travels in its current state.
+
+        Raises
+        ------
+        DesignError
+            The environment was given an observer instance that does not pickle (one holding
+            functions compiled at run time or local closures); an environment given the
+            observer by name (``observer="ekf", observer_kwargs=...``) always pickles."""
         kwargs = dict(self._init_kwargs)
         if isinstance(kwargs.get("observer"), Observer):
-            kwargs["observer"] = _picklable(kwargs["observer"])
+            obs = _picklable(kwargs["observer"])
+            try:
+                pickle.dumps(obs)
+            except (pickle.PicklingError, AttributeError, TypeError) as exc:
+                raise DesignError(f"this environment's observer instance "
+                                  f"({type(obs).__name__}) does not pickle ({exc}); give the "
+                                  f"observer by name (observer={obs.name!r}, observer_kwargs="
+                                  f"...) for a picklable environment") from None
+            kwargs["observer"] = obs
         return (_rebuild, (type(self), kwargs))
+
+
+def _error_function(pairs: Sequence[tuple[int, int]]
+                    ) -> Callable[[list[float], list[float]], list[float]]:
+    """Straight-line ``error(x, x_hat) -> [x[j] - x_hat[i], ...]`` over the ``(j, i)`` pairs
+    of a state and its estimate."""
+    items = ", ".join(f"x[{j}] - h[{i}]" for j, i in pairs)
+    scope: dict[str, Any] = {}
+    exec(compile(f"def error(x, h):\n    return [{items}]\n", "<estimation error>", "exec"),
+         scope)  # noqa: S102 - numbers only
+    return scope["error"]
+
+
+def _list_update(obs: Observer) -> Callable[[list[float], list[float], float], list[float]]:
+    """``update(y, u, dt) -> estimate`` in lists of floats: the observer's ``update_list`` when
+    it has one (the high-gain family, no arrays per sample) and it belongs to the class that
+    defines the ``update`` in use; otherwise ``update`` on arrays, its estimate as a list."""
+    mro = type(obs).__mro__
+    own_list = next((c for c in mro if "update_list" in vars(c)), None)
+    own_update = next((c for c in mro if "update" in vars(c)), None)
+    if own_list is not None and own_update is not None and issubclass(own_list, own_update):
+        return obs.update_list  # type: ignore[attr-defined,no-any-return]
+    update = obs.update
+
+    def via_arrays(y: list[float], u: list[float], dt: float) -> list[float]:
+        return np.asarray(update(np.array(y), np.array(u), dt), dtype=float).tolist()
+
+    return via_arrays
 
 
 def _rebuild(cls: type[HgoEnv], kwargs: dict[str, Any]) -> HgoEnv:
@@ -850,8 +931,9 @@ def _rebuild(cls: type[HgoEnv], kwargs: dict[str, Any]) -> HgoEnv:
 
 
 def _picklable(obs: Observer) -> Observer:
-    """A shallow copy of ``obs`` without the high-gain family's cache of compiled updates
-    (``_steps``: functions made with ``exec``, which pickle cannot store; rebuilt on use)."""
+    """A shallow copy of ``obs`` without a cache of compiled updates (``_steps``: functions
+    made with ``exec``, which pickle cannot store; rebuilt on use). ``HighGainObserver``
+    drops its own in ``__getstate__``; the other observers with such a cache rely on this."""
     c = copy.copy(obs)
     if isinstance(getattr(c, "_steps", None), dict):
         c._steps = {}  # type: ignore[attr-defined]

@@ -5,6 +5,21 @@ given**, every stage drawing its random numbers from the one seeded
 :class:`numpy.random.Generator` owned by the chain, so that the same seed gives bit-identical
 measurement sequences.  Each stage returns a new array and never modifies its input.
 
+**How the stages share the generator.** A random stage (Gaussian, uniform, drift, outliers,
+dropout) draws its variates from the generator in *blocks* and hands them out in stream order,
+a few at each call: a block of 16 at first, doubling up to 1024 (a fresh generator, after a
+reseed, costs little), and a call that needs more than the block holds takes the rest straight
+from the generator. A stage that is the generator's only consumer therefore sees exactly the
+values that one draw per call would give (for a lone Gaussian stage, ``y + std *
+rng.standard_normal(n)`` call after call, bit for bit). When several random stages share the
+generator, each takes whole blocks in turn, so the values a stage gets differ from the
+call-by-call interleaving, but remain independent, identically distributed and determined by
+the seed. A stage keeps its unused draws over :meth:`Stage.reset` (they are the next values of
+the stream it already reserved: an environment reset that does not reseed continues the noise
+sequence), and drops them when called with another generator (a reseeded chain has a new
+one). :meth:`Stage.apply_list` is :meth:`Stage.__call__` on a list of Python floats, for
+per-sample loops (same values, same draws, no small arrays).
+
 The order matters (quantizing then adding a bias is not the same as biasing then quantizing).
 The recommended physical order, from the plant to the observer, is::
 
@@ -40,6 +55,7 @@ import inspect
 import math
 from collections import deque
 from collections.abc import Mapping, Sequence
+from itertools import islice
 from typing import Any, ClassVar
 
 import numpy as np
@@ -142,6 +158,64 @@ def _copy(value: float | Array) -> float | Array:
     return value if isinstance(value, float) else value.copy()
 
 
+_FIRST_BLOCK, _MAX_BLOCK = 16, 1024
+
+
+class _Draws:
+    """One stage's stream of variates of one kind (``"standard_normal"`` or ``"random"``) from
+    the chain's generator, drawn in blocks and handed out in stream order (module docstring).
+
+    :meth:`one` costs a few tens of nanoseconds instead of a generator call per sample; the
+    values are those of consecutive calls of ``getattr(rng, kind)``, so a stage that is the
+    generator's only consumer gets the same numbers as drawing at every call.
+    """
+
+    __slots__ = ("_block", "_it", "_kind", "_rng")
+
+    def __init__(self, kind: str) -> None:
+        self._kind = kind
+        self._rng: np.random.Generator | None = None
+        self._it: Any = iter(())
+        self._block = _FIRST_BLOCK
+
+    def _source(self, rng: np.random.Generator) -> None:
+        """Switch to ``rng`` (a new or reseeded generator): drop the draws of the old one."""
+        self._rng = rng
+        self._it = iter(())
+        self._block = _FIRST_BLOCK
+
+    def one(self, rng: np.random.Generator) -> float:
+        """The next variate, a Python float."""
+        if rng is self._rng:
+            v = next(self._it, None)
+            if v is not None:
+                return v
+        else:
+            self._source(rng)
+        block = self._block
+        self._block = min(2 * block, _MAX_BLOCK)
+        self._it = iter(getattr(rng, self._kind)(block).tolist())
+        return next(self._it)
+
+    def take(self, rng: np.random.Generator, n: int) -> Array:
+        """The next ``n`` variates, an array (the rest of the block, then the generator)."""
+        if rng is not self._rng:
+            self._source(rng)
+        got = list(islice(self._it, n))
+        m = n - len(got)
+        if not m:
+            return np.array(got)
+        block = self._block
+        if m > block:                     # more than a block: straight from the generator
+            rest = getattr(rng, self._kind)(m)
+        else:                             # the block is spent: draw the next one
+            self._block = min(2 * block, _MAX_BLOCK)
+            fresh = getattr(rng, self._kind)(block)
+            rest = fresh[:m]
+            self._it = iter(fresh[m:].tolist())
+        return np.concatenate((got, rest)) if got else rest
+
+
 class Stage:
     """One step of a sensor chain (base class).
 
@@ -204,8 +278,18 @@ class Stage:
         """
         raise NotImplementedError
 
+    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
+        """:meth:`__call__` on a list of Python floats: the same values and the same draws, as
+        a new list (NaN for a lost sample). For per-sample loops such as an environment step,
+        where small arrays cost more than the arithmetic; stages override it with a path in
+        plain floats (the default goes through :meth:`__call__`)."""
+        return self(t, np.array(y, dtype=float), rng).tolist()
+
     def reset(self) -> None:
-        """Clear the internal state (delay buffers, drift, held values, counters)."""
+        """Clear the internal state (delay buffers, drift, held values, counters).
+
+        Variates a stage has drawn in advance but not used are kept: they are the next values
+        of its stream (see the module docstring)."""
 
     def params(self) -> dict[str, Any]:
         """The constructor parameters, as JSON-friendly values."""
@@ -269,6 +353,7 @@ class GaussianNoise(Stage):
                          else np.sqrt(self._variance))
             self._params = {"psd": _json(psd_v), "sample_time": ts}
             self._channels(psd=psd_v)
+        self._draws = _Draws("standard_normal")
 
     @property
     def variance(self) -> float | Array:
@@ -287,7 +372,17 @@ class GaussianNoise(Stage):
         n = y.shape[0]
         if self._n is not None and n != self._n:
             self._mismatch(n)
-        return y + self._std * rng.standard_normal(n)
+        return y + self._std * self._draws.take(rng, n)
+
+    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
+        one, std = self._draws.one, self._std
+        if self._n is None:
+            if len(y) == 1:
+                return [y[0] + std * one(rng)]
+            return [v + std * one(rng) for v in y]
+        if len(y) != self._n:
+            self._mismatch(len(y))
+        return [v + s * one(rng) for v, s in zip(y, std.tolist())]  # type: ignore[union-attr]
 
 
 class UniformNoise(Stage):
@@ -307,6 +402,7 @@ class UniformNoise(Stage):
         self._hw = _channel_param("UniformNoise.half_width", half_width, "nonneg")
         self._params = {"half_width": _json(self._hw)}
         self._channels(half_width=self._hw)
+        self._draws = _Draws("random")
 
     @property
     def variance(self) -> float | Array:
@@ -320,12 +416,22 @@ class UniformNoise(Stage):
         n = y.shape[0]
         if self._n is not None and n != self._n:
             self._mismatch(n)
-        out = rng.random(n)          # [0, 1)
+        out = self._draws.take(rng, n)  # [0, 1)
         out *= 2.0
         out -= 1.0                   # [-1, 1)
         out *= self._hw
         out += y
         return out
+
+    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
+        one = self._draws.one
+        if self._n is None:
+            hw = self._hw
+            return [(2.0 * one(rng) - 1.0) * hw + v for v in y]
+        if len(y) != self._n:
+            self._mismatch(len(y))
+        return [(2.0 * one(rng) - 1.0) * h + v
+                for v, h in zip(y, self._hw.tolist())]  # type: ignore[union-attr]
 
 
 class Bias(Stage):
@@ -351,6 +457,14 @@ class Bias(Stage):
         if self._n is not None and n != self._n:
             self._mismatch(n)
         return y + self._offset
+
+    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
+        off = self._offset
+        if self._n is None:
+            return [v + off for v in y]
+        if len(y) != self._n:
+            self._mismatch(len(y))
+        return [v + o for v, o in zip(y, off.tolist())]  # type: ignore[union-attr]
 
 
 class RandomWalkDrift(Stage):
@@ -385,6 +499,7 @@ class RandomWalkDrift(Stage):
         self._channels(sigma=self._sigma, initial=self._initial)
         self._b: Array | None = None
         self._t = 0.0
+        self._draws = _Draws("standard_normal")
 
     @property
     def bias(self) -> Array | None:
@@ -399,7 +514,7 @@ class RandomWalkDrift(Stage):
         n = y.shape[0]
         if self._n is not None and n != self._n:
             self._mismatch(n)
-        z = rng.standard_normal(n)
+        z = self._draws.take(rng, n)
         if self._b is None:
             self._b = np.zeros(n)
             self._b += self._initial
@@ -597,6 +712,7 @@ class Dropout(Stage):
         self._params = {"p": _json(self._p)}
         self._channels(p=self._p)
         self.count = 0
+        self._draws = _Draws("random")
 
     def reset(self) -> None:
         self.count = 0
@@ -605,12 +721,24 @@ class Dropout(Stage):
         n = y.shape[0]
         if self._n is not None and n != self._n:
             self._mismatch(n)
-        hit = rng.random(n) < self._p
+        hit = self._draws.take(rng, n) < self._p
         out = y.copy()
         k = int(np.count_nonzero(hit))
         if k:
             out[hit] = np.nan
             self.count += k
+        return out
+
+    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
+        if self._n is not None and len(y) != self._n:
+            self._mismatch(len(y))
+        one = self._draws.one
+        ps = [self._p] * len(y) if self._n is None else self._p.tolist()  # type: ignore[union-attr]
+        out = list(y)
+        for i, p in enumerate(ps):
+            if one(rng) < p:
+                out[i] = math.nan
+                self.count += 1
         return out
 
 
@@ -643,6 +771,7 @@ class Outliers(Stage):
         self._params = {"p": _json(self._p), "magnitude": _json(self._mag)}
         self._channels(p=self._p, magnitude=self._mag)
         self.count = 0
+        self._draws = _Draws("random")
 
     def reset(self) -> None:
         self.count = 0
@@ -651,7 +780,7 @@ class Outliers(Stage):
         n = y.shape[0]
         if self._n is not None and n != self._n:
             self._mismatch(n)
-        u = rng.random((2, n))
+        u = self._draws.take(rng, 2 * n).reshape(2, n)
         hit = u[0] < self._p
         out = y.copy()
         k = int(np.count_nonzero(hit))
@@ -693,6 +822,14 @@ class Saturation(Stage):
         out = np.maximum(y, self._low)          # NaN propagates; cheaper than np.clip
         np.minimum(out, self._high, out=out)
         return out
+
+    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
+        n = len(y)
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        lo = [self._low] * n if isinstance(self._low, float) else self._low.tolist()
+        hi = [self._high] * n if isinstance(self._high, float) else self._high.tolist()
+        return [a if v < a else (b if v > b else v) for v, a, b in zip(y, lo, hi)]
 
 
 #: Registry of the stages by name (the ``stage`` key of a spec).

@@ -105,7 +105,7 @@ def _parts(rounds: int, n: int) -> dict[str, float]:
     free = gym.make(TARGET_ID, observer_kwargs={"k": 20.0, "model": False}).unwrapped
     for e in (reg, free):
         e.reset(seed=0)
-    y, u, ts = reg._y, np.array([0.1]), reg.sample_period
+    y, u, ts = list(reg._y), [0.1], reg.sample_period  # the loop's lists of floats
     stage, rng = reg.sensor.stages[0], reg.sensor.rng
 
     def burst(f: Callable[[], Any]) -> Callable[[], float]:
@@ -117,9 +117,9 @@ def _parts(rounds: int, n: int) -> dict[str, float]:
         return go
 
     return _interleaved({
-        "update_model": burst(lambda: reg.observer.update(y, u, ts)),
-        "update_free": burst(lambda: free.observer.update(y, u, ts)),
-        "stage": burst(lambda: stage(0.0, y, rng)),
+        "update_model": burst(lambda: reg.observer.update_list(y, u, ts)),
+        "update_free": burst(lambda: free.observer.update_list(y, u, ts)),
+        "stage": burst(lambda: stage.apply_list(0.0, y, rng)),
     }, rounds, min)
 
 
@@ -177,19 +177,22 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
     lines += [
         "",
         f"The loop alone (`{BARE.split(', ', 1)[1]}`) steps in {bare['step'] * 1e6:.1f} us "
-        f"({bare['step'] / ref['step']:.2f}x): two MuJoCo steps of the pendulum (about 3 us), "
+        f"({bare['step'] / ref['step']:.2f}x): two MuJoCo steps of the pendulum (about 2 us), "
         f"the action, the state read, reward, observation and `info`, and Gymnasium's three "
         f"wrappers. The sensor stage and the observer add "
-        f"{(tgt['step'] - bare['step']) * 1e6:.1f} us: the Gaussian stage of `hgo_mj.sensors` "
-        f"({parts['stage'] * 1e6:.1f} us alone: small-array numpy operations), "
-        f"`HighGainObserver.update` ({parts['update_model'] * 1e6:.1f} us alone with the "
-        f"model term, {parts['update_free'] * 1e6:.1f} us model-free), the estimate and "
-        f"error entries of `info` and the estimate's finiteness check. Every part is on its "
-        f"leanest path here (MjData read by cached addresses in Python floats, one "
-        f"`mj_step(m, d, nstep)` call, a generated straight-line observation encoder); the "
-        f"rest of the gap to 0.5x is the per-call cost of the sensor stage and observer "
-        f"interfaces, which only a batched or compiled sensor-and-observer path would "
-        f"remove. `info_level='full'` (measurement, diagnostics, reward terms) costs a "
+        f"{(tgt['step'] - bare['step']) * 1e6:.1f} us: the Gaussian stage "
+        f"(`GaussianNoise.apply_list`, {parts['stage'] * 1e6:.2f} us alone: one standard normal "
+        f"handed out from a block drawn in advance from the chain's seeded generator, the same "
+        f"stream as one draw per call), the observer "
+        f"(`HighGainObserver.update_list`, {parts['update_model'] * 1e6:.2f} us alone with the "
+        f"model term, the correction and the model term in one compiled call; "
+        f"{parts['update_free'] * 1e6:.2f} us model-free), and the estimate and error entries "
+        f"of `info` with the estimate's finiteness check. The loop runs in Python floats: "
+        f"MjData is written and read through cached views and addresses by generated "
+        f"straight-line functions, the substeps run in one `mj_step(m, d, nstep)` call, the "
+        f"measurement and the estimate stay lists of floats, and arrays are built only for "
+        f"what `step` returns (the observation and the three `info` entries, each its own "
+        f"array). `info_level='full'` (measurement, diagnostics, reward terms) costs a "
         f"`SyncVectorEnv` about 1 us per entry, copy and step, hence the default of three "
         f"entries.",
     ]

@@ -15,6 +15,7 @@ from hgo_mj.observers import HighGainObserver, MultiOutputHighGainObserver, make
 from hgo_mj.observers.high_gain import derivative_names, matched_gain
 from hgo_mj.plants.ode import OdePlant
 from hgo_mj.simulate import simulate
+from hgo_mj.systems.pendulum import Pendulum
 
 
 def test_gains_are_p_i_k_to_the_i():
@@ -195,6 +196,59 @@ def test_update_returns_fresh_arrays():
     assert not np.shares_memory(a, b) and not np.array_equal(a, b)
 
 
+def _pendulum():
+    from hgo_mj.systems import Pendulum
+
+    return Pendulum()
+
+
+@pytest.mark.parametrize("z_bounds", [None, ([-1.0, -3.0], [1.0, 3.0])])
+@pytest.mark.parametrize("method", ["exact", "euler"])
+def test_fused_model_update_equals_correction_then_model_term(method, z_bounds):
+    """The one-call update with the model term gives, bit for bit, the correction followed by
+    ``z + g phi`` (the two compiled steps), and update_list the same values as update."""
+    sys_ = _pendulum()
+    a = HighGainObserver(sys_, k=10.0, model=True, method=method, z_bounds=z_bounds)
+    b = HighGainObserver(sys_, k=10.0, model=True, method=method, z_bounds=z_bounds)
+    rng = np.random.default_rng(3)
+    dt = 0.04
+    closed, _, gphi, *_ = a._compile(dt)
+    for y, u in zip(rng.uniform(-2, 2, 200).tolist(), rng.uniform(-0.5, 0.5, 200).tolist()):
+        z = a._z
+        zs = z if z_bounds is None else a._saturate_floats(z)
+        expected = gphi(float(sys_.phi_unchecked(zs, [u])), *closed(y, *z))
+        xa = a.update(np.array([y]), np.array([u]), dt)
+        xb = b.update_list([y], [u], dt)
+        assert a._z == expected
+        assert xa.tolist() == xb
+    x = a.update(np.array([np.nan]), np.array([0.0]), dt)  # dropout: open loop, counted
+    assert a.dropouts_ == 1 and np.all(np.isfinite(x))
+
+
+def test_model_free_update_list_matches_update():
+    a = HighGainObserver(order=3, k=20.0)
+    b = HighGainObserver(order=3, k=20.0)
+    for j in range(50):
+        y = float(np.sin(0.1 * j))
+        assert a.update(np.array([y]), np.zeros(0), 0.01).tolist() == \
+            b.update_list([y], [], 0.01)
+    with pytest.raises(Exception, match="is inf"):
+        a.update(np.array([np.inf]), np.zeros(0), 0.01)
+
+
+@pytest.mark.parametrize("model", [False, True])
+def test_pickles_without_the_compiled_updates(model):
+    import pickle
+
+    ob = HighGainObserver(_pendulum(), k=10.0, model=model)
+    ob.update(np.array([0.3]), np.array([0.1]), 0.04)
+    assert ob._steps
+    copy = pickle.loads(pickle.dumps(ob))
+    assert copy._steps == {} and ob._steps  # the original keeps its cache
+    np.testing.assert_array_equal(copy.update(np.array([0.2]), np.array([0.0]), 0.04),
+                                  ob.update(np.array([0.2]), np.array([0.0]), 0.04))
+
+
 @pytest.mark.parametrize("kwargs, exc, match", [
     ({"order": 2, "k": 0.0}, DesignError, "k must be > 0"),
     ({"order": 2, "k": float("nan")}, DesignError, "k must be finite"),
@@ -290,6 +344,8 @@ def test_derivative_names():
     assert derivative_names("cart_position", 3) == ("cart_position", "cart_velocity",
                                                     "cart_acceleration")
     assert derivative_names("m", 3) == ("m", "m_d1", "m_d2")
+    assert derivative_names("angle", 2) == Pendulum.state_names  # the pendulum's own names
+    assert derivative_names("angle", 5)[4] == "angle_d4"
     assert derivative_names("q_angle", 6)[4:] == ("q_d4", "q_d5")
 
 
@@ -328,5 +384,8 @@ def test_multi_bad_phi_and_channels():
     system = make_plant("elastic_joint_2link").system
     with pytest.raises(DimensionError, match=r"has 2 output\(s\).*found channel 2"):
         MultiOutputHighGainObserver(system, orders=(4, 4), k=1.0, outputs=(0, 2))
-    with pytest.raises(DesignError, match="needs orders=.*for ElasticJoint2Link"):
-        make_observer("high_gain_multi", system, k=1.0)
+    # the two-link arm declares its chain orders (normal_form_orders); without a system or
+    # orders, the observer asks for them
+    assert make_observer("high_gain_multi", system, k=1.0).orders == (4, 4)
+    with pytest.raises(DesignError, match=r"needs orders=\[n_1, n_2, \.\.\.\] \(one chain"):
+        MultiOutputHighGainObserver(k=1.0)

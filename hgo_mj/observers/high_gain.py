@@ -40,12 +40,14 @@ from .base import Array, Observer
 METHODS = ("exact", "euler", "rk4")
 
 
-def affine_step(M: Array, b: Array) -> Callable[..., tuple[float, ...]]:
-    """Compile ``z -> M z + b y`` into a plain-float function ``step(y, *z)``.
+def affine_step(M: Array, b: Array, g: Array | None = None) -> Callable[..., tuple[float, ...]]:
+    """Compile ``z -> M z + b y`` into a plain-float function ``step(y, *z)``; with ``g``,
+    ``z -> M z + b y + g w`` into ``step(y, w, *z)`` (``w`` the model term).
 
     Observer updates run once per sample; for ``n <= 6`` a generated expression in Python
     floats costs a fraction of a microsecond, against several microseconds for small numpy
-    arrays (measured in ``scripts/bench.py``).
+    arrays (measured in ``scripts/bench.py``). Each row is summed left to right, ``g w``
+    last, as ``affine_step(I, g)`` applied after ``affine_step(M, b)`` would.
     """
     n = len(b)
     zs = [f"z{j}" for j in range(n)]
@@ -54,8 +56,11 @@ def affine_step(M: Array, b: Array) -> Callable[..., tuple[float, ...]]:
         terms = [f"{float(M[i, j])!r}*z{j}" for j in range(n) if M[i, j] != 0.0]
         if b[i] != 0.0:
             terms.append(f"{float(b[i])!r}*y")
+        if g is not None and g[i] != 0.0:
+            terms.append(f"{float(g[i])!r}*w")
         rows.append(" + ".join(terms) if terms else "0.0")
-    src = f"def step(y, {', '.join(zs)}):\n    return ({', '.join(rows)},)\n"
+    args = ", ".join((["y"] if g is None else ["y", "w"]) + zs)
+    src = f"def step({args}):\n    return ({', '.join(rows)},)\n"
     scope: dict[str, Any] = {}
     exec(compile(src, "<affine_step>", "exec"), scope)  # noqa: S102 - numbers only
     return scope["step"]
@@ -228,8 +233,12 @@ class HighGainObserver(Observer):
                                   f"upper {hi.tolist()}")
             self.z_bounds = (lo, hi)
         self.L = hgo_gains(self.p, self.k_)
-        self._steps: dict[float, tuple[Callable, Callable, Callable, Callable]] = {}
+        self._steps: dict[float, tuple[Callable, ...]] = {}
         self._init = (x_hat0, z_hat0)
+        #: the model term in one compiled call per sample (``exact``/``euler``): see update
+        self._fused = self.model and method != "rk4"
+        #: ``x_hat`` is ``z_hat`` itself (no system, or a system whose normal form is its state)
+        self._identity = system is None or _is_identity(system, n)
         self.reset(x_hat0, z_hat0=z_hat0)
 
     # ------------------------------------------------------------------ setup
@@ -255,7 +264,14 @@ class HighGainObserver(Observer):
         if dt not in self._steps:
             self._compile(dt)
 
-    def _compile(self, dt: float) -> tuple[Callable, Callable, Callable, Callable]:
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the compiled updates (functions made with ``exec``, which pickle
+        cannot store); :meth:`update` rebuilds them on first use."""
+        state = self.__dict__.copy()
+        state["_steps"] = {}
+        return state
+
+    def _compile(self, dt: float) -> tuple[Callable, ...]:
         dt = finite_scalar("dt", dt, positive=True)
         M, b, g = one_step_map(self.p, self.k_, dt, self.method)
         rho = spectral_radius(M)
@@ -269,9 +285,11 @@ class HighGainObserver(Observer):
             warnings.warn(msg, RuntimeWarning, stacklevel=3)
         M0, _, g0 = one_step_map(self.p, self.k_, dt, self.method, closed=False)  # dropout
         # the model term enters as z + g phi: compiled like the steps, in plain floats
+        # (and fused with the correction: z+ = M z + b y + g phi in one call)
         eye = np.eye(self.n)
-        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.n)), affine_step(eye, g),
-                 affine_step(eye, g0))
+        zero = np.zeros(self.n)
+        entry = (affine_step(M, b), affine_step(M0, zero), affine_step(eye, g),
+                 affine_step(eye, g0), affine_step(M, b, g), affine_step(M0, zero, g0))
         self._steps[dt] = entry
         return entry
 
@@ -287,13 +305,39 @@ class HighGainObserver(Observer):
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
-        yi = float(y[self.output])
+        self._advance(float(y[self.output]), u, dt)
+        return self.x_hat
+
+    def update_list(self, y: Any, u: Any, dt: float) -> list[float]:
+        """:meth:`update` for per-sample loops: ``y`` and ``u`` sequences of Python floats
+        (lists), the estimate returned as a list of floats (the same values as ``update``'s
+        array)."""
+        self._advance(y[self.output], u, dt)
+        return self.x_hat_list()
+
+    def x_hat_list(self) -> list[float]:
+        """:attr:`x_hat` as a list of Python floats."""
+        if self._identity:
+            z = self._z
+            return list(z) if self.z_bounds is None else list(self._saturate_floats(z))
+        return self.x_hat.tolist()
+
+    def _advance(self, yi: float, u: Any, dt: float) -> None:
+        """One sample: the new observer state from the measurement ``yi`` (a float)."""
         self._u = u
         entry = self._steps.get(dt)
         if entry is None:
             entry = self._compile(dt)
-        closed, open_, gphi, gphi0 = entry
         z = self._z
+        if yi - yi == 0.0:  # finite (NaN and +-inf give NaN): the common case, one call
+            if self._fused:  # correction and model term together
+                zs = z if self.z_bounds is None else self._saturate_floats(z)
+                self._z = entry[4](yi, float(self.system.phi_unchecked(zs, u)), *z)  # type: ignore[union-attr]
+                return
+            if not self.model:
+                self._z = entry[0](yi, *z)
+                return
+        closed, open_, gphi, gphi0 = entry[:4]
         if yi != yi:  # NaN: sensor dropout, predict without correction
             self.dropouts_ += 1
             znew, g = open_(0.0, *z), gphi0
@@ -309,7 +353,6 @@ class HighGainObserver(Observer):
             zs = z if self.z_bounds is None else self._saturate_floats(z)
             znew = g(float(self.system.phi_unchecked(zs, u)), *znew)  # type: ignore[union-attr]
         self._z = znew
-        return self.x_hat
 
     def _saturate_floats(self, z: tuple[float, ...]) -> tuple[float, ...]:
         """:meth:`_saturate` on a tuple of floats (the model term's argument), without numpy."""
@@ -345,7 +388,7 @@ class HighGainObserver(Observer):
     @property
     def x_hat(self) -> Array:
         z = self.z_hat
-        return z if self.system is None else self._physical(z)
+        return z if self._identity else self._physical(z)
 
     def diagnostics(self) -> dict[str, float]:
         return {"k": self.k_, "dropouts": float(self.dropouts_)}
@@ -356,16 +399,33 @@ class HighGainObserver(Observer):
                 "z_bounds": None if self.z_bounds is None else [b.tolist() for b in self.z_bounds]}
 
 
+def _is_identity(system: System, n: int) -> bool:
+    """Whether ``system.from_normal_unchecked`` hands ``z`` back as it is (the normal form is
+    the state, as for the one-joint MuJoCo systems): then ``x_hat = z_hat`` without the map."""
+    probe = np.zeros(n)
+    try:
+        return system.from_normal_unchecked(probe, np.zeros(len(system.input_names))) is probe
+    except Exception:  # noqa: BLE001 - a map that cannot take the probe is not the identity
+        return False
+
+
 _DERIVATIVE_WORDS = {"_angle": ("_angle", "_velocity", "_acceleration", "_jerk"),
                      "_position": ("_position", "_velocity", "_acceleration", "_jerk")}
+#: outputs named by the bare word: the plants' own names (pendulum: angle, angular_velocity)
+_BARE_DERIVATIVE_WORDS = {"angle": ("angle", "angular_velocity", "angular_acceleration", "angular_jerk"),
+                          "position": ("position", "velocity", "acceleration", "jerk")}
 
 
 def derivative_names(output: str, order: int) -> tuple[str, ...]:
     """Names of ``(y, y', ..., y^(order-1))`` for an output named ``output``.
 
     ``link1_angle`` gives ``link1_angle, link1_velocity, link1_acceleration, link1_jerk``
-    (``_position`` likewise); higher derivatives and other names get ``<name>_d<j>``.
+    (``_position`` likewise), a bare ``angle`` gives ``angle, angular_velocity, ...`` (the
+    pendulums' state names); higher derivatives and other names get ``<name>_d<j>``.
     """
+    if output in _BARE_DERIVATIVE_WORDS:
+        words = _BARE_DERIVATIVE_WORDS[output]
+        return tuple(words[j] if j < len(words) else f"{output}_d{j}" for j in range(order))
     for suffix, words in _DERIVATIVE_WORDS.items():
         if output.endswith(suffix):
             base = output[: -len(suffix)]
@@ -413,8 +473,9 @@ class MultiOutputHighGainObserver(Observer):
     two-link elastic arm with ``orders=(4, 4)``). These are *not* the plant's state columns
     (the motor angles and velocities need the model's inverse map): :meth:`state_map` lists
     which estimates coincide with a plant state (on the two-link arm: the link angles and
-    velocities), and ``Trajectory.error`` (which subtracts column by column) must not be used
-    with this observer on such a plant.
+    velocities). ``Trajectory.error`` matches columns by name: the plant states this observer
+    does not estimate (the motor angles and velocities) are NaN there, "not estimated" in the
+    metrics.
 
     Parameters
     ----------
