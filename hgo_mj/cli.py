@@ -224,25 +224,34 @@ def cmd_list() -> str:
         return ", ".join(p.name if p.default is p.empty else f"{p.name}={p.default!r}"
                          for p in ps)
 
+    from .reproduce import REPRODUCTIONS
+
+    def width(names: Any) -> int:
+        """The name column of a section: as wide as its longest name."""
+        return max((len(n) for n in names), default=0)
+
+    w = width(SYSTEMS)
     lines = ["PLANTS (hgo-mj run --plant NAME)"]
     for name, cls in SYSTEMS.items():
         kind = f"MuJoCo models/{cls.model_file}" if cls.model_file else "ODE"
-        lines.append(f"  {name:<26} {cls.summary}  [{kind}; {cls.reference}]")
+        lines.append(f"  {name:<{w}} {cls.summary}  [{kind}; {cls.reference}]")
+    w = width(STAGES)
     lines.append("\nSENSOR STAGES (--sensor NAME:key=value,...; applied in the order given)")
     for name, cls in STAGES.items():
-        lines.append(f"  {name:<14} {cls.summary}  ({sig(cls)})")
+        lines.append(f"  {name:<{w}} {cls.summary}  ({sig(cls)})")
+    w = width(OBSERVERS)
     lines.append("\nOBSERVERS (--observer KIND:key=value,...)")
     for name, cls in OBSERVERS.items():
-        lines.append(f"  {name:<14} {cls.summary}  [{cls.reference}]\n"
-                     f"  {'':<14} ({sig(cls)})")
+        lines.append(f"  {name:<{w}} {cls.summary}  [{cls.reference}]\n"
+                     f"  {'':<{w}} ({sig(cls)})")
+    w = width(SIGNALS)
     lines.append("\nINPUTS (--input KIND:key=value,...)")
     for name, cls in SIGNALS.items():
-        lines.append(f"  {name:<14} {cls.summary}  ({sig(cls)})")
-    from .reproduce import REPRODUCTIONS
-
+        lines.append(f"  {name:<{w}} {cls.summary}  ({sig(cls)})")
+    w = width(REPRODUCTIONS)
     lines.append("\nREPRODUCTIONS (hgo-mj reproduce NAME --out DIR)")
     for name, (_, line) in REPRODUCTIONS.items():
-        lines.append(f"  {name:<14} {line}")
+        lines.append(f"  {name:<{w}} {line}")
     return "\n".join(lines)
 
 

@@ -42,8 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from hgo_mj.design import binomial_coefficients, min_gamma, riccati_P, riccati_weights
-from hgo_mj.exceptions import DesignError, DivergenceError
+from hgo_mj.design import binomial_coefficients, lipschitz_condition, min_gamma
+from hgo_mj.exceptions import DivergenceError
 from hgo_mj.inputs import Multisine
 from hgo_mj.metrics import observer_metrics
 from hgo_mj.observers import (
@@ -123,40 +123,20 @@ def lipschitz_rho(p: dict[str, float], points: int = 121) -> tuple[float, dict[s
 
 
 def condition5_rho_bound(alpha: Array, gamma: float) -> float:
-    """Right side of paper 004's condition (5), evaluated in scaled coordinates.
+    """Right side of paper 004's condition (5): :func:`hgo_mj.design.lipschitz_condition`.
 
-    With ``P(gamma) = D P1 D / gamma``, ``Q(gamma) = D Q1 D``, ``D = diag(gamma^i)``:
-    ``lambda_min(P^-1/2 Q P^-1/2) = gamma lambda_min(P1^-1 Q1)`` (similar matrices),
-    ``(P^-1)_nn = gamma^(1-2n) (P1^-1)_nn`` and ``lambda_max(P) = gamma^(2n-1)
-    lambda_max(E P1 E)``, ``E = diag(gamma^(i-n))``: no entry grows with ``gamma``. Agrees with
-    :func:`hgo_mj.design.lipschitz_condition` where that is accurate (to 1e-8 at gamma = 100
-    for n = 4), and stays accurate beyond (see :func:`robust_min_gamma`).
-    """
-    n = alpha.size
-    P1 = riccati_P(alpha, 1.0)
-    Q1 = np.diag(riccati_weights(alpha))
-    lam_min = gamma * float(np.min(np.linalg.eigvals(np.linalg.solve(P1, Q1)).real))
-    E = gamma ** (np.arange(1, n + 1, dtype=float) - n)
-    lam_max = float(np.linalg.eigvalsh(E[:, None] * P1 * E[None, :]).max())
-    return lam_min / (2.0 * math.sqrt(float(np.linalg.inv(P1)[-1, -1]) * lam_max))
+    Kept only as an alias for ``tests/test_compare_hgo.py``: the design module now evaluates
+    (5) in rescaled coordinates itself (accurate for n <= 6 at any gamma), which is what this
+    script used to do here as a workaround."""
+    return float(lipschitz_condition(alpha, gamma)["rho_bound"])
 
 
 def robust_min_gamma(alpha: Array, rho: float) -> tuple[float, str]:
-    """Smallest gamma meeting condition (5) for ``rho``: :func:`hgo_mj.design.min_gamma`, or,
-    where that fails (it forms ``P(gamma)`` itself, whose entries span ``gamma`` to
-    ``gamma^(2n-1)``: for n = 4 it raises from rho ~ 300 on), bisection on
-    :func:`condition5_rho_bound`. Returns the value and which routine gave it."""
-    try:
-        return min_gamma(alpha, rho), "hgo_mj.design.min_gamma"
-    except DesignError:
-        pass
-    lo, hi = 1.0, 2.0
-    while condition5_rho_bound(alpha, hi) < rho:
-        lo, hi = hi, 2.0 * hi
-    while hi - lo > 1e-10 * hi:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if condition5_rho_bound(alpha, mid) >= rho else (mid, hi)
-    return hi, "bisection on condition (5) in scaled coordinates (design.min_gamma fails here)"
+    """:func:`hgo_mj.design.min_gamma` and the name of the routine (for the report).
+
+    Alias kept for ``tests/test_compare_hgo.py``; it used to fall back to a bisection of its
+    own where ``min_gamma`` failed numerically (n = 4, rho >~ 300), which it no longer does."""
+    return min_gamma(alpha, rho), "hgo_mj.design.min_gamma"
 
 
 # ---------------------------------------------------------------------------- observers
@@ -506,7 +486,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     system = plant.system
     alpha = binomial_coefficients(4)
     rho, at = lipschitz_rho(system.params)
-    g_min, how = robust_min_gamma(alpha, rho)
+    g_min = min_gamma(alpha, rho)
     mid = args.noise[len(args.noise) // 2]
     tuned = tune(plant, mid, args.duration, args.transient, args.grid)
     rows = build_rows(system, tuned, rho, g_min)
@@ -597,7 +577,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"through the spring and the motor), then d phi / d q'' ~ -K / J - K / I = "
         f"{-p['stiffness'] / p['motor_inertia'] - p['stiffness'] / p['link_inertia']:.4g}: terms "
         "that are linear or nearly so, but paper 004's structure (A the chain of integrators) "
-        f"keeps them in phi. min_gamma(C(4, i), rho) = {g_min:.6g}, computed by {how}; gamma dt = "
+        f"keeps them in phi. min_gamma(C(4, i), rho) = {g_min:.6g} (`hgo_mj.design.min_gamma`, "
+        f"condition (5) evaluated in rescaled coordinates); gamma dt = "
         f"{g_min * 1e-3:.3g} at the 1 ms period, so the sampled-data observer's poles "
         f"exp(-gamma dt) are 0 in floating point: a deadbeat observer.",
         "",

@@ -132,3 +132,31 @@ def test_console_script_demo(tmp_path):
     assert m["hgo_k200"]["rmse"][0] < 0.5 * m["hgo_k25"]["rmse"][0]
     assert m["hgo_k200"]["rmse"][2] < 0.5 * m["hgo_k25"]["rmse"][2]
     assert m["hgo_k25"]["rmse"][3] < 0.8 * m["hgo_k200"]["rmse"][3]
+
+
+def test_list_sizes_name_columns_to_the_longest_name(capsys):
+    """Every section's descriptions start in one column, one space after its longest name
+    (``high_gain_multi`` used to run into its summary)."""
+    from hgo_mj.inputs import SIGNALS
+    from hgo_mj.observers import OBSERVERS
+    from hgo_mj.reproduce import REPRODUCTIONS
+    from hgo_mj.sensors import STAGES
+    from hgo_mj.systems import SYSTEMS
+
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    sections = dict(zip(("PLANTS", "SENSOR STAGES", "OBSERVERS", "INPUTS", "REPRODUCTIONS"),
+                        (SYSTEMS, STAGES, OBSERVERS, SIGNALS, REPRODUCTIONS)))
+    blocks = out.split("\n\n")
+    assert len(blocks) == len(sections)
+    for block, (title, names) in zip(blocks, sections.items()):
+        head, *rows = block.splitlines()
+        assert head.startswith(title)
+        width = max(len(n) for n in names)
+        entries = [r for r in rows if r[2:3] != " "]  # name rows (not continuation lines)
+        assert [r[2:].split(" ", 1)[0] for r in entries] == list(names), title
+        for r in rows:
+            assert r[2 + width] == " " and r[3 + width] != " ", (title, r)
+    observers = blocks[2].splitlines()
+    multi = next(r for r in observers if r.startswith("  high_gain_multi "))
+    assert multi[3 + len("high_gain_multi"):].startswith(OBSERVERS["high_gain_multi"].summary)

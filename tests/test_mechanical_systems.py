@@ -242,3 +242,32 @@ def test_off_axis_rotor_is_rejected():
     model = mujoco.MjModel.from_xml_string(xml)
     with pytest.raises(DesignError, match="COM of body 'rotor' must lie on its joint axis"):
         ElasticJoint.from_mjmodel(model)
+
+
+def test_two_link_declares_its_multi_output_normal_form():
+    """``high_gain_multi`` on the two-link arm needs no explicit orders: the system declares
+    two chains of order 4 (each link angle and its first three derivatives), and the observer
+    so built equals one given ``orders=(4, 4)``, estimating the link angles and velocities."""
+    from hgo_mj.inputs import Multisine
+    from hgo_mj.observers import make_observer
+    from hgo_mj.observers.high_gain import MultiOutputHighGainObserver
+    from hgo_mj.plants import make_plant
+    from hgo_mj.simulate import simulate
+
+    assert ElasticJoint2Link.normal_form_orders == (4, 4)
+    assert ElasticJoint2Link.normal_form_order is None
+    plant = make_plant("elastic_joint_2link")
+    ob = make_observer("high_gain_multi", plant.system, k=120.0)
+    explicit = MultiOutputHighGainObserver(plant.system, orders=(4, 4), k=120.0)
+    assert ob.orders == (4, 4) and ob.outputs == (0, 1)
+    assert ob.state_names == explicit.state_names
+    assert ob.state_map() == {0: 0, 1: 4, 4: 1, 5: 5}
+    s1, s2 = Multisine([0.5, 0.2], [0.5, 1.3], [0.0, 1.0]), Multisine([0.15, 0.05], [0.8, 2.1])
+    traj = simulate(plant, None, {"auto": ob, "explicit": explicit},
+                    lambda t: np.concatenate([s1(t), s2(t)]), 2.0, seed=0)
+    a, b = traj.observers["auto"].x_hat, traj.observers["explicit"].x_hat
+    np.testing.assert_array_equal(a, b)
+    win = traj.t >= 1.0
+    for i, j in ob.state_map().items():  # link angles and velocities, noise-free measurement
+        err = np.abs(a[win, i] - traj.x[win, j]).max()
+        assert err < 0.02 * max(np.ptp(traj.x[:, j]), 1e-3), (ob.state_names[i], err)

@@ -39,7 +39,7 @@ from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
-from .high_gain import affine_step, one_step_map, sampled_chain, spectral_radius
+from .high_gain import _is_identity, affine_step, one_step_map, sampled_chain, spectral_radius
 
 METHODS = ("exact", "euler", "rk4")
 
@@ -91,13 +91,15 @@ def _dead_zone_lines(q: str, lam: float, lam_hat: float, gamma: float) -> list[s
 
 
 def _flow_source(p: Array, dt: float, method: str, lam: float, lam_hat: float, gamma: float,
-                 model: bool) -> str:
-    """``step(y, k, z0, ..., [f]) -> (k+, z0+, ...)``: euler or rk4 of the joint ODE in
+                 model: bool, held: bool = False) -> str:
+    """``step(y, k, z0, ..., [f | w]) -> (k+, z0+, ...)``: euler or rk4 of the joint ODE in
     ``(k, z)`` with ``y`` held, unrolled into plain-float statements. With ``model`` the last
-    derivative adds ``f(z0, ..., z_{n-1})`` at every stage."""
+    derivative adds ``f(z0, ..., z_{n-1})`` at every stage; with ``held`` (euler) the model
+    term's value ``w``, held over the sample, is added as ``+ dt w`` to the last state (after
+    the rest of its update, so the sums are those of adding ``dt B w`` afterwards)."""
     n = p.size
     zs = [f"z{i}" for i in range(n)]
-    args = ", ".join(["y", "k", *zs] + (["f"] if model else []))
+    args = ", ".join(["y", "k", *zs] + (["f"] if model else []) + (["w"] if held else []))
     lines = [f"def step({args}):"]
     stages = [("s1", None, 0.0)] if method == "euler" else [
         ("s1", None, 0.0), ("s2", "s1", dt / 2), ("s3", "s2", dt / 2), ("s4", "s3", dt)]
@@ -121,6 +123,8 @@ def _flow_source(p: Array, dt: float, method: str, lam: float, lam_hat: float, g
             lines.append(f"    d{i}_{tag} = {nxt}{gain}{extra}")
     if method == "euler":
         out = [f"k + {dt!r} * q_s1"] + [f"{zs[i]} + {dt!r} * d{i}_s1" for i in range(n)]
+        if held:
+            out[-1] += f" + {dt!r} * w"
     else:
         h6 = dt / 6.0
 
@@ -147,9 +151,11 @@ def _root_groups(p: Array) -> tuple[list[float], list[tuple[float, float]]]:
     return real, pairs
 
 
-def _exact_source(p: Array, dt: float, lam: float, lam_hat: float, gamma: float) -> str:
-    """``step(y, k, z0, ...)``: the sampled-data observer at gain ``k`` plus the adaptation of
-    ``k`` with the sampled innovation held (see :class:`AdaptiveGainObserver`, ``exact``).
+def _exact_source(p: Array, dt: float, lam: float, lam_hat: float, gamma: float,
+                  g: Array | None = None) -> str:
+    """``step(y, k, z0, ..., [w])``: the sampled-data observer at gain ``k`` plus the adaptation
+    of ``k`` with the sampled innovation held (see :class:`AdaptiveGainObserver`, ``exact``).
+    With ``g``, the held model term ``w`` enters as ``+ g w``, added last to each row.
 
     The pole-matched gain of :func:`~hgo_mj.observers.high_gain.matched_gain` is linear in the
     coefficients ``c_j`` of ``prod_i (w - w_i)``, ``w_i = expm1(k dt r_i)`` (Ackermann: the
@@ -168,7 +174,8 @@ def _exact_source(p: Array, dt: float, lam: float, lam_hat: float, gamma: float)
     W = W / (dt ** np.arange(n))[:, None]
     Phi = sampled_chain(n, dt)[0]
     zs = [f"z{i}" for i in range(n)]
-    lines = [f"def step(y, k, {', '.join(zs)}):", "    e = y - z0", f"    tau = k * {dt!r}"]
+    extra = "" if g is None else ", w"
+    lines = [f"def step(y, k, {', '.join(zs)}{extra}):", "    e = y - z0", f"    tau = k * {dt!r}"]
     r = -p[0] / n
     if np.allclose(p, [comb(n, i) * (-r) ** i for i in range(1, n + 1)], rtol=1e-13, atol=0.0):
         # one root of multiplicity n (the default binomial p): prod (w - w_0)^n, one expm1,
@@ -180,7 +187,7 @@ def _exact_source(p: Array, dt: float, lam: float, lam_hat: float, gamma: float)
             lines += [f"    mp{j} = {'m' if j == 2 else f'mp{j - 1}'} * m",
                       f"    c{j} = {float(comb(n, j))!r} * mp{j}"]
             coef.append(f"c{j}")
-        return _exact_tail(lines, coef, W, Phi, zs, dt, lam, lam_hat, gamma)
+        return _exact_tail(lines, coef, W, Phi, zs, dt, lam, lam_hat, gamma, g)
     real, pairs = _root_groups(p)
     factors: list[list[str]] = []
     for i, r in enumerate(real):
@@ -211,12 +218,13 @@ def _exact_source(p: Array, dt: float, lam: float, lam_hat: float, gamma: float)
             lines.append(f"    {name} = {' + '.join(terms)}")
             new.append(name)
         coef = new
-    return _exact_tail(lines, coef, W, Phi, zs, dt, lam, lam_hat, gamma)
+    return _exact_tail(lines, coef, W, Phi, zs, dt, lam, lam_hat, gamma, g)
 
 
 def _exact_tail(lines: list[str], coef: list[str], W: Array, Phi: Array, zs: list[str],
-                dt: float, lam: float, lam_hat: float, gamma: float) -> str:
-    """The adaptation and ``z+ = Phi z + (W c) e`` of :func:`_exact_source`."""
+                dt: float, lam: float, lam_hat: float, gamma: float,
+                g: Array | None = None) -> str:
+    """The adaptation and ``z+ = Phi z + (W c) e [+ g w]`` of :func:`_exact_source`."""
     n = len(zs)
     lines += _dead_zone_lines("q", lam, lam_hat, gamma)
     out = [f"k + {dt!r} * q"]
@@ -225,7 +233,8 @@ def _exact_tail(lines: list[str], coef: list[str], W: Array, Phi: Array, zs: lis
                           for j in range(n) if W[i, j] != 0.0)
         chain = " + ".join(f"{float(Phi[i, j])!r} * {zs[j]}" if j != i else zs[j]
                            for j in range(i, n))
-        out.append(f"{chain} + ({gain or '0.0'}) * e")
+        held = "" if g is None or g[i] == 0.0 else f" + {float(g[i])!r} * w"
+        out.append(f"{chain} + ({gain or '0.0'}) * e{held}")
     lines.append(f"    return ({', '.join(out)},)")
     return "\n".join(lines) + "\n"
 
@@ -375,9 +384,13 @@ class AdaptiveGainObserver(Observer):
                 raise DesignError(f"z_bounds need lower < upper; found lower {lo.tolist()}, "
                                   f"upper {hi.tolist()}")
             self.z_bounds = (lo, hi)
+        self._bounds_floats = (None if self.z_bounds is None else
+                               (self.z_bounds[0].tolist(), self.z_bounds[1].tolist()))
         self._tau_max = _max_stable_kdt(tuple(self.p.tolist()), method)
-        self._plain = self.z_bounds is None and system is None
-        self._steps: dict[float, tuple[Callable, Callable, Array, float]] = {}
+        #: ``x_hat`` is ``z_hat`` itself (no system, or a normal form that is the state)
+        self._identity = system is None or _is_identity(system, n)
+        self._plain = self.z_bounds is None and self._identity
+        self._steps: dict[float, tuple[Callable, Callable, Callable, float]] = {}
         self._init = (x_hat0, z_hat0)
         self.reset(x_hat0, z_hat0=z_hat0)
 
@@ -428,19 +441,25 @@ class AdaptiveGainObserver(Observer):
             raise exc(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=4)
 
-    def _entry(self, dt: float) -> tuple[Callable, Callable, Array, float]:
+    def _entry(self, dt: float) -> tuple[Callable, Callable, Callable, float]:
         entry = self._steps.get(dt)
         if entry is not None:
             return entry
         dt = finite_scalar("dt", dt, positive=True)
+        M0, _, g0 = one_step_map(self.p, 1.0, dt, self.method, closed=False)  # dropout
+        # with the model term held over the sample (exact, euler), the step takes its value
+        # as a last argument and adds g0 phi (g0 = S B or dt B) in the same call
+        held = self.model and self.method != "rk4"
         if self.method == "exact":
-            src = _exact_source(self.p, dt, self.lam, self.lam_hat, self.gamma)
+            src = _exact_source(self.p, dt, self.lam, self.lam_hat, self.gamma,
+                                g0 if held else None)
         else:
             src = _flow_source(self.p, dt, self.method, self.lam, self.lam_hat, self.gamma,
-                               self.model and self.method == "rk4")
+                               self.model and self.method == "rk4", held)
         step = _compile_source(src, f"adaptive_gain_{self.method}")
-        M0, _, g0 = one_step_map(self.p, 1.0, dt, self.method, closed=False)  # dropout
-        g = g0  # held model term: S B (exact) or dt B (euler), open or closed loop alike
+        # held model term: s + (0, g) phi with g = S B (exact) or dt B (euler), open or closed
+        # loop alike; compiled in plain floats over the whole state s = (k, z)
+        g = affine_step(np.eye(self.n + 1), np.concatenate(([0.0], g0)))
         limit = math.inf
         if self.method != "exact" and self.on_unstable != "ignore":
             limit = self._tau_max / dt
@@ -478,11 +497,8 @@ class AdaptiveGainObserver(Observer):
         if yi - yi != 0.0:  # NaN or inf
             if yi != yi:  # dropout: predict without correction, k held
                 self.dropouts_ += 1
-                z = open_(0.0, *s[1:])
-                if self.model:
-                    ph = self._phi(s[1:], u)
-                    z = tuple(a + b * ph for a, b in zip(z, g))
-                self._s = (s[0], *z)
+                s1 = (s[0], *open_(0.0, *s[1:]))
+                self._s = g(self._phi(s[1:], u), *s1) if self.model else s1
                 return self.x_hat
             raise DivergenceError(f"measurement y[{self.output}] is {yi}")
         if not self.model:
@@ -490,10 +506,8 @@ class AdaptiveGainObserver(Observer):
         elif self.method == "rk4":
             ph_u = self._phi_u(u)
             s = step(yi, *s, ph_u)
-        else:  # model term held at its start-of-sample value
-            ph = self._phi(s[1:], u)
-            s = step(yi, *s)
-            s = (s[0], *(a + b * ph for a, b in zip(s[1:], g)))
+        else:  # model term held at its start-of-sample value, added by the step itself
+            s = step(yi, *s, self._phi(s[1:], u))
         if s[0] > limit:
             s = self._at_limit(s, dt)
         self._s = s
@@ -521,12 +535,21 @@ class AdaptiveGainObserver(Observer):
         return s
 
     def _phi(self, z: tuple[float, ...], u: Any) -> float:
-        return float(self.system.phi_unchecked(self._saturate(np.array(z)), u))  # type: ignore[union-attr]
+        """The model term in plain floats: the system's unchecked ``phi`` takes the tuple ``z``
+        itself (clipped with min/max when ``z_bounds`` is set)."""
+        if self.z_bounds is not None:
+            z = self._saturate_floats(z)
+        return float(self.system.phi_unchecked(z, u))  # type: ignore[union-attr]
 
     def _phi_u(self, u: Any) -> Callable[..., float]:
-        def f(*z: float) -> float:
-            return self._phi(z, u)
-        return f
+        phi = self.system.phi_unchecked  # type: ignore[union-attr]
+        if self.z_bounds is None:
+            return lambda *z: float(phi(z, u))
+        return lambda *z: self._phi(z, u)
+
+    def _saturate_floats(self, z: tuple[float, ...]) -> tuple[float, ...]:
+        """:meth:`_saturate` on a tuple of floats, without numpy."""
+        return tuple([min(max(v, a), b) for v, a, b in zip(z, *self._bounds_floats)])
 
     def _saturate(self, z: Array) -> Array:
         if self.z_bounds is None:
@@ -541,7 +564,7 @@ class AdaptiveGainObserver(Observer):
     @property
     def x_hat(self) -> Array:
         z = self.z_hat
-        return z if self.system is None else self._physical(z)
+        return z if self._identity else self._physical(z)
 
     def diagnostics(self) -> dict[str, float]:
         return {"k": self._s[0], "dropouts": float(self.dropouts_)}

@@ -70,7 +70,14 @@ from ..design import (
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
-from .high_gain import METHODS, affine_step, matched_gain, sampled_chain, spectral_radius
+from .high_gain import (
+    METHODS,
+    _is_identity,
+    affine_step,
+    matched_gain,
+    sampled_chain,
+    spectral_radius,
+)
 from .riccati import chain_order, design_gamma
 
 
@@ -138,6 +145,34 @@ def q_integral_step_map(alpha: Array, gamma: float, q: int, dt: float, method: s
         if j < order:
             Sm = Sm + term * dt / (j + 1)
     return M, Sm @ bc, Sm @ gc
+
+
+def _compile_rk4_model(F: Array, q: int, dt: float) -> Callable[..., tuple[float, ...]]:
+    """Compile RK4 of ``w' = F w + e_q y + e_N f(w_q, ..., w_(N-1))`` (``y`` held, ``f`` the
+    model term, called at every stage) into a plain-float ``step(y, f, *w)``."""
+    N = F.shape[0]
+    ws = [f"w{j}" for j in range(N)]
+    lines = [f"def step(y, f, {', '.join(ws)}):"]
+    stages = [("s1", None, 0.0), ("s2", "s1", dt / 2), ("s3", "s2", dt / 2), ("s4", "s3", dt)]
+    for tag, prev, h in stages:
+        if prev is None:
+            vs = ws
+        else:
+            vs = [f"{w}_{tag}" for w in ws]
+            lines += [f"    {vs[i]} = {ws[i]} + {h!r} * d{i}_{prev}" for i in range(N)]
+        for i in range(N):
+            terms = [f"{float(F[i, j])!r} * {vs[j]}" for j in range(N) if F[i, j] != 0.0]
+            if i == q - 1:
+                terms.append("y")
+            if i == N - 1:
+                terms.append(f"f({', '.join(vs[q:])})")
+            lines.append(f"    d{i}_{tag} = {' + '.join(terms) if terms else '0.0'}")
+    h6 = dt / 6.0
+    out = [f"{ws[i]} + {h6!r} * (d{i}_s1 + 2.0 * (d{i}_s2 + d{i}_s3) + d{i}_s4)" for i in range(N)]
+    lines.append(f"    return ({', '.join(out)},)")
+    scope: dict[str, Any] = {}
+    exec(compile("\n".join(lines) + "\n", "<q_integral_rk4>", "exec"), scope)  # noqa: S102
+    return scope["step"]
 
 
 class QIntegralObserver(Observer):
@@ -243,7 +278,9 @@ class QIntegralObserver(Observer):
                           f"rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
                           f"convergence is not guaranteed; min_gamma gives {min_gamma(a, r):.4g}",
                           RuntimeWarning, stacklevel=2)
-        self._steps: dict[float, tuple[Callable, Callable, Array, Array, Array]] = {}
+        self._steps: dict[float, tuple[Any, ...]] = {}
+        #: ``x_hat`` is ``z_hat`` itself (no system, or a normal form that is the state)
+        self._identity = system is None or _is_identity(system, n)
         self._init = (x_hat0, z_hat0)
         self.reset(x_hat0, z_hat0=z_hat0)
 
@@ -271,7 +308,7 @@ class QIntegralObserver(Observer):
         if dt not in self._steps:
             self._compile(dt)
 
-    def _compile(self, dt: float) -> tuple[Callable, Callable, Array, Array, Array]:
+    def _compile(self, dt: float) -> tuple[Any, ...]:
         dt = finite_scalar("dt", dt, positive=True)
         M, b, g = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)
         rho = spectral_radius(M)
@@ -285,8 +322,13 @@ class QIntegralObserver(Observer):
             warnings.warn(msg, RuntimeWarning, stacklevel=3)
         M0, _, g0 = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method,
                                         closed=False)
-        F, bc, gc = q_integral_matrices(self.L, self.q)
-        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.N)), g, g0, F)
+        # the model term enters as w + g phi: compiled like the steps, in plain floats
+        eye = np.eye(self.N)
+        rk4 = None
+        if self.model and self.method == "rk4":
+            rk4 = _compile_rk4_model(q_integral_matrices(self.L, self.q)[0], self.q, dt)
+        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.N)), affine_step(eye, g),
+                 affine_step(eye, g0), rk4, affine_step(M, b, g))
         self._steps[dt] = entry
         return entry
 
@@ -309,39 +351,30 @@ class QIntegralObserver(Observer):
         entry = self._steps.get(dt)
         if entry is None:
             entry = self._compile(dt)
-        closed, open_, gphi, gphi0, F = entry
         w = self._w
+        if yi - yi == 0.0 and self.model and self.method != "rk4":  # finite: the common case
+            # correction and model term in one compiled call, plain floats throughout (the
+            # system's unchecked phi takes the tuple x_hat itself)
+            self._w = entry[5](yi, float(self.system.phi_unchecked(w[self.q:], u)), *w)  # type: ignore[union-attr]
+            return self.x_hat
+        closed, open_, gphi, gphi0, rk4 = entry[:5]
         if yi != yi:  # NaN: sensor dropout, predict without correction
             self.dropouts_ += 1
             wnew, g = open_(0.0, *w), gphi0
         elif yi in (np.inf, -np.inf):
             raise DivergenceError(f"measurement y[{self.output}] is {yi}")
-        elif self.model and self.method == "rk4":
-            wnew, g = self._rk4_model(F, yi, u, dt), None
+        elif rk4 is not None:  # model term at every stage, in plain floats
+            phi = self.system.phi_unchecked  # type: ignore[union-attr]
+            self._w = rk4(yi, lambda *z: float(phi(z, u)), *w)
+            return self.x_hat
         else:
             wnew, g = closed(yi, *w), gphi
-        if self.model and g is not None:
-            ph = float(self.system.phi_unchecked(np.array(w[self.q:]), u))  # type: ignore[union-attr]
-            wnew = tuple(a + b * ph for a, b in zip(wnew, g))
+        if self.model:
+            # plain floats throughout: the system's unchecked phi takes the tuple x_hat itself;
+            # g(phi, *w) = w + g phi, compiled by _compile
+            wnew = g(float(self.system.phi_unchecked(w[self.q:], u)), *wnew)  # type: ignore[union-attr]
         self._w = wnew
         return self.x_hat
-
-    def _rk4_model(self, F: Array, y: float, u: Any, dt: float) -> tuple[float, ...]:
-        q = self.q
-        by = np.zeros(self.N)
-        by[q - 1] = y
-
-        def rhs(w: Array) -> Array:
-            dw = F @ w + by
-            dw[-1] += float(self.system.phi_unchecked(w[q:], u))  # type: ignore[union-attr]
-            return dw
-
-        w = np.array(self._w)
-        k1 = rhs(w)
-        k2 = rhs(w + dt / 2 * k1)
-        k3 = rhs(w + dt / 2 * k2)
-        k4 = rhs(w + dt * k3)
-        return tuple((w + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)).tolist())
 
     @property
     def w_(self) -> Array:
@@ -354,7 +387,7 @@ class QIntegralObserver(Observer):
     @property
     def x_hat(self) -> Array:
         z = self.z_hat
-        return z if self.system is None else self._physical(z)
+        return z if self._identity else self._physical(z)
 
     def diagnostics(self) -> dict[str, float]:
         return {"gamma": self.gamma_, "dropouts": float(self.dropouts_)}

@@ -50,7 +50,13 @@ class ElasticJoint2Link(_MujocoSystem):
 
     State ``x = (q1, q2, theta1, theta2, q1', q2', theta1', theta2')``; outputs the two link
     angles. With two outputs there is no single-output normal form
-    (``normal_form_order = None``).
+    (``normal_form_order = None``); the multi-output structure is declared instead:
+    ``normal_form_orders = (4, 4)``, each link angle with its first three derivatives, which
+    the multi-output high-gain observer (``high_gain_multi``) reads when no orders are given.
+    Each link angle has relative degree 4 under Spong's assumption :math:`J_r = 0` (the
+    torques reach :math:`q^{(4)}` through the springs); with the MJCF's
+    :math:`J_r = 10^{-12}` kg m^2, :math:`u_2` also enters :math:`\ddot q_1`, with a coefficient
+    of order :math:`J_r b_2 / (J_2 M_{11})`: a negligible disturbance of the first chain.
 
     Parameters (``param_names``): ``link1_inertia`` I1, ``link1_moment`` s1,
     ``link1_length`` l1, ``link2_mass`` m2, ``link2_moment`` s2, ``link2_inertia`` I2,
@@ -82,6 +88,8 @@ class ElasticJoint2Link(_MujocoSystem):
     _positive = ("link1_inertia", "link2_inertia", "motor1_inertia", "motor2_inertia")
     default_x0 = (0.3, -0.2, 0.3, -0.2, 0.0, 0.0, 0.0, 0.0)
     normal_form_order = None
+    #: chain orders of the multi-output normal form, one per output (see the class docstring)
+    normal_form_orders = (4, 4)
     model_file = "elastic_joint_2link.xml"
     joints = ("link1", "link2", "motor1", "motor2")
     actuators = ("torque1", "torque2")
