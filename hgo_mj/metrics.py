@@ -1,6 +1,8 @@
 """Error metrics of a :class:`~hgo_mj.simulate.Trajectory`, per observer and state.
 
-All metrics use the error ``e = x - x_hat`` in physical coordinates, per state:
+All metrics use the error ``e = x - x_hat`` in physical coordinates, per plant state
+(:meth:`~hgo_mj.simulate.Trajectory.error`: the estimate's columns matched to the plant's states
+by name):
 
 * ``rmse``: root mean square over ``t >= t_transient``;
 * ``peak``: the largest ``|e|`` over the whole run (peaking of high-gain observers);
@@ -8,10 +10,22 @@ All metrics use the error ``e = x - x_hat`` in physical coordinates, per state:
   relative to the range of the true state when ``relative=True``); ``inf`` if it never does;
 * ``final``: ``|e|`` at the last sample;
 * ``update_time``: mean wall time of one observer update, seconds.
+
+A plant state the observer does not estimate (an order-only observer's ``z1, z2, ...``, a
+model-free multi-output observer without the motor states, ...) is **not estimated**: its
+``rmse``, ``peak``, ``settling_time``, ``final`` and ``undefined_samples`` are ``None`` and
+``estimated`` is ``False`` (the table prints ``-``). ``extra_states`` lists the observer's
+columns that are not plant states (no true value to compare with).
+
+Samples where an estimated state's estimate is NaN (its inverse map undefined, e.g. before the
+first valid value) are counted in ``undefined_samples`` and left out of ``rmse`` and ``peak``;
+they count as outside the band for ``settling_time``. A metric with no finite sample to use is
+NaN (``final`` when the last estimate is undefined). No metric warns.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -48,19 +62,37 @@ def observer_metrics(traj: Any, observer: str, *, t_transient: float | None = No
     t_transient = finite_scalar("t_transient", t_transient, nonnegative=True)
     band = finite_scalar("band", band, positive=True)
     e = traj.error(observer)
+    est = traj.estimated(observer)
     win = t >= t_transient
     if not win.any():
         raise DesignError(f"t_transient = {t_transient:g} leaves no samples (run ends at "
                           f"{t[-1]:g})")
-    scale = np.ptp(traj.x, axis=0) if relative else np.ones(e.shape[1])
-    scale = np.where(scale > 0, scale, 1.0)
-    finite = np.isfinite(e)
+    with np.errstate(over="ignore", invalid="ignore"):  # inf - inf, huge**2: honest inf/NaN
+        scale = np.ptp(traj.x, axis=0) if relative else np.ones(e.shape[1])
+        scale = np.where(scale > 0, scale, 1.0)
+        finite = np.isfinite(e)
+        ae = np.abs(e)
+        settle = settling_time(t, np.where(finite, e, np.inf), band * scale)
+        rmse, peak, final, undefined = [], [], [], []
+        for j in range(e.shape[1]):
+            if not est[j]:
+                for col in (rmse, peak, final, undefined):
+                    col.append(None)
+                continue
+            fw = finite[win, j]
+            rmse.append(float(np.sqrt(np.mean(e[win, j][fw] ** 2))) if fw.any() else math.nan)
+            peak.append(float(ae[finite[:, j], j].max()) if finite[:, j].any() else math.nan)
+            final.append(float(ae[-1, j]))
+            undefined.append(int(np.count_nonzero(~finite[:, j])))
     return {
         "states": list(traj.state_names),
-        "rmse": np.sqrt(np.nanmean(e[win] ** 2, axis=0)).tolist(),
-        "peak": np.nanmax(np.abs(e), axis=0).tolist(),
-        "settling_time": settling_time(t, np.where(finite, e, np.inf), band * scale).tolist(),
-        "final": np.abs(e[-1]).tolist(),
+        "estimated": est.tolist(),
+        "rmse": rmse,
+        "peak": peak,
+        "settling_time": [float(v) if ok else None for v, ok in zip(settle, est)],
+        "final": final,
+        "undefined_samples": undefined,
+        "extra_states": list(traj.extra_states(observer)),
         "update_time": traj.observers[observer].update_time,
         "t_transient": t_transient,
         "band": band,
@@ -73,13 +105,21 @@ def all_metrics(traj: Any, **kw: Any) -> dict[str, dict[str, Any]]:
     return {name: observer_metrics(traj, name, **kw) for name in traj.observers}
 
 
+def _cell(v: Any, width: int) -> str:
+    return f"{'-':>{width}}" if v is None else f"{v:>{width}.4g}"
+
+
 def format_table(metrics: dict[str, dict[str, Any]]) -> str:
-    """A plain-text table: one row per observer and state."""
+    """A plain-text table: one row per observer and state (``-``: not estimated)."""
     lines = [f"{'observer':<16} {'state':<18} {'rmse':>11} {'peak':>11} {'settle[s]':>10} "
              f"{'final':>11} {'update[us]':>10}"]
+    missing = False
     for name, m in metrics.items():
         for i, s in enumerate(m["states"]):
-            lines.append(f"{name:<16} {s:<18} {m['rmse'][i]:>11.4g} {m['peak'][i]:>11.4g} "
-                         f"{m['settling_time'][i]:>10.4g} {m['final'][i]:>11.4g} "
+            missing |= m["rmse"][i] is None
+            lines.append(f"{name:<16} {s:<18} {_cell(m['rmse'][i], 11)} {_cell(m['peak'][i], 11)} "
+                         f"{_cell(m['settling_time'][i], 10)} {_cell(m['final'][i], 11)} "
                          f"{m['update_time'] * 1e6:>10.3g}")
+    if missing:
+        lines.append("- : not estimated (the observer has no estimate of that plant state)")
     return "\n".join(lines)

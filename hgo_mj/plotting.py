@@ -1,4 +1,12 @@
-"""Figures of a trajectory: true versus estimated states and the estimation error per state."""
+"""Figures of a trajectory: true versus estimated states and the estimation error per state.
+
+Estimates are matched to the plant's states by name (:meth:`~hgo_mj.simulate.Trajectory.
+estimate`): an observer that does not estimate a plant state draws nothing in its row. The
+observers' columns that are not plant states (an order-only observer's ``z1, z2, ...``, the
+derivatives of a multi-output observer, parameter estimates) get rows of their own below,
+estimates only (there is no true value, so no error). NaN samples (an inverse map undefined,
+a dropout) are gaps; axis limits use the finite samples only.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -13,30 +22,74 @@ import matplotlib.pyplot as plt  # noqa: E402
 TRUE_COLOR = "black"
 
 
+def _finite_range(*arrays: Any) -> tuple[float, float] | None:
+    """``(min, max)`` over the finite values of the arrays, or ``None`` if there are none."""
+    vals = [a[np.isfinite(a)] for a in (np.asarray(v, dtype=float).ravel() for v in arrays)]
+    vals = [v for v in vals if v.size]
+    if not vals:
+        return None
+    cat = np.concatenate(vals)
+    return float(cat.min()), float(cat.max())
+
+
 def plot_trajectory(traj: Any, path: str | Path, *, title: str = "") -> Path:
-    """Write a PNG: one row per state, left true vs every estimate, right the error."""
+    """Write a PNG: one row per plant state, left true vs every estimate, right the error;
+    then one row per estimated quantity that is not a plant state (estimates only)."""
     n = traj.x.shape[1]
-    fig, axes = plt.subplots(n, 2, figsize=(11, 2.2 * n + 0.8), sharex=True, squeeze=False)
+    extra: list[str] = []
+    for oname in traj.observers:
+        extra += [s for s in traj.extra_states(oname) if s not in extra]
+    rows = n + len(extra)
+    fig, axes = plt.subplots(rows, 2, figsize=(11, 2.2 * rows + 0.8), sharex=True,
+                             squeeze=False)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    late = len(traj.t) // 5
+    est = {oname: traj.estimate(oname) for oname in traj.observers}
     for i, name in enumerate(traj.state_names):
         ax, ae = axes[i]
         ax.plot(traj.t, traj.x[:, i], color=TRUE_COLOR, lw=1.6, label="true")
-        for j, (oname, rec) in enumerate(traj.observers.items()):
+        errs = []
+        for j, oname in enumerate(traj.observers):
+            if not traj.estimated(oname)[i]:
+                continue  # not estimated: nothing to draw
             c = colors[j % len(colors)]
-            ax.plot(traj.t, rec.x_hat[:, i], color=c, lw=0.9, ls="--", alpha=0.85, label=oname)
-            ae.plot(traj.t, traj.x[:, i] - rec.x_hat[:, i], color=c, lw=0.7, alpha=0.7,
-                    label=oname)
+            e = traj.x[:, i] - est[oname][:, i]
+            ax.plot(traj.t, est[oname][:, i], color=c, lw=0.9, ls="--", alpha=0.85, label=oname)
+            ae.plot(traj.t, e, color=c, lw=0.7, alpha=0.7, label=oname)
+            errs.append(e[late:])
         ax.set_ylabel(name)
-        lo, hi = traj.x[:, i].min(), traj.x[:, i].max()
-        pad = 0.5 * (hi - lo) + 1e-9
-        ax.set_ylim(lo - pad, hi + pad)  # keep the true signal readable under peaking
+        rng = _finite_range(traj.x[:, i])
+        if rng is not None:
+            lo, hi = rng
+            pad = 0.5 * (hi - lo) + 1e-9
+            ax.set_ylim(lo - pad, hi + pad)  # keep the true signal readable under peaking
         ae.set_ylabel(f"error {name}")
         ae.axhline(0.0, color="0.6", lw=0.6)
-        if traj.observers:
-            errs = [abs(traj.x[len(traj.t) // 5:, i] - r.x_hat[len(traj.t) // 5:, i]).max()
-                    for r in traj.observers.values()]
-            lim = 1.5 * max(errs) + 1e-12
+        rng = _finite_range(*errs) if errs else None
+        if rng is not None:
+            lim = 1.5 * max(abs(rng[0]), abs(rng[1])) + 1e-12
             ae.set_ylim(-lim, lim)
+        elif traj.observers:
+            ae.text(0.5, 0.5, "not estimated", transform=ae.transAxes, ha="center",
+                    va="center", color="0.4")
+    for r, name in enumerate(extra, start=n):
+        ax, ae = axes[r]
+        vals = []
+        for j, (oname, rec) in enumerate(traj.observers.items()):
+            if name in rec.state_names:
+                v = rec.x_hat[:, rec.state_names.index(name)]
+                ax.plot(traj.t, v, color=colors[j % len(colors)], lw=0.9, ls="--", alpha=0.85,
+                        label=oname)
+                vals.append(v[late:])
+        ax.set_ylabel(f"{name}\n(estimate only)")
+        rng = _finite_range(*vals)
+        if rng is not None:
+            lo, hi = rng
+            pad = 0.25 * (hi - lo) + 1e-9
+            ax.set_ylim(lo - pad, hi + pad)  # fits t > 20% of the run, as the errors do
+        ae.axis("off")
+        ae.text(0.5, 0.5, f"{name}: not a plant state (no true value)", transform=ae.transAxes,
+                ha="center", va="center", color="0.4")
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[0, 0].set_title("true vs estimate")
     axes[0, 1].set_title("estimation error (axis fits t > 20% of the run)")

@@ -14,7 +14,11 @@ environments, ``episode``.
 Entities (names escaped with :func:`rerun.escape_entity_path_part`)::
 
     /state/<state>              scalars [true, <observer 1>, <observer 2>, ...], one row a sample
-    /error/<state>              scalars [<observer 1>, ...]: x - x_hat
+                                (the observers that estimate that plant state, by name)
+    /error/<state>              scalars [<observer 1>, ...]: x - x_hat, for those observers
+    /observer/<obs>/estimate/<name>   an estimate that is not a plant state (the observer's
+                                own state names: an order-only observer's z1, z2, ..., the
+                                derivatives of a multi-output observer, ...)
     /sensor/<output>            scalars [clean, measured] (a dropout is NaN)
     /input/<input>              scalar u
     /observer/<obs>/gain        the gain diagnostic (``k``, ``gain``, ``gamma``; ``k_<x>`` -> gain/<x>)
@@ -26,6 +30,12 @@ Entities (names escaped with :func:`rerun.escape_entity_path_part`)::
     /world/estimate/<obs>/<body>/<geom>   translucent ghost posed from that observer's estimate
     /scenario, /metrics         text documents: scenario, seed, observer parameters, package
                                 versions; the metrics table
+
+Estimates are matched to the plant's states by name: each observer's column names are its
+``state_names`` (``observer_states``, or ``ObserverRecord.state_names`` of a trajectory); an
+observer given none names the plant's states when its estimate has their number, else
+``x_hat_1, x_hat_2, ...``. A plant state no observer estimates has a truth-only ``/state``
+entity and no ``/error`` entity.
 
 One entity per state holds the truth and every estimate as instances (rather than one entity
 per observer and state): each entity row costs about 20 bytes of row id and time on top of its
@@ -40,7 +50,7 @@ every estimate), one per state's errors, the adaptive quantities, inputs and mea
 The 3D view is posed with a batched forward kinematics of the hinge and slide joints the
 system names (MuJoCo's ``mj_kinematics`` equations, vectorised over samples); joints the
 system does not name stay at the model's ``qpos0``. Poses are logged at ``pose_rate`` (default
-100 Hz, more than a viewer plays back in real time) to keep files small and cheap; every
+50 Hz, the frame rate a viewer plays back in real time) to keep files small and cheap; every
 sample with ``pose_rate=None``.
 """
 
@@ -299,6 +309,14 @@ def _columns(name: str, a: Any, rows: int, width: int | None = None) -> Array:
     return arr
 
 
+def _estimate_names(observer: str, names: Any) -> tuple[str, ...]:
+    out = tuple(str(s) for s in names)
+    if not out or len(set(out)) != len(out):
+        raise DesignError(f"the estimate names of {observer!r} must be distinct and not empty; "
+                          f"found {list(out)}")
+    return out
+
+
 _DESCRIPTORS: dict[str, tuple[dict[bytes, bytes], Any]] = {}
 
 
@@ -398,6 +416,11 @@ class Recorder:
         Names of the columns of ``x``, ``y`` and ``u``.
     observers : sequence of str
         Names of the observers, in order (their colours follow it).
+    observer_states : mapping observer -> sequence of str, optional
+        Names of each observer's estimate columns (``Observer.state_names``); default: fixed
+        at the first block (``estimate_names`` of :meth:`record`, else the plant's state
+        names when the widths agree). A ghost is drawn for an observer that estimates at least
+        one joint position; a joint it does not estimate is posed on the truth.
     model : mujoco.MjModel, optional
         The plant's model: draws the 3D view. ``None`` (ODE plants): no 3D view.
     joints : sequence of str
@@ -430,10 +453,12 @@ class Recorder:
 
     def __init__(self, path: str | Path | None, *, state_names: Sequence[str],
                  output_names: Sequence[str], input_names: Sequence[str],
-                 observers: Sequence[str] = (), model: Any = None, joints: Sequence[str] = (),
+                 observers: Sequence[str] = (),
+                 observer_states: Mapping[str, Sequence[str]] | None = None,
+                 model: Any = None, joints: Sequence[str] = (),
                  params: Mapping[str, float] | None = None,
                  stream: rr.RecordingStream | None = None, application_id: str = "hgo_mj",
-                 recording_name: str | None = None, pose_rate: float | None = 100.0,
+                 recording_name: str | None = None, pose_rate: float | None = 50.0,
                  flush_each: str = "start") -> None:
         self.state_names = tuple(str(s) for s in state_names)
         self.output_names = tuple(str(s) for s in output_names)
@@ -441,6 +466,12 @@ class Recorder:
         self.observers = tuple(str(o) for o in observers)
         if len(set(self.observers)) != len(self.observers):
             raise DesignError(f"observer names must be distinct; found {list(self.observers)}")
+        self._names: dict[str, tuple[str, ...]] = {}  # observer -> names of its columns
+        for o, names in (observer_states or {}).items():
+            if str(o) not in self.observers:
+                raise DesignError(f"observer_states names an unknown observer {o!r}; observers: "
+                                  f"{list(self.observers)}")
+            self._names[str(o)] = _estimate_names(str(o), names)
         self.params = {str(k): float(v) for k, v in (params or {}).items()
                        if isinstance(v, (int, float))}
         if pose_rate is not None and not (np.isfinite(pose_rate) and pose_rate > 0):
@@ -475,7 +506,10 @@ class Recorder:
             stream.save(self.path)
         if recording_name:
             stream.send_recording_name(recording_name)
-        self._full: tuple[str, ...] | None = None  # observers with a full state estimate
+        # fixed at the first block: per plant state the observers estimating it (and column),
+        # per observer its columns that are not plant states
+        self._est_of: list[tuple[tuple[str, int], ...]] | None = None
+        self._own: dict[str, tuple[tuple[str, int], ...]] = {}
         self._diag: dict[tuple[str, str], tuple[str, str]] = {}
         self._diag_last: dict[str, float] = {}
         self._diag_pending: dict[str, float] = {}
@@ -512,6 +546,9 @@ class Recorder:
             joints = sys_joints if joints is None else joints
         kw.setdefault("params", meta.get("system_params"))
         kw.setdefault("recording_name", meta.get("scenario"))
+        kw.setdefault("observer_states", {o: tuple(getattr(r, "state_names", ()) or ())
+                                          for o, r in traj.observers.items()
+                                          if getattr(r, "state_names", ())})
         return cls(path, state_names=traj.state_names, output_names=traj.output_names,
                    input_names=traj.input_names, observers=list(traj.observers), model=model,
                    joints=joints or (), **kw)
@@ -559,7 +596,8 @@ class Recorder:
                estimates: Mapping[str, Any] | None = None,
                diagnostics: Mapping[str, Mapping[str, Any]] | None = None, *,
                step: Any = None, episode: int | None = None,
-               extra: Mapping[str, Any] | None = None, mark_end: bool = True) -> None:
+               extra: Mapping[str, Any] | None = None, mark_end: bool = True,
+               estimate_names: Mapping[str, Sequence[str]] | None = None) -> None:
         """Record one block of rows (``T`` samples).
 
         Parameters
@@ -568,10 +606,12 @@ class Recorder:
             Simulated time of each row (the ``sim_time`` timeline).
         x, y_clean, y_meas, u : array_like, shapes (T, n), (T, m), (T, m), (T, p)
             True state, clean and measured outputs, input. ``y_clean`` may be ``None``.
-        estimates : mapping observer -> array (T, n), optional
-            The observers' ``x_hat``; an observer left out is NaN in this block (and its ghost
-            is not moved). An estimate of another width than ``x`` (an observer in its own
-            coordinates) goes to ``/observer/<obs>/x_hat`` instead.
+        estimates : mapping observer -> array (T, k), optional
+            The observers' ``x_hat``, columns named by ``estimate_names`` (or
+            ``observer_states``; default the plant's states when ``k == n``): columns named
+            after plant states go to ``/state`` and ``/error``, the others to
+            ``/observer/<obs>/estimate/<name>``. An observer left out is NaN in this block
+            (and its ghost is not moved).
         diagnostics : mapping observer -> mapping key -> array (T,), optional
             Run-time quantities (gain, parameter estimates, ...).
         step : array_like of int or int, optional
@@ -581,6 +621,10 @@ class Recorder:
             Adds the ``episode`` timeline.
         extra : mapping name -> array (T,) or (T, k), optional
             More series, under ``/env/<name>``.
+        estimate_names : mapping observer -> sequence of str, optional
+            Names of the estimate columns (``ObserverRecord.state_names``), used where the
+            constructor's ``observer_states`` gave none; the layout is fixed at the first
+            block, and a later block must agree with it.
         mark_end : bool
             Log the diagnostics (which are logged where they change) at the block's last row
             too, so their lines reach it; ``False`` leaves that row to the next block or to
@@ -601,15 +645,34 @@ class Recorder:
             raise DesignError(f"estimates of unknown observer(s) {sorted(unknown)}; observers: "
                               f"{list(self.observers)}")
         est = {o: _columns(f"estimate of {o!r}", given[o], T) for o in self.observers if o in given}
-        if self._full is None:
-            self._full = tuple(o for o in self.observers if o not in est or est[o].shape[1] == n)
+        names = dict(self._names)
+        for o, nm in (estimate_names or {}).items():
+            if str(o) not in self.observers:
+                raise DesignError(f"estimate_names of unknown observer {o!r}; observers: "
+                                  f"{list(self.observers)}")
+            nm = _estimate_names(str(o), nm)
+            if str(o) in names and self._est_of is not None and names[str(o)] != nm:
+                raise DesignError(f"estimate_names of {o!r} changed from "
+                                  f"{list(names[str(o)])} to {list(nm)}")
+            names.setdefault(str(o), nm)
+        for o in self.observers:
+            if o not in names:
+                w = est[o].shape[1] if o in est else n
+                names[o] = (self.state_names if w == n
+                            else tuple(f"x_hat_{j + 1}" for j in range(w)))
+        for o, a in est.items():
+            if a.shape[1] != len(names[o]):
+                raise DimensionError(f"estimate of {o!r} must have shape ({T}, {len(names[o])}) "
+                                     f"(columns {list(names[o])}); found {a.shape}")
+        if self._est_of is None:
+            self._names = names
+            cols = {o: {s: j for j, s in enumerate(names[o])} for o in self.observers}
+            self._est_of = [tuple((o, cols[o][s]) for o in self.observers if s in cols[o])
+                            for s in self.state_names]
+            plant = set(self.state_names)
+            self._own = {o: tuple((s, j) for j, s in enumerate(names[o]) if s not in plant)
+                         for o in self.observers}
             self._log_styles()
-        for o in self._full:
-            if o not in est:  # no estimate in this block: NaN, and no ghost pose
-                est[o] = np.full((T, n), np.nan)
-            elif est[o].shape[1] != n:
-                raise DimensionError(f"estimate of {o!r} must have shape ({T}, {n}); found "
-                                     f"{est[o].shape}")
         diag = {o: dict(v) for o, v in (diagnostics or {}).items()}
         unknown = set(diag) - set(self.observers)
         if unknown:
@@ -634,7 +697,9 @@ class Recorder:
             steps = np.asarray(step, dtype=np.int64).reshape(-1)
             if steps.size != T:
                 raise DimensionError(f"step must have {T} entries; found {steps.size}")
-        posed = [o for o in self._full if o in given]
+        nj = self.kinematics.njoints if self.kinematics is not None else 0
+        joint_obs = {o for i in range(nj) for o, _ in self._est_of[i]}
+        posed = [o for o in self.observers if o in est and o in joint_obs]
         with _DeferSigint():
             self._record(t, steps, episode, x, yc, ym, u, est, diag, extra, posed, mark_end)
             self._last_row = (float(t[-1]), int(steps[-1]), episode)
@@ -649,16 +714,20 @@ class Recorder:
                 diag: dict[str, dict[str, Any]], extra: dict[str, Any], posed: list[str],
                 mark_end: bool) -> None:
         batch = _Batch(t, steps, episode)
-        full = self._full or ()
+        est_of = self._est_of or []
+        nan = np.full(t.size, np.nan)
         for i, s in enumerate(self.state_names):
-            cols = [x[:, i]] + [est[o][:, i] for o in full]
-            batch.add(f"/state/{_part(s)}", "scalar", np.column_stack(cols))
-            if full:
+            # an observer without an estimate in this block: NaN, and no ghost pose
+            ests = [est[o][:, j] if o in est else nan for o, j in est_of[i]]
+            batch.add(f"/state/{_part(s)}", "scalar", np.column_stack([x[:, i]] + ests))
+            if ests:
                 batch.add(f"/error/{_part(s)}", "scalar",
-                          np.column_stack([x[:, i] - est[o][:, i] for o in full]))
-        for o in self.observers:
-            if o not in full and o in est:  # an estimate in other coordinates: logged as it is
-                batch.add(f"/observer/{_part(o)}/x_hat", "scalar", est[o])
+                          np.column_stack([x[:, i] - e for e in ests]))
+        for o, own in self._own.items():
+            if o in est:  # estimates that are not plant states: under the observer's names
+                for name, j in own:
+                    batch.add(f"/observer/{_part(o)}/estimate/{_part(name)}", "scalar",
+                              est[o][:, j])
         for j, name in enumerate(self.output_names):
             clean = yc[:, j] if yc is not None else np.full(t.size, np.nan)
             batch.add(f"/sensor/{_part(name)}", "scalar", np.column_stack((clean, ym[:, j])))
@@ -681,7 +750,15 @@ class Recorder:
                 b.add(path, "scalar", values)
             b.send(self.stream)
         if self.kinematics is not None:
-            self._record_poses(t, steps, episode, x, {o: est[o] for o in posed})
+            nj = self.kinematics.njoints
+            q: dict[str, Array] = {}
+            for o in posed:  # the joint positions on the plant's columns, NaN where not named
+                q[o] = np.full((t.size, nj), np.nan)
+                for i in range(nj):
+                    for oi, j in est_of[i]:
+                        if oi == o:
+                            q[o][:, i] = est[o][:, j]
+            self._record_poses(t, steps, episode, x, q)
 
     def _record_diagnostic(self, o: str, key: str, rows: int, v: Any, mark_end: bool,
                            sparse: dict[bytes, tuple[NDArray[np.bool_], list[tuple[str, Array]]]]
@@ -799,19 +876,19 @@ class Recorder:
         rr.send_chunks(Chunk.from_record_batch(batch, index=None), recording=self.stream)
 
     def _log_styles(self) -> None:
-        full = self._full or ()
-        colors = [observer_color(self.observers.index(o)) for o in full]
-        for s in self.state_names:
+        for s, ests in zip(self.state_names, self._est_of or []):
+            obs = [o for o, _ in ests]
+            colors = [observer_color(self.observers.index(o)) for o in obs]
             self._static_log(f"/state/{_part(s)}", rr.SeriesLines(
-                names=[f"{s} true"] + [f"{s} {o}" for o in full], colors=[TRUE_COLOR] + colors,
-                widths=[2.0] + [1.0] * len(full)))
-            if full:
+                names=[f"{s} true"] + [f"{s} {o}" for o in obs], colors=[TRUE_COLOR] + colors,
+                widths=[2.0] + [1.0] * len(obs)))
+            if obs:
                 self._static_log(f"/error/{_part(s)}", rr.SeriesLines(
-                    names=[f"{s} error {o}" for o in full], colors=colors))
-        for o in self.observers:
-            if o not in full:
-                self._static_log(f"/observer/{_part(o)}/x_hat", rr.SeriesLines(
-                    colors=[observer_color(self.observers.index(o))]))
+                    names=[f"{s} error {o}" for o in obs], colors=colors))
+        for o, own in self._own.items():
+            for name, _ in own:
+                self._static_log(f"/observer/{_part(o)}/estimate/{_part(name)}", rr.SeriesLines(
+                    names=[f"{name} {o}"], colors=[observer_color(self.observers.index(o))]))
         for name in self.output_names:
             self._static_log(f"/sensor/{_part(name)}", rr.SeriesLines(
                 names=[f"{name} clean", f"{name} measured"], colors=[TRUE_COLOR, MEASURED_COLOR],
@@ -869,11 +946,14 @@ class Recorder:
     def blueprint(self) -> rrb.Blueprint:
         """The default layout: 3D view and text documents, one view per state (truth and
         estimates), one per state's errors, adaptive quantities, inputs and measurements."""
-        full = self._full or ()
+        est_of = self._est_of or [()] * len(self.state_names)
         states = [rrb.TimeSeriesView(origin=f"/state/{_part(s)}", name=f"{s}: true vs estimated")
                   for s in self.state_names]
+        states += [rrb.TimeSeriesView(origin=f"/observer/{_part(o)}/estimate",
+                                      name=f"{o}: estimates that are not plant states")
+                   for o, own in self._own.items() if own]
         errors = [rrb.TimeSeriesView(origin=f"/error/{_part(s)}", name=f"{s}: error x - x_hat")
-                  for s in self.state_names] if full else []
+                  for s, ests in zip(self.state_names, est_of) if ests]
         gains = [p for p, k in self._diag.values() if k == "gain"]
         thetas: dict[str, list[str]] = {}
         other = [p for p, k in self._diag.values() if k == "other"]
@@ -948,7 +1028,9 @@ class Recorder:
         self.record(chunk.t[rows], chunk.x[rows], chunk.y_clean[rows], chunk.y_meas[rows],
                     chunk.u[rows], {o: obs[o].x_hat[rows] for o in self.observers},
                     {o: {k: v[rows] for k, v in obs[o].diagnostics.items()} for o in self.observers},
-                    step=first_row + (rows.start or 0), mark_end=mark_end)
+                    step=first_row + (rows.start or 0), mark_end=mark_end,
+                    estimate_names={o: obs[o].state_names for o in self.observers
+                                    if getattr(obs[o], "state_names", ())})
 
     def record_episode(self, episode: int, t: Any, x: Any, y_meas: Any, u: Any, *,
                        y_clean: Any = None, estimates: Mapping[str, Any] | None = None,

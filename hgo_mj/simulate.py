@@ -9,6 +9,15 @@ Row ``k`` of a trajectory is the sample instant ``t_k = k * sample_period``: the
 and for each observer its estimate of ``x(t_k)`` *before* it consumes ``y(t_k)`` (a
 continuous-time observer with the measurement held between samples: row 0 is the initial
 estimate). Every observer sees the same measurement stream.
+
+An observer's estimate need not have the plant's state layout: an order-only high-gain
+observer estimates ``z = (y, y', ...)``, an adaptive one may append parameters. Each
+:class:`ObserverRecord` names its columns (``state_names``, the observer's own), and
+:meth:`Trajectory.error` matches them to the plant's states by name: a plant state the
+observer does not estimate has a NaN error ("not estimated"). A NaN in ``x_hat`` is also
+how an observer says that its inverse normal-form map is undefined there (see
+:class:`~hgo_mj.observers.base.Observer`); divergence is judged on the observer's own
+coordinates ``z_hat``.
 """
 
 from __future__ import annotations
@@ -36,13 +45,20 @@ Array = NDArray[np.float64]
 
 @dataclass
 class ObserverRecord:
-    """One observer's columns in a :class:`Trajectory`."""
+    """One observer's columns in a :class:`Trajectory`.
+
+    ``state_names`` names the columns of ``x_hat`` (the observer's ``state_names``); empty
+    means "the plant's states", which :class:`Trajectory` fills in when the widths agree
+    (``x_hat_1, x_hat_2, ...`` otherwise, as for files written before the names were saved).
+    """
 
     x_hat: Array
     z_hat: Array
     diagnostics: dict[str, Array] = field(default_factory=dict)
     #: mean wall time of one ``update`` call, seconds
     update_time: float = float("nan")
+    #: names of the columns of ``x_hat``
+    state_names: tuple[str, ...] = ()
 
 
 @dataclass
@@ -60,12 +76,60 @@ class Trajectory:
     input_names: tuple[str, ...]
     metadata: dict[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        n = len(self.state_names)
+        for name, rec in self.observers.items():
+            width = rec.x_hat.shape[1] if rec.x_hat.ndim == 2 else 1
+            if not rec.state_names:
+                rec.state_names = (tuple(self.state_names) if width == n
+                                   else tuple(f"x_hat_{i + 1}" for i in range(width)))
+            rec.state_names = tuple(str(s) for s in rec.state_names)
+            if len(rec.state_names) != width:
+                raise DimensionError(f"observer {name!r}: state_names must name the {width} "
+                                     f"column(s) of x_hat; found {len(rec.state_names)} "
+                                     f"{list(rec.state_names)}")
+            if len(set(rec.state_names)) != width:
+                raise DimensionError(f"observer {name!r}: state_names must be distinct; found "
+                                     f"{list(rec.state_names)}")
+
     def __len__(self) -> int:
         return int(self.t.size)
 
+    def _record(self, observer: str) -> ObserverRecord:
+        if observer not in self.observers:
+            raise DesignError(f"no observer {observer!r} in the trajectory; found "
+                              f"{sorted(self.observers)}")
+        return self.observers[observer]
+
+    def estimated(self, observer: str) -> NDArray[np.bool_]:
+        """Which plant states (``state_names``) the observer estimates (by name), shape ``(n,)``."""
+        own = set(self._record(observer).state_names)
+        return np.array([s in own for s in self.state_names], dtype=bool)
+
+    def estimate(self, observer: str) -> Array:
+        """The observer's ``x_hat`` on the plant's state columns, shape ``(T, n)``: matched by
+        name, NaN for a plant state it does not estimate. Its columns that are not plant states
+        (``extra_states``) are left out."""
+        rec = self._record(observer)
+        cols = {s: j for j, s in enumerate(rec.state_names)}
+        out = np.full(self.x.shape, np.nan)
+        for i, s in enumerate(self.state_names):
+            j = cols.get(s)
+            if j is not None:
+                out[:, i] = rec.x_hat[:, j]
+        return out
+
+    def extra_states(self, observer: str) -> tuple[str, ...]:
+        """Names of the observer's columns that are not plant states (derivatives of an
+        output, parameter estimates, ...): they have no true value to compare with."""
+        plant = set(self.state_names)
+        return tuple(s for s in self._record(observer).state_names if s not in plant)
+
     def error(self, observer: str) -> Array:
-        """``x - x_hat`` of one observer, shape ``(T, n)``."""
-        return self.x - self.observers[observer].x_hat
+        """``x - x_hat`` of one observer, shape ``(T, n)`` (the plant's states), columns matched
+        by name: NaN for a plant state the observer does not estimate, and where its estimate
+        is NaN (inverse map undefined)."""
+        return self.x - self.estimate(observer)
 
     def save(self, path: str | Path) -> Path:
         path = Path(path)
@@ -78,7 +142,8 @@ class Trajectory:
             cols[f"obs/{name}/z_hat"] = rec.z_hat
             for d, v in rec.diagnostics.items():
                 cols[f"obs/{name}/diag/{d}"] = v
-            obs_meta[name] = {"diagnostics": list(rec.diagnostics), "update_time": rec.update_time}
+            obs_meta[name] = {"diagnostics": list(rec.diagnostics), "update_time": rec.update_time,
+                              "state_names": list(rec.state_names)}
         meta = {"state_names": self.state_names, "output_names": self.output_names,
                 "input_names": self.input_names, "observers": obs_meta,
                 "metadata": self.metadata}
@@ -95,7 +160,8 @@ class Trajectory:
                 name: ObserverRecord(
                     x_hat=z[f"obs/{name}/x_hat"], z_hat=z[f"obs/{name}/z_hat"],
                     diagnostics={d: z[f"obs/{name}/diag/{d}"] for d in om["diagnostics"]},
-                    update_time=float(om["update_time"]))
+                    update_time=float(om["update_time"]),
+                    state_names=tuple(om.get("state_names") or ()))
                 for name, om in meta["observers"].items()}
             return cls(t=z["t"], x=z["x"], y_clean=z["y_clean"], y_meas=z["y_meas"], u=z["u"],
                        observers=observers, state_names=tuple(meta["state_names"]),
@@ -172,16 +238,32 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         Hand the rows over as they are simulated: ``callback(first_row, chunk)`` is called with
         a :class:`Trajectory` of the rows ``first_row ...`` each time ``seconds`` of simulated
         time have been collected (at least one row), and once more with the rows left at the
-        end, also when the run stops on a :class:`DivergenceError`. A chunk's metadata holds
+        end (a tail shorter than half a chunk joins the last chunk), also when the run stops
+        on a :class:`DivergenceError`. A chunk's metadata holds
         only ``sample_period`` and ``first_row``; its ``update_time`` is NaN. Used by
         :class:`hgo_mj.record.Recorder` so that a run killed part-way leaves a recording of
         everything up to its last chunk. The simulated values do not depend on it.
 
+    Returns
+    -------
+    Trajectory
+        Each observer's record names its columns (``state_names``). The metadata's
+        ``inverse_failures`` maps each observer to the number of failed evaluations of its
+        inverse normal-form map over the run (``Observer.inverse_failures_``: while the
+        inverse is undefined ``x_hat`` holds its last valid value, NaN before any).
+
     Raises
     ------
     DivergenceError
-        If an estimate leaves the finite numbers; the partial trajectory is attached to the
-        exception as ``exc.trajectory``.
+        If an observer's own state ``z_hat`` leaves the finite numbers (or ``x_hat`` becomes
+        infinite; a NaN ``x_hat`` with a finite ``z_hat`` only means that the inverse map is
+        undefined there), or if an observer's update raises ``FloatingPointError``,
+        ``ValueError`` or another ``ArithmeticError`` (a math domain error or an overflow on a
+        blown-up estimate, a ``DesignError`` of a map evaluated outside its domain; the
+        message names the observer and the time; the original error is ``exc.__cause__``).
+        The partial trajectory is attached to the exception as ``exc.trajectory``. A
+        ``DimensionError`` in an update (a shape mistake) and every error raised before the
+        loop (argument validation, ``check_period``) propagate unchanged.
     """
     Ts = plant.dt if sample_period is None else finite_scalar("sample_period", sample_period,
                                                                positive=True)
@@ -218,6 +300,16 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         ob.reset()
         ob.check_period(Ts)  # a too-long period for a high gain is refused before the run
     n, m, p = len(plant.state_names), len(plant.output_names), len(plant.input_names)
+    x_hat = [ob.x_hat for ob in obs.values()]  # update() returns the next one
+    est_names: list[tuple[str, ...]] = []
+    for (name, ob), xh in zip(obs.items(), x_hat):
+        names_i = tuple(str(s) for s in ob.state_names)
+        width = np.asarray(xh).size
+        if len(names_i) != width:
+            raise DimensionError(f"observer {name!r} ({type(ob).__name__}): state_names must "
+                                 f"name the {width} entries of x_hat; found {len(names_i)} "
+                                 f"{list(names_i)}")
+        est_names.append(names_i)
 
     # rows are collected in lists and stacked once at the end (cheaper than row assignment)
     X: list[Array] = []
@@ -230,7 +322,6 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
     dg_rows: list[list[Any]] = [[] for _ in names]
     wall = [0.0] * len(names)
     obs_list = list(obs.values())
-    x_hat = [ob.x_hat for ob in obs_list]  # update() returns the next one
     perf = time.perf_counter
     u = np.zeros(p)
     failure: Exception | None = None
@@ -245,7 +336,8 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
             records[name] = ObserverRecord(
                 x_hat=np.array(xh_rows[i], dtype=float).reshape(rows, -1),
                 z_hat=np.array(zh_rows[i], dtype=float).reshape(rows, -1), diagnostics=diag,
-                update_time=float("nan") if update_time is None else update_time[i])
+                update_time=float("nan") if update_time is None else update_time[i],
+                state_names=est_names[i])
         return Trajectory(
             t=np.arange(k0, k0 + rows) * Ts, x=np.array(X).reshape(rows, n),
             y_clean=np.array(Yc).reshape(rows, m), y_meas=np.array(Ym).reshape(rows, m),
@@ -288,16 +380,27 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                 zh_rows[i].append(ob.z_hat)
                 dg_rows[i].append(ob.diagnostics())
             if k + 1 == next_chunk:
-                emit(sent)
-                sent, next_chunk = k + 1, k + 1 + chunk_rows
+                if N - k >= chunk_rows // 2:  # a short tail is folded into the last chunk
+                    emit(sent)
+                    sent = k + 1
+                next_chunk = k + 1 + chunk_rows
             if k == N:
                 break
             for i, ob in enumerate(obs_list):
                 t0 = perf()
-                x_hat[i] = ob.update(ym, u, Ts)
+                try:
+                    x_hat[i] = ob.update(ym, u, Ts)
+                except DimensionError:
+                    raise  # a shape mistake, not a divergence
+                except (DivergenceError, ValueError, ArithmeticError) as exc:
+                    # the observer's own check, or math on a blown-up estimate (a domain error,
+                    # an overflow, a DesignError of a map outside its domain): a divergence
+                    raise _UpdateFailure(names[i], t, k, exc) from exc
                 wall[i] += perf() - t0
             for _ in range(steps):
                 plant.step(u)
+    except _UpdateFailure as exc:
+        failure = exc
     except (DivergenceError, FloatingPointError) as exc:
         failure = exc  # keep what was simulated: the partial trajectory goes with the error
 
@@ -313,23 +416,43 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                           for name, ob in obs.items()},
             "input": {"type": type(inputs).__name__,
                       **(inputs.params() if hasattr(inputs, "params") else {})},
+            "inverse_failures": {name: int(getattr(ob, "inverse_failures_", 0))
+                                 for name, ob in obs.items()},
             "versions": package_versions(), **(dict(metadata) if metadata else {})}
     update_time = [w / max(rows - 1, 1) for w in wall]
     traj = build(0, meta, update_time) if not parts else _concatenate(parts, meta, update_time)
     records, t_col = traj.observers, traj.t
+    if isinstance(failure, _UpdateFailure):
+        cause = failure.cause
+        exc = DivergenceError(f"observer {failure.observer!r} failed in its update at "
+                              f"t={failure.t:g} (row {failure.row}): {type(cause).__name__}: "
+                              f"{cause}")
+        exc.trajectory = traj  # type: ignore[attr-defined]
+        raise exc from cause
     if failure is not None:
         exc = DivergenceError(f"simulation stopped at t={(rows - 1) * Ts:g}: {failure}")
         exc.trajectory = traj  # type: ignore[attr-defined]
         raise exc from failure
     for name, r in records.items():
-        bad = ~np.all(np.isfinite(r.x_hat), axis=1)
+        # the observer's own coordinates decide; a NaN x_hat (inverse undefined) is allowed
+        bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
         if bad.any():
             k = int(np.argmax(bad))
             exc = DivergenceError(f"observer {name!r} estimate left the finite numbers at "
-                                  f"t={t_col[k]:g} (row {k}): {r.x_hat[k].tolist()}")
+                                  f"t={t_col[k]:g} (row {k}): z_hat = {r.z_hat[k].tolist()}, "
+                                  f"x_hat = {r.x_hat[k].tolist()}")
             exc.trajectory = traj  # type: ignore[attr-defined]
             raise exc
     return traj
+
+
+class _UpdateFailure(Exception):
+    """An observer's update raised a math error (carried out of the loop, then re-raised as a
+    :class:`DivergenceError` with the partial trajectory)."""
+
+    def __init__(self, observer: str, t: float, row: int, cause: BaseException) -> None:
+        super().__init__(f"observer {observer!r} at t={t:g}: {cause}")
+        self.observer, self.t, self.row, self.cause = observer, t, row, cause
 
 
 def _concatenate(parts: list[Trajectory], meta: dict[str, Any],
@@ -343,7 +466,8 @@ def _concatenate(parts: list[Trajectory], meta: dict[str, Any],
             x_hat=np.concatenate([r.x_hat for r in recs]),
             z_hat=np.concatenate([r.z_hat for r in recs]),
             diagnostics={d: np.concatenate([r.diagnostics[d] for r in recs])
-                         for d in recs[0].diagnostics}, update_time=update_time[i])
+                         for d in recs[0].diagnostics}, update_time=update_time[i],
+            state_names=recs[0].state_names)
     return Trajectory(t=np.concatenate([c.t for c in parts]),
                       x=np.concatenate([c.x for c in parts]),
                       y_clean=np.concatenate([c.y_clean for c in parts]),

@@ -243,8 +243,8 @@ def test_post_run_recording_equals_live_one(recorded, tmp_path):
     assert blueprints == 1
     np.testing.assert_array_equal(post["/state/angle"]["Scalars:scalars"],
                                   live["/state/angle"]["Scalars:scalars"])
-    # poses at 100 Hz (every 10th sample) and at the end of each block (the live one has 5)
-    assert post["/world/true/pole"].rows == 2000 // 10 + 1
+    # poses at 50 Hz (every 20th sample) and at the end of each block (the live one has 4)
+    assert post["/world/true/pole"].rows == 2000 // 20 + 1
     assert set(post["/world/true/pole"]["step"]) < set(live["/world/true/pole"]["step"])
     # the same in blocks of 0.3 s
     with Recorder.for_trajectory(tmp_path / "blocks.rrd", traj) as rec:
@@ -438,7 +438,9 @@ def test_simulate_chunks_cover_the_run_and_change_nothing():
     whole = pendulum_run(1.0, on_chunk=(0.3, lambda k, c: seen.append((k, c))))
     plain = pendulum_run(1.0)
     np.testing.assert_array_equal(whole.x, plain.x)
-    assert [k for k, _ in seen] == [0, 300, 600, 900]
+    # the tail of 101 rows (less than half a chunk) joins the last chunk
+    assert [k for k, _ in seen] == [0, 300, 600]
+    assert [len(c) for _, c in seen] == [300, 300, 401]
     np.testing.assert_array_equal(np.concatenate([c.x for _, c in seen]), whole.x)
     np.testing.assert_array_equal(
         np.concatenate([c.observers["fast"].diagnostics["k"] for _, c in seen]),
@@ -530,3 +532,92 @@ def test_cli_sigint_leaves_a_readable_recording(tmp_path):
     vals = ents["/state/angle"]["Scalars:scalars"]
     np.testing.assert_array_equal(vals[:, 0], ref.x[:, 0])
     np.testing.assert_array_equal(vals[:, 2], ref.observers["fast"].x_hat[:, 0])
+
+
+# ----------------------------------------------------------------------------- estimate layout
+def test_partial_estimate_is_recorded_by_name(tmp_path):
+    """The model-free multi-output observer on the two-link arm: its link angles and velocities
+    go next to the truth and get errors, its accelerations and jerks go under its own names,
+    the motor states have the truth only and no error; the same live (``write_chunk``) and
+    after the run (``record_trajectory``)."""
+    from hgo_mj.observers import MultiOutputHighGainObserver
+
+    plant = make_plant("elastic_joint_2link")
+    obs = {"multi": MultiOutputHighGainObserver(plant.system, orders=(4, 4), k=120.0),
+           "ekf": make_observer("ekf", plant.system)}
+    s1, s2 = (make_signal("multisine", amplitudes=[0.5], frequencies=[0.5]),
+              make_signal("multisine", amplitudes=[0.15], frequencies=[0.8]))
+    live = tmp_path / "live.rrd"
+    with Recorder.for_plant(live, plant, list(obs)) as rec:
+        traj = simulate(plant, None, obs, lambda t: np.concatenate([s1(t), s2(t)]), 0.3,
+                        on_chunk=(0.1, rec.write_chunk))
+    post = record_trajectory(traj, tmp_path / "post.rrd")
+    rec_multi = traj.observers["multi"]
+    for path in (live, post):
+        ents, _ = read_rrd(path)
+        # a plant state both estimate: [true, multi, ekf], errors of both
+        s = "link1_velocity"
+        i, j = traj.state_names.index(s), rec_multi.state_names.index(s)
+        assert ents[f"/state/{s}"].static["SeriesLines:names"] == [f"{s} true", f"{s} multi",
+                                                                   f"{s} ekf"]
+        vals = ents[f"/state/{s}"]["Scalars:scalars"]
+        np.testing.assert_array_equal(vals[:, 1], rec_multi.x_hat[:, j])
+        np.testing.assert_array_equal(ents[f"/error/{s}"]["Scalars:scalars"][:, 0],
+                                      traj.error("multi")[:, i])
+        # a motor state: the truth and the ekf only
+        m = "motor1_angle"
+        assert ents[f"/state/{m}"].static["SeriesLines:names"] == [f"{m} true", f"{m} ekf"]
+        assert ents[f"/state/{m}"]["Scalars:scalars"].shape[1] == 2
+        assert ents[f"/error/{m}"].static["SeriesLines:names"] == [f"{m} error ekf"]
+        # what is not a plant state: under the observer's own names, not under /state, /error
+        for extra in ("link1_acceleration", "link2_jerk"):
+            e = ents[f"/observer/multi/estimate/{extra}"]
+            np.testing.assert_array_equal(e["Scalars:scalars"][:, 0],
+                                          rec_multi.x_hat[:, rec_multi.state_names.index(extra)])
+            assert f"/state/{extra}" not in ents and f"/error/{extra}" not in ents
+        assert not any(p.startswith("/observer/ekf/estimate") for p in ents)
+        views = blueprint_views(path)
+        assert ("TimeSeries", "/observer/multi/estimate") in views
+        # the ghost of the multi-output observer: its link joints estimated, motors on the truth
+        assert "/world/estimate/multi/link1" in " ".join(ents)
+
+
+def test_an_observer_estimating_no_plant_state(tmp_path, chain):
+    """An order-only observer on a plant whose states it does not name: its estimate goes
+    under ``/observer/<obs>/estimate``, the plant's states have the truth only, no errors."""
+    from hgo_mj.observers import HighGainObserver
+    from hgo_mj.plants import OdePlant
+
+    plant = OdePlant(chain(2)(), 0.01)
+    obs = {"order": HighGainObserver(order=2, k=5.0)}
+    traj = simulate(plant, None, obs, make_signal("constant", value=[0.1]), 0.5, x0=[1.0, 0.0])
+    assert traj.observers["order"].state_names == ("z1", "z2")
+    ents, _ = read_rrd(record_trajectory(traj, tmp_path / "o.rrd"))
+    assert ents["/state/x1"].static["SeriesLines:names"] == ["x1 true"]
+    assert "/error/x1" not in ents
+    np.testing.assert_array_equal(ents["/observer/order/estimate/z2"]["Scalars:scalars"][:, 0],
+                                  traj.observers["order"].x_hat[:, 1])
+    assert not any(v[1].startswith("/error") for v in blueprint_views(tmp_path / "o.rrd"))
+    assert "not estimated" in ents["/metrics"].static["TextDocument:text"][0]
+
+
+def test_record_estimate_names_validation(tmp_path):
+    plant = make_plant("pendulum", 0.001)
+    T = 4
+    good = dict(t=np.arange(T) * 1e-3, x=np.zeros((T, 2)), y_clean=np.zeros((T, 1)),
+                y_meas=np.zeros((T, 1)), u=np.zeros((T, 1)))
+    with pytest.raises(DesignError, match="observer_states names an unknown observer 'x'"):
+        Recorder.for_plant(tmp_path / "a.rrd", plant, ["hgo"], observer_states={"x": ["a"]})
+    with Recorder.for_plant(tmp_path / "b.rrd", plant, ["hgo"],
+                            observer_states={"hgo": ["angle", "y_d1", "theta"]}) as rec:
+        with pytest.raises(DimensionError, match=r"estimate of 'hgo' must have shape \(4, 3\) "
+                                                 r"\(columns \['angle', 'y_d1', 'theta'\]\)"):
+            rec.record(**good, estimates={"hgo": np.zeros((T, 2))})
+        rec.record(**good, estimates={"hgo": np.ones((T, 3))})
+        with pytest.raises(DesignError, match="estimate_names of 'hgo' changed"):
+            rec.record(**good, estimates={"hgo": np.ones((T, 3))},
+                       estimate_names={"hgo": ["a", "b", "c"]})
+    ents, _ = read_rrd(tmp_path / "b.rrd")
+    assert ents["/state/angular_velocity"].static["SeriesLines:names"] == ["angular_velocity true"]
+    assert ents["/state/angle"]["Scalars:scalars"].shape[1] == 2
+    assert ents["/observer/hgo/estimate/theta"].rows == T

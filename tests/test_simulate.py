@@ -161,3 +161,146 @@ def test_observer_metrics(setup):
         observer_metrics(traj, "c")
     with pytest.raises(DesignError, match="leaves no samples"):
         observer_metrics(traj, "a", t_transient=100.0)
+
+
+# ----------------------------------------------------------------------------- robustness
+def _bioreactor_run(duration=2.0, **obs_kw):
+    from hgo_mj.systems.papers import BioreactorBullinger, bullinger_input
+
+    plant = OdePlant(BioreactorBullinger(), dt=0.01, physics_dt=0.01)
+    ob = HighGainObserver(plant.system, k=5.0, **obs_kw)  # z_hat0 = 0: outside Phi^-1's domain
+    return ob, simulate(plant, None, {"hgo": ob}, bullinger_input, duration)
+
+
+def test_undefined_inverse_is_nan_not_divergence():
+    """The bioreactor's Phi^-1 needs m = z1 > 0: an observer started from z_hat = 0 has no
+    physical estimate at first. x_hat is NaN until the first valid value (then held where the
+    map is undefined again), the run goes on, and divergence is judged on z_hat."""
+    ob, traj = _bioreactor_run()
+    rec = traj.observers["hgo"]
+    assert np.isfinite(rec.z_hat).all()
+    undefined = np.isnan(rec.x_hat).any(axis=1)
+    assert undefined[0] and not undefined[-1]
+    first = int(np.argmin(undefined))
+    assert not undefined[first:].any()  # held after the first valid value: never NaN again
+    assert ob.inverse_failures_ >= first > 0
+    assert traj.metadata["inverse_failures"] == {"hgo": ob.inverse_failures_}
+    # the metrics leave the undefined samples out, without a warning, and count them
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = observer_metrics(traj, "hgo", t_transient=1.0)
+        format_table({"hgo": m})
+    assert m["undefined_samples"] == [first, first]
+    assert all(np.isfinite(v) for v in m["rmse"] + m["peak"] + m["final"])
+
+
+def test_physical_holds_the_last_valid_value(chain):
+    """Observer._physical: NaN before any valid value, the last valid value after; counted."""
+    from hgo_mj.systems.papers import BioreactorBullinger
+
+    ob = HighGainObserver(BioreactorBullinger(), k=5.0)
+    ob._u = np.array([0.05])
+    assert np.isnan(ob._physical(np.array([0.0, 0.0]))).all() and ob.inverse_failures_ == 1
+    good = ob._physical(np.array([0.08, 0.001]))
+    assert np.isfinite(good).all() and ob.inverse_failures_ == 1
+    np.testing.assert_array_equal(ob._physical(np.array([-1.0, 0.0])), good)
+    assert ob.inverse_failures_ == 2
+
+    class NanInverse(chain(2)):  # a fast path that returns NaN instead of raising
+        def from_normal_unchecked(self, z, u):
+            return np.array([np.nan, z[1]]) if z[0] < 0 else np.array(z, dtype=float)
+
+    ob = HighGainObserver(NanInverse(), k=1.0)  # NaN passes through: also "undefined"
+    np.testing.assert_array_equal(ob._physical(np.array([1.0, 2.0])), [1.0, 2.0])
+    np.testing.assert_array_equal(ob._physical(np.array([-1.0, 3.0])), [np.nan, 3.0])
+    assert ob.inverse_failures_ == 0
+
+
+def test_divergence_is_judged_on_z_hat(chain):
+    class Runaway(HighGainObserver):  # z leaves the finite numbers, x_hat is NaN meanwhile
+        def update(self, y, u, dt):
+            super().update(y, u, dt)
+            self._z = (np.nan, 0.0)
+            return np.full(2, np.nan)
+
+    plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
+    with pytest.raises(DivergenceError, match=r"observer 'bad' estimate left the finite numbers "
+                                              r"at t=0.001 \(row 1\): z_hat = \[nan, 0.0\]"):
+        simulate(plant, None, {"bad": Runaway(plant.system, k=1.0)}, Constant([0.0]), 0.01)
+
+
+@pytest.mark.parametrize("error", [ValueError("math domain error"),
+                                   OverflowError("(34, 'Numerical result out of range')"),
+                                   ZeroDivisionError("float division by zero"),
+                                   DesignError("Phi^-1 needs m = z1 > 0; found m = -3")])
+def test_math_error_in_an_update_is_a_divergence(chain, error):
+    """A math error on a blown-up estimate (e.g. ``math.sqrt`` of a negative in from_normal)
+    stops the run with a DivergenceError naming the observer and the time, carrying the
+    partial trajectory (every row up to the failing update, also the chunks handed out)."""
+    class Fragile(HighGainObserver):
+        def update(self, y, u, dt):
+            if self.calls == 5:
+                raise error
+            self.calls += 1
+            return super().update(y, u, dt)
+
+    plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
+    ob = Fragile(plant.system, k=1.0)
+    ob.calls = 0
+    chunks = []
+    with pytest.raises(DivergenceError, match=rf"observer 'frag' failed in its update at "
+                                              rf"t=0.005 \(row 5\): {type(error).__name__}: ") as info:
+        simulate(plant, None, {"good": HighGainObserver(plant.system, k=1.0), "frag": ob},
+                 Constant([0.0]), 0.1, on_chunk=(0.002, lambda k, c: chunks.append(c)))
+    assert info.value.__cause__ is error
+    traj = info.value.trajectory
+    assert len(traj) == 6 and traj.t[-1] == pytest.approx(0.005)
+    assert sum(len(c) for c in chunks) == 6
+    assert traj.observers["frag"].x_hat.shape == (6, 2)
+
+
+def test_deliberate_errors_in_an_update_propagate(chain):
+    """A shape mistake in an update stays a DimensionError; validation before the loop too."""
+    class Strict(HighGainObserver):
+        def update(self, y, u, dt):
+            raise DimensionError("phi(z_hat, u) must return 1 value; found 2")
+
+    plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
+    with pytest.raises(DimensionError, match="phi"):
+        simulate(plant, None, {"s": Strict(plant.system, k=1.0)}, Constant([0.0]), 0.01)
+    with pytest.raises(DesignError, match="duration must be > 0"):
+        simulate(plant, None, {"s": Strict(plant.system, k=1.0)}, Constant([0.0]), -1.0)
+
+
+def test_an_observers_own_divergence_names_it(chain):
+    class Checked(HighGainObserver):
+        def update(self, y, u, dt):
+            raise DivergenceError("the observer state left the finite numbers: [inf]")
+
+    plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
+    with pytest.raises(DivergenceError, match=r"observer 'c' failed in its update at t=0 "
+                                              r"\(row 0\): DivergenceError: the observer state "
+                                              r"left the finite numbers") as info:
+        simulate(plant, None, {"c": Checked(plant.system, k=1.0)}, Constant([0.0]), 0.01)
+    assert len(info.value.trajectory) == 1
+
+
+def test_math_domain_error_in_from_normal(chain):
+    """The path of the brief: ``math.sqrt`` in a system's inverse map on an estimate that went
+    negative raises ValueError inside ``update``; the run stops with a DivergenceError."""
+    import math
+
+    class SqrtInverse(chain(2)):
+        def from_normal_unchecked(self, z, u):
+            return np.array([math.sqrt(z[0]), z[1]])
+
+    plant = OdePlant(SqrtInverse(), dt=1e-3, physics_dt=1e-3)
+    ob = HighGainObserver(plant.system, k=20.0, z_hat0=[1.0, 0.0])
+    with pytest.raises(DivergenceError, match=r"observer 'hgo' failed in its update at t=\S+ "
+                                              r"\(row \d+\): ValueError: math domain error") as info:
+        simulate(plant, None, {"hgo": ob}, Constant([0.0]), 1.0, x0=[-1.0, 0.0])
+    traj = info.value.trajectory
+    assert 1 < len(traj) < 1001 and isinstance(info.value.__cause__, ValueError)
+    assert np.isfinite(traj.observers["hgo"].x_hat).all()

@@ -8,6 +8,21 @@ are attributes ending in ``_`` and are listed by :meth:`Observer.diagnostics`.
 
 A NaN measurement (a sensor dropout) is never propagated: the observer integrates its
 prediction without output injection over that sample and counts it in ``dropouts_``.
+
+**Estimate layout.** ``x_hat`` has one entry per name in :attr:`Observer.state_names`. These
+are the plant's state names when the observer estimates the physical state, but need not be:
+an order-only observer (no system) estimates ``z1, z2, ...``, a model-free multi-output one the
+outputs and their derivatives, an adaptive one may append parameter estimates. Trajectories,
+metrics, figures and recordings match the estimate to the plant's states *by name*; a plant
+state the observer does not name is "not estimated".
+
+**Undefined inverse map.** ``x_hat`` is the image of the observer's own state ``z_hat`` under
+the inverse normal-form map, which may be undefined there (the bioreactor's ``Phi^-1`` needs
+``m > 0``; an observer started from ``z_hat = 0`` is outside it). Then ``x_hat`` holds its last
+valid value, and is **NaN before any valid value**: a NaN in ``x_hat`` means "inverse map
+undefined here", not divergence. Each failed evaluation is counted in ``inverse_failures_``.
+Divergence is judged on ``z_hat`` (see :func:`hgo_mj.simulate.simulate`), which is always
+defined.
 """
 
 from __future__ import annotations
@@ -63,6 +78,8 @@ class Observer:
     # ----------------------------------------------------------- coordinates
     @property
     def state_names(self) -> tuple[str, ...]:
+        """Names of the entries of ``x_hat``: the system's state names, or ``z1 ... zn`` for an
+        order-only observer (no system), whose estimate is the normal-form state itself."""
         if self.system is None:
             return tuple(f"z{i + 1}" for i in range(self.n))
         return self.system.state_names
@@ -79,7 +96,12 @@ class Observer:
         return np.zeros(self.n)
 
     def _physical(self, z: Array) -> Array:
-        """Map ``z`` to physical coordinates; where the inverse is undefined, hold the last value."""
+        """Map ``z`` to physical coordinates. Where the inverse is undefined (the system raises
+        :class:`DesignError`) count it in ``inverse_failures_`` and hold the last valid value
+        (NaN before any). Other errors (a math domain error on a blown-up ``z``) propagate: the
+        runner reports a divergence. A system's fast path that returns NaN instead of raising
+        gives a NaN ``x_hat`` (also read as "undefined"), neither held nor counted: the check
+        would cost a fifth of this map on the hot path."""
         if self.system is None:
             return z.copy()
         try:
@@ -88,7 +110,7 @@ class Observer:
             self.inverse_failures_ += 1
             if self._x_last is None:
                 return np.full(len(self.system.state_names), np.nan)
-            return self._x_last.copy()
+            return np.array(self._x_last, dtype=float)
         self._x_last = x
         return np.array(x, dtype=float)
 
