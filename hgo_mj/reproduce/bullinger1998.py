@@ -330,16 +330,22 @@ def _report(s: dict[str, Any]) -> str:
     for m0, k in zip(scan["grid_m_hat0"][::3], scan["grid_k_final_m_hat0"][::3]):
         lines.append(f"    m_hat(0) = {m0:5.3f}   k_final = {k:.4f}")
     lines += ["", f"figures: {', '.join(s['figures'])}", f"runtime: {s['runtime_s']:.1f} s"]
+    if s.get("recordings"):
+        lines.append(f"recordings (rerun): {', '.join(s['recordings'])}")
     return "\n".join(lines) + "\n"
 
 
-def run(out: Path, *, seeds: int = 10) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any]:
     """Run the reproduction; write ``out/summary.json``, ``out/report.txt`` and the figures.
 
     Parameters
     ----------
     out : Path
         Output folder (created if missing).
+    rrd : Path, optional
+        Write the noisy run of Fig. 2 (seed 0, both initial estimates) to this rerun recording
+        and the noise-free run next to it (``<stem>_noise_free.rrd``); both are listed in the
+        summary's ``recordings`` and the report.
     seeds : int
         Number of noise realizations (seeds ``0 .. seeds-1``) averaged in the noisy numbers.
 
@@ -393,6 +399,14 @@ def run(out: Path, *, seeds: int = 10) -> dict[str, Any]:
     if low:
         k_027 = (low[0], k_final_on(clean.y_clean[:, 0], (low[0], 0.0))[1])
     summary["figures"] = _figures(out, clean, runs[0], params, k_027)
+    if rrd is not None:
+        from ..record import record_trajectory
+
+        rrd = Path(rrd)
+        clean_rrd = rrd.with_name(f"{rrd.stem}_noise_free.rrd")
+        record_trajectory(runs[0], rrd, recording_name="bullinger1998 noisy (seed 0)")
+        record_trajectory(clean, clean_rrd, recording_name="bullinger1998 noise-free")
+        summary["recordings"] = [str(rrd), str(clean_rrd)]
     summary.update({
         "paper": {"k_final": PAPER_K_FINAL, "k_final_discrete_1997": PAPER_K_FINAL_DISCRETE_1997,
                   "output_error_in_lambda_strip_after_first_hours": True},
