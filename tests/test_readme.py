@@ -26,3 +26,25 @@ def test_scenario_file_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["run", "s.toml"]) == 0
     assert (tmp_path / "runs" / "pendulum" / "metrics.json").is_file()
+
+
+def test_every_observer_and_reproduction_is_in_the_readme():
+    from hgo_mj.observers import OBSERVERS
+    from hgo_mj.reproduce import REPRODUCTIONS
+
+    rows = set(re.findall(r"^\| `([a-z0-9_]+)`(?:, `([a-z0-9_]+)`)? \|", README, re.M))
+    listed = {name for row in rows for name in row if name}
+    assert set(OBSERVERS) <= listed, sorted(set(OBSERVERS) - listed)
+    assert set(REPRODUCTIONS) <= listed, sorted(set(REPRODUCTIONS) - listed)
+
+
+def test_environment_examples_run():
+    """The two ```py blocks of the Gymnasium section, run one after the other as written."""
+    blocks = re.findall(r"```py\n(.*?)```", README, re.S)
+    assert len(blocks) == 2
+    ns: dict = {}
+    exec(compile(blocks[0], "README.md", "exec"), ns)
+    assert set(ns["info"]) >= {"state", "estimate", "error"}
+    exec(compile(blocks[1], "README.md", "exec"), ns)
+    obs, _ = ns["env"].reset(seed=0)
+    assert obs.shape == (4,)
