@@ -886,7 +886,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             observer by name (``observer="ekf", observer_kwargs=...``) always pickles."""
         kwargs = dict(self._init_kwargs)
         if isinstance(kwargs.get("observer"), Observer):
-            obs = _picklable(kwargs["observer"])
+            obs = kwargs["observer"]  # observers drop their compiled caches when pickled
             try:
                 pickle.dumps(obs)
             except (pickle.PicklingError, AttributeError, TypeError) as exc:
@@ -928,18 +928,6 @@ def _list_update(obs: Observer) -> Callable[[list[float], list[float], float], l
 
 def _rebuild(cls: type[HgoEnv], kwargs: dict[str, Any]) -> HgoEnv:
     return cls(**kwargs)
-
-
-def _picklable(obs: Observer) -> Observer:
-    """A shallow copy of ``obs`` without a cache of compiled updates (``_steps``: functions
-    made with ``exec``, which pickle cannot store; rebuilt on use). ``HighGainObserver``
-    drops its own in ``__getstate__``; the other observers with such a cache rely on this."""
-    c = copy.copy(obs)
-    if isinstance(getattr(c, "_steps", None), dict):
-        c._steps = {}  # type: ignore[attr-defined]
-    if isinstance(c, ObserverBank):
-        c.members = tuple(_picklable(o) for o in c.members)
-    return c
 
 
 def _is_default(value: Any) -> bool:

@@ -59,3 +59,84 @@ def check_params(where: str, params: Mapping[str, Any], required: Iterable[str])
     if missing:
         raise DesignError(f"{where}: missing parameter(s) {missing}")
     return {k: finite_scalar(f"{where}.{k}", params[k]) for k in required}
+
+
+def symmetric_matrix(name: str, value: Any, m: int, *, semidefinite: bool = False,
+                     dim: str | None = None) -> NDArray[np.float64]:
+    """``value`` as a fresh ``m x m`` symmetric positive definite (or, with ``semidefinite``,
+    semi-definite) matrix: a scalar ``g`` gives ``g I``, a vector of length ``m`` its diagonal.
+
+    ``dim`` names ``m`` in the length message (``"length m = 3"``).
+
+    Raises
+    ------
+    DimensionError
+        Neither a scalar, an ``(m,)`` vector nor an ``(m, m)`` matrix.
+    DesignError
+        Not numbers (a string included), not finite, not symmetric, or an eigenvalue not
+        positive (not negative, for ``semidefinite``); the eigenvalues are listed.
+    """
+    try:
+        if isinstance(value, str):
+            raise ValueError(value)
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise DesignError(f"{name} must be a number, a vector or a matrix; found {value!r}") from None
+    if a.ndim == 0:
+        a = a * np.eye(m)
+    elif a.ndim == 1:
+        if a.shape != (m,):
+            raise DimensionError(f"{name} as a vector must have length "
+                                 f"{f'{dim} = ' if dim else ''}{m} (its diagonal); found length "
+                                 f"{a.size}")
+        a = np.diag(a)
+    elif a.shape != (m, m):
+        raise DimensionError(f"{name} must be a scalar, a length-{m} vector or a {m}x{m} "
+                             f"matrix; found shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise DesignError(f"{name} must be finite; found {a.tolist()}")
+    if not m:
+        return a
+    asym = float(np.max(np.abs(a - a.T)))
+    if asym > 1e-12 * max(1.0, float(np.max(np.abs(a)))):
+        raise DesignError(f"{name} must be symmetric; found max |{name} - {name}^T| = {asym:.3g}")
+    eig = np.linalg.eigvalsh(a)
+    shown = [float(f"{e:.6g}") for e in eig]
+    if semidefinite:
+        if eig[0] < -1e-12 * max(1.0, float(eig[-1])):
+            raise DesignError(f"{name} must be positive semi-definite; found eigenvalues {shown} "
+                              f"(some < 0)")
+    elif not eig[0] > 0:
+        raise DesignError(f"{name} must be positive definite; found eigenvalues {shown} "
+                          f"(not all > 0)")
+    return a
+
+
+def positive_definite(name: str, value: Any, m: int) -> NDArray[np.float64]:
+    """:func:`symmetric_matrix`, positive definite."""
+    return symmetric_matrix(name, value, m)
+
+
+def positive_semidefinite(name: str, value: Any, m: int) -> NDArray[np.float64]:
+    """:func:`symmetric_matrix`, positive semi-definite."""
+    return symmetric_matrix(name, value, m, semidefinite=True)
+
+
+def one_of(name: str, value: Any, options: Iterable[Any]) -> Any:
+    """Return ``value``, raising :class:`DesignError` unless it is one of ``options``."""
+    options = list(options)
+    if value not in options:
+        raise DesignError(f"{name} must be one of {options}; found {value!r}")
+    return value
+
+
+def positive_int(name: str, value: Any) -> int:
+    """Return ``value`` as an int, raising :class:`DesignError` unless a positive whole number
+    (``True`` is not one)."""
+    try:
+        ok = not isinstance(value, bool) and int(value) == value and value >= 1
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise DesignError(f"{name} must be a positive integer; found {value!r}")
+    return int(value)

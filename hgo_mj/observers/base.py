@@ -114,6 +114,14 @@ class Observer:
         self._x_last = x
         return np.array(x, dtype=float)
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without a cache of compiled updates (``_steps``: functions made with
+        ``exec``, which pickle cannot store); ``update`` rebuilds it on first use."""
+        state = self.__dict__.copy()
+        if "_steps" in state:
+            state["_steps"] = {}
+        return state
+
     # ----------------------------------------------------------- interface
     def check_period(self, dt: float) -> None:
         """Check that ``update`` is stable at the sample period ``dt`` (the runner calls this

@@ -70,17 +70,17 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
-from .._validate import finite_scalar, vector
+from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, vector
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
 
-__all__ = ["AOCF", "BastinGeversObserver", "SlidingGram", "rk_stable_period",
-           "symmetric_positive_definite"]
+__all__ = ["AOCF", "BastinGeversObserver", "SlidingGram", "check_rk_period",
+           "rk_stable_period", "symmetric_positive_definite"]
 
 METHODS = ("rk4", "euler")
 
@@ -91,40 +91,9 @@ METHODS = ("rk4", "euler")
 
 
 def symmetric_positive_definite(name: str, value: Any, m: int) -> Array:
-    """``value`` as an ``m x m`` symmetric positive-definite matrix.
-
-    A scalar ``g`` gives ``g I``; a vector of length ``m`` gives ``diag(value)``.
-
-    Raises
-    ------
-    DimensionError
-        If the shape is neither scalar, ``(m,)`` nor ``(m, m)``.
-    DesignError
-        If not finite, not symmetric, or an eigenvalue is not positive (listed).
-    """
-    a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
-    if a is None:
-        raise DesignError(f"{name} must be a number, a vector or a matrix; found {value!r}")
-    if a.ndim == 0:
-        a = a * np.eye(m)
-    elif a.ndim == 1:
-        if a.shape != (m,):
-            raise DimensionError(f"{name} as a vector must have length m = {m} (its diagonal); "
-                                 f"found length {a.size}")
-        a = np.diag(a)
-    elif a.shape != (m, m):
-        raise DimensionError(f"{name} must be a scalar, a length-{m} vector or a {m}x{m} matrix; "
-                             f"found shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise DesignError(f"{name} must be finite; found {a.tolist()}")
-    asym = float(np.max(np.abs(a - a.T))) if m else 0.0
-    if asym > 1e-12 * max(1.0, float(np.max(np.abs(a)))):
-        raise DesignError(f"{name} must be symmetric; found max |{name} - {name}^T| = {asym:.3g}")
-    eig = np.linalg.eigvalsh(a) if m else np.zeros(0)
-    if m and not eig[0] > 0:
-        raise DesignError(f"{name} must be positive definite; found eigenvalues "
-                          f"{[float(f'{e:.6g}') for e in eig]} (not all > 0)")
-    return a.copy()
+    """``value`` as an ``m x m`` symmetric positive-definite matrix (``m`` the number of
+    parameters): :func:`hgo_mj._validate.symmetric_matrix`."""
+    return symmetric_matrix(name, value, m, dim="m")
 
 
 def _rk_gain(z: complex, method: str) -> float:
@@ -153,6 +122,20 @@ def rk_stable_period(eigenvalues: Any, method: str) -> float:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return lo
+
+
+def check_rk_period(what: str, poles: Any, dt: float, method: str, substeps: int) -> None:
+    """Raise :class:`DesignError` if ``substeps`` steps of ``method`` per sample period ``dt``
+    are unstable on the linear modes ``poles`` of ``what`` (e.g. "the Jo-Son observer"),
+    naming the largest stable step and the substeps it takes (:func:`rk_stable_period`)."""
+    dt = finite_scalar("dt", dt, positive=True)
+    h = rk_stable_period(poles, method)
+    if dt / substeps >= h:
+        raise DesignError(
+            f"{method} integration of {what} with step {dt / substeps:g} (sample period "
+            f"{dt:g} / {substeps} substeps) is unstable on its poles "
+            f"{np.round(poles, 6).tolist()}; the largest stable step is {h:.4g}: raise "
+            f"substeps to at least {math.ceil(dt / h * 1.0000001)}")
 
 
 class SlidingGram:
@@ -200,6 +183,63 @@ class SlidingGram:
             self._min_eig = (float(np.linalg.eigvalsh(G)[0]) if np.all(np.isfinite(G))
                              else math.nan)
         return self._min_eig
+
+
+def initial_estimate(n: int, q: int, x_hat0: Any, z_hat0: Any, theta_hat0: Any,
+                     from_physical: Callable[[Any, Array], Array]) -> tuple[Array, Array]:
+    """The initial state (in the form's coordinates, length ``n``) and parameter estimate
+    (length ``q``, default zero) of an adaptive observer: ``z_hat0``, or the physical
+    ``x_hat0`` mapped by ``from_physical(x_hat0, theta_hat0)`` (which raises where the form
+    has no such map), or zero."""
+    th = np.zeros(q) if theta_hat0 is None else vector("theta_hat0", theta_hat0, q)
+    if x_hat0 is not None and z_hat0 is not None:
+        raise DesignError("give x_hat0 or z_hat0, not both")
+    if x_hat0 is not None:
+        return from_physical(x_hat0, th), th
+    if z_hat0 is not None:
+        return vector("z_hat0", z_hat0, n), th
+    return np.zeros(n), th
+
+
+def _call(factory: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+    return factory(*args, **kwargs)
+
+
+_F = TypeVar("_F", bound="Rebuildable")
+
+
+class Rebuildable:
+    """Base of the canonical forms: a form whose functions pickle cannot store (closures of
+    its factory, generated code) pickles as the factory call that built it, which its factory
+    records with :meth:`_made_by` (its arguments must pickle: a system, numbers, names). A
+    form built by hand pickles as usual, where its functions do (module-level ones)."""
+
+    _recipe: tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]] | None = None
+
+    def _made_by(self: _F, factory: Callable[..., Any], *args: Any, **kwargs: Any) -> _F:
+        """Record ``factory(*args, **kwargs)`` as the way to rebuild this form; returns it."""
+        self._recipe = (factory, args, kwargs)
+        return self
+
+    def __reduce_ex__(self, protocol: Any) -> Any:
+        if self._recipe is None:
+            return super().__reduce_ex__(protocol)
+        return (_call, self._recipe)
+
+    @classmethod
+    def _system_method(cls: type[_F], system: Any, method: str, kw: dict[str, Any],
+                       factory: Callable[..., Any]) -> _F | None:
+        """The form ``system.<method>(**kw)`` (checked to be one of ``cls``, recorded as
+        ``factory(system, **kw)``), or ``None`` for a system without that method."""
+        maker = getattr(system, method, None)
+        if not callable(maker):
+            return None
+        form = maker(**kw)
+        if not isinstance(form, cls):
+            article = "an" if cls.__name__[0] in "AEIOU" else "a"
+            raise DesignError(f"{type(system).__name__}.{method}() must return {article} "
+                              f"{cls.__name__}; found {type(form).__name__}")
+        return form._made_by(factory, system, **kw)
 
 
 def _callable(name: str, f: Any, optional: bool = False) -> Callable[..., Any] | None:
@@ -305,7 +345,7 @@ def rk_step(rhs: Callable[..., list[float]], s: list[float], h: float, method: s
 PhysicalMap = Callable[[Array, Array, Array], tuple[Array, Mapping[str, float]]]
 
 
-class AOCF:
+class AOCF(Rebuildable):
     """Adaptive observer canonical form of paper 002, eq. 2.2-2.3.
 
     .. math::
@@ -480,12 +520,8 @@ class AOCF:
             return cls.bioreactor(system, **kw)
         if isinstance(system, (Pendulum, CartPendulum)):
             return cls.pendulum(system, **kw)
-        maker = getattr(system, "aocf", None)
-        if callable(maker):
-            form = maker(**kw)
-            if not isinstance(form, AOCF):
-                raise DesignError(f"{type(system).__name__}.aocf() must return an AOCF; found "
-                                  f"{type(form).__name__}")
+        form = cls._system_method(system, "aocf", kw, cls.from_system)
+        if form is not None:
             return form
         raise DesignError(
             f"the Bastin-Gevers observer needs the adaptive observer canonical form of paper 002, "
@@ -549,7 +585,8 @@ class AOCF:
                    omega_names=("y", "u1", "u2"), to_physical=to_physical,
                    from_physical=from_physical, state_names=system.state_names,
                    physical_param_names=("p1", "p2", "p3", "p0"),
-                   label=f"{type(system).__name__} eq. 6.5, c2={c2v:g}")
+                   label=f"{type(system).__name__} eq. 6.5, c2={c2v:g}"
+                   )._made_by(cls.bioreactor, system, c2)
 
     @classmethod
     def second_order(cls, features: Callable[[float, Array], Any], feature_names: Sequence[str],
@@ -652,7 +689,10 @@ class AOCF:
         names = ((damping_name,) if ed else ()) + tn
         return cls(R, alpha, omega, g=g_fun, theta_names=names, omega_names=("y",) + fn,
                    to_physical=to_physical, from_physical=from_physical,
-                   state_names=state_names, label=label or f"second-order joint, c2={c2:g}")
+                   state_names=state_names, label=label or f"second-order joint, c2={c2:g}"
+                   )._made_by(cls.second_order, features, fn, tn, damping=damping, c2=c2,
+                              estimate_damping=ed, damping_name=damping_name,
+                              damping_from=damping_from, state_names=state_names, label=label)
 
     @classmethod
     def pendulum(cls, system: Any, c2: float = 2.0, unknown: Sequence[str] | str | None = None,
@@ -705,12 +745,15 @@ class AOCF:
             fnames = ("-sin y", "u")
             label = "pendulum: y'' = -d/J y' - a sin y + b u"
         if coef:
-            return cls.second_order(feats, fnames, base, damping=p["damping"] / p["gear"], c2=c2,
+            form = cls.second_order(feats, fnames, base, damping=p["damping"] / p["gear"], c2=c2,
                                     damping_from=1, state_names=system.state_names,
                                     label=f"{label}, d known (d/J = (d/b) b/J), c2={c2:g}")
-        return cls.second_order(feats, fnames, base, damping=p["damping"] / p["inertia"], c2=c2,
-                                estimate_damping="d_over_J" in unknown,
-                                state_names=system.state_names, label=f"{label}, c2={c2:g}")
+        else:
+            form = cls.second_order(feats, fnames, base, damping=p["damping"] / p["inertia"],
+                                    c2=c2, estimate_damping="d_over_J" in unknown,
+                                    state_names=system.state_names, label=f"{label}, c2={c2:g}")
+        return form._made_by(cls.pendulum, system, c2=c2, unknown=unknown,
+                             damping_known=damping_known)
 
     @staticmethod
     def pendulum_theta(system: Any, unknown: Sequence[str] | None = None) -> Array:
@@ -849,12 +892,8 @@ class BastinGeversObserver(Observer):
         n, m = aocf.n, aocf.m
         self.c1 = finite_scalar("c1", c1, positive=True)
         self.gamma = symmetric_positive_definite("gamma", gamma, m)
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        self.method = method
-        if int(substeps) != substeps or substeps < 1:
-            raise DesignError(f"substeps must be a positive integer; found {substeps!r}")
-        self.substeps = int(substeps)
+        self.method = one_of("method", method, METHODS)
+        self.substeps = positive_int("substeps", substeps)
         if on_unreachable not in ("raise", "warn", "ignore"):
             raise DesignError(f"on_unreachable must be 'raise', 'warn' or 'ignore'; found "
                               f"{on_unreachable!r}")
@@ -879,8 +918,7 @@ class BastinGeversObserver(Observer):
         self._alpha2 = aocf.alpha.reshape(n * m, aocf.s)
         self._S_blocks = aocf.S_blocks()
         self._R, self._k, self._F = aocf.R, aocf.k, aocf.F
-        mask = np.any(aocf.alpha != 0.0, axis=2)
-        self._rhs_fast = compile_rhs(aocf.R, mask, self.gamma, self.c1)
+        self._generate()
         # phi = V^T k + Omega_1^T as a matrix on vec V (row-major)
         self._KV = np.kron(self._k.reshape(1, -1), np.eye(m)) if n > 1 else np.zeros((m, 0))
         self.diagnostic_names = tuple(f"theta_{nm}" for nm in aocf.theta_names) + tuple(
@@ -888,6 +926,21 @@ class BastinGeversObserver(Observer):
             ("excitation",) if self._gram is not None else ()) + ("reachability_rank",)
         self._init = (x_hat0, z_hat0, theta_hat0)
         self.reset(x_hat0, z_hat0=z_hat0, theta_hat0=theta_hat0)
+
+    def _generate(self) -> None:
+        """Generate eq. 3.1 in plain floats (at construction and on unpickling)."""
+        f = self.form
+        self._rhs_fast = compile_rhs(f.R, np.any(f.alpha != 0.0, axis=2), self.gamma, self.c1)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the generated right-hand side (made with ``exec``); unpickling
+        generates it again from the same design, so the copy continues identically. The
+        form pickles as the call that built it (:class:`Rebuildable`)."""
+        return {k: v for k, v in self.__dict__.items() if k != "_rhs_fast"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._generate()
 
     # ------------------------------------------------------------------ reset
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
@@ -897,20 +950,16 @@ class BastinGeversObserver(Observer):
         f = self.form
         if x_hat0 is None and z_hat0 is None and theta_hat0 is None:
             x_hat0, z_hat0, theta_hat0 = self._init
-        th = np.zeros(f.m) if theta_hat0 is None else vector("theta_hat0", theta_hat0, f.m)
-        if x_hat0 is not None and z_hat0 is not None:
-            raise DesignError("give x_hat0 or z_hat0, not both")
-        if x_hat0 is not None:
+
+        def physical(x_hat0: Any, th: Array) -> Array:
             if f.from_physical is None:
                 raise DesignError(f"x_hat0 in physical coordinates needs the form's from_physical "
                                   f"map; {f.label} has none: give z_hat0 (AOCF coordinates)")
             xp = vector("x_hat0", x_hat0, len(f.state_names))
             u = np.zeros(0) if u0 is None else np.asarray(u0, dtype=float).reshape(-1)
-            x = vector("from_physical(x_hat0)", f.from_physical(xp, th, u), f.n)
-        elif z_hat0 is not None:
-            x = vector("z_hat0", z_hat0, f.n)
-        else:
-            x = np.zeros(f.n)
+            return vector("from_physical(x_hat0)", f.from_physical(xp, th, u), f.n)
+
+        x, th = initial_estimate(f.n, f.m, x_hat0, z_hat0, theta_hat0, physical)
         self._s: list[float] = np.concatenate((x, th, np.zeros((f.n - 1) * f.m))).tolist()
         self.phi_ = np.zeros(f.m)
         self.dropouts_ = 0
@@ -978,16 +1027,8 @@ class BastinGeversObserver(Observer):
     def check_period(self, dt: float) -> None:
         """Refuse a sample period for which the integration of the linear modes
         :math:`-c_1` and :math:`\\lambda(F)` (the poles of :math:`R^*`, eq. 4.3) is unstable."""
-        dt = finite_scalar("dt", dt, positive=True)
         lam = np.concatenate(([-self.c1], np.linalg.eigvals(self._F) if self.form.n > 1 else []))
-        h = rk_stable_period(lam, self.method)
-        if dt / self.substeps >= h:
-            raise DesignError(
-                f"{self.method} integration of the Bastin-Gevers observer with step "
-                f"{dt / self.substeps:g} (sample period {dt:g} / {self.substeps} substeps) is "
-                f"unstable on its poles {np.round(lam, 6).tolist()}; "
-                f"the largest stable step is {h:.4g}: raise substeps to at least "
-                f"{math.ceil(dt / h * 1.0000001)}")
+        check_rk_period("the Bastin-Gevers observer", lam, dt, self.method, self.substeps)
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate eq. 3.1 over ``dt``; return

@@ -88,11 +88,12 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar, vector
+from .._validate import finite_scalar, one_of, positive_definite, positive_int, vector
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
+from .bastin_gevers import Rebuildable, initial_estimate
 
 __all__ = ["AffineForm", "BesanconObserver", "affine_form", "elastic_joint_form",
            "besancon_example_form", "elastic_joint_2link_form", "pendulum_form",
@@ -108,46 +109,6 @@ PROTOCOL = ("A", "C", "phi0", "regressor")
 # ======================================================================================
 # helpers
 # ======================================================================================
-
-
-def positive_definite(name: str, value: Any, m: int) -> Array:
-    """``value`` as an ``m x m`` symmetric positive-definite matrix.
-
-    A scalar ``g`` gives ``g I``, a vector of length ``m`` its diagonal.
-
-    Raises
-    ------
-    DimensionError
-        Neither a scalar, an ``(m,)`` vector nor an ``(m, m)`` matrix.
-    DesignError
-        Not finite, not symmetric, or not positive definite (the eigenvalues are listed).
-    """
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise DesignError(f"{name} must be a number, a vector or a matrix; found {value!r}") from None
-    if a.ndim == 0:
-        a = a * np.eye(m)
-    elif a.ndim == 1:
-        if a.shape != (m,):
-            raise DimensionError(f"{name} as a vector must have length {m} (its diagonal); "
-                                 f"found length {a.size}")
-        a = np.diag(a)
-    elif a.shape != (m, m):
-        raise DimensionError(f"{name} must be a scalar, a length-{m} vector or a {m}x{m} "
-                             f"matrix; found shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise DesignError(f"{name} must be finite; found {a.tolist()}")
-    scale = max(1.0, float(np.max(np.abs(a)))) if m else 1.0
-    if m and float(np.max(np.abs(a - a.T))) > 1e-12 * scale:
-        raise DesignError(f"{name} must be symmetric; found max |{name} - {name}^T| = "
-                          f"{float(np.max(np.abs(a - a.T))):.3g}")
-    if m:
-        eig = np.linalg.eigvalsh(a)
-        if not eig[0] > 0:
-            raise DesignError(f"{name} must be positive definite; found eigenvalues "
-                              f"{[float(f'{e:.6g}') for e in eig]} (not all > 0)")
-    return a
 
 
 def _chain_structure(A: Any, C: Any) -> tuple[int, ...]:
@@ -190,7 +151,7 @@ def _chain_structure(A: Any, C: Any) -> tuple[int, ...]:
 Terms = Callable[[Sequence[float], Array], tuple[Sequence[float], Sequence[Sequence[float]]]]
 
 
-class AffineForm:
+class AffineForm(Rebuildable):
     """A system in the parameter-affine form of paper 001, eq. 9 (one output) or 21.
 
     .. math::
@@ -377,7 +338,8 @@ class AffineForm:
 
         return cls(orders=orders, theta_names=names, terms=terms,
                    label=f"{type(obj).__name__} (paper 001 form)", theta=theta,
-                   state_names=getattr(obj, "state_names", None) or None)
+                   state_names=getattr(obj, "state_names", None) or None
+                   )._made_by(cls.from_protocol, obj, n_inputs)
 
 
 def pendulum_form(system: Any, unknown: Sequence[str] | None = None) -> AffineForm:
@@ -426,7 +388,8 @@ def pendulum_form(system: Any, unknown: Sequence[str] | None = None) -> AffineFo
     return AffineForm(orders=(2,), theta_names=order, terms=terms,
                       label=f"pendulum y'' = -d/J y' - a sin y + b/J u, unknown {list(order)}",
                       theta=[true[k] for k in order], state_names=system.state_names,
-                      true_physical={k: true[k] for k in order})
+                      true_physical={k: true[k] for k in order}
+                      )._made_by(pendulum_form, system, unknown)
 
 
 def elastic_joint_form(system: Any, unknown: Sequence[str] | None = None) -> AffineForm:
@@ -538,7 +501,8 @@ def elastic_joint_form(system: Any, unknown: Sequence[str] | None = None) -> Aff
                                    "link_jerk"),
                       to_physical=to_physical, from_physical=from_physical,
                       physical_state_names=system.state_names, physical_params=physical,
-                      true_physical={"stiffness": k_true, "MgL": mgl_true})
+                      true_physical={"stiffness": k_true, "MgL": mgl_true}
+                      )._made_by(elastic_joint_form, system, unknown)
 
 
 def elastic_joint_2link_form(system: Any) -> AffineForm:
@@ -657,7 +621,8 @@ def elastic_joint_2link_form(system: Any) -> AffineForm:
                       label="two-link elastic arm, both link angles, unknown K1, K2",
                       theta=[p["stiffness1"], p["stiffness2"]], state_names=names,
                       to_physical=to_physical, physical_state_names=system.state_names,
-                      true_physical={"stiffness1": p["stiffness1"], "stiffness2": p["stiffness2"]})
+                      true_physical={"stiffness1": p["stiffness1"], "stiffness2": p["stiffness2"]}
+                      )._made_by(elastic_joint_2link_form, system)
 
 
 def besancon_example_form(system: Any) -> AffineForm:
@@ -681,7 +646,7 @@ def besancon_example_form(system: Any) -> AffineForm:
 
         return AffineForm(orders=(2,), theta_names=system.param_names, terms=terms1,
                           label="paper 001 example 1 (eq. 9)", theta=system.theta,
-                          state_names=system.state_names)
+                          state_names=system.state_names)._made_by(besancon_example_form, system)
     if isinstance(system, BesanconExample2):
         def terms2(z: Sequence[float], u: Array) -> tuple[tuple[float, ...], tuple[tuple[float, ...], ...]]:
             x1, x2, x3, x4 = z[0], z[1], z[2], z[3]
@@ -691,7 +656,7 @@ def besancon_example_form(system: Any) -> AffineForm:
 
         return AffineForm(orders=(2, 2), theta_names=system.param_names, terms=terms2,
                           label="paper 001 example 2 (eq. 21)", theta=system.theta,
-                          state_names=system.state_names)
+                          state_names=system.state_names)._made_by(besancon_example_form, system)
     raise DesignError(f"besancon_example_form takes BesanconExample1 or BesanconExample2; found "
                       f"{type(system).__name__}")
 
@@ -1008,15 +973,9 @@ class BesanconObserver(Observer):
         self.X = math.inf if X is None else finite_scalar("X", X, positive=True)
         self.Theta = math.inf if Theta is None else finite_scalar("Theta", Theta, positive=True)
         self.exps = self._exponents(theta_exponents)
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        self.method = method
-        if isinstance(substeps, bool) or int(substeps) != substeps or substeps < 1:
-            raise DesignError(f"substeps must be a positive integer; found {substeps!r}")
-        self.substeps = int(substeps)
-        if hold not in HOLDS:
-            raise DesignError(f"hold must be one of {list(HOLDS)}; found {hold!r}")
-        self.hold = hold
+        self.method = one_of("method", method, METHODS)
+        self.substeps = positive_int("substeps", substeps)
+        self.hold = one_of("hold", hold, HOLDS)
         outs = form.outputs if outputs is None else (
             (outputs,) if np.ndim(outputs) == 0 else tuple(outputs))
         if len(outs) != form.p or any(isinstance(o, bool) or int(o) != o or o < 0 for o in outs):
@@ -1028,15 +987,8 @@ class BesanconObserver(Observer):
             excitation_window = finite_scalar("excitation_window", excitation_window,
                                               positive=True)
         self.excitation_window = excitation_window
-        fns = _compile(form, self.lam, self.K, self.gain, self.exps, self.X, self.Theta, hold)
-        self._rhs = fns["rhs"]
-        self._step = fns[method]
         self.adapt_after = finite_scalar("adapt_after", adapt_after, nonnegative=True)
-        self._step_frozen = None
-        if self.adapt_after > 0:  # S = 0: no parameter update, no Gamma S Gamma^T injection
-            self._step_frozen = _compile(form, self.lam, self.K, np.zeros((form.q, form.q)),
-                                         self.exps, self.X, self.Theta, hold)[method]
-        self._gram_add = _gram_adder(form)
+        self._generate()
         self._single = form.p == 1
         self._innov = hold == "innovation"
         self._excite_on = excitation_window is not None
@@ -1050,6 +1002,31 @@ class BesanconObserver(Observer):
         self.reset(x_hat0, z_hat0=z_hat0, theta_hat0=theta_hat0, Gamma0=Gamma0)
 
     # ------------------------------------------------------------------ setup
+    #: the generated functions (made with ``exec``: pickle cannot store them)
+    _GENERATED = ("_rhs", "_step", "_step_frozen", "_gram_add")
+
+    def _generate(self) -> None:
+        """Generate the observer's code from the design (at construction and on unpickling)."""
+        form, hold = self.form, self.hold
+        fns = _compile(form, self.lam, self.K, self.gain, self.exps, self.X, self.Theta, hold)
+        self._rhs = fns["rhs"]
+        self._step = fns[self.method]
+        self._step_frozen = None
+        if self.adapt_after > 0:  # S = 0: no parameter update, no Gamma S Gamma^T injection
+            self._step_frozen = _compile(form, self.lam, self.K, np.zeros((form.q, form.q)),
+                                         self.exps, self.X, self.Theta, hold)[self.method]
+        self._gram_add = _gram_adder(form)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the generated code (regenerated by :meth:`__setstate__`, the same
+        code from the same design: the copy continues identically). The form pickles as the
+        call that built it (see :class:`AffineForm`)."""
+        return {k: v for k, v in self.__dict__.items() if k not in self._GENERATED}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._generate()
+
     def _gains(self, K0: Any) -> tuple[Array, ...]:
         f = self.form
         if K0 is None:
@@ -1116,21 +1093,16 @@ class BesanconObserver(Observer):
         f = self.form
         if x_hat0 is None and z_hat0 is None and theta_hat0 is None and Gamma0 is None:
             x_hat0, z_hat0, theta_hat0, Gamma0 = self._init
-        th = np.zeros(f.q) if theta_hat0 is None else vector("theta_hat0", theta_hat0, f.q)
-        if x_hat0 is not None and z_hat0 is not None:
-            raise DesignError("give x_hat0 or z_hat0, not both")
         u = np.zeros(len(self.system.input_names) if self.system is not None else 1) \
             if u0 is None else np.atleast_1d(np.asarray(u0, dtype=float))
-        if x_hat0 is not None:
+
+        def physical(x_hat0: Any, th: Array) -> Array:
             if f.from_physical is None:
-                z = vector("x_hat0", x_hat0, f.n)
-            else:
-                xp = vector("x_hat0", x_hat0, len(f.physical_state_names))
-                z = vector("from_physical(x_hat0)", f.from_physical(xp, th, u), f.n)
-        elif z_hat0 is not None:
-            z = vector("z_hat0", z_hat0, f.n)
-        else:
-            z = np.zeros(f.n)
+                return vector("x_hat0", x_hat0, f.n)
+            xp = vector("x_hat0", x_hat0, len(f.physical_state_names))
+            return vector("from_physical(x_hat0)", f.from_physical(xp, th, u), f.n)
+
+        z, th = initial_estimate(f.n, f.q, x_hat0, z_hat0, theta_hat0, physical)
         if Gamma0 is None:
             G = np.zeros((f.n, f.q))
         else:

@@ -264,13 +264,6 @@ class HighGainObserver(Observer):
         if dt not in self._steps:
             self._compile(dt)
 
-    def __getstate__(self) -> dict[str, Any]:
-        """Pickle without the compiled updates (functions made with ``exec``, which pickle
-        cannot store); :meth:`update` rebuilds them on first use."""
-        state = self.__dict__.copy()
-        state["_steps"] = {}
-        return state
-
     def _compile(self, dt: float) -> tuple[Callable, ...]:
         dt = finite_scalar("dt", dt, positive=True)
         M, b, g = one_step_map(self.p, self.k_, dt, self.method)

@@ -58,11 +58,20 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar, vector
+from .._validate import finite_scalar, one_of, positive_int, vector
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
-from .bastin_gevers import SlidingGram, _callable, _names, rk_stable_period, symmetric_positive_definite
+from .bastin_gevers import (
+    Rebuildable,
+    SlidingGram,
+    _callable,
+    _names,
+    check_rk_period,
+    initial_estimate,
+    rk_step,
+    symmetric_positive_definite,
+)
 
 __all__ = ["JoSonForm", "JoSonObserver", "jo_son_gain"]
 
@@ -122,7 +131,7 @@ def jo_son_gain(b: Any, lam: float) -> Array:
     return (Ab + lam * b) / br
 
 
-class JoSonForm:
+class JoSonForm(Rebuildable):
     """Adaptive observer canonical form of paper 003, eq. 10.
 
     Parameters
@@ -239,12 +248,8 @@ class JoSonForm:
 
         if isinstance(system, JoSonExample):
             return cls.example(system, **kw)
-        maker = getattr(system, "jo_son_form", None)
-        if callable(maker):
-            form = maker(**kw)
-            if not isinstance(form, JoSonForm):
-                raise DesignError(f"{type(system).__name__}.jo_son_form() must return a JoSonForm; "
-                                  f"found {type(form).__name__}")
+        form = cls._system_method(system, "jo_son_form", kw, cls.from_system)
+        if form is not None:
             return form
         hint = ""
         if isinstance(system, ElasticJoint):
@@ -296,7 +301,7 @@ class JoSonForm:
         return cls(b, gamma_o, beta, n_unobservable=1, f_obar=f_obar, gamma_obar=gamma_obar,
                    theta_names=("theta",), to_physical=to_physical,
                    from_physical=sys_.to_canonical, state_names=sys_.state_names,
-                   label="Jo-Son example eq. 31")
+                   label="Jo-Son example eq. 31")._made_by(cls.example, system)
 
     @classmethod
     def elastic_joint_motor_side(cls, aux_outputs: Sequence[int] = (1, 2),
@@ -350,7 +355,8 @@ class JoSonForm:
 
         return cls([1.0], gamma_o, beta, theta_names=tuple(unknown),
                    state_names=("motor_velocity",), aux_outputs=aux,
-                   label="elastic joint motor side: y = motor velocity, deflection measured")
+                   label="elastic joint motor side: y = motor velocity, deflection measured"
+                   )._made_by(cls.elastic_joint_motor_side, aux_outputs, unknown)
 
 
 class JoSonObserver(Observer):
@@ -441,12 +447,8 @@ class JoSonObserver(Observer):
         self._Kl, self._bl = self.K_.tolist(), form.b.tolist()
         self._Gl = self.gamma.tolist()
         self._Al = form.A_obar_o.tolist() if np.any(form.A_obar_o) else None
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        self.method = method
-        if int(substeps) != substeps or substeps < 1:
-            raise DesignError(f"substeps must be a positive integer; found {substeps!r}")
-        self.substeps = int(substeps)
+        self.method = one_of("method", method, METHODS)
+        self.substeps = positive_int("substeps", substeps)
         if excitation_window is not None:
             excitation_window = finite_scalar("excitation_window", excitation_window, positive=True)
         self.excitation_window = excitation_window
@@ -463,19 +465,15 @@ class JoSonObserver(Observer):
         f = self.form
         if x_hat0 is None and z_hat0 is None and theta_hat0 is None:
             x_hat0, z_hat0, theta_hat0 = self._init
-        th = np.zeros(f.p) if theta_hat0 is None else vector("theta_hat0", theta_hat0, f.p)
-        if x_hat0 is not None and z_hat0 is not None:
-            raise DesignError("give x_hat0 or z_hat0, not both")
-        if x_hat0 is not None:
+
+        def physical(x_hat0: Any, th: Array) -> Array:
             if f.from_physical is None:
                 raise DesignError(f"x_hat0 in physical coordinates needs the form's from_physical "
                                   f"map (T of eq. 27); {f.label} has none: give z_hat0")
-            z = vector("T(x_hat0)", f.from_physical(vector("x_hat0", x_hat0, len(f.state_names))),
-                       f.n)
-        elif z_hat0 is not None:
-            z = vector("z_hat0", z_hat0, f.n)
-        else:
-            z = np.zeros(f.n)
+            return vector("T(x_hat0)", f.from_physical(vector("x_hat0", x_hat0, len(f.state_names))),
+                          f.n)
+
+        z, th = initial_estimate(f.n, f.p, x_hat0, z_hat0, theta_hat0, physical)
         self._s: list[float] = np.concatenate((z, th)).tolist()
         self._u_last = None
         self.dropouts_ = 0
@@ -548,16 +546,9 @@ class JoSonObserver(Observer):
     def check_period(self, dt: float) -> None:
         """Refuse a sample period for which the integration of the observer's linear modes
         (the roots of :math:`(s + \\lambda)(b_r s^{r-1} + \\dots + b_1)`, eq. 26) is unstable."""
-        dt = finite_scalar("dt", dt, positive=True)
         b = self.form.b
         lam_ = np.concatenate(([-self.lam], np.roots(b[::-1]) if b.size > 1 else []))
-        h = rk_stable_period(lam_, self.method)
-        if dt / self.substeps >= h:
-            raise DesignError(
-                f"{self.method} integration of the Jo-Son observer with step {dt / self.substeps:g} "
-                f"(sample period {dt:g} / {self.substeps} substeps) is unstable on its poles "
-                f"{np.round(lam_, 6).tolist()}; the largest stable step is {h:.4g}: raise "
-                f"substeps to at least {math.ceil(dt / h * 1.0000001)}")
+        check_rk_period("the Jo-Son observer", lam_, dt, self.method, self.substeps)
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate eq. 27 over ``dt``; return
@@ -588,18 +579,7 @@ class JoSonObserver(Observer):
         go, be, gb = self.signals(yi, u)
         if self._gram is not None:
             self._gram.add(np.array(be), dt)
-        h = dt / self.substeps
-        h2, h6 = 0.5 * h, h / 6.0
-        rhs = self.rhs
-        for _ in range(self.substeps):
-            k1 = rhs(s, yi, go, be, gb, c)
-            if self.method == "euler":
-                s = [a + h * b for a, b in zip(s, k1)]
-                continue
-            k2 = rhs([a + h2 * b for a, b in zip(s, k1)], yi, go, be, gb, c)
-            k3 = rhs([a + h2 * b for a, b in zip(s, k2)], yi, go, be, gb, c)
-            k4 = rhs([a + h * b for a, b in zip(s, k3)], yi, go, be, gb, c)
-            s = [a + h6 * (b1 + 2.0 * (b2 + b3) + b4) for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4)]
+        s = rk_step(self.rhs, s, dt / self.substeps, self.method, self.substeps, yi, go, be, gb, c)
         if not all(map(math.isfinite, s)):
             raise DivergenceError(f"the Jo-Son observer left the finite numbers: state "
                                   f"(z_hat, theta_hat) = {s}")

@@ -56,6 +56,7 @@ References
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import re
 from collections.abc import Callable, Sequence
@@ -64,11 +65,17 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .._validate import finite_scalar, vector
-from ..exceptions import DesignError, DimensionError, DivergenceError
+from .._validate import (
+    finite_scalar,
+    one_of,
+    positive_definite,
+    positive_int,
+    positive_semidefinite,
+    vector,
+)
+from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
-from .besancon import positive_definite
 
 __all__ = ["ExtendedKalmanFilter", "FAST_MAX", "MujocoExtendedKalmanFilter",
            "MujocoUnscentedKalmanFilter", "UnscentedKalmanFilter", "positive_semidefinite"]
@@ -79,34 +86,22 @@ JACOBIANS = ("auto", "analytic", "fd")
 FAST_MAX = 6
 
 
-def positive_semidefinite(name: str, value: Any, m: int) -> Array:
-    """``value`` (scalar, diagonal vector or matrix) as an ``m x m`` symmetric positive
-    semi-definite matrix; raises :class:`DesignError` naming the negative eigenvalues."""
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise DesignError(f"{name} must be a number, a vector or a matrix; found {value!r}") from None
-    if a.ndim == 0:
-        a = a * np.eye(m)
-    elif a.ndim == 1:
-        if a.shape != (m,):
-            raise DimensionError(f"{name} as a vector must have length {m} (its diagonal); "
-                                 f"found length {a.size}")
-        a = np.diag(a)
-    elif a.shape != (m, m):
-        raise DimensionError(f"{name} must be a scalar, a length-{m} vector or a {m}x{m} "
-                             f"matrix; found shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise DesignError(f"{name} must be finite; found {a.tolist()}")
-    if m and float(np.max(np.abs(a - a.T))) > 1e-12 * max(1.0, float(np.max(np.abs(a)))):
-        raise DesignError(f"{name} must be symmetric; found max |{name} - {name}^T| = "
-                          f"{float(np.max(np.abs(a - a.T))):.3g}")
-    if m:
-        eig = np.linalg.eigvalsh(a)
-        if eig[0] < -1e-12 * max(1.0, float(eig[-1])):
-            raise DesignError(f"{name} must be positive semi-definite; found eigenvalues "
-                              f"{[float(f'{e:.6g}') for e in eig]} (some < 0)")
-    return a
+def _as_array(f: Callable[..., Any], t: float, x: Any, u: Any, p: Any) -> Array:
+    """``f(t, x, u, p)`` as a float array (for dynamics that return lists)."""
+    return np.asarray(f(t, x, u, p), dtype=float)
+
+
+def _central_differences(f: Callable[[Array], Array], x: Array, rows: int, cols: int) -> Array:
+    """Central-difference Jacobian ``(rows, cols)`` of ``f`` at ``x`` in its first ``cols``
+    components (relative step ``1e-6``)."""
+    J = np.zeros((rows, cols))
+    for j in range(cols):
+        e = 1e-6 * max(1.0, abs(float(x[j])))
+        xp, xm = x.copy(), x.copy()
+        xp[j] += e
+        xm[j] -= e
+        J[:, j] = (f(xp) - f(xm)) / (2.0 * e)
+    return J
 
 
 def _taylor4(A: Array) -> Array:
@@ -213,15 +208,7 @@ class SystemModel:
             if self.q:
                 A[:n, n:] = self.system.param_jacobian(0.0, xa[:n], u, p, self.names)  # type: ignore[attr-defined]
             return A
-        A = np.zeros((N, N))
-        for j in range(N):
-            e = 1e-6 * max(1.0, abs(float(xa[j])))
-            xp = xa.copy()
-            xm = xa.copy()
-            xp[j] += e
-            xm[j] -= e
-            A[:, j] = (self.deriv(xp, u) - self.deriv(xm, u)) / (2.0 * e)
-        return A
+        return _central_differences(lambda z: self.deriv(z, u), xa, N, N)
 
     def step(self, xa: Array, u: Array, h: float, method: str) -> Array:
         """One RK4 (or Euler) step of ``h`` with ``u`` held."""
@@ -480,13 +467,7 @@ class MujocoModel:
                 if self._rk4:
                     Ax = self._rk4_transition(Ax, ts)[self._pix]
             else:
-                Ax = np.zeros((n, n))
-                for j in range(n):
-                    e = 1e-6 * max(1.0, abs(float(x[j])))
-                    xp, xm = x.copy(), x.copy()
-                    xp[j] += e
-                    xm[j] -= e
-                    Ax[:, j] = (self.step(xp, u, ts)[:n] - self.step(xm, u, ts)[:n]) / (2.0 * e)
+                Ax = _central_differences(lambda z: self.step(z, u, ts)[:n], x, n, n)
             x1 = self.step(x, u, ts)
             A = self._eyeN.copy()
             A[:n, :n] = Ax
@@ -710,12 +691,8 @@ class _KalmanFilter(Observer):
         self.q = mdl.q
         self.N = mdl.N
         self.estimate = mdl.names
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        self.method = method
-        if isinstance(substeps, bool) or int(substeps) != substeps or substeps < 1:
-            raise DesignError(f"substeps must be a positive integer; found {substeps!r}")
-        self.substeps = int(substeps)
+        self.method = one_of("method", method, METHODS)
+        self.substeps = positive_int("substeps", substeps)
         n_out = len(system.output_names)
         chans = list(range(n_out)) if outputs is None else (
             [outputs] if np.ndim(outputs) == 0 else list(outputs))
@@ -727,11 +704,9 @@ class _KalmanFilter(Observer):
         self.output = self.outputs[0]
         p = len(self.outputs)
         # covariances
-        Qx = positive_semidefinite("Q", Q, self.n)
-        Qt = positive_semidefinite("Q_theta", Q_theta, self.q) if self.q else np.zeros((0, 0))
-        self.Qc = np.zeros((self.N, self.N))
-        self.Qc[:self.n, :self.n] = Qx
-        self.Qc[self.n:, self.n:] = Qt
+        none = np.zeros((0, 0))
+        self.Qc = self._augmented(positive_semidefinite("Q", Q, self.n), positive_semidefinite(
+            "Q_theta", Q_theta, self.q) if self.q else none)
         if R is None:
             if sensor is not None:
                 var = np.asarray(sensor.noise_variance(n_out), dtype=float)[list(self.outputs)]
@@ -743,11 +718,8 @@ class _KalmanFilter(Observer):
             else:
                 R = 1e-6
         self.R = positive_definite("R", R, p)
-        P0x = positive_definite("P0", P0, self.n)
-        P0t = positive_definite("P0_theta", P0_theta, self.q) if self.q else np.zeros((0, 0))
-        self.P0 = np.zeros((self.N, self.N))
-        self.P0[:self.n, :self.n] = P0x
-        self.P0[self.n:, self.n:] = P0t
+        self.P0 = self._augmented(positive_definite("P0", P0, self.n), positive_definite(
+            "P0_theta", P0_theta, self.q) if self.q else none)
         if self.q and theta_hat0 is None:
             raise DesignError(f"theta_hat0 is required with estimate={list(self.estimate)} (the "
                               f"initial guess of the estimated parameters)")
@@ -760,6 +732,13 @@ class _KalmanFilter(Observer):
         self._u = np.zeros(mdl.n_inputs)
         self._init = (x_hat0, theta_hat0)
         self.reset(x_hat0, theta_hat0=theta_hat0)
+
+    def _augmented(self, state: Array, params: Array) -> Array:
+        """The block-diagonal ``N x N`` matrix of a state block and a parameter block."""
+        out = np.zeros((self.N, self.N))
+        out[:self.n, :self.n] = state
+        out[self.n:, self.n:] = params
+        return out
 
     # ------------------------------------------------------------------ reset
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
@@ -789,13 +768,31 @@ class _KalmanFilter(Observer):
         if not self._fast:
             return
         if not hasattr(self, "_corr_f"):
-            N = self.N
-            self._corr_f = {j: _gen_correct(N, j) for j in set(self.sel)}  # type: ignore[arg-type]
-            self._step_f = _gen_step(mdl.n, N, self.method, self._list_ok())
+            self._as_list = self._list_ok()
             self._hmemo: dict[float, list[float]] = {}
-            self._compile_fast()
+            self._generate()
         self._xl = self._x.tolist()
         self._Pl = self._P.reshape(-1).tolist()
+
+    #: the generated functions of the float path (made with ``exec``: pickle cannot store them)
+    _GENERATED = ("_corr_f", "_step_f", "_phi_f", "_prop_f", "_sigma_f", "_mom_f")
+
+    def _generate(self) -> None:
+        """Generate the float path's code (on the first reset, and again on unpickling)."""
+        N = self.N
+        self._corr_f = {j: _gen_correct(N, j) for j in set(self.sel)}  # type: ignore[arg-type]
+        self._step_f = _gen_step(self.model.n, N, self.method, self._as_list)
+        self._compile_fast()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the generated code; :meth:`__setstate__` generates it again (the
+        same code from the same design, so the copy continues identically)."""
+        return {k: v for k, v in self.__dict__.items() if k not in self._GENERATED}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if "_as_list" in state:
+            self._generate()
 
     def _compile_fast(self) -> None:
         """Filter-specific generated code (EKF: Phi and F P F^T; UKF: sigma points, moments)."""
@@ -812,7 +809,7 @@ class _KalmanFilter(Observer):
         u = rng.uniform(-1.0, 1.0, mdl.n_inputs)
         ref = mdl._dyn(0.0, x, u, mdl.base)
         if not isinstance(ref, np.ndarray):
-            mdl._dyn = lambda t, x, u, p, f=mdl._dyn: np.asarray(f(t, x, u, p), dtype=float)
+            mdl._dyn = functools.partial(_as_array, mdl._dyn)
             ref = np.asarray(ref, dtype=float)
         try:
             got = mdl._dyn(0.0, x.tolist(), u, mdl.base)
@@ -855,6 +852,39 @@ class _KalmanFilter(Observer):
 
     def _Parr(self) -> Array:
         return np.array(self._Pl).reshape(self.N, self.N) if self._fast else self._P
+
+    # ------------------------------------------------------------------ update
+    def update(self, y: Any, u: Any, dt: float) -> Array:
+        """Consume ``y(t_k)``, ``u(t_k)``: correct, then predict over ``dt``; return the
+        prediction of ``x(t_k + dt)``."""
+        if not isinstance(u, np.ndarray):
+            u = np.atleast_1d(np.asarray(u, dtype=float))
+        self._u = u
+        if self._fast:
+            return self._update_fast(y, u, dt)
+        idx, vals = self._channels(y)
+        if idx:
+            self._correct(idx, vals)
+        h = dt / self.substeps
+        x, P = self._x, self._P
+        Qh = self.Qc * h
+        for _ in range(self.substeps):
+            x, P = self._predict(x, P, u, h, Qh)
+        self._x, self._P = x, P
+        self._finite()
+        return x[:self.n].copy()
+
+    def _update_fast(self, y: Any, u: Array, dt: float) -> Array:
+        """The float path of :meth:`update` (filter-specific)."""
+        raise NotImplementedError
+
+    def _correct(self, idx: list[int], vals: list[float]) -> None:
+        """Measurement update with the present channels ``idx`` (numpy path)."""
+        self._correct_numpy(idx, vals)
+
+    def _predict(self, x: Array, P: Array, u: Array, h: float, Qh: Array) -> tuple[Array, Array]:
+        """Time update of the mean and covariance over one substep ``h`` (numpy path)."""
+        raise NotImplementedError
 
     # ------------------------------------------------------------------ measurement
     def _channels(self, y: Any) -> tuple[list[int], list[float]]:
@@ -905,15 +935,9 @@ class _KalmanFilter(Observer):
     def _h_linear(self, x: Array, idx: list[int]) -> tuple[Array, Array]:
         """Finite-difference Jacobian of ``h`` (channels ``idx``) and ``h(x)``."""
         chans = [self.outputs[c] for c in idx]
-        y0 = self.model.output(x)[chans]
-        H = np.zeros((len(idx), self.N))
-        for j in range(self.N):
-            e = 1e-6 * max(1.0, abs(float(x[j])))
-            xp, xm = x.copy(), x.copy()
-            xp[j] += e
-            xm[j] -= e
-            H[:, j] = (self.model.output(xp)[chans] - self.model.output(xm)[chans]) / (2 * e)
-        return H, y0
+        out = self.model.output
+        H = _central_differences(lambda z: out(z)[chans], x, len(idx), self.N)
+        return H, out(x)[chans]
 
     # ------------------------------------------------------------------ interface
     def check_period(self, dt: float) -> None:
@@ -1030,25 +1054,9 @@ class ExtendedKalmanFilter(_KalmanFilter):
         self._phi_f = _gen_phi(self.N, self.method)
         self._prop_f = _gen_propagate(self.N)
 
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``: correct, then predict over ``dt``; return the
-        prediction of ``x(t_k + dt)``."""
-        if not isinstance(u, np.ndarray):
-            u = np.atleast_1d(np.asarray(u, dtype=float))
-        self._u = u
-        if self._fast:
-            return self._update_fast(y, u, dt)
-        idx, vals = self._channels(y)
-        self._correct_numpy(idx, vals)
-        h = dt / self.substeps
-        x, P = self._x, self._P
-        Qh = self.Qc * h
-        for _ in range(self.substeps):
-            x, Phi = self.model.transition(x, u, h, self.method)
-            P = Phi @ P @ Phi.T + Qh
-        self._x, self._P = x, P
-        self._finite()
-        return x[:self.n].copy()
+    def _predict(self, x: Array, P: Array, u: Array, h: float, Qh: Array) -> tuple[Array, Array]:
+        x, Phi = self.model.transition(x, u, h, self.method)
+        return x, Phi @ P @ Phi.T + Qh
 
     def _update_fast(self, y: Any, u: Array, dt: float) -> Array:
         self._correct_fast(y)
@@ -1149,38 +1157,24 @@ class UnscentedKalmanFilter(_KalmanFilter):
         P = P - K @ Pyy @ K.T
         self._P = 0.5 * (P + P.T)
 
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``: correct, then predict over ``dt``; return the
-        prediction of ``x(t_k + dt)``."""
-        if not isinstance(u, np.ndarray):
-            u = np.atleast_1d(np.asarray(u, dtype=float))
-        self._u = u
-        if self._fast:
-            return self._update_fast(y, u, dt)
-        idx, vals = self._channels(y)
-        if idx:
-            if self.sel is not None:
-                self._correct_numpy(idx, vals) if not self._diag_R or len(idx) > 1 \
-                    else self._correct_scalar(idx[0], vals[0])
-            else:
-                self._correct_unscented(idx, vals)
-        h = dt / self.substeps
+    def _correct(self, idx: list[int], vals: list[float]) -> None:
+        if self.sel is not None:  # a selection output: the exact linear update
+            self._correct_numpy(idx, vals)
+        else:
+            self._correct_unscented(idx, vals)
+
+    def _predict(self, x: Array, P: Array, u: Array, h: float, Qh: Array) -> tuple[Array, Array]:
+        # sigma points redrawn and Q h added per substep
         step = self.model.step
         method = self.method
-        x, P = self._x, self._P
-        Qh = self.Qc * h
-        for _ in range(self.substeps):  # sigma points redrawn and Q h added per substep
-            X = self._sigma(x, P)
-            out = np.empty_like(X)
-            for i in range(X.shape[0]):
-                out[i] = step(X[i], u, h, method)
-            x = self.Wm @ out
-            d = out - x
-            P = (d.T * self.Wc) @ d + Qh
-            P = 0.5 * (P + P.T)
-        self._x, self._P = x, P
-        self._finite()
-        return x[:self.n].copy()
+        X = self._sigma(x, P)
+        out = np.empty_like(X)
+        for i in range(X.shape[0]):
+            out[i] = step(X[i], u, h, method)
+        x = self.Wm @ out
+        d = out - x
+        P = (d.T * self.Wc) @ d + Qh
+        return x, 0.5 * (P + P.T)
 
     def _compile_fast(self) -> None:
         self._sigma_f = _gen_sigma(self.N)
@@ -1206,15 +1200,6 @@ class UnscentedKalmanFilter(_KalmanFilter):
         self._xl, self._Pl = x, P
         self._check_fast()
         return np.array(self._xl[:self.n])
-
-    def _correct_scalar(self, c: int, v: float) -> None:
-        j = self.sel[c]  # type: ignore[index]
-        x, P = self._x, self._P
-        Pj = P[:, j].copy()
-        s = Pj[j] + self._r[c]
-        K = Pj / s
-        self._x = x + K * (v - x[j])
-        self._P = P - np.outer(K, Pj)
 
 
 class MujocoExtendedKalmanFilter(ExtendedKalmanFilter):
