@@ -486,7 +486,10 @@ class AdaptiveGainObserver(Observer):
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate ``(z, k)`` over ``dt``; return
         ``x_hat(t_k + dt)``."""
-        yi = float(y[self.output])
+        try:
+            yi = float(y[self.output])
+        except (IndexError, TypeError):
+            raise self._bad_measurement(y, self.output) from None
         self._u = u
         entry = self._steps.get(dt)
         if entry is None:

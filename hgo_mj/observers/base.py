@@ -122,6 +122,12 @@ class Observer:
             state["_steps"] = {}
         return state
 
+    def _bad_measurement(self, y: Any, channels: Any) -> DimensionError:
+        """The error for a measurement ``y`` that lacks the channels this observer reads
+        (raised from ``update``'s fast path only after indexing failed: no cost otherwise)."""
+        return DimensionError(f"{self.name}: y must be a vector with channel(s) {channels} (the "
+                              f"measured outputs this observer reads); found {y!r}")
+
     # ----------------------------------------------------------- interface
     def check_period(self, dt: float) -> None:
         """Check that ``update`` is stable at the sample period ``dt`` (the runner calls this

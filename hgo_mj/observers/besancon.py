@@ -1146,7 +1146,10 @@ class BesanconObserver(Observer):
         self._u = u
         s = self._s
         if self._single:
-            v = float(y[self.output])
+            try:
+                v = float(y[self.output])
+            except (IndexError, TypeError):
+                raise self._bad_measurement(y, self.output) from None
             if v - v == 0.0:
                 ys, ms = [v - s[0] if self._innov else v], _ONE
             elif v != v:
@@ -1193,7 +1196,10 @@ class BesanconObserver(Observer):
         ys, ms = [], []
         lost = False
         for o in self.outputs:
-            v = float(y[o])
+            try:
+                v = float(y[o])
+            except (IndexError, TypeError):
+                raise self._bad_measurement(y, list(self.outputs)) from None
             if v != v:
                 lost = True
                 ys.append(0.0)

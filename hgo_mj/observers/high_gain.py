@@ -298,7 +298,11 @@ class HighGainObserver(Observer):
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
-        self._advance(float(y[self.output]), u, dt)
+        try:
+            yi = float(y[self.output])
+        except (IndexError, TypeError):
+            raise self._bad_measurement(y, self.output) from None
+        self._advance(yi, u, dt)
         return self.x_hat
 
     def update_list(self, y: Any, u: Any, dt: float) -> list[float]:
@@ -673,7 +677,10 @@ class MultiOutputHighGainObserver(Observer):
         entries = self._steps.get(dt)
         if entries is None:
             entries = self._compile(dt)
-        ys = [float(y[o]) for o in self.outputs]
+        try:
+            ys = [float(y[o]) for o in self.outputs]
+        except (IndexError, TypeError):
+            raise self._bad_measurement(y, list(self.outputs)) from None
         lost = False
         for c, yc in enumerate(ys):
             if yc != yc:

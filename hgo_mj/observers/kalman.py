@@ -823,7 +823,10 @@ class _KalmanFilter(Observer):
         r = self._r
         lost = False
         for c, o in enumerate(self.outputs):
-            v = float(y[o])
+            try:
+                v = float(y[o])
+            except (IndexError, TypeError):
+                raise self._bad_measurement(y, list(self.outputs)) from None
             if v != v:
                 lost = True
                 continue
@@ -891,7 +894,10 @@ class _KalmanFilter(Observer):
         """Indices (into ``outputs``) and values of the channels present in ``y``."""
         idx, vals = [], []
         for c, o in enumerate(self.outputs):
-            v = float(y[o])
+            try:
+                v = float(y[o])
+            except (IndexError, TypeError):
+                raise self._bad_measurement(y, list(self.outputs)) from None
             if v != v:
                 continue
             if v in (math.inf, -math.inf):

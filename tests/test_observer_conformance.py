@@ -1,0 +1,84 @@
+"""Conformance of every registered observer (one working construction each, from
+``observer_cases``): the interface contract that the runner, the environments and the recorder
+rely on.
+
+* ``update`` returns a finite float vector of ``len(state_names)`` entries that shares no
+  memory with the observer or with earlier results;
+* a NaN measurement (a dropout) is not propagated: the estimate stays finite and the dropout is
+  counted in ``diagnostics()["dropouts"]``;
+* the same inputs give the same estimates (two instances), and ``reset()`` starts over exactly;
+* ``diagnostics()`` are plain floats with the same keys at every sample; ``params()`` is JSON;
+* unknown keyword arguments and wrongly sized measurements are refused with clear errors.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from observer_cases import CASES, DT, signals
+
+from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.observers import OBSERVERS, make_observer
+from hgo_mj.systems import Pendulum
+
+PARAMS = [pytest.param(kind, make, p, m, id=f"{kind}-{cid}") for kind, cid, make, p, m in CASES]
+STEPS = 12  # the dropout of ``signals`` is at sample 7
+
+
+def _run(ob, p: int, m: int) -> list[np.ndarray]:
+    return [ob.update(*signals(k, p, m), DT) for k in range(STEPS)]
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_update_contract(kind, make, p, m):
+    ob = make()
+    ob.check_period(DT)
+    names = tuple(ob.state_names)
+    assert len(names) == len(set(names)) > 0
+    keys = None
+    out = _run(ob, p, m)
+    for k, x in enumerate(out):
+        assert isinstance(x, np.ndarray) and x.dtype == np.float64 and x.shape == (len(names),), k
+        assert np.all(np.isfinite(x)), (k, x)
+        diag = ob.diagnostics()
+        assert all(isinstance(v, float) for v in diag.values()), diag
+        keys = keys or set(diag)
+        assert set(diag) == keys
+    assert np.all(np.isfinite(ob.z_hat))
+    # results are fresh arrays: neither aliased to each other nor to the observer's state
+    assert not any(np.shares_memory(a, b) for a, b in zip(out, out[1:]))
+    assert not np.shares_memory(out[-1], ob.x_hat)
+    before = out[-1].copy()
+    ob.x_hat[...] = 123.0
+    np.testing.assert_array_equal(ob.x_hat, before)
+    # the dropout at sample 7 is counted once, not propagated
+    assert ob.diagnostics()["dropouts"] == 1.0
+    json.dumps(ob.params())
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_deterministic_and_reset_starts_over(kind, make, p, m):
+    a, b = make(), make()
+    ra, rb = _run(a, p, m), _run(b, p, m)
+    for xa, xb in zip(ra, rb):
+        np.testing.assert_array_equal(xa, xb)
+    a.reset()
+    assert a.diagnostics()["dropouts"] == 0.0
+    for xa, xb in zip(_run(a, p, m), ra):
+        np.testing.assert_array_equal(xa, xb)
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_wrong_measurement_size_is_refused(kind, make, p, m):
+    ob = make()
+    _, u = signals(0, p, m)
+    with pytest.raises(DimensionError, match="y"):
+        ob.update(np.zeros(0), u, DT)
+
+
+@pytest.mark.parametrize("kind", sorted(OBSERVERS))
+def test_unknown_keyword_is_refused(kind):
+    with pytest.raises(DesignError, match=rf"observer '{kind}'.*no_such_option"):
+        make_observer(kind, Pendulum(), no_such_option=1.0)
