@@ -15,13 +15,15 @@ MuJoCo steps, and the sensor chain measures ``y(t_k + Ts)``. The agent then sees
   at the last valid value in the observation; with ``info_level="full"``,
   ``info["measurement"]`` keeps the NaN);
 * ``"true"``: the true state of the plant;
-* ``"estimate+diagnostics"``: the estimate followed by the observer's run-time quantities
-  (gain, parameter estimates: ``observer.diagnostics()`` less the dropout counter).
+* ``"estimate+diagnostics"``: the estimate, the goal (below), then the observer's run-time
+  quantities (gain, parameter estimates: ``observer.diagnostics()`` less the dropout counter,
+  in its order, named ``diagnostic:<key>`` in ``observation_names``; one not defined yet,
+  NaN, enters as 0).
 
 Reward and termination always use the *true* state. Every mode appends the task's goal (the
-target angles of the reach tasks). Angles the task declares periodic enter as ``(cos, sin)``;
-every other entry is clipped to a finite bound of the task (``info`` holds the unclipped
-values).
+target angles of the reach tasks) after the estimate, measurement or state. Angles the task
+declares periodic enter as ``(cos, sin)``; every other entry is clipped to a finite bound of
+the task (``info`` holds the unclipped values).
 
 The same measurement stream feeds the observer and the ``"measurement"`` observation, so that
 with the same seed every mode sees the same sensor noise.
@@ -402,8 +404,15 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         observer's run-time quantities), ``"goal"`` and the reward terms ``"reward_<term>"``.
         Every ``info`` entry costs a ``SyncVectorEnv`` about a microsecond per copy and step.
     record_path : str or Path, optional
-        Write every episode, batched at its end, to this rerun ``.rrd`` file
-        (:class:`hgo_mj.record.Recorder`, issue 6).
+        Write every episode, batched at its end (the next ``reset`` or ``close``), to this
+        rerun ``.rrd`` file (:class:`hgo_mj.record.Recorder`, issue 6): one row at ``reset``
+        and one per ``step`` (``steps + 1`` rows an episode; the reset row's input and reward
+        are 0) on the ``sim_time``, ``step`` and ``episode`` timelines: true state, the
+        observer's estimate by its own ``state_names`` (:attr:`estimate_names`) and errors,
+        clean and measured outputs, input, the observer's diagnostics, the reward
+        (``/env/reward``), the 3D view; after each episode the ``/metrics`` table (one row per
+        episode: seed, steps, return, RMSE per estimated state) and the ``/scenario`` document
+        (:meth:`recording_metadata`, with every episode's seed).
     render_mode : None
         No rendering (headless testbed); any other value raises.
     **task_kwargs
@@ -415,6 +424,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
     sensor : SensorChain
     observer : Observer or None
     task : Task
+    integrator : str
+        The MuJoCo integrator in use (``"Euler"``, ``"RK4"``, ...).
     observation_names : tuple of str
         Name of every observation entry.
     estimate_names : tuple of str
@@ -480,7 +491,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             if integ not in _INTEGRATORS:
                 raise DesignError(f"unknown integrator {integ!r}; valid: {sorted(_INTEGRATORS)}")
             self.plant.model.opt.integrator = _INTEGRATORS[integ]
-        self.integrator = mujoco.mjtIntegrator(self.plant.model.opt.integrator).name[7:]
+        used = int(self.plant.model.opt.integrator)
+        #: the MuJoCo integrator in use, by the name ``integrator=`` takes
+        self.integrator = next(k for k, v in _INTEGRATORS.items() if int(v) == used)
         self._io = _MjIO(self.plant)
         system = self.plant.system
         self.state_names = tuple(self.plant.state_names)
@@ -502,7 +515,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             self.estimate_names = tuple(str(s) for s in self.observer.state_names)
             est = {name: i for i, name in enumerate(self.estimate_names)}
             pairs = [(j, est[name]) for j, name in enumerate(self.state_names) if name in est]
-            self._err_identity = self.estimate_names == self.state_names
+            #: ``(state index, estimate index)`` of each state the observer estimates
+            self._err_pairs = pairs
             self._err = _error_function(pairs)
             self.error_names = tuple(self.state_names[j] for j, _ in pairs)
             diag = self.observer.diagnostics()
@@ -675,8 +689,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             and ``diagnostics`` (see :attr:`error_names`); ``goal`` for the reach tasks.
         """
         super().reset(seed=seed)
-        if self._rec_rows is not None and self._rec_rows["t"]:
-            self._write_episode()
+        if self._rec_rows is not None:
+            if self._rec_rows["t"]:
+                self._write_episode()
+            self._rec_seed = seed
         if seed is not None:
             self.sensor.reset(chain_seed(seed))
             self._rng = self.sensor.rng
@@ -803,6 +819,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             d = self.observer.diagnostics()  # type: ignore[union-attr]
             for k, b in zip(self.diagnostic_names, self._diag_bounds):
                 v = float(d.get(k, 0.0))
+                if v != v:  # not defined yet (an excitation measure before its window fills)
+                    v = 0.0
                 out.append(b if v > b else -b if v < -b else v)
         return np.array(out)
 
@@ -824,15 +842,27 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     # ------------------------------------------------------------------ recording (issue 6)
     def _open_recorder(self) -> None:
-        """Open the rerun recording of ``record_path`` (:mod:`hgo_mj.record`, issue 6)."""
+        """Open the rerun recording of ``record_path`` (:mod:`hgo_mj.record`, issue 6).
+
+        The observer's estimate columns are named by its own ``state_names``
+        (:attr:`estimate_names`): the states it estimates go next to the truth under
+        ``/state`` and ``/error``, the others (derivatives of a model-free observer, ...) under
+        ``/observer/<obs>/estimate``, and its ghost poses the joints it estimates."""
         try:
             from hgo_mj.record import Recorder
         except ImportError as exc:  # pragma: no cover - record.py is issue 6's
             raise DesignError(f"record_path needs hgo_mj.record (rerun recordings); {exc}") from None
-        names = [] if self.observer is None else [self.observer.name or type(self.observer).__name__]
+        obs = self.observer
+        names = [] if obs is None else [obs.name or type(obs).__name__]
+        states = {names[0]: self.estimate_names} if names else None
         self._recorder = Recorder.for_plant(self.record_path, self.plant, observers=names,
+                                            observer_states=states,
                                             recording_name=type(self).__name__)
-        self._rec_rows = {k: [] for k in ("t", "x", "y", "u", "x_hat", "diag", "reward")}
+        self._rec_rows = {k: [] for k in ("t", "x", "y", "y_clean", "u", "x_hat", "diag",
+                                          "reward")}
+        self._rec_seed: int | None = None
+        #: per finished episode: its seed and metrics (the ``/metrics`` document)
+        self._rec_episodes: list[dict[str, Any]] = []
 
     def _record_row(self, t: float, x: Array, y: Array, u: Array | None, reward: float) -> None:
         rows = self._rec_rows
@@ -840,27 +870,92 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         rows["t"].append(t)
         rows["x"].append(x)
         rows["y"].append(y)
+        # the plant has not moved since ``y`` was measured: the same read, before the sensor
+        rows["y_clean"].append(np.array(self._io.read_y(), dtype=float))
         rows["u"].append(np.zeros(self._nu) if u is None else u)
         rows["reward"].append(reward)
         if self.observer is not None:
             rows["x_hat"].append(np.array(self._x_hat, dtype=float))
-            rows["diag"].append(self.observer.diagnostics())
+            rows["diag"].append(dict(self.observer.diagnostics()))
+
+    def recording_metadata(self) -> dict[str, Any]:
+        """What a recording's ``/scenario`` document holds: the environment (registered id,
+        class), task, observation, periods, integrator, plant, sensor chain, observer (name,
+        type, parameters), the seed of every episode recorded so far, package versions."""
+        from hgo_mj.simulate import package_versions
+
+        from . import ENVIRONMENTS
+
+        spec = getattr(self, "spec", None)
+        env_id = spec.id if spec is not None else next(
+            (k for k, c in ENVIRONMENTS.items() if c is type(self)), None)
+        obs = self.observer
+        observers = {}
+        if obs is not None:
+            observers[obs.name or type(obs).__name__] = {
+                "type": type(obs).__name__, "state_names": list(self.estimate_names),
+                **obs.params()}
+        episodes = getattr(self, "_rec_episodes", [])
+        seeds = [e["seed"] for e in episodes]
+        return {
+            "scenario": env_id or type(self).__name__,
+            "environment": {"id": env_id, "class": f"{type(self).__module__}."
+                                                    f"{type(self).__qualname__}"},
+            "task": {"class": type(self.task).__name__, **self.task.params()},
+            "plant": type(self.plant.system).__name__,
+            "system_params": self.plant.system.params,
+            "seed": seeds[0] if seeds else getattr(self, "_rec_seed", None),
+            "seeds": {str(e["episode"]): e["seed"] for e in episodes},
+            "observation": self.observation_mode,
+            "physics_dt": self.physics_dt, "sample_period": self.sample_period,
+            "control_period": self.control_period, "integrator": self.integrator,
+            "sensor": self.sensor.describe(),
+            "observers": observers,
+            "versions": package_versions(),
+        }
+
+    def _episode_metrics(self, rows: Mapping[str, list[Any]]) -> dict[str, Any]:
+        """Seed, length, return and estimation error of the finished episode."""
+        steps = len(rows["t"]) - 1
+        out: dict[str, Any] = {"episode": self._episode, "seed": self._rec_seed, "steps": steps,
+                               "return": float(np.sum(rows["reward"][1:])),
+                               "terminated": bool(self.task.terminated(list(rows["x"][-1])))}
+        if self.observer is not None:
+            x, xh = np.array(rows["x"]), np.array(rows["x_hat"])
+            rmse: dict[str, float] = {}
+            final: dict[str, float] = {}
+            for j, i in self._err_pairs:
+                e = x[:, j] - xh[:, i]
+                ok = np.isfinite(e)
+                rmse[self.state_names[j]] = (float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any()
+                                             else math.nan)
+                final[self.state_names[j]] = float(abs(e[-1]))
+            out["rmse"] = rmse
+            out["final_error"] = final
+        return out
 
     def _write_episode(self) -> None:
-        """Hand the finished episode to the recorder in one batch, then clear the buffer."""
+        """Hand the finished episode to the recorder in one batch, then its metrics (the
+        ``/metrics`` table, one row per episode so far) and the scenario with every episode's
+        seed (``/scenario``); clear the buffer."""
         rows = self._rec_rows
         if rows is None or not rows["t"]:
             return
+        rec = self._recorder
         est = diag = None
-        if self.observer is not None and len(self.estimate_names) == len(self.state_names) \
-                and self._err_identity:
-            name = self._recorder.observers[0]
+        if self.observer is not None:
+            name = rec.observers[0]
             est = {name: np.array(rows["x_hat"])}
             keys = rows["diag"][0].keys()
-            diag = {name: {k: np.array([d[k] for d in rows["diag"]], dtype=float) for k in keys}}
-        self._recorder.record_episode(self._episode, np.array(rows["t"]), np.array(rows["x"]),
-                                      np.array(rows["y"]), np.array(rows["u"]), estimates=est,
-                                      diagnostics=diag, extra={"reward": np.array(rows["reward"])})
+            diag = {name: {k: np.array([d.get(k, math.nan) for d in rows["diag"]], dtype=float)
+                           for k in keys}}
+        rec.record_episode(self._episode, np.array(rows["t"]), np.array(rows["x"]),
+                           np.array(rows["y"]), np.array(rows["u"]),
+                           y_clean=np.array(rows["y_clean"]), estimates=est, diagnostics=diag,
+                           extra={"reward": np.array(rows["reward"])})
+        self._rec_episodes.append(self._episode_metrics(rows))
+        rec.log_metadata(self.recording_metadata())
+        rec.log_episode_metrics(self._rec_episodes)
         for v in rows.values():
             v.clear()
 

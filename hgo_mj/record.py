@@ -29,7 +29,8 @@ Entities (names escaped with :func:`rerun.escape_entity_path_part`)::
     /world/true/<body>/<geom>   the MuJoCo model's geometry posed from the true state
     /world/estimate/<obs>/<body>/<geom>   translucent ghost posed from that observer's estimate
     /scenario, /metrics         text documents: scenario, seed, observer parameters, package
-                                versions; the metrics table
+                                versions; the metrics table (an environment's: one row per
+                                episode, :meth:`Recorder.log_episode_metrics`)
 
 Estimates are matched to the plant's states by name: each observer's column names are its
 ``state_names`` (``observer_states``, or ``ObserverRecord.state_names`` of a trajectory); an
@@ -588,6 +589,36 @@ class Recorder:
                 + format_table(dict(metrics)) + "\n```\n\n```json\n"
                 + json.dumps(metrics, indent=2, default=float) + "\n```\n")
         self.stream.log("/metrics", rr.TextDocument(text, media_type="text/markdown"),
+                        static=True, strict=True)
+        self._flush()
+
+    def log_episode_metrics(self, episodes: Sequence[Mapping[str, Any]]) -> None:
+        """Log the metrics of an environment's episodes as ``/metrics``: a table with one row
+        per episode (``episode``, ``seed``, ``steps``, ``return``, ``terminated`` and, per
+        state, ``rmse``: each a key of the episode's mapping, ``rmse`` a mapping state ->
+        value), then the mappings as JSON. Called at the end of every episode with all the
+        episodes so far (the document is static: the last one logged is the file's)."""
+        states: list[str] = []
+        for ep in episodes:
+            states += [s for s in ep.get("rmse", {}) if s not in states]
+
+        def cell(v: Any) -> str:
+            if isinstance(v, float):
+                return f"{v:.4g}"
+            return "-" if v is None else str(v)
+
+        head = ["episode", "seed", "steps", "return", "terminated"]
+        lines = ["# Metrics", "", f"{len(episodes)} episode(s); return: sum of the step rewards; "
+                 "rmse: root mean square of e = x - x_hat over the episode's rows (its reset "
+                 "and every step)", "",
+                 "| " + " | ".join(head + [f"rmse {s}" for s in states]) + " |",
+                 "|" + "---|" * (len(head) + len(states))]
+        for ep in episodes:
+            rmse = ep.get("rmse", {})
+            lines.append("| " + " | ".join([cell(ep.get(k)) for k in head]
+                                           + [cell(rmse.get(s)) for s in states]) + " |")
+        lines += ["", "```json", json.dumps(list(episodes), indent=2, default=float), "```", ""]
+        self.stream.log("/metrics", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
                         static=True, strict=True)
         self._flush()
 

@@ -3,15 +3,19 @@ that applies to it; their behaviour (info, seeding, noise shared across modes) a
 
 from __future__ import annotations
 
+import json
 import math
 import pickle
+import re
 import warnings
 
 import gymnasium as gym
 import hgo_mj.envs as envs
+import mujoco
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from rrd_reader import read_rrd
 
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers import OBSERVERS, make_observer
@@ -59,6 +63,11 @@ _INCOMPATIBLE: dict[tuple[str, str], tuple[type[Exception], str]] = {
 def _pairs() -> list:
     return [pytest.param(env_id, kind, id=f"{env_id.split('/')[1]}-{kind}")
             for env_id in ENV_IDS for kind in sorted(OBSERVERS)]
+
+
+def _compatible() -> list:
+    """The (environment, observer) pairs that run (every pair not in ``_INCOMPATIBLE``)."""
+    return [p for p in _pairs() if tuple(p.values) not in _INCOMPATIBLE]
 
 
 def _checked(env: gym.Env) -> None:
@@ -136,12 +145,15 @@ def test_check_env_for_every_observation_mode(env_id, mode):
     assert env.observation_space.shape == (len(u.observation_names),)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
-def test_same_seed_same_trajectory_fresh_finite_observations(env_id):
-    a = _rollout(gym.make(env_id, info_level="full"), 7, 40)
-    b = _rollout(gym.make(env_id, info_level="full"), 7, 40)
-    assert _same(a, b)
-    c = _rollout(gym.make(env_id, info_level="full"), 8, 40)
+@pytest.mark.parametrize("env_id,kind", _compatible())
+def test_same_seed_same_trajectory_fresh_finite_observations(env_id, kind):
+    """Every compatible pair: the same seed gives the same episode (observations, rewards,
+    full info), another seed another; every array is finite and none shares memory with
+    another, within a step or across steps."""
+    a = _rollout(gym.make(env_id, observer=kind, info_level="full"), 7, 30)
+    b = _rollout(gym.make(env_id, observer=kind, info_level="full"), 7, 30)
+    assert len(a) > 10 and _same(a, b)  # (the balance task may end early)
+    c = _rollout(gym.make(env_id, observer=kind, info_level="full"), 8, 30)
     assert not _same(a, c)
     arrays = [r[0] for r in a] + [v for r in a for v in r[-1].values() if isinstance(v, np.ndarray)]
     for i, x in enumerate(arrays):
@@ -150,29 +162,36 @@ def test_same_seed_same_trajectory_fresh_finite_observations(env_id):
             assert not np.shares_memory(x, y)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
-def test_sync_vector_env_runs_through_autoreset(env_id):
-    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync", max_episode_steps=4)
+@pytest.mark.parametrize("env_id,kind", _compatible())
+def test_sync_vector_env_runs_through_autoreset(env_id, kind):
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync", max_episode_steps=4,
+                        observer=kind)
     obs, info = venv.reset(seed=1)
     assert obs.shape == (3, *venv.single_observation_space.shape)
     venv.action_space.seed(1)
-    for _ in range(6):
+    for _ in range(6):  # through an autoreset (after step 4)
         obs, reward, term, trunc, info = venv.step(venv.action_space.sample())
         assert np.all(np.isfinite(obs)) and reward.shape == (3,)
-    assert info["state"].shape[0] == 3
+    assert info["state"].shape[0] == 3 and np.all(np.isfinite(info["estimate"]))
+    assert not np.array_equal(obs[0], obs[1])  # each copy its own seed
     venv.close()
 
 
-def test_async_vector_env_with_spawn():
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_async_vector_env_with_spawn(env_id):
+    """Every environment runs in an ``AsyncVectorEnv`` whose workers are spawned (each
+    rebuilds it from its pickled constructor call), through an autoreset."""
     kw = {"vectorization_mode": "async", "vector_kwargs": {"context": "spawn"}}
-    venv = gym.make_vec("hgo_mj/ElasticJoint2LinkReach-v0", num_envs=2, max_episode_steps=3,
-                        **kw)
+    venv = gym.make_vec(env_id, num_envs=2, max_episode_steps=3, **kw)
     try:
+        shape = venv.single_observation_space.shape
         obs, _ = venv.reset(seed=[1, 2])
-        for _ in range(4):
-            obs, reward, *_ = venv.step(np.zeros((2, 2), dtype=np.float32))
-        assert obs.shape == (2, 10) and np.all(np.isfinite(obs))
-        assert not np.array_equal(obs[0], obs[1])
+        assert obs.shape == (2, *shape)
+        for _ in range(4):  # the fourth step resets (autoreset after the third)
+            obs, reward, term, trunc, info = venv.step(
+                np.zeros(venv.action_space.shape, dtype=np.float32))
+            assert obs.shape == (2, *shape) and np.all(np.isfinite(obs)) and reward.shape == (2,)
+        assert not np.array_equal(info["state"][0], info["state"][1])  # each copy its own seed
     finally:
         venv.close()
 
@@ -185,7 +204,7 @@ def test_environments_pickle(env_id):
     assert _same(_rollout(env, 5, 10), _rollout(copy, 5, 10))
 
 
-@pytest.mark.parametrize("env_id,kind", [p for p in _pairs() if tuple(p.values) not in _INCOMPATIBLE])
+@pytest.mark.parametrize("env_id,kind", _compatible())
 def test_environment_with_every_observer_pickles(env_id, kind):
     """Named observers and observer instances (with their caches of compiled updates filled
     by a rollout) pickle, and the copy runs the same episode."""
@@ -222,6 +241,75 @@ def test_vector_copies_do_not_share_observer_or_sensor_instances():
     assert a.observer is not b.observer and a.sensor is not b.sensor
     seeded = venv.reset(seed=[3, 3])[0]
     np.testing.assert_array_equal(seeded[0], seeded[1])
+
+
+# --------------------------------------------------------------------------- layout and docs
+@pytest.mark.parametrize("env_id,kind", _compatible())
+def test_estimate_plus_diagnostics_layout(env_id, kind):
+    """``observation="estimate+diagnostics"``: the ``"estimate"`` observation (estimate, then
+    goal) followed by the observer's diagnostics less ``dropouts``, in its order, each within
+    the task's bound (NaN, not defined yet, as 0), for every compatible pair."""
+    env = envs.ENVIRONMENTS[env_id](observer=kind, observation="estimate+diagnostics",
+                                    info_level="full")
+    plain = envs.ENVIRONMENTS[env_id](observer=kind)
+    names = env.diagnostic_names
+    assert names == tuple(k for k in env.observer.diagnostics() if k != "dropouts")
+    nd = len(names)
+    assert env.observation_names == plain.observation_names + tuple(f"diagnostic:{k}"
+                                                                    for k in names)
+    np.testing.assert_array_equal(env.observation_space.high[len(plain.observation_names):],
+                                  [env.task.bound(k) for k in names])
+    a, b = _rollout(env, 2, 8), _rollout(plain, 2, 8)
+    for (obs, *_, info), (ref, *_) in zip(a, b):
+        assert obs in env.observation_space
+        np.testing.assert_array_equal(obs[:len(ref)], ref)
+        d = info["diagnostics"]
+        want = [0.0 if np.isnan(d[k]) else np.clip(d[k], -env.task.bound(k), env.task.bound(k))
+                for k in names]
+        np.testing.assert_array_equal(obs[len(ref):], want)
+        assert len(obs) == len(ref) + nd
+
+
+@pytest.mark.parametrize("env_id,kind,kwargs,keys", [
+    ("hgo_mj/PendulumSwingUp-v0", "adaptive_gain", {}, ("k",)),
+    ("hgo_mj/ElasticJointReach-v0", "adaptive_gain", {}, ("k",)),
+    ("hgo_mj/PendulumSwingUp-v0", "besancon", {}, ("theta_g_over_l", "theta_b_over_J",
+                                                   "excitation")),
+    ("hgo_mj/PendulumSwingUp-v0", "ekf", {"estimate": ["damping"], "theta_hat0": [0.02]},
+     ("theta_damping",)),
+    ("hgo_mj/ElasticJointReach-v0", "ukf", {"estimate": ["stiffness"], "theta_hat0": [8.0]},
+     ("theta_stiffness",)),
+])
+def test_estimate_plus_diagnostics_holds_gain_and_parameter_estimates(env_id, kind, kwargs, keys):
+    env = gym.make(env_id, observer=kind, observer_kwargs=kwargs,
+                   observation="estimate+diagnostics", info_level="full")
+    u = env.unwrapped
+    assert u.diagnostic_names == keys
+    assert u.observation_names[-len(keys):] == tuple(f"diagnostic:{k}" for k in keys)
+    rows = _rollout(env, 0, 20)
+    tail = np.array([r[0][-len(keys):] for r in rows])
+    d = np.array([[r[-1]["diagnostics"][k] for k in keys] for r in rows])
+    np.testing.assert_array_equal(tail, np.nan_to_num(d, nan=0.0))
+    if kind in ("ekf", "ukf"):  # the augmented parameter moves from its initial guess
+        assert tail[0, 0] == kwargs["theta_hat0"][0] and tail[-1, 0] != tail[0, 0]
+    if kind == "adaptive_gain":
+        assert np.all(tail[:, 0] > 0)
+
+
+_GYMNASIUM_SECTIONS = ("Description", "Action Space", "Observation Space", "Rewards",
+                       "Starting State", "Episode End", "Arguments", "Version History")
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_environment_docstring_has_gymnasium_sections(env_id):
+    """Each class documents itself as Gymnasium's environments do: these ``## `` sections, in
+    this order, each with text, the version history naming the registered version."""
+    doc = envs.ENVIRONMENTS[env_id].__doc__
+    heads = re.findall(r"^\s*## (.+?)\s*$", doc, re.M)
+    assert tuple(heads) == _GYMNASIUM_SECTIONS
+    parts = re.split(r"^\s*## .+$", doc, flags=re.M)[1:]
+    assert all(len(p.strip()) > 20 for p in parts)
+    assert f"* {env_id.rsplit('-', 1)[1]}:" in parts[-1]
 
 
 # --------------------------------------------------------------------------- behaviour
@@ -379,18 +467,134 @@ def test_other_bad_arguments():
 
 
 # --------------------------------------------------------------------------- recording
-def test_record_path_writes_episodes(tmp_path):
-    record = pytest.importorskip("hgo_mj.record")
-    if not hasattr(record.Recorder, "record_episode"):
-        pytest.skip("hgo_mj.record has no Recorder.record_episode yet (issue 6)")
+def _json_blocks(text: str) -> list:
+    return [json.loads(b) for b in re.findall(r"```json\n(.*?)\n```", text, re.S)]
+
+
+@pytest.mark.parametrize("env_id", ["hgo_mj/PendulumSwingUp-v0", "hgo_mj/ElasticJoint2LinkReach-v0"])
+def test_record_path_holds_every_episode(tmp_path, env_id):
+    """Two episodes (6 and 4 steps) recorded through ``record_path`` and read back with rerun's
+    reader: one row at reset and one per step, on the episode timeline; the true state, the
+    observer's estimate of the states it estimates (the two-link arm's model-free observer:
+    link angles and velocities, not the motors; its derivatives under its own names), the
+    errors, inputs, rewards and diagnostics equal what ``step`` returned; the ghost, the
+    scenario (with each episode's seed) and the per-episode metrics are there."""
     path = tmp_path / "episodes.rrd"
-    env = gym.make("hgo_mj/PendulumSwingUp-v0", record_path=path, max_episode_steps=5)
-    for seed in (0, 1):
-        env.reset(seed=seed)
-        for _ in range(5):
-            env.step(env.action_space.sample())
+    env = gym.make(env_id, record_path=path, max_episode_steps=10)
+    u = env.unwrapped
+    obs_name = u.observer.name
+    lengths, seeds = (6, 4), (0, 1)
+    infos, rewards, actions = [], [], []
+    for seed, n in zip(seeds, lengths):
+        env.action_space.seed(seed)
+        _, info = env.reset(seed=seed)
+        infos.append(info)
+        rewards.append(0.0)
+        actions.append(np.zeros(env.action_space.shape))
+        for _ in range(n):
+            a = env.action_space.sample()
+            _, r, _, _, info = env.step(a)
+            infos.append(info)
+            rewards.append(r)
+            actions.append(a.astype(float) * np.array(u.task.max_action))
     env.close()
-    assert path.is_file() and path.stat().st_size > 0
+    ents, blueprints = read_rrd(path)
+    assert blueprints >= 1
+    rows = sum(n + 1 for n in lengths)
+    X = np.array([i["state"] for i in infos])
+    XH = np.array([i["estimate"] for i in infos])
+    E = np.array([i["error"] for i in infos])
+    assert X.shape[0] == rows
+    est = {name: k for k, name in enumerate(u.estimate_names)}
+    for j, s in enumerate(u.state_names):
+        e = ents[f"/state/{s}"]
+        assert e.rows == rows, s
+        np.testing.assert_array_equal(e["episode"], np.repeat([0, 1], [n + 1 for n in lengths]))
+        np.testing.assert_array_equal(e["step"], np.arange(rows))
+        assert np.all(np.diff(e["sim_time"]) > 0)  # the second episode follows the first
+        vals = e["Scalars:scalars"]
+        np.testing.assert_array_equal(vals[:, 0], X[:, j])
+        if s in est:
+            assert vals.shape[1] == 2
+            np.testing.assert_array_equal(vals[:, 1], XH[:, est[s]])
+            err = ents[f"/error/{s}"]["Scalars:scalars"][:, 0]
+            np.testing.assert_array_equal(err, E[:, u.error_names.index(s)])
+        else:  # a state the observer does not estimate: the truth only, no error
+            assert vals.shape[1] == 1 and f"/error/{s}" not in ents
+    assert set(u.error_names) == {s for s in u.state_names if s in est}
+    for name, k in est.items():  # estimates that are not plant states: the observer's names
+        if name not in u.state_names:
+            e = ents[f"/observer/{obs_name}/estimate/{name}"]
+            np.testing.assert_array_equal(e["Scalars:scalars"][:, 0], XH[:, k])
+    np.testing.assert_allclose(ents["/env/reward"]["Scalars:scalars"][:, 0], rewards)
+    inputs = np.array(actions)
+    for j, name in enumerate(u.plant.input_names):
+        np.testing.assert_allclose(ents[f"/input/{name}"]["Scalars:scalars"][:, 0], inputs[:, j],
+                                   rtol=1e-6)
+    for name in u.output_names:  # the clean output is the true state's
+        sensor = ents[f"/sensor/{name}"]["Scalars:scalars"]
+        if name in u.state_names:
+            np.testing.assert_allclose(sensor[:, 0], X[:, u.state_names.index(name)], atol=1e-12)
+        assert np.all(np.abs(sensor[:, 1] - sensor[:, 0]) < 0.05)  # noise, quantization
+    # diagnostics: where they change and at each episode's end
+    diag = u.observer.diagnostics()
+    if "k" in diag:
+        gain = ents[f"/observer/{obs_name}/gain"]
+        assert np.all(gain["Scalars:scalars"] == diag["k"]) and gain["step"][-1] == rows - 1
+    drops = ents[f"/observer/{obs_name}/diagnostics/dropouts"]
+    assert np.all(drops["Scalars:scalars"] == 0.0) and drops["step"][-1] == rows - 1
+    # the ghost poses the estimated joints
+    body = {"hgo_mj/PendulumSwingUp-v0": "pole", "hgo_mj/ElasticJoint2LinkReach-v0": "link2"}[env_id]
+    ghost = ents[f"/world/estimate/{obs_name}/{body}"]
+    assert 0 < ghost.rows <= rows and ghost.rows == ents[f"/world/true/{body}"].rows
+    # the scenario: environment, task, periods, sensor, observer, seeds, versions
+    scenario = ents["/scenario"].static["TextDocument:text"][0]
+    meta = _json_blocks(scenario)[-1]
+    assert meta["environment"]["id"] == env_id
+    assert meta["environment"]["class"].endswith(type(u).__name__)
+    assert meta["task"] == {"class": type(u.task).__name__, **json.loads(json.dumps(u.task.params()))}
+    assert meta["seeds"] == {"0": 0, "1": 1}
+    assert (meta["sample_period"], meta["control_period"], meta["physics_dt"]) == (
+        u.sample_period, u.control_period, u.physics_dt)
+    assert meta["integrator"] == u.integrator
+    assert meta["sensor"] == json.loads(json.dumps(u.sensor.describe()))
+    observer = meta["observers"][obs_name]
+    assert observer["type"] == type(u.observer).__name__
+    assert observer["state_names"] == list(u.estimate_names)
+    assert observer["k"] == json.loads(json.dumps(u.observer.params()["k"]))
+    assert meta["versions"]["mujoco"] == mujoco.__version__
+    # the metrics: one row per episode
+    metrics = ents["/metrics"].static["TextDocument:text"][0]
+    assert "| episode | seed | steps | return |" in metrics
+    table = _json_blocks(metrics)[0]
+    assert [m["episode"] for m in table] == [0, 1] and [m["seed"] for m in table] == list(seeds)
+    assert [m["steps"] for m in table] == list(lengths)
+    first = 0
+    for m, n in zip(table, lengths):
+        part = slice(first, first + n + 1)
+        assert m["return"] == pytest.approx(sum(rewards[part]))
+        for k, s in enumerate(u.error_names):
+            assert m["rmse"][s] == pytest.approx(np.sqrt(np.mean(E[part, k] ** 2)))
+            assert m["final_error"][s] == pytest.approx(abs(E[part][-1, k]))
+        first += n + 1
+
+
+def test_record_path_without_observer(tmp_path):
+    """No observer: the truth, measurements and rewards only, no error, no metrics RMSE."""
+    path = tmp_path / "true.rrd"
+    env = envs.PendulumSwingUpEnv(observer=None, observation="true", record_path=path)
+    env.reset(seed=4)
+    for _ in range(3):
+        env.step(np.zeros(1, dtype=np.float32))
+    env.close()
+    ents, _ = read_rrd(path)
+    assert ents["/state/angle"].rows == 4 and ents["/state/angle"]["Scalars:scalars"].shape[1] == 1
+    assert not any(e.startswith(("/error", "/observer", "/world/estimate")) for e in ents)
+    table = _json_blocks(ents["/metrics"].static["TextDocument:text"][0])[0]
+    assert table == [{"episode": 0, "seed": 4, "steps": 3, "return": table[0]["return"],
+                      "terminated": False}]
+    meta = _json_blocks(ents["/scenario"].static["TextDocument:text"][0])[-1]
+    assert meta["observers"] == {} and meta["environment"]["id"] == "hgo_mj/PendulumSwingUp-v0"
 
 
 def test_readme_environment_examples_run():
