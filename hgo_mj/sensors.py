@@ -592,6 +592,24 @@ class Quantization(Stage):
             self._mismatch(n)
         return np.rint(y / self._res) * self._res
 
+    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
+        n = len(y)
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+        res = self._res
+        if isinstance(res, float):
+            return [_rint(v / res) * res for v in y]
+        return [_rint(v / r) * r for v, r in zip(y, res.tolist())]
+
+
+def _rint(q: float) -> float:
+    """:func:`numpy.rint` of a Python float, as a Python float: ties to even, NaN and +-inf
+    unchanged, and the sign of a zero result kept (``rint(-0.3) = -0.0``)."""
+    if q - q != 0.0:  # NaN or +-inf
+        return q
+    r = float(round(q))  # Python's round: ties to even, exact for every finite float
+    return r if r else math.copysign(0.0, q)
+
 
 class SampleHold(Stage):
     """Sample at its own ``period`` and hold between samples (zero-order hold).

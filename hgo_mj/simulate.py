@@ -27,6 +27,7 @@ import platform
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any
@@ -39,6 +40,7 @@ from .exceptions import DesignError, DimensionError, DivergenceError
 from .inputs import Controller
 from .observers.base import Observer
 from .plants.base import Plant
+from .sensors import SensorChain, Stage
 
 Array = NDArray[np.float64]
 
@@ -170,14 +172,20 @@ class Trajectory:
 
 
 def package_versions() -> dict[str, str]:
-    """Versions of the packages a result depends on, for its metadata."""
-    out = {"python": platform.python_version()}
-    for pkg in ("hgo_mj", "mujoco", "numpy", "scipy", "gymnasium", "rerun-sdk"):
-        try:
-            out[pkg] = importlib_metadata.version(pkg)
-        except importlib_metadata.PackageNotFoundError:
-            out[pkg] = "not installed"
-    return out
+    """Versions of the packages a result depends on, for its metadata (looked up once per
+    process: the lookup costs milliseconds; a fresh dict each call)."""
+    if not _VERSIONS:
+        out = {"python": platform.python_version()}
+        for pkg in ("hgo_mj", "mujoco", "numpy", "scipy", "gymnasium", "rerun-sdk"):
+            try:
+                out[pkg] = importlib_metadata.version(pkg)
+            except importlib_metadata.PackageNotFoundError:
+                out[pkg] = "not installed"
+        _VERSIONS.update(out)
+    return dict(_VERSIONS)
+
+
+_VERSIONS: dict[str, str] = {}
 
 
 def _ratio(name: str, period: float, base: float, base_name: str) -> int:
@@ -300,7 +308,9 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         ob.reset()
         ob.check_period(Ts)  # a too-long period for a high gain is refused before the run
     n, m, p = len(plant.state_names), len(plant.output_names), len(plant.input_names)
-    x_hat = [ob.x_hat for ob in obs.values()]  # update() returns the next one
+    obs_list = list(obs.values())
+    names = list(obs)
+    x_hat: list[Any] = [ob.x_hat for ob in obs_list]  # update() returns the next one
     est_names: list[tuple[str, ...]] = []
     for (name, ob), xh in zip(obs.items(), x_hat):
         names_i = tuple(str(s) for s in ob.state_names)
@@ -311,85 +321,147 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                                  f"{list(names_i)}")
         est_names.append(names_i)
 
-    # rows are collected in lists and stacked once at the end (cheaper than row assignment)
-    X: list[Array] = []
-    Yc: list[Array] = []
-    Ym: list[Array] = []
-    U: list[Array] = []
-    names = list(obs)
-    xh_rows: list[list[Array]] = [[] for _ in names]
-    zh_rows: list[list[Array]] = [[] for _ in names]
+    # The fast paths: plain Python floats per sample, no small arrays, where the plant, the
+    # sensor stages and the observers offer them (``state_list``, ``apply_list``,
+    # ``update_list``, ...: the same values, see the differential test); the array interface
+    # otherwise. Rows are collected in flat lists (arrays: lists of rows) and stacked per chunk.
+    state_list = plant.state_list if _owns(plant, "state_list", "state") else (
+        lambda: Plant.state_list(plant))
+    outputs_list = plant.outputs_list if _owns(plant, "outputs_list", "outputs") else (
+        lambda: Plant.outputs_list(plant))
+    step_list = _owns(plant, "step_list", "step")  # step() takes a list of floats
+    plant_step = plant.step_list if step_list else plant.step
+    stages: list[Callable[..., list[float]]] | None = None
+    if isinstance(sensor, SensorChain) and type(sensor).__call__ is SensorChain.__call__:
+        stages = [s.apply_list if _owns(s, "apply_list", "__call__")
+                  else partial(Stage.apply_list, s) for s in sensor.stages]
+        rng = sensor.rng
+    fast = [_fast_observer(ob) for ob in obs_list]
+    diag_keys: list[tuple[str, ...]] = []
+    for i, ob in enumerate(obs_list):
+        keys = tuple(ob.diagnostics()) if fast[i] is not None and fast[i][2] is not None else ()
+        if keys and len(fast[i][2]()) != len(keys):  # type: ignore[index,misc]
+            fast[i] = (fast[i][0], fast[i][1], None)  # type: ignore[index]
+        diag_keys.append(keys if fast[i] is not None and fast[i][2] is not None else ())
+    for i, f in enumerate(fast):
+        if f is not None:
+            x_hat[i] = np.asarray(x_hat[i], dtype=float).reshape(-1).tolist()
+    need_array = any(f is None for f in fast)  # an observer on the array interface
+    ops = list(zip(obs_list, fast))
+
+    X: list[float] = []
+    Yc: list[float] = []
+    Ym: list[float] = []
+    U: list[float] = []
+    # per observer: flat lists of floats (fast path) or lists of arrays / dicts (array path)
+    xh_rows: list[list[Any]] = [[] for _ in names]
+    zh_rows: list[list[Any]] = [[] for _ in names]
     dg_rows: list[list[Any]] = [[] for _ in names]
     wall = [0.0] * len(names)
-    obs_list = list(obs.values())
     perf = time.perf_counter
     u = np.zeros(p)
+    ul: list[float] = u.tolist()
+    uarg: Any = ul if step_list else u
     failure: Exception | None = None
+    f64 = np.dtype(np.float64)
 
-    def build(k0: int, meta: dict[str, Any], update_time: list[float] | None = None) -> Trajectory:
+    def build(k0: int, rows: int, meta: dict[str, Any],
+              update_time: list[float] | None = None) -> Trajectory:
         """The rows collected in the lists (run rows ``k0 ...``) as a :class:`Trajectory`."""
-        rows = len(X)
         records = {}
         for i, name in enumerate(names):
             dg = dg_rows[i]
-            diag = {d: np.array([r[d] for r in dg], dtype=float) for d in (dg[0] if dg else ())}
+            if diag_keys[i]:
+                keys = diag_keys[i]
+                vals = np.array(dg, dtype=float).reshape(rows, len(keys))
+                diag = {d: vals[:, j].copy() for j, d in enumerate(keys)} if rows else {}
+            else:
+                diag = {d: np.array([r[d] for r in dg], dtype=float)
+                        for d in (dg[0] if dg else ())}
             records[name] = ObserverRecord(
-                x_hat=np.array(xh_rows[i], dtype=float).reshape(rows, -1),
-                z_hat=np.array(zh_rows[i], dtype=float).reshape(rows, -1), diagnostics=diag,
+                x_hat=_stack(xh_rows[i], rows, len(est_names[i])),
+                z_hat=_stack(zh_rows[i], rows, 0), diagnostics=diag,
                 update_time=float("nan") if update_time is None else update_time[i],
                 state_names=est_names[i])
         return Trajectory(
-            t=np.arange(k0, k0 + rows) * Ts, x=np.array(X).reshape(rows, n),
-            y_clean=np.array(Yc).reshape(rows, m), y_meas=np.array(Ym).reshape(rows, m),
-            u=np.array(U).reshape(rows, p), observers=records,
+            t=np.arange(k0, k0 + rows) * Ts, x=np.array(X, dtype=float).reshape(rows, n),
+            y_clean=np.array(Yc, dtype=float).reshape(rows, m),
+            y_meas=np.array(Ym, dtype=float).reshape(rows, m),
+            u=np.array(U, dtype=float).reshape(rows, p), observers=records,
             state_names=tuple(plant.state_names), output_names=tuple(plant.output_names),
             input_names=tuple(plant.input_names), metadata=meta)
 
     parts: list[Trajectory] = []  # chunks handed to on_chunk; their rows leave the lists
 
-    def emit(k0: int) -> None:
-        chunk = build(k0, {"sample_period": Ts, "first_row": k0})
-        for rows in (X, Yc, Ym, U, *xh_rows, *zh_rows, *dg_rows):
-            rows.clear()
+    def emit(k0: int, rows: int) -> None:
+        chunk = build(k0, rows, {"sample_period": Ts, "first_row": k0})
+        for lst in (X, Yc, Ym, U, *xh_rows, *zh_rows, *dg_rows):
+            lst.clear()
         parts.append(chunk)
         chunk_cb(k0, chunk)
 
     sent = 0  # rows already handed to on_chunk
+    done = 0  # rows collected so far
     next_chunk = chunk_rows
+    ym_arr: Any = None
     try:
         for k in range(N + 1):
             t = k * Ts
-            x = plant.state
-            yc = plant.outputs()
-            ym = sensor(t, yc) if sensor is not None else yc.copy()
+            xl = state_list()
+            ycl = outputs_list()
+            if stages is not None:
+                yml = ycl
+                for apply in stages:
+                    yml = apply(t, yml, rng)
+                if need_array:
+                    ym_arr = np.array(yml)
+            elif sensor is not None:
+                ym_arr = sensor(t, np.array(ycl))
+                yml = np.asarray(ym_arr, dtype=float).reshape(-1).tolist()
+            else:
+                yml = ycl
+                if need_array:
+                    ym_arr = np.array(ycl)
             if k % every == 0:
                 if controller:
-                    u = inputs(t, x if inputs.source == "true" else ctrl_obs.x_hat)
+                    u = inputs(t, np.array(xl) if inputs.source == "true" else ctrl_obs.x_hat)
                 else:
                     u = inputs(t)
-                u = np.asarray(u, dtype=float).reshape(-1)
+                if type(u) is not np.ndarray or u.dtype is not f64 or u.ndim != 1:
+                    u = np.asarray(u, dtype=float).reshape(-1)
                 if u.shape != (p,):
                     raise DimensionError(f"input must have {p} channel(s) {plant.input_names}; "
                                          f"found shape {u.shape} at t={t:g}")
-            X.append(x)
-            Yc.append(yc)
-            Ym.append(ym)
-            U.append(u)
-            for i, ob in enumerate(obs_list):
-                xh_rows[i].append(x_hat[i])
-                zh_rows[i].append(ob.z_hat)
-                dg_rows[i].append(ob.diagnostics())
-            if k + 1 == next_chunk:
+                ul = u.tolist()
+                uarg = ul if step_list else u
+            X += xl
+            Yc += ycl
+            Ym += yml
+            U += ul
+            for i, (ob, f) in enumerate(ops):
+                if f is None:
+                    xh_rows[i].append(x_hat[i])
+                    zh_rows[i].append(ob.z_hat)
+                    dg_rows[i].append(ob.diagnostics())
+                else:
+                    xh_rows[i] += x_hat[i]
+                    zh_rows[i] += f[1]()
+                    if f[2] is None:
+                        dg_rows[i].append(ob.diagnostics())
+                    else:
+                        dg_rows[i] += f[2]()
+            done = k + 1
+            if done == next_chunk:
                 if N - k >= chunk_rows // 2:  # a short tail is folded into the last chunk
-                    emit(sent)
-                    sent = k + 1
-                next_chunk = k + 1 + chunk_rows
+                    emit(sent, done - sent)
+                    sent = done
+                next_chunk = done + chunk_rows
             if k == N:
                 break
-            for i, ob in enumerate(obs_list):
+            for i, (ob, f) in enumerate(ops):
                 t0 = perf()
                 try:
-                    x_hat[i] = ob.update(ym, u, Ts)
+                    x_hat[i] = ob.update(ym_arr, u, Ts) if f is None else f[0](yml, u, Ts)
                 except DimensionError:
                     raise  # a shape mistake, not a divergence
                 except (DivergenceError, ValueError, ArithmeticError) as exc:
@@ -397,16 +469,19 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                     # an overflow, a DesignError of a map outside its domain): a divergence
                     raise _UpdateFailure(names[i], t, k, exc) from exc
                 wall[i] += perf() - t0
-            for _ in range(steps):
-                plant.step(u)
+            if steps == 1:
+                plant_step(uarg)
+            else:
+                for _ in range(steps):
+                    plant_step(uarg)
     except _UpdateFailure as exc:
         failure = exc
     except (DivergenceError, FloatingPointError) as exc:
         failure = exc  # keep what was simulated: the partial trajectory goes with the error
 
-    if chunk_cb is not None and X:
-        emit(sent)
-    rows = sent + len(X)
+    if chunk_cb is not None and done > sent:
+        emit(sent, done - sent)
+    rows = done
     meta = {"plant": type(plant.system).__name__, "system_params": plant.system.params,
             "plant_dt": plant.dt, "physics_dt": getattr(plant, "physics_dt", plant.dt),
             "sample_period": Ts, "control_period": Tc, "duration": duration, "seed": seed,
@@ -420,7 +495,8 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                                  for name, ob in obs.items()},
             "versions": package_versions(), **(dict(metadata) if metadata else {})}
     update_time = [w / max(rows - 1, 1) for w in wall]
-    traj = build(0, meta, update_time) if not parts else _concatenate(parts, meta, update_time)
+    traj = (build(0, rows - sent, meta, update_time) if not parts
+            else _concatenate(parts, meta, update_time))
     records, t_col = traj.observers, traj.t
     if isinstance(failure, _UpdateFailure):
         cause = failure.cause
@@ -444,6 +520,36 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
             exc.trajectory = traj  # type: ignore[attr-defined]
             raise exc
     return traj
+
+
+def _owns(obj: Any, fast: str, slow: str) -> bool:
+    """Whether ``obj``'s method ``fast`` (a plain-float variant) belongs to the class that
+    defines the ``slow`` one it stands for, or to a subclass of it: a subclass that overrides
+    ``slow`` but not ``fast`` keeps the general path."""
+    mro = type(obj).__mro__
+    f = next((c for c in mro if fast in vars(c)), None)
+    s = next((c for c in mro if slow in vars(c)), None)
+    return f is not None and s is not None and issubclass(f, s)
+
+
+def _fast_observer(ob: Observer) -> tuple[Callable[..., list[float]],
+                                          Callable[[], list[float]],
+                                          Callable[[], tuple[float, ...]] | None] | None:
+    """``(update_list, z_hat_list, diagnostic_values or None)`` of an observer with the
+    plain-float path (the high-gain family), or None: the array interface."""
+    if not (_owns(ob, "update_list", "update") and _owns(ob, "x_hat_list", "x_hat")
+            and _owns(ob, "z_hat_list", "z_hat")):
+        return None
+    dv = ob.diagnostic_values if _owns(ob, "diagnostic_values", "diagnostics") else None  # type: ignore[attr-defined]
+    return ob.update_list, ob.z_hat_list, dv  # type: ignore[attr-defined]
+
+
+def _stack(rows_list: list[Any], rows: int, width: int) -> Array:
+    """``rows`` rows collected as a flat list of floats or as a list of arrays, shape
+    ``(rows, width)`` (``width`` 0: inferred)."""
+    if not rows:
+        return np.empty((0, width))
+    return np.array(rows_list, dtype=float).reshape(rows, -1)
 
 
 class _UpdateFailure(Exception):

@@ -161,7 +161,7 @@ def test_euler_observer_converges_below_and_diverges_above_the_period_limit():
     assert _euler_run(0.09, 3000) < 1e-9  # below the LMI (63) bound 0.0919 (roundoff floor)
     err = _euler_run(0.18, 400, on_unstable="ignore")
     assert not err < 1e3  # diverged (or overflowed to inf/nan)
-    with pytest.raises(DesignError, match=r"unstable.*largest stable period is 0\.1667"):
+    with pytest.raises(DesignError, match=r"unstable.*largest stable period is 0\.16666"):
         _euler_run(0.18, 1)
 
 

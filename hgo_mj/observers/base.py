@@ -92,7 +92,7 @@ class Observer:
         if x_hat0 is not None:
             if self.system is None:
                 return vector("x_hat0", x_hat0, self.n)
-            return self.system.to_normal(x_hat0, u0)
+            return self.system.to_normal(vector("x_hat0", x_hat0, len(self.system.state_names)), u0)
         return np.zeros(self.n)
 
     def _physical(self, z: Array) -> Array:

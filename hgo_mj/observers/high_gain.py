@@ -269,10 +269,9 @@ class HighGainObserver(Observer):
         M, b, g = one_step_map(self.p, self.k_, dt, self.method)
         rho = spectral_radius(M)
         if rho >= 1.0 and self.on_unstable != "ignore":
-            msg = (f"{self.method} update of the high-gain observer (n={self.n}, k={self.k_:g}) "
-                   f"with sample period {dt:g} is unstable: spectral radius of the one-step error "
-                   f"map {rho:.4g} >= 1; the largest stable period is "
-                   f"{self.max_stable_period():.4g}")
+            msg = (f"{self.method} update of the {self._label()} with sample period {dt:g} is "
+                   f"unstable: spectral radius of the one-step error map {rho:.6g} >= 1; the "
+                   f"largest stable period is {self.max_stable_period():.6g}")
             if self.on_unstable == "raise":
                 raise DesignError(msg)
             warnings.warn(msg, RuntimeWarning, stacklevel=3)
@@ -285,6 +284,10 @@ class HighGainObserver(Observer):
                  affine_step(eye, g0), affine_step(M, b, g), affine_step(M0, zero, g0))
         self._steps[dt] = entry
         return entry
+
+    def _label(self) -> str:
+        """The observer and its gain, as error messages name it."""
+        return f"high-gain observer (n={self.n}, k={self.k_:g})"
 
     # -------------------------------------------------------------- interface
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
@@ -318,6 +321,16 @@ class HighGainObserver(Observer):
             z = self._z
             return list(z) if self.z_bounds is None else list(self._saturate_floats(z))
         return self.x_hat.tolist()
+
+    def z_hat_list(self) -> list[float]:
+        """:attr:`z_hat` as a list of Python floats (the same values)."""
+        z = self._z
+        return list(z) if self.z_bounds is None else list(self._saturate_floats(z))
+
+    def diagnostic_values(self) -> tuple[float, ...]:
+        """The values of :meth:`diagnostics`, in its key order, without building the dict: for
+        per-sample loops that record them as columns."""
+        return (self.k_, float(self.dropouts_))
 
     def _advance(self, yi: float, u: Any, dt: float) -> None:
         """One sample: the new observer state from the measurement ``yi`` (a float)."""

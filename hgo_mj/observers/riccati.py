@@ -159,6 +159,9 @@ class RiccatiObserver(HighGainObserver):
                           f"convergence is not guaranteed; min_gamma gives "
                           f"{min_gamma(a, r):.4g}", RuntimeWarning, stacklevel=2)
 
+    def _label(self) -> str:
+        return f"Riccati observer (n={self.n}, gamma={self.gamma_:g})"
+
     def diagnostics(self) -> dict[str, float]:
         return {"gamma": self.gamma_, "dropouts": float(self.dropouts_)}
 

@@ -58,3 +58,17 @@ class Plant(ABC):
     @abstractmethod
     def outputs(self) -> Array:
         """The clean measured outputs at the current time (a fresh array)."""
+
+    def state_list(self) -> list[float]:
+        """:attr:`state` as a list of Python floats (the same values), for per-sample loops;
+        plants override it with a path that builds no array."""
+        return np.asarray(self.state, dtype=float).tolist()  # type: ignore[no-any-return]
+
+    def outputs_list(self) -> list[float]:
+        """:meth:`outputs` as a list of Python floats (the same values), for per-sample loops."""
+        return np.asarray(self.outputs(), dtype=float).tolist()  # type: ignore[no-any-return]
+
+    def step_list(self, u: list[float]) -> None:
+        """:meth:`step` with ``u`` a list of Python floats, for per-sample loops (plants whose
+        ``step`` takes any sequence alias it to ``step``)."""
+        self.step(np.array(u, dtype=float))

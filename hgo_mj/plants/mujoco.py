@@ -14,6 +14,8 @@ from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
 from .base import Array, Plant
 
+_mj_step = mujoco.mj_step
+
 #: MuJoCo's mjMAXVAL: a larger control is zeroed with the warning mjWARN_BADCTRL
 _MAX_CTRL = 1e10
 
@@ -122,30 +124,57 @@ class MujocoPlant(Plant):
         x0 = self._x0 if x0 is None else vector("x0", x0, 2 * self._nq)
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        w = mujoco.mjtWarning
-        self._bad = tuple(d.warning[int(k)] for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
-                                                       w.mjWARN_BADQACC))
         d.qpos[self._qadr] = x0[: self._nq]
         d.qvel[self._vadr] = x0[self._nq:]
         mujoco.mj_forward(m, d)
+        self._cache()
+
+    def _cache(self) -> None:
+        """What :meth:`step` and the ``*_list`` readers need, in one attribute each: MjData's
+        arrays are views of buffers that live as long as the MjData (rebuilt after a copy)."""
+        m, d = self.model, self.data
+        w = mujoco.mjtWarning
+        self._bad = tuple(d.warning[int(k)] for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
+                                                       w.mjWARN_BADQACC))
+        # a live view of the three counters (consecutive in mjtWarning: BADQPOS, BADQVEL, BADQACC)
+        lo = int(w.mjWARN_BADQPOS)
+        bad = d.warning.number[lo:int(w.mjWARN_BADQACC) + 1]
+        self._hot = (m, d, d.ctrl, tuple(self._aid), self.substeps, bad)
+        self._read = (d.qpos, d.qvel, d.sensordata)
+        srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
+        #: outputs_list's sources: (array, address) per output
+        self._out = tuple((srcs[k], a) for k, a in self._sensor_src)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Copy or pickle without the cached views (they would be detached from the copy's
+        MjData); :meth:`__setstate__` rebuilds them."""
+        state = self.__dict__.copy()
+        for key in ("_bad", "_hot", "_read", "_out"):
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._cache()
 
     def step(self, u: Any) -> None:
-        m, d, ctrl = self.model, self.data, self.data.ctrl
-        for i, a in enumerate(self._aid):
+        m, d, ctrl, aid, substeps, bad = self._hot
+        for i, a in enumerate(aid):
             ui = float(u[i])
             if not -_MAX_CTRL < ui < _MAX_CTRL:  # also False for NaN
                 raise DivergenceError(f"input u[{i}] must be finite and below {_MAX_CTRL:g} in "
                                       f"magnitude (MuJoCo would zero it); found {ui}")
             ctrl[a] = ui
-        for _ in range(self.substeps):
-            mujoco.mj_step(m, d)
-        bad_qpos, bad_qvel, bad_qacc = self._bad
-        if bad_qpos.number or bad_qvel.number or bad_qacc.number:
+        _mj_step(m, d, substeps)  # the substeps in one call (MuJoCo loops over mj_step)
+        if any(bad.tolist()):
             # MuJoCo found NaN/inf/huge values and silently reset the simulation
             which = [n for n, w in zip(("QPOS", "QVEL", "QACC"), self._bad) if w.number]
             raise DivergenceError(f"MuJoCo found a non-finite or huge value near t={d.time:g} and "
                                   f"reset the simulation (mjWARN_BAD{which[0]}); input was "
                                   f"{[float(v) for v in u]}")
+
+    #: :meth:`step` takes any sequence of floats, a list too
+    step_list = step
 
     @property
     def t(self) -> float:  # type: ignore[override]
@@ -168,3 +197,21 @@ class MujocoPlant(Plant):
             mujoco.mj_forward(self.model, d)
         srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
         return np.array([srcs[k][a] for k, a in self._sensor_src])
+
+    def state_list(self) -> list[float]:
+        """:attr:`state` as a list of Python floats, read without building an array."""
+        qpos, qvel, _ = self._read
+        if self._slices is not None:
+            qs, vs = self._slices
+            if qs.start == 0 and qs.stop == qpos.shape[0] and vs.start == 0 \
+                    and vs.stop == qvel.shape[0]:
+                return qpos.tolist() + qvel.tolist()  # type: ignore[no-any-return]
+            return qpos[qs].tolist() + qvel[vs].tolist()  # type: ignore[no-any-return]
+        q, v = qpos.tolist(), qvel.tolist()
+        return [q[a] for a in self._qadr.tolist()] + [v[a] for a in self._vadr.tolist()]
+
+    def outputs_list(self) -> list[float]:
+        """:meth:`outputs` as a list of Python floats, read without building an array."""
+        if self._needs_forward:
+            mujoco.mj_forward(self.model, self.data)
+        return [src.item(a) for src, a in self._out]

@@ -1,0 +1,184 @@
+"""``simulate``'s plain-float fast path against its array path: bit-identical columns.
+
+The fast path reads the plant through ``state_list``/``outputs_list``, runs the sensor stages'
+``apply_list`` and the high-gain observers' ``update_list``/``z_hat_list``/
+``diagnostic_values``. Subclasses that override only the array methods (``state``, ``__call__``,
+``update``, ...) by calling the parent keep the same numbers but force the array path, so the
+two runs below differ only in the path taken.
+"""
+
+from __future__ import annotations
+
+import copy
+import pickle
+
+import numpy as np
+import pytest
+
+from hgo_mj.exceptions import DivergenceError
+from hgo_mj.inputs import Controller, Multisine
+from hgo_mj.observers import HighGainObserver
+from hgo_mj.plants import MujocoPlant
+from hgo_mj.sensors import Dropout, GaussianNoise, Quantization, SensorChain, _rint
+from hgo_mj.simulate import _fast_observer, _owns, simulate
+from hgo_mj.systems.pendulum import Pendulum
+
+
+class ArrayPlant(MujocoPlant):
+    """The same plant through the array interface only."""
+
+    @property
+    def state(self):
+        return super().state
+
+    def outputs(self):
+        return super().outputs()
+
+    def step(self, u):
+        super().step(u)
+
+
+class ArrayGaussian(GaussianNoise):
+    def __call__(self, t, y, rng):
+        return super().__call__(t, y, rng)
+
+
+class ArrayQuantization(Quantization):
+    def __call__(self, t, y, rng):
+        return super().__call__(t, y, rng)
+
+
+class ArrayDropout(Dropout):
+    def __call__(self, t, y, rng):
+        return super().__call__(t, y, rng)
+
+
+class ArrayChain(SensorChain):
+    def __call__(self, t, y):
+        return super().__call__(t, y)
+
+
+class ArrayHGO(HighGainObserver):
+    """A high-gain observer without the plain-float update (``update`` overridden)."""
+
+    def update(self, y, u, dt):
+        return super().update(y, u, dt)
+
+
+def _setup(fast: bool, *, dt: float = 0.001):
+    plant = (MujocoPlant if fast else ArrayPlant)(Pendulum, dt=dt)
+    if fast:
+        stages = [GaussianNoise(std=2e-3), Quantization(counts_per_rev=2048), Dropout(0.15)]
+        chain = SensorChain
+    else:
+        stages = [ArrayGaussian(std=2e-3), ArrayQuantization(counts_per_rev=2048),
+                  ArrayDropout(0.15)]
+        chain = ArrayChain
+    sensor = chain(stages, seed=11)
+    hgo = HighGainObserver if fast else ArrayHGO
+    obs = {"free": hgo(plant.system, k=40.0),
+           "model": hgo(plant.system, k=70.0, model=True, z_bounds=([-2.0, -5.0], [2.0, 5.0]))}
+
+    def law(t, x):
+        return [-3.0 * x[0] - 0.8 * x[1] + 0.2 * np.sin(3.0 * t)]
+
+    return plant, sensor, obs, Controller(law, observer="model")
+
+
+def _assert_same(a, b):
+    for col in ("t", "x", "y_clean", "y_meas", "u"):
+        A, B = getattr(a, col), getattr(b, col)
+        assert A.shape == B.shape and A.dtype == B.dtype, col
+        np.testing.assert_array_equal(A, B, err_msg=col)
+    assert list(a.observers) == list(b.observers)
+    for name, ra in a.observers.items():
+        rb = b.observers[name]
+        np.testing.assert_array_equal(ra.x_hat, rb.x_hat, err_msg=f"{name} x_hat")
+        np.testing.assert_array_equal(ra.z_hat, rb.z_hat, err_msg=f"{name} z_hat")
+        assert list(ra.diagnostics) == list(rb.diagnostics) == ["k", "dropouts"]
+        for d in ra.diagnostics:
+            np.testing.assert_array_equal(ra.diagnostics[d], rb.diagnostics[d], err_msg=d)
+        assert ra.state_names == rb.state_names
+    ma = {k: v for k, v in a.metadata.items() if k not in ("observers",)}
+    mb = {k: v for k, v in b.metadata.items() if k not in ("observers",)}
+    assert ma == mb
+
+
+@pytest.mark.parametrize("periods", [{}, {"sample_period": 0.002, "control_period": 0.006}])
+def test_fast_path_bit_identical_to_array_path(periods):
+    runs = []
+    for fast in (True, False):
+        plant, sensor, obs, ctrl = _setup(fast)
+        runs.append(simulate(plant, sensor, obs, ctrl, 1.5, seed=5, **periods))
+    fast_run, array_run = runs
+    _assert_same(fast_run, array_run)
+    # the run exercised the dropouts (NaN measurements) and the saturation
+    assert np.isnan(fast_run.y_meas).any()
+    assert fast_run.observers["free"].diagnostics["dropouts"][-1] > 0
+    assert fast_run.metadata["inverse_failures"] == {"free": 0, "model": 0}
+
+
+def test_fast_path_identical_with_chunks_and_substeps():
+    runs, chunks = [], []
+    for fast in (True, False):
+        got = []
+        plant, sensor, obs, ctrl = _setup(fast, dt=0.002)
+        runs.append(simulate(plant, sensor, obs, ctrl, 1.0, seed=2,
+                             on_chunk=(0.3, lambda k0, c, got=got: got.append((k0, c)))))
+        chunks.append(got)
+    _assert_same(*runs)
+    assert [k for k, _ in chunks[0]] == [k for k, _ in chunks[1]] == [0, 150, 300]
+    for (_, a), (_, b) in zip(*chunks):
+        _assert_same(a, b)
+
+
+def test_fast_path_identical_on_divergence():
+    """A plant that blows up: the same DivergenceError and partial trajectory on both paths."""
+    out = []
+    for fast in (True, False):
+        plant, sensor, obs, _ = _setup(fast)
+        ctrl = Controller(lambda t, x: [1e9 * np.exp(40.0 * t)], source="true")
+        with pytest.raises(DivergenceError) as info:
+            simulate(plant, sensor, obs, ctrl, 1.0, seed=1, on_chunk=(0.05, lambda k0, c: None))
+        out.append(info.value)
+    assert str(out[0]) == str(out[1]) and "t=-" not in str(out[0])
+    _assert_same(out[0].trajectory, out[1].trajectory)
+
+
+def test_mixed_fast_and_array_observers_see_the_same_measurements():
+    plant, sensor, _, _ = _setup(True)
+    obs = {"fast": HighGainObserver(plant.system, k=40.0),
+           "array": ArrayHGO(plant.system, k=40.0)}
+    # the two runs above do take different paths
+    assert _fast_observer(obs["fast"]) is not None and _fast_observer(obs["array"]) is None
+    assert _owns(plant, "state_list", "state") and not _owns(ArrayPlant(Pendulum),
+                                                              "state_list", "state")
+    traj = simulate(plant, sensor, obs, Multisine([0.3], [1.0]), 0.5, seed=3)
+    np.testing.assert_array_equal(traj.observers["fast"].x_hat, traj.observers["array"].x_hat)
+    np.testing.assert_array_equal(traj.observers["fast"].diagnostics["dropouts"],
+                                  traj.observers["array"].diagnostics["dropouts"])
+
+
+def test_list_readers_and_quantization_match_the_arrays():
+    plant = MujocoPlant(Pendulum, dt=0.001)
+    for _ in range(50):
+        plant.step([0.4])
+    assert plant.state_list() == plant.state.tolist()
+    assert plant.outputs_list() == plant.outputs().tolist()
+    # a copy (or pickle) rebuilds its cached views: it steps its own MjData
+    for twin in (copy.deepcopy(plant), pickle.loads(pickle.dumps(plant))):
+        twin.step([0.1])
+        plant_copy = copy.deepcopy(plant)
+        plant_copy.step([0.1])
+        assert twin.state_list() == plant_copy.state_list() != plant.state_list()
+    vals = np.array([-2.5, -1.5, -0.5, -0.3, -0.0, 0.0, 0.5, 1.5, 2.5, 3.7, 2.0**52 + 1.0,
+                     np.nan, np.inf, -np.inf])
+    ref = np.rint(vals)
+    got = np.array([_rint(v) for v in vals.tolist()])
+    np.testing.assert_array_equal(got, ref)
+    np.testing.assert_array_equal(np.signbit(got), np.signbit(ref))
+    q = Quantization(resolution=[0.1, 0.25])
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        y = rng.normal(0.0, 2.0, 2)
+        np.testing.assert_array_equal(q.apply_list(0.0, y.tolist(), rng), q(0.0, y, rng))
