@@ -39,9 +39,14 @@ from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
-from .high_gain import _is_identity, affine_step, one_step_map, sampled_chain, spectral_radius
-
-METHODS = ("exact", "euler", "rk4")
+from .high_gain import (
+    _is_identity,
+    affine_step,
+    check_options,
+    largest_stable_step,
+    one_step_map,
+    sampled_chain,
+)
 
 
 def dead_zone(e: ArrayLike, lam: float, lam_hat: float) -> Array:
@@ -64,19 +69,8 @@ def _max_stable_kdt(p: tuple[float, ...], method: str) -> float:
     if method == "exact":
         return math.inf
     pa = np.array(p)
-
-    def stable(tau: float) -> bool:
-        return spectral_radius(one_step_map(pa, 1.0, tau, method)[0]) < 1.0
-
-    lo, hi = 0.0, 1e-3 / max(1.0, float(np.max(np.abs(np.roots(np.concatenate(([1.0], pa)))))))
-    while stable(hi):  # scan up in 5 % steps: the first instability, not just any
-        lo, hi = hi, hi * 1.05
-        if hi > 1e6:
-            return math.inf
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return lo
+    start = 1e-3 / max(1.0, float(np.max(np.abs(np.roots(np.concatenate(([1.0], pa)))))))
+    return largest_stable_step(lambda tau: one_step_map(pa, 1.0, tau, method)[0], start, 1e6)
 
 
 # ------------------------------------------------------------------ code generation
@@ -366,11 +360,7 @@ class AdaptiveGainObserver(Observer):
             if self.k_max < self.k0:
                 raise DesignError(f"k_max must be >= k0; found k_max={self.k_max:g} < "
                                   f"k0={self.k0:g}")
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        if on_unstable not in ("raise", "warn", "ignore"):
-            raise DesignError(f"on_unstable must be 'raise', 'warn' or 'ignore'; "
-                              f"found {on_unstable!r}")
+        check_options(method, on_unstable)
         if model and system is None:
             raise DesignError("model=True needs a system providing phi")
         self.model = bool(model)

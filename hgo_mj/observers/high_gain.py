@@ -24,6 +24,7 @@ References
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Callable
 from math import factorial
@@ -31,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar, vector
+from .._validate import finite_scalar, one_of, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
@@ -145,6 +146,33 @@ def spectral_radius(M: Array) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(M))))
 
 
+def largest_stable_step(step_matrix: Callable[[float], Array], start: float,
+                        limit: float) -> float:
+    """Largest step ``h`` with ``spectral_radius(step_matrix(h)) < 1``: the first instability
+    going up from ``start`` (a step known to be stable) in 5 % increments, then 60 bisections;
+    ``inf`` if still stable at ``limit``. (Going up in 5 % steps finds the *first* boundary: a
+    stability region need not be star-shaped, and doubling could jump over a band.)"""
+
+    def stable(h: float) -> bool:
+        return spectral_radius(step_matrix(h)) < 1.0
+
+    lo, hi = 0.0, start
+    while stable(hi):
+        lo, hi = hi, hi * 1.05
+        if hi > limit:
+            return math.inf
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
+
+
+def check_options(method: str, on_unstable: str) -> None:
+    """The integration method and the reaction to an unstable sample period, validated."""
+    one_of("method", method, METHODS)
+    one_of("on_unstable", on_unstable, ("raise", "warn", "ignore"))
+
+
 class HighGainObserver(Observer):
     """High-gain observer of Tornambè (paper 000, eq. 2) on a chain of ``n`` integrators.
 
@@ -214,11 +242,7 @@ class HighGainObserver(Observer):
         if self.p.size != n:
             raise DimensionError(f"p must have n = {n} coefficients; found {self.p.size}")
         self.k_ = finite_scalar("k", k, positive=True)
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        if on_unstable not in ("raise", "warn", "ignore"):
-            raise DesignError(f"on_unstable must be 'raise', 'warn' or 'ignore'; "
-                              f"found {on_unstable!r}")
+        check_options(method, on_unstable)
         if model and system is None:
             raise DesignError("model=True needs a system providing phi")
         self.model = bool(model)
@@ -246,19 +270,8 @@ class HighGainObserver(Observer):
         """Largest sample period for which ``method``'s one-step error map is stable."""
         if self.method == "exact":
             return float("inf")
-
-        def stable(dt: float) -> bool:
-            return spectral_radius(one_step_map(self.p, self.k_, dt, self.method)[0]) < 1.0
-
-        lo, hi = 0.0, 1.0 / self.k_
-        while stable(hi):
-            lo, hi = hi, hi * 2.0
-            if hi > 1e6 / self.k_:
-                return float("inf")
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-        return lo
+        return largest_stable_step(lambda dt: one_step_map(self.p, self.k_, dt, self.method)[0],
+                                   1e-3 / self.k_, 1e6 / self.k_)
 
     def check_period(self, dt: float) -> None:
         if dt not in self._steps:

@@ -71,9 +71,10 @@ from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
 from .high_gain import (
-    METHODS,
     _is_identity,
     affine_step,
+    check_options,
+    largest_stable_step,
     matched_gain,
     sampled_chain,
     spectral_radius,
@@ -253,11 +254,7 @@ class QIntegralObserver(Observer):
                                  f"{a.size}")
         g, r = design_gamma(gamma, a, rho, type(self).__name__)
         super().__init__(system, order, output)
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        if on_unstable not in ("raise", "warn", "ignore"):
-            raise DesignError(f"on_unstable must be 'raise', 'warn' or 'ignore'; "
-                              f"found {on_unstable!r}")
+        check_options(method, on_unstable)
         if model and system is None:
             raise DesignError("model=True needs a system providing phi")
         self.q = q
@@ -289,20 +286,9 @@ class QIntegralObserver(Observer):
         """Largest sample period for which ``method``'s one-step error map is stable."""
         if self.method == "exact":
             return float("inf")
-
-        def stable(dt: float) -> bool:
-            M = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)[0]
-            return spectral_radius(M) < 1.0
-
-        lo, hi = 0.0, 1.0 / self.gamma_
-        while stable(hi):
-            lo, hi = hi, hi * 2.0
-            if hi > 1e6 / self.gamma_:
-                return float("inf")
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-        return lo
+        return largest_stable_step(
+            lambda dt: q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)[0],
+            1e-3 / self.gamma_, 1e6 / self.gamma_)
 
     def check_period(self, dt: float) -> None:
         if dt not in self._steps:
