@@ -6,12 +6,11 @@ is marked ``slow``.
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
 from hgo_mj.reproduce import bastin_gevers1986 as bg
+from hgo_mj.reproduce import read_summary
 
 
 def test_transformations_6_4_to_6_6():
@@ -71,7 +70,8 @@ def test_run_writes_the_summary_report_and_figures(tmp_path):
     for key in ("frozen_theta_error", "reachability_rank", "z2_relative_rmse", "p2_final",
                 "p3_final"):
         assert key in s
-    saved = json.loads((tmp_path / "summary.json").read_text())
+    saved = read_summary(tmp_path)  # strict JSON
+    assert saved == s
     assert saved["reachability_rank"] == 3 and saved["frozen_theta_error"] < 1e-6
     assert "does NOT hold" in (tmp_path / "report.txt").read_text()
     for f in s["figures"]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hgo_mj.reproduce import run_reproduction
+from hgo_mj.reproduce import read_summary, run_reproduction
 
 
 @pytest.fixture(scope="module")
@@ -24,6 +24,7 @@ def summary(tmp_path_factory):
 def test_files_and_run_time(summary):
     out = summary["_out"]
     assert (out / "summary.json").is_file() and (out / "report.txt").is_file()
+    assert read_summary(out) == {k: v for k, v in summary.items() if k != "_out"}  # strict JSON
     for f in ("fig1_standard.png", "fig2_noisy_output.png", "fig3_q_integral.png",
               "fig4_euler_periods.png", "fig5_mujoco.png"):
         assert (out / f).stat().st_size > 10_000, f

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
 
 from hgo_mj.reproduce import jo_son2004 as js
+from hgo_mj.reproduce import read_summary
 
 
 def test_coordinates_and_gain():
@@ -53,7 +53,8 @@ def test_run_writes_the_summary_report_and_figures(tmp_path):
     s = js.run(tmp_path)
     for key in ("t_error_stays_below_1e-1", "t_error_stays_below_1e-2", "theta_at_60s"):
         assert key in s
-    saved = json.loads((tmp_path / "summary.json").read_text())
+    saved = read_summary(tmp_path)  # strict JSON
+    assert saved == s
     assert saved["t_error_stays_below_1e-1"] == pytest.approx(1.699, abs=0.01)
     rel = saved["elastic_joint_motor_side"]["relative_error_final_at_dt_check"]["relative_error"]
     assert abs(rel[1]) < abs(saved["elastic_joint_motor_side"]["relative_error_final"][1])

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import importlib
 import inspect
-import json
 
 import pytest
 
 from hgo_mj.cli import main
-from hgo_mj.reproduce import REPRODUCTIONS
+from hgo_mj.reproduce import REPRODUCTIONS, read_summary
 
 
 @pytest.mark.parametrize("name", sorted(REPRODUCTIONS))
@@ -31,7 +30,7 @@ def test_reproduce_cli_rrd(tmp_path, capsys):
     assert main(["reproduce", "besancon2004", "--out", str(out), "--rrd"]) == 0
     rrd = out / "besancon2004.rrd"
     assert str(rrd) in capsys.readouterr().out
-    summary = json.loads((out / "summary.json").read_text())
+    summary = read_summary(out)
     assert summary["recordings"] == [str(rrd), str(out / "besancon2004_ex2.rrd")]
     for path in summary["recordings"]:
         with open(path, "rb") as fh:

@@ -13,13 +13,24 @@ for several runs ``with Recorder.for_trajectory(rrd, traj_a) as rec:
 rec.record_trajectory(traj_a)`` (runs with the same names can share a recorder; otherwise use
 one file per run, ``rrd.with_name(f"{rrd.stem}_{case}.rrd")``, and list them in the report).
 With ``rrd=None`` it writes no recording.
+
+``summary.json`` is strict JSON (RFC 8259: ``jq`` and every parser read it): each reproduction
+writes it with :func:`write_summary`, which maps a non-finite float to ``null`` -- ``inf`` is
+a time that never came (a level never reached and held to the end of the run, or a divergent
+run) and ``nan`` a number that is undefined -- and ``run`` returns that same JSON-ready
+summary. The report prints such a number as "never" / "undefined" (:func:`fmt_num`) and lists
+the keys written as ``null`` (:func:`null_note`).
 """
 
 from __future__ import annotations
 
 import importlib
+import json
+import math
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ..exceptions import DesignError
 
@@ -36,6 +47,81 @@ REPRODUCTIONS: dict[str, tuple[str, str]] = {
     "jo_son2004": ("hgo_mj.reproduce.jo_son2004",
                    "paper 003 eq. 28-31: adaptive observer in generalized canonical form"),
 }
+
+
+def strict_json(value: Any) -> Any:
+    """``value`` as plain JSON data: dicts (keys as strings), lists (tuples and arrays too),
+    ``str``/``int``/``float``/``bool``/``None``; a non-finite float becomes ``None``, a NumPy
+    scalar its Python value and a path its string."""
+    if isinstance(value, dict):
+        return {str(k): strict_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [strict_json(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def nonfinite_keys(value: Any, prefix: str = "") -> list[tuple[str, str]]:
+    """``(key path, "never" | "undefined")`` for each non-finite float in ``value`` (``inf``:
+    never, ``nan``: undefined); list items as ``key[i]``."""
+    found: list[tuple[str, str]] = []
+    if isinstance(value, dict):
+        for k, v in value.items():
+            found += nonfinite_keys(v, f"{prefix}.{k}" if prefix else str(k))
+    elif isinstance(value, (list, tuple, np.ndarray)):
+        for i, v in enumerate(value):
+            found += nonfinite_keys(v, f"{prefix}[{i}]")
+    elif isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        found.append((prefix, "undefined" if math.isnan(value) else "never"))
+    return found
+
+
+def fmt_num(value: Any, spec: str = ".3g") -> str:
+    """``format(value, spec)``, but ``inf`` (or ``None``, as read back from ``summary.json``)
+    as "never" and ``nan`` as "undefined"."""
+    if value is None:
+        return "never"
+    v = float(value)
+    if math.isnan(v):
+        return "undefined"
+    if math.isinf(v):
+        return "never"
+    return format(v, spec)
+
+
+def null_note(summary: dict[str, Any], limit: int = 12) -> str:
+    """One line for the report naming the keys ``summary.json`` writes as ``null``; empty if
+    none."""
+    keys = nonfinite_keys(summary)
+    if not keys:
+        return ""
+    shown = ", ".join(f"{k} = {what}" for k, what in keys[:limit])
+    more = f" and {len(keys) - limit} more" if len(keys) > limit else ""
+    return (f"summary.json writes non-finite numbers as null (never: a time not reached by the end "
+            f"of the run, or a divergent run; undefined: no value): {shown}{more}.")
+
+
+def write_summary(out: str | Path, summary: dict[str, Any]) -> dict[str, Any]:
+    """Write ``out/summary.json`` as strict JSON (:func:`strict_json`, ``allow_nan=False``) and
+    return what was written (the parsed form of the file)."""
+    data = strict_json(summary)
+    Path(out, "summary.json").write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+    return data
+
+
+def _reject_constant(name: str) -> Any:
+    raise ValueError(f"summary.json is not strict JSON: it holds {name}")
+
+
+def read_summary(out: str | Path) -> dict[str, Any]:
+    """Read ``out/summary.json`` as strict JSON: ``NaN``/``Infinity`` (which Python's ``json``
+    accepts by default, ``jq`` does not) raise ``ValueError``."""
+    return json.loads(Path(out, "summary.json").read_text(), parse_constant=_reject_constant)
 
 
 def run_reproduction(name: str, out: str | Path, **kw: Any) -> dict[str, Any]:

@@ -46,7 +46,6 @@ G. Bastin, M. Gevers, "Stable adaptive observers for nonlinear time-varying syst
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -62,6 +61,7 @@ from ..plants.ode import OdePlant
 from ..simulate import Trajectory, simulate
 from ..systems.base import Array, System
 from ..systems.papers import BioreactorBastinGevers, bastin_gevers_input
+from . import fmt_num, null_note, write_summary
 
 #: design constant of the AOCF used throughout (``F = -c2``)
 C2 = 1.0
@@ -504,25 +504,12 @@ def _report(s: dict[str, Any]) -> str:
     for case in ("damping_known", "damping_coefficient_known", "damping_estimated"):
         r = c[case]
         lines.append(f"   {case}: " + "; ".join(
-            f"{nm} = {est:.4g} (true {tr_:.4g}, {100 * rel:+.2f} %, within 5 % after {t5:.3g} s)"
+            f"{nm} = {est:.4g} (true {tr_:.4g}, {100 * rel:+.2f} %, within 5 % after {fmt_num(t5, '.3g')} s)"
             for nm, est, tr_, rel, t5 in zip(r["theta_names"], r["theta_final"], r["theta_true"],
                                               r["relative_error_final"], r["time_to_5pct"])))
     lines += ["   The remaining bias is the sampled-data floor (y held over 2 ms) and MuJoCo's "
               "integration; the damping, weakly excited, converges slowest.", ""]
     return "\n".join(lines)
-
-
-def _json_safe(v: Any) -> Any:
-    """JSON without NaN/Infinity: non-finite floats become the strings "inf", "-inf", "nan"."""
-    if isinstance(v, dict):
-        return {k: _json_safe(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_json_safe(x) for x in v]
-    if isinstance(v, (float, np.floating)):
-        return float(v) if math.isfinite(v) else str(float(v))
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
 
 
 def run(out: Path, *, rrd: Path | None = None, sweep: bool = True) -> dict[str, Any]:
@@ -561,9 +548,11 @@ def run(out: Path, *, rrd: Path | None = None, sweep: bool = True) -> dict[str, 
         record_trajectory(trajs_b["monod"][0], rrd)
         record_trajectory(trajs_c["damping_known"][0], rrd.with_name(f"{rrd.stem}_pendulum.rrd"))
         summary["recordings"] = [str(rrd), str(rrd.with_name(f"{rrd.stem}_pendulum.rrd"))]
-    (out / "summary.json").write_text(json.dumps(_json_safe(summary), indent=2, allow_nan=False))
-    (out / "report.txt").write_text(_report(summary))
-    return summary
+    report = _report(summary)
+    note = null_note(summary)
+    data = write_summary(out, summary)
+    (out / "report.txt").write_text(report + (f"\n{note}\n" if note else ""))
+    return data
 
 
 __all__ = ["FrozenAOCF65", "check_transformations", "frozen_input", "part_bioreactor",

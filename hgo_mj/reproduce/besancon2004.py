@@ -48,7 +48,6 @@ in nonlinear systems", IFAC NOLCOS 2004 (``shared/papers/001_fa1af3b6b9a222a1.tx
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
@@ -68,6 +67,7 @@ from ..systems.papers import (
     besancon_ex2_input,
     besancon_ex2_signal,
 )
+from . import fmt_num, null_note, write_summary
 
 Array = NDArray[np.float64]
 
@@ -300,9 +300,10 @@ def run(out: Path, *, rrd: Path | None = None, dt: float = DT,
             str(record_sampled(r2, s2, rrd.with_name(f"{rrd.stem}_ex2.rrd"), "example 2"))]
     summary["wall_time_s"] = time.perf_counter() - t_start
     summary["versions"] = package_versions()
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    (out / "report.txt").write_text(_report(summary))
-    return summary
+    report = _report(summary)
+    data = write_summary(out, summary)
+    (out / "report.txt").write_text(report)
+    return data
 
 
 def _fmt(v: Any) -> str:
@@ -322,7 +323,8 @@ def _report(s: dict[str, Any]) -> str:
         "",
         "Example 1 (theta = (1, 2), lambda = 10, K0 = (2, 1), X = Theta = 10, 200 s)",
         f"  theta_hat at 30 s     {_fmt(e1['theta_at_30s'])}",
-        f"  time to 5 %           {e1['time_to_5pct']:.2f} s (every component stays within 5 % after)",
+        f"  time to 5 %           {fmt_num(e1['time_to_5pct'], '.2f')} s (every component stays "
+        "within 5 % after)",
         f"  |x_hat - x| at 30 s   {_fmt(e1['state_error_at_30s'])}",
         f"  theta_hat at 200 s    {_fmt(e1['theta_at_200s'])}",
         f"  |x_hat - x| at 200 s  {_fmt(e1['state_error_at_200s'])}",
@@ -332,6 +334,7 @@ def _report(s: dict[str, Any]) -> str:
         "Example 2 (theta = (10, -5), lambda = 40, K1 = K2 = (2, 1), X = 100, Theta = 20, 300 s)",
         f"  theta_hat at 30 s     {_fmt(e2['theta_at_30s'])}",
         f"  theta_hat at 300 s    {_fmt(e2['theta_at_300s'])}",
+        f"  time to 5 %           {fmt_num(e2['time_to_5pct'], '.2f')}",
         f"  excitation matrix (last {e2['excitation_window_s']:g} s, observer's Gamma_hat) "
         f"eigenvalues {_fmt(e2['excitation_eigenvalues'])}",
         f"  true regressor Gram (10-s windows): first {_fmt(tr[0]['eig'])} correlation "
@@ -345,7 +348,8 @@ def _report(s: dict[str, Any]) -> str:
         lines += [
             "Continuous-time observer (LSODA, rtol 1e-8) for comparison:",
             f"  ex1 theta_hat at 30 s {_fmt(c['ex1']['theta_at_30s'])}, time to 5 % "
-            f"{c['ex1']['time_to_5pct']:.2f} s, theta_hat at 200 s {_fmt(c['ex1']['theta_at_200s'])}",
+            f"{fmt_num(c['ex1']['time_to_5pct'], '.2f')} s, theta_hat at 200 s "
+            f"{_fmt(c['ex1']['theta_at_200s'])}",
             f"  ex2 theta_hat at 30 s {_fmt(c['ex2']['theta_at_30s'])}, at 300 s "
             f"{_fmt(c['ex2']['theta_at_300s'])}",
             "",
@@ -389,6 +393,8 @@ def _report(s: dict[str, Any]) -> str:
         "",
         f"Wall time {s['wall_time_s']:.1f} s.",
     ]
+    if null_note(s):
+        lines.append(null_note(s))
     if s.get("recordings"):
         lines.append(f"Recordings (rerun): {', '.join(s['recordings'])}.")
     return "\n".join(lines) + "\n"

@@ -60,7 +60,6 @@ Fig. 2 a-c.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -74,6 +73,7 @@ from ..plants.ode import OdePlant
 from ..sensors import GaussianNoise, SensorChain
 from ..simulate import Trajectory, simulate
 from ..systems.papers import BioreactorBullinger, bullinger_input
+from . import fmt_num, null_note, write_summary
 
 Array = NDArray[np.float64]
 
@@ -292,7 +292,7 @@ def _report(s: dict[str, Any]) -> str:
                 "lambda_strip_fraction", "lambda_strip_fraction_clean", "s_rmse",
                 "s_rmse_noise_free", "s_undefined_samples", "m_rmse"):
         a, b = s["x0_zero"][key], s["x0_y0"][key]
-        lines.append(f"{key:32s} {a:12.5g} {b:12.5g}")
+        lines.append(f"{key:32s} {fmt_num(a, '12.5g'):>12s} {fmt_num(b, '12.5g'):>12s}")
     lines += [
         "",
         "x0_zero: x_hat(0) = (0, 0); x0_y0: x_hat(0) = (y(0), 0) with the clean y(0) = m(0) =",
@@ -417,6 +417,8 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
         "seeds": seeds, "method": METHOD,
     })
     summary["runtime_s"] = time.perf_counter() - t0
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    (out / "report.txt").write_text(_report(summary))
-    return summary
+    report = _report(summary)
+    note = null_note(summary)
+    data = write_summary(out, summary)
+    (out / "report.txt").write_text(report + (f"{note}\n" if note else ""))
+    return data

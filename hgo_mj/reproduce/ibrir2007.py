@@ -70,7 +70,6 @@ S. Ibrir, "On observer design for nonlinear systems", Int. J. Control, 2007
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -91,6 +90,7 @@ from ..design import (
     sampling_lmi_63,
 )
 from ..exceptions import DesignError
+from . import null_note, write_summary
 
 ALPHA = (3.0, 2.0)
 GAMMA = 6.0
@@ -573,6 +573,8 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
     summary["figures"] = _figures(out, noise, euler, lmi, mj)
     summary["run_time_s"] = time.perf_counter() - t0
     summary = _tolist(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    (out / "report.txt").write_text(_report(summary))
-    return summary
+    report = _report(summary)
+    note = null_note(summary)
+    data = write_summary(out, summary)
+    (out / "report.txt").write_text(report + (f"{note}\n" if note else ""))
+    return data

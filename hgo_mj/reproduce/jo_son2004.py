@@ -36,7 +36,6 @@ eq. 25-31, Fig. 1.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -51,6 +50,7 @@ from ..plants.ode import OdePlant
 from ..simulate import simulate
 from ..systems.base import Array
 from ..systems.papers import JoSonExample, jo_son_input
+from . import fmt_num, null_note, write_summary
 
 PAPER = {"lam": 2.0, "gamma": 5.0, "T": 60.0}
 LEVELS = (1e-1, 1e-2)
@@ -262,23 +262,25 @@ def _report(s: dict[str, Any]) -> str:
         "(b_r k_1) and b beta^T e_o (e_theta).", "",
         "1. The example (lambda = 2, Gamma = 5, theta = 1, x(0) = (0.5, 1, -1), z_hat(0) = 0, "
         "theta_hat(0) = 0)",
-        f"   continuous time: |x - x_hat| stays below 1e-1 after {c['t_error_stays_below_0.1']:.3f} s, "
-        f"below 1e-2 after {c['t_error_stays_below_0.01']:.2f} s, below 1e-3 after "
-        f"{c['t_error_stays_below_1e-3']:.2f} s; theta_hat(60) = {c['theta_at_60s']:.10f}.",
+        "   continuous time: |x - x_hat| stays below 1e-1 after "
+        f"{fmt_num(c['t_error_stays_below_0.1'], '.3f')} s, "
+        f"below 1e-2 after {fmt_num(c['t_error_stays_below_0.01'], '.2f')} s, below 1e-3 after "
+        f"{fmt_num(c['t_error_stays_below_1e-3'], '.2f')} s; theta_hat(60) = {c['theta_at_60s']:.10f}.",
         "   The paper's 'estimates the true state after approximately 2 seconds' HOLDS at the 0.1 level "
-        f"(1.70 s) and does NOT at 0.01 ({c['t_error_stays_below_0.01']:.1f} s): theta_hat overshoots to "
+        f"(1.70 s) and does NOT at 0.01 ({fmt_num(c['t_error_stays_below_0.01'], '.1f')} s): "
+        "theta_hat overshoots to "
         f"{c['theta_at']['2']:.3f} at 2 s and returns slowly (theta_hat(10) = {c['theta_at']['10']:.3f}), "
         "and the state error is driven by b beta theta~ = b y u theta~ until theta~ decays.",
         "   sampled-data observer (y, u held over a sample): " + "; ".join(
-            f"dt = {k}: below 0.1 after {v['t_error_stays_below_0.1']:.3g} s, below 0.01 after "
-            f"{v['t_error_stays_below_0.01']:.4g} s, max error over the last 10 s "
+            f"dt = {k}: below 0.1 after {fmt_num(v['t_error_stays_below_0.1'], '.3g')} s, below 0.01 after "
+            f"{fmt_num(v['t_error_stays_below_0.01'], '.4g')} s, max error over the last 10 s "
             f"{v['error_max_last_10s']:.1e}, "
             f"theta_hat(60) = {v['theta_at_60s']:.4f}" for k, v in ex["sampled"].items()),
         "   (holding y leaves an O(dt) error floor: 1e-2 is reached only with dt well below 0.01).", "",
         "2. MuJoCo: elastic joint, y = motor velocity, spring deflection measured (Corollary 3.3 holds: "
         "r = 1, b = (1))",
         "   " + "; ".join(f"{nm} = {est:.5g} (true {tr_:.5g}, {100 * rel:+.2f} %, within 5 % after "
-                          f"{t5:.3g} s)"
+                          f"{fmt_num(t5, '.3g')} s)"
                           for nm, est, tr_, rel, t5 in zip(el["theta_names"], el["theta_final"],
                                                             el["theta_true"], el["relative_error_final"],
                                                             el["time_to_5pct"])),
@@ -295,19 +297,6 @@ def _report(s: dict[str, Any]) -> str:
         "",
     ]
     return "\n".join(lines)
-
-
-def _json_safe(v: Any) -> Any:
-    """JSON without NaN/Infinity: non-finite floats become the strings "inf", "-inf", "nan"."""
-    if isinstance(v, dict):
-        return {k: _json_safe(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_json_safe(x) for x in v]
-    if isinstance(v, (float, np.floating)):
-        return float(v) if math.isfinite(v) else str(float(v))
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
 
 
 def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
@@ -341,9 +330,11 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
         rrd = Path(rrd)
         record_trajectory(el[0], rrd)
         summary["recordings"] = [str(rrd)]
-    (out / "summary.json").write_text(json.dumps(_json_safe(summary), indent=2, allow_nan=False))
-    (out / "report.txt").write_text(_report(summary))
-    return summary
+    report = _report(summary)
+    note = null_note(summary)
+    data = write_summary(out, summary)
+    (out / "report.txt").write_text(report + (f"\n{note}\n" if note else ""))
+    return data
 
 
 __all__ = ["check_coordinates", "part_elastic_joint", "part_example", "run", "stays_below"]
