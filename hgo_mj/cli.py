@@ -5,7 +5,10 @@ headless study and writes ``trajectory.npz``, ``metrics.json``, ``figure.png`` a
 ``summary.txt`` into ``--out``; ``--rrd [FILE]`` also records it to a rerun file (default
 ``OUT/run.rrd``), written in chunks of ``RRD_CHUNK_SECONDS`` (2) simulated seconds as the run
 goes, so a run stopped with Ctrl-C (exit status 130) leaves a readable recording up to its last
-chunk. ``hgo-mj demo``
+chunk. ``--seeds N`` (or ``seeds = N`` in the scenario's ``[run]``) repeats the run at the seeds
+``SEED ... SEED+N-1`` (``--jobs J`` processes) and also writes ``metrics_mc.json``,
+``summary_mc.txt`` and ``mc.png`` (:mod:`hgo_mj.study`); the other files are the first seed's.
+``hgo-mj demo``
 writes ``runs/demo/demo.rrd`` unless ``--no-rrd``. Bad input exits with status 2 and one line
 naming the parameter, what was expected and what was found.
 """
@@ -24,6 +27,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from ._json import write_json
 from ._validate import reject_unknown
 from .exceptions import DesignError, HgoError
 
@@ -31,7 +35,8 @@ SCENARIO_KEYS = {
     "plant": ["name", "dt", "physics_dt", "params", "x0"],
     "sensor": ["stages"],
     "input": ["type"],  # plus the signal's own parameters
-    "run": ["duration", "sample_period", "control_period", "seed", "out", "t_transient", "band"],
+    "run": ["duration", "sample_period", "control_period", "seed", "seeds", "out", "t_transient",
+            "band"],
 }
 
 
@@ -98,6 +103,8 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
             sc["run"][key] = v
     if args.dt is not None:
         sc["plant"]["dt"] = args.dt
+    if args.seeds is not None:
+        sc["run"]["seeds"] = positive_int(args.seeds, "--seeds", flag=True)
     return sc
 
 
@@ -106,20 +113,17 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
 RRD_CHUNK_SECONDS = 2.0
 
 
-def run_scenario(sc: dict[str, Any], name: str = "run",
-                 rrd: str | Path | None = None) -> tuple[Any, dict[str, Any], Path]:
-    """Build everything a scenario names, simulate, and write the results. Returns
-    ``(trajectory, metrics, out_dir)``.
-
-    With ``rrd``, the run is also recorded to that rerun file (:class:`hgo_mj.record.Recorder`)
-    chunk by chunk while it runs; the file is closed even when the run is interrupted."""
+def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
+    """Validate a scenario and build one run of it from fresh objects: the keyword arguments of
+    :func:`hgo_mj.simulate.simulate` (``plant``, ``sensor``, ``observers``, ``inputs``,
+    ``duration``, ``sample_period``, ``control_period``, ``x0``, ``metadata``) except ``seed``
+    (``run.seed``, default 0, is the sensor chain's seed until ``simulate`` re-seeds it).
+    ``functools.partial(scenario_run, sc)`` is the ``make_run`` of
+    :func:`hgo_mj.study.monte_carlo`."""
     from .inputs import Constant, make_signal
-    from .metrics import all_metrics, format_table
     from .observers import make_observer
     from .plants import make_plant
-    from .plotting import plot_trajectory
     from .sensors import SensorChain
-    from .simulate import simulate
 
     reject_unknown("scenario", sc, ["plant", "sensor", "observers", "input", "run", "name"])
     for section, keys in SCENARIO_KEYS.items():
@@ -156,6 +160,27 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
         inputs = make_signal(kind, **inp)
     if "duration" not in run:
         raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
+    return {"plant": plant, "sensor": sensor, "observers": observers, "inputs": inputs,
+            "duration": run["duration"], "sample_period": run.get("sample_period"),
+            "control_period": run.get("control_period"), "x0": pl.get("x0"),
+            "metadata": {"scenario": sc.get("name", name), "scenario_spec": sc}}
+
+
+def run_scenario(sc: dict[str, Any], name: str = "run",
+                 rrd: str | Path | None = None) -> tuple[Any, dict[str, Any], Path]:
+    """Build everything a scenario names, simulate, and write the results. Returns
+    ``(trajectory, metrics, out_dir)``.
+
+    With ``rrd``, the run is also recorded to that rerun file (:class:`hgo_mj.record.Recorder`)
+    chunk by chunk while it runs; the file is closed even when the run is interrupted.
+    ``run.seeds`` is read by :func:`run_study`; this runs the one seed ``run.seed``."""
+    from .metrics import all_metrics, format_table
+    from .plotting import plot_trajectory
+    from .simulate import simulate
+
+    kw = scenario_run(sc, name)
+    plant, observers, pl, run = kw["plant"], kw["observers"], sc["plant"], sc["run"]
+    seed = run.get("seed", 0)
     rec = None
     if rrd is not None:
         from .record import Recorder
@@ -171,11 +196,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
                               "scenario_spec": sc, "versions": package_versions()})
             ts = run.get("sample_period") or plant.dt
             on_chunk = (max(RRD_CHUNK_SECONDS, 200 * float(ts)), rec.write_chunk)
-        traj = simulate(plant, sensor, observers, inputs, run["duration"],
-                        sample_period=run.get("sample_period"),
-                        control_period=run.get("control_period"), x0=pl.get("x0"), seed=seed,
-                        metadata={"scenario": sc.get("name", name), "scenario_spec": sc},
-                        on_chunk=on_chunk)
+        traj = simulate(**kw, seed=seed, on_chunk=on_chunk)
         mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
         metrics = all_metrics(traj, **mkw)
         if rec is not None:
@@ -187,12 +208,62 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     out = Path(run.get("out", f"runs/{name}"))
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / "trajectory.npz")
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=float) + "\n")
+    write_json(out / "metrics.json", metrics)
     plot_trajectory(traj, out / "figure.png",
                     title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}")
     table = format_table(metrics)
     (out / "summary.txt").write_text(table + "\n")
     return traj, metrics, out
+
+
+def positive_int(value: Any, where: str, *, flag: bool = False) -> int:
+    """An integer >= 1 (``run.seeds``, ``--seeds``, ``--jobs``); a ``flag``'s text is parsed."""
+    if flag and isinstance(value, str):
+        text = value.strip()
+        if not text.lstrip("+").isdigit():
+            raise DesignError(f"{where} must be an integer >= 1; found {value!r}")
+        value = int(text)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise DesignError(f"{where} must be an integer >= 1; found {value!r}")
+    return value
+
+
+def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
+              jobs: int = 1) -> tuple[Any, dict[str, Any], Path, Any]:
+    """:func:`run_scenario` at ``run.seed``, then, when ``run.seeds`` = N > 1, a Monte Carlo
+    over the seeds ``seed, seed + 1, ..., seed + N - 1`` (:func:`hgo_mj.study.monte_carlo` on
+    ``jobs`` processes) written to ``metrics_mc.json``, ``summary_mc.txt`` and ``mc.png``.
+    Returns ``(trajectory, metrics, out_dir, mc)``: the first seed's run, and the
+    :class:`~hgo_mj.study.MonteCarloResult` of all seeds (``None`` for one seed).
+
+    The first seed's files (and ``rrd``) are exactly those of a single run at that seed."""
+    from functools import partial
+
+    from . import cli as _cli  # scenario_run by its module name, also under `python -m`
+    from .plotting import plot_monte_carlo
+    from .study import MonteCarloResult, aggregate, run_seeds
+
+    run = sc.get("run", {})
+    n = positive_int(run.get("seeds", 1), "run.seeds") if isinstance(run, dict) else 1
+    jobs = positive_int(jobs, "--jobs")
+    single = {**sc, "run": {k: v for k, v in run.items() if k != "seeds"}} if isinstance(
+        run, dict) else sc
+    traj, metrics, out = run_scenario(single, name, rrd=rrd)
+    if n == 1:
+        return traj, metrics, out, None
+    seed = single["run"].get("seed", 0)
+    seeds = list(range(seed, seed + n))
+    mkw = {k: single["run"][k] for k in ("t_transient", "band") if k in single["run"]}
+    done, runs, failed = run_seeds(partial(_cli.scenario_run, single, name), seeds[1:],
+                                   jobs=jobs, **mkw)
+    mc = MonteCarloResult(seeds=[seed, *done], runs=[metrics, *runs],
+                          aggregate=aggregate([metrics, *runs]), failed=failed)
+    write_json(out / "metrics_mc.json", mc.to_json())
+    (out / "summary_mc.txt").write_text(mc.table() + "\n")
+    plot_monte_carlo(mc, out / "mc.png",
+                     title=f"{sc.get('name', name)}: {sc['plant']['name']}, seeds "
+                           f"{seeds[0]}..{seeds[-1]}")
+    return traj, metrics, out, mc
 
 
 DEMO = {
@@ -272,6 +343,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--sample-period", dest="sample_period", type=float)
     r.add_argument("--control-period", dest="control_period", type=float)
     r.add_argument("--seed", type=int)
+    r.add_argument("--seeds", metavar="N",
+                   help="Monte Carlo: N runs at the seeds SEED, SEED+1, ..., SEED+N-1; also "
+                   "writes metrics_mc.json, summary_mc.txt and mc.png (default 1: one run)")
+    r.add_argument("--jobs", metavar="J", default="1",
+                   help="processes for the --seeds runs (default 1; results do not depend on it)")
     r.add_argument("--out", help="output folder (default runs/run)")
     r.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                    help="also record to a rerun .rrd file (default OUT/run.rrd)")
@@ -323,15 +399,17 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "demo":
             sc = json.loads(json.dumps(DEMO))
+            jobs = 1
             sc["run"]["out"] = args.out
             name = "demo"
             rrd = None if args.no_rrd else Path(args.rrd or Path(args.out) / "demo.rrd")
         else:
             sc = scenario_from_args(args)
+            jobs = positive_int(args.jobs, "--jobs", flag=True)
             name = "run"
             rrd = None if args.rrd is None else Path(
                 args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")
-        _, metrics, out = run_scenario(sc, name, rrd=rrd)
+        _, metrics, out, mc = run_study(sc, name, rrd=rrd, jobs=jobs)
     except (HgoError, ValueError) as exc:
         print(f"hgo-mj: error: {exc}", file=sys.stderr)
         return 2
@@ -342,7 +420,11 @@ def main(argv: list[str] | None = None) -> int:
     from .metrics import format_table
 
     print(format_table(metrics))
+    if mc is not None:
+        print(f"\nMonte Carlo over the seeds {mc.seeds[0]}..{mc.seeds[-1]} (the table above: seed "
+              f"{mc.seeds[0]})\n" + mc.table())
     print(f"\nwrote {out}/trajectory.npz, metrics.json, figure.png, summary.txt"
+          + (", metrics_mc.json, summary_mc.txt, mc.png" if mc is not None else "")
           + (f", {rrd}" if rrd is not None else ""))
     return 0
 

@@ -103,3 +103,48 @@ def plot_trajectory(traj: Any, path: str | Path, *, title: str = "") -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_monte_carlo(result: Any, path: str | Path, *, title: str = "") -> Path:
+    """Write a PNG of a Monte Carlo study (:class:`hgo_mj.study.MonteCarloResult`): one panel
+    per plant state (row) and observer (column), the RMSE of every seed as a dot over its box
+    plot (quartiles, whiskers to 1.5 IQR, the mean as a triangle), each panel on its own scale
+    so that the spread shows; runs with a NaN RMSE are left out (their count is noted)."""
+    runs, agg = result.runs, result.aggregate
+    observers = list(agg) or [""]
+    states = list(next(iter(agg.values()))["states"]) if agg else [""]
+    rows, cols = len(states), len(observers)
+    fig, axes = plt.subplots(rows, cols, figsize=(2.6 * cols + 1.2, 1.9 * rows + 1.0),
+                             squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    jitter = np.random.default_rng(0).uniform(-0.08, 0.08, len(runs))  # same figure every time
+    for i, name in enumerate(states):
+        for j, oname in enumerate(observers):
+            ax = axes[i, j]
+            if i == 0:
+                ax.set_title(oname, fontsize=9)
+            if j == 0:
+                ax.set_ylabel(f"RMSE {name}", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.set_xticks([])
+            if not agg or not agg[oname]["estimated"][i]:
+                ax.text(0.5, 0.5, "not estimated", transform=ax.transAxes, ha="center",
+                        va="center", color="0.4", fontsize=8)
+                continue
+            v = np.array([r[oname]["rmse"][i] for r in runs], dtype=float)
+            ok = np.isfinite(v)
+            if ok.any():
+                ax.boxplot(v[ok], showmeans=True, widths=0.5)
+                ax.plot(1 + jitter[ok], v[ok], "o", ms=3, color=colors[j % len(colors)],
+                        alpha=0.6)
+                ax.set_xticks([])
+            if not ok.all():
+                ax.text(0.02, 0.96, f"{int((~ok).sum())} NaN", transform=ax.transAxes,
+                        va="top", fontsize=7, color="0.4")
+    fig.suptitle((f"{title}\n" if title else "") + f"RMSE over {len(runs)} seeds", fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .._json import strict_json
 from ..exceptions import DesignError
 
 #: name -> (module, one line)
@@ -47,23 +48,6 @@ REPRODUCTIONS: dict[str, tuple[str, str]] = {
     "jo_son2004": ("hgo_mj.reproduce.jo_son2004",
                    "paper 003 eq. 28-31: adaptive observer in generalized canonical form"),
 }
-
-
-def strict_json(value: Any) -> Any:
-    """``value`` as plain JSON data: dicts (keys as strings), lists (tuples and arrays too),
-    ``str``/``int``/``float``/``bool``/``None``; a non-finite float becomes ``None``, a NumPy
-    scalar its Python value and a path its string."""
-    if isinstance(value, dict):
-        return {str(k): strict_json(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [strict_json(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 def nonfinite_keys(value: Any, prefix: str = "") -> list[tuple[str, str]]:

@@ -1,0 +1,301 @@
+"""Monte Carlo over sensor-noise seeds: the same scenario run once per seed, and the spread.
+
+A single noisy run says little about an observer. :func:`monte_carlo` runs one scenario (plant,
+sensor chain, observers, input, duration, x0) once per seed, each run from fresh objects built
+by ``make_run()``, computes :func:`hgo_mj.metrics.all_metrics` per run, and aggregates them per
+observer and plant state (:func:`aggregate`):
+
+* ``rmse``, ``peak``, ``final``: ``mean``, ``std`` (the sample standard deviation, ``ddof=1``;
+  0 for one run), ``min``, ``median``, ``max`` over the runs;
+* ``settling_time``: ``settled_fraction``, the fraction of the runs whose error settled
+  (finite settling time), and ``median``, ``min``, ``max`` over the runs that settled (``inf``
+  when none did);
+* ``update_time``: the mean over the runs of the mean wall time per update (a timing: the only
+  value that changes from one repetition of the study to the next).
+
+A plant state the observer does not estimate has ``None`` for every statistic (as its metrics
+are ``None``); a NaN metric (no finite sample to use) makes the statistics of its state NaN.
+A run that diverges (:class:`~hgo_mj.exceptions.DivergenceError`: the plant or an observer
+blew up) does not stop the study: it is listed in ``failed`` with its message, and the
+statistics are over the runs that finished (how often an observer diverges under noise is
+itself a result); only when every run diverges is the error raised.
+Run ``i`` is bit-identical to ``simulate(**make_run(), seed=seeds[i])`` alone, and nothing but
+``update_time`` depends on ``jobs``.
+
+>>> from functools import partial
+>>> result = monte_carlo(partial(my_scenario, k=50.0), range(20), jobs=4)  # doctest: +SKIP
+>>> print(result.table())                                                  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import pickle
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ._json import strict_json
+from .exceptions import DesignError, DivergenceError
+
+#: the metrics aggregated with mean, std, min, median, max
+SPREAD_METRICS = ("rmse", "peak", "final")
+#: the statistics of each of them
+STATS = ("mean", "std", "min", "median", "max")
+
+
+def _count(name: str, value: Any) -> int:
+    """``value`` as an integer >= 1 (not a bool, not a float), or a :class:`DesignError`."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise DesignError(f"{name} must be an integer >= 1; found {value!r}")
+    return int(value)
+
+
+def check_seeds(seeds: Iterable[Any]) -> list[int]:
+    """The seeds as a non-empty list of non-negative integers, or a :class:`DesignError`."""
+    try:
+        out = list(seeds)
+    except TypeError:
+        raise DesignError(f"seeds must be a sequence of integers; found {seeds!r}") from None
+    if not out:
+        raise DesignError("seeds must name at least one seed; found none")
+    for s in out:
+        if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
+            raise DesignError(f"seeds must be non-negative integers; found {s!r}")
+    return [int(s) for s in out]
+
+
+def run_seed(make_run: Callable[[], Mapping[str, Any]], seed: int,
+             metric_kw: Mapping[str, Any] | None = None) -> dict[str, dict[str, Any]]:
+    """One run of the study: ``simulate(**make_run(), seed=seed)`` and its metrics."""
+    from .metrics import all_metrics
+    from .simulate import simulate
+
+    kw = dict(make_run())
+    if "seed" in kw:
+        raise DesignError("make_run() must not set seed: monte_carlo passes each seed; found "
+                          f"seed = {kw['seed']!r}")
+    try:
+        traj = simulate(**kw, seed=seed)
+    except DivergenceError as exc:
+        err = DivergenceError(f"seed {seed}: {exc}")
+        err.trajectory = getattr(exc, "trajectory", None)  # type: ignore[attr-defined]
+        raise err from exc
+    return all_metrics(traj, **dict(metric_kw or {}))
+
+
+def _run_seed_job(job: tuple[Callable[[], Mapping[str, Any]], int, dict[str, Any]]
+                  ) -> dict[str, dict[str, Any]] | str:
+    """One run's metrics, or the message of its divergence."""
+    try:
+        return run_seed(*job)
+    except DivergenceError as exc:
+        return str(exc)
+
+
+@dataclass
+class MonteCarloResult:
+    """Per-run metrics and their aggregate (see the module docstring)."""
+
+    #: the seeds, in the order of ``runs``
+    seeds: list[int]
+    #: ``all_metrics`` of each run
+    runs: list[dict[str, dict[str, Any]]]
+    #: per observer: ``states``, ``estimated``, ``runs`` and the statistics of each metric
+    aggregate: dict[str, dict[str, Any]]
+    #: seed -> message, for the runs that diverged (not in ``seeds``/``runs``)
+    failed: dict[int, str]
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-ready dict: ``seeds``, ``runs`` (``[{"seed", "metrics"}]``), ``aggregate``,
+        ``failed`` (``[{"seed", "error"}]``); strict JSON: ``inf`` and ``nan`` become ``None``
+        (a settling time: never; a statistic: undefined)."""
+        return strict_json({
+            "seeds": list(self.seeds),
+            "runs": [{"seed": s, "metrics": m} for s, m in zip(self.seeds, self.runs)],
+            "aggregate": self.aggregate,
+            "failed": [{"seed": s, "error": e} for s, e in self.failed.items()]})
+
+    def table(self) -> str:
+        """The aggregate as a plain-text table (:func:`format_mc_table`), and the runs that
+        diverged."""
+        text = format_mc_table(self.aggregate)
+        if self.failed:
+            total = len(self.seeds) + len(self.failed)
+            text += (f"\n{len(self.failed)} of {total} run(s) diverged and are left out of the "
+                     f"statistics: seeds {sorted(self.failed)}")
+        return text
+
+
+def _stats(vals: Sequence[float]) -> dict[str, float]:
+    a = np.asarray(vals, dtype=float)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return {"mean": float(np.mean(a)),
+                "std": float(np.std(a, ddof=1)) if a.size > 1 else 0.0,
+                "min": float(np.min(a)), "median": float(np.median(a)),
+                "max": float(np.max(a))}
+
+
+def _settling(vals: Sequence[float]) -> dict[str, float]:
+    a = np.asarray(vals, dtype=float)
+    ok = a[np.isfinite(a)]
+    if not ok.size:
+        return {"settled_fraction": 0.0, "median": math.inf, "min": math.inf, "max": math.inf}
+    return {"settled_fraction": float(ok.size / a.size), "median": float(np.median(ok)),
+            "min": float(np.min(ok)), "max": float(np.max(ok))}
+
+
+def aggregate(runs: Sequence[Mapping[str, Mapping[str, Any]]]) -> dict[str, dict[str, Any]]:
+    """Statistics over runs of :func:`hgo_mj.metrics.all_metrics`, per observer and state.
+
+    Returns, per observer, ``states``, ``estimated``, ``runs`` (their number), ``rmse``,
+    ``peak``, ``final`` (each ``{"mean": [...], "std": [...], "min": ..., "median": ...,
+    "max": ...}``, lists over the plant's states, ``None`` where not estimated),
+    ``settling_time`` (``{"settled_fraction", "median", "min", "max"}``, the last three over
+    the runs that settled) and ``update_time`` (mean, seconds).
+    """
+    if not runs:
+        raise DesignError("aggregate needs at least one run; found none")
+    first = runs[0]
+    for i, r in enumerate(runs):
+        if list(r) != list(first):
+            raise DesignError(f"run #{i + 1} has observers {list(r)}; expected {list(first)}")
+    out: dict[str, dict[str, Any]] = {}
+    for name, m0 in first.items():
+        states, est = list(m0["states"]), list(m0["estimated"])
+        for i, r in enumerate(runs):
+            if list(r[name]["states"]) != states or list(r[name]["estimated"]) != est:
+                raise DesignError(f"run #{i + 1}: observer {name!r} has states "
+                                  f"{r[name]['states']}; expected {states}")
+        agg: dict[str, Any] = {"states": states, "estimated": est, "runs": len(runs)}
+        for key in SPREAD_METRICS:
+            cols: dict[str, list[float | None]] = {s: [] for s in STATS}
+            for j, ok in enumerate(est):
+                st = _stats([r[name][key][j] for r in runs]) if ok else dict.fromkeys(STATS)
+                for s in STATS:
+                    cols[s].append(st[s])
+            agg[key] = cols
+        settle: dict[str, list[float | None]] = {
+            s: [] for s in ("settled_fraction", "median", "min", "max")}
+        for j, ok in enumerate(est):
+            st = (_settling([r[name]["settling_time"][j] for r in runs]) if ok
+                  else dict.fromkeys(settle))
+            for s in settle:
+                settle[s].append(st[s])
+        agg["settling_time"] = settle
+        agg["update_time"] = float(np.mean([r[name]["update_time"] for r in runs]))
+        out[name] = agg
+    return out
+
+
+def monte_carlo(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *,
+                jobs: int = 1, t_transient: float | None = None, band: float = 0.05,
+                relative: bool = True) -> MonteCarloResult:
+    """Run one scenario once per seed and aggregate the metrics.
+
+    Parameters
+    ----------
+    make_run : callable ``() -> mapping``
+        Builds one run: the keyword arguments of :func:`hgo_mj.simulate.simulate` except
+        ``seed`` (``plant``, ``sensor``, ``observers``, ``inputs``, ``duration`` and optionally
+        ``sample_period``, ``control_period``, ``x0``, ``metadata``). It is called once per
+        seed, so that every run starts from fresh objects (``simulate`` resets the plant, the
+        sensor chain, re-seeded, and the observers, but not a stateful input or controller).
+        With ``jobs > 1`` it must be picklable: a module-level function, or a
+        :func:`functools.partial` of one.
+    seeds : iterable of int
+        The sensor chain's seeds, one run each (non-negative integers).
+    jobs : int, default 1
+        Worker processes (``spawn``: safe with MuJoCo and threads). The results do not depend
+        on it, apart from the wall times ``update_time``.
+    t_transient, band, relative
+        As in :func:`hgo_mj.metrics.observer_metrics`.
+
+    Returns
+    -------
+    MonteCarloResult
+        ``runs[i]`` equals ``all_metrics(simulate(**make_run(), seed=seeds[i]))``.
+
+        Runs that diverge are in ``failed`` (seed -> message), not in ``runs``.
+
+    Raises
+    ------
+    DivergenceError
+        If every run diverges; the message names the first (``seed S: ...``).
+    """
+    seeds = check_seeds(seeds)
+    done, runs, failed = run_seeds(make_run, seeds, jobs=jobs, t_transient=t_transient,
+                                   band=band, relative=relative)
+    if not done:
+        raise DivergenceError(f"every run diverged ({len(seeds)} of {len(seeds)}); "
+                              f"{failed[seeds[0]]}")
+    return MonteCarloResult(seeds=done, runs=runs, aggregate=aggregate(runs), failed=failed)
+
+
+def run_seeds(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *,
+              jobs: int = 1, t_transient: float | None = None, band: float = 0.05,
+              relative: bool = True
+              ) -> tuple[list[int], list[dict[str, dict[str, Any]]], dict[int, str]]:
+    """The runs of :func:`monte_carlo` without the aggregate: ``(seeds that finished, their
+    metrics, {seed: message} of those that diverged)``, in the order of ``seeds``."""
+    seeds = check_seeds(seeds)
+    jobs = _count("jobs", jobs)
+    if not callable(make_run):
+        raise DesignError(f"make_run must be a callable returning simulate's arguments; found "
+                          f"{type(make_run).__name__}")
+    metric_kw = {"t_transient": t_transient, "band": band, "relative": relative}
+    jobs = min(jobs, len(seeds))
+    if jobs == 1:
+        results = [_run_seed_job((make_run, s, metric_kw)) for s in seeds]
+    else:
+        try:
+            pickle.dumps(make_run)
+        except Exception as exc:
+            raise DesignError(f"make_run must be picklable for jobs > 1 (a module-level function "
+                              f"or a functools.partial of one); found {make_run!r}: {exc}"
+                              ) from None
+        ctx = multiprocessing.get_context("spawn")
+        with ctx.Pool(jobs) as pool:
+            results = pool.map(_run_seed_job, [(make_run, s, metric_kw) for s in seeds],
+                               chunksize=1)
+    failed = {s: r for s, r in zip(seeds, results) if isinstance(r, str)}
+    done = [(s, r) for s, r in zip(seeds, results) if not isinstance(r, str)]
+    return [s for s, _ in done], [r for _, r in done], failed
+
+
+def _cell(v: Any, width: int) -> str:
+    return f"{'-':>{width}}" if v is None else f"{v:>{width}.4g}"
+
+
+def format_mc_table(agg: Mapping[str, Mapping[str, Any]]) -> str:
+    """A plain-text table, one row per observer and state: RMSE mean ± std, median and max,
+    the median peak error, the fraction of runs that settled and their median settling time
+    (``-``: not estimated)."""
+    n = max((a["runs"] for a in agg.values()), default=0)
+    lines = [f"{n} run(s) per observer",
+             f"{'observer':<16} {'state':<18} {'rmse mean ± std':>23} {'rmse med':>10} "
+             f"{'rmse max':>10} {'peak med':>10} {'settled':>8} {'settle med[s]':>13}"]
+    missing = False
+    for name, a in agg.items():
+        for i, s in enumerate(a["states"]):
+            r, st = a["rmse"], a["settling_time"]
+            if r["mean"][i] is None:
+                missing = True
+                ms = f"{'-':>23}"
+                frac = f"{'-':>8}"
+            else:
+                ms = f"{r['mean'][i]:>10.4g} ± {r['std'][i]:<10.3g}"
+                frac = f"{st['settled_fraction'][i]:>8.0%}"
+            lines.append(f"{name:<16} {s:<18} {ms} {_cell(r['median'][i], 10)} "
+                         f"{_cell(r['max'][i], 10)} {_cell(a['peak']['median'][i], 10)} "
+                         f"{frac} {_cell(st['median'][i], 13)}")
+    if missing:
+        lines.append("- : not estimated (the observer has no estimate of that plant state)")
+    return "\n".join(lines)
+
+
+__all__ = ["MonteCarloResult", "aggregate", "check_seeds", "format_mc_table", "monte_carlo",
+           "run_seed", "run_seeds"]
