@@ -6,7 +6,9 @@ later with ``rerun file.rrd``. Data goes in columns, batched: the entities shari
 are one Arrow record batch handed to rerun in one call (``rerun.chunk.Chunk.from_record_batch``
 and ``send_chunks``, which split it into one chunk per entity; ``send_columns`` is the same
 columnar path one entity a call), static styles and geometry one batch too. A per-step
-``rr.log`` would cost 36 to 120 microseconds a step here.
+``rr.log`` would cost 36 to 120 microseconds a step here. Styles, geometry and the blueprint
+are converted to Arrow once per process (per layout) and sent again as they are: rerun's
+archetype and blueprint classes cost milliseconds to build and convert for every recording.
 
 Timelines: ``sim_time`` (simulated time, a duration), ``step`` (the sample index) and, for
 environments, ``episode``.
@@ -93,11 +95,36 @@ GHOST_ALPHA = 90
 _GAIN_KEYS = ("k", "gain", "gamma")
 #: least wall time between two flushes started after blocks (``flush_each="start"``), seconds
 _FLUSH_INTERVAL = 0.25
+#: pose rows queued before they are posed and sent (a 2 s block at 50 Hz has 101)
+_POSE_ROWS = 250
+#: the chunk batcher of a recorder's own stream (``None``: rerun's default, which holds chunks
+#: up to 200 ms or 2 MiB: the file writer would then encode a run's last blocks at close)
+BATCHER: dict[str, Any] | None = {"flush_tick": 0.01, "flush_num_bytes": 262144}
+
+
+def _batcher() -> Any:
+    return None if BATCHER is None else rr.ChunkBatcherConfig(**BATCHER)
+
+
 _THETA_PREFIXES = ("theta_hat_", "theta_hat", "theta_", "theta")
 
 
 def _part(name: str) -> str:
     return rr.escape_entity_path_part(str(name))
+
+
+def _json(obj: Any, default: Any, depth: int = 2, indent: str = "") -> str:
+    """JSON of ``obj`` with its first ``depth`` levels of mappings and lists one item a line
+    (``json.dumps(obj, indent=2)`` runs the pure-Python encoder: ten times slower)."""
+    inner = indent + "  "
+    if depth > 0 and isinstance(obj, Mapping) and obj:
+        items = [json.dumps({k: None})[1:-5] + _json(v, default, depth - 1, inner)
+                 for k, v in obj.items()]
+        return "{\n" + ",\n".join(inner + i for i in items) + "\n" + indent + "}"
+    if depth > 0 and isinstance(obj, (list, tuple)) and obj:
+        items = [_json(v, default, depth - 1, inner) for v in obj]
+        return "[\n" + ",\n".join(inner + i for i in items) + "\n" + indent + "]"
+    return json.dumps(obj, default=default)
 
 
 def observer_color(i: int) -> tuple[int, int, int]:
@@ -276,6 +303,19 @@ def _geom_shape(m: Any, g: int, rgba: Any, fill: Any) -> Any:
     return None  # height fields, SDFs
 
 
+def _geom_key(m: Any, g: int, rgba: Any, fill: Any) -> Any:
+    """What determines :func:`_geom_shape` of a primitive geom (``None`` for meshes and the
+    rest, which are not cached)."""
+    import mujoco
+
+    t = mujoco.mjtGeom
+    kind = int(m.geom_type[g])
+    if kind not in (t.mjGEOM_BOX, t.mjGEOM_SPHERE, t.mjGEOM_ELLIPSOID, t.mjGEOM_CAPSULE,
+                    t.mjGEOM_CYLINDER, t.mjGEOM_PLANE):
+        return None
+    return ("geom", kind, tuple(float(v) for v in m.geom_size[g]), tuple(rgba), fill)
+
+
 # --------------------------------------------------------------------------- SIGINT
 class _DeferSigint:
     """Hold a SIGINT (Ctrl-C) until a block is written, so a chunk is never half-recorded."""
@@ -338,7 +378,36 @@ def _descriptor(kind: str) -> tuple[dict[bytes, bytes], Any]:
     return _DESCRIPTORS[kind]
 
 
+#: largest number of entries of each per-process cache (cleared when full)
+_CACHE_MAX = 4096
+#: (path, key) -> Arrow fields and one-row list arrays of a static archetype
+_STATIC_CACHE: dict[tuple[str, Any], tuple[list[Any], list[Any]]] = {}
+#: the (path, key) of every queued static archetype -> the chunks of their batch (sent again
+#: as they are: the same styles and geometry in every recording of a scenario)
+_STATIC_CHUNKS: dict[tuple[tuple[str, Any], ...], list[Any]] = {}
+
+
+def _static_columns(path: str, archetype: Any) -> tuple[list[Any], list[Any]]:
+    """Arrow fields and one-row list arrays of a static archetype logged at ``path``."""
+    import pyarrow as pa
+
+    fields, arrays = [], []
+    for b in archetype.as_component_batches():
+        d, a = b.component_descriptor(), b.as_arrow_array()
+        lst = pa.ListArray.from_arrays(pa.array([0, len(a)], pa.int32()), a)
+        fields.append(pa.field(f"{path}:{d.component}", lst.type, metadata={
+            b"rerun:kind": b"data", b"rerun:entity_path": path.encode(),
+            b"rerun:component": d.component.encode(),
+            b"rerun:archetype": (d.archetype or "").encode(),
+            b"rerun:component_type": (d.component_type or "").encode()}))
+        arrays.append(lst)
+    return fields, arrays
+
+
+#: Arrow fields of timelines and temporal components (never evicted: _SCHEMAS keys on their ids)
 _FIELDS: dict[tuple[str, str, Any], Any] = {}
+#: ids of a batch's (cached) fields -> their Arrow schema
+_SCHEMAS: dict[tuple[int, ...], Any] = {}
 
 
 def _index_field(name: str, kind: str) -> Any:
@@ -363,9 +432,10 @@ class _Batch:
         self.pa = pa
         self.rows = t.size
         self._offsets: dict[int, Any] = {}
-        ns = np.rint(t * 1e9).astype(np.int64).view("timedelta64[ns]")
+        ns = np.rint(t * 1e9).astype(np.int64)
         self.fields = [_index_field(SIM_TIME, "duration"), _index_field(STEP, "sequence")]
-        self.arrays = [pa.array(ns), pa.array(steps.astype(np.int64, copy=False))]
+        self.arrays = [pa.Array.from_buffers(pa.duration("ns"), ns.size, [None, pa.py_buffer(ns)]),
+                       pa.array(np.ascontiguousarray(steps, dtype=np.int64))]
         if episode is not None:
             self.fields.append(_index_field(EPISODE, "sequence"))
             self.arrays.append(pa.array(np.full(t.size, int(episode), dtype=np.int64)))
@@ -401,7 +471,13 @@ class _Batch:
         if len(self.arrays) > self._n_index:
             from rerun.chunk import Chunk
 
-            batch = self.pa.RecordBatch.from_arrays(self.arrays, schema=self.pa.schema(self.fields))
+            key = tuple(map(id, self.fields))  # the fields are cached: their ids are stable
+            schema = _SCHEMAS.get(key)
+            if schema is None:
+                if len(_SCHEMAS) >= _CACHE_MAX:
+                    _SCHEMAS.clear()
+                schema = _SCHEMAS[key] = self.pa.schema(self.fields)
+            batch = self.pa.RecordBatch.from_arrays(self.arrays, schema=schema)
             rr.send_chunks(Chunk.from_record_batch(batch), recording=stream)
 
 
@@ -437,14 +513,23 @@ class Recorder:
     recording_name : str, optional
         Name of the recording shown in the viewer.
     pose_rate : float or None
-        Samples per unit of simulated time of the 3D poses (``None``: every sample).
+        Samples per unit of simulated time of the 3D poses (``None``: every sample). Pose
+        rows are queued and sent 250 at a time (and by :meth:`flush` and :meth:`close`): a
+        batch costs about the same whatever its length.
     flush_each : {"start", "wait", "none"}
         After a block: ``"start"`` (default) starts a flush to the file without waiting for it,
         at most every 0.25 s of wall time (rerun's own thread writes each block within a few
         milliseconds anyway; a flush costs about 0.5 ms); ``"wait"`` blocks after every block
         until it is written (costs the encoding time on the caller's thread); ``"none"`` leaves
         it to rerun's sink. Either way a run killed part-way leaves every block before the
-        last in the file, and :meth:`close` always waits.
+        last in the file (the 3D poses are sent every few blocks, see ``pose_rate``), and
+        :meth:`close` always waits.
+    footer : bool
+        End the file with rerun's footer (a manifest of its chunks, for random access and
+        ``rerun.chunk.RrdReader(...).store()``; about 0.1 MB and 1.3 ms at :meth:`close` for a
+        10 s, 1 kHz pendulum run). ``False`` leaves a file that reads as a stream (the
+        viewer, ``RrdReader(...).stream()``) but that ``rerun rrd verify`` rejects ("Missing
+        RRD footer") and rerun warns about; ``rerun rrd optimize`` adds the footer later.
 
     Examples
     --------
@@ -460,7 +545,7 @@ class Recorder:
                  params: Mapping[str, float] | None = None,
                  stream: rr.RecordingStream | None = None, application_id: str = "hgo_mj",
                  recording_name: str | None = None, pose_rate: float | None = 50.0,
-                 flush_each: str = "start") -> None:
+                 flush_each: str = "start", footer: bool = True) -> None:
         self.state_names = tuple(str(s) for s in state_names)
         self.output_names = tuple(str(s) for s in output_names)
         self.input_names = tuple(str(s) for s in input_names)
@@ -493,7 +578,7 @@ class Recorder:
             if path is None:
                 raise DesignError("give a path for the .rrd file, or a stream with its sinks set")
             stream = rr.RecordingStream(application_id, make_default=False,
-                                        make_thread_default=False)
+                                        make_thread_default=False, batcher_config=_batcher())
         elif not isinstance(stream, rr.RecordingStream):
             raise DesignError(f"stream must be a rerun.RecordingStream; found "
                               f"{type(stream).__name__}")
@@ -504,7 +589,7 @@ class Recorder:
             if self.path.suffix != ".rrd":
                 raise DesignError(f"a recording path must end in .rrd; found {str(self.path)!r}")
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            stream.save(self.path)
+            stream.save(self.path, write_footer=bool(footer))
         if recording_name:
             stream.send_recording_name(recording_name)
         # fixed at the first block: per plant state the observers estimating it (and column),
@@ -520,8 +605,10 @@ class Recorder:
         self._t_next = 0.0
         self._step_next = 0
         self._closed = False
-        self._static: list[tuple[str, Any]] = []
-        self._flushed = -np.inf
+        self._static: list[tuple[str, Any, tuple[list[Any], list[Any]]]] = []
+        self._poses: list[tuple[Array, NDArray[np.int64], int | None, dict[str, Array]]] = []
+        self._pose_rows = 0
+        self._flushed = time.monotonic()  # the first flush 0.25 s after the start
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -572,7 +659,7 @@ class Recorder:
         if md.get("versions"):
             lines += ["", "## Versions", ""]
             lines += [f"- {k} {v}" for k, v in md["versions"].items()]
-        lines += ["", "## All metadata", "", "```json", json.dumps(md, indent=2, default=str), "```"]
+        lines += ["", "## All metadata", "", "```json", _json(md, str), "```"]
         self.stream.log("/scenario", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
                         static=True, strict=True)
         props = {k: json.dumps(md[k], default=str) if not isinstance(md[k], str) else md[k]
@@ -587,7 +674,7 @@ class Recorder:
 
         text = ("# Metrics\n\nerror e = x - x_hat per observer and state\n\n```\n"
                 + format_table(dict(metrics)) + "\n```\n\n```json\n"
-                + json.dumps(metrics, indent=2, default=float) + "\n```\n")
+                + _json(metrics, float) + "\n```\n")
         self.stream.log("/metrics", rr.TextDocument(text, media_type="text/markdown"),
                         static=True, strict=True)
         self._flush()
@@ -617,7 +704,7 @@ class Recorder:
             rmse = ep.get("rmse", {})
             lines.append("| " + " | ".join([cell(ep.get(k)) for k in head]
                                            + [cell(rmse.get(s)) for s in states]) + " |")
-        lines += ["", "```json", json.dumps(list(episodes), indent=2, default=float), "```", ""]
+        lines += ["", "```json", _json(list(episodes), float), "```", ""]
         self.stream.log("/metrics", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
                         static=True, strict=True)
         self._flush()
@@ -732,18 +819,55 @@ class Recorder:
         joint_obs = {o for i in range(nj) for o, _ in self._est_of[i]}
         posed = [o for o in self.observers if o in est and o in joint_obs]
         with _DeferSigint():
-            self._record(t, steps, episode, x, yc, ym, u, est, diag, extra, posed, mark_end)
-            self._last_row = (float(t[-1]), int(steps[-1]), episode)
+            self._register(diag, extra, posed)
+            # the block's rows first (rerun's file writer, the slowest part, starts on them),
+            # then styles, geometry and layout, diagnostics and poses
+            self._send_rows(t, steps, episode, x, yc, ym, u, est, extra)
             self._send_static()
+            self._send_blueprint()
+            self._record(t, steps, episode, x, est, diag, posed, mark_end)
+            self._last_row = (float(t[-1]), int(steps[-1]), episode)
             self._step_next = int(steps[-1]) + 1
             self._t_next = float(t[-1]) + (float(t[-1] - t[-2]) if T > 1 else 0.0)
-            self._send_blueprint()
             self._flush()
 
-    def _record(self, t: Array, steps: NDArray[np.int64], episode: int | None, x: Array,
-                yc: Array | None, ym: Array, u: Array, est: dict[str, Array],
-                diag: dict[str, dict[str, Any]], extra: dict[str, Any], posed: list[str],
-                mark_end: bool) -> None:
+    def _register(self, diag: dict[str, dict[str, Any]], extra: dict[str, Any],
+                  posed: list[str]) -> None:
+        """Queue the styles of diagnostics and extras seen for the first time, and the ghosts
+        of observers posed for the first time."""
+        for o, d in diag.items():
+            for key in d:
+                self._register_diagnostic(o, str(key))
+        for name in extra:
+            if name not in self._extra:
+                path = self._extra[name] = f"/env/{_part(name)}"
+                self._lines(path, [name], [EXTRA_COLOR])
+        if self.kinematics is not None:
+            for o in posed:
+                if o not in self._ghosts:  # drawn from its first pose on (never at the origin)
+                    self._ghosts.add(o)
+                    self._log_shapes(f"/world/estimate/{_part(o)}",
+                                     observer_color(self.observers.index(o)))
+
+    def _register_diagnostic(self, o: str, key: str) -> tuple[str, str]:
+        """Path and kind of a diagnostic, its style queued the first time."""
+        ident = (o, key)
+        if ident not in self._diag:
+            path, kind = diagnostic_path(o, key, tuple(self.params))
+            self._diag[ident] = (path, kind)
+            i = self.observers.index(o)
+            self._lines(path, [f"{o} {key}"], [observer_color(i)], interpolation_mode="StepAfter")
+            if kind == "theta" and _theta_param(path) in self.params:
+                param = _theta_param(path)
+                self._lines(f"/plant/param/{param}", [f"{param} true"], [TRUE_COLOR],
+                            interpolation_mode="StepAfter")
+        return self._diag[ident]
+
+    def _send_rows(self, t: Array, steps: NDArray[np.int64], episode: int | None, x: Array,
+                   yc: Array | None, ym: Array, u: Array, est: dict[str, Array],
+                   extra: dict[str, Any]) -> None:
+        """Send the block's states, estimates, errors, outputs, inputs and extras (one row a
+        sample) as one batch."""
         batch = _Batch(t, steps, episode)
         est_of = self._est_of or []
         nan = np.full(t.size, np.nan)
@@ -765,12 +889,14 @@ class Recorder:
         for j, name in enumerate(self.input_names):
             batch.add(f"/input/{_part(name)}", "scalar", u[:, j])
         for name, v in extra.items():
-            path = self._extra.get(name)
-            if path is None:
-                path = self._extra[name] = f"/env/{_part(name)}"
-                self._static_log(path, rr.SeriesLines(names=[name], colors=[EXTRA_COLOR]))
-            batch.add(path, "scalar", v)
+            batch.add(self._extra[name], "scalar", v)  # registered by _register
         batch.send(self.stream)
+
+    def _record(self, t: Array, steps: NDArray[np.int64], episode: int | None, x: Array,
+                est: dict[str, Array], diag: dict[str, dict[str, Any]], posed: list[str],
+                mark_end: bool) -> None:
+        """Queue and send the block's diagnostics (where they change) and poses."""
+        est_of = self._est_of or []
         sparse: dict[bytes, tuple[NDArray[np.bool_], list[tuple[str, Array]]]] = {}
         for o, d in diag.items():
             for key, v in d.items():
@@ -795,18 +921,7 @@ class Recorder:
                            sparse: dict[bytes, tuple[NDArray[np.bool_], list[tuple[str, Array]]]]
                            ) -> None:
         """Queue a diagnostic (and the true parameter next to a parameter estimate)."""
-        ident = (o, key)
-        if ident not in self._diag:
-            path, kind = diagnostic_path(o, key, tuple(self.params))
-            self._diag[ident] = (path, kind)
-            i = self.observers.index(o)
-            self._static_log(path, rr.SeriesLines(names=[f"{o} {key}"], colors=[observer_color(i)],
-                                                  interpolation_mode="StepAfter"))
-            if kind == "theta" and _theta_param(path) in self.params:
-                param = _theta_param(path)
-                self._static_log(f"/plant/param/{param}", rr.SeriesLines(
-                    names=[f"{param} true"], colors=[TRUE_COLOR], interpolation_mode="StepAfter"))
-        path, kind = self._diag[ident]
+        path, kind = self._register_diagnostic(o, key)
         self._sparse(path, v, mark_end, sparse)
         if kind == "theta" and _theta_param(path) in self.params:
             param = _theta_param(path)
@@ -820,6 +935,12 @@ class Recorder:
         grouped by mask, one batch each. A series queued twice in a block is kept once."""
         if any(p == path for group in sparse.values() for p, _ in group[1]):
             return
+        last = self._diag_last.get(path)
+        if last is not None and not mark_end:  # fast path: unchanged through the block
+            same = np.isnan(v).all() if np.isnan(last) else bool((v == last).all())
+            if same:
+                self._diag_pending[path] = last
+                return
         prev = np.empty_like(v)
         prev[0] = self._diag_last.get(path, np.nan)
         prev[1:] = v[:-1]
@@ -847,6 +968,9 @@ class Recorder:
 
     def _record_poses(self, t: Array, steps: NDArray[np.int64], episode: int | None, x: Array,
                       est: dict[str, Array]) -> None:
+        """Queue the joint positions of the block's pose rows (``pose_rate``); they are posed
+        and sent :data:`_POSE_ROWS` rows at a time (a batch costs about 0.5 ms whatever its
+        length), and the rest by :meth:`flush` or :meth:`close`."""
         kin = self.kinematics
         assert kin is not None
         if self.pose_rate is None or t.size < 2:
@@ -858,20 +982,36 @@ class Recorder:
             sel[-1] = True  # the block's last sample, so the 3D view ends where the run does
         nj = kin.njoints
         q_true = x[sel, :nj]
-        sets = [("/world/true", q_true)]
+        sets = {"/world/true": q_true}
         for o in est:
             q = est[o][sel, :nj].copy()
             bad = ~np.isfinite(q)
             q[bad] = q_true[bad]  # an undefined estimate puts the ghost's joint on the truth
-            sets.append((f"/world/estimate/{_part(o)}", q))
-            if o not in self._ghosts:  # drawn from its first pose on (never at the origin)
-                self._ghosts.add(o)
-                self._log_shapes(f"/world/estimate/{_part(o)}", observer_color(self.observers.index(o)))
+            sets[f"/world/estimate/{_part(o)}"] = q  # its ghost: queued by _register
+        buf = self._poses
+        if buf and (buf[0][2] != episode or set(buf[0][3]) != set(sets)):
+            self._send_poses()
+        self._poses.append((t[sel], steps[sel], episode, sets))
+        self._pose_rows += int(sel.sum())
+        if self._pose_rows >= _POSE_ROWS:
+            self._send_poses()
+
+    def _send_poses(self) -> None:
+        """Pose the queued rows (all sets of joint positions in one pass) and send them."""
+        if not self._poses:
+            return
+        kin = self.kinematics
+        assert kin is not None
+        queued, self._poses, self._pose_rows = self._poses, [], 0
+        roots = list(queued[0][3])
+        t = np.concatenate([b[0] for b in queued])
+        steps = np.concatenate([b[1] for b in queued])
+        rows = t.size
+        qs = [np.concatenate([b[3][r] for b in queued]) for r in roots]
         bodies = np.flatnonzero(kin.moving & self._drawn)
-        batch = _Batch(t[sel], steps[sel], episode)
-        rows = q_true.shape[0]
-        pos, quat = kin.poses(np.concatenate([q for _, q in sets]))  # all sets in one pass
-        for i, (root, _) in enumerate(sets):
+        batch = _Batch(t, steps, queued[0][2])
+        pos, quat = kin.poses(np.concatenate(qs))  # all sets in one pass
+        for i, root in enumerate(roots):
             part = slice(i * rows, (i + 1) * rows)
             for b in bodies:
                 path = f"{root}/{self._body_names[b]}"
@@ -880,9 +1020,31 @@ class Recorder:
         batch.send(self.stream)
 
     # ------------------------------------------------------------------ styles and layout
-    def _static_log(self, path: str, archetype: Any) -> None:
-        """Queue static data (styles, geometry); :meth:`_send_static` sends the queue at once."""
-        self._static.append((path, archetype))
+    def _static_log(self, path: str, archetype: Any, key: Any = None) -> None:
+        """Queue static data (styles, geometry); :meth:`_send_static` sends the queue at once.
+
+        ``archetype`` is an archetype or a function making one; with a ``key`` (hashable,
+        determining the archetype) its Arrow columns are converted once per process and reused
+        (rerun's archetype classes cost tens of microseconds each to build and convert)."""
+        cols = _STATIC_CACHE.get((path, key)) if key is not None else None
+        if cols is None:
+            cols = _static_columns(path, archetype() if callable(archetype) else archetype)
+            if key is not None:
+                if len(_STATIC_CACHE) >= _CACHE_MAX:
+                    _STATIC_CACHE.clear()
+                _STATIC_CACHE[(path, key)] = cols
+        self._static.append((path, key, cols))
+
+    def _lines(self, path: str, names: Sequence[str], colors: Sequence[Any],
+               widths: Sequence[float] | None = None, interpolation_mode: str | None = None) -> None:
+        """Queue the static series style of ``path`` (cached, see :meth:`_static_log`)."""
+        names, colors = tuple(names), tuple(tuple(c) for c in colors)
+        widths = None if widths is None else tuple(widths)
+        kw: dict[str, Any] = {} if widths is None else {"widths": list(widths)}
+        if interpolation_mode is not None:
+            kw["interpolation_mode"] = interpolation_mode
+        self._static_log(path, lambda: rr.SeriesLines(names=list(names), colors=list(colors), **kw),
+                         key=("SeriesLines", names, colors, widths, interpolation_mode))
 
     def _send_static(self) -> None:
         """Send the queued static data as one Arrow record batch (one call, not one a log)."""
@@ -891,41 +1053,39 @@ class Recorder:
         import pyarrow as pa
         from rerun.chunk import Chunk
 
-        fields, arrays = [], []
-        for path, arch in self._static:
-            for b in arch.as_component_batches():
-                d, a = b.component_descriptor(), b.as_arrow_array()
-                lst = pa.ListArray.from_arrays(pa.array([0, len(a)], pa.int32()), a)
-                fields.append(pa.field(f"{path}:{d.component}", lst.type, metadata={
-                    b"rerun:kind": b"data", b"rerun:entity_path": path.encode(),
-                    b"rerun:component": d.component.encode(),
-                    b"rerun:archetype": (d.archetype or "").encode(),
-                    b"rerun:component_type": (d.component_type or "").encode()}))
-                arrays.append(lst)
-        self._static.clear()
-        batch = pa.RecordBatch.from_arrays(arrays, schema=pa.schema(fields))
-        rr.send_chunks(Chunk.from_record_batch(batch, index=None), recording=self.stream)
+        queued, self._static = self._static, []
+        key = tuple((path, k) for path, k, _ in queued)
+        chunks = _STATIC_CHUNKS.get(key) if all(k is not None for _, k in key) else None
+        if chunks is None:
+            fields, arrays = [], []
+            for _, _, (f, a) in queued:
+                fields += f
+                arrays += a
+            batch = pa.RecordBatch.from_arrays(arrays, schema=pa.schema(fields))
+            chunks = Chunk.from_record_batch(batch, index=None)
+            if all(k is not None for _, k in key):
+                if len(_STATIC_CHUNKS) >= 64:
+                    _STATIC_CHUNKS.clear()
+                _STATIC_CHUNKS[key] = chunks
+        rr.send_chunks(chunks, recording=self.stream)
 
     def _log_styles(self) -> None:
         for s, ests in zip(self.state_names, self._est_of or []):
             obs = [o for o, _ in ests]
             colors = [observer_color(self.observers.index(o)) for o in obs]
-            self._static_log(f"/state/{_part(s)}", rr.SeriesLines(
-                names=[f"{s} true"] + [f"{s} {o}" for o in obs], colors=[TRUE_COLOR] + colors,
-                widths=[2.0] + [1.0] * len(obs)))
+            self._lines(f"/state/{_part(s)}", [f"{s} true"] + [f"{s} {o}" for o in obs],
+                        [TRUE_COLOR] + colors, widths=[2.0] + [1.0] * len(obs))
             if obs:
-                self._static_log(f"/error/{_part(s)}", rr.SeriesLines(
-                    names=[f"{s} error {o}" for o in obs], colors=colors))
+                self._lines(f"/error/{_part(s)}", [f"{s} error {o}" for o in obs], colors)
         for o, own in self._own.items():
             for name, _ in own:
-                self._static_log(f"/observer/{_part(o)}/estimate/{_part(name)}", rr.SeriesLines(
-                    names=[f"{name} {o}"], colors=[observer_color(self.observers.index(o))]))
+                self._lines(f"/observer/{_part(o)}/estimate/{_part(name)}", [f"{name} {o}"],
+                            [observer_color(self.observers.index(o))])
         for name in self.output_names:
-            self._static_log(f"/sensor/{_part(name)}", rr.SeriesLines(
-                names=[f"{name} clean", f"{name} measured"], colors=[TRUE_COLOR, MEASURED_COLOR],
-                widths=[1.5, 1.0]))
+            self._lines(f"/sensor/{_part(name)}", [f"{name} clean", f"{name} measured"],
+                        [TRUE_COLOR, MEASURED_COLOR], widths=[1.5, 1.0])
         for name in self.input_names:
-            self._static_log(f"/input/{_part(name)}", rr.SeriesLines(names=[name], colors=[INPUT_COLOR]))
+            self._lines(f"/input/{_part(name)}", [name], [INPUT_COLOR])
         if self.kinematics is not None:
             self._log_geometry()
 
@@ -944,11 +1104,10 @@ class Recorder:
             geoms.append((g, b, rgba))
             drawn[b] = True
         self._drawn = drawn
-        self._static_log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP)
+        self._static_log("/world", lambda: rr.ViewCoordinates.RIGHT_HAND_Z_UP, key="RIGHT_HAND_Z_UP")
         pos0, quat0 = kin.poses(np.zeros((1, kin.njoints)))  # static bodies ignore the joints
         for b in np.flatnonzero(drawn & ~kin.moving):  # static bodies: posed once
-            self._static_log(f"/world/true/{self._body_names[b]}", rr.Transform3D(
-                translation=pos0[b][0], quaternion=rr.Quaternion(xyzw=_xyzw(quat0[b][0]))))
+            self._transform(f"/world/true/{self._body_names[b]}", pos0[b][0], quat0[b][0])
         self._geoms = geoms
         self._ghosts: set[str] = set()
         self._log_shapes("/world/true", None)
@@ -964,15 +1123,24 @@ class Recorder:
         for g, b, rgba in self._geoms:
             if color is not None and not kin.moving[b]:
                 continue  # a ghost of what does not move would sit on the truth
-            shape = _geom_shape(m, g, np.round(rgba * 255).astype(int).tolist() if color is None
-                                else [*color, GHOST_ALPHA], fill)
-            if shape is None:
-                continue
+            col = (np.round(rgba * 255).astype(int).tolist() if color is None
+                   else [*color, GHOST_ALPHA])
             path = f"{root}/{self._body_names[b]}/{_part(m.geom(g).name or f'geom{g}')}"
-            self._static_log(path, rr.Transform3D(translation=np.array(m.geom_pos[g]),
-                                                  quaternion=rr.Quaternion(
-                                                      xyzw=_xyzw(np.array(m.geom_quat[g])))))
-            self._static_log(path, shape)
+            key = _geom_key(m, g, col, fill)  # primitives: cached, always drawn
+            shape: Any = (lambda g=g, col=col: _geom_shape(m, g, col, fill)) if key else None
+            if key is None:
+                shape = _geom_shape(m, g, col, fill)
+                if shape is None:
+                    continue  # height fields, SDFs
+            self._transform(path, m.geom_pos[g], m.geom_quat[g])
+            self._static_log(path, shape, key=key)
+
+    def _transform(self, path: str, pos: Any, quat: Any) -> None:
+        """Queue the static pose ``pos``, ``quat`` (``w, x, y, z``) of ``path`` (cached)."""
+        pos, quat = np.array(pos, dtype=float), np.array(quat, dtype=float)
+        self._static_log(path, lambda: rr.Transform3D(
+            translation=pos, quaternion=rr.Quaternion(xyzw=_xyzw(quat))),
+            key=("Transform3D", tuple(pos.tolist()), tuple(quat.tolist())))
 
     def blueprint(self) -> rrb.Blueprint:
         """The default layout: 3D view and text documents, one view per state (truth and
@@ -1020,10 +1188,13 @@ class Recorder:
         return rrb.Blueprint(rrb.Horizontal(*columns), rrb.TimePanel(timeline=SIM_TIME))
 
     def _send_blueprint(self) -> None:
+        """Send :meth:`blueprint` as the recording's default layout, once per layout (a new
+        diagnostic or extra estimate changes it)."""
         layout = (tuple(self._diag.values()), tuple(self._extra))
-        if layout != self._layout:
-            self._layout = layout
-            self.stream.send_blueprint(self.blueprint(), make_active=True, make_default=True)
+        if layout == self._layout:
+            return
+        self._layout = layout
+        self.stream.send_blueprint(self.blueprint(), make_active=True, make_default=True)
 
     # ------------------------------------------------------------------ whole runs
     def record_trajectory(self, traj: Any, *, metrics: bool | Mapping[str, Any] = True,
@@ -1031,14 +1202,14 @@ class Recorder:
         """Record a whole :class:`~hgo_mj.simulate.Trajectory`: its metadata, its rows (in
         blocks of ``chunk_seconds`` of simulated time, default one block) and its metrics
         (computed with :func:`hgo_mj.metrics.all_metrics` when ``metrics=True``)."""
-        if traj.metadata:
-            self.log_metadata(traj.metadata)
         rows = len(traj)
         block = rows
         if chunk_seconds is not None and rows > 1:
             block = max(int(round(chunk_seconds / float(traj.t[1] - traj.t[0]))), 1)
         for k0 in range(0, rows, block):
             self.write_chunk(0, traj, slice(k0, min(k0 + block, rows)), mark_end=k0 + block >= rows)
+        if traj.metadata:  # after the rows: built while rerun's threads encode them
+            self.log_metadata(traj.metadata)
         if metrics is True and traj.observers:
             from .metrics import all_metrics
 
@@ -1090,7 +1261,9 @@ class Recorder:
             self.stream.flush()
 
     def flush(self) -> None:
-        """Wait until everything sent so far is written."""
+        """Send the queued poses and wait until everything recorded so far is written."""
+        with _DeferSigint():
+            self._send_poses()
         self.stream.flush()
 
     def close(self) -> None:
@@ -1098,10 +1271,12 @@ class Recorder:
         without a path is flushed, not disconnected."""
         if not self._closed:
             self._closed = True
+            self._send_poses()
             self._send_pending()
-            self.stream.flush()
-            if self._own_sink:
-                self.stream.disconnect()
+            if self._own_sink:  # flushes the batcher, then the file sink writes the rest,
+                self.stream.disconnect()  # its footer, and closes the file before returning
+            else:
+                self.stream.flush()
 
     def __enter__(self) -> Recorder:
         return self
@@ -1125,7 +1300,21 @@ def _model_for(meta: Mapping[str, Any]) -> tuple[Any, tuple[str, ...]]:
     spec = meta.get("scenario_spec") or {}
     model_file = (spec.get("plant", {}).get("params", {}) or {}).get("model_file")
     path = Path(model_file) if model_file else model_path(cls.model_file)
-    return mujoco.MjModel.from_xml_path(str(path)), tuple(cls.joints)
+    try:
+        st = path.stat()
+    except OSError:
+        return mujoco.MjModel.from_xml_path(str(path)), tuple(cls.joints)  # mujoco's own error
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    model = _MODELS.get(key)
+    if model is None:  # compiled once per process (about 1 ms); the recorder only reads it
+        if len(_MODELS) >= 64:
+            _MODELS.clear()
+        model = _MODELS[key] = mujoco.MjModel.from_xml_path(str(path))
+    return model, tuple(cls.joints)
+
+
+#: (MJCF path, mtime, size) -> the compiled model, for :func:`_model_for`
+_MODELS: dict[tuple[str, int, int], Any] = {}
 
 
 def record_trajectory(traj: Any, path: str | Path, *, model: Any = None,

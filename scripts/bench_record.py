@@ -9,7 +9,9 @@ in one process, interleaved, ``--repeats`` times each:
 * ``live``: the same with a :class:`hgo_mj.record.Recorder` fed a chunk every
   ``hgo_mj.cli.RRD_CHUNK_SECONDS`` of simulated time (``on_chunk``, as ``hgo-mj run --rrd``
   does), then the metadata, the metrics table and ``close``;
-* ``after``: the same, then :func:`hgo_mj.record.record_trajectory` with those metrics.
+* ``after``: the same, then :func:`hgo_mj.record.record_trajectory` with those metrics;
+* ``live_nofooter``: ``live`` without rerun's footer (``Recorder(footer=False)``), to show
+  what the footer costs at ``close`` (not a target variant).
 
 Each time covers everything from building the recorder to the file being closed. The figure
 reported is the best of the repeats (the machine is shared; noise only adds), the median is
@@ -67,6 +69,16 @@ def run_live(path: Path) -> None:
     rec.close()
 
 
+def run_live_nofooter(path: Path) -> None:
+    plant, sensor, obs, inputs = setup()
+    rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record", footer=False)
+    traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
+                    on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
+    rec.log_metadata(traj.metadata)
+    rec.log_metrics(all_metrics(traj))
+    rec.close()
+
+
 def run_after(path: Path) -> None:
     plant, sensor, obs, inputs = setup()
     traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1)
@@ -85,7 +97,8 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--write", help="append the results to this markdown file")
     args = ap.parse_args()
-    variants = {"plain": run_plain, "live": run_live, "after": run_after}
+    variants = {"plain": run_plain, "live": run_live, "after": run_after,
+                "live_nofooter": run_live_nofooter}
     times: dict[str, list[float]] = {k: [] for k in variants}
     cpu: dict[str, list[float]] = {k: [] for k in variants}
     sizes: dict[str, int] = {}
@@ -120,7 +133,8 @@ def main() -> int:
     ]
     labels = {"plain": "`simulate` and `all_metrics` (the run)",
               "live": f"recorded during the run ({RRD_CHUNK_SECONDS:g} s chunks, as `hgo-mj run --rrd`)",
-              "after": "`simulate`, then `record_trajectory`"}
+              "after": "`simulate`, then `record_trajectory`",
+              "live_nofooter": "recorded during the run, `Recorder(footer=False)` (for comparison)"}
     for k in variants:
         added = "" if k == "plain" else f"{100 * (best[k] / best['plain'] - 1):+.1f}%"
         added_cpu = "" if k == "plain" else f"{100 * (best_cpu[k] / best_cpu['plain'] - 1):+.1f}%"

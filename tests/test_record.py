@@ -556,3 +556,45 @@ def test_record_estimate_names_validation(tmp_path):
     assert ents["/state/angular_velocity"].static["SeriesLines:names"] == ["angular_velocity true"]
     assert ents["/state/angle"]["Scalars:scalars"].shape[1] == 2
     assert ents["/observer/hgo/estimate/theta"].rows == T
+
+
+def test_recordings_in_one_process_reuse_converted_styles(tmp_path):
+    """Styles and geometry are converted once per process and sent again: a second recording
+    holds the same static data, ghosts and views as the first, with poses sent in batches of
+    queued rows (and the rest at close)."""
+    traj = pendulum_run(1.2)
+    paths = [tmp_path / f"r{i}.rrd" for i in range(2)]
+    for p in paths:
+        with Recorder.for_trajectory(p, traj) as rec:
+            rec.record_trajectory(traj, chunk_seconds=0.3)
+    (a, na), (b, nb) = read_rrd(paths[0]), read_rrd(paths[1])
+    assert na == nb == 1 and sorted(blueprint_views(paths[0])) == sorted(blueprint_views(paths[1]))
+    assert sorted(a) == sorted(b)
+    for name in set(a) - {"/__properties"}:  # the properties hold the start time
+        assert a[name].static.keys() == b[name].static.keys(), name
+        for comp, value in a[name].static.items():
+            if "TextDocument" not in comp:
+                assert b[name].static[comp] == value, (name, comp)
+    for ghost in ("/world/estimate/slow/pole", "/world/estimate/fast/pole", "/world/true/pole"):
+        steps = b[ghost]["step"]
+        assert steps[0] == 0 and steps[-1] == len(traj) - 1  # every block, the last row too
+        assert np.all(np.diff(steps) > 0)
+    assert b["/state/angle"].rows == len(traj)
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")
+def test_footer_false_reads_as_a_stream(tmp_path):
+    """``footer=False``: the same data, read as a stream; ``rerun rrd verify`` rejects it."""
+    traj = pendulum_run(0.5)
+    with Recorder.for_trajectory(tmp_path / "f.rrd", traj, footer=False) as rec:
+        rec.record_trajectory(traj)
+    with Recorder.for_trajectory(tmp_path / "t.rrd", traj) as rec:
+        rec.record_trajectory(traj)
+    nofoot, foot = read_rrd(tmp_path / "f.rrd"), read_rrd(tmp_path / "t.rrd")
+    assert nofoot[1] == foot[1] == 1 and sorted(nofoot[0]) == sorted(foot[0])
+    np.testing.assert_array_equal(nofoot[0]["/state/angle"]["Scalars:scalars"],
+                                  foot[0]["/state/angle"]["Scalars:scalars"])
+    assert (tmp_path / "f.rrd").stat().st_size < (tmp_path / "t.rrd").stat().st_size
+    assert rerun_cli("rrd", "verify", str(tmp_path / "t.rrd")).returncode == 0
+    out = rerun_cli("rrd", "verify", str(tmp_path / "f.rrd"))  # verify wants the manifest
+    assert out.returncode != 0 and "Missing RRD footer" in out.stderr
