@@ -23,7 +23,7 @@ need it.
 
 Usage::
 
-    python scripts/train_rl.py                 # small default: 10k steps per run, ~12 min on 2 free cores
+    python scripts/train_rl.py                 # small default: 25k steps per run, ~12 min on 2 free cores
     python scripts/train_rl.py --full          # full: 100k steps per run, 20 evaluation episodes (~2 h)
     python scripts/train_rl.py --steps 2000 --seeds 1 --out /tmp/rl.md   # smoke run
 """
@@ -46,7 +46,7 @@ import numpy as np
 
 ENVS = ("hgo_mj/PendulumSwingUp-v0", "hgo_mj/ElasticJointReach-v0")
 MODES = ("true", "estimate", "measurement")
-SMALL = {"steps": 10_000, "eval_episodes": 5}
+SMALL = {"steps": 25_000, "eval_episodes": 5}
 FULL = {"steps": 100_000, "eval_episodes": 20}
 EVAL_SEED = 10_000
 ROOT = Path(__file__).resolve().parents[1]
@@ -250,8 +250,8 @@ def report(runs: list[Run], args: argparse.Namespace, wall: float) -> str:
         f"evaluation), i.e. about {cpu / 60 / max(args.workers, 1):.0f} min on "
         f"{args.workers} free cores. Train time per run is wall time (training only), CPU time "
         f"includes the evaluations.",
-        f"- Machine: {platform.machine()}, {os.cpu_count()} cores, {platform.platform()}; shared "
-        f"with other busy jobs while this ran, so the times are pessimistic.",
+        f"- Machine: {platform.machine()}, {os.cpu_count()} cores, {platform.platform()} (a shared "
+        f"machine: other jobs' load makes the times pessimistic, never optimistic).",
         f"- Versions: {_versions()}.",
         "",
     ]
