@@ -11,7 +11,13 @@ in one process, interleaved, ``--repeats`` times each:
   does), then the metadata, the metrics table and ``close``;
 * ``after``: the same, then :func:`hgo_mj.record.record_trajectory` with those metrics;
 * ``live_nofooter``: ``live`` without rerun's footer (``Recorder(footer=False)``), to show
-  what the footer costs at ``close`` (not a target variant).
+  what the footer costs at ``close`` (not a target variant);
+* ``command`` and ``command_rrd``: the same scenario as a user runs it, ``hgo-mj run ...``
+  end to end (simulation, metrics, ``trajectory.npz``, ``metrics.json``, the figure), without
+  and with ``--rrd``.
+
+The target is read two ways, both reported: against the bare computation (``plain``, the
+strict reading) and against the command a user runs (``command``).
 
 Each time covers everything from building the recorder to the file being closed. The figure
 reported is the best of the repeats (the machine is shared; noise only adds), the median is
@@ -85,6 +91,32 @@ def run_after(path: Path) -> None:
     record_trajectory(traj, path, metrics=all_metrics(traj))
 
 
+COMMAND = ["run", "--plant", "pendulum", "--sensor", "gaussian:std=1e-3",
+           "--sensor", "quantize:counts_per_rev=4096", "--observer", "high_gain:name=hgo_k15,k=15",
+           "--observer", "high_gain:name=hgo_k60,k=60",
+           "--input", "multisine:amplitudes=[0.3],frequencies=[0.5]",
+           "--duration", str(DURATION), "--seed", "1"]
+
+
+def _command(argv: list[str]) -> None:
+    import contextlib
+    import io
+
+    from hgo_mj.cli import main as cli_main
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        if cli_main(argv) != 0:
+            raise RuntimeError(f"hgo-mj {' '.join(argv)} failed")
+
+
+def run_command(path: Path) -> None:
+    _command([*COMMAND, "--out", str(path.with_suffix(""))])
+
+
+def run_command_rrd(path: Path) -> None:
+    _command([*COMMAND, "--out", str(path.with_suffix("")), "--rrd", str(path)])
+
+
 def timed(fn, path: Path) -> tuple[float, float]:
     """Wall time and CPU time of the whole process (every thread, rerun's included)."""
     w0, c0 = time.perf_counter(), time.process_time()
@@ -98,7 +130,8 @@ def main() -> int:
     ap.add_argument("--write", help="append the results to this markdown file")
     args = ap.parse_args()
     variants = {"plain": run_plain, "live": run_live, "after": run_after,
-                "live_nofooter": run_live_nofooter}
+                "live_nofooter": run_live_nofooter, "command": run_command,
+                "command_rrd": run_command_rrd}
     times: dict[str, list[float]] = {k: [] for k in variants}
     cpu: dict[str, list[float]] = {k: [] for k in variants}
     sizes: dict[str, int] = {}
@@ -134,18 +167,24 @@ def main() -> int:
     labels = {"plain": "`simulate` and `all_metrics` (the run)",
               "live": f"recorded during the run ({RRD_CHUNK_SECONDS:g} s chunks, as `hgo-mj run --rrd`)",
               "after": "`simulate`, then `record_trajectory`",
-              "live_nofooter": "recorded during the run, `Recorder(footer=False)` (for comparison)"}
+              "live_nofooter": "recorded during the run, `Recorder(footer=False)` (for comparison)",
+              "command": "`hgo-mj run ...` end to end (npz, metrics.json, figure)",
+              "command_rrd": "`hgo-mj run ... --rrd` end to end"}
+    base_of = {k: ("command" if k.startswith("command") else "plain") for k in variants}
     for k in variants:
-        added = "" if k == "plain" else f"{100 * (best[k] / best['plain'] - 1):+.1f}%"
-        added_cpu = "" if k == "plain" else f"{100 * (best_cpu[k] / best_cpu['plain'] - 1):+.1f}%"
+        b = base_of[k]
+        added = "" if k == b else f"{100 * (best[k] / best[b] - 1):+.1f}%"
+        added_cpu = "" if k == b else f"{100 * (best_cpu[k] / best_cpu[b] - 1):+.1f}%"
         size = f"{sizes[k] / 1e6:.2f}" if k in sizes else ""
         lines.append(f"| {labels[k]} | {1e3 * best[k]:.1f} | {1e3 * med[k]:.1f} | {added} | "
                      f"{1e3 * best_cpu[k]:.1f} | {added_cpu} | {size} |")
     ok_t = all(best[k] <= 1.10 * best["plain"] for k in ("live", "after"))
+    ok_c = best["command_rrd"] <= 1.10 * best["command"]
     ok_s = all(s < 3e6 for s in sizes.values())
-    lines += ["", f"Targets: at most +10% to the run (wall, best): {'met' if ok_t else 'NOT met'}; "
-              f"file under 3 MB: {'met' if ok_s else 'NOT met'}. Load average at the end: "
-              f"{os.getloadavg()[0]:.2f}."]
+    lines += ["", f"Targets: at most +10% to the run (wall, best): against the bare computation "
+              f"{'met' if ok_t else 'NOT met'}, against the command as run "
+              f"{'met' if ok_c else 'NOT met'}; file under 3 MB: {'met' if ok_s else 'NOT met'}. "
+              f"Load average at the end: {os.getloadavg()[0]:.2f}."]
     text = "\n".join(lines)
     print(text)
     if args.write:
