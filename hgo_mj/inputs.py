@@ -1,13 +1,16 @@
 """Input signals ``u(t)`` and controllers ``u(t, x_hat)``.
 
-Open-loop signals are callables ``signal(t) -> u`` (1-D array). A :class:`Controller` wraps a
-feedback law that sees only an observer's estimate (or, when asked, the true state, for
+Open-loop signals are callables ``signal(t) -> u`` (1-D array); ``signal.value_list(t)`` gives
+the same values as a list of Python floats, for per-sample loops (:func:`~hgo_mj.simulate.simulate`
+uses it where the signal's class defines it next to its ``__call__``). A :class:`Controller`
+wraps a feedback law that sees only an observer's estimate (or, when asked, the true state, for
 comparison). Every signal validates its parameters and reports them with ``params()``.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -29,6 +32,12 @@ class Signal:
     def __call__(self, t: float) -> Array:
         raise NotImplementedError
 
+    def value_list(self, t: float) -> list[float]:
+        """``self(t)`` as a fresh list of Python floats (the same values), for per-sample loops
+        where a small array costs more than the arithmetic; signals override it with a path in
+        plain floats (the default goes through :meth:`__call__`)."""
+        return np.asarray(self(t), dtype=float).reshape(-1).tolist()  # type: ignore[no-any-return]
+
     def params(self) -> dict[str, Any]:
         return {}
 
@@ -45,9 +54,13 @@ class Constant(Signal):
 
     def __init__(self, value: Any = 0.0) -> None:
         self.value = _channels("Constant.value", value)
+        self._list = self.value.tolist()
 
     def __call__(self, t: float) -> Array:
         return self.value.copy()
+
+    def value_list(self, t: float) -> list[float]:
+        return self._list.copy()
 
     def params(self) -> dict[str, Any]:
         return {"value": self.value.tolist()}
@@ -73,10 +86,16 @@ class Schedule(Signal):
             raise DesignError("Schedule.values must be finite")
         if np.any(np.diff(self.times) <= 0):
             raise DesignError(f"Schedule.times must increase strictly; found {self.times.tolist()}")
+        self._times = self.times.tolist()
+        self._rows = self.values.tolist()
 
     def __call__(self, t: float) -> Array:
         i = max(int(np.searchsorted(self.times, t, side="right")) - 1, 0)
         return self.values[i].copy()
+
+    def value_list(self, t: float) -> list[float]:
+        # bisect_right on the floats is searchsorted(side="right"), NaN included (past the end)
+        return self._rows[max(bisect_right(self._times, t) - 1, 0)].copy()
 
     def params(self) -> dict[str, Any]:
         return {"times": self.times.tolist(), "values": self.values.tolist()}
@@ -104,10 +123,13 @@ class Multisine(Signal):
         self._ph = self.phases.tolist()
 
     def __call__(self, t: float) -> Array:
+        return np.array(self.value_list(t))
+
+    def value_list(self, t: float) -> list[float]:
         s = self.offset
         for a, w, ph in zip(self._a, self._w, self._ph):
             s += a * math.sin(w * t + ph)
-        return np.array([s])
+        return [s]
 
     def params(self) -> dict[str, Any]:
         return {"amplitudes": self.amplitudes.tolist(), "frequencies": self.frequencies.tolist(),
@@ -130,10 +152,13 @@ class Chirp(Signal):
         self.offset = finite_scalar("Chirp.offset", offset)
 
     def __call__(self, t: float) -> Array:
+        return np.array(self.value_list(t))
+
+    def value_list(self, t: float) -> list[float]:
         T = self.duration
         tt = min(t, T)
         phase = self.f0 * tt + (self.f1 - self.f0) * tt * tt / (2 * T) + self.f1 * max(t - T, 0.0)
-        return np.array([self.offset + self.amplitude * math.sin(2 * math.pi * phase)])
+        return [self.offset + self.amplitude * math.sin(2 * math.pi * phase)]
 
     def params(self) -> dict[str, Any]:
         return {"amplitude": self.amplitude, "f0": self.f0, "f1": self.f1,
@@ -156,10 +181,14 @@ class PRBS(Signal):
         self.length = int(length)
         rng = np.random.default_rng(self.seed)
         self._levels = np.where(rng.random(self.length) < 0.5, -1.0, 1.0)
+        self._level_list = self._levels.tolist()
 
     def __call__(self, t: float) -> Array:
+        return np.array(self.value_list(t))
+
+    def value_list(self, t: float) -> list[float]:
         i = int(math.floor(t / self.period + 1e-9)) % self.length
-        return np.array([self.offset + self.amplitude * self._levels[i]])
+        return [self.offset + self.amplitude * self._level_list[i]]
 
     def params(self) -> dict[str, Any]:
         return {"amplitude": self.amplitude, "period": self.period, "seed": self.seed,

@@ -598,6 +598,12 @@ class Quantization(Stage):
             self._mismatch(n)
         res = self._res
         if isinstance(res, float):
+            if n == 1:  # one channel: _rint inlined, no comprehension
+                q = y[0] / res
+                if q - q != 0.0:  # NaN or +-inf
+                    return [q * res]
+                r = float(round(q))
+                return [(r if r else math.copysign(0.0, q)) * res]
             return [_rint(v / res) * res for v in y]
         return [_rint(v / r) * r for v, r in zip(y, res.tolist())]
 

@@ -232,8 +232,9 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
     observers : mapping name -> Observer, sequence, single Observer, or None
         Every observer is reset to its own initial estimate and fed the same ``y_meas``.
     inputs : callable
-        An open-loop signal ``u(t)`` or a :class:`~hgo_mj.inputs.Controller` (fed the named
-        observer's estimate, or the true state).
+        An open-loop signal ``u(t)`` (read with its ``value_list(t)`` where its class defines
+        it, see :class:`~hgo_mj.inputs.Signal`) or a :class:`~hgo_mj.inputs.Controller` (fed the
+        named observer's estimate, or the true state).
     duration : float
         Simulated time; the trajectory has ``round(duration / sample_period) + 1`` rows.
     sample_period, control_period : float, optional
@@ -288,6 +289,7 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
             raise DesignError(f"on_chunk must be a tuple (seconds, callback); found {on_chunk!r}")
         chunk_s = finite_scalar("on_chunk seconds", on_chunk[0], positive=True)
         chunk_rows, chunk_cb = max(int(round(chunk_s / Ts)), 1), on_chunk[1]
+    value_list: Callable[[float], list[float]] | None = None
     if isinstance(inputs, Controller):
         if inputs.source == "estimate":
             if not obs:
@@ -297,6 +299,8 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         controller = True
     elif callable(inputs):
         controller = False
+        if _owns(inputs, "value_list", "__call__"):  # a signal's plain-float path
+            value_list = inputs.value_list
     else:
         raise DesignError(f"inputs must be a signal u(t) or a Controller; found "
                           f"{type(inputs).__name__}")
@@ -322,8 +326,9 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         est_names.append(names_i)
 
     # The fast paths: plain Python floats per sample, no small arrays, where the plant, the
-    # sensor stages and the observers offer them (``state_list``, ``apply_list``,
-    # ``update_list``, ...: the same values, see the differential test); the array interface
+    # sensor stages, the open-loop signal and the observers offer them (``state_list``,
+    # ``apply_list``, ``value_list``, ``update_list``, ...: the same values, see the
+    # differential test); the array interface
     # otherwise. Rows are collected in flat lists (arrays: lists of rows) and stacked per chunk.
     state_list = plant.state_list if _owns(plant, "state_list", "state") else (
         lambda: Plant.state_list(plant))
@@ -347,7 +352,8 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
         if f is not None:
             x_hat[i] = np.asarray(x_hat[i], dtype=float).reshape(-1).tolist()
     need_array = any(f is None for f in fast)  # an observer on the array interface
-    ops = list(zip(obs_list, fast))
+    # the input as an array only for those on the array interface (observers, plant step)
+    u_array = need_array or not step_list
 
     X: list[float] = []
     Yc: list[float] = []
@@ -358,6 +364,12 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
     zh_rows: list[list[Any]] = [[] for _ in names]
     dg_rows: list[list[Any]] = [[] for _ in names]
     wall = [0.0] * len(names)
+    # per observer, what the loop calls and fills: (index, observer, update_list or None,
+    # z_hat_list, diagnostic_values or None, its x_hat, z_hat and diagnostics rows)
+    ops = [(i, ob, None if f is None else f[0], None if f is None else f[1],
+            None if f is None else f[2], xh_rows[i], zh_rows[i], dg_rows[i])
+           for i, (ob, f) in enumerate(zip(obs_list, fast))]
+    updates = [(i, ob, upd) for i, ob, upd, *_ in ops]
     perf = time.perf_counter
     u = np.zeros(p)
     ul: list[float] = u.tolist()
@@ -423,33 +435,47 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                 if need_array:
                     ym_arr = np.array(ycl)
             if k % every == 0:
-                if controller:
-                    u = inputs(t, np.array(xl) if inputs.source == "true" else ctrl_obs.x_hat)
+                if value_list is not None:
+                    ul = value_list(t)
+                    if len(ul) != p:
+                        raise DimensionError(f"input must have {p} channel(s) "
+                                             f"{plant.input_names}; found shape ({len(ul)},) "
+                                             f"at t={t:g}")
+                    if u_array:
+                        u = np.array(ul, dtype=float)
+                        uarg = ul if step_list else u
+                    else:
+                        uarg = ul
                 else:
-                    u = inputs(t)
-                if type(u) is not np.ndarray or u.dtype is not f64 or u.ndim != 1:
-                    u = np.asarray(u, dtype=float).reshape(-1)
-                if u.shape != (p,):
-                    raise DimensionError(f"input must have {p} channel(s) {plant.input_names}; "
-                                         f"found shape {u.shape} at t={t:g}")
-                ul = u.tolist()
-                uarg = ul if step_list else u
+                    if controller:
+                        u = inputs(t, np.array(xl) if inputs.source == "true"
+                                   else ctrl_obs.x_hat)
+                    else:
+                        u = inputs(t)
+                    if type(u) is not np.ndarray or u.dtype is not f64 or u.ndim != 1:
+                        u = np.asarray(u, dtype=float).reshape(-1)
+                    if u.shape != (p,):
+                        raise DimensionError(f"input must have {p} channel(s) "
+                                             f"{plant.input_names}; found shape {u.shape} at "
+                                             f"t={t:g}")
+                    ul = u.tolist()
+                    uarg = ul if step_list else u
             X += xl
             Yc += ycl
             Ym += yml
             U += ul
-            for i, (ob, f) in enumerate(ops):
-                if f is None:
-                    xh_rows[i].append(x_hat[i])
-                    zh_rows[i].append(ob.z_hat)
-                    dg_rows[i].append(ob.diagnostics())
+            for i, ob, upd, zl, dv, xr, zr, dr in ops:
+                if upd is None:
+                    xr.append(x_hat[i])
+                    zr.append(ob.z_hat)
+                    dr.append(ob.diagnostics())
                 else:
-                    xh_rows[i] += x_hat[i]
-                    zh_rows[i] += f[1]()
-                    if f[2] is None:
-                        dg_rows[i].append(ob.diagnostics())
+                    xr += x_hat[i]
+                    zr += zl()
+                    if dv is None:
+                        dr.append(ob.diagnostics())
                     else:
-                        dg_rows[i] += f[2]()
+                        dr += dv()
             done = k + 1
             if done == next_chunk:
                 if N - k >= chunk_rows // 2:  # a short tail is folded into the last chunk
@@ -458,10 +484,10 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
                 next_chunk = done + chunk_rows
             if k == N:
                 break
-            for i, (ob, f) in enumerate(ops):
+            for i, ob, upd in updates:
                 t0 = perf()
                 try:
-                    x_hat[i] = ob.update(ym_arr, u, Ts) if f is None else f[0](yml, u, Ts)
+                    x_hat[i] = ob.update(ym_arr, u, Ts) if upd is None else upd(yml, ul, Ts)
                 except DimensionError:
                     raise  # a shape mistake, not a divergence
                 except (DivergenceError, ValueError, ArithmeticError) as exc:

@@ -1,10 +1,10 @@
 """``simulate``'s plain-float fast path against its array path: bit-identical columns.
 
 The fast path reads the plant through ``state_list``/``outputs_list``, runs the sensor stages'
-``apply_list`` and the high-gain observers' ``update_list``/``z_hat_list``/
-``diagnostic_values``. Subclasses that override only the array methods (``state``, ``__call__``,
-``update``, ...) by calling the parent keep the same numbers but force the array path, so the
-two runs below differ only in the path taken.
+``apply_list``, the open-loop signal's ``value_list`` and the high-gain observers'
+``update_list``/``z_hat_list``/``diagnostic_values``. Subclasses that override only the array
+methods (``state``, ``__call__``, ``update``, ...) by calling the parent keep the same numbers
+but force the array path, so the two runs below differ only in the path taken.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import pickle
 import numpy as np
 import pytest
 
-from hgo_mj.exceptions import DivergenceError
-from hgo_mj.inputs import Controller, Multisine
+from hgo_mj.exceptions import DimensionError, DivergenceError
+from hgo_mj.inputs import PRBS, SIGNALS, Chirp, Constant, Controller, Multisine, Schedule, Signal
 from hgo_mj.observers import HighGainObserver
 from hgo_mj.plants import MujocoPlant
 from hgo_mj.sensors import Dropout, GaussianNoise, Quantization, SensorChain, _rint
@@ -35,6 +35,7 @@ class ArrayPlant(MujocoPlant):
         return super().outputs()
 
     def step(self, u):
+        assert type(u) is np.ndarray  # the array interface
         super().step(u)
 
 
@@ -62,7 +63,27 @@ class ArrayHGO(HighGainObserver):
     """A high-gain observer without the plain-float update (``update`` overridden)."""
 
     def update(self, y, u, dt):
+        assert type(y) is np.ndarray and type(u) is np.ndarray  # the array interface
         return super().update(y, u, dt)
+
+
+def _array_signal(sig: Signal) -> Signal:
+    """The same signal (a copy) through ``__call__`` only: a subclass that overrides it."""
+    cls = type(sig)
+    sub = type(f"Array{cls.__name__}", (cls,), {"__call__": lambda self, t: cls.__call__(self, t)})
+    twin = copy.copy(sig)
+    twin.__class__ = sub
+    return twin
+
+
+#: one of each signal, with values that exercise their branches over a 1.5 s run
+SIGNAL_CASES = {
+    "constant": lambda: Constant(0.35),
+    "schedule": lambda: Schedule([0.0, 0.4, 0.9, 1.2], [0.1, -0.3, 0.25, 0.0]),
+    "multisine": lambda: Multisine([0.4, 0.1], [1.3, 7.0], [0.2, 1.0], offset=0.05),
+    "chirp": lambda: Chirp(0.5, 0.2, 6.0, 1.0, offset=-0.1),
+    "prbs": lambda: PRBS(0.3, 0.05, seed=4, offset=0.02, length=64),
+}
 
 
 def _setup(fast: bool, *, dt: float = 0.001):
@@ -99,9 +120,14 @@ def _assert_same(a, b):
         for d in ra.diagnostics:
             np.testing.assert_array_equal(ra.diagnostics[d], rb.diagnostics[d], err_msg=d)
         assert ra.state_names == rb.state_names
-    ma = {k: v for k, v in a.metadata.items() if k not in ("observers",)}
-    mb = {k: v for k, v in b.metadata.items() if k not in ("observers",)}
+    # the observers' and the input's types differ by name (the Array... subclasses)
+    ma = {k: v for k, v in a.metadata.items() if k not in ("observers", "input")}
+    mb = {k: v for k, v in b.metadata.items() if k not in ("observers", "input")}
     assert ma == mb
+    if "input" in a.metadata:
+        ia, ib = dict(a.metadata["input"]), dict(b.metadata["input"])
+        assert ia.pop("type").removeprefix("Array") == ib.pop("type").removeprefix("Array")
+        assert ia == ib
 
 
 @pytest.mark.parametrize("periods", [{}, {"sample_period": 0.002, "control_period": 0.006}])
@@ -182,3 +208,65 @@ def test_list_readers_and_quantization_match_the_arrays():
     for _ in range(200):
         y = rng.normal(0.0, 2.0, 2)
         np.testing.assert_array_equal(q.apply_list(0.0, y.tolist(), rng), q(0.0, y, rng))
+
+
+def test_signal_subclass_without_value_list_takes_the_call():
+    sig = Multisine([0.3], [1.0])
+    assert _owns(sig, "value_list", "__call__")
+    assert not _owns(_array_signal(sig), "value_list", "__call__")
+    assert set(SIGNAL_CASES) == set(SIGNALS)  # every registered signal is covered below
+
+
+@pytest.mark.parametrize("kind", sorted(SIGNAL_CASES))
+@pytest.mark.parametrize("fast_parts", [(True, True, True), (True, False, True),
+                                        (True, True, False), (False, True, True)],
+                         ids=["all-fast", "array-plant", "array-observers", "array-sensor"])
+def test_open_loop_signal_fast_path_bit_identical(kind, fast_parts):
+    """The signal's ``value_list`` against its ``__call__`` (a subclass without value_list),
+    column by column, with the plant, the sensor chain or the observers on the fast path or
+    not (the input array is then built from the list, or not at all)."""
+    fast_sensor, fast_plant, fast_obs = fast_parts
+    runs = []
+    for fast_signal in (True, False):
+        plant = _setup(fast_plant)[0]
+        sensor = _setup(fast_sensor)[1]
+        obs = _setup(fast_obs)[2]  # a model-based observer too: it reads u in its update
+        sig = SIGNAL_CASES[kind]()
+        runs.append(simulate(plant, sensor, obs, sig if fast_signal else _array_signal(sig),
+                             1.5, seed=7, sample_period=0.002, control_period=0.004))
+    _assert_same(*runs)
+    # the reference: everything on the array interface
+    plant, sensor, obs, _ = _setup(False)
+    ref = simulate(plant, sensor, obs, _array_signal(SIGNAL_CASES[kind]()), 1.5, seed=7,
+                   sample_period=0.002, control_period=0.004)
+    _assert_same(runs[0], ref)
+    assert np.unique(ref.u).size > 1 or kind == "constant"
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_open_loop_signal_channel_mismatch(fast):
+    plant, sensor, obs, _ = _setup(True)
+    sig = Constant([0.0, 1.0])
+    with pytest.raises(DimensionError, match=r"input must have 1 channel\(s\) \('torque',\); "
+                                             r"found shape \(2,\) at t=0"):
+        simulate(plant, sensor, obs, sig if fast else _array_signal(sig), 0.1)
+
+
+@pytest.mark.parametrize("kind", sorted(SIGNAL_CASES))
+def test_value_list_equals_call(kind):
+    sig = SIGNAL_CASES[kind]()
+    ts = [0.0, 1e-9, 0.001, 0.05, 0.0499999999, 0.4, 0.39999999999, 0.9, 1.0, 1.2, 1.25,
+          2.5, 7.3, 1e3, *np.linspace(0.0, 3.0, 301).tolist()]
+    for t in ts:
+        got, ref = sig.value_list(t), sig(t)
+        assert type(got) is list and all(type(v) is float for v in got), t
+        assert got == ref.tolist(), (t, got, ref)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(ref))
+        got.append(99.0)  # a fresh list each call: changing it changes nothing
+        assert sig.value_list(t) == ref.tolist()
+    # two channels
+    for sig in (Constant([0.5, -1.5]), Schedule([0.0, 1.0], [[1.0, 2.0], [3.0, 4.0]])):
+        for t in ts:
+            assert sig.value_list(t) == sig(t).tolist()
+    # the base class's default goes through __call__
+    assert Signal.value_list(SIGNAL_CASES[kind](), 0.3) == SIGNAL_CASES[kind]()(0.3).tolist()

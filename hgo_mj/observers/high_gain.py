@@ -324,7 +324,10 @@ class HighGainObserver(Observer):
     def update_list(self, y: Any, u: Any, dt: float) -> list[float]:
         """:meth:`update` for per-sample loops: ``y`` and ``u`` sequences of Python floats
         (lists), the estimate returned as a list of floats (the same values as ``update``'s
-        array)."""
+        array). ``u`` becomes an array where the model term or the inverse map reads it; an
+        observer without either keeps the list (it reads ``u`` nowhere)."""
+        if self.model or not self._identity:
+            u = np.array(u, dtype=float)
         self._advance(y[self.output], u, dt)
         return self.x_hat_list()
 

@@ -139,8 +139,14 @@ class MujocoPlant(Plant):
         # a live view of the three counters (consecutive in mjtWarning: BADQPOS, BADQVEL, BADQACC)
         lo = int(w.mjWARN_BADQPOS)
         bad = d.warning.number[lo:int(w.mjWARN_BADQACC) + 1]
-        self._hot = (m, d, d.ctrl, tuple(self._aid), self.substeps, bad)
-        self._read = (d.qpos, d.qvel, d.sensordata)
+        # read through a memoryview (of the same memory): any() over it costs half of tolist()
+        aid = tuple(self._aid)
+        self._hot = (m, d, d.ctrl, aid, aid[0] if len(aid) == 1 else None, self.substeps,
+                     memoryview(bad))
+        #: state_list's sources, and whether the joints' slices are the whole qpos and qvel
+        sl = self._slices
+        self._read = (d.qpos, d.qvel, sl is not None and sl[0] == slice(0, m.nq)
+                      and sl[1] == slice(0, m.nv))
         srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
         #: outputs_list's sources: (array, address) per output
         self._out = tuple((srcs[k], a) for k, a in self._sensor_src)
@@ -158,20 +164,30 @@ class MujocoPlant(Plant):
         self._cache()
 
     def step(self, u: Any) -> None:
-        m, d, ctrl, aid, substeps, bad = self._hot
-        for i, a in enumerate(aid):
-            ui = float(u[i])
+        m, d, ctrl, aid, a0, substeps, bad = self._hot
+        if a0 is not None:  # one actuator (the common case): no loop
+            ui = float(u[0])
             if not -_MAX_CTRL < ui < _MAX_CTRL:  # also False for NaN
-                raise DivergenceError(f"input u[{i}] must be finite and below {_MAX_CTRL:g} in "
-                                      f"magnitude (MuJoCo would zero it); found {ui}")
-            ctrl[a] = ui
+                raise self._bad_input(0, ui)
+            ctrl[a0] = ui
+        else:
+            for i, a in enumerate(aid):
+                ui = float(u[i])
+                if not -_MAX_CTRL < ui < _MAX_CTRL:
+                    raise self._bad_input(i, ui)
+                ctrl[a] = ui
         _mj_step(m, d, substeps)  # the substeps in one call (MuJoCo loops over mj_step)
-        if any(bad.tolist()):
+        if any(bad):
             # MuJoCo found NaN/inf/huge values and silently reset the simulation
             which = [n for n, w in zip(("QPOS", "QVEL", "QACC"), self._bad) if w.number]
             raise DivergenceError(f"MuJoCo found a non-finite or huge value near t={d.time:g} and "
                                   f"reset the simulation (mjWARN_BAD{which[0]}); input was "
                                   f"{[float(v) for v in u]}")
+
+    @staticmethod
+    def _bad_input(i: int, ui: float) -> DivergenceError:
+        return DivergenceError(f"input u[{i}] must be finite and below {_MAX_CTRL:g} in "
+                               f"magnitude (MuJoCo would zero it); found {ui}")
 
     #: :meth:`step` takes any sequence of floats, a list too
     step_list = step
@@ -200,12 +216,11 @@ class MujocoPlant(Plant):
 
     def state_list(self) -> list[float]:
         """:attr:`state` as a list of Python floats, read without building an array."""
-        qpos, qvel, _ = self._read
+        qpos, qvel, whole = self._read
+        if whole:
+            return qpos.tolist() + qvel.tolist()  # type: ignore[no-any-return]
         if self._slices is not None:
             qs, vs = self._slices
-            if qs.start == 0 and qs.stop == qpos.shape[0] and vs.start == 0 \
-                    and vs.stop == qvel.shape[0]:
-                return qpos.tolist() + qvel.tolist()  # type: ignore[no-any-return]
             return qpos[qs].tolist() + qvel[vs].tolist()  # type: ignore[no-any-return]
         q, v = qpos.tolist(), qvel.tolist()
         return [q[a] for a in self._qadr.tolist()] + [v[a] for a in self._vadr.tolist()]
@@ -214,4 +229,8 @@ class MujocoPlant(Plant):
         """:meth:`outputs` as a list of Python floats, read without building an array."""
         if self._needs_forward:
             mujoco.mj_forward(self.model, self.data)
-        return [src.item(a) for src, a in self._out]
+        out = self._out
+        if len(out) == 1:  # one output: no comprehension
+            src, a = out[0]
+            return [src.item(a)]
+        return [src.item(a) for src, a in out]
