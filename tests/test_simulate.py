@@ -212,6 +212,10 @@ def test_physical_holds_the_last_valid_value(chain):
         def from_normal_unchecked(self, z, u):
             return np.array([np.nan, z[1]]) if z[0] < 0 else np.array(z, dtype=float)
 
+    ob.reset()  # a restart holds nothing from the run before, and counts from zero
+    assert ob.inverse_failures_ == 0 and ob.dropouts_ == 0
+    assert np.isnan(ob._physical(np.array([0.0, 0.0]))).all()
+
     ob = HighGainObserver(NanInverse(), k=1.0)  # NaN passes through: also "undefined"
     np.testing.assert_array_equal(ob._physical(np.array([1.0, 2.0])), [1.0, 2.0])
     np.testing.assert_array_equal(ob._physical(np.array([-1.0, 3.0])), [np.nan, 3.0])

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validate import finite_scalar, vector
+from .._validate import finite_scalar
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
@@ -42,6 +42,7 @@ from .base import Array, Observer
 from .high_gain import (
     _is_identity,
     affine_step,
+    bounds_pair,
     check_options,
     largest_stable_step,
     one_step_map,
@@ -360,20 +361,11 @@ class AdaptiveGainObserver(Observer):
             if self.k_max < self.k0:
                 raise DesignError(f"k_max must be >= k0; found k_max={self.k_max:g} < "
                                   f"k0={self.k0:g}")
-        check_options(method, on_unstable)
-        if model and system is None:
-            raise DesignError("model=True needs a system providing phi")
+        check_options(method, on_unstable, model, system)
         self.model = bool(model)
         self.method = method
         self.on_unstable = on_unstable
-        if z_bounds is None:
-            self.z_bounds = None
-        else:
-            lo, hi = (vector("z_bounds[0]", z_bounds[0], n), vector("z_bounds[1]", z_bounds[1], n))
-            if np.any(lo >= hi):
-                raise DesignError(f"z_bounds need lower < upper; found lower {lo.tolist()}, "
-                                  f"upper {hi.tolist()}")
-            self.z_bounds = (lo, hi)
+        self.z_bounds = bounds_pair(z_bounds, n)
         self._bounds_floats = (None if self.z_bounds is None else
                                (self.z_bounds[0].tolist(), self.z_bounds[1].tolist()))
         self._tau_max = _max_stable_kdt(tuple(self.p.tolist()), method)
@@ -467,11 +459,9 @@ class AdaptiveGainObserver(Observer):
             x_hat0, z_hat0 = self._init
         z = self._initial_z(x_hat0, z_hat0, u0)
         self._s = (self.k0, *(float(v) for v in z))
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
+        self._restart_counters()
         self.k_max_reached_ = False
         self._warned_unstable = False
-        self._x_last = None
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate ``(z, k)`` over ``dt``; return

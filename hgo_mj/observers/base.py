@@ -70,10 +70,9 @@ class Observer:
         self.system = system
         self.n = n
         self.output = int(output)
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
         self._u: Array = np.zeros(len(system.input_names)) if system is not None else np.zeros(0)
         self._x_last: Array | None = None
+        self._restart_counters()
 
     # ----------------------------------------------------------- coordinates
     @property
@@ -121,6 +120,13 @@ class Observer:
         if "_steps" in state:
             state["_steps"] = {}
         return state
+
+    def _restart_counters(self) -> None:
+        """At ``reset``: no dropouts or inverse-map failures counted, no last valid estimate
+        held (:meth:`_physical`)."""
+        self.dropouts_ = 0
+        self.inverse_failures_ = 0
+        self._x_last = None
 
     def _bad_measurement(self, y: Any, channels: Any) -> DimensionError:
         """The error for a measurement ``y`` that lacks the channels this observer reads

@@ -962,8 +962,7 @@ class BastinGeversObserver(Observer):
         x, th = initial_estimate(f.n, f.m, x_hat0, z_hat0, theta_hat0, physical)
         self._s: list[float] = np.concatenate((x, th, np.zeros((f.n - 1) * f.m))).tolist()
         self.phi_ = np.zeros(f.m)
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
+        self._restart_counters()
         self._params_last: Mapping[str, float] = {nm: math.nan for nm in f.physical_param_names}
         self._W = np.zeros((f.s, f.s))  # sum of omega omega^T: rank of S along the run
         self._rank: int | None = 0

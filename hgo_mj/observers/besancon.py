@@ -1120,10 +1120,8 @@ class BesanconObserver(Observer):
                               f"{self.Theta:g} (Theorem 3.1); found {np.linalg.norm(th):.4g}")
         self._s = tuple(float(v) for v in np.concatenate((z, th, G.reshape(-1))))
         self._u = u
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
+        self._restart_counters()
         self._t = 0.0
-        self._x_last = None
         self._xp: Array | None = None
         self._phys_last = {k: math.nan for k in f.true_physical}
         self._refresh_physical()

@@ -167,10 +167,25 @@ def largest_stable_step(step_matrix: Callable[[float], Array], start: float,
     return lo
 
 
-def check_options(method: str, on_unstable: str) -> None:
-    """The integration method and the reaction to an unstable sample period, validated."""
+def check_options(method: str, on_unstable: str, model: bool = False,
+                  system: System | None = None) -> None:
+    """The integration method, the reaction to an unstable sample period and the model term
+    (which needs a system), validated."""
     one_of("method", method, METHODS)
     one_of("on_unstable", on_unstable, ("raise", "warn", "ignore"))
+    if model and system is None:
+        raise DesignError("model=True needs a system providing phi")
+
+
+def bounds_pair(z_bounds: Any, n: int) -> tuple[Array, Array] | None:
+    """``z_bounds = (lower, upper)`` as two length-``n`` arrays with lower < upper, or None."""
+    if z_bounds is None:
+        return None
+    lo, hi = (vector("z_bounds[0]", z_bounds[0], n), vector("z_bounds[1]", z_bounds[1], n))
+    if np.any(lo >= hi):
+        raise DesignError(f"z_bounds need lower < upper; found lower {lo.tolist()}, "
+                          f"upper {hi.tolist()}")
+    return lo, hi
 
 
 class HighGainObserver(Observer):
@@ -242,20 +257,11 @@ class HighGainObserver(Observer):
         if self.p.size != n:
             raise DimensionError(f"p must have n = {n} coefficients; found {self.p.size}")
         self.k_ = finite_scalar("k", k, positive=True)
-        check_options(method, on_unstable)
-        if model and system is None:
-            raise DesignError("model=True needs a system providing phi")
+        check_options(method, on_unstable, model, system)
         self.model = bool(model)
         self.method = method
         self.on_unstable = on_unstable
-        if z_bounds is None:
-            self.z_bounds = None
-        else:
-            lo, hi = (vector("z_bounds[0]", z_bounds[0], n), vector("z_bounds[1]", z_bounds[1], n))
-            if np.any(lo >= hi):
-                raise DesignError(f"z_bounds need lower < upper; found lower {lo.tolist()}, "
-                                  f"upper {hi.tolist()}")
-            self.z_bounds = (lo, hi)
+        self.z_bounds = bounds_pair(z_bounds, n)
         self.L = hgo_gains(self.p, self.k_)
         self._steps: dict[float, tuple[Callable, ...]] = {}
         self._init = (x_hat0, z_hat0)
@@ -308,9 +314,7 @@ class HighGainObserver(Observer):
         if x_hat0 is None and z_hat0 is None:
             x_hat0, z_hat0 = self._init
         self._z = tuple(float(v) for v in self._initial_z(x_hat0, z_hat0, u0))
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
-        self._x_last = None
+        self._restart_counters()
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
@@ -696,9 +700,8 @@ class MultiOutputHighGainObserver(Observer):
             z0 = self._init
         z = np.zeros(self.n) if z0 is None else vector("z_hat0", z0, self.n)
         self._z = [tuple(float(v) for v in z[f:f + n]) for f, n in zip(self._first, self.orders)]
-        self.dropouts_ = 0
+        self._restart_counters()
         self.channel_dropouts_ = [0] * len(self.orders)
-        self.inverse_failures_ = 0
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""

@@ -476,8 +476,7 @@ class JoSonObserver(Observer):
         z, th = initial_estimate(f.n, f.p, x_hat0, z_hat0, theta_hat0, physical)
         self._s: list[float] = np.concatenate((z, th)).tolist()
         self._u_last = None
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
+        self._restart_counters()
         if self._gram is not None:
             self._gram.reset()
         self._refresh_physical()

@@ -755,8 +755,7 @@ class _KalmanFilter(Observer):
         th = np.zeros(0) if not self.q else vector("theta_hat0", theta_hat0, self.q)
         self._x = np.concatenate((x, th))
         self._P = self.P0.copy()
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
+        self._restart_counters()
         self._sync_fast()
 
     def _sync_fast(self) -> None:

@@ -254,9 +254,7 @@ class QIntegralObserver(Observer):
                                  f"{a.size}")
         g, r = design_gamma(gamma, a, rho, type(self).__name__)
         super().__init__(system, order, output)
-        check_options(method, on_unstable)
-        if model and system is None:
-            raise DesignError("model=True needs a system providing phi")
+        check_options(method, on_unstable, model, system)
         self.q = q
         self.N = N
         self.alpha = a
@@ -326,9 +324,7 @@ class QIntegralObserver(Observer):
             x_hat0, z_hat0 = self._init
         z0 = self._initial_z(x_hat0, z_hat0, u0)
         self._w = (0.0,) * self.q + tuple(float(v) for v in z0)
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
-        self._x_last = None
+        self._restart_counters()
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
