@@ -434,7 +434,7 @@ def test_cli_sigint_leaves_a_readable_recording(tmp_path):
     """Ctrl-C during ``hgo-mj run --rrd``: exit 130 and a file holding every whole chunk, equal
     to the same run's first rows."""
     path = tmp_path / "cut.rrd"
-    argv = [*RUN, "--duration", "120", "--out", str(tmp_path / "o")]
+    argv = [*RUN, "--duration", "600", "--out", str(tmp_path / "o")]  # ~6 s: time to interrupt
     proc = subprocess.Popen(
         [sys.executable, "-m", "hgo_mj.cli", *argv, "--rrd", str(path)],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
