@@ -45,7 +45,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from hgo_mj._validate import finite_scalar, vector
+from hgo_mj._validate import finite_scalar, integer_multiple, vector
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
 from hgo_mj.plants import make_plant
@@ -66,15 +66,6 @@ _INTEGRATORS = {"Euler": mujoco.mjtIntegrator.mjINT_EULER, "RK4": mujoco.mjtInte
 #: (``"state"``, ``"estimate"``, ``"error"``); ``"full"`` adds ``"time"``, ``"measurement"``,
 #: ``"diagnostics"``, ``"goal"`` (reach tasks) and, at a step, the task's ``"reward_<term>"``
 INFO_LEVELS = ("basic", "full")
-
-
-def _multiple(name: str, period: float, base: float, base_name: str) -> int:
-    ratio = period / base
-    n = round(ratio)
-    if n < 1 or abs(ratio - n) > 1e-9 * max(1.0, ratio):
-        raise DesignError(f"{name} = {period:g} must be a positive integer multiple of {base_name} "
-                          f"= {base:g}; found ratio {ratio:.9g}")
-    return n
 
 
 def chain_seed(seed: int) -> int:
@@ -477,9 +468,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         ts_default = task.sample_period if task.sample_period is not None else tc
         ts = finite_scalar("sample_period", ts_default if sample_period is None else sample_period,
                            positive=True)
-        _multiple("control_period", tc, pdt, "physics_dt")
-        _multiple("sample_period", ts, pdt, "physics_dt")
-        self._n_samples = _multiple("control_period", tc, ts, "sample_period")
+        integer_multiple("control_period", tc, pdt, "physics_dt")
+        integer_multiple("sample_period", ts, pdt, "physics_dt")
+        self._n_samples = integer_multiple("control_period", tc, ts, "sample_period")
         self.physics_dt, self.control_period, self.sample_period = pdt, tc, ts
         self.dt = tc
         self.metadata = {**type(self).metadata, "render_fps": max(1, int(round(1.0 / tc)))}

@@ -140,3 +140,14 @@ def positive_int(name: str, value: Any) -> int:
     if not ok:
         raise DesignError(f"{name} must be a positive integer; found {value!r}")
     return int(value)
+
+
+def integer_multiple(name: str, period: float, base: float, base_name: str) -> int:
+    """``period / base`` as a positive integer, or a :class:`DesignError` naming both periods
+    (a sample or control period must be a whole number of physics steps)."""
+    ratio = period / base
+    n = round(ratio)
+    if n < 1 or abs(ratio - n) > 1e-9 * max(1.0, ratio):
+        raise DesignError(f"{name} = {period:g} must be a positive integer multiple of {base_name} "
+                          f"= {base:g}; found ratio {ratio:.9g}")
+    return n

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._validate import finite_scalar, vector
+from ._validate import finite_scalar, integer_multiple, vector
 from .exceptions import DesignError, DimensionError, DivergenceError
 from .inputs import Controller
 from .observers.base import Observer
@@ -188,15 +188,6 @@ def package_versions() -> dict[str, str]:
 _VERSIONS: dict[str, str] = {}
 
 
-def _ratio(name: str, period: float, base: float, base_name: str) -> int:
-    r = period / base
-    n = round(r)
-    if n < 1 or abs(r - n) > 1e-9 * max(1.0, r):
-        raise DesignError(f"{name} = {period:g} must be a positive integer multiple of "
-                          f"{base_name} = {base:g}; found ratio {r:.9g}")
-    return n
-
-
 def _named_observers(observers: Any) -> dict[str, Observer]:
     if observers is None:
         return {}
@@ -276,10 +267,10 @@ def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
     """
     Ts = plant.dt if sample_period is None else finite_scalar("sample_period", sample_period,
                                                                positive=True)
-    steps = _ratio("sample_period", Ts, plant.dt, "plant.dt")
+    steps = integer_multiple("sample_period", Ts, plant.dt, "plant.dt")
     Tc = Ts if control_period is None else finite_scalar("control_period", control_period,
                                                          positive=True)
-    every = _ratio("control_period", Tc, Ts, "sample_period")
+    every = integer_multiple("control_period", Tc, Ts, "sample_period")
     duration = finite_scalar("duration", duration, positive=True)
     N = int(round(duration / Ts))
     obs = _named_observers(observers)
