@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from hgo_mj._validate import symmetric_matrix
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.inputs import Multisine
 from hgo_mj.observers import AOCF, BastinGeversObserver, make_observer
@@ -16,7 +17,6 @@ from hgo_mj.observers.bastin_gevers import (
     SlidingGram,
     compile_rhs,
     rk_stable_period,
-    symmetric_positive_definite,
 )
 from hgo_mj.plants import make_plant
 from hgo_mj.plants.ode import OdePlant
@@ -156,6 +156,10 @@ def test_compiled_rhs_equals_the_numpy_rhs():
     w, g = ob.omega_g(0.3, np.array([1.5]))
     np.testing.assert_allclose(rhs(s.tolist(), 0.3, 1.0, (alpha.reshape(8, 3) @ w).tolist(), g.tolist()),
                                ob.rhs(s, 0.3, w, g), rtol=1e-13, atol=1e-13)
+    # the generated regressor phi = V^T k + Omega_1^T (eq. 3.1e)
+    Om = alpha @ w
+    np.testing.assert_allclose(rhs.phi(s.tolist(), Om.reshape(-1).tolist()),
+                               s[6:].reshape(3, 2).T @ R[0, 1:] + Om[0], rtol=1e-13, atol=1e-13)
 
 
 def test_error_system_4_2():
@@ -385,8 +389,8 @@ def test_check_period_refuses_an_unstable_step():
 
 
 def test_symmetric_positive_definite_helper():
-    np.testing.assert_array_equal(symmetric_positive_definite("G", 2.0, 2), 2 * np.eye(2))
-    np.testing.assert_array_equal(symmetric_positive_definite("G", [1.0, 3.0], 2), np.diag([1, 3]))
+    np.testing.assert_array_equal(symmetric_matrix("G", 2.0, 2, dim="m"), 2 * np.eye(2))
+    np.testing.assert_array_equal(symmetric_matrix("G", [1.0, 3.0], 2, dim="m"), np.diag([1, 3]))
 
 
 def test_first_order_form_has_no_filter():

@@ -154,6 +154,36 @@ def test_dropout_holds_the_prediction_and_counts():
         ob.update(np.array([-np.inf]), u, 0.01)
 
 
+def test_lost_auxiliary_output_holds_only_the_auxiliary_channels():
+    ob = JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), lam=50.0, gamma=(1e4, 20.0, 1e6))
+    seen = []
+    signals = ob.signals
+    ob.signals = lambda y, u: (seen.append(np.array(u)), signals(y, u))[1]
+    ob.update(np.array([0.1, 0.3, 0.2]), np.array([0.5]), 0.001)
+    ob.update(np.array([0.1, np.nan, 0.25]), np.array([0.7]), 0.001)
+    assert ob.dropouts_ == 1
+    # the known torque of this sample, the last link angle, the current motor angle
+    np.testing.assert_array_equal(seen[-1], [0.7, 0.3, 0.25])
+    ob.reset()
+    ob.update(np.array([0.1, np.nan, np.nan]), np.array([0.7]), 0.001)
+    np.testing.assert_array_equal(seen[-1], [0.7, 0.0, 0.0])  # nothing to hold yet
+
+
+def test_reset_where_the_inverse_map_is_undefined_is_refused():
+    go = lambda y, u: (0.0,)  # noqa: E731
+    be = lambda y, u: (y,)  # noqa: E731
+    form = JoSonForm([1.0], go, be, n_params=1, to_physical=lambda z: (1.0 / z[0],))
+    ob = JoSonObserver(form=form, lam=1.0, gamma=1.0, z_hat0=[2.0])
+    np.testing.assert_allclose(ob.x_hat, [0.5])
+    with np.errstate(divide="ignore"):
+        with pytest.raises(DesignError, match=r"initial estimate z = \[0.0\] lies where the "
+                                              r"inverse map T\^-1 .* is undefined \(it gives "
+                                              r"\[inf\]\)"):
+            ob.reset(z_hat0=np.zeros(1))
+        with pytest.raises(DesignError, match="inverse map"):
+            JoSonObserver(form=form, lam=1.0, gamma=1.0, z_hat0=np.zeros(1))
+
+
 def test_check_period():
     ob = _observer(lam=500.0, method="euler")
     with pytest.raises(DesignError, match=r"euler integration of the Jo-Son observer .* unstable on "

@@ -80,7 +80,7 @@ from ..systems.base import System
 from .base import Array, Observer
 
 __all__ = ["AOCF", "BastinGeversObserver", "SlidingGram", "check_rk_period",
-           "rk_stable_period", "symmetric_positive_definite"]
+           "rk_stable_period"]
 
 METHODS = ("rk4", "euler")
 
@@ -90,20 +90,17 @@ METHODS = ("rk4", "euler")
 # ======================================================================================
 
 
-def symmetric_positive_definite(name: str, value: Any, m: int) -> Array:
-    """``value`` as an ``m x m`` symmetric positive-definite matrix (``m`` the number of
-    parameters): :func:`hgo_mj._validate.symmetric_matrix`."""
-    return symmetric_matrix(name, value, m, dim="m")
-
-
 def _rk_gain(z: complex, method: str) -> float:
+    """|R(z)| of the stability function of ``method`` (Euler, Heun "rk2", classical RK4)."""
     if method == "euler":
         return abs(1 + z)
+    if method == "rk2":
+        return abs(1 + z + z * z / 2)
     return abs(1 + z + z * z / 2 + z ** 3 / 6 + z ** 4 / 24)
 
 
 def rk_stable_period(eigenvalues: Any, method: str) -> float:
-    """Largest step ``h`` for which ``method`` (``"rk4"`` or ``"euler"``) is stable on the
+    """Largest step ``h`` for which ``method`` (``"rk4"``, ``"rk2"`` or ``"euler"``) is stable on the
     linear modes ``eigenvalues`` (all in the open left half-plane): every ``h * lambda`` inside
     the method's region of absolute stability. ``inf`` if there are no modes."""
     lam = np.asarray(eigenvalues, dtype=complex).reshape(-1)
@@ -276,7 +273,10 @@ def compile_rhs(R: Array, omega_mask: Array, gamma: Array, c1: float) -> Callabl
     ``s = (x_hat, theta_hat, vec V)``, ``O`` = ``Omega(omega)`` flattened row-major, ``g`` the
     known term and ``c`` 1.0 (correct) or 0.0 (dropout). Constants and the zero pattern of
     ``Omega`` (``omega_mask``, shape (n, m)) are inlined: for the small forms of the papers this
-    costs a few microseconds, against tens for the same arithmetic in small numpy arrays."""
+    costs a few microseconds, against tens for the same arithmetic in small numpy arrays.
+
+    The returned function carries ``rhs.phi(s, O) -> [phi_1, ..., phi_m]``, the regressor
+    :math:`\\varphi = V^T k + \\Omega_1^T` of eq. 3.1e, from the same generated lines."""
     n, m = omega_mask.shape
     xs = [f"x{i}" for i in range(n)]
     ts = [f"t{j}" for j in range(m)]
@@ -292,11 +292,13 @@ def compile_rhs(R: Array, omega_mask: Array, gamma: Array, c1: float) -> Callabl
                     f"({', '.join(f'O[{i * m + j}]' for i, j in used_o)},)")
     body.append(f"    ({', '.join(f'g{i}' for i in range(n))},) = g")
     body.append("    e = c * (y - x0)")
+    p_lines = []
     for j in range(m):
         terms = [(float(k[i]), vs[i][j]) for i in range(n - 1)]
         if os_[0][j]:
             terms.append((1.0, os_[0][j]))
-        body.append(f"    p{j} = {_lin(terms)}")
+        p_lines.append(f"    p{j} = {_lin(terms)}")
+    body += p_lines
     for j in range(m):
         body.append(f"    d{j} = ({_lin([(float(gamma[j, l]), f'p{l}') for l in range(m)])}) * e")
     for i in range(n):
@@ -317,9 +319,19 @@ def compile_rhs(R: Array, omega_mask: Array, gamma: Array, c1: float) -> Callabl
             vd.append(_lin(terms))
     out = [f"xd{i}" for i in range(n)] + [f"d{j}" for j in range(m)] + vd
     src = "def rhs(s, y, c, O, g):\n" + "\n".join(body) + f"\n    return [{', '.join(out)}]\n"
+    phi = ["def phi(s, O):"]
+    if n > 1:
+        phi.append(f"    ({', '.join(v for row in vs for v in row)},) = s[{n + m}:]")
+    used_o0 = [j for j in range(m) if omega_mask[0, j]]
+    if used_o0:
+        phi.append(f"    ({', '.join(os_[0][j] for j in used_o0)},) = "
+                   f"({', '.join(f'O[{j}]' for j in used_o0)},)")
+    src += "\n".join(phi + p_lines) + f"\n    return [{', '.join(f'p{j}' for j in range(m))}]\n"
     scope: dict[str, Any] = {}
     exec(compile(src, "<bastin_gevers_rhs>", "exec"), scope)  # noqa: S102 - numbers only
-    return scope["rhs"]
+    rhs = scope["rhs"]
+    rhs.phi = scope["phi"]
+    return rhs
 
 
 def rk_step(rhs: Callable[..., list[float]], s: list[float], h: float, method: str,
@@ -891,13 +903,10 @@ class BastinGeversObserver(Observer):
         self.form = aocf
         n, m = aocf.n, aocf.m
         self.c1 = finite_scalar("c1", c1, positive=True)
-        self.gamma = symmetric_positive_definite("gamma", gamma, m)
+        self.gamma = symmetric_matrix("gamma", gamma, m, dim="m")
         self.method = one_of("method", method, METHODS)
         self.substeps = positive_int("substeps", substeps)
-        if on_unreachable not in ("raise", "warn", "ignore"):
-            raise DesignError(f"on_unreachable must be 'raise', 'warn' or 'ignore'; found "
-                              f"{on_unreachable!r}")
-        self.on_unreachable = on_unreachable
+        self.on_unreachable = one_of("on_unreachable", on_unreachable, ("raise", "warn", "ignore"))
         self.structure = aocf.reachability()
         if not self.structure["reachable"] and on_unreachable != "ignore":
             combos = "; ".join(
@@ -919,8 +928,6 @@ class BastinGeversObserver(Observer):
         self._S_blocks = aocf.S_blocks()
         self._R, self._k, self._F = aocf.R, aocf.k, aocf.F
         self._generate()
-        # phi = V^T k + Omega_1^T as a matrix on vec V (row-major)
-        self._KV = np.kron(self._k.reshape(1, -1), np.eye(m)) if n > 1 else np.zeros((m, 0))
         self.diagnostic_names = tuple(f"theta_{nm}" for nm in aocf.theta_names) + tuple(
             f"theta_{nm}" for nm in aocf.physical_param_names) + (
             ("excitation",) if self._gram is not None else ()) + ("reachability_rank",)
@@ -965,6 +972,7 @@ class BastinGeversObserver(Observer):
         self._restart_counters()
         self._params_last: Mapping[str, float] = {nm: math.nan for nm in f.physical_param_names}
         self._W = np.zeros((f.s, f.s))  # sum of omega omega^T: rank of S along the run
+        self._wbuf: list[Array] = []  # the omegas not yet summed into _W
         self._rank: int | None = 0
         if self._gram is not None:
             self._gram.reset()
@@ -997,10 +1005,6 @@ class BastinGeversObserver(Observer):
         xd[1:] += V @ thd
         Vd = self._F @ V + Om[1:]
         return np.concatenate((xd, thd, Vd.reshape(-1)))
-
-    def _phi(self, s: list[float], Om: Array) -> Array:
-        f = self.form
-        return self._KV @ np.array(s[f.n + f.m:]) + Om[:f.m]
 
     def omega_g(self, y: float, u: Array) -> tuple[Array, Array]:
         """:math:`\\omega(y, u)` and :math:`g(y, u)`, shape-checked."""
@@ -1050,14 +1054,14 @@ class BastinGeversObserver(Observer):
             c = 1.0
             yw = yi
         w, g = self.omega_g(yw, u)
-        Om = self._alpha2 @ w
-        self.phi_ = self._phi(s, Om)
+        O = (self._alpha2 @ w).tolist()
+        self.phi_ = phi = np.array(self._rhs_fast.phi(s, O))
         if self._gram is not None:
-            self._gram.add(self.phi_, dt)
-        self._W += np.outer(w, w)
+            self._gram.add(phi, dt)
+        self._wbuf.append(w)  # folded into _W when the rank is asked for
         self._rank = None
         s = rk_step(self._rhs_fast, s, dt / self.substeps, self.method, self.substeps,
-                    yw, c, Om.tolist(), g.tolist())
+                    yw, c, O, g.tolist())
         if not all(map(math.isfinite, s)):
             raise DivergenceError(f"the Bastin-Gevers observer left the finite numbers: state "
                                   f"(x_hat, theta_hat, V) = {s}")
@@ -1134,6 +1138,10 @@ class BastinGeversObserver(Observer):
     @property
     def reachability_rank_(self) -> int:
         if self._rank is None:
+            if self._wbuf:
+                B = np.array(self._wbuf)
+                self._W += B.T @ B
+                self._wbuf.clear()
             Sb = self._S_blocks  # (s, n, m)
             G = np.einsum("lij,lk,kip->jp", Sb, self._W, Sb)
             ev = np.linalg.eigvalsh(0.5 * (G + G.T))

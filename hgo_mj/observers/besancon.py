@@ -83,21 +83,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from math import isfinite
 from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar, one_of, positive_definite, positive_int, vector
+from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, vector
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
+from ._adaptive import measured_channels
 from .base import Array, Observer
-from .bastin_gevers import Rebuildable, initial_estimate
+from .bastin_gevers import Rebuildable, check_rk_period, initial_estimate
 
 __all__ = ["AffineForm", "BesanconObserver", "affine_form", "elastic_joint_form",
-           "besancon_example_form", "elastic_joint_2link_form", "pendulum_form",
-           "positive_definite"]
+           "besancon_example_form", "elastic_joint_2link_form", "pendulum_form"]
 
 METHODS = ("rk4", "rk2", "euler")
 _ONE = [1.0]
@@ -821,17 +820,6 @@ def _compile(form: AffineForm, lam: float, K: Sequence[Array], S: Array, exps: A
     return {"rhs": scope["rhs"], "rk4": scope["rk4"], "rk2": scope["rk2"], "euler": scope["euler"]}
 
 
-def _stability(z: Array, method: str) -> Array:
-    """|R(z)| of the method's stability function (Euler, Heun, classical RK4)."""
-    order = {"euler": 1, "rk2": 2, "rk4": 4}[method]
-    r = np.ones_like(z)
-    term = np.ones_like(z)
-    for k in range(1, order + 1):
-        term = term * z / k
-        r = r + term
-    return np.abs(r)
-
-
 def _gram_adder(form: AffineForm) -> Callable[[tuple[float, ...], float, list[float]], None]:
     """Generated ``add(s, dt, acc)``: ``acc += dt * Gamma^T C^T C Gamma`` (upper triangle,
     row-major ``q x q``) for the state ``s`` of :func:`_compile`."""
@@ -969,7 +957,7 @@ class BesanconObserver(Observer):
         self.q = form.q
         self.lam = finite_scalar("lam", lam, positive=True)
         self.K = self._gains(K0)
-        self.gain = positive_definite("gain", gain, form.q)
+        self.gain = symmetric_matrix("gain", gain, form.q)
         self.X = math.inf if X is None else finite_scalar("X", X, positive=True)
         self.Theta = math.inf if Theta is None else finite_scalar("Theta", Theta, positive=True)
         self.exps = self._exponents(theta_exponents)
@@ -1067,24 +1055,10 @@ class BesanconObserver(Observer):
         """Refuse a sample period for which the integration of the linear modes
         :math:`\\lambda\\,\\mathrm{eig}(A_c - K_c C_c)` is unstable (the parameter modes depend
         on the data and are not checked here)."""
-        dt = finite_scalar("dt", dt, positive=True)
         lam_modes = np.concatenate([self.lam * np.roots(np.concatenate(([1.0], k)))
                                     for k in self.K])
-        h = dt / self.substeps
-        z = h * lam_modes
-        amp = _stability(z, self.method)
-        if np.any(amp >= 1.0):
-            lo, hi = 0.0, h
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                zz = mid * lam_modes
-                a = _stability(zz, self.method)
-                lo, hi = (mid, hi) if np.all(a < 1.0) else (lo, mid)
-            raise DesignError(
-                f"{self.method} integration of the Besançon observer (lambda={self.lam:g}) with step "
-                f"{h:g} (sample period {dt:g} / {self.substeps} substeps) is unstable on the modes "
-                f"lambda*eig(A - K C); the largest stable step is {lo:.4g}: raise substeps to at "
-                f"least {math.ceil(dt / lo * 1.0000001)}")
+        check_rk_period(f"the Besançon observer (lambda={self.lam:g}, modes lambda*eig(A - K C))",
+                        lam_modes, dt, self.method, self.substeps)
 
     # ------------------------------------------------------------------ reset
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
@@ -1180,7 +1154,7 @@ class BesanconObserver(Observer):
                                   f"{list(self._s[:self.n])} (lambda={self.lam:g}, step {dt:g}); "
                                   f"bound it with X= and Theta=, lower the gain or raise substeps"
                                   ) from None
-        if not isfinite(sum(s)):
+        if not math.isfinite(sum(s)):
             raise DivergenceError(f"the Besançon observer state left the finite numbers: "
                                   f"{list(s[:self.n])} (lambda={self.lam:g}, step {dt:g}); "
                                   f"lower gain, or raise substeps")
@@ -1191,42 +1165,25 @@ class BesanconObserver(Observer):
         return np.array(s[:self.n])
 
     def _measure(self, y: Any) -> tuple[list[float], list[float]]:
-        ys, ms = [], []
-        lost = False
-        for o in self.outputs:
-            try:
-                v = float(y[o])
-            except (IndexError, TypeError):
-                raise self._bad_measurement(y, list(self.outputs)) from None
-            if v != v:
-                lost = True
-                ys.append(0.0)
-                ms.append(0.0)
-            elif v in (math.inf, -math.inf):
-                raise DivergenceError(f"measurement y[{o}] is {v}")
-            else:
-                ys.append(v)
-                ms.append(1.0)
-        if lost:
-            self.dropouts_ += 1
-        return ys, ms
+        """Values (0 where lost) and masks (1 present, 0 lost) of the measured channels."""
+        vals = measured_channels(self, y, self.outputs)
+        return [v if v == v else 0.0 for v in vals], [1.0 if v == v else 0.0 for v in vals]
 
     def _close_window(self) -> None:
         """A sub-window of the excitation integral is complete: store it, refresh the
         smallest eigenvalue over the last 20."""
         q = self.q
-        if True:
-            M = np.array(self._acc).reshape(q, q)
-            M = np.triu(M) + np.triu(M, 1).T
-            self._blocks.append(M)
-            if len(self._blocks) > 20:
-                self._blocks.pop(0)
-            self._acc = [0.0] * (q * q)
-            self._acc_t = 0.0
-            if len(self._blocks) == 20:
-                W = np.sum(self._blocks, axis=0)
-                self.excitation_ = float(np.linalg.eigvalsh(W)[0]) if np.all(np.isfinite(W)) \
-                    else math.nan
+        M = np.array(self._acc).reshape(q, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        self._blocks.append(M)
+        if len(self._blocks) > 20:
+            self._blocks.pop(0)
+        self._acc = [0.0] * (q * q)
+        self._acc_t = 0.0
+        if len(self._blocks) == 20:
+            W = np.sum(self._blocks, axis=0)
+            self.excitation_ = float(np.linalg.eigvalsh(W)[0]) if np.all(np.isfinite(W)) \
+                else math.nan
 
     # ------------------------------------------------------------------ estimates
     def _refresh_physical(self) -> None:

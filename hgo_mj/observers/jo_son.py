@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar, one_of, positive_int, vector
+from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, vector
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
@@ -70,7 +70,6 @@ from .bastin_gevers import (
     check_rk_period,
     initial_estimate,
     rk_step,
-    symmetric_positive_definite,
 )
 
 __all__ = ["JoSonForm", "JoSonObserver", "jo_son_gain"]
@@ -442,7 +441,7 @@ class JoSonObserver(Observer):
         self.form = form
         self.lam = finite_scalar("lambda", lam)
         self.K_ = jo_son_gain(form.b, self.lam)
-        self.gamma = symmetric_positive_definite("gamma", gamma, form.p)
+        self.gamma = symmetric_matrix("gamma", gamma, form.p, dim="m")
         # plain-float copies for the per-sample path (numpy scalar indexing is slow)
         self._Kl, self._bl = self.K_.tolist(), form.b.tolist()
         self._Gl = self.gamma.tolist()
@@ -475,11 +474,18 @@ class JoSonObserver(Observer):
 
         z, th = initial_estimate(f.n, f.p, x_hat0, z_hat0, theta_hat0, physical)
         self._s: list[float] = np.concatenate((z, th)).tolist()
-        self._u_last = None
+        self._aux_last: list[float] | None = None
         self._restart_counters()
         if self._gram is not None:
             self._gram.reset()
-        self._refresh_physical()
+        self._xp = np.array(z)
+        if f.to_physical is not None:
+            x = np.asarray(f.to_physical(z), dtype=float).reshape(-1)
+            if not all(map(math.isfinite, x)):
+                raise DesignError(f"the initial estimate z = {z.tolist()} lies where the inverse "
+                                  f"map T^-1 of {f.label} is undefined (it gives {x.tolist()}); "
+                                  f"give x_hat0 / z_hat0 inside its domain")
+            self._xp = x
 
     # ------------------------------------------------------------------ dynamics
     def signals(self, y: float, u: Array) -> tuple[list[float], list[float], list[float]]:
@@ -561,20 +567,22 @@ class JoSonObserver(Observer):
             raise DimensionError(f"y must be a vector with channels {self.output} (output) and "
                                  f"{list(f.aux_outputs)} (aux_outputs); found {y!r}") from None
         u = np.asarray(u, dtype=float).reshape(-1)
+        aux_lost = any(a != a for a in aux)
+        if aux_lost:  # hold the lost auxiliary channels (0 before any), keep the known control
+            last = self._aux_last if self._aux_last is not None else [0.0] * len(aux)
+            aux = [b if a != a else a for a, b in zip(aux, last)]
         if aux:
+            self._aux_last = aux
             u = np.concatenate((u, aux))
         s = self._s
-        if yi != yi or any(a != a for a in aux):  # dropout: predict without correction
+        if yi != yi or aux_lost:  # dropout: predict without correction
             self.dropouts_ += 1
             c = 0.0
             yi = s[f.r - 1]
-            if any(a != a for a in aux):
-                u = np.asarray(self._u_last if self._u_last is not None else np.nan_to_num(u))
         elif yi in (math.inf, -math.inf):
             raise DivergenceError(f"measurement y[{self.output}] is {yi}")
         else:
             c = 1.0
-        self._u_last = u
         go, be, gb = self.signals(yi, u)
         if self._gram is not None:
             self._gram.add(np.array(be), dt)
@@ -585,8 +593,6 @@ class JoSonObserver(Observer):
         self._s = s
         self._refresh_physical()
         return self._xp.copy()
-
-    _u_last: Array | None = None
 
     # ------------------------------------------------------------------ estimates
     def _refresh_physical(self) -> None:

@@ -75,10 +75,11 @@ from .._validate import (
 )
 from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
+from ._adaptive import measured_channels
 from .base import Array, Observer
 
 __all__ = ["ExtendedKalmanFilter", "FAST_MAX", "MujocoExtendedKalmanFilter",
-           "MujocoUnscentedKalmanFilter", "UnscentedKalmanFilter", "positive_semidefinite"]
+           "MujocoUnscentedKalmanFilter", "UnscentedKalmanFilter"]
 
 METHODS = ("rk4", "euler")
 JACOBIANS = ("auto", "analytic", "fd")
@@ -820,20 +821,10 @@ class _KalmanFilter(Observer):
         x, P = self._xl, self._Pl
         sel = self.sel
         r = self._r
-        lost = False
-        for c, o in enumerate(self.outputs):
-            try:
-                v = float(y[o])
-            except (IndexError, TypeError):
-                raise self._bad_measurement(y, list(self.outputs)) from None
-            if v != v:
-                lost = True
-                continue
-            if v in (math.inf, -math.inf):
-                raise DivergenceError(f"measurement y[{o}] is {v}")
-            self._corr_f[sel[c]](x, P, v, r[c])  # type: ignore[index]
-        if lost:
-            self.dropouts_ += 1
+        corr = self._corr_f
+        for c, v in enumerate(measured_channels(self, y, self.outputs)):
+            if v == v:
+                corr[sel[c]](x, P, v, r[c])  # type: ignore[index]
 
     def _Qh(self, h: float) -> list[float]:
         Qh = self._hmemo.get(h)
@@ -892,19 +883,10 @@ class _KalmanFilter(Observer):
     def _channels(self, y: Any) -> tuple[list[int], list[float]]:
         """Indices (into ``outputs``) and values of the channels present in ``y``."""
         idx, vals = [], []
-        for c, o in enumerate(self.outputs):
-            try:
-                v = float(y[o])
-            except (IndexError, TypeError):
-                raise self._bad_measurement(y, list(self.outputs)) from None
-            if v != v:
-                continue
-            if v in (math.inf, -math.inf):
-                raise DivergenceError(f"measurement y[{o}] is {v}")
-            idx.append(c)
-            vals.append(v)
-        if len(idx) < len(self.outputs):
-            self.dropouts_ += 1
+        for c, v in enumerate(measured_channels(self, y, self.outputs)):
+            if v == v:
+                idx.append(c)
+                vals.append(v)
         return idx, vals
 
     def _correct_numpy(self, idx: list[int], vals: list[float]) -> None:
