@@ -130,12 +130,14 @@ def one_of(name: str, value: Any, options: Iterable[Any]) -> Any:
     return value
 
 
-def positive_int(name: str, value: Any) -> int:
+def positive_int(name: str, value: Any, *, floats: bool = True) -> int:
     """Return ``value`` as an int, raising :class:`DesignError` unless a positive whole number
-    (``True`` is not one)."""
+    (``True`` is not one). ``floats=False`` also refuses a whole float such as ``2.0`` (a count
+    read from a file or given to the API, which must be written as an integer)."""
     try:
-        ok = not isinstance(value, bool) and int(value) == value and value >= 1
-    except (TypeError, ValueError):
+        ok = (not isinstance(value, bool) and int(value) == value and value >= 1
+              and (floats or isinstance(value, (int, np.integer))))
+    except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
         raise DesignError(f"{name} must be a positive integer; found {value!r}")

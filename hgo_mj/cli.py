@@ -28,7 +28,7 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
 from ._json import write_json
-from ._validate import reject_unknown
+from ._validate import positive_int, reject_unknown
 from .exceptions import DesignError, HgoError
 
 SCENARIO_KEYS = {
@@ -104,7 +104,7 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.dt is not None:
         sc["plant"]["dt"] = args.dt
     if args.seeds is not None:
-        sc["run"]["seeds"] = positive_int(args.seeds, "--seeds", flag=True)
+        sc["run"]["seeds"] = _flag_int(args.seeds, "--seeds")
     return sc
 
 
@@ -216,16 +216,11 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     return traj, metrics, out
 
 
-def positive_int(value: Any, where: str, *, flag: bool = False) -> int:
-    """An integer >= 1 (``run.seeds``, ``--seeds``, ``--jobs``); a ``flag``'s text is parsed."""
-    if flag and isinstance(value, str):
-        text = value.strip()
-        if not text.lstrip("+").isdigit():
-            raise DesignError(f"{where} must be an integer >= 1; found {value!r}")
-        value = int(text)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise DesignError(f"{where} must be an integer >= 1; found {value!r}")
-    return value
+def _flag_int(value: Any, where: str) -> int:
+    """A command-line flag's text as an integer >= 1 (``--seeds``, ``--jobs``)."""
+    if isinstance(value, str) and value.strip().lstrip("+").isdigit():
+        value = int(value.strip())
+    return positive_int(where, value, floats=False)
 
 
 def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
@@ -241,11 +236,11 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
 
     from . import cli as _cli  # scenario_run by its module name, also under `python -m`
     from .plotting import plot_monte_carlo
-    from .study import MonteCarloResult, aggregate, run_seeds
+    from .study import MonteCarloResult, run_seeds
 
     run = sc.get("run", {})
-    n = positive_int(run.get("seeds", 1), "run.seeds") if isinstance(run, dict) else 1
-    jobs = positive_int(jobs, "--jobs")
+    n = positive_int("run.seeds", run.get("seeds", 1), floats=False) if isinstance(run, dict) else 1
+    jobs = positive_int("--jobs", jobs, floats=False)
     single = {**sc, "run": {k: v for k, v in run.items() if k != "seeds"}} if isinstance(
         run, dict) else sc
     traj, metrics, out = run_scenario(single, name, rrd=rrd)
@@ -256,8 +251,7 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     mkw = {k: single["run"][k] for k in ("t_transient", "band") if k in single["run"]}
     done, runs, failed = run_seeds(partial(_cli.scenario_run, single, name), seeds[1:],
                                    jobs=jobs, **mkw)
-    mc = MonteCarloResult(seeds=[seed, *done], runs=[metrics, *runs],
-                          aggregate=aggregate([metrics, *runs]), failed=failed)
+    mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
     (out / "summary_mc.txt").write_text(mc.table() + "\n")
     plot_monte_carlo(mc, out / "mc.png",
@@ -405,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
             rrd = None if args.no_rrd else Path(args.rrd or Path(args.out) / "demo.rrd")
         else:
             sc = scenario_from_args(args)
-            jobs = positive_int(args.jobs, "--jobs", flag=True)
+            jobs = _flag_int(args.jobs, "--jobs")
             name = "run"
             rrd = None if args.rrd is None else Path(
                 args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")

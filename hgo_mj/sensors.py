@@ -253,6 +253,18 @@ class Stage:
                     f"{cls}.{pname} has {v.shape[0]} entries but {cls}.{self._n_from} has "
                     f"{self._n}; per-channel parameters must have the same length")
 
+    def _check_width(self, n: int) -> None:
+        """Refuse a measurement of ``n`` channels where the per-channel parameters fix another
+        count."""
+        if self._n is not None and n != self._n:
+            self._mismatch(n)
+
+    @staticmethod
+    def _list(value: float | Array) -> list[float] | None:
+        """A per-channel parameter as a list of Python floats (for :meth:`apply_list`), made
+        once; None for a scalar (every channel alike)."""
+        return None if isinstance(value, float) else value.tolist()
+
     def _mismatch(self, n: int) -> None:
         raise DimensionError(
             f"{type(self).__name__}.{self._n_from} has {self._n} entries (one per channel) "
@@ -353,6 +365,7 @@ class GaussianNoise(Stage):
                          else np.sqrt(self._variance))
             self._params = {"psd": _json(psd_v), "sample_time": ts}
             self._channels(psd=psd_v)
+        self._std_list = self._list(self._std)
         self._draws = _Draws("standard_normal")
 
     @property
@@ -370,8 +383,7 @@ class GaussianNoise(Stage):
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
         n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(n)
         return y + self._std * self._draws.take(rng, n)
 
     def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
@@ -380,9 +392,8 @@ class GaussianNoise(Stage):
             if len(y) == 1:
                 return [y[0] + std * one(rng)]
             return [v + std * one(rng) for v in y]
-        if len(y) != self._n:
-            self._mismatch(len(y))
-        return [v + s * one(rng) for v, s in zip(y, std.tolist())]  # type: ignore[union-attr]
+        self._check_width(len(y))
+        return [v + s * one(rng) for v, s in zip(y, self._std_list)]  # type: ignore[arg-type]
 
 
 class UniformNoise(Stage):
@@ -402,6 +413,7 @@ class UniformNoise(Stage):
         self._hw = _channel_param("UniformNoise.half_width", half_width, "nonneg")
         self._params = {"half_width": _json(self._hw)}
         self._channels(half_width=self._hw)
+        self._hw_list = self._list(self._hw)
         self._draws = _Draws("random")
 
     @property
@@ -414,8 +426,7 @@ class UniformNoise(Stage):
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
         n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(n)
         out = self._draws.take(rng, n)  # [0, 1)
         out *= 2.0
         out -= 1.0                   # [-1, 1)
@@ -428,10 +439,9 @@ class UniformNoise(Stage):
         if self._n is None:
             hw = self._hw
             return [(2.0 * one(rng) - 1.0) * hw + v for v in y]
-        if len(y) != self._n:
-            self._mismatch(len(y))
+        self._check_width(len(y))
         return [(2.0 * one(rng) - 1.0) * h + v
-                for v, h in zip(y, self._hw.tolist())]  # type: ignore[union-attr]
+                for v, h in zip(y, self._hw_list)]  # type: ignore[arg-type]
 
 
 class Bias(Stage):
@@ -451,20 +461,18 @@ class Bias(Stage):
         self._offset = _channel_param("Bias.offset", offset, "real")
         self._params = {"offset": _json(self._offset)}
         self._channels(offset=self._offset)
+        self._offset_list = self._list(self._offset)
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(y.shape[0])
         return y + self._offset
 
     def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
         off = self._offset
         if self._n is None:
             return [v + off for v in y]
-        if len(y) != self._n:
-            self._mismatch(len(y))
-        return [v + o for v, o in zip(y, off.tolist())]  # type: ignore[union-attr]
+        self._check_width(len(y))
+        return [v + o for v, o in zip(y, self._offset_list)]  # type: ignore[arg-type]
 
 
 class RandomWalkDrift(Stage):
@@ -512,8 +520,7 @@ class RandomWalkDrift(Stage):
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
         n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(n)
         z = self._draws.take(rng, n)
         if self._b is None:
             self._b = np.zeros(n)
@@ -572,6 +579,7 @@ class Quantization(Stage):
             self._params = {"counts_per_rev": (int(c) if isinstance(c, float)
                                                else [int(v) for v in c])}
             self._channels(counts_per_rev=c)
+        self._res_list = self._list(self._res)
 
     @property
     def resolution(self) -> float | Array:
@@ -587,15 +595,12 @@ class Quantization(Stage):
         return self.variance
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(y.shape[0])
         return np.rint(y / self._res) * self._res
 
     def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
         n = len(y)
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(n)
         res = self._res
         if isinstance(res, float):
             if n == 1:  # one channel: _rint inlined, no comprehension
@@ -605,7 +610,7 @@ class Quantization(Stage):
                 r = float(round(q))
                 return [(r if r else math.copysign(0.0, q)) * res]
             return [_rint(v / res) * res for v in y]
-        return [_rint(v / r) * r for v, r in zip(y, res.tolist())]
+        return [_rint(v / r) * r for v, r in zip(y, self._res_list)]  # type: ignore[arg-type]
 
 
 def _rint(q: float) -> float:
@@ -735,6 +740,7 @@ class Dropout(Stage):
         self._p = _channel_param("Dropout.p", p, "prob")
         self._params = {"p": _json(self._p)}
         self._channels(p=self._p)
+        self._p_list = self._list(self._p)
         self.count = 0
         self._draws = _Draws("random")
 
@@ -743,8 +749,7 @@ class Dropout(Stage):
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
         n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(n)
         hit = self._draws.take(rng, n) < self._p
         out = y.copy()
         k = int(np.count_nonzero(hit))
@@ -754,10 +759,9 @@ class Dropout(Stage):
         return out
 
     def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        if self._n is not None and len(y) != self._n:
-            self._mismatch(len(y))
+        self._check_width(len(y))
         one = self._draws.one
-        ps = [self._p] * len(y) if self._n is None else self._p.tolist()  # type: ignore[union-attr]
+        ps = [self._p] * len(y) if self._p_list is None else self._p_list
         out = list(y)
         for i, p in enumerate(ps):
             if one(rng) < p:
@@ -802,8 +806,7 @@ class Outliers(Stage):
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
         n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(n)
         u = self._draws.take(rng, 2 * n).reshape(2, n)
         hit = u[0] < self._p
         out = y.copy()
@@ -838,21 +841,19 @@ class Saturation(Stage):
             raise DesignError(f"Saturation needs low < high; found low={_json(self._low)}, "
                               f"high={_json(self._high)}")
         self._params = {"low": _json(self._low), "high": _json(self._high)}
+        self._low_list, self._high_list = self._list(self._low), self._list(self._high)
 
     def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
+        self._check_width(y.shape[0])
         out = np.maximum(y, self._low)          # NaN propagates; cheaper than np.clip
         np.minimum(out, self._high, out=out)
         return out
 
     def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
         n = len(y)
-        if self._n is not None and n != self._n:
-            self._mismatch(n)
-        lo = [self._low] * n if isinstance(self._low, float) else self._low.tolist()
-        hi = [self._high] * n if isinstance(self._high, float) else self._high.tolist()
+        self._check_width(n)
+        lo = [self._low] * n if self._low_list is None else self._low_list
+        hi = [self._high] * n if self._high_list is None else self._high_list
         return [a if v < a else (b if v > b else v) for v, a, b in zip(y, lo, hi)]
 
 

@@ -39,19 +39,14 @@ from typing import Any
 import numpy as np
 
 from ._json import strict_json
+from ._validate import positive_int
 from .exceptions import DesignError, DivergenceError
+from .metrics import _cell
 
 #: the metrics aggregated with mean, std, min, median, max
 SPREAD_METRICS = ("rmse", "peak", "final")
 #: the statistics of each of them
 STATS = ("mean", "std", "min", "median", "max")
-
-
-def _count(name: str, value: Any) -> int:
-    """``value`` as an integer >= 1 (not a bool, not a float), or a :class:`DesignError`."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise DesignError(f"{name} must be an integer >= 1; found {value!r}")
-    return int(value)
 
 
 def check_seeds(seeds: Iterable[Any]) -> list[int]:
@@ -108,6 +103,13 @@ class MonteCarloResult:
     aggregate: dict[str, dict[str, Any]]
     #: seed -> message, for the runs that diverged (not in ``seeds``/``runs``)
     failed: dict[int, str]
+
+    @classmethod
+    def from_runs(cls, seeds: Sequence[int], runs: Sequence[dict[str, dict[str, Any]]],
+                  failed: Mapping[int, str]) -> MonteCarloResult:
+        """The result of the runs at ``seeds`` (and the ``failed`` ones), aggregated."""
+        return cls(seeds=list(seeds), runs=list(runs), aggregate=aggregate(runs),
+                   failed=dict(failed))
 
     def to_json(self) -> dict[str, Any]:
         """A JSON-ready dict: ``seeds``, ``runs`` (``[{"seed", "metrics"}]``), ``aggregate``,
@@ -232,7 +234,7 @@ def monte_carlo(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int],
     if not done:
         raise DivergenceError(f"every run diverged ({len(seeds)} of {len(seeds)}); "
                               f"{failed[seeds[0]]}")
-    return MonteCarloResult(seeds=done, runs=runs, aggregate=aggregate(runs), failed=failed)
+    return MonteCarloResult.from_runs(done, runs, failed)
 
 
 def run_seeds(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *,
@@ -242,7 +244,7 @@ def run_seeds(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *
     """The runs of :func:`monte_carlo` without the aggregate: ``(seeds that finished, their
     metrics, {seed: message} of those that diverged)``, in the order of ``seeds``."""
     seeds = check_seeds(seeds)
-    jobs = _count("jobs", jobs)
+    jobs = positive_int("jobs", jobs, floats=False)
     if not callable(make_run):
         raise DesignError(f"make_run must be a callable returning simulate's arguments; found "
                           f"{type(make_run).__name__}")
@@ -264,10 +266,6 @@ def run_seeds(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *
     failed = {s: r for s, r in zip(seeds, results) if isinstance(r, str)}
     done = [(s, r) for s, r in zip(seeds, results) if not isinstance(r, str)]
     return [s for s, _ in done], [r for _, r in done], failed
-
-
-def _cell(v: Any, width: int) -> str:
-    return f"{'-':>{width}}" if v is None else f"{v:>{width}.4g}"
 
 
 def format_mc_table(agg: Mapping[str, Mapping[str, Any]]) -> str:

@@ -115,7 +115,7 @@ def test_jobs_do_not_change_the_results():
     ({"seeds": []}, "at least one seed"),
     ({"seeds": [1, -2]}, "non-negative integers; found -2"),
     ({"seeds": [1.5]}, "non-negative integers; found 1.5"),
-    ({"seeds": [0], "jobs": 0}, "jobs must be an integer >= 1; found 0"),
+    ({"seeds": [0], "jobs": 0}, "jobs must be a positive integer; found 0"),
     ({"seeds": [0, 1], "jobs": 2, "make_run": lambda: {}}, "must be picklable"),
 ])
 def test_api_bad_input(kw, message):
@@ -178,12 +178,12 @@ def test_cli_seeds_in_the_scenario_file(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("extra, message", [
-    (["--seeds", "0"], "--seeds must be an integer >= 1; found 0"),
-    (["--seeds", "-3"], "--seeds must be an integer >= 1; found '-3'"),
-    (["--seeds", "2.5"], "--seeds must be an integer >= 1; found '2.5'"),
-    (["--seeds", "many"], "--seeds must be an integer >= 1; found 'many'"),
-    (["--seeds", "2", "--jobs", "0"], "--jobs must be an integer >= 1; found 0"),
-    (["--jobs", "x"], "--jobs must be an integer >= 1; found 'x'"),
+    (["--seeds", "0"], "--seeds must be a positive integer; found 0"),
+    (["--seeds", "-3"], "--seeds must be a positive integer; found '-3'"),
+    (["--seeds", "2.5"], "--seeds must be a positive integer; found '2.5'"),
+    (["--seeds", "many"], "--seeds must be a positive integer; found 'many'"),
+    (["--seeds", "2", "--jobs", "0"], "--jobs must be a positive integer; found 0"),
+    (["--jobs", "x"], "--jobs must be a positive integer; found 'x'"),
 ])
 def test_cli_bad_input_exits_2_with_one_line(extra, message, tmp_path, capsys):
     assert main([*FLAGS, "--out", str(tmp_path / "o"), *extra]) == 2
@@ -200,7 +200,7 @@ def test_cli_bad_seeds_in_the_scenario_file(value, shown, tmp_path, capsys):
     path.write_text(f'[plant]\nname = "pendulum"\n[run]\nduration = 0.3\nseeds = {value}\n')
     assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert f"run.seeds must be an integer >= 1; found {shown}" in err
+    assert f"run.seeds must be a positive integer; found {shown}" in err
     assert not (tmp_path / "o").exists()
 
 

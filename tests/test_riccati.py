@@ -283,8 +283,8 @@ def test_bad_input():
     with pytest.raises(DesignError, match="rho must be > 0; found -1"):
         min_gamma([3, 2], -1.0)
     for q in (0, -1, 1.5):
-        with pytest.raises(DesignError, match=rf"q \(the number of output integrators\) must be an "
-                                              rf"integer >= 1; found {q}"):
+        with pytest.raises(DesignError, match=rf"q \(the number of output integrators\) must be a "
+                                              rf"positive integer; found {q}"):
             QIntegralObserver(system, gamma=6.0, q=q)
     with pytest.raises(DimensionError, match="alpha must have n = 2 coefficients; found 3"):
         RiccatiObserver(system, alpha=[3, 3, 1], gamma=6.0)

@@ -42,8 +42,10 @@ from .base import Array, Observer
 from .high_gain import (
     _is_identity,
     affine_step,
+    bounds_floats,
     bounds_pair,
     check_options,
+    clip_floats,
     largest_stable_step,
     one_step_map,
     sampled_chain,
@@ -366,8 +368,7 @@ class AdaptiveGainObserver(Observer):
         self.method = method
         self.on_unstable = on_unstable
         self.z_bounds = bounds_pair(z_bounds, n)
-        self._bounds_floats = (None if self.z_bounds is None else
-                               (self.z_bounds[0].tolist(), self.z_bounds[1].tolist()))
+        self._bounds_floats = bounds_floats(self.z_bounds)
         self._tau_max = _max_stable_kdt(tuple(self.p.tolist()), method)
         #: ``x_hat`` is ``z_hat`` itself (no system, or a normal form that is the state)
         self._identity = system is None or _is_identity(system, n)
@@ -532,7 +533,7 @@ class AdaptiveGainObserver(Observer):
 
     def _saturate_floats(self, z: tuple[float, ...]) -> tuple[float, ...]:
         """:meth:`_saturate` on a tuple of floats, without numpy."""
-        return tuple([min(max(v, a), b) for v, a, b in zip(z, *self._bounds_floats)])
+        return clip_floats(z, self._bounds_floats)  # type: ignore[arg-type]
 
     def _saturate(self, z: Array) -> Array:
         if self.z_bounds is None:

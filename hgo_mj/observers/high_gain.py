@@ -130,16 +130,25 @@ def one_step_map(p: Array, k: float, dt: float, method: str,
     L = p * k ** np.arange(1, n + 1) if closed else np.zeros(n)
     F = np.diag(np.ones(n - 1), 1)
     F[:, 0] -= L
+    M, Sm = taylor_step(F, dt, method)
+    return M, Sm @ L, Sm @ B
+
+
+def taylor_step(F: Array, dt: float, method: str) -> tuple[Array, Array]:
+    """Euler (``method="euler"``) or RK4 of ``w' = F w + v`` with ``v`` held over ``dt``:
+    ``w+ = M w + Sm v`` with ``M = sum_{j<=order} (F dt)^j / j!`` (the degree-1 or degree-4
+    Taylor polynomial of ``e^{F dt}``) and ``Sm = sum_{j<order} dt^{j+1} F^j / (j+1)!``."""
+    n = F.shape[0]
     order = 1 if method == "euler" else 4
     M = np.eye(n)
-    Sm = np.eye(n) * dt  # sum_{j<order} dt^{j+1} F^j / (j+1)!
+    Sm = np.eye(n) * dt
     term = np.eye(n)
     for j in range(1, order + 1):
         term = term @ F * dt / j
         M = M + term
         if j < order:
             Sm = Sm + term * dt / (j + 1)
-    return M, Sm @ L, Sm @ B
+    return M, Sm
 
 
 def spectral_radius(M: Array) -> float:
@@ -167,6 +176,25 @@ def largest_stable_step(step_matrix: Callable[[float], Array], start: float,
     return lo
 
 
+def check_step_stable(M: Array, on_unstable: str, what: str, dt: float,
+                      max_stable_period: Callable[[], float], digits: int = 4) -> None:
+    """React to a one-step error map ``M`` of spectral radius >= 1 at the sample period ``dt``
+    as ``on_unstable`` says ("raise": :class:`DesignError`, "warn": a ``RuntimeWarning`` at the
+    caller of ``check_period``/``update``, "ignore"), with a message naming ``what`` is updated
+    ("euler update of the ...") and the largest stable period (computed only then)."""
+    if on_unstable == "ignore":
+        return
+    rho = spectral_radius(M)
+    if rho < 1.0:
+        return
+    msg = (f"{what} with sample period {dt:g} is unstable: spectral radius of the one-step "
+           f"error map {rho:.{digits}g} >= 1; the largest stable period is "
+           f"{max_stable_period():.{digits}g}")
+    if on_unstable == "raise":
+        raise DesignError(msg)
+    warnings.warn(msg, RuntimeWarning, stacklevel=4)
+
+
 def check_options(method: str, on_unstable: str, model: bool = False,
                   system: System | None = None) -> None:
     """The integration method, the reaction to an unstable sample period and the model term
@@ -186,6 +214,19 @@ def bounds_pair(z_bounds: Any, n: int) -> tuple[Array, Array] | None:
         raise DesignError(f"z_bounds need lower < upper; found lower {lo.tolist()}, "
                           f"upper {hi.tolist()}")
     return lo, hi
+
+
+def bounds_floats(bounds: tuple[Array, Array] | None) -> tuple[list[float], list[float]] | None:
+    """:func:`bounds_pair`'s arrays as two lists of Python floats (for :func:`clip_floats`),
+    made once per observer rather than at every sample."""
+    return None if bounds is None else (bounds[0].tolist(), bounds[1].tolist())
+
+
+def clip_floats(z: Any, bounds: tuple[list[float], list[float]]) -> tuple[float, ...]:
+    """``np.clip(z, lower, upper)`` on a tuple of Python floats, without numpy (``bounds`` from
+    :func:`bounds_floats`)."""
+    lo, hi = bounds
+    return tuple([min(max(v, a), b) for v, a, b in zip(z, lo, hi)])
 
 
 class HighGainObserver(Observer):
@@ -262,6 +303,7 @@ class HighGainObserver(Observer):
         self.method = method
         self.on_unstable = on_unstable
         self.z_bounds = bounds_pair(z_bounds, n)
+        self._bounds_floats = bounds_floats(self.z_bounds)
         self.L = hgo_gains(self.p, self.k_)
         self._steps: dict[float, tuple[Callable, ...]] = {}
         self._init = (x_hat0, z_hat0)
@@ -286,21 +328,13 @@ class HighGainObserver(Observer):
     def _compile(self, dt: float) -> tuple[Callable, ...]:
         dt = finite_scalar("dt", dt, positive=True)
         M, b, g = one_step_map(self.p, self.k_, dt, self.method)
-        rho = spectral_radius(M)
-        if rho >= 1.0 and self.on_unstable != "ignore":
-            msg = (f"{self.method} update of the {self._label()} with sample period {dt:g} is "
-                   f"unstable: spectral radius of the one-step error map {rho:.6g} >= 1; the "
-                   f"largest stable period is {self.max_stable_period():.6g}")
-            if self.on_unstable == "raise":
-                raise DesignError(msg)
-            warnings.warn(msg, RuntimeWarning, stacklevel=3)
+        check_step_stable(M, self.on_unstable, f"{self.method} update of the {self._label()}",
+                          dt, self.max_stable_period, digits=6)
         M0, _, g0 = one_step_map(self.p, self.k_, dt, self.method, closed=False)  # dropout
-        # the model term enters as z + g phi: compiled like the steps, in plain floats
-        # (and fused with the correction: z+ = M z + b y + g phi in one call)
-        eye = np.eye(self.n)
-        zero = np.zeros(self.n)
-        entry = (affine_step(M, b), affine_step(M0, zero), affine_step(eye, g),
-                 affine_step(eye, g0), affine_step(M, b, g), affine_step(M0, zero, g0))
+        # (closed step, open-loop step, open-loop model term z + g0 phi, closed step fused with
+        # the model term z+ = M z + b y + g phi), all compiled in plain floats
+        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.n)),
+                 affine_step(np.eye(self.n), g0), affine_step(M, b, g))
         self._steps[dt] = entry
         return entry
 
@@ -361,33 +395,28 @@ class HighGainObserver(Observer):
         z = self._z
         if yi - yi == 0.0:  # finite (NaN and +-inf give NaN): the common case, one call
             if self._fused:  # correction and model term together
-                zs = z if self.z_bounds is None else self._saturate_floats(z)
-                self._z = entry[4](yi, float(self.system.phi_unchecked(zs, u)), *z)  # type: ignore[union-attr]
-                return
-            if not self.model:
+                zs = z if self._bounds_floats is None else self._saturate_floats(z)
+                self._z = entry[3](yi, float(self.system.phi_unchecked(zs, u)), *z)  # type: ignore[union-attr]
+            elif not self.model:
                 self._z = entry[0](yi, *z)
-                return
-        closed, open_, gphi, gphi0 = entry[:4]
+            else:  # rk4 with the model term at every stage
+                self._z = self._rk4_model(yi, u, dt)
+            return
         if yi != yi:  # NaN: sensor dropout, predict without correction
             self.dropouts_ += 1
-            znew, g = open_(0.0, *z), gphi0
-        elif yi in (np.inf, -np.inf):
-            raise DivergenceError(f"measurement y[{self.output}] is {yi}")
-        elif self.model and self.method == "rk4":
-            znew, g = self._rk4_model(yi, u, dt), None
-        else:
-            znew, g = closed(yi, *z), gphi
-        if self.model and g is not None:
-            # plain floats throughout: the system's unchecked phi takes the tuple z itself
-            # (saturated when z_bounds is set); g(phi, *z) = z + g phi, compiled by _compile
-            zs = z if self.z_bounds is None else self._saturate_floats(z)
-            znew = g(float(self.system.phi_unchecked(zs, u)), *znew)  # type: ignore[union-attr]
-        self._z = znew
+            znew = entry[1](0.0, *z)
+            if self.model:
+                # plain floats throughout: the system's unchecked phi takes the tuple z itself
+                # (saturated when z_bounds is set); entry[2](phi, *z) = z + g0 phi
+                zs = z if self._bounds_floats is None else self._saturate_floats(z)
+                znew = entry[2](float(self.system.phi_unchecked(zs, u)), *znew)  # type: ignore[union-attr]
+            self._z = znew
+            return
+        raise DivergenceError(f"measurement y[{self.output}] is {yi}")
 
     def _saturate_floats(self, z: tuple[float, ...]) -> tuple[float, ...]:
         """:meth:`_saturate` on a tuple of floats (the model term's argument), without numpy."""
-        lo, hi = self.z_bounds  # type: ignore[misc]
-        return tuple([min(max(v, a), b) for v, a, b in zip(z, lo.tolist(), hi.tolist())])
+        return clip_floats(z, self._bounds_floats)  # type: ignore[arg-type]
 
     def _rk4_model(self, y: float, u: Any, dt: float) -> tuple[float, ...]:
         L = self.L
@@ -501,11 +530,10 @@ class MultiOutputHighGainObserver(Observer):
     derivatives, so ``x_hat = z_hat`` with :attr:`state_names` derived from the output names
     (``link1_angle, link1_velocity, link1_acceleration, link1_jerk, link2_angle, ...`` for the
     two-link elastic arm with ``orders=(4, 4)``). These are *not* the plant's state columns
-    (the motor angles and velocities need the model's inverse map): :meth:`state_map` lists
-    which estimates coincide with a plant state (on the two-link arm: the link angles and
-    velocities). ``Trajectory.error`` matches columns by name: the plant states this observer
-    does not estimate (the motor angles and velocities) are NaN there, "not estimated" in the
-    metrics.
+    (the motor angles and velocities need the model's inverse map); on the two-link arm the
+    link angles and velocities coincide with plant states by name. ``Trajectory.error``
+    matches columns by name: the plant states this observer does not estimate (the motor
+    angles and velocities) are NaN there, "not estimated" in the metrics.
 
     Parameters
     ----------
@@ -592,11 +620,7 @@ class MultiOutputHighGainObserver(Observer):
         self.ks = tuple(finite_scalar(f"k[{c}]" if m > 1 else "k", kc, positive=True)
                         for c, kc in enumerate(ks))
         self.ps = self._chain_p(p)
-        if method not in METHODS:
-            raise DesignError(f"method must be one of {list(METHODS)}; found {method!r}")
-        if on_unstable not in ("raise", "warn", "ignore"):
-            raise DesignError(f"on_unstable must be 'raise', 'warn' or 'ignore'; "
-                              f"found {on_unstable!r}")
+        check_options(method, on_unstable)
         if phi is not None and not callable(phi):
             raise DesignError(f"phi must be a callable phi(z_hat, u) or None; found "
                               f"{type(phi).__name__}")
@@ -609,8 +633,6 @@ class MultiOutputHighGainObserver(Observer):
         self._first = tuple(int(v) for v in np.cumsum((0,) + self.orders[:-1]))
         self.L = [hgo_gains(pc, kc) for pc, kc in zip(self.ps, self.ks)]
         self._u: Array = np.zeros(len(system.input_names)) if system is not None else np.zeros(0)
-        self._x_last = None
-        self.inverse_failures_ = 0
         self._steps: dict[float, list[tuple[Callable, Callable, Array, Array]]] = {}
         if x_hat0 is not None and z_hat0 is not None:
             raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
@@ -651,14 +673,6 @@ class MultiOutputHighGainObserver(Observer):
         return tuple(name for out, n in zip(self.output_names, self.orders)
                      for name in derivative_names(out, n))
 
-    def state_map(self) -> dict[int, int]:
-        """``{index in x_hat: index in system.state_names}`` for the estimates that are plant
-        states by name (two-link arm: link angles and velocities); empty without a system."""
-        if self.system is None:
-            return {}
-        plant = {name: j for j, name in enumerate(self.system.state_names)}
-        return {i: plant[name] for i, name in enumerate(self.state_names) if name in plant}
-
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
         """Largest sample period at which every chain's one-step map is stable."""
@@ -675,16 +689,10 @@ class MultiOutputHighGainObserver(Observer):
         entries = []
         for c, (n, kc, pc) in enumerate(zip(self.orders, self.ks, self.ps)):
             M, b, g = one_step_map(pc, kc, dt, self.method)
-            rho = spectral_radius(M)
-            if rho >= 1.0 and self.on_unstable != "ignore":
-                msg = (f"{self.method} update of chain {c} ({self.output_names[c]}, n={n}, "
-                       f"k={kc:g}) of the multi-output high-gain observer with sample period "
-                       f"{dt:g} is unstable: spectral radius of the one-step error map "
-                       f"{rho:.4g} >= 1; the largest stable period is "
-                       f"{self.max_stable_period():.4g}")
-                if self.on_unstable == "raise":
-                    raise DesignError(msg)
-                warnings.warn(msg, RuntimeWarning, stacklevel=3)
+            check_step_stable(M, self.on_unstable,
+                              f"{self.method} update of chain {c} ({self.output_names[c]}, n={n}, "
+                              f"k={kc:g}) of the multi-output high-gain observer", dt,
+                              self.max_stable_period)
             M0, _, g0 = one_step_map(pc, kc, dt, self.method, closed=False)
             entries.append((affine_step(M, b), affine_step(M0, np.zeros(n)), g, g0))
         self._steps[dt] = entries
@@ -779,9 +787,6 @@ class MultiOutputHighGainObserver(Observer):
     def x_hat(self) -> Array:
         """``z_hat`` itself (model-free: outputs and derivatives, see the class docstring)."""
         return self.z_hat
-
-    def diagnostics(self) -> dict[str, float]:
-        return {"dropouts": float(self.dropouts_)}
 
     def params(self) -> dict[str, Any]:
         return {"k": list(self.ks), "orders": list(self.orders),

@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar
+from .._validate import finite_scalar, positive_int
 from ..design import (
     binomial_coefficients,
     check_riccati_alpha,
@@ -67,17 +67,18 @@ from ..design import (
     riccati_P,
     riccati_Q,
 )
-from ..exceptions import DesignError, DimensionError, DivergenceError
+from ..exceptions import DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer
 from .high_gain import (
     _is_identity,
     affine_step,
     check_options,
+    check_step_stable,
     largest_stable_step,
     matched_gain,
     sampled_chain,
-    spectral_radius,
+    taylor_step,
 )
 from .riccati import chain_order, design_gamma
 
@@ -136,15 +137,7 @@ def q_integral_step_map(alpha: Array, gamma: float, q: int, dt: float, method: s
         g[q:] = S[q:, -1]
         return M, b, g
     F, bc, gc = q_integral_matrices(alpha * gamma ** np.arange(1, N + 1), q, closed)
-    order = 1 if method == "euler" else 4
-    M = np.eye(N)
-    Sm = np.eye(N) * dt
-    term = np.eye(N)
-    for j in range(1, order + 1):
-        term = term @ F * dt / j
-        M = M + term
-        if j < order:
-            Sm = Sm + term * dt / (j + 1)
+    M, Sm = taylor_step(F, dt, method)
     return M, Sm @ bc, Sm @ gc
 
 
@@ -243,10 +236,7 @@ class QIntegralObserver(Observer):
                  model: bool = True, method: str = "exact", x_hat0: Any = None,
                  z_hat0: Any = None, on_unstable: str = "raise") -> None:
         n = chain_order(type(self).__name__, system, order)
-        if isinstance(q, bool) or not isinstance(q, (int, np.integer, float)) or int(q) != q or q < 1:
-            raise DesignError(f"q (the number of output integrators) must be an integer >= 1; "
-                              f"found {q!r}")
-        q = int(q)
+        q = positive_int("q (the number of output integrators)", q)
         N = n + q
         a = binomial_coefficients(N) if alpha is None else check_riccati_alpha(alpha)
         if a.size != N:
@@ -295,24 +285,18 @@ class QIntegralObserver(Observer):
     def _compile(self, dt: float) -> tuple[Any, ...]:
         dt = finite_scalar("dt", dt, positive=True)
         M, b, g = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)
-        rho = spectral_radius(M)
-        if rho >= 1.0 and self.on_unstable != "ignore":
-            msg = (f"{self.method} update of the q-integral observer (n={self.n}, q={self.q}, "
-                   f"gamma={self.gamma_:g}) with sample period {dt:g} is unstable: spectral radius "
-                   f"of the one-step error map {rho:.4g} >= 1; the largest stable period is "
-                   f"{self.max_stable_period():.4g}")
-            if self.on_unstable == "raise":
-                raise DesignError(msg)
-            warnings.warn(msg, RuntimeWarning, stacklevel=3)
+        check_step_stable(M, self.on_unstable,
+                          f"{self.method} update of the q-integral observer (n={self.n}, "
+                          f"q={self.q}, gamma={self.gamma_:g})", dt, self.max_stable_period)
         M0, _, g0 = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method,
                                         closed=False)
-        # the model term enters as w + g phi: compiled like the steps, in plain floats
-        eye = np.eye(self.N)
+        # (closed step, open-loop step, open-loop model term w + g0 phi, RK4 with the model
+        # term at every stage or None, closed step fused with the model term), in plain floats
         rk4 = None
         if self.model and self.method == "rk4":
             rk4 = _compile_rk4_model(q_integral_matrices(self.L, self.q)[0], self.q, dt)
-        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.N)), affine_step(eye, g),
-                 affine_step(eye, g0), rk4, affine_step(M, b, g))
+        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.N)),
+                 affine_step(np.eye(self.N), g0), rk4, affine_step(M, b, g))
         self._steps[dt] = entry
         return entry
 
@@ -337,29 +321,26 @@ class QIntegralObserver(Observer):
         if entry is None:
             entry = self._compile(dt)
         w = self._w
-        if yi - yi == 0.0 and self.model and self.method != "rk4":  # finite: the common case
-            # correction and model term in one compiled call, plain floats throughout (the
-            # system's unchecked phi takes the tuple x_hat itself)
-            self._w = entry[5](yi, float(self.system.phi_unchecked(w[self.q:], u)), *w)  # type: ignore[union-attr]
+        if yi - yi == 0.0:  # finite: the common case
+            if not self.model:
+                self._w = entry[0](yi, *w)
+            elif entry[3] is None:
+                # correction and model term in one compiled call, plain floats throughout (the
+                # system's unchecked phi takes the tuple x_hat itself)
+                self._w = entry[4](yi, float(self.system.phi_unchecked(w[self.q:], u)), *w)  # type: ignore[union-attr]
+            else:  # rk4: model term at every stage, in plain floats
+                phi = self.system.phi_unchecked  # type: ignore[union-attr]
+                self._w = entry[3](yi, lambda *z: float(phi(z, u)), *w)
             return self.x_hat
-        closed, open_, gphi, gphi0, rk4 = entry[:5]
         if yi != yi:  # NaN: sensor dropout, predict without correction
             self.dropouts_ += 1
-            wnew, g = open_(0.0, *w), gphi0
-        elif yi in (np.inf, -np.inf):
-            raise DivergenceError(f"measurement y[{self.output}] is {yi}")
-        elif rk4 is not None:  # model term at every stage, in plain floats
-            phi = self.system.phi_unchecked  # type: ignore[union-attr]
-            self._w = rk4(yi, lambda *z: float(phi(z, u)), *w)
+            wnew = entry[1](0.0, *w)
+            if self.model:
+                # entry[2](phi, *w) = w + g0 phi, the system's unchecked phi on the tuple x_hat
+                wnew = entry[2](float(self.system.phi_unchecked(w[self.q:], u)), *wnew)  # type: ignore[union-attr]
+            self._w = wnew
             return self.x_hat
-        else:
-            wnew, g = closed(yi, *w), gphi
-        if self.model:
-            # plain floats throughout: the system's unchecked phi takes the tuple x_hat itself;
-            # g(phi, *w) = w + g phi, compiled by _compile
-            wnew = g(float(self.system.phi_unchecked(w[self.q:], u)), *wnew)  # type: ignore[union-attr]
-        self._w = wnew
-        return self.x_hat
+        raise DivergenceError(f"measurement y[{self.output}] is {yi}")
 
     @property
     def w_(self) -> Array:

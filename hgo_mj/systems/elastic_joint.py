@@ -126,8 +126,7 @@ class ElasticJoint(_MujocoSystem):
         q, th, w, v, uu = (float(x[0]), float(x[1]), float(x[2]), float(x[3]), float(u[0]))
         I, J = p["link_inertia"], p["motor_inertia"]
         M, g, L, s = p["mass"], p["g"], p["com_distance"], math.sin(q)
-        qdd = (-M * g * L * s - p["stiffness"] * (q - th) - p["link_damping"] * w) / I
-        thdd = (p["stiffness"] * (q - th) - p["motor_damping"] * v + p["gear"] * uu) / J
+        qdd, thdd = ElasticJoint.dynamics(t, x, u, p)[2:].tolist()
         d = {"stiffness": (-(q - th) / I, (q - th) / J), "mass": (-g * L * s / I, 0.0),
              "com_distance": (-M * g * s / I, 0.0), "g": (-M * L * s / I, 0.0),
              "link_damping": (-w / I, 0.0), "motor_damping": (0.0, -v / J),

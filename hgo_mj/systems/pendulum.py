@@ -92,7 +92,7 @@ class Pendulum(_SecondOrderMujocoSystem):
         shape (2, len(names))."""
         th, w, uu, J = float(x[0]), float(x[1]), float(u[0]), p["inertia"]
         m, g, lc, s = p["mass"], p["g"], p["com_distance"], math.sin(th)
-        acc = (p["gear"] * uu - m * g * lc * s - p["damping"] * w) / J
+        acc = Pendulum._acceleration(th, w, uu, p)
         d = {"mass": -g * lc * s / J, "com_distance": -m * g * s / J, "g": -m * lc * s / J,
              "gear": uu / J, "damping": -w / J, "inertia": -acc / J}
         out = np.zeros((2, len(names)))
