@@ -12,19 +12,18 @@ repeats (the machine is shared; the minimum is the least disturbed). Targets (is
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import time
 
 import mujoco
 import numpy as np
 
+from hgo_mj._bench import header, write_section
 from hgo_mj.inputs import Multisine
 from hgo_mj.observers import HighGainObserver
 from hgo_mj.plants import MujocoPlant, model_path
 from hgo_mj.sensors import GaussianNoise, Quantization, SensorChain
-from hgo_mj.simulate import package_versions, simulate
+from hgo_mj.simulate import simulate
 from hgo_mj.systems.pendulum import Pendulum
 
 
@@ -40,7 +39,7 @@ def best_per_call(fn, number: int, repeat: int = 7) -> float:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--write", help="append the results to this markdown file")
+    ap.add_argument("--write", help="replace the bench block of this markdown file")
     ap.add_argument("--steps", type=int, default=20000)
     args = ap.parse_args()
     N = args.steps
@@ -104,10 +103,7 @@ def main() -> int:
                  t_sim_e / t_bare, ""))
 
     lines = [
-        f"Command: `python scripts/bench.py` ({N} steps per figure, best of repeats)",
-        f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"{platform.platform()}",
-        "Versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
+        *header(f"`python scripts/bench.py` ({N} steps per figure, best of repeats)"),
         f"Physics step of pendulum.xml: {m.opt.timestep} s, integrator "
         f"{mujoco.mjtIntegrator(m.opt.integrator).name}",
         "",
@@ -122,8 +118,7 @@ def main() -> int:
     text = "\n".join(lines)
     print(text)
     if args.write:
-        with open(args.write, "a") as fh:
-            fh.write("\n" + text + "\n")
+        write_section(args.write, "bench", text)
     return 0
 
 

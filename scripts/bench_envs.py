@@ -20,14 +20,12 @@ pendulum's model term, two Euler MuJoCo steps per ``step`` as InvertedPendulum-v
 Usage::
 
     python scripts/bench_envs.py                      # print the table
-    python scripts/bench_envs.py --write BENCHMARKS.md  # also replace the section there
+    python scripts/bench_envs.py --write BENCHMARKS.md  # also replace its block there
 """
 
 from __future__ import annotations
 
 import argparse
-import platform
-import re
 import sys
 import time
 from collections.abc import Callable
@@ -38,7 +36,7 @@ import gymnasium as gym
 import hgo_mj.envs  # noqa: F401  (registers the environments)
 import numpy as np
 
-from hgo_mj.simulate import package_versions
+from hgo_mj._bench import header, write_section
 
 SECTION = "## Issue 5: Gymnasium environments"
 
@@ -158,10 +156,8 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
     lines = [
         SECTION,
         "",
-        f"Command: `python scripts/bench_envs.py --rounds {rounds} --steps {steps}` (interleaved "
-        f"bursts of thread CPU time, best burst of {rounds} per figure)",
-        f"Machine: {platform.machine()}, {_cores()} cores, {platform.platform()}",
-        "Versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
+        *header(f"`python scripts/bench_envs.py --rounds {rounds} --steps {steps}` (interleaved "
+                f"bursts of thread CPU time, best burst of {rounds} per figure)"),
         "",
         "| environment | step [us] | step / IPv5 | reset [us] | reset / IPv5 | "
         "SyncVectorEnv(8) steps per CPU s | vector / IPv5 |",
@@ -210,34 +206,17 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _cores() -> int:
-    import os
-
-    return os.cpu_count() or 0
-
-
-def write_section(path: Path, text: str) -> None:
-    """Replace (or append) this script's section of ``path``."""
-    old = path.read_text() if path.exists() else ""
-    pattern = re.compile(rf"^{re.escape(SECTION)}\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(old):
-        new = pattern.sub(lambda _: text + "\n", old, count=1)
-    else:
-        new = old.rstrip("\n") + "\n\n" + text
-    path.write_text(new.rstrip("\n") + "\n")
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=200)
     ap.add_argument("--steps", type=int, default=200)
-    ap.add_argument("--write", type=Path, help="replace the issue 5 section of this file")
+    ap.add_argument("--write", type=Path, help="replace the bench_envs block of this markdown file")
     args = ap.parse_args(argv)
     res = run(args.rounds, args.steps)
     text = table(res, args.rounds, args.steps)
     print(text)
     if args.write:
-        write_section(args.write, text)
+        write_section(args.write, "bench_envs", text)
     return 0
 
 

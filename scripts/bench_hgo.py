@@ -1,7 +1,8 @@
 """Speed of the issue-3 observers and of the LMI sampling bound, side by side with a bare
 ``mj_step``.
 
-Usage: ``python scripts/bench_hgo.py [--write BENCHMARKS.md]`` (``--write`` appends a section).
+Usage: ``python scripts/bench_hgo.py [--write BENCHMARKS.md]`` (``--write`` replaces the block
+between ``<!-- bench_hgo: begin/end -->``).
 
 Every observer's ``update`` is measured in the same process as a bare ``mujoco.mj_step`` of the
 shipped pendulum, round-robin (each round times every candidate once, so that they share the
@@ -25,7 +26,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # tiny matrices: threads only add contention
 
 import argparse
-import platform
 import sys
 import time
 from collections.abc import Callable
@@ -33,11 +33,12 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from hgo_mj._bench import header, write_section
 from hgo_mj.inputs import Multisine
 from hgo_mj.observers import AdaptiveGainObserver, HighGainObserver, QIntegralObserver, RiccatiObserver
 from hgo_mj.plants import make_plant, model_path
 from hgo_mj.sensors import SensorChain, encoder
-from hgo_mj.simulate import package_versions, simulate
+from hgo_mj.simulate import simulate
 from hgo_mj.systems import ElasticJoint, Pendulum
 
 DT = 1e-3
@@ -139,7 +140,7 @@ def bench_lmi(repeat: int) -> dict[str, float]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--write", help="append the section to this markdown file")
+    ap.add_argument("--write", help="replace the bench_hgo block of this markdown file")
     ap.add_argument("--number", type=int, default=500, help="calls per round")
     ap.add_argument("--rounds", type=int, default=60)
     args = ap.parse_args()
@@ -150,11 +151,8 @@ def main() -> int:
     lines = [
         "## Issue 3: observer updates and the LMI sampling bound",
         "",
-        f"Command: `python scripts/bench_hgo.py` ({args.rounds} round-robin rounds of "
-        f"{args.number} calls per figure, best round)",
-        f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"{platform.platform()}",
-        "Versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
+        *header(f"`python scripts/bench_hgo.py` ({args.rounds} round-robin rounds of "
+                f"{args.number} calls per figure, best round)"),
         "",
         "All observers `method=\"exact\"` at a 1 ms period. n = 2: "
         "`Pendulum` (k = gamma = 20), n = 4: `ElasticJoint` (k = gamma = 100), each fed the same "
@@ -212,8 +210,7 @@ def main() -> int:
     text = "\n".join(lines)
     print(text)
     if args.write:
-        with open(args.write, "a") as fh:
-            fh.write("\n" + text + "\n")
+        write_section(args.write, "bench_hgo", text)
     return 0
 
 

@@ -23,23 +23,18 @@ several rounds (the machine is shared: compare the ratios):
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
+from hgo_mj._bench import header, write_section
 from hgo_mj.observers import HighGainObserver
 from hgo_mj.observers.besancon import BesanconObserver
 from hgo_mj.observers.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter, _taylor4
-from hgo_mj.simulate import package_versions
 from hgo_mj.systems.pendulum import Pendulum
 
 DT = 1e-3
-BEGIN = "<!-- bench_kalman: begin -->"
-END = "<!-- bench_kalman: end -->"
 
 
 def candidates() -> dict[str, object]:
@@ -145,24 +140,14 @@ def table(best: dict[str, float], steps: int) -> str:
     ]
     ok = {"ekf": me / fe <= 1 / 3, "ukf": mu / fu <= 1 / 3, "besancon": bo / hg <= 3.0,
           "besancon_vs_model": bo / hgm <= 3.0, "rk4": bo2 / hg <= 3.0}
-    vers = package_versions()
-    try:
-        import filterpy
-
-        vers["filterpy"] = filterpy.__version__
-    except ImportError:  # pragma: no cover
-        pass
     lines = [
-        BEGIN,
         "## Issue 4: EKF, UKF and the Besançon observer (`scripts/bench_kalman.py`)",
         "",
-        f"Command: `python scripts/bench_kalman.py --write BENCHMARKS.md` ({steps} updates per "
-        "figure, 7 interleaved rounds, best round). Same 2-state pendulum and the same model in "
-        "every filter: one RK4 step of `Pendulum.dynamics` per 1 ms sample, `F = T4(h J)` from "
-        "`Pendulum.jacobian`, `H = [1, 0]`, filterpy's UKF with Merwe points (alpha 1, beta 2, "
-        "kappa 0) like ours.",
-        f"Machine: {platform.machine()}, {os.cpu_count()} cores, {platform.system()}; versions: "
-        + ", ".join(f"{k} {v}" for k, v in vers.items()),
+        *header(f"`python scripts/bench_kalman.py --write BENCHMARKS.md` ({steps} updates per "
+                "figure, 7 interleaved rounds, best round). Same 2-state pendulum and the same "
+                "model in every filter: one RK4 step of `Pendulum.dynamics` per 1 ms sample, "
+                "`F = T4(h J)` from `Pendulum.jacobian`, `H = [1, 0]`, filterpy's UKF with Merwe "
+                "points (alpha 1, beta 2, kappa 0) like ours.", extra=("filterpy",)),
         "",
         "| what | time per update [us] | ratio | target |",
         "|---|---:|---|---|",
@@ -187,29 +172,21 @@ def table(best: dict[str, float], steps: int) -> str:
         "the model per sample, "
         "against the exact two-state linear map of the model-free HGO: most of the ratio to the "
         "plain HGO is the model, not the adaptation (compare the HGO with the model term).",
-        END,
     ]
     return "\n".join(lines) + "\n"
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--write", help="append (or replace) this section in a markdown file")
+    ap.add_argument("--write", help="replace the bench_kalman block of this markdown file")
     ap.add_argument("--steps", type=int, default=3000)
     args = ap.parse_args()
     best = measure(args.steps)
     text = table(best, args.steps)
     print(text)
     if args.write:
-        path = Path(args.write)
-        old = path.read_text() if path.exists() else ""
-        if BEGIN in old and END in old:
-            head, rest = old.split(BEGIN, 1)
-            new = head + text.rstrip("\n") + rest.split(END, 1)[1]
-        else:
-            new = old.rstrip("\n") + "\n\n" + text
-        path.write_text(new)
-        print(f"written to {path}", file=sys.stderr)
+        write_section(args.write, "bench_kalman", text)
+        print(f"written to {args.write}", file=sys.stderr)
     return 0
 
 

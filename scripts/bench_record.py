@@ -30,13 +30,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import statistics
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from hgo_mj._bench import header, write_section
 from hgo_mj.cli import RRD_CHUNK_SECONDS
 from hgo_mj.inputs import make_signal
 from hgo_mj.metrics import all_metrics
@@ -44,7 +44,7 @@ from hgo_mj.observers import make_observer
 from hgo_mj.plants import make_plant
 from hgo_mj.record import Recorder, record_trajectory
 from hgo_mj.sensors import SensorChain
-from hgo_mj.simulate import package_versions, simulate
+from hgo_mj.simulate import simulate
 
 DURATION = 10.0
 
@@ -127,7 +127,7 @@ def timed(fn, path: Path) -> tuple[float, float]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--write", help="append the results to this markdown file")
+    ap.add_argument("--write", help="replace the bench_record block of this markdown file")
     args = ap.parse_args()
     variants = {"plain": run_plain, "live": run_live, "after": run_after,
                 "live_nofooter": run_live_nofooter, "command": run_command,
@@ -149,14 +149,11 @@ def main() -> int:
     best = {k: min(v) for k, v in times.items()}
     med = {k: statistics.median(v) for k, v in times.items()}
     best_cpu = {k: min(v) for k, v in cpu.items()}
-    v = package_versions()
     lines = [
         "## Issue 6: rerun recordings",
         "",
-        f"Command: `python scripts/bench_record.py --repeats {args.repeats}` (each variant run "
-        f"{args.repeats} times, interleaved, after one warm-up; best and median)",
-        f"Machine: {platform.machine()}, {os.cpu_count()} cores, {platform.platform()}",
-        "Versions: " + ", ".join(f"{k} {v[k]}" for k in v),
+        *header(f"`python scripts/bench_record.py --repeats {args.repeats}` (each variant run "
+                f"{args.repeats} times, interleaved, after one warm-up; best and median)"),
         f"Run: pendulum.xml, {DURATION:g} s at 1 kHz ({int(DURATION * 1000) + 1} samples), sensor "
         "gaussian + quantize, two high-gain observers (k = 15, 60), multisine input.",
         "",
@@ -188,8 +185,7 @@ def main() -> int:
     text = "\n".join(lines)
     print(text)
     if args.write:
-        with open(args.write, "a") as fh:
-            fh.write("\n" + text + "\n")
+        write_section(args.write, "bench_record", text)
     return 0
 
 

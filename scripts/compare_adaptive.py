@@ -50,13 +50,15 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from hgo_mj._bench import versions_line
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.inputs import Multisine
+from hgo_mj.metrics import settling_time
 from hgo_mj.observers import make_observer
 from hgo_mj.observers.besancon import BesanconObserver
 from hgo_mj.plants import make_plant
 from hgo_mj.sensors import GaussianNoise, SensorChain
-from hgo_mj.simulate import package_versions, simulate
+from hgo_mj.simulate import simulate
 
 NOISES = (1e-4, 1e-3)
 SEEDS = (1, 2, 3, 4, 5)
@@ -217,15 +219,6 @@ def _two_link(model_sys: Any, true_sys: Any, sensor: Any, mj: Any, tr: dict[str,
     return obs, skipped, maps
 
 
-def time_within(t: np.ndarray, rel_err: np.ndarray, band: float = 0.05) -> float:
-    bad = np.any(~(rel_err <= band), axis=1)
-    if not bad.any():
-        return 0.0
-    if bad[-1]:
-        return math.inf
-    return float(t[int(np.flatnonzero(bad)[-1]) + 1])
-
-
 def run_one(job: tuple[str, float, int, bool, float, str]) -> dict[str, Any]:
     """One half of a run: the methods of ``group`` (``"adaptive"`` or ``"kalman"``) on the
     measurements of ``seed`` (the other half sees the same ones)."""
@@ -259,7 +252,7 @@ def run_one(job: tuple[str, float, int, bool, float, str]) -> dict[str, Any]:
         err = traj.x - rec.x_hat
         out["methods"][k] = {
             "t": traj.t[::stride], "rel": rel[::stride],
-            "t5": time_within(traj.t, rel), "final": rel[-1].tolist(),
+            "t5": float(settling_time(traj.t, rel, 0.05).max()), "final": rel[-1].tolist(),
             "rmse": np.sqrt(np.mean(err[half] ** 2, axis=0)).tolist(),
             "cost_us": rec.update_time * 1e6, "duration": duration,
         }
@@ -315,7 +308,7 @@ def write_report(groups: dict, out: Path, args: Any, elapsed: float) -> None:
         f"{f'{args.duration:g}-s runs, ' if getattr(args, 'duration', None) else ''}"
         f"{len(args.seeds)} seed(s) per condition, "
         f"wall {elapsed / 60:.1f} min on {args.jobs} process(es)); do not edit by hand.",
-        f"Versions: {', '.join(f'{k} {v}' for k, v in package_versions().items())}.",
+        versions_line() + ".",
         "",
         "Each run feeds every method the same measurements; numbers are medians over the seeds "
         "(run: the simulated time of the method -- the Kalman filters, which settle within about "

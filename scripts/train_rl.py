@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import time
 from collections.abc import Sequence
@@ -43,6 +42,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from hgo_mj._bench import machine_line, versions_line
+from hgo_mj._json import write_json
 
 ENVS = ("hgo_mj/PendulumSwingUp-v0", "hgo_mj/ElasticJointReach-v0")
 MODES = ("true", "estimate", "measurement")
@@ -250,27 +252,26 @@ def report(runs: list[Run], args: argparse.Namespace, wall: float) -> str:
         f"evaluation), i.e. about {cpu / 60 / max(args.workers, 1):.0f} min on "
         f"{args.workers} free cores. Train time per run is wall time (training only), CPU time "
         f"includes the evaluations.",
-        f"- Machine: {platform.machine()}, {os.cpu_count()} cores, {platform.platform()} (a shared "
-        f"machine: other jobs' load makes the times pessimistic, never optimistic).",
-        f"- Versions: {_versions()}.",
+        f"- {machine_line()} (a shared machine: other jobs' load makes the times pessimistic, "
+        "never optimistic).",
+        f"- {versions_line(extra=('stable-baselines3', 'torch'))}.",
         "",
     ]
     return "\n".join(lines)
 
 
-def _versions() -> str:
-    from importlib import metadata
-
-    out = []
-    for pkg in ("hgo_mj", "gymnasium", "mujoco", "stable-baselines3", "torch", "numpy"):
-        try:
-            out.append(f"{pkg} {metadata.version(pkg)}")
-        except metadata.PackageNotFoundError:
-            out.append(f"{pkg} not installed")
-    return ", ".join(out)
-
-
 # --------------------------------------------------------------------------- main
+def _run_from_json(raw: dict[str, Any]) -> Run:
+    """A :class:`Run` back from ``rl.json``, which is strict JSON: a time that was ``nan``
+    (not measured) is written as ``null`` and read back as ``nan``; a return of ``None``
+    stays ``None`` (n/a)."""
+    raw = dict(raw)
+    for k in ("train_seconds", "cpu_seconds"):
+        if raw.get(k) is None:
+            raw[k] = float("nan")
+    return Run(**raw)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--algo", choices=("sac", "ppo"), default="sac")
@@ -287,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.report_from is not None:
         raw = json.loads(args.report_from.read_text())
-        runs = [Run(**r) for r in raw["runs"]]
+        runs = [_run_from_json(r) for r in raw["runs"]]
         for k, v in raw["args"].items():
             setattr(args, k, v)
         args.out.write_text(report(runs, args, raw["wall"]))
@@ -320,8 +321,8 @@ def main(argv: list[str] | None = None) -> int:
     args.out.write_text(report(done, args, wall))
     keep = {k: getattr(args, k) for k in ("algo", "full", "steps", "eval_episodes", "seed_list",
                                            "workers")}
-    args.out.with_suffix(".json").write_text(json.dumps(
-        {"args": keep, "wall": wall, "runs": [asdict(r) for r in done]}, indent=1) + "\n")
+    write_json(args.out.with_suffix(".json"),
+               {"args": keep, "wall": wall, "runs": [asdict(r) for r in done]})
     print(f"wrote {args.out} ({wall / 60:.1f} min)")
     return 0
 

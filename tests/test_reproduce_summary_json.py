@@ -12,13 +12,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hgo_mj._json import strict_json
 from hgo_mj.reproduce import (
     REPRODUCTIONS,
+    finish,
     fmt_num,
     nonfinite_keys,
     null_note,
     read_summary,
-    strict_json,
     write_summary,
 )
 
@@ -63,10 +64,12 @@ def test_fmt_num():
 
 @pytest.mark.parametrize("name", sorted(REPRODUCTIONS))
 def test_every_reproduction_writes_through_write_summary(name):
-    """Each ``run`` writes ``summary.json`` with :func:`write_summary` (no other ``json.dumps``
-    in the module). The numbers themselves are read back strictly by each reproduction's test
-    (``read_summary``); ``besancon2004`` (``tests/test_besancon2004.py``) has a non-finite one."""
+    """Each ``run`` writes ``summary.json`` with :func:`write_summary`, through :func:`finish`
+    (no other ``json.dumps`` in the module). The numbers themselves are read back strictly by
+    each reproduction's test (``read_summary``); ``besancon2004``
+    (``tests/test_besancon2004.py``) has a non-finite one."""
     module = importlib.import_module(REPRODUCTIONS[name][0])
     src = inspect.getsource(module)
-    assert "write_summary(out, summary)" in inspect.getsource(module.run)
+    assert "write_summary(out, summary)" in inspect.getsource(finish)
+    assert "finish(out, summary, " in inspect.getsource(module.run)
     assert "json.dumps" not in src and '"summary.json").write_text' not in src

@@ -15,7 +15,9 @@ one file per run, ``rrd.with_name(f"{rrd.stem}_{case}.rrd")``, and list them in 
 With ``rrd=None`` it writes no recording.
 
 ``summary.json`` is strict JSON (RFC 8259: ``jq`` and every parser read it): each reproduction
-writes it with :func:`write_summary`, which maps a non-finite float to ``null`` -- ``inf`` is
+ends its ``run`` with :func:`finish` (the package versions into the summary, then
+``summary.json`` and ``report.txt``; :func:`record_runs` writes the recordings), which writes
+the file with :func:`write_summary`, which maps a non-finite float to ``null`` -- ``inf`` is
 a time that never came (a level never reached and held to the end of the run, or a divergent
 run) and ``nan`` a number that is undefined -- and ``run`` returns that same JSON-ready
 summary. The report prints such a number as "never" / "undefined" (:func:`fmt_num`) and lists
@@ -27,12 +29,13 @@ from __future__ import annotations
 import importlib
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .._json import strict_json
+from .._json import write_json
 from ..exceptions import DesignError
 
 #: name -> (module, one line)
@@ -91,11 +94,42 @@ def null_note(summary: dict[str, Any], limit: int = 12) -> str:
 
 
 def write_summary(out: str | Path, summary: dict[str, Any]) -> dict[str, Any]:
-    """Write ``out/summary.json`` as strict JSON (:func:`strict_json`, ``allow_nan=False``) and
-    return what was written (the parsed form of the file)."""
-    data = strict_json(summary)
-    Path(out, "summary.json").write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+    """Write ``out/summary.json`` as strict JSON (:func:`hgo_mj._json.write_json`) and return
+    what was written (the parsed form of the file)."""
+    return write_json(Path(out, "summary.json"), summary)
+
+
+def finish(out: str | Path, summary: dict[str, Any], report: str) -> dict[str, Any]:
+    """The common end of a reproduction's ``run``: add the package versions to ``summary``
+    (``summary["versions"]``), write ``out/summary.json`` (:func:`write_summary`) and
+    ``out/report.txt`` (``report`` and, after a blank line, :func:`null_note`'s line when there
+    are non-finite numbers), and return the JSON-ready summary."""
+    from ..simulate import package_versions
+
+    summary["versions"] = package_versions()
+    note = null_note(summary)
+    data = write_summary(out, summary)
+    text = report.rstrip("\n") + "\n"
+    Path(out, "report.txt").write_text(text + (f"\n{note}\n" if note else ""))
     return data
+
+
+def record_runs(rrd: str | Path, runs: Mapping[str, Any],
+                names: Mapping[str, str] | None = None) -> list[str]:
+    """Record each trajectory of ``runs`` (``suffix -> trajectory``) with
+    :func:`hgo_mj.record.record_trajectory`: suffix ``""`` to ``rrd`` itself, any other to
+    ``<stem>_<suffix>.rrd`` next to it (``names``: an optional recording name per suffix).
+    Returns the paths written, in order, as strings (for ``summary["recordings"]``)."""
+    from ..record import record_trajectory
+
+    rrd = Path(rrd)
+    paths = []
+    for suffix, traj in runs.items():
+        path = rrd if not suffix else rrd.with_name(f"{rrd.stem}_{suffix}.rrd")
+        kw = {"recording_name": names[suffix]} if names and suffix in names else {}
+        record_trajectory(traj, path, **kw)
+        paths.append(str(path))
+    return paths
 
 
 def _reject_constant(name: str) -> Any:

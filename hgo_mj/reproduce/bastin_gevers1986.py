@@ -55,13 +55,14 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..inputs import Multisine
+from ..metrics import settling_time
 from ..observers.bastin_gevers import AOCF, BastinGeversObserver
 from ..plants import make_plant
 from ..plants.ode import OdePlant
 from ..simulate import Trajectory, simulate
 from ..systems.base import Array, System
 from ..systems.papers import BioreactorBastinGevers, bastin_gevers_input
-from . import fmt_num, null_note, write_summary
+from . import finish, fmt_num, record_runs
 
 #: design constant of the AOCF used throughout (``F = -c2``)
 C2 = 1.0
@@ -317,11 +318,7 @@ def part_pendulum() -> tuple[dict[str, Any], dict]:
         d = tr.observers["bastin_gevers"].diagnostics
         est = np.column_stack([d[f"theta_{nm}"] for nm in names])
         rel = (est - truth) / truth
-        t5 = []
-        for j in range(len(names)):
-            bad = np.flatnonzero(np.abs(rel[:, j]) > 0.05)
-            t5.append(float(tr.t[bad[-1] + 1]) if bad.size and bad[-1] + 1 < tr.t.size
-                      else (0.0 if not bad.size else math.inf))
+        t5 = settling_time(tr.t, rel, 0.05).tolist()
         e = tr.x - tr.observers["bastin_gevers"].x_hat
         sel = tr.t >= P["T"] / 2
         section[case] = {
@@ -542,17 +539,9 @@ def run(out: Path, *, rrd: Path | None = None, sweep: bool = True) -> dict[str, 
     }
     summary["figures"] = _figures(out, curves_a, trajs_b, trajs_c)
     if rrd is not None:
-        from ..record import record_trajectory
-
-        rrd = Path(rrd)
-        record_trajectory(trajs_b["monod"][0], rrd)
-        record_trajectory(trajs_c["damping_known"][0], rrd.with_name(f"{rrd.stem}_pendulum.rrd"))
-        summary["recordings"] = [str(rrd), str(rrd.with_name(f"{rrd.stem}_pendulum.rrd"))]
-    report = _report(summary)
-    note = null_note(summary)
-    data = write_summary(out, summary)
-    (out / "report.txt").write_text(report + (f"\n{note}\n" if note else ""))
-    return data
+        summary["recordings"] = record_runs(rrd, {"": trajs_b["monod"][0],
+                                                  "pendulum": trajs_c["damping_known"][0]})
+    return finish(out, summary, _report(summary))
 
 
 __all__ = ["FrozenAOCF65", "check_transformations", "frozen_input", "part_bioreactor",

@@ -57,6 +57,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from ..metrics import settling_time
 from ..observers.besancon import BesanconObserver
 from ..plants.ode import OdePlant
 from ..simulate import package_versions
@@ -67,7 +68,7 @@ from ..systems.papers import (
     besancon_ex2_input,
     besancon_ex2_signal,
 )
-from . import fmt_num, null_note, write_summary
+from . import finish, fmt_num
 
 Array = NDArray[np.float64]
 
@@ -163,13 +164,9 @@ def _at(run: dict[str, Array], key: str, t: float) -> Array:
 
 
 def time_within(t: Array, est: Array, true: Array, rel: float = 0.05) -> float:
-    """Time after which every component of ``est`` stays within ``rel`` of ``true``."""
-    bad = np.any(np.abs(est - true) > rel * np.abs(true), axis=1)
-    if not bad.any():
-        return float(t[0])
-    if bad[-1]:
-        return math.inf
-    return float(t[int(np.flatnonzero(bad)[-1]) + 1])
+    """Time after which every component of ``est`` stays within ``rel`` of ``true``
+    (:func:`hgo_mj.metrics.settling_time` over all components; a NaN estimate is outside)."""
+    return float(settling_time(t, est - true, rel * np.abs(true)).max())
 
 
 def true_regressor_gram(t: Array, x: Array, window: float = WINDOW) -> dict[str, Any]:
@@ -299,11 +296,7 @@ def run(out: Path, *, rrd: Path | None = None, dt: float = DT,
             str(record_sampled(r1, s1, rrd, "example 1")),
             str(record_sampled(r2, s2, rrd.with_name(f"{rrd.stem}_ex2.rrd"), "example 2"))]
     summary["wall_time_s"] = time.perf_counter() - t_start
-    summary["versions"] = package_versions()
-    report = _report(summary)
-    data = write_summary(out, summary)
-    (out / "report.txt").write_text(report)
-    return data
+    return finish(out, summary, _report(summary))
 
 
 def _fmt(v: Any) -> str:
@@ -393,8 +386,6 @@ def _report(s: dict[str, Any]) -> str:
         "",
         f"Wall time {s['wall_time_s']:.1f} s.",
     ]
-    if null_note(s):
-        lines.append(null_note(s))
     if s.get("recordings"):
         lines.append(f"Recordings (rerun): {', '.join(s['recordings'])}.")
     return "\n".join(lines) + "\n"

@@ -73,7 +73,7 @@ from ..plants.ode import OdePlant
 from ..sensors import GaussianNoise, SensorChain
 from ..simulate import Trajectory, simulate
 from ..systems.papers import BioreactorBullinger, bullinger_input
-from . import fmt_num, null_note, write_summary
+from . import finish, fmt_num, record_runs
 
 Array = NDArray[np.float64]
 
@@ -400,13 +400,9 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
         k_027 = (low[0], k_final_on(clean.y_clean[:, 0], (low[0], 0.0))[1])
     summary["figures"] = _figures(out, clean, runs[0], params, k_027)
     if rrd is not None:
-        from ..record import record_trajectory
-
-        rrd = Path(rrd)
-        clean_rrd = rrd.with_name(f"{rrd.stem}_noise_free.rrd")
-        record_trajectory(runs[0], rrd, recording_name="bullinger1998 noisy (seed 0)")
-        record_trajectory(clean, clean_rrd, recording_name="bullinger1998 noise-free")
-        summary["recordings"] = [str(rrd), str(clean_rrd)]
+        summary["recordings"] = record_runs(
+            rrd, {"": runs[0], "noise_free": clean},
+            names={"": "bullinger1998 noisy (seed 0)", "noise_free": "bullinger1998 noise-free"})
     summary.update({
         "paper": {"k_final": PAPER_K_FINAL, "k_final_discrete_1997": PAPER_K_FINAL_DISCRETE_1997,
                   "output_error_in_lambda_strip_after_first_hours": True},
@@ -417,8 +413,4 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
         "seeds": seeds, "method": METHOD,
     })
     summary["runtime_s"] = time.perf_counter() - t0
-    report = _report(summary)
-    note = null_note(summary)
-    data = write_summary(out, summary)
-    (out / "report.txt").write_text(report + (f"{note}\n" if note else ""))
-    return data
+    return finish(out, summary, _report(summary))

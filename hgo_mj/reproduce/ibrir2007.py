@@ -90,7 +90,7 @@ from ..design import (
     sampling_lmi_63,
 )
 from ..exceptions import DesignError
-from . import null_note, write_summary
+from . import finish
 
 ALPHA = (3.0, 2.0)
 GAMMA = 6.0
@@ -573,8 +573,4 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
     summary["figures"] = _figures(out, noise, euler, lmi, mj)
     summary["run_time_s"] = time.perf_counter() - t0
     summary = _tolist(summary)
-    report = _report(summary)
-    note = null_note(summary)
-    data = write_summary(out, summary)
-    (out / "report.txt").write_text(report + (f"{note}\n" if note else ""))
-    return data
+    return finish(out, summary, _report(summary))

@@ -36,7 +36,6 @@ eq. 25-31, Fig. 1.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -44,13 +43,14 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..inputs import Multisine
+from ..metrics import settling_time
 from ..observers.jo_son import JoSonForm, JoSonObserver, jo_son_gain
 from ..plants import make_plant
 from ..plants.ode import OdePlant
 from ..simulate import simulate
 from ..systems.base import Array
 from ..systems.papers import JoSonExample, jo_son_input
-from . import fmt_num, null_note, write_summary
+from . import finish, fmt_num, record_runs
 
 PAPER = {"lam": 2.0, "gamma": 5.0, "T": 60.0}
 LEVELS = (1e-1, 1e-2)
@@ -60,14 +60,9 @@ ELASTIC = {"lam": 50.0, "gamma": (1e4, 20.0, 1e6), "T": 30.0, "dt": 0.001, "dt_c
 
 
 def stays_below(t: Array, e: Array, level: float) -> float:
-    """First time after which ``e`` stays below ``level`` to the end (``inf``: never;
-    ``t[0]``: always)."""
-    bad = np.flatnonzero(~(e < level))
-    if bad.size == 0:
-        return float(t[0])
-    if bad[-1] + 1 >= t.size:
-        return math.inf
-    return float(t[bad[-1] + 1])
+    """First time after which ``e`` (one column) stays within ``level`` to the end (``inf``:
+    never; ``t[0]``: always; a NaN counts as outside): :func:`hgo_mj.metrics.settling_time`."""
+    return float(settling_time(t, np.reshape(e, (-1, 1)), level)[0])
 
 
 def check_coordinates(samples: int = 200, seed: int = 0) -> dict[str, Any]:
@@ -161,7 +156,7 @@ def part_elastic_joint(dt_check: bool = True) -> tuple[dict[str, Any], Any]:
     d = tr.observers["jo_son"].diagnostics
     est = np.column_stack([d[f"theta_{nm}"] for nm in form.theta_names])
     rel = (est - truth) / truth
-    t5 = [stays_below(tr.t, np.abs(rel[:, j]), 0.05) for j in range(3)]
+    t5 = settling_time(tr.t, rel, 0.05).tolist()
     # physical parameters with the gear known: J = gear / theta1, d_m = theta2 J, K = theta3 J
     J_hat = p["gear"] / est[-1, 0]
     ev = tr.x[:, 3] - tr.observers["jo_son"].x_hat[:, 0]
@@ -325,16 +320,8 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
     }
     summary["figures"] = _figures(out, curves, el)
     if rrd is not None:
-        from ..record import record_trajectory
-
-        rrd = Path(rrd)
-        record_trajectory(el[0], rrd)
-        summary["recordings"] = [str(rrd)]
-    report = _report(summary)
-    note = null_note(summary)
-    data = write_summary(out, summary)
-    (out / "report.txt").write_text(report + (f"\n{note}\n" if note else ""))
-    return data
+        summary["recordings"] = record_runs(rrd, {"": el[0]})
+    return finish(out, summary, _report(summary))
 
 
 __all__ = ["check_coordinates", "part_elastic_joint", "part_example", "run", "stays_below"]
