@@ -1,4 +1,4 @@
-"""Observer helpers of the environments: a bank of observers run as one, and name builders."""
+"""Observer helpers of the environments: a bank of observers run as one."""
 
 from __future__ import annotations
 
@@ -10,27 +10,9 @@ from numpy.typing import NDArray
 
 from hgo_mj.exceptions import DesignError
 from hgo_mj.observers import Observer
+from hgo_mj.observers.high_gain import derivative_names
 
 Array = NDArray[np.float64]
-
-_DERIVATIVES = {"_angle": ("_angle", "_velocity", "_acceleration", "_jerk"),
-                "_position": ("_position", "_velocity", "_acceleration", "_jerk"),
-                "angle": ("angle", "angular_velocity", "angular_acceleration", "angular_jerk")}
-
-
-def derivative_names(output: str, order: int) -> tuple[str, ...]:
-    """Names of ``(y, y', ..., y^(order-1))`` for an output named ``output``.
-
-    ``link1_angle`` gives ``link1_angle, link1_velocity, link1_acceleration, link1_jerk``;
-    ``angle`` gives ``angle, angular_velocity, ...`` (the pendulums' state names); other names
-    and higher derivatives get ``<name>_d<j>``.
-    """
-    for suffix, words in _DERIVATIVES.items():
-        if output.endswith(suffix):
-            base = output[: -len(suffix)]
-            return tuple(base + words[j] if j < len(words) else f"{output}_d{j}"
-                         for j in range(order))
-    return tuple(output if j == 0 else f"{output}_d{j}" for j in range(order))
 
 
 class ObserverBank(Observer):
@@ -48,11 +30,14 @@ class ObserverBank(Observer):
         Names of the concatenated estimate; default: each member's ``state_names`` (for a
         member without a system, the derivatives of ``output_names[member.output]``).
     output_names : sequence of str, optional
-        Names of the measured channels, used for the default names.
+        Names of the measured channels, used for the default names (default ``y1, y2, ...``,
+        1-based as in :attr:`~hgo_mj.observers.MultiOutputHighGainObserver.output_names`).
 
     Attributes
     ----------
     members : tuple of Observer
+    outputs : tuple of int
+        The measured channels the members read.
     """
 
     name = "bank"
@@ -68,6 +53,9 @@ class ObserverBank(Observer):
         self.system = None
         self.n = sum(len(o.state_names) for o in members)
         self.output = members[0].output
+        #: the measured channels the members read (a multi-output member's ``outputs``)
+        self.outputs = tuple(int(c) for o in members
+                             for c in (getattr(o, "outputs", None) or (o.output,)))
         self.dropouts_ = 0
         self.inverse_failures_ = 0
         if names is None:
@@ -76,7 +64,7 @@ class ObserverBank(Observer):
                 if o.system is None and output_names is not None:
                     built += derivative_names(str(output_names[o.output]), len(o.state_names))
                 elif o.system is None:
-                    built += derivative_names(f"y{o.output}", len(o.state_names))
+                    built += derivative_names(f"y{o.output + 1}", len(o.state_names))
                 else:
                     built += list(o.state_names)
             names = built

@@ -51,8 +51,6 @@ from hgo_mj.observers import OBSERVERS, Observer, make_observer
 from hgo_mj.plants import make_plant
 from hgo_mj.sensors import SensorChain, Stage, make_stage
 
-from ._observers import ObserverBank
-
 Array = NDArray[np.float64]
 
 #: what the agent can be shown
@@ -73,6 +71,17 @@ def chain_seed(seed: int) -> int:
     independent of the environment's own ``np_random`` (which the same integer also seeds)."""
     ss = np.random.SeedSequence([int(seed), 0x5E4503])
     return int(ss.generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+def reset_chain(chain: SensorChain, seed: int | None) -> None:
+    """Reset a sensor chain at an environment's ``reset(seed=...)``: re-seed it (from
+    :func:`chain_seed`) on a seeded reset; otherwise reset its stages and let its generator
+    continue (Gymnasium's convention for ``reset()`` without a seed)."""
+    if seed is not None:
+        chain.reset(chain_seed(seed))
+    else:
+        for s in chain.stages:
+            s.reset()
 
 
 def sensor_chain(spec: Any, seed: int | None = None) -> SensorChain:
@@ -160,7 +169,6 @@ class Task:
     default_bound: ClassVar[float] = 1e6
     goal_names: ClassVar[tuple[str, ...]] = ()
     goal_bound: ClassVar[float] = math.pi
-    reward_terms: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, max_action: Sequence[float]) -> None:
         self.max_action = tuple(finite_scalar(f"max_action[{i}]", v, positive=True)
@@ -217,7 +225,6 @@ class _Plan:
                 self.labels.append(name)
                 low.append(-b)
         self.low = low
-        self.identity = all(not per for _, per, _ in self.items)
 
     def compile(self, n_goal: int) -> Callable[[list[float], tuple[float, ...]], list[float]]:
         """Straight-line ``encode(vals, goal) -> list`` for this plan (no loop, no branches
@@ -235,16 +242,6 @@ class _Plan:
         scope: dict[str, Any] = {"cos": math.cos, "sin": math.sin}
         exec(compile(src, "<observation encoder>", "exec"), scope)  # noqa: S102 - numbers only
         return scope["encode"]
-
-    def encode(self, vals: list[float], out: list[float]) -> None:
-        cos, sin = math.cos, math.sin
-        for i, per, b in self.items:
-            v = vals[i]
-            if per:
-                out.append(cos(v))
-                out.append(sin(v))
-            else:
-                out.append(b if v > b else -b if v < -b else v)
 
 
 class _MjIO:
@@ -344,12 +341,6 @@ class _MjIO:
         raise DivergenceError(f"MuJoCo found a non-finite or huge value (mjWARN_BAD"
                               f"{bad[0] if bad else '?'}) and reset the simulation near "
                               f"t={t:g}; input was {u}")
-
-    def state(self) -> list[float]:
-        return self.read_x()
-
-    def outputs(self) -> Array:
-        return np.array(self.read_y())
 
 
 class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
@@ -544,8 +535,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         self._y: list[float] = [0.0] * len(self.output_names)
         self._y_held: list[float] = [0.0] * len(self.output_names)
         self._x_hat: list[float] | None = None
-        self._stages = self.sensor.stages
-        self._apply = [s.apply_list for s in self._stages]
+        self._apply = [s.apply_list for s in self.sensor.stages]
         self._rng = self.sensor.rng
         self._update = None if self.observer is None else _list_update(self.observer)
         lean = (self._mode == 0 and not self._diag_on and not self._full_info
@@ -644,8 +634,6 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         outs = getattr(obs, "outputs", None)
         if not isinstance(outs, tuple | list) or not outs:
             outs = (getattr(obs, "output", 0),)
-        if isinstance(obs, ObserverBank):
-            outs = tuple(o.output for o in obs.members)
         if max(outs) >= m:
             raise DimensionError(f"the observer reads output channel {max(outs)}; the plant has "
                                  f"{m} output(s) {list(self.output_names)}")
@@ -684,12 +672,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             if self._rec_rows["t"]:
                 self._write_episode()
             self._rec_seed = seed
-        if seed is not None:
-            self.sensor.reset(chain_seed(seed))
-            self._rng = self.sensor.rng
-        else:
-            for s in self._stages:
-                s.reset()
+        reset_chain(self.sensor, seed)
+        self._rng = self.sensor.rng  # a new generator after a seeded reset
         task, rng = self.task, self.np_random
         x0 = task.initial_state(rng)
         goal = task.sample_goal(rng)
@@ -980,7 +964,6 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
                                   f"({type(obs).__name__}) does not pickle ({exc}); give the "
                                   f"observer by name (observer={obs.name!r}, observer_kwargs="
                                   f"...) for a picklable environment") from None
-            kwargs["observer"] = obs
         return (_rebuild, (type(self), kwargs))
 
 

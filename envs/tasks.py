@@ -60,7 +60,6 @@ class SwingUpTask(Task):
     }
     default_sensor = ({"stage": "gaussian", "std": 0.01},)
     periodic = frozenset({"angle"})
-    reward_terms = ("upright", "velocity", "control")
 
     def __init__(self, max_torque: float = 0.5, start_noise: float = 0.1) -> None:
         super().__init__((max_torque,))
@@ -109,7 +108,6 @@ class BalanceTask(Task):
         "besancon": {"lam": 10.0},
     }
     default_sensor = ({"stage": "gaussian", "std": 0.005},)
-    reward_terms = ("alive", "angle", "control")
 
     def __init__(self, max_acceleration: float = 2.0, max_angle: float = 0.5,
                  start_noise: float = 0.2) -> None:
@@ -165,7 +163,6 @@ class ReachTask(Task):
     default_sensor = ({"stage": "gaussian", "std": 0.001},
                       {"stage": "quantize", "counts_per_rev": 16384})
     goal_names = ("target_link_angle",)
-    reward_terms = ("tracking", "velocity", "vibration", "control")
 
     def __init__(self, max_torque: float = 2.0, target_range: float = 1.0,
                  start_noise: float = 0.1, max_cost: float = 10.0) -> None:
@@ -222,7 +219,6 @@ class Reach2LinkTask(Task):
     default_sensor = ({"stage": "gaussian", "std": 0.001},
                       {"stage": "quantize", "counts_per_rev": 16384})
     goal_names = ("target_link1_angle", "target_link2_angle")
-    reward_terms = ("tracking", "velocity", "vibration", "control")
     #: gain of the fallback per-link observers
     fallback_k: ClassVar[float] = 150.0
 

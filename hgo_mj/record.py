@@ -73,6 +73,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from numpy.typing import NDArray
 
+from ._json import strict_json
 from .exceptions import DesignError, DimensionError
 
 Array = NDArray[np.float64]
@@ -93,17 +94,13 @@ OBSERVER_COLORS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40),
 GHOST_ALPHA = 90
 
 _GAIN_KEYS = ("k", "gain", "gamma")
-#: least wall time between two flushes started after blocks (``flush_each="start"``), seconds
+#: least wall time between two flushes started after blocks, seconds
 _FLUSH_INTERVAL = 0.25
 #: pose rows queued before they are posed and sent (a 2 s block at 50 Hz has 101)
 _POSE_ROWS = 250
-#: the chunk batcher of a recorder's own stream (``None``: rerun's default, which holds chunks
-#: up to 200 ms or 2 MiB: the file writer would then encode a run's last blocks at close)
-BATCHER: dict[str, Any] | None = {"flush_tick": 0.01, "flush_num_bytes": 262144}
-
-
-def _batcher() -> Any:
-    return None if BATCHER is None else rr.ChunkBatcherConfig(**BATCHER)
+#: the chunk batcher of a recorder's own stream (rerun's default holds chunks up to 200 ms or
+#: 2 MiB: the file writer would then encode a run's last blocks at close)
+_BATCHER = rr.ChunkBatcherConfig(flush_tick=0.01, flush_num_bytes=262144)
 
 
 _THETA_PREFIXES = ("theta_hat_", "theta_hat", "theta_", "theta")
@@ -111,20 +108,6 @@ _THETA_PREFIXES = ("theta_hat_", "theta_hat", "theta_", "theta")
 
 def _part(name: str) -> str:
     return rr.escape_entity_path_part(str(name))
-
-
-def _json(obj: Any, default: Any, depth: int = 2, indent: str = "") -> str:
-    """JSON of ``obj`` with its first ``depth`` levels of mappings and lists one item a line
-    (``json.dumps(obj, indent=2)`` runs the pure-Python encoder: ten times slower)."""
-    inner = indent + "  "
-    if depth > 0 and isinstance(obj, Mapping) and obj:
-        items = [json.dumps({k: None})[1:-5] + _json(v, default, depth - 1, inner)
-                 for k, v in obj.items()]
-        return "{\n" + ",\n".join(inner + i for i in items) + "\n" + indent + "}"
-    if depth > 0 and isinstance(obj, (list, tuple)) and obj:
-        items = [_json(v, default, depth - 1, inner) for v in obj]
-        return "[\n" + ",\n".join(inner + i for i in items) + "\n" + indent + "]"
-    return json.dumps(obj, default=default)
 
 
 def observer_color(i: int) -> tuple[int, int, int]:
@@ -516,14 +499,6 @@ class Recorder:
         Samples per unit of simulated time of the 3D poses (``None``: every sample). Pose
         rows are queued and sent 250 at a time (and by :meth:`flush` and :meth:`close`): a
         batch costs about the same whatever its length.
-    flush_each : {"start", "wait", "none"}
-        After a block: ``"start"`` (default) starts a flush to the file without waiting for it,
-        at most every 0.25 s of wall time (rerun's own thread writes each block within a few
-        milliseconds anyway; a flush costs about 0.5 ms); ``"wait"`` blocks after every block
-        until it is written (costs the encoding time on the caller's thread); ``"none"`` leaves
-        it to rerun's sink. Either way a run killed part-way leaves every block before the
-        last in the file (the 3D poses are sent every few blocks, see ``pose_rate``), and
-        :meth:`close` always waits.
     footer : bool
         End the file with rerun's footer (a manifest of its chunks, for random access and
         ``rerun.chunk.RrdReader(...).store()``; about 0.1 MB and 1.3 ms at :meth:`close` for a
@@ -545,7 +520,7 @@ class Recorder:
                  params: Mapping[str, float] | None = None,
                  stream: rr.RecordingStream | None = None, application_id: str = "hgo_mj",
                  recording_name: str | None = None, pose_rate: float | None = 50.0,
-                 flush_each: str = "start", footer: bool = True) -> None:
+                 footer: bool = True) -> None:
         self.state_names = tuple(str(s) for s in state_names)
         self.output_names = tuple(str(s) for s in output_names)
         self.input_names = tuple(str(s) for s in input_names)
@@ -563,9 +538,6 @@ class Recorder:
         if pose_rate is not None and not (np.isfinite(pose_rate) and pose_rate > 0):
             raise DesignError(f"pose_rate must be a positive number or None; found {pose_rate!r}")
         self.pose_rate = pose_rate
-        if flush_each not in ("start", "wait", "none"):
-            raise DesignError(f"flush_each must be 'start', 'wait' or 'none'; found {flush_each!r}")
-        self.flush_each = flush_each
         self.kinematics: Kinematics | None = None
         if model is not None:
             if not joints:
@@ -578,7 +550,7 @@ class Recorder:
             if path is None:
                 raise DesignError("give a path for the .rrd file, or a stream with its sinks set")
             stream = rr.RecordingStream(application_id, make_default=False,
-                                        make_thread_default=False, batcher_config=_batcher())
+                                        make_thread_default=False, batcher_config=_BATCHER)
         elif not isinstance(stream, rr.RecordingStream):
             raise DesignError(f"stream must be a rerun.RecordingStream; found "
                               f"{type(stream).__name__}")
@@ -659,7 +631,9 @@ class Recorder:
         if md.get("versions"):
             lines += ["", "## Versions", ""]
             lines += [f"- {k} {v}" for k, v in md["versions"].items()]
-        lines += ["", "## All metadata", "", "```json", _json(md, str), "```"]
+        # strict JSON: a non-finite value is written as null (NaN is not JSON)
+        lines += ["", "## All metadata", "", "```json",
+                  json.dumps(strict_json(md), indent=2, default=str), "```"]
         self.stream.log("/scenario", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
                         static=True, strict=True)
         props = {k: json.dumps(md[k], default=str) if not isinstance(md[k], str) else md[k]
@@ -674,7 +648,7 @@ class Recorder:
 
         text = ("# Metrics\n\nerror e = x - x_hat per observer and state\n\n```\n"
                 + format_table(dict(metrics)) + "\n```\n\n```json\n"
-                + _json(metrics, float) + "\n```\n")
+                + json.dumps(strict_json(dict(metrics)), indent=2, default=float) + "\n```\n")
         self.stream.log("/metrics", rr.TextDocument(text, media_type="text/markdown"),
                         static=True, strict=True)
         self._flush()
@@ -704,7 +678,8 @@ class Recorder:
             rmse = ep.get("rmse", {})
             lines.append("| " + " | ".join([cell(ep.get(k)) for k in head]
                                            + [cell(rmse.get(s)) for s in states]) + " |")
-        lines += ["", "```json", _json(list(episodes), float), "```", ""]
+        lines += ["", "```json", json.dumps(strict_json([dict(ep) for ep in episodes]), indent=2,
+                                               default=float), "```", ""]
         self.stream.log("/metrics", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
                         static=True, strict=True)
         self._flush()
@@ -1252,13 +1227,15 @@ class Recorder:
 
     # ------------------------------------------------------------------ lifetime
     def _flush(self) -> None:
-        if self.flush_each == "start":
-            now = time.monotonic()
-            if now - self._flushed >= _FLUSH_INTERVAL:
-                self._flushed = now
-                self.stream.flush(timeout_sec=0.0)
-        elif self.flush_each == "wait":
-            self.stream.flush()
+        """After a block: start a flush to the file without waiting for it, at most every
+        0.25 s of wall time (rerun's own thread writes each block within a few milliseconds
+        anyway; a flush costs about 0.5 ms). A run killed part-way leaves every block before
+        the last in the file (the 3D poses are sent every few blocks, see ``pose_rate``);
+        :meth:`close` always waits."""
+        now = time.monotonic()
+        if now - self._flushed >= _FLUSH_INTERVAL:
+            self._flushed = now
+            self.stream.flush(timeout_sec=0.0)
 
     def flush(self) -> None:
         """Send the queued poses and wait until everything recorded so far is written."""

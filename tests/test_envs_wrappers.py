@@ -79,7 +79,7 @@ def test_observer_in_the_loop_is_seeded_and_returns_fresh_arrays():
         np.testing.assert_array_equal(sa[-1]["measurement"], sb[-1]["measurement"])
         assert not np.shares_memory(sa[0], prev) and sa[0] in a.observation_space
         prev = sa[0]
-    assert a.observation_names == ("y0", "y1", "y0_d1", "y1_d1")
+    assert a.observation_names == ("y1", "y2", "y1_d1", "y2_d1")
 
 
 def test_observer_in_the_loop_takes_instances_and_a_measure_function():
@@ -90,6 +90,23 @@ def test_observer_in_the_loop_takes_instances_and_a_measure_function():
     assert first.shape == (4,) and np.all(first == 0.0)  # instances start from their own zero
     out = env.step(np.zeros(1, dtype=np.float32))
     assert np.all(np.isfinite(out[0]))
+
+
+def test_observer_in_the_loop_copies_an_observer_instance():
+    """Two wrappers built from one observer instance (as a vector environment's copies are)
+    run observers of their own: stepping one leaves the other's estimate alone."""
+    shared = HighGainObserver(order=2, k=30.0, output=0)
+    a = ObserverInTheLoop(_ip(), measure=(0,), observer=shared)
+    b = ObserverInTheLoop(_ip(), measure=(0,), observer=shared)
+    assert a.observer is not shared and b.observer is not a.observer
+    a.reset(seed=1)
+    b.reset(seed=1)
+    before = np.array(b.observer.x_hat, dtype=float)
+    for _ in range(5):
+        a.step(np.array([1.0], dtype=np.float32))
+    np.testing.assert_array_equal(b.observer.x_hat, before)
+    assert not np.array_equal(a.observer.x_hat, before)
+    np.testing.assert_array_equal(shared.x_hat, np.zeros(2))  # the instance given is untouched
 
 
 def test_observer_in_the_loop_bad_input():

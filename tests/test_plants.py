@@ -47,8 +47,8 @@ def test_state_is_a_copy():
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [
-    ({"dt": 0.0015}, DesignError, r"dt = 0.0015 must be a positive integer multiple of the "
-                                  r"physics step 0.001"),
+    ({"dt": 0.0015}, DesignError, r"dt = 0.0015 must be a positive integer multiple of "
+                                  r"physics_dt = 0.001"),
     ({"dt": -1.0}, DesignError, "dt must be > 0"),
     ({"outputs": ("angle", "speed")}, DesignError, "pendulum.xml has no sensor named 'speed'"),
 ])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -15,7 +16,7 @@ from hgo_mj.observers import OBSERVERS, Observer, make_observer
 
 from .._observers import ObserverBank
 from ..core import sensor_chain
-from ._common import env_dt, reset_chain
+from ._common import box_indices, env_dt, reset_chain
 
 Array = NDArray[np.float64]
 
@@ -43,7 +44,8 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
         ``"high_gain"`` with ``observer_kwargs={"order": 2, "k": 30}``: a chain of order 2 per
         signal estimates it and its velocity. Or an observer instance (e.g. one designed
         against an hgo_mj system), or several, each reading its own channel; their estimates
-        are concatenated.
+        are concatenated. Instances are deep-copied: the wrapper (and each copy of it in a
+        vector environment) runs an observer of its own; read it as ``wrapper.observer``.
     observer_kwargs : mapping, optional
         Parameters of a named observer.
     sensor : sensor spec, optional
@@ -95,15 +97,9 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
             self._idx = None
             probe = None
         else:
-            space = env.observation_space
-            if not isinstance(space, spaces.Box) or len(space.shape) != 1:
-                raise DesignError(f"measure= as indices needs a 1-D Box observation space; found "
-                                  f"{space} (give a function measure(env, obs) instead)")
-            idx = [int(i) for i in measure]
-            n = space.shape[0]
-            if not idx or any(i < 0 or i >= n for i in idx) or len(set(idx)) != len(idx):
-                raise DimensionError(f"measure must be distinct entries of the {n}-entry "
-                                     f"observation; found {list(measure)}")
+            idx = box_indices(env.observation_space, measure, owner="measure= as indices",
+                              name="measure",
+                              hint=" (give a function measure(env, obs) instead)")
             self._measure_fn = None
             self._idx = np.array(idx, dtype=np.intp)
             probe = len(idx)
@@ -136,10 +132,9 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
         if isinstance(observer, Observer):
             if kwargs:
                 raise DesignError("observer_kwargs apply to a named observer, not to an instance")
-            return observer
+            # a copy of its own: vector copies of the wrapper must not share one state
+            return copy.deepcopy(observer)
         if isinstance(observer, str):
-            if observer not in OBSERVERS:
-                raise DesignError(f"unknown observer {observer!r}; valid: {sorted(OBSERVERS)}")
             if m is None:
                 raise DesignError("a named observer needs measure= as indices (to know how many "
                                   "channels); with measure(env, obs) give observer instances")
@@ -147,12 +142,13 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
             if "output" in kw:
                 raise DesignError("output is set per channel by the wrapper; do not give it")
             members = [make_observer(observer, None, output=i, **kw) for i in range(m)]
-            names = [f"y{i}" for i in range(m)]
+            names = [f"y{i + 1}" for i in range(m)]
             return ObserverBank(members, output_names=names)
         members = list(observer)
         if not members or not all(isinstance(o, Observer) for o in members):
             raise DesignError(f"observer must be a registered name (one of {sorted(OBSERVERS)}), an "
                               f"Observer or a sequence of them; found {observer!r}")
+        members = [copy.deepcopy(o) for o in members]
         return members[0] if len(members) == 1 else ObserverBank(members)
 
     # ------------------------------------------------------------------ loop

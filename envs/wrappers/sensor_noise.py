@@ -7,13 +7,10 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-from gymnasium import spaces
 from numpy.typing import NDArray
 
-from hgo_mj.exceptions import DesignError, DimensionError
-
 from ..core import sensor_chain
-from ._common import env_dt, reset_chain
+from ._common import box_indices, env_dt, reset_chain
 
 Array = NDArray[np.floating]
 
@@ -57,19 +54,9 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
     def __init__(self, env: gymnasium.Env, sensor: Any, *, indices: Sequence[int] | None = None,
                  dt: float | None = None) -> None:
         super().__init__(env)
-        space = env.observation_space
-        if not isinstance(space, spaces.Box) or len(space.shape) != 1:
-            raise DesignError(f"SensorNoise needs a 1-D Box observation space; found {space}")
-        n = space.shape[0]
-        if indices is None:
-            idx = list(range(n))
-        else:
-            idx = [int(i) for i in indices]
-            if not idx or any(i < 0 or i >= n for i in idx) or len(set(idx)) != len(idx):
-                raise DimensionError(f"indices must be distinct entries of the {n}-entry "
-                                     f"observation; found {list(indices)}")
+        idx = box_indices(env.observation_space, indices, owner="SensorNoise", name="indices")
         self.indices = np.array(idx, dtype=np.intp)
-        self._all = idx == list(range(n))
+        self._all = idx == list(range(env.observation_space.shape[0]))
         self.sensor = sensor_chain(sensor)
         self.dt = env_dt(env, dt)
         self._k = 0

@@ -9,7 +9,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .._validate import finite_scalar, vector
+from .._validate import finite_scalar, integer_multiple, vector
 from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
 from .base import Array, Plant
@@ -32,16 +32,6 @@ def model_path(name: str) -> Path:
         shipped = sorted(p.name for p in Path(str(resources.files("hgo_mj.models"))).glob("*.xml"))
         raise DesignError(f"no MJCF model named {name!r}; shipped models: {shipped}")
     return path
-
-
-def _multiple(name: str, period: float, base: float) -> int:
-    ratio = period / base
-    n = round(ratio)
-    if n < 1 or abs(ratio - n) > 1e-9 * max(1.0, ratio):
-        raise DesignError(
-            f"{name} = {period:g} must be a positive integer multiple of the physics step "
-            f"{base:g}; found ratio {ratio:.9g}")
-    return n
 
 
 class MujocoPlant(Plant):
@@ -79,7 +69,7 @@ class MujocoPlant(Plant):
             self.model.opt.timestep = finite_scalar("physics_dt", physics_dt, positive=True)
         self.physics_dt = float(self.model.opt.timestep)
         self.dt = finite_scalar("dt", dt, positive=True)
-        self.substeps = _multiple("dt", self.dt, self.physics_dt)
+        self.substeps = integer_multiple("dt", self.dt, self.physics_dt, "physics_dt")
         self.data = mujoco.MjData(self.model)
         self.system = system.from_mjmodel(self.model)
         m = self.model

@@ -7,11 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar, vector
+from .._validate import finite_scalar, integer_multiple, vector
 from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
 from .base import Array, Plant
-from .mujoco import _multiple
 
 
 class OdePlant(Plant):
@@ -34,7 +33,7 @@ class OdePlant(Plant):
         self.dt = finite_scalar("dt", dt, positive=True)
         self.physics_dt = (self.dt / 10 if physics_dt is None
                            else finite_scalar("physics_dt", physics_dt, positive=True))
-        self.substeps = _multiple("dt", self.dt, self.physics_dt)
+        self.substeps = integer_multiple("dt", self.dt, self.physics_dt, "physics_dt")
         self.physics_dt = self.dt / self.substeps
         self._n = len(system.state_names)
         self._x0 = vector("system.default_x0", system.default_x0, self._n)
