@@ -1,164 +1,469 @@
-"""What every observer shares: construction checks, the physical/normal-form maps, dropouts.
+"""The observer contract: one abstract base, a batch axis, one primitive.
 
 An observer is a continuous-time ODE in observer coordinates ``z`` driven by the measurement,
-which is held constant between samples. ``update(y, u, dt)`` consumes the sample ``y(t_k)``
-and the input ``u(t_k)``, integrates over one sample period and returns the estimate of
-``x(t_k + dt)``. Run-time quantities (gain ``k_``, parameter estimates ``theta_hat_``, ...)
-are attributes ending in ``_`` and are listed by :meth:`Observer.diagnostics`.
+which is held constant between samples. Every observer advances **B independent copies at
+once**: its state is data with a leading batch axis (estimate ``(B, n)``, gains, parameter
+estimates, covariances), measurements are ``(B, p)``, inputs ``(B, m)``. A single run is
+B = 1 on the same code.
 
-A NaN measurement (a sensor dropout) is never propagated: the observer integrates its
-prediction without output injection over that sample and counts it in ``dropouts_``.
+**The one primitive** is :meth:`Observer._advance`, which a family implements: consume T
+samples ``Y[:, j]`` (the channels in :attr:`Observer.outputs` only) with the inputs
+``U[:, j]``, integrate over ``dt`` after each, and write the estimate *after* each sample into
+the rows ``X[:, j]``, ``Z[:, j]``, ``D[:, j]``. Everything else is derived here, once:
+
+* :meth:`advance` validates the measurement block, counts dropouts and calls ``_advance``;
+* :meth:`step` is one sample (T = 1), :meth:`update` one sample of an unbatched observer
+  (1-D ``y`` and ``u``, returns the 1-D estimate), :meth:`run` an offline driver over a whole
+  record (in the spirit of filterpy's ``batch_filter``);
+* :attr:`x_hat`, :attr:`z_hat` and :meth:`diagnostics` read the current state.
+
+Shapes follow the batch of the last :meth:`reset`: ``reset(batch=B)`` (or an initial estimate
+of shape ``(B, n)``) makes the observer *batched* and every public array carries the leading
+``B``; a plain ``reset()`` makes it *unbatched* (``B = 1`` inside) and the public arrays drop
+the batch axis, so ``x_hat`` is ``(n,)`` and a diagnostic a float.
 
 **Estimate layout.** ``x_hat`` has one entry per name in :attr:`Observer.state_names`. These
 are the plant's state names when the observer estimates the physical state, but need not be:
 an order-only observer (no system) estimates ``z1, z2, ...``, a model-free multi-output one the
-outputs and their derivatives, an adaptive one may append parameter estimates. Trajectories,
-metrics, figures and recordings match the estimate to the plant's states *by name*; a plant
-state the observer does not name is "not estimated".
+outputs and their derivatives, an adaptive one appends parameter estimates. Trajectories,
+metrics, figures and recordings match the estimate to the plant's states *by name*. An initial
+estimate ``x_hat0`` always has this layout, ``(n_x,)`` for every member or ``(B, n_x)``.
 
-**Undefined inverse map.** ``x_hat`` is the image of the observer's own state ``z_hat`` under
-the inverse normal-form map, which may be undefined there (the bioreactor's ``Phi^-1`` needs
-``m > 0``; an observer started from ``z_hat = 0`` is outside it). Then ``x_hat`` holds its last
-valid value, and is **NaN before any valid value**: a NaN in ``x_hat`` means "inverse map
-undefined here", not divergence. Each failed evaluation is counted in ``inverse_failures_``.
-Divergence is judged on ``z_hat`` (see :func:`hgo_mj.simulate.simulate`), which is always
-defined.
+**Dropouts.** A NaN measurement (a sensor dropout) is never propagated: the observer integrates
+its prediction without output injection over that sample; :meth:`advance` counts it in
+``dropouts_`` (per member). An infinite measurement raises :class:`DivergenceError`.
+
+**Undefined inverse map.** ``x_hat`` is the image of ``z_hat`` under the inverse normal-form
+map, which may be undefined there (the bioreactor's ``Phi^-1`` needs ``m > 0``). Then ``x_hat``
+holds its last valid value, and is **NaN before any valid value**; each failed evaluation is
+counted in ``inverse_failures_`` (:meth:`Observer._to_physical`). Divergence is judged on
+``z_hat``, which is always defined.
+
+**Diagnostics.** :attr:`diagnostic_names` lists exactly what :meth:`diagnostics` returns, in
+order, ``"dropouts"`` last (added here); a family lists its own (run-time quantities such as
+the gain ``k``) in :attr:`family_diagnostics` and writes them into ``D``.
+
+**Registration.** :func:`register` adds a family to :data:`OBSERVERS` under its ``name``;
+observers of other packages register through the entry-point group ``hgo_mj.observers``
+(loaded by :func:`registered`), so that scenario files can name them.
 """
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .._validate import vector
-from ..exceptions import DesignError, DimensionError
+from .._validate import one_of
+from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 
 Array = NDArray[np.float64]
 
+#: the reactions to a sample period at which the observer's update is unstable
+ON_UNSTABLE = ("raise", "warn", "ignore")
 
-class Observer:
-    """Base class of the observers (see the module docstring for the contract)."""
+
+@dataclass
+class Block:
+    """Rows of an :meth:`Observer.advance`: the estimate after each of the T samples.
+
+    ``x_hat`` ``(B, T, len(state_names))``, ``z_hat`` ``(B, T, n)``, ``diagnostics``
+    ``(B, T, len(diagnostic_names))`` in the order of ``diagnostic_names``.
+    """
+
+    x_hat: Array
+    z_hat: Array
+    diagnostics: Array
+
+
+def check_outputs(outputs: Any, where: str = "outputs") -> tuple[int, ...]:
+    """``outputs`` as a tuple of distinct non-negative channel indices (a sequence of ints:
+    one output is a 1-tuple; an int, a bool or a float is refused, not coerced)."""
+    if isinstance(outputs, (str, bytes)) or not isinstance(outputs, Sequence) or not outputs:
+        raise DesignError(f"{where} must be a non-empty sequence of channel indices (one output "
+                          f"is a 1-tuple such as (0,)); found {outputs!r}")
+    for o in outputs:
+        if isinstance(o, (bool, np.bool_)) or not isinstance(o, (int, np.integer)) or o < 0:
+            raise DesignError(f"{where} must hold non-negative integer channel indices; found "
+                              f"{outputs!r}")
+    out = tuple(int(o) for o in outputs)
+    if len(set(out)) != len(out):
+        raise DesignError(f"{where} must be distinct channels; found {list(out)}")
+    return out
+
+
+def batch_rows(name: str, value: Any, width: int, batch: int | None) -> Array:
+    """An initial value given for every member ``(width,)`` or per member ``(B, width)``, as a
+    fresh C-contiguous ``(B, width)`` float array (``B = batch``, or the value's own ``B``, or
+    1). Numbers only: strings and booleans are refused; values must be finite."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iuf" or arr.dtype == np.bool_:
+        raise DimensionError(f"{name} must be an array of real numbers of shape ({width},) or "
+                             f"(B, {width}); found {value!r}")
+    if arr.ndim == 1 and arr.shape == (width,):
+        out = np.tile(arr.astype(float), (1 if batch is None else batch, 1))
+    elif arr.ndim == 2 and arr.shape[1] == width and (batch is None or arr.shape[0] == batch):
+        out = np.array(arr, dtype=float, order="C")
+    else:
+        want = f"({width},) or ({'B' if batch is None else batch}, {width})"
+        raise DimensionError(f"{name} must have shape {want}; found shape {arr.shape}")
+    if not np.all(np.isfinite(out)):
+        raise DesignError(f"{name} must be finite; found {out.tolist()}")
+    return out
+
+
+class Observer(ABC):
+    """Abstract base of every observer family (see the module docstring for the contract).
+
+    Parameters
+    ----------
+    system : System or None
+        The model the observer designs against (its normal form, inverse map and model term),
+        or None for an order-only observer (then ``order`` is needed).
+    order : int, optional
+        The dimension ``n`` of ``z``; must equal the system's normal-form order if both given.
+    outputs : tuple of int
+        The measured channels this observer reads (one output: a 1-tuple).
+    on_unstable : {"raise", "warn", "ignore"}
+        What :meth:`check_period` does when the update is unstable at the sample period.
+
+    Attributes
+    ----------
+    n : int
+        Dimension of ``z``.
+    outputs : tuple of int
+    batch : int
+        The number of copies advanced together (1 for an unbatched observer).
+    dropouts_ : int or (B,) int array
+        NaN samples consumed (per member).
+    inverse_failures_ : int or (B,) int array
+        Failed evaluations of the inverse normal-form map (per member).
+    """
 
     #: registry name, e.g. ``"high_gain"``
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     reference: ClassVar[str] = ""
-    #: names of the run-time quantities returned by :meth:`diagnostics`
-    diagnostic_names: ClassVar[tuple[str, ...]] = ()
+    #: the family's own run-time quantities, in the order ``_advance`` writes them into ``D``
+    family_diagnostics: ClassVar[tuple[str, ...]] = ()
+    #: whether ``system`` needs a single-output normal form (``normal_form_order``)
+    needs_normal_form: ClassVar[bool] = True
 
-    def __init__(self, system: System | None, order: int | None, output: int = 0) -> None:
+    def __init__(self, system: System | None, *, order: int | None = None,
+                 outputs: Any = (0,), on_unstable: str = "raise") -> None:
         if system is not None and not isinstance(system, System):
             raise DesignError(f"system must be a System instance or None; found "
                               f"{type(system).__name__}")
-        if system is not None and system.normal_form_order is None:
+        self.system = system
+        self.outputs = check_outputs(outputs)
+        if system is not None and max(self.outputs) >= len(system.output_names):
+            raise DimensionError(f"{type(self).__name__}: {type(system).__name__} has "
+                                 f"{len(system.output_names)} output(s) "
+                                 f"{list(system.output_names)}; found channel "
+                                 f"{max(self.outputs)} in outputs {list(self.outputs)}")
+        self.on_unstable = one_of("on_unstable", on_unstable, ON_UNSTABLE)
+        self.n = self._order(system, order)
+        self._cols = np.array(self.outputs, dtype=np.intp)
+        self.batch = 1
+        self._batched = False
+        self._u_last: Array = np.zeros((1, self.n_inputs or 0))
+
+    # ----------------------------------------------------------- construction
+    def _order(self, system: System | None, order: int | None) -> int:
+        """``n`` from the system's normal form or the explicit ``order`` (checked to agree)."""
+        if order is not None and (isinstance(order, (bool, np.bool_))
+                                  or not isinstance(order, (int, np.integer)) or order < 1):
+            raise DesignError(f"order must be a positive integer; found {order!r}")
+        if not self.needs_normal_form:
+            if order is None:
+                raise DesignError(f"{type(self).__name__} needs an explicit order")
+            return int(order)
+        n_sys = None if system is None else system.normal_form_order
+        if system is not None and n_sys is None:
             raise DesignError(f"{type(self).__name__} needs a single-output normal form; "
                               f"{type(system).__name__} has none")
-        n_sys = None if system is None else system.normal_form_order
         if order is None and n_sys is None:
             raise DesignError(f"{type(self).__name__} needs a system or an explicit order")
         if order is not None and n_sys is not None and order != n_sys:
             raise DimensionError(f"{type(self).__name__}: order {order} does not match "
                                  f"{type(system).__name__}'s normal form order {n_sys}")
-        n = int(order if order is not None else n_sys)  # type: ignore[arg-type]
-        if n < 1:
-            raise DesignError(f"order must be >= 1; found {n}")
-        if int(output) != output or output < 0:
-            raise DesignError(f"output must be a non-negative channel index; found {output!r}")
-        self.system = system
-        self.n = n
-        self.output = int(output)
-        self._u: Array = np.zeros(len(system.input_names)) if system is not None else np.zeros(0)
-        self._x_last: Array | None = None
-        self._restart_counters()
+        return int(order if order is not None else n_sys)  # type: ignore[arg-type]
 
-    # ----------------------------------------------------------- coordinates
+    @property
+    def n_inputs(self) -> int | None:
+        """Width ``m`` of the input the observer reads: the system's inputs, or None (any
+        width, unread) for an observer without a system."""
+        return len(self.system.input_names) if self.system is not None else None
+
     @property
     def state_names(self) -> tuple[str, ...]:
         """Names of the entries of ``x_hat``: the system's state names, or ``z1 ... zn`` for an
         order-only observer (no system), whose estimate is the normal-form state itself."""
         if self.system is None:
             return tuple(f"z{i + 1}" for i in range(self.n))
-        return self.system.state_names
+        return tuple(self.system.state_names)
 
-    def _initial_z(self, x_hat0: Any, z_hat0: Any, u0: Any) -> Array:
-        if x_hat0 is not None and z_hat0 is not None:
-            raise DesignError("give x_hat0 or z_hat0, not both")
-        if z_hat0 is not None:
-            return vector("z_hat0", z_hat0, self.n)
-        if x_hat0 is not None:
-            if self.system is None:
-                return vector("x_hat0", x_hat0, self.n)
-            return self.system.to_normal(vector("x_hat0", x_hat0, len(self.system.state_names)), u0)
-        return np.zeros(self.n)
+    @property
+    def diagnostic_names(self) -> tuple[str, ...]:
+        """Exactly the keys of :meth:`diagnostics`, in order: the family's, then dropouts."""
+        return (*self.family_diagnostics, "dropouts")
 
-    def _physical(self, z: Array) -> Array:
-        """Map ``z`` to physical coordinates. Where the inverse is undefined (the system raises
-        :class:`DesignError`) count it in ``inverse_failures_`` and hold the last valid value
-        (NaN before any). Other errors (a math domain error on a blown-up ``z``) propagate: the
-        runner reports a divergence. A system's fast path that returns NaN instead of raising
-        gives a NaN ``x_hat`` (also read as "undefined"), neither held nor counted: the check
-        would cost a fifth of this map on the hot path."""
-        if self.system is None:
-            return z.copy()
-        try:
-            x = self.system.from_normal_unchecked(z, self._u)
-        except DesignError:
-            self.inverse_failures_ += 1
-            if self._x_last is None:
-                return np.full(len(self.system.state_names), np.nan)
-            return np.array(self._x_last, dtype=float)
-        self._x_last = x
-        return np.array(x, dtype=float)
+    # --------------------------------------------------------- the family's part
+    @abstractmethod
+    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+        """Set the state of ``self.batch`` copies from ``x0`` ``(B, len(state_names))`` or ``z0``
+        ``(B, n)`` (at most one given; neither: the family's default) and ``u0`` ``(B, m)``."""
 
-    def __getstate__(self) -> dict[str, Any]:
-        """Pickle without a cache of compiled updates (``_steps``: functions made with
-        ``exec``, which pickle cannot store); ``update`` rebuilds it on first use."""
-        state = self.__dict__.copy()
-        if "_steps" in state:
-            state["_steps"] = {}
-        return state
+    @abstractmethod
+    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        """Consume ``Y[:, j]`` ``(B, T, len(outputs))`` (NaN: a dropout of that member and
+        channel) with ``U[:, j]`` ``(B, T, m)``, integrate over ``dt`` after each sample, and
+        write the estimate after sample ``j`` into ``X[:, j]``, ``Z[:, j]`` and ``D[:, j]``
+        (``family_diagnostics``). Raise :class:`DivergenceError` where the state blows up."""
 
-    def _restart_counters(self) -> None:
-        """At ``reset``: no dropouts or inverse-map failures counted, no last valid estimate
-        held (:meth:`_physical`)."""
-        self.dropouts_ = 0
-        self.inverse_failures_ = 0
-        self._x_last = None
+    @abstractmethod
+    def _current(self) -> tuple[Array, Array, Array]:
+        """The current ``(x_hat (B, n_x), z_hat (B, n), family diagnostics (B, d))``."""
 
-    def _bad_measurement(self, y: Any, channels: Any) -> DimensionError:
-        """The error for a measurement ``y`` that lacks the channels this observer reads
-        (raised from ``update``'s fast path only after indexing failed: no cost otherwise)."""
-        return DimensionError(f"{self.name}: y must be a vector with channel(s) {channels} (the "
-                              f"measured outputs this observer reads); found {y!r}")
-
-    # ----------------------------------------------------------- interface
     def check_period(self, dt: float) -> None:
-        """Check that ``update`` is stable at the sample period ``dt`` (the runner calls this
-        before a run). Raises :class:`~hgo_mj.exceptions.DesignError` or warns, as the observer
-        is configured, naming the largest stable period. Default: nothing to check."""
-
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
-        raise NotImplementedError
-
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        raise NotImplementedError
-
-    @property
-    def z_hat(self) -> Array:
-        raise NotImplementedError
-
-    @property
-    def x_hat(self) -> Array:
-        """Estimate in physical coordinates (``system.from_normal(z_hat)``)."""
-        return self._physical(self.z_hat)
-
-    def diagnostics(self) -> dict[str, float]:
-        """The run-time quantities named in ``diagnostic_names`` (plus the dropout count)."""
-        return {"dropouts": float(self.dropouts_)}
+        """Check that the update is stable at the sample period ``dt`` (the loop calls this
+        before a run) and react as ``on_unstable`` says, naming the largest stable period.
+        Default: nothing to check (an update stable for every period)."""
 
     def params(self) -> dict[str, Any]:
         """Constructor parameters, JSON-ready, for a trajectory's metadata."""
-        return {}
+        return {"outputs": list(self.outputs)}
+
+    # --------------------------------------------------------------- derived
+    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+              batch: int | None = None) -> None:
+        """Restart ``batch`` copies (default: the batch of the initial estimate, else one
+        unbatched copy) from ``x_hat0`` (the layout of :attr:`state_names`) or ``z_hat0``
+        (``(n,)`` for every member, or ``(B, n)``); neither: the constructor's initial
+        estimate. ``u0`` (``(m,)`` or ``(B, m)``) is the input the maps ``to_normal`` and
+        ``from_normal`` read at the start (default zero)."""
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0, not both")
+        if batch is not None and (isinstance(batch, (bool, np.bool_))
+                                  or not isinstance(batch, (int, np.integer)) or batch < 1):
+            raise DesignError(f"batch must be a positive integer; found {batch!r}")
+        given = x_hat0 if x_hat0 is not None else z_hat0
+        batched = batch is not None or (given is not None and np.ndim(given) == 2)
+        x0 = None if x_hat0 is None else batch_rows("x_hat0", x_hat0, len(self.state_names), batch)
+        z0 = None if z_hat0 is None else batch_rows("z_hat0", z_hat0, self.n, batch)
+        B = batch if batch is not None else (
+            (x0 if x0 is not None else z0).shape[0] if given is not None else 1)  # type: ignore[union-attr]
+        m = self.n_inputs
+        if u0 is None or m is None:
+            u = np.zeros((B, m or 0))
+        else:
+            u = batch_rows("u0", u0, m, B)
+        self.batch, self._batched = int(B), batched
+        self._dropouts = np.zeros(B, dtype=np.int64)
+        self._inverse_failures = np.zeros(B, dtype=np.int64)
+        self._x_held = np.full((B, len(self.state_names)), np.nan)
+        self._u_last = u
+        self._reset(x0, z0, u)
+
+    def advance(self, Y: Any, U: Any, dt: float) -> Block:
+        """Consume T samples of B members: ``Y`` ``(B, T, p)`` (every measured channel; the
+        observer reads :attr:`outputs`), ``U`` ``(B, T, m)``; return the rows of the estimate
+        after each sample (:class:`Block`). The validating entry; the loop calls
+        :meth:`_advance_checked` on arrays it has already checked."""
+        Y = np.asarray(Y, dtype=float)
+        U = np.asarray(U, dtype=float)
+        if Y.ndim != 3 or Y.shape[0] != self.batch or Y.shape[2] <= int(self._cols.max()):
+            raise DimensionError(f"{self.name}: y must have shape (B={self.batch}, T, p) with "
+                                 f"channel(s) {list(self.outputs)}; found shape {Y.shape}")
+        m = self.n_inputs
+        if U.ndim != 3 or U.shape[:2] != (self.batch, Y.shape[1]) or (
+                m is not None and U.shape[2] != m):
+            raise DimensionError(f"{self.name}: u must have shape ({self.batch}, {Y.shape[1]}, "
+                                 f"{'m' if m is None else m}); found shape {U.shape}")
+        if not (isinstance(dt, (float, int, np.floating, np.integer)) and not isinstance(dt, bool)
+                and np.isfinite(dt) and dt > 0):
+            raise DesignError(f"dt must be a positive finite number; found {dt!r}")
+        return self._advance_checked(Y, U, float(dt))
+
+    def _advance_checked(self, Y: Array, U: Array, dt: float) -> Block:
+        """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float)."""
+        Yo = np.ascontiguousarray(Y[:, :, self._cols])
+        if np.isinf(Yo).any():
+            b, j, c = (int(v[0]) for v in np.nonzero(np.isinf(Yo)))
+            raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
+                                  f"{Yo[b, j, c]} (member {b}, sample {j})")
+        B, T = Yo.shape[0], Yo.shape[1]
+        nd = len(self.family_diagnostics)
+        X = np.empty((B, T, len(self.state_names)))
+        Z = np.empty((B, T, self.n))
+        D = np.empty((B, T, nd + 1))
+        lost = np.isnan(Yo).any(axis=2)
+        U = np.ascontiguousarray(U)
+        self._advance(Yo, U, dt, X, Z, D[:, :, :nd])
+        D[:, :, nd] = self._dropouts[:, None] + np.cumsum(lost, axis=1)
+        self._dropouts = D[:, -1, nd].astype(np.int64) if T else self._dropouts
+        if T:
+            self._u_last = U[:, -1]
+        return Block(X, Z, D)
+
+    def step(self, y: Any, u: Any, dt: float) -> None:
+        """One sample of every member: ``y`` ``(B, p)``, ``u`` ``(B, m)``."""
+        self.advance(np.asarray(y, dtype=float)[:, None], np.asarray(u, dtype=float)[:, None], dt)
+
+    def update(self, y: Any, u: Any, dt: float) -> Array:
+        """One sample of an unbatched observer: ``y`` ``(p,)``, ``u`` ``(m,)``; returns
+        ``x_hat`` after it, ``(n_x,)``."""
+        if self._batched:
+            raise DimensionError(f"{self.name}: update() is for an unbatched observer; this one "
+                                 f"holds a batch of {self.batch} (use step or advance)")
+        ya = np.asarray(y, dtype=float)
+        ua = np.asarray(u, dtype=float)
+        if ya.ndim != 1 or ya.shape[0] <= int(self._cols.max()):
+            raise DimensionError(f"{self.name}: y must be a vector with channel(s) "
+                                 f"{list(self.outputs)} (the measured outputs this observer "
+                                 f"reads); found {y!r}")
+        m = self.n_inputs
+        if ua.ndim != 1 or (m is not None and ua.shape != (m,)):
+            raise DimensionError(f"{self.name}: u must have shape ({'m' if m is None else m},); "
+                                 f"found shape {ua.shape}")
+        blk = self.advance(ya[None, None], ua[None, None], dt)
+        return blk.x_hat[0, 0].copy()
+
+    def run(self, ys: Any, us: Any, dt: float, *, x_hat0: Any = None) -> Block:
+        """Offline driver over recorded data (filterpy's ``batch_filter``): reset (unbatched,
+        or batched when ``ys`` is ``(B, T, p)``), then advance over ``ys`` ``(T, p)`` with
+        ``us`` ``(T, m)``. The returned rows are the estimate *after* each sample."""
+        ya = np.asarray(ys, dtype=float)
+        ua = np.asarray(us, dtype=float)
+        if ya.ndim == 2:
+            self.reset(x_hat0)
+            return self.advance(ya[None], ua[None], dt)
+        self.reset(x_hat0, batch=ya.shape[0] if ya.ndim == 3 else None)
+        return self.advance(ya, ua, dt)
+
+    def _public(self, a: Array) -> Any:
+        """Drop the batch axis of an unbatched observer (``a[0]``; a float for a scalar)."""
+        if self._batched:
+            return a
+        v = a[0]
+        return v.item() if np.ndim(v) == 0 else v
+
+    @property
+    def z_hat(self) -> Array:
+        """The current estimate in observer coordinates, ``(n,)`` or ``(B, n)``."""
+        return self._public(self._current()[1])  # type: ignore[no-any-return]
+
+    @property
+    def x_hat(self) -> Array:
+        """The current estimate in the layout of :attr:`state_names`, ``(n_x,)`` or ``(B, n_x)``."""
+        return self._public(self._current()[0])  # type: ignore[no-any-return]
+
+    @property
+    def dropouts_(self) -> Any:
+        return self._public(self._dropouts)
+
+    @property
+    def inverse_failures_(self) -> Any:
+        return self._public(self._inverse_failures)
+
+    def diagnostics(self) -> dict[str, Any]:
+        """The current run-time quantities named in :attr:`diagnostic_names` (floats, or
+        ``(B,)`` arrays for a batched observer)."""
+        d = self._current()[2]
+        out = {name: self._public(d[:, j].astype(float)) for j, name in
+               enumerate(self.family_diagnostics)}
+        out["dropouts"] = self._public(self._dropouts.astype(float))
+        return out
+
+    # --------------------------------------------------------------- helpers
+    def _initial_z(self, x0: Array | None, z0: Array | None, u0: Array) -> Array:
+        """``(B, n)`` observer coordinates from a physical ``x0`` (through ``to_normal``) or
+        ``z0``; zero if neither is given."""
+        if z0 is not None:
+            return z0
+        if x0 is None:
+            return np.zeros((self.batch, self.n))
+        if self.system is None:
+            return x0
+        return np.array([self.system.to_normal(x, u) for x, u in zip(x0, u0)], dtype=float)
+
+    def _to_physical(self, Z: Array, U: Array, X: Array) -> None:
+        """Write ``system.from_normal`` of the rows ``Z`` ``(B, T, n)`` (inputs ``U``) into ``X``.
+        Where the inverse is undefined (the system raises :class:`DesignError`) count it in
+        ``inverse_failures_`` and hold the member's last valid value (NaN before any). Other
+        errors (a math domain error on a blown-up ``z``) propagate as a divergence. Systems
+        offering a vectorized ``from_normal_batch(Z, U)`` (rows ``(N, n)``) are used whole."""
+        sys = self.system
+        if sys is None:
+            X[...] = Z
+            return
+        batch_map: Callable[[Array, Array], Array] | None = getattr(sys, "from_normal_batch", None)
+        B, T = Z.shape[0], Z.shape[1]
+        if batch_map is not None:
+            flat = batch_map(Z.reshape(B * T, -1), U.reshape(B * T, -1)).reshape(B, T, -1)
+            ok = np.all(np.isfinite(flat), axis=2) | ~np.all(np.isfinite(Z), axis=2)
+            if ok.all():
+                X[...] = flat
+                return
+        for b in range(B):
+            held = self._x_held[b]
+            for j in range(T):
+                try:
+                    x = sys.from_normal_unchecked(Z[b, j], U[b, j])
+                except DesignError:
+                    self._inverse_failures[b] += 1
+                    X[b, j] = held
+                    continue
+                held = np.asarray(x, dtype=float)
+                X[b, j] = held
+            self._x_held[b] = held
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(outputs={list(self.outputs)}, batch={self.batch})"
+
+
+ObserverT = TypeVar("ObserverT", bound=type[Observer])
+
+#: registry name -> observer class (filled by :func:`register`)
+OBSERVERS: dict[str, type[Observer]] = {}
+
+
+def register(cls: ObserverT) -> ObserverT:
+    """Class decorator: add an observer family to :data:`OBSERVERS` under its ``name``."""
+    if not (isinstance(cls, type) and issubclass(cls, Observer)):
+        raise DesignError(f"register takes an Observer subclass; found {cls!r}")
+    if not cls.name:
+        raise DesignError(f"{cls.__name__} needs a registry name (class attribute 'name')")
+    if cls.name in OBSERVERS and OBSERVERS[cls.name] is not cls:
+        raise DesignError(f"an observer named {cls.name!r} is registered already "
+                          f"({OBSERVERS[cls.name].__module__}.{OBSERVERS[cls.name].__name__})")
+    OBSERVERS[cls.name] = cls
+    return cls
+
+
+_ENTRY_POINTS_LOADED = False
+
+
+def registered() -> dict[str, type[Observer]]:
+    """:data:`OBSERVERS`, after loading the entry-point group ``hgo_mj.observers`` once (each
+    entry point names an :class:`Observer` subclass; one that fails to import is an error
+    naming it)."""
+    global _ENTRY_POINTS_LOADED
+    if not _ENTRY_POINTS_LOADED:
+        from importlib.metadata import entry_points
+
+        for ep in entry_points(group="hgo_mj.observers"):
+            try:
+                cls = ep.load()
+            except Exception as exc:  # noqa: BLE001 - any import failure, reported by name
+                raise DesignError(f"entry point {ep.name!r} = {ep.value!r} of group "
+                                  f"hgo_mj.observers does not import: {type(exc).__name__}: "
+                                  f"{exc}") from exc
+            register(cls)
+        _ENTRY_POINTS_LOADED = True
+    return OBSERVERS

@@ -57,6 +57,8 @@ class System:
     joints: ClassVar[tuple[str, ...]] = ()
     #: MJCF actuators driven by ``u``, in order (MuJoCo plants)
     actuators: ClassVar[tuple[str, ...]] = ()
+    #: the observer forms this system declares (see :meth:`form`), e.g. ``("affine",)``
+    forms: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, **params: Any) -> None:
         merged = {**self.default_params, **params}
@@ -117,6 +119,31 @@ class System:
     def phi_unchecked(self, z: Array, u: Array) -> float:
         """:meth:`phi` without validation (the model term of observers). Overridable."""
         return self.phi(z, u)
+
+    def phi_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`phi_unchecked` of the rows ``Z`` ``(N, n)`` with inputs ``U`` ``(N, m)``, shape
+        ``(N,)``: the model term of a batch of observers. Default: one call per row; systems
+        override it with vectorized numpy."""
+        return np.array([float(self.phi_unchecked(z, u)) for z, u in zip(Z, U)], dtype=float)
+
+    # ------------------------------------------------------------------- forms
+    def form(self, kind: str, **options: Any) -> Any:
+        """The observer form ``kind`` this system declares (one of :attr:`forms`): observers
+        ask for their form by name and never import a concrete system. A system declares
+        ``"affine"`` (paper 001, eq. 9/21, for the Besançon observer), ``"aocf"`` (paper 002,
+        eq. 2.2, Bastin-Gevers), ``"jo_son"`` (paper 003, Jo-Son) or ``"kalman_fields"`` (the
+        MJCF fields an augmented Kalman filter may estimate) by listing it in :attr:`forms`
+        and implementing ``_form_<kind>(**options)``.
+
+        Raises
+        ------
+        DesignError
+            The system does not declare ``kind``; the message lists the forms it declares.
+        """
+        if kind not in self.forms:
+            raise DesignError(f"{type(self).__name__} does not declare the {kind!r} form; it "
+                              f"declares {list(self.forms)}")
+        return getattr(self, f"_form_{kind}")(**options)
 
     # ------------------------------------------------------------------ MuJoCo
     @classmethod
