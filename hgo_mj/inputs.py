@@ -1,8 +1,7 @@
 """Input signals ``u(t)`` and controllers ``u(t, x_hat)``.
 
-Open-loop signals are callables ``signal(t) -> u`` (1-D array); ``signal.value_list(t)`` gives
-the same values as a list of Python floats, for per-sample loops (:func:`~hgo_mj.simulate.simulate`
-uses it where the signal's class defines it next to its ``__call__``). A :class:`Controller`
+Open-loop signals compute ``u`` at many instants at once (:meth:`Signal.values`, ``(T,)`` times to
+``(T, m)`` values); ``signal(t) -> u`` (a 1-D array) is derived from it. A :class:`Controller`
 wraps a feedback law that sees only an observer's estimate (or, when asked, the true state, for
 comparison). Every signal validates its parameters and reports them with ``params()``.
 """
@@ -10,7 +9,7 @@ comparison). Every signal validates its parameters and reports them with ``param
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -23,23 +22,45 @@ from .exceptions import DesignError, DimensionError
 Array = NDArray[np.float64]
 
 
-class Signal:
-    """Base class of open-loop inputs: ``signal(t)`` returns a fresh 1-D array."""
+class Signal(ABC):
+    """Base class of open-loop inputs. The one primitive is :meth:`values`, vectorized over
+    time; ``signal(t)`` (a fresh 1-D array) is derived from it."""
 
     name = ""
     summary = ""
 
-    def __call__(self, t: float) -> Array:
-        raise NotImplementedError
+    @abstractmethod
+    def values(self, t: Array) -> Array:
+        """``u`` at the instants ``t`` ``(T,)``, shape ``(T, m)``."""
 
-    def value_list(self, t: float) -> list[float]:
-        """``self(t)`` as a fresh list of Python floats (the same values), for per-sample loops
-        where a small array costs more than the arithmetic; signals override it with a path in
-        plain floats (the default goes through :meth:`__call__`)."""
-        return np.asarray(self(t), dtype=float).reshape(-1).tolist()  # type: ignore[no-any-return]
+    def __call__(self, t: float) -> Array:
+        return self.values(np.array([float(t)]))[0]
 
     def params(self) -> dict[str, Any]:
         return {}
+
+
+class FunctionSignal(Signal):
+    """A plain function ``u(t) -> array`` used as a signal (called once per instant)."""
+
+    name = "function"
+    summary = "a user function u(t)"
+
+    def __init__(self, fn: Callable[[float], Any]) -> None:
+        if not callable(fn):
+            raise DesignError(f"a signal function must be callable; found {type(fn).__name__}")
+        self.fn = fn
+
+    def values(self, t: Array) -> Array:
+        rows = [np.atleast_1d(np.asarray(self.fn(float(ti)), dtype=float)) for ti in t]
+        widths = {r.shape for r in rows}
+        if len(widths) != 1 or any(r.ndim != 1 for r in rows):
+            raise DimensionError(f"u(t) must return 1-D arrays of one length; found shapes "
+                                 f"{sorted(widths)}")
+        return np.stack(rows)
+
+    def params(self) -> dict[str, Any]:
+        return {"function": getattr(self.fn, "__name__", repr(self.fn))}
 
 
 def _channels(name: str, value: Any) -> Array:
@@ -54,13 +75,9 @@ class Constant(Signal):
 
     def __init__(self, value: Any = 0.0) -> None:
         self.value = _channels("Constant.value", value)
-        self._list = self.value.tolist()
 
-    def __call__(self, t: float) -> Array:
-        return self.value.copy()
-
-    def value_list(self, t: float) -> list[float]:
-        return self._list.copy()
+    def values(self, t: Array) -> Array:
+        return np.tile(self.value, (np.size(t), 1))
 
     def params(self) -> dict[str, Any]:
         return {"value": self.value.tolist()}
@@ -78,27 +95,21 @@ class Schedule(Signal):
     def __init__(self, times: Sequence[float], values: Any) -> None:
         self.times = vector("Schedule.times", times)
         vals = np.asarray(values, dtype=float)
-        self.values = vals.reshape(len(self.times), -1) if vals.ndim <= 1 else vals
-        if self.values.shape[0] != self.times.size or self.times.size == 0:
+        self.levels = vals.reshape(len(self.times), -1) if vals.ndim <= 1 else vals
+        if self.levels.shape[0] != self.times.size or self.times.size == 0:
             raise DimensionError(f"Schedule needs one value per time; found {self.times.size} "
-                                 f"times and {self.values.shape[0]} values")
-        if not np.all(np.isfinite(self.values)):
+                                 f"times and {self.levels.shape[0]} values")
+        if not np.all(np.isfinite(self.levels)):
             raise DesignError("Schedule.values must be finite")
         if np.any(np.diff(self.times) <= 0):
             raise DesignError(f"Schedule.times must increase strictly; found {self.times.tolist()}")
-        self._times = self.times.tolist()
-        self._rows = self.values.tolist()
 
-    def __call__(self, t: float) -> Array:
-        i = max(int(np.searchsorted(self.times, t, side="right")) - 1, 0)
-        return self.values[i].copy()
-
-    def value_list(self, t: float) -> list[float]:
-        # bisect_right on the floats is searchsorted(side="right"), NaN included (past the end)
-        return self._rows[max(bisect_right(self._times, t) - 1, 0)].copy()
+    def values(self, t: Array) -> Array:
+        i = np.maximum(np.searchsorted(self.times, t, side="right") - 1, 0)
+        return self.levels[i]
 
     def params(self) -> dict[str, Any]:
-        return {"times": self.times.tolist(), "values": self.values.tolist()}
+        return {"times": self.times.tolist(), "values": self.levels.tolist()}
 
 
 class Multisine(Signal):
@@ -118,18 +129,13 @@ class Multisine(Signal):
             raise DesignError(f"Multisine.frequencies must be >= 0; found "
                               f"{self.frequencies.tolist()}")
         self.offset = finite_scalar("Multisine.offset", offset)
-        self._w = (2 * math.pi * self.frequencies).tolist()
-        self._a = self.amplitudes.tolist()
-        self._ph = self.phases.tolist()
 
-    def __call__(self, t: float) -> Array:
-        return np.array(self.value_list(t))
-
-    def value_list(self, t: float) -> list[float]:
-        s = self.offset
-        for a, w, ph in zip(self._a, self._w, self._ph):
-            s += a * math.sin(w * t + ph)
-        return [s]
+    def values(self, t: Array) -> Array:
+        s = np.full(np.size(t), self.offset)
+        for a, f, ph in zip(self.amplitudes.tolist(), self.frequencies.tolist(),
+                            self.phases.tolist()):
+            s = s + a * np.sin(2 * math.pi * f * np.asarray(t, dtype=float) + ph)
+        return s[:, None]
 
     def params(self) -> dict[str, Any]:
         return {"amplitudes": self.amplitudes.tolist(), "frequencies": self.frequencies.tolist(),
@@ -151,14 +157,13 @@ class Chirp(Signal):
         self.duration = finite_scalar("Chirp.duration", duration, positive=True)
         self.offset = finite_scalar("Chirp.offset", offset)
 
-    def __call__(self, t: float) -> Array:
-        return np.array(self.value_list(t))
-
-    def value_list(self, t: float) -> list[float]:
+    def values(self, t: Array) -> Array:
+        t = np.asarray(t, dtype=float)
         T = self.duration
-        tt = min(t, T)
-        phase = self.f0 * tt + (self.f1 - self.f0) * tt * tt / (2 * T) + self.f1 * max(t - T, 0.0)
-        return [self.offset + self.amplitude * math.sin(2 * math.pi * phase)]
+        tt = np.minimum(t, T)
+        phase = self.f0 * tt + (self.f1 - self.f0) * tt * tt / (2 * T) + self.f1 * np.maximum(
+            t - T, 0.0)
+        return (self.offset + self.amplitude * np.sin(2 * math.pi * phase))[:, None]
 
     def params(self) -> dict[str, Any]:
         return {"amplitude": self.amplitude, "f0": self.f0, "f1": self.f1,
@@ -181,14 +186,10 @@ class PRBS(Signal):
         self.length = int(length)
         rng = np.random.default_rng(self.seed)
         self._levels = np.where(rng.random(self.length) < 0.5, -1.0, 1.0)
-        self._level_list = self._levels.tolist()
 
-    def __call__(self, t: float) -> Array:
-        return np.array(self.value_list(t))
-
-    def value_list(self, t: float) -> list[float]:
-        i = int(math.floor(t / self.period + 1e-9)) % self.length
-        return [self.offset + self.amplitude * self._level_list[i]]
+    def values(self, t: Array) -> Array:
+        i = np.floor(np.asarray(t, dtype=float) / self.period + 1e-9).astype(np.int64) % self.length
+        return (self.offset + self.amplitude * self._levels[i])[:, None]
 
     def params(self) -> dict[str, Any]:
         return {"amplitude": self.amplitude, "period": self.period, "seed": self.seed,

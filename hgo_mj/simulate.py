@@ -24,10 +24,8 @@ from __future__ import annotations
 
 import json
 import platform
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import partial
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any
@@ -35,12 +33,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._validate import finite_scalar, integer_multiple, vector
+from ._validate import finite_scalar, positive_int, vector
 from .exceptions import DesignError, DimensionError, DivergenceError
-from .inputs import Controller
+from .loop import Drive, Loop, LoopFailure, Periods, Segment
 from .observers.base import Observer
 from .plants.base import Plant
-from .sensors import SensorChain, Stage
+from .sensors import SensorChain
 
 Array = NDArray[np.float64]
 
@@ -196,408 +194,293 @@ def _named_observers(observers: Any) -> dict[str, Observer]:
     if isinstance(observers, Mapping):
         items = list(observers.items())
     else:
-        items = []
-        for i, ob in enumerate(observers):
-            items.append((f"{ob.name or type(ob).__name__}_{i}", ob))
+        items = [(f"{ob.name or type(ob).__name__}_{i}", ob) for i, ob in enumerate(observers)]
     for name, ob in items:
         if not isinstance(ob, Observer):
             raise DesignError(f"observer {name!r} must be an Observer; found {type(ob).__name__}")
     return dict(items)
 
 
-def simulate(plant: Plant, sensor: Callable[[float, Array], Array] | None,
+def simulate(plant: Plant, sensor: SensorChain | None,
              observers: Mapping[str, Observer] | Sequence[Observer] | Observer | None,
              inputs: Callable[..., Any], duration: float, *, sample_period: float | None = None,
              control_period: float | None = None, x0: Any = None, seed: int | None = None,
              metadata: Mapping[str, Any] | None = None,
-             on_chunk: tuple[float, Callable[[int, Trajectory], None]] | None = None) -> Trajectory:
+             on_chunk: tuple[float, Callable[[int, Trajectory], None]] | None = None,
+             store_every: int = 1) -> Trajectory:
     """Run plant, sensor chain and observers together and return the :class:`Trajectory`.
 
     Parameters
     ----------
     plant : Plant
         The true plant; ``plant.dt`` is its step (a multiple of its physics step).
-    sensor : SensorChain or callable ``(t, y) -> y_meas`` or None
-        Applied to the clean outputs at every sample; ``None`` measures exactly. A chain with a
-        ``reset`` method is reset (and re-seeded with ``seed``) first.
+    sensor : SensorChain or None
+        Applied to the clean outputs at every sample (re-seeded with ``seed`` first);
+        ``None`` measures exactly.
     observers : mapping name -> Observer, sequence, single Observer, or None
         Every observer is reset to its own initial estimate and fed the same ``y_meas``.
-    inputs : callable
-        An open-loop signal ``u(t)`` (read with its ``value_list(t)`` where its class defines
-        it, see :class:`~hgo_mj.inputs.Signal`) or a :class:`~hgo_mj.inputs.Controller` (fed the
-        named observer's estimate, or the true state).
+    inputs : Signal, callable ``u(t)`` or Controller
+        An open-loop signal (evaluated at the control instants and held) or a
+        :class:`~hgo_mj.inputs.Controller` (fed the named observer's estimate, or the true state).
     duration : float
-        Simulated time; the trajectory has ``round(duration / sample_period) + 1`` rows.
+        Simulated time; the run has ``round(duration / sample_period) + 1`` sample rows.
     sample_period, control_period : float, optional
         Defaults: ``plant.dt`` and ``sample_period``; each a multiple of the one before.
     x0 : array_like, optional
         Initial true state (default ``plant.system.default_x0``).
     seed : int, optional
-        Seed of the sensor chain's generator: the same seed gives a bit-identical run.
+        Seed of the sensor chain's streams: the same seed gives a bit-identical run.
     on_chunk : (seconds, callback), optional
-        Hand the rows over as they are simulated: ``callback(first_row, chunk)`` is called with
-        a :class:`Trajectory` of the rows ``first_row ...`` each time ``seconds`` of simulated
-        time have been collected (at least one row), and once more with the rows left at the
-        end (a tail shorter than half a chunk joins the last chunk), also when the run stops
-        on a :class:`DivergenceError`. A chunk's metadata holds
-        only ``sample_period`` and ``first_row``; its ``update_time`` is NaN. Used by
-        :class:`hgo_mj.record.Recorder` so that a run killed part-way leaves a recording of
-        everything up to its last chunk. The simulated values do not depend on it.
+        Hand the stored rows over as they are simulated: ``callback(first_row, chunk)`` with a
+        :class:`Trajectory` of the rows ``first_row ...`` each time ``seconds`` of simulated
+        time have been stored (at least one row), and once more with the rows left at the end
+        (a tail shorter than half a chunk joins the last chunk), also when the run stops on a
+        :class:`DivergenceError`. A chunk's metadata holds only ``sample_period`` and
+        ``first_row``; its ``update_time`` is NaN. The simulated values do not depend on it.
+    store_every : int
+        Keep every ``store_every``-th sample row (rows ``0, s, 2s, ...``); the run itself
+        advances at every sample.
 
     Returns
     -------
     Trajectory
-        Each observer's record names its columns (``state_names``). The metadata's
-        ``inverse_failures`` maps each observer to the number of failed evaluations of its
-        inverse normal-form map over the run (``Observer.inverse_failures_``: while the
-        inverse is undefined ``x_hat`` holds its last valid value, NaN before any).
+        Row ``k`` is the sample instant ``t_k``: the true state, clean and measured outputs,
+        the input applied from ``t_k``, and each observer's estimate *before* it consumes
+        ``y(t_k)``. The metadata's ``inverse_failures`` counts each observer's failed
+        evaluations of its inverse normal-form map.
 
     Raises
     ------
     DivergenceError
-        If an observer's own state ``z_hat`` leaves the finite numbers (or ``x_hat`` becomes
-        infinite; a NaN ``x_hat`` with a finite ``z_hat`` only means that the inverse map is
-        undefined there), or if an observer's update raises ``FloatingPointError``,
-        ``ValueError`` or another ``ArithmeticError`` (a math domain error or an overflow on a
-        blown-up estimate, a ``DesignError`` of a map evaluated outside its domain; the
-        message names the observer and the time; the original error is ``exc.__cause__``).
-        The partial trajectory is attached to the exception as ``exc.trajectory``. A
-        ``DimensionError`` in an update (a shape mistake) and every error raised before the
-        loop (argument validation, ``check_period``) propagate unchanged.
+        If an observer's ``z_hat`` leaves the finite numbers (or ``x_hat`` becomes infinite),
+        or an observer's update raises ``ValueError`` or an ``ArithmeticError`` (the message
+        names the observer, the time and the row; the original error is ``exc.__cause__``),
+        or the plant fails (a non-finite or too large input, MuJoCo's bad-state reset). The
+        partial trajectory is ``exc.trajectory``. A ``DimensionError`` in an update and every
+        error raised before the loop (argument validation, ``check_period``) propagate.
     """
-    Ts = plant.dt if sample_period is None else finite_scalar("sample_period", sample_period,
-                                                               positive=True)
-    steps = integer_multiple("sample_period", Ts, plant.dt, "plant.dt")
-    Tc = Ts if control_period is None else finite_scalar("control_period", control_period,
-                                                         positive=True)
-    every = integer_multiple("control_period", Tc, Ts, "sample_period")
+    return _run(plant, sensor, observers, inputs, duration, sample_period=sample_period,
+                control_period=control_period, x0=x0, seeds=seed, batch=None,
+                metadata=metadata, on_chunk=on_chunk, store_every=store_every)[0]
+
+
+def simulate_batch(plant: Plant, sensor: SensorChain | None,
+                   observers: Mapping[str, Observer] | Sequence[Observer] | Observer | None,
+                   inputs: Callable[..., Any], duration: float, *, seeds: Sequence[int | None],
+                   x0: Any = None, sample_period: float | None = None,
+                   control_period: float | None = None,
+                   metadata: Mapping[str, Any] | None = None,
+                   store_every: int = 1) -> list[Trajectory]:
+    """:func:`simulate` of B members at once, one per seed in ``seeds`` (and, if ``x0`` is
+    ``(B, n)``, per initial state): the plants, the sensor streams and every observer advance
+    as one batch. Member ``i`` equals ``simulate(..., x0=x0[i], seed=seeds[i])`` alone, bit
+    for bit. A failure (divergence) of any member stops the batch with a DivergenceError."""
+    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Sequence) or not seeds:
+        raise DesignError(f"seeds must be a non-empty sequence of seeds; found {seeds!r}")
+    return _run(plant, sensor, observers, inputs, duration, sample_period=sample_period,
+                control_period=control_period, x0=x0, seeds=list(seeds), batch=len(seeds),
+                metadata=metadata, on_chunk=None, store_every=store_every)
+
+
+#: samples per segment of an open-loop run (a feedback law runs one control period at a time)
+SEGMENT = 1024
+
+
+def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
+         duration: float, *, sample_period: Any, control_period: Any, x0: Any, seeds: Any,
+         batch: int | None, metadata: Mapping[str, Any] | None, on_chunk: Any,
+         store_every: Any) -> list[Trajectory]:
+    periods = Periods.of(plant, sample_period, control_period)
     duration = finite_scalar("duration", duration, positive=True)
-    N = int(round(duration / Ts))
+    every = positive_int("store_every", store_every, floats=False)
+    N = int(round(duration / periods.sample))
     obs = _named_observers(observers)
-    chunk_rows, chunk_cb = -1, None
-    if on_chunk is not None:
-        if not (isinstance(on_chunk, tuple) and len(on_chunk) == 2 and callable(on_chunk[1])):
-            raise DesignError(f"on_chunk must be a tuple (seconds, callback); found {on_chunk!r}")
-        chunk_s = finite_scalar("on_chunk seconds", on_chunk[0], positive=True)
-        chunk_rows, chunk_cb = max(int(round(chunk_s / Ts)), 1), on_chunk[1]
-    value_list: Callable[[float], list[float]] | None = None
-    if isinstance(inputs, Controller):
-        if inputs.source == "estimate":
-            if not obs:
-                raise DesignError("a Controller on the estimate needs at least one observer")
-            ctrl_obs = obs[inputs.observer] if inputs.observer is not None else next(
-                iter(obs.values()))
-        controller = True
-    elif callable(inputs):
-        controller = False
-        if _owns(inputs, "value_list", "__call__"):  # a signal's plain-float path
-            value_list = inputs.value_list
-    else:
-        raise DesignError(f"inputs must be a signal u(t) or a Controller; found "
-                          f"{type(inputs).__name__}")
-
-    plant.reset(x0)
-    if sensor is not None and hasattr(sensor, "reset"):
-        sensor.reset(seed)
-    for ob in obs.values():
-        ob.reset()
-        ob.check_period(Ts)  # a too-long period for a high gain is refused before the run
-    n, m, p = len(plant.state_names), len(plant.output_names), len(plant.input_names)
-    obs_list = list(obs.values())
-    names = list(obs)
-    x_hat: list[Any] = [ob.x_hat for ob in obs_list]  # update() returns the next one
-    est_names: list[tuple[str, ...]] = []
-    for (name, ob), xh in zip(obs.items(), x_hat):
-        names_i = tuple(str(s) for s in ob.state_names)
-        width = np.asarray(xh).size
-        if len(names_i) != width:
-            raise DimensionError(f"observer {name!r} ({type(ob).__name__}): state_names must "
-                                 f"name the {width} entries of x_hat; found {len(names_i)} "
-                                 f"{list(names_i)}")
-        est_names.append(names_i)
-
-    # The fast paths: plain Python floats per sample, no small arrays, where the plant, the
-    # sensor stages, the open-loop signal and the observers offer them (``state_list``,
-    # ``apply_list``, ``value_list``, ``update_list``, ...: the same values, see the
-    # differential test); the array interface
-    # otherwise. Rows are collected in flat lists (arrays: lists of rows) and stacked per chunk.
-    state_list = plant.state_list if _owns(plant, "state_list", "state") else (
-        lambda: Plant.state_list(plant))
-    outputs_list = plant.outputs_list if _owns(plant, "outputs_list", "outputs") else (
-        lambda: Plant.outputs_list(plant))
-    step_list = _owns(plant, "step_list", "step")  # step() takes a list of floats
-    plant_step = plant.step_list if step_list else plant.step
-    stages: list[Callable[..., list[float]]] | None = None
-    if isinstance(sensor, SensorChain) and type(sensor).__call__ is SensorChain.__call__:
-        stages = [s.apply_list if _owns(s, "apply_list", "__call__")
-                  else partial(Stage.apply_list, s) for s in sensor.stages]
-        rng = sensor.rng
-    fast = [_fast_observer(ob) for ob in obs_list]
-    diag_keys: list[tuple[str, ...]] = []
-    for i, ob in enumerate(obs_list):
-        keys = tuple(ob.diagnostics()) if fast[i] is not None and fast[i][2] is not None else ()
-        if keys and len(fast[i][2]()) != len(keys):  # type: ignore[index,misc]
-            fast[i] = (fast[i][0], fast[i][1], None)  # type: ignore[index]
-        diag_keys.append(keys if fast[i] is not None and fast[i][2] is not None else ())
-    for i, f in enumerate(fast):
-        if f is not None:
-            x_hat[i] = np.asarray(x_hat[i], dtype=float).reshape(-1).tolist()
-    need_array = any(f is None for f in fast)  # an observer on the array interface
-    # the input as an array only for those on the array interface (observers, plant step)
-    u_array = need_array or not step_list
-
-    X: list[float] = []
-    Yc: list[float] = []
-    Ym: list[float] = []
-    U: list[float] = []
-    # per observer: flat lists of floats (fast path) or lists of arrays / dicts (array path)
-    xh_rows: list[list[Any]] = [[] for _ in names]
-    zh_rows: list[list[Any]] = [[] for _ in names]
-    dg_rows: list[list[Any]] = [[] for _ in names]
-    wall = [0.0] * len(names)
-    # per observer, what the loop calls and fills: (index, observer, update_list or None,
-    # z_hat_list, diagnostic_values or None, its x_hat, z_hat and diagnostics rows)
-    ops = [(i, ob, None if f is None else f[0], None if f is None else f[1],
-            None if f is None else f[2], xh_rows[i], zh_rows[i], dg_rows[i])
-           for i, (ob, f) in enumerate(zip(obs_list, fast))]
-    updates = [(i, ob, upd) for i, ob, upd, *_ in ops]
-    perf = time.perf_counter
-    u = np.zeros(p)
-    ul: list[float] = u.tolist()
-    uarg: Any = ul if step_list else u
-    failure: Exception | None = None
-    f64 = np.dtype(np.float64)
-
-    def build(k0: int, rows: int, meta: dict[str, Any],
-              update_time: list[float] | None = None) -> Trajectory:
-        """The rows collected in the lists (run rows ``k0 ...``) as a :class:`Trajectory`."""
-        records = {}
-        for i, name in enumerate(names):
-            dg = dg_rows[i]
-            if diag_keys[i]:
-                keys = diag_keys[i]
-                vals = np.array(dg, dtype=float).reshape(rows, len(keys))
-                diag = {d: vals[:, j].copy() for j, d in enumerate(keys)} if rows else {}
-            else:
-                diag = {d: np.array([r[d] for r in dg], dtype=float)
-                        for d in (dg[0] if dg else ())}
-            records[name] = ObserverRecord(
-                x_hat=_stack(xh_rows[i], rows, len(est_names[i])),
-                z_hat=_stack(zh_rows[i], rows, 0), diagnostics=diag,
-                update_time=float("nan") if update_time is None else update_time[i],
-                state_names=est_names[i])
-        return Trajectory(
-            t=np.arange(k0, k0 + rows) * Ts, x=np.array(X, dtype=float).reshape(rows, n),
-            y_clean=np.array(Yc, dtype=float).reshape(rows, m),
-            y_meas=np.array(Ym, dtype=float).reshape(rows, m),
-            u=np.array(U, dtype=float).reshape(rows, p), observers=records,
-            state_names=tuple(plant.state_names), output_names=tuple(plant.output_names),
-            input_names=tuple(plant.input_names), metadata=meta)
-
-    parts: list[Trajectory] = []  # chunks handed to on_chunk; their rows leave the lists
-
-    def emit(k0: int, rows: int) -> None:
-        chunk = build(k0, rows, {"sample_period": Ts, "first_row": k0})
-        for lst in (X, Yc, Ym, U, *xh_rows, *zh_rows, *dg_rows):
-            lst.clear()
-        parts.append(chunk)
-        chunk_cb(k0, chunk)
-
-    sent = 0  # rows already handed to on_chunk
-    done = 0  # rows collected so far
-    next_chunk = chunk_rows
-    ym_arr: Any = None
+    drive = Drive.of(inputs, obs, plant, periods)
+    loop = Loop(plant, sensor, obs, periods)
+    store = Store(loop, N, every, on_chunk)
+    loop.reset(x0, seed=seeds, batch=batch)
+    store.start()
+    failure: LoopFailure | None = None
     try:
-        for k in range(N + 1):
-            t = k * Ts
-            xl = state_list()
-            ycl = outputs_list()
-            if stages is not None:
-                yml = ycl
-                for apply in stages:
-                    yml = apply(t, yml, rng)
-                if need_array:
-                    ym_arr = np.array(yml)
-            elif sensor is not None:
-                ym_arr = sensor(t, np.array(ycl))
-                yml = np.asarray(ym_arr, dtype=float).reshape(-1).tolist()
-            else:
-                yml = ycl
-                if need_array:
-                    ym_arr = np.array(ycl)
-            if k % every == 0:
-                if value_list is not None:
-                    ul = value_list(t)
-                    if len(ul) != p:
-                        raise DimensionError(f"input must have {p} channel(s) "
-                                             f"{plant.input_names}; found shape ({len(ul)},) "
-                                             f"at t={t:g}")
-                    if u_array:
-                        u = np.array(ul, dtype=float)
-                        uarg = ul if step_list else u
-                    else:
-                        uarg = ul
-                else:
-                    if controller:
-                        u = inputs(t, np.array(xl) if inputs.source == "true"
-                                   else ctrl_obs.x_hat)
-                    else:
-                        u = inputs(t)
-                    if type(u) is not np.ndarray or u.dtype is not f64 or u.ndim != 1:
-                        u = np.asarray(u, dtype=float).reshape(-1)
-                    if u.shape != (p,):
-                        raise DimensionError(f"input must have {p} channel(s) "
-                                             f"{plant.input_names}; found shape {u.shape} at "
-                                             f"t={t:g}")
-                    ul = u.tolist()
-                    uarg = ul if step_list else u
-            X += xl
-            Yc += ycl
-            Ym += yml
-            U += ul
-            for i, ob, upd, zl, dv, xr, zr, dr in ops:
-                if upd is None:
-                    xr.append(x_hat[i])
-                    zr.append(ob.z_hat)
-                    dr.append(ob.diagnostics())
-                else:
-                    xr += x_hat[i]
-                    zr += zl()
-                    if dv is None:
-                        dr.append(ob.diagnostics())
-                    else:
-                        dr += dv()
-            done = k + 1
-            if done == next_chunk:
-                if N - k >= chunk_rows // 2:  # a short tail is folded into the last chunk
-                    emit(sent, done - sent)
-                    sent = done
-                next_chunk = done + chunk_rows
-            if k == N:
-                break
-            for i, ob, upd in updates:
-                t0 = perf()
-                try:
-                    x_hat[i] = ob.update(ym_arr, u, Ts) if upd is None else upd(yml, ul, Ts)
-                except DimensionError:
-                    raise  # a shape mistake, not a divergence
-                except (DivergenceError, ValueError, ArithmeticError) as exc:
-                    # the observer's own check, or math on a blown-up estimate (a domain error,
-                    # an overflow, a DesignError of a map outside its domain): a divergence
-                    raise _UpdateFailure(names[i], t, k, exc) from exc
-                wall[i] += perf() - t0
-            if steps == 1:
-                plant_step(uarg)
-            else:
-                for _ in range(steps):
-                    plant_step(uarg)
-    except _UpdateFailure as exc:
+        while loop.k < N:
+            T = drive.length(loop.k, N, SEGMENT)
+            store.add(loop.segment(drive.inputs(loop, T)))
+        store.add_last(*loop.sample(), drive.inputs(loop, 1))
+    except LoopFailure as exc:
+        store.add(exc.segment, last=True)
         failure = exc
-    except (DivergenceError, FloatingPointError) as exc:
-        failure = exc  # keep what was simulated: the partial trajectory goes with the error
-
-    if chunk_cb is not None and done > sent:
-        emit(sent, done - sent)
-    rows = done
     meta = {"plant": type(plant.system).__name__, "system_params": plant.system.params,
             "plant_dt": plant.dt, "physics_dt": getattr(plant, "physics_dt", plant.dt),
-            "sample_period": Ts, "control_period": Tc, "duration": duration, "seed": seed,
-            "x0": plant_x0(plant, x0),
-            "sensor": sensor.describe() if hasattr(sensor, "describe") else repr(sensor),
+            "sample_period": periods.sample, "control_period": periods.control,
+            "duration": duration, "store_every": every,
+            "sensor": sensor.describe() if sensor is not None else None,
             "observers": {name: {"type": type(ob).__name__, **ob.params()}
                           for name, ob in obs.items()},
-            "input": {"type": type(inputs).__name__,
-                      **(inputs.params() if hasattr(inputs, "params") else {})},
-            "inverse_failures": {name: int(getattr(ob, "inverse_failures_", 0))
-                                 for name, ob in obs.items()},
-            "versions": package_versions(), **(dict(metadata) if metadata else {})}
-    update_time = [w / max(rows - 1, 1) for w in wall]
-    traj = (build(0, rows - sent, meta, update_time) if not parts
-            else _concatenate(parts, meta, update_time))
-    records, t_col = traj.observers, traj.t
-    if isinstance(failure, _UpdateFailure):
+            "input": drive.describe(), "versions": package_versions(),
+            **(dict(metadata) if metadata else {})}
+    trajs = store.trajectories(meta, seeds, x0)
+    for traj in trajs:
+        _raise_on_divergence(traj, failure)
+    return trajs
+
+
+def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None) -> None:
+    """Raise the run's failure, or the first non-finite ``z_hat`` (an infinite ``x_hat``), as
+    a :class:`DivergenceError` carrying the trajectory."""
+    if failure is not None:
         cause = failure.cause
-        exc = DivergenceError(f"observer {failure.observer!r} failed in its update at "
-                              f"t={failure.t:g} (row {failure.row}): {type(cause).__name__}: "
-                              f"{cause}")
+        if failure.observer is None:
+            exc = DivergenceError(f"simulation stopped at t={failure.t:g}: {cause}")
+        else:
+            exc = DivergenceError(f"observer {failure.observer!r} failed in its update at "
+                                  f"t={failure.t:g} (row {failure.row}): "
+                                  f"{type(cause).__name__}: {cause}")
         exc.trajectory = traj  # type: ignore[attr-defined]
         raise exc from cause
-    if failure is not None:
-        exc = DivergenceError(f"simulation stopped at t={(rows - 1) * Ts:g}: {failure}")
-        exc.trajectory = traj  # type: ignore[attr-defined]
-        raise exc from failure
-    for name, r in records.items():
+    for name, r in traj.observers.items():
         # the observer's own coordinates decide; a NaN x_hat (inverse undefined) is allowed
         bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
         if bad.any():
             k = int(np.argmax(bad))
             exc = DivergenceError(f"observer {name!r} estimate left the finite numbers at "
-                                  f"t={t_col[k]:g} (row {k}): z_hat = {r.z_hat[k].tolist()}, "
+                                  f"t={traj.t[k]:g} (row {k}): z_hat = {r.z_hat[k].tolist()}, "
                                   f"x_hat = {r.x_hat[k].tolist()}")
             exc.trajectory = traj  # type: ignore[attr-defined]
             raise exc
-    return traj
 
 
-def _owns(obj: Any, fast: str, slow: str) -> bool:
-    """Whether ``obj``'s method ``fast`` (a plain-float variant) belongs to the class that
-    defines the ``slow`` one it stands for, or to a subclass of it: a subclass that overrides
-    ``slow`` but not ``fast`` keeps the general path."""
-    mro = type(obj).__mro__
-    f = next((c for c in mro if fast in vars(c)), None)
-    s = next((c for c in mro if slow in vars(c)), None)
-    return f is not None and s is not None and issubclass(f, s)
+class Store:
+    """The stored rows of a run (every ``every``-th sample), filled segment by segment, handed
+    out in chunks (``on_chunk``) and returned as one :class:`Trajectory` per member."""
+
+    def __init__(self, loop: Loop, N: int, every: int, on_chunk: Any) -> None:
+        self.loop, self.N, self.every = loop, N, every
+        self.rows = N // every + 1
+        self.chunk_rows, self.chunk_cb = -1, None
+        if on_chunk is not None:
+            if not (isinstance(on_chunk, tuple) and len(on_chunk) == 2 and callable(on_chunk[1])):
+                raise DesignError(f"on_chunk must be a tuple (seconds, callback); found "
+                                  f"{on_chunk!r}")
+            chunk_s = finite_scalar("on_chunk seconds", on_chunk[0], positive=True)
+            self.chunk_rows = max(int(round(chunk_s / (loop.periods.sample * every))), 1)
+            self.chunk_cb = on_chunk[1]
+
+    def start(self) -> None:
+        """Allocate the columns (after the loop's reset: the batch and widths are known)."""
+        lp, B, R = self.loop, self.loop.batch, self.rows
+        n, p, m = (len(lp.plant.state_names), len(lp.plant.output_names),
+                   len(lp.plant.input_names))
+        self.cols = {"x": np.empty((B, R, n)), "y_clean": np.empty((B, R, p)),
+                     "y_meas": np.empty((B, R, p)), "u": np.empty((B, R, m))}
+        self.est = {}
+        for name, (x, z, d) in lp.estimates().items():
+            self.est[name] = (np.empty((B, R, x.shape[1])), np.empty((B, R, z.shape[1])),
+                              np.empty((B, R, d.shape[1])))
+        self.done = 0  # rows stored
+        self.sent = 0  # rows handed to on_chunk
+
+    def _put(self, k0: int, cols: dict[str, Array], est: dict[str, tuple[Array, ...]]) -> None:
+        """Store the sample rows ``k0 ...`` that fall on ``every``."""
+        T = next(iter(cols.values())).shape[1]
+        first = -k0 % self.every
+        sel = slice(first, T, self.every)
+        count = len(range(first, T, self.every))
+        if count == 0:
+            return
+        dst = slice(self.done, self.done + count)
+        for key, v in cols.items():
+            self.cols[key][:, dst] = v[:, sel]
+        for name, parts in est.items():
+            for out, v in zip(self.est[name], parts):
+                out[:, dst] = v[:, sel]
+        self.done += count
+        self._emit(final=False)
+
+    def add(self, seg: Segment, last: bool = False) -> None:
+        """Store a segment's rows; each observer's estimate before sample ``j`` is its row
+        ``j - 1`` (the one before the segment for ``j = 0``)."""
+        if len(seg) == 0:
+            self._emit(final=True)
+            return
+        est = {}
+        for name in self.est:
+            b = seg.blocks.get(name)
+            before = seg.before[name]
+            rows = len(seg) if b is None else b.x_hat.shape[1]
+            parts = []
+            for i, now in enumerate(before):
+                after = None if b is None else (b.x_hat, b.z_hat, b.diagnostics)[i]
+                col = np.empty((now.shape[0], len(seg), now.shape[1]))
+                col[:, 0] = now
+                if after is not None and rows:
+                    col[:, 1:rows + 1] = after[:, :len(seg) - 1]
+                parts.append(col)
+            est[name] = tuple(parts)
+        self._put(int(round(seg.t[0] / self.loop.periods.sample)),
+                  {"x": seg.x, "y_clean": seg.y_clean, "y_meas": seg.y_meas, "u": seg.u}, est)
+        if last:
+            self._emit(final=True)
+
+    def add_last(self, X: Array, Yc: Array, Ym: Array, U: Array) -> None:
+        """The last row (sample ``N``: measured, not consumed)."""
+        est = {name: tuple(v[:, None] for v in now) for name, now in self.loop.estimates().items()}
+        self._put(self.N, {"x": X, "y_clean": Yc, "y_meas": Ym, "u": U}, est)
+        self._emit(final=True)
+
+    def _emit(self, final: bool) -> None:
+        if self.chunk_cb is None:
+            return
+        c = self.chunk_rows
+        while self.sent + c <= self.done and self.rows - (self.sent + c) >= c // 2 \
+                and self.sent + c < self.rows:
+            self._send(self.sent, self.sent + c)
+        if final and self.done > self.sent:
+            self._send(self.sent, self.done)
+
+    def _send(self, a: int, b: int) -> None:
+        chunk = self._trajectory(0, a, b, {"sample_period": self.loop.periods.sample *
+                                           self.every, "first_row": a}, None)
+        self.sent = b
+        self.chunk_cb(a, chunk)  # type: ignore[misc]
+
+    def _trajectory(self, member: int, a: int, b: int, meta: dict[str, Any],
+                    update_time: dict[str, float] | None) -> Trajectory:
+        lp = self.loop
+        records = {}
+        for name, ob in lp.observers.items():
+            xh, zh, dg = (v[member, a:b] for v in self.est[name])
+            records[name] = ObserverRecord(
+                x_hat=xh.copy(), z_hat=zh.copy(),
+                diagnostics={d: dg[:, j].copy() for j, d in enumerate(ob.diagnostic_names)},
+                update_time=float("nan") if update_time is None else update_time[name],
+                state_names=tuple(str(s) for s in ob.state_names))
+        t = np.arange(a, b) * (lp.periods.sample * self.every)
+        return Trajectory(t=t, **{k: v[member, a:b].copy() for k, v in self.cols.items()},
+                          observers=records, state_names=tuple(lp.plant.state_names),
+                          output_names=tuple(lp.plant.output_names),
+                          input_names=tuple(lp.plant.input_names), metadata=meta)
+
+    def trajectories(self, meta: dict[str, Any], seeds: Any, x0: Any) -> list[Trajectory]:
+        """One :class:`Trajectory` per member of the rows stored."""
+        lp = self.loop
+        steps = max(self.done * self.every - self.every, 1)
+        update_time = {name: lp.wall[name] / (steps * lp.batch) for name in lp.observers}
+        out = []
+        x0s = np.reshape(plant_x0_rows(lp.plant, x0), (lp.batch, -1))
+        for b in range(lp.batch):
+            seed = seeds[b] if isinstance(seeds, list) else seeds
+            inv = {name: int(np.reshape(ob._inverse_failures, -1)[b])
+                   for name, ob in lp.observers.items()}
+            m = {**meta, "seed": seed, "x0": x0s[b].tolist(), "inverse_failures": inv}
+            out.append(self._trajectory(b, 0, self.done, m, update_time))
+        return out
 
 
-def _fast_observer(ob: Observer) -> tuple[Callable[..., list[float]],
-                                          Callable[[], list[float]],
-                                          Callable[[], tuple[float, ...]] | None] | None:
-    """``(update_list, z_hat_list, diagnostic_values or None)`` of an observer with the
-    plain-float path (the high-gain family), or None: the array interface."""
-    if not (_owns(ob, "update_list", "update") and _owns(ob, "x_hat_list", "x_hat")
-            and _owns(ob, "z_hat_list", "z_hat")):
-        return None
-    dv = ob.diagnostic_values if _owns(ob, "diagnostic_values", "diagnostics") else None  # type: ignore[attr-defined]
-    return ob.update_list, ob.z_hat_list, dv  # type: ignore[attr-defined]
-
-
-def _stack(rows_list: list[Any], rows: int, width: int) -> Array:
-    """``rows`` rows collected as a flat list of floats or as a list of arrays, shape
-    ``(rows, width)`` (``width`` 0: inferred)."""
-    if not rows:
-        return np.empty((0, width))
-    return np.array(rows_list, dtype=float).reshape(rows, -1)
-
-
-class _UpdateFailure(Exception):
-    """An observer's update raised a math error (carried out of the loop, then re-raised as a
-    :class:`DivergenceError` with the partial trajectory)."""
-
-    def __init__(self, observer: str, t: float, row: int, cause: BaseException) -> None:
-        super().__init__(f"observer {observer!r} at t={t:g}: {cause}")
-        self.observer, self.t, self.row, self.cause = observer, t, row, cause
-
-
-def _concatenate(parts: list[Trajectory], meta: dict[str, Any],
-                 update_time: list[float]) -> Trajectory:
-    """One trajectory of consecutive chunks."""
-    first = parts[0]
-    records = {}
-    for i, name in enumerate(first.observers):
-        recs = [c.observers[name] for c in parts]
-        records[name] = ObserverRecord(
-            x_hat=np.concatenate([r.x_hat for r in recs]),
-            z_hat=np.concatenate([r.z_hat for r in recs]),
-            diagnostics={d: np.concatenate([r.diagnostics[d] for r in recs])
-                         for d in recs[0].diagnostics}, update_time=update_time[i],
-            state_names=recs[0].state_names)
-    return Trajectory(t=np.concatenate([c.t for c in parts]),
-                      x=np.concatenate([c.x for c in parts]),
-                      y_clean=np.concatenate([c.y_clean for c in parts]),
-                      y_meas=np.concatenate([c.y_meas for c in parts]),
-                      u=np.concatenate([c.u for c in parts]), observers=records,
-                      state_names=first.state_names, output_names=first.output_names,
-                      input_names=first.input_names, metadata=meta)
+def plant_x0_rows(plant: Plant, x0: Any) -> Array:
+    """The initial true state(s) of a run, as given or the system's default."""
+    if x0 is not None:
+        return np.asarray(x0, dtype=float)
+    return np.asarray(plant.system.default_x0, dtype=float)
 
 
 def plant_x0(plant: Plant, x0: Any) -> list[float]:
@@ -606,4 +489,4 @@ def plant_x0(plant: Plant, x0: Any) -> list[float]:
     return [float(v) for v in plant.system.default_x0]
 
 
-__all__ = ["ObserverRecord", "Trajectory", "simulate", "package_versions"]
+__all__ = ["ObserverRecord", "Trajectory", "simulate", "simulate_batch", "package_versions"]

@@ -1,0 +1,335 @@
+"""The one loop: plant -> sensor chain -> observers, B members at once.
+
+Timing (all periods exact integer multiples of each other)::
+
+    physics_dt | plant.dt | sample_period | control_period
+
+:class:`Loop` owns the periods and the parts. Its one kernel is :meth:`Loop.segment`: over T
+consecutive samples with the inputs ``U`` (B, T, m) it records the true state and the clean
+outputs at each sample instant while the plant holds ``U[:, j]`` for one sample period
+(``plant.run``), passes the clean outputs through the sensor chain (``sensor.apply``, B seeded
+streams) and advances every observer over the T measurements (``Observer.advance``). The
+callers choose T: :func:`hgo_mj.simulate.simulate` runs an open-loop input in long segments and
+a feedback law one control period at a time, an environment one control period per ``step``.
+
+An observer that fails inside a segment (a math error on a blown-up estimate, its own
+divergence check) is found to the sample: the loop keeps a copy of each observer's state
+before a segment of more than one sample and, on a failure, replays that observer sample by
+sample from the copy. The :class:`LoopFailure` it raises names the observer, the sample and
+the cause, and carries the rows that are valid.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._validate import finite_scalar, integer_multiple
+from .exceptions import DesignError, DimensionError, DivergenceError
+from .inputs import Controller, FunctionSignal, Signal
+from .observers.base import Block, Observer
+from .plants.base import Plant
+from .sensors import SensorChain
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Periods:
+    """The loop's periods: ``sample`` and ``control`` (seconds), ``steps`` plant steps per
+    sample and ``every`` samples per control period."""
+
+    sample: float
+    control: float
+    steps: int
+    every: int
+
+    @classmethod
+    def of(cls, plant: Plant, sample_period: Any = None, control_period: Any = None) -> Periods:
+        """Validated periods: defaults ``plant.dt`` and ``sample_period``, each a positive
+        integer multiple of the one before."""
+        Ts = plant.dt if sample_period is None else finite_scalar(
+            "sample_period", sample_period, positive=True)
+        steps = integer_multiple("sample_period", Ts, plant.dt, "plant.dt")
+        Tc = Ts if control_period is None else finite_scalar(
+            "control_period", control_period, positive=True)
+        every = integer_multiple("control_period", Tc, Ts, "sample_period")
+        return cls(Ts, Tc, steps, every)
+
+
+@dataclass
+class Segment:
+    """What :meth:`Loop.segment` produced over T samples of B members.
+
+    ``x``, ``y_clean``, ``y_meas``, ``u`` are the rows at the sample instants ``t`` (the state
+    before the plant moved on); ``blocks[name]`` holds each observer's estimate *after* each
+    sample (:class:`~hgo_mj.observers.base.Block`), ``before[name]`` its estimate before
+    sample 0 (``(B, n_x)``, ``(B, n)``, ``(B, d)``)."""
+
+    t: Array
+    x: Array
+    y_clean: Array
+    y_meas: Array
+    u: Array
+    blocks: dict[str, Block]
+    before: dict[str, tuple[Array, Array, Array]]
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+class LoopFailure(Exception):
+    """An observer's update or the plant failed inside a segment at sample ``row`` (the run's
+    sample index). ``segment`` holds the rows ``..row`` that are valid (the plant's and sensor's
+    through ``row``; each observer's estimate before each of them), ``observer`` names the
+    observer (None: the plant)."""
+
+    def __init__(self, observer: str | None, row: int, t: float, cause: BaseException,
+                 segment: Segment) -> None:
+        super().__init__(f"{observer or 'plant'} at t={t:g} (row {row}): {cause}")
+        self.observer, self.row, self.t, self.cause, self.segment = (observer, row, t, cause,
+                                                                      segment)
+
+
+#: what an observer's failure inside an update may be (a shape mistake, DimensionError, is not)
+_FAILURES = (DivergenceError, ValueError, ArithmeticError)
+
+
+class Loop:
+    """Plant, sensor chain and observers stepped together at their periods, B members.
+
+    Parameters
+    ----------
+    plant : Plant
+        The true plant (batched through ``reset(x0, batch=B)`` and ``run``).
+    sensor : SensorChain or None
+        Applied to the clean outputs; ``None`` measures exactly.
+    observers : mapping name -> Observer
+        Every observer sees the same measurement stream and the same input.
+    periods : Periods
+    """
+
+    def __init__(self, plant: Plant, sensor: SensorChain | None,
+                 observers: Mapping[str, Observer], periods: Periods) -> None:
+        if not isinstance(plant, Plant):
+            raise DesignError(f"plant must be a Plant; found {type(plant).__name__}")
+        if sensor is not None and not isinstance(sensor, SensorChain):
+            raise DesignError(f"sensor must be a SensorChain or None; found "
+                              f"{type(sensor).__name__}")
+        for name, ob in observers.items():
+            if not isinstance(ob, Observer):
+                raise DesignError(f"observer {name!r} must be an Observer; found "
+                                  f"{type(ob).__name__}")
+        self.plant, self.sensor, self.periods = plant, sensor, periods
+        self.observers = dict(observers)
+        self.batch = 1
+        self.k = 0
+        #: seconds spent in each observer's updates since the reset
+        self.wall: dict[str, float] = {}
+
+    @property
+    def t(self) -> float:
+        """The current sample instant."""
+        return self.k * self.periods.sample
+
+    def reset(self, x0: Any = None, *, seed: Any = None, batch: int | None = None) -> None:
+        """Restart every part: the plant from ``x0`` (``(n,)`` or ``(B, n)``; default the
+        system's), the sensor streams from ``seed`` (an int or None for one stream, a sequence
+        of B seeds for B), each observer from its own initial estimate; check each observer's
+        sample period (a too-long period for a high gain is refused here, before any work)."""
+        self.plant.reset(x0, batch=batch)
+        B = self.plant.batch
+        if self.sensor is not None:
+            self.sensor.reset(seed)
+            if self.sensor.batch != B:
+                raise DimensionError(f"the sensor chain has {self.sensor.batch} stream(s) for "
+                                     f"{B} plant(s): give one seed per member")
+        for ob in self.observers.values():
+            ob.reset(batch=B if batch is not None else None)
+            ob.check_period(self.periods.sample)
+        self.batch, self.k = B, 0
+        self.wall = dict.fromkeys(self.observers, 0.0)
+
+    def estimates(self) -> dict[str, tuple[Array, Array, Array]]:
+        """Each observer's current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)`` arrays."""
+        return {name: _current(ob) for name, ob in self.observers.items()}
+
+    def segment(self, U: Array) -> Segment:
+        """Advance T samples with the inputs ``U`` ``(B, T, m)`` (the kernel; see the module
+        docstring). Raises :class:`LoopFailure` on a failure inside it."""
+        T = U.shape[1]
+        Ts = self.periods.sample
+        t = (self.k + np.arange(T)) * Ts
+        before = self.estimates()
+        try:
+            X, Yc = self.plant.run(U, self.periods.steps)
+        except DivergenceError as exc:
+            X, Yc = getattr(exc, "partial", (np.empty((self.batch, 0, 0)),) * 2)
+            j = X.shape[1]
+            seg = Segment(t[:j], X, Yc, Yc.copy(), U[:, :j], {}, before)
+            raise LoopFailure(None, self.k + j, self.k * Ts + j * Ts, exc, seg) from exc
+        Ym = Yc.copy() if self.sensor is None else self.sensor.apply(t, Yc)
+        blocks: dict[str, Block] = {}
+        items = list(self.observers.items())
+        for i, (name, ob) in enumerate(items):
+            try:
+                blocks[name] = self._advance(name, ob, Ym, U)
+            except _Found as found:
+                j = found.row
+                blocks = {n: _head(b, j) for n, b in blocks.items()}
+                blocks[name] = found.head
+                for later, ob2 in items[i + 1:]:  # the others consume the samples before j
+                    blocks[later] = self._advance(later, ob2, Ym[:, :j], U[:, :j])
+                seg = Segment(t[:j + 1], X[:, :j + 1], Yc[:, :j + 1], Ym[:, :j + 1],
+                              U[:, :j + 1], blocks, before)
+                raise LoopFailure(name, self.k + j, float(t[j]), found.cause, seg) from found.cause
+        self.k += T
+        return Segment(t, X, Yc, Ym, U, blocks, before)
+
+    def _advance(self, name: str, ob: Observer, Ym: Array, U: Array) -> Block:
+        """One observer over the segment, timed; on a failure, the failing sample found by a
+        replay from the state before the segment (:class:`_Found`)."""
+        T = Ym.shape[1]
+        snap = copy.deepcopy(ob.__dict__) if T > 1 else None
+        t0 = time.perf_counter()
+        try:
+            blk = ob._advance_checked(Ym, U, self.periods.sample)
+        except DimensionError:
+            raise  # a shape mistake, not a divergence
+        except _FAILURES as exc:
+            if snap is None:
+                raise _Found(0, exc, _head(_empty(ob, Ym.shape[0]), 0)) from exc
+            ob.__dict__.update(snap)
+            raise _replay(ob, Ym, U, self.periods.sample) from exc
+        self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
+        return blk
+
+    def sample(self) -> tuple[Array, Array, Array]:
+        """The true state, clean and measured outputs at the current instant, ``(B, 1, ...)``
+        each, without moving on (the last row of a run); the sensor draws for it."""
+        X = np.reshape(self.plant.state, (self.batch, 1, -1)).copy()
+        Yc = np.reshape(self.plant.outputs(), (self.batch, 1, -1)).copy()
+        Ym = Yc.copy() if self.sensor is None else self.sensor.apply(
+            np.array([self.t]), Yc)
+        return X, Yc, Ym
+
+
+class Drive:
+    """How a run makes the loop's inputs ``U`` ``(B, T, m)``: an open-loop signal evaluated at
+    the control instants and held over each control period, or a
+    :class:`~hgo_mj.inputs.Controller` called at each control instant on the named observer's
+    current estimate (before it consumes that instant's measurement) or on the true state."""
+
+    def __init__(self, signal: Signal | None, controller: Controller | None,
+                 observer: str | None, m: int, input_names: tuple[str, ...],
+                 periods: Periods) -> None:
+        self.signal, self.controller, self.observer = signal, controller, observer
+        self.m, self.input_names, self.periods = m, input_names, periods
+        self._held: Array | None = None
+
+    @classmethod
+    def of(cls, inputs: Any, observers: Mapping[str, Observer], plant: Plant,
+           periods: Periods) -> Drive:
+        m, names = len(plant.input_names), tuple(plant.input_names)
+        if isinstance(inputs, Controller):
+            observer = None
+            if inputs.source == "estimate":
+                if not observers:
+                    raise DesignError("a Controller on the estimate needs at least one observer")
+                observer = inputs.observer if inputs.observer is not None else next(iter(observers))
+                if observer not in observers:
+                    raise DesignError(f"Controller.observer {observer!r} is not one of the "
+                                      f"observers {list(observers)}")
+            return cls(None, inputs, observer, m, names, periods)
+        if isinstance(inputs, Signal):
+            return cls(inputs, None, None, m, names, periods)
+        if callable(inputs):
+            return cls(FunctionSignal(inputs), None, None, m, names, periods)
+        raise DesignError(f"inputs must be a signal u(t) or a Controller; found "
+                          f"{type(inputs).__name__}")
+
+    def length(self, k: int, N: int, segment: int) -> int:
+        """Samples in the next segment from sample ``k`` of ``N``: up to ``segment`` for an
+        open-loop signal, up to the next control instant for a feedback law."""
+        if self.controller is None:
+            return min(segment, N - k)
+        return min(self.periods.every - k % self.periods.every, N - k)
+
+    def inputs(self, loop: Loop, T: int) -> Array:
+        """``U`` ``(B, T, m)`` for the samples ``loop.k ... loop.k + T - 1``."""
+        every, Ts, k = self.periods.every, self.periods.sample, loop.k
+        if self.controller is None:
+            idx = k + np.arange(T)
+            first = (idx - idx % every)  # the control instant each sample's input is held from
+            inst, where = np.unique(first, return_inverse=True)
+            vals = self._check(self.signal.values(inst * Ts), inst.size, inst[0] * Ts)  # type: ignore[union-attr]
+            return np.broadcast_to(vals[where], (loop.batch, T, self.m)).copy()
+        if k % every == 0 or self._held is None:
+            law = self.controller
+            x = (np.reshape(loop.plant.state, (loop.batch, -1)) if self.observer is None
+                 else _current(loop.observers[self.observer])[0])
+            self._held = np.stack([self._check(law(k * Ts, xi)[None], 1, k * Ts)[0] for xi in x])
+        return np.broadcast_to(self._held[:, None], (loop.batch, T, self.m)).copy()
+
+    def _check(self, vals: Any, rows: int, t: float) -> Array:
+        vals = np.asarray(vals, dtype=float)
+        if vals.shape != (rows, self.m):
+            found = vals.shape[1:] if vals.ndim == 2 else vals.shape
+            raise DimensionError(f"input must have {self.m} channel(s) {self.input_names}; "
+                                 f"found shape {tuple(found)} at t={t:g}")
+        return vals
+
+    def describe(self) -> dict[str, Any]:
+        src = self.controller if self.controller is not None else self.signal
+        return {"type": type(src).__name__, **(src.params() if hasattr(src, "params") else {})}
+
+
+def _current(ob: Observer) -> tuple[Array, Array, Array]:
+    x, z, d = ob._current()
+    nd = len(ob.family_diagnostics)
+    D = np.empty((x.shape[0], nd + 1))
+    D[:, :nd] = d
+    D[:, nd] = ob._dropouts
+    return x.copy(), z.copy(), D
+
+
+class _Found(Exception):
+    """An observer failed at sample ``row`` of a segment; ``head`` its rows before that."""
+
+    def __init__(self, row: int, cause: BaseException, head: Block) -> None:
+        super().__init__(f"row {row}: {cause}")
+        self.row, self.cause, self.head = row, cause, head
+
+
+def _empty(ob: Observer, B: int) -> Block:
+    return Block(np.empty((B, 0, len(ob.state_names))), np.empty((B, 0, ob.n)),
+                 np.empty((B, 0, len(ob.diagnostic_names))))
+
+
+def _replay(ob: Observer, Ym: Array, U: Array, Ts: float) -> _Found:
+    """Advance ``ob`` sample by sample over the segment until it fails again: the failing
+    sample, its error and the rows before it."""
+    rows: list[Block] = []
+    for j in range(Ym.shape[1]):
+        try:
+            rows.append(ob._advance_checked(Ym[:, j:j + 1], U[:, j:j + 1], Ts))
+        except _FAILURES as exc:
+            head = _empty(ob, Ym.shape[0]) if not rows else Block(
+                *(np.concatenate([getattr(r, f) for r in rows], axis=1)
+                  for f in ("x_hat", "z_hat", "diagnostics")))
+            return _Found(j, exc, head)
+    raise DesignError(f"{type(ob).__name__} failed on a segment but not sample by sample: its "
+                      f"update depends on more than its state")  # pragma: no cover
+
+
+def _head(b: Block, j: int) -> Block:
+    return Block(b.x_hat[:, :j], b.z_hat[:, :j], b.diagnostics[:, :j])
+
+
+__all__ = ["Drive", "Loop", "LoopFailure", "Periods", "Segment"]
