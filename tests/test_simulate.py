@@ -86,11 +86,11 @@ def test_controller_sees_the_estimate_or_the_truth(setup):
 
 
 def test_divergence_raises_with_partial_trajectory(chain):
-    class Exploding(HighGainObserver):
-        def update(self, y, u, dt):
-            super().update(y, u, dt)
-            self._z = (np.inf, 0.0)
-            return self.x_hat
+    class Exploding(HighGainObserver):  # reports an infinite z_hat after every sample
+        def _advance(self, Y, U, dt, X, Z, D):
+            super()._advance(Y, U, dt, X, Z, D)
+            Z[...] = (np.inf, 0.0)
+            X[...] = Z
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
     with pytest.raises(DivergenceError, match=r"observer 'bad' estimate left the finite numbers "
@@ -200,12 +200,16 @@ def test_physical_holds_the_last_valid_value(chain):
     """Observer._physical: NaN before any valid value, the last valid value after; counted."""
     from hgo_mj.systems.papers import BioreactorBullinger
 
+    def physical(ob, z):
+        X = np.empty((1, 1, len(ob.state_names)))
+        ob._to_physical(np.array([[z]], dtype=float), np.full((1, 1, 1), 0.05), X)
+        return X[0, 0]
+
     ob = HighGainObserver(BioreactorBullinger(), k=5.0)
-    ob._u = np.array([0.05])
-    assert np.isnan(ob._physical(np.array([0.0, 0.0]))).all() and ob.inverse_failures_ == 1
-    good = ob._physical(np.array([0.08, 0.001]))
+    assert np.isnan(physical(ob, [0.0, 0.0])).all() and ob.inverse_failures_ == 1
+    good = physical(ob, [0.08, 0.001])
     assert np.isfinite(good).all() and ob.inverse_failures_ == 1
-    np.testing.assert_array_equal(ob._physical(np.array([-1.0, 0.0])), good)
+    np.testing.assert_array_equal(physical(ob, [-1.0, 0.0]), good)
     assert ob.inverse_failures_ == 2
 
     class NanInverse(chain(2)):  # a fast path that returns NaN instead of raising
@@ -214,20 +218,20 @@ def test_physical_holds_the_last_valid_value(chain):
 
     ob.reset()  # a restart holds nothing from the run before, and counts from zero
     assert ob.inverse_failures_ == 0 and ob.dropouts_ == 0
-    assert np.isnan(ob._physical(np.array([0.0, 0.0]))).all()
+    assert np.isnan(physical(ob, [0.0, 0.0])).all()
 
     ob = HighGainObserver(NanInverse(), k=1.0)  # NaN passes through: also "undefined"
-    np.testing.assert_array_equal(ob._physical(np.array([1.0, 2.0])), [1.0, 2.0])
-    np.testing.assert_array_equal(ob._physical(np.array([-1.0, 3.0])), [np.nan, 3.0])
+    np.testing.assert_array_equal(physical(ob, [1.0, 2.0]), [1.0, 2.0])
+    np.testing.assert_array_equal(physical(ob, [-1.0, 3.0]), [np.nan, 3.0])
     assert ob.inverse_failures_ == 0
 
 
 def test_divergence_is_judged_on_z_hat(chain):
     class Runaway(HighGainObserver):  # z leaves the finite numbers, x_hat is NaN meanwhile
-        def update(self, y, u, dt):
-            super().update(y, u, dt)
-            self._z = (np.nan, 0.0)
-            return np.full(2, np.nan)
+        def _advance(self, Y, U, dt, X, Z, D):
+            super()._advance(Y, U, dt, X, Z, D)
+            Z[...] = (np.nan, 0.0)
+            X[...] = np.nan
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
     with pytest.raises(DivergenceError, match=r"observer 'bad' estimate left the finite numbers "
@@ -243,12 +247,14 @@ def test_math_error_in_an_update_is_a_divergence(chain, error):
     """A math error on a blown-up estimate (e.g. ``math.sqrt`` of a negative in from_normal)
     stops the run with a DivergenceError naming the observer and the time, carrying the
     partial trajectory (every row up to the failing update, also the chunks handed out)."""
-    class Fragile(HighGainObserver):
-        def update(self, y, u, dt):
-            if self.calls == 5:
-                raise error
-            self.calls += 1
-            return super().update(y, u, dt)
+    class Fragile(HighGainObserver):  # fails on its 6th sample (its state counts samples)
+        def _advance(self, Y, U, dt, X, Z, D):
+            for j in range(Y.shape[1]):
+                if self.calls == 5:
+                    raise error
+                self.calls += 1
+                super()._advance(Y[:, j:j + 1], U[:, j:j + 1], dt, X[:, j:j + 1],
+                                 Z[:, j:j + 1], D[:, j:j + 1])
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
     ob = Fragile(plant.system, k=1.0)
@@ -268,7 +274,7 @@ def test_math_error_in_an_update_is_a_divergence(chain, error):
 def test_deliberate_errors_in_an_update_propagate(chain):
     """A shape mistake in an update stays a DimensionError; validation before the loop too."""
     class Strict(HighGainObserver):
-        def update(self, y, u, dt):
+        def _advance(self, Y, U, dt, X, Z, D):
             raise DimensionError("phi(z_hat, u) must return 1 value; found 2")
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
@@ -280,7 +286,7 @@ def test_deliberate_errors_in_an_update_propagate(chain):
 
 def test_an_observers_own_divergence_names_it(chain):
     class Checked(HighGainObserver):
-        def update(self, y, u, dt):
+        def _advance(self, Y, U, dt, X, Z, D):
             raise DivergenceError("the observer state left the finite numbers: [inf]")
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)

@@ -1,0 +1,107 @@
+"""The one loop: a batch of B members equals each member run alone; segments and storage
+decimation change nothing but what is kept."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hgo_mj.simulate as sim
+from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.inputs import Controller, Multisine
+from hgo_mj.observers import AdaptiveGainObserver, HighGainObserver
+from hgo_mj.plants import make_plant
+from hgo_mj.sensors import GaussianNoise, Quantization, SensorChain
+from hgo_mj.simulate import simulate, simulate_batch
+
+
+def _parts():
+    plant = make_plant("pendulum")
+    sensor = SensorChain([GaussianNoise(std=1e-3), Quantization(resolution=1e-4)])
+    obs = {"hgo": HighGainObserver(plant.system, k=20.0),
+           "model": HighGainObserver(plant.system, k=20.0, model=True),
+           "adaptive": AdaptiveGainObserver(plant.system, lam=0.01, lam_hat=0.02, k0=5.0)}
+    return plant, sensor, obs
+
+
+def _same(a, b):
+    for col in ("t", "x", "y_clean", "y_meas", "u"):
+        np.testing.assert_array_equal(getattr(a, col), getattr(b, col), err_msg=col)
+    assert a.observers.keys() == b.observers.keys()
+    for name in a.observers:
+        ra, rb = a.observers[name], b.observers[name]
+        np.testing.assert_array_equal(ra.x_hat, rb.x_hat, err_msg=name)
+        np.testing.assert_array_equal(ra.z_hat, rb.z_hat, err_msg=name)
+        assert ra.diagnostics.keys() == rb.diagnostics.keys()
+        for d in ra.diagnostics:
+            np.testing.assert_array_equal(ra.diagnostics[d], rb.diagnostics[d], err_msg=d)
+
+
+def test_64_seeds_in_one_batch_equal_their_single_runs():
+    """B = 64 sensor streams (and 64 initial states) advance as one batch: the plants, the
+    sensor chain and every observer; each member is bit-identical to its run alone."""
+    seeds = list(range(100, 164))
+    rng = np.random.default_rng(0)
+    x0 = np.column_stack([rng.uniform(-1, 1, 64), rng.uniform(-0.5, 0.5, 64)])
+    u = Multisine([0.2], [0.5])
+    plant, sensor, obs = _parts()
+    batch = simulate_batch(plant, sensor, obs, u, 0.5, seeds=seeds, x0=x0)
+    assert len(batch) == 64
+    for i in (0, 1, 17, 63):
+        plant, sensor, obs = _parts()
+        alone = simulate(plant, sensor, obs, u, 0.5, seed=seeds[i], x0=x0[i])
+        _same(batch[i], alone)
+        assert batch[i].metadata["seed"] == seeds[i]
+    assert not np.array_equal(batch[0].y_meas, batch[1].y_meas)
+
+
+def test_segment_length_changes_nothing(monkeypatch):
+    plant, sensor, obs = _parts()
+    ref = simulate(plant, sensor, obs, Multisine([0.2], [0.5]), 0.3, seed=4)
+    monkeypatch.setattr(sim, "SEGMENT", 7)
+    plant, sensor, obs = _parts()
+    _same(simulate(plant, sensor, obs, Multisine([0.2], [0.5]), 0.3, seed=4), ref)
+
+
+def test_store_every_keeps_every_kth_row():
+    plant, sensor, obs = _parts()
+    full = simulate(plant, sensor, obs, Multisine([0.2], [0.5]), 0.301, seed=2)
+    plant, sensor, obs = _parts()
+    kept = simulate(plant, sensor, obs, Multisine([0.2], [0.5]), 0.301, seed=2, store_every=10)
+    assert len(kept) == 31 and kept.metadata["store_every"] == 10
+    np.testing.assert_array_equal(kept.t, full.t[::10])
+    np.testing.assert_array_equal(kept.x, full.x[::10])
+    for name in full.observers:
+        np.testing.assert_array_equal(kept.observers[name].x_hat, full.observers[name].x_hat[::10])
+    with pytest.raises(DesignError, match="store_every"):
+        simulate(plant, sensor, obs, Multisine([0.2], [0.5]), 0.1, store_every=1.5)
+
+
+def test_closed_loop_batch_equals_single():
+    """A feedback law on the estimate: the control instants split the run into segments; a
+    batch of members with their own seeds equals each alone."""
+    def law(t, x):
+        return np.array([-2.0 * x[0] - 0.5 * x[1]])
+
+    def parts():
+        plant = make_plant("pendulum")
+        return plant, SensorChain([GaussianNoise(std=1e-3)]), {
+            "hgo": HighGainObserver(plant.system, k=30.0)}
+
+    seeds = [5, 6, 7]
+    plant, sensor, obs = parts()
+    batch = simulate_batch(plant, sensor, obs, Controller(law), 0.2, seeds=seeds,
+                           control_period=0.005)
+    for i, s in enumerate(seeds):
+        plant, sensor, obs = parts()
+        _same(batch[i], simulate(plant, sensor, obs, Controller(law), 0.2, seed=s,
+                                 control_period=0.005))
+
+
+def test_batch_needs_one_seed_per_member():
+    plant, sensor, obs = _parts()
+    with pytest.raises(DesignError, match="seeds must be a non-empty sequence"):
+        simulate_batch(plant, sensor, obs, Multisine([0.2], [0.5]), 0.1, seeds=3)
+    with pytest.raises(DimensionError):
+        simulate_batch(plant, sensor, obs, Multisine([0.2], [0.5]), 0.1, seeds=[1, 2],
+                       x0=np.zeros((3, 2)))
