@@ -20,7 +20,7 @@ def _parts():
     sensor = SensorChain([GaussianNoise(std=1e-3), Quantization(resolution=1e-4)])
     obs = {"hgo": HighGainObserver(plant.system, k=20.0),
            "model": HighGainObserver(plant.system, k=20.0, model=True),
-           "adaptive": AdaptiveGainObserver(plant.system, lam=0.01, lam_hat=0.02, k0=5.0)}
+           "adaptive": AdaptiveGainObserver(plant.system, lam=0.01, lam_hat=0.02, gamma=50.0, k0=5.0)}
     return plant, sensor, obs
 
 
