@@ -132,6 +132,8 @@ class Loop:
         self.k = 0
         #: seconds spent in each observer's updates since the reset
         self.wall: dict[str, float] = {}
+        #: (sample index, measurement) drawn by :meth:`sample` and not yet consumed
+        self._pending: tuple[int, Array] | None = None
 
     @property
     def t(self) -> float:
@@ -155,6 +157,7 @@ class Loop:
             ob.check_period(self.periods.sample)
         self.batch, self.k = B, 0
         self.wall = dict.fromkeys(self.observers, 0.0)
+        self._pending = None
 
     def estimates(self) -> dict[str, tuple[Array, Array, Array]]:
         """Each observer's current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)`` arrays."""
@@ -174,7 +177,7 @@ class Loop:
             j = X.shape[1]
             seg = Segment(t[:j], X, Yc, Yc.copy(), U[:, :j], {}, before)
             raise LoopFailure(None, self.k + j, self.k * Ts + j * Ts, exc, seg) from exc
-        Ym = Yc.copy() if self.sensor is None else self.sensor.apply(t, Yc)
+        Ym = self._measure(t, Yc)
         blocks: dict[str, Block] = {}
         items = list(self.observers.items())
         for i, (name, ob) in enumerate(items):
@@ -212,12 +215,28 @@ class Loop:
 
     def sample(self) -> tuple[Array, Array, Array]:
         """The true state, clean and measured outputs at the current instant, ``(B, 1, ...)``
-        each, without moving on (the last row of a run); the sensor draws for it."""
+        each, without moving on (the last row of a run; an environment's newest measurement).
+        The sensor draws for this instant once: the next :meth:`segment` consumes this
+        measurement as its first."""
         X = np.reshape(self.plant.state, (self.batch, 1, -1)).copy()
         Yc = np.reshape(self.plant.outputs(), (self.batch, 1, -1)).copy()
-        Ym = Yc.copy() if self.sensor is None else self.sensor.apply(
-            np.array([self.t]), Yc)
-        return X, Yc, Ym
+        if self._pending is None or self._pending[0] != self.k:
+            self._pending = (self.k, self._measure(np.array([self.t]), Yc, fresh=True))
+        return X, Yc, self._pending[1].copy()
+
+    def _measure(self, t: Array, Yc: Array, fresh: bool = False) -> Array:
+        """The sensor chain over the rows ``Yc`` at ``t``; a measurement already drawn for the
+        first instant by :meth:`sample` is used, not drawn again."""
+        pending, self._pending = (None if fresh else self._pending), None
+        if self.sensor is None:
+            return Yc.copy()
+        if pending is not None and pending[0] == self.k:
+            Ym = np.empty_like(Yc)
+            Ym[:, :1] = pending[1]
+            if Yc.shape[1] > 1:
+                Ym[:, 1:] = self.sensor.apply(t[1:], Yc[:, 1:])
+            return Ym
+        return self.sensor.apply(t, Yc)
 
 
 class Drive:
