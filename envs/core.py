@@ -35,18 +35,20 @@ import copy
 import inspect
 import math
 import pickle
-from collections.abc import Callable, Mapping, Sequence
-from pathlib import Path
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import gymnasium
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import EzPickle
 from numpy.typing import NDArray
 
 from hgo_mj._validate import finite_scalar, integer_multiple, vector
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
+from hgo_mj.loop import CONTINUE, Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
 from hgo_mj.plants import make_plant
 from hgo_mj.sensors import SensorChain, Stage, make_stage
@@ -73,15 +75,16 @@ def chain_seed(seed: int) -> int:
     return int(ss.generate_state(1, np.uint64)[0] >> np.uint64(1))
 
 
+def env_seed(seed: int | None) -> Any:
+    """What an environment's ``reset(seed=...)`` gives its sensor chain: a stream seeded from
+    :func:`chain_seed` on a seeded reset; otherwise :data:`~hgo_mj.loop.CONTINUE` (the stages
+    restart, the generators continue: Gymnasium's convention for ``reset()`` without a seed)."""
+    return CONTINUE if seed is None else chain_seed(seed)
+
+
 def reset_chain(chain: SensorChain, seed: int | None) -> None:
-    """Reset a sensor chain at an environment's ``reset(seed=...)``: re-seed it (from
-    :func:`chain_seed`) on a seeded reset; otherwise reset its stages and let its generator
-    continue (Gymnasium's convention for ``reset()`` without a seed)."""
-    if seed is not None:
-        chain.reset(chain_seed(seed))
-    else:
-        for s in chain.stages:
-            s.reset()
+    """Reset a sensor chain as an environment's ``reset(seed=...)`` does (:func:`env_seed`)."""
+    chain.reset(env_seed(seed))
 
 
 def sensor_chain(spec: Any, seed: int | None = None) -> SensorChain:
@@ -207,147 +210,145 @@ class Task:
         return {"max_action": list(self.max_action)}
 
 
-class _Plan:
-    """How a vector of named values becomes observation entries (cos/sin or clipped)."""
+class Encoder:
+    """Observation entries from named values: a name the task declares periodic enters as
+    ``(cos, sin)``, every other one clipped to the task's bound for it; then the goal; then,
+    with ``diagnostics``, the observer's run-time quantities clipped to their bounds (one not
+    defined yet, NaN, enters as 0).
 
-    def __init__(self, task: Task, names: Sequence[str]) -> None:
+    Attributes
+    ----------
+    labels : tuple of str
+        Name of every entry.
+    low : ndarray
+        Lower bound of every entry (the upper is ``-low``).
+    """
+
+    def __init__(self, task: Task, names: Sequence[str], diagnostics: Sequence[str] = ()) -> None:
         self.items: list[tuple[int, bool, float]] = []
-        self.labels: list[str] = []
+        labels: list[str] = []
         low: list[float] = []
         for i, name in enumerate(names):
             if name in task.periodic:
                 self.items.append((i, True, 1.0))
-                self.labels += [f"cos({name})", f"sin({name})"]
+                labels += [f"cos({name})", f"sin({name})"]
                 low += [-1.0, -1.0]
             else:
                 b = task.bound(name)
                 self.items.append((i, False, b))
-                self.labels.append(name)
+                labels.append(name)
                 low.append(-b)
-        self.low = low
+        labels += list(task.goal_names)
+        low += [-task.goal_bound] * len(task.goal_names)
+        self.diag_bounds = [task.bound(k) for k in diagnostics]
+        labels += [f"diagnostic:{k}" for k in diagnostics]
+        low += [-b for b in self.diag_bounds]
+        self.labels, self.low = tuple(labels), np.array(low, dtype=np.float64)
 
-    def compile(self, n_goal: int) -> Callable[[list[float], tuple[float, ...]], list[float]]:
-        """Straight-line ``encode(vals, goal) -> list`` for this plan (no loop, no branches
-        beyond the clips): a few hundred nanoseconds instead of a microsecond."""
-        lines, items = [], []
-        for i, per, b in self.items:
-            if per:
-                lines.append(f"    a{i} = v[{i}]")
-                items += [f"cos(a{i})", f"sin(a{i})"]
+    def __call__(self, vals: Sequence[float], goal: Sequence[float],
+                 diag: Sequence[float] = ()) -> Array:
+        out: list[float] = []
+        for i, periodic, b in self.items:
+            v = vals[i]
+            if periodic:
+                out += [math.cos(v), math.sin(v)]
             else:
-                lines.append(f"    a{i} = v[{i}]")
-                items.append(f"({b!r} if a{i} > {b!r} else ({-b!r} if a{i} < {-b!r} else a{i}))")
-        items += [f"g[{j}]" for j in range(n_goal)]
-        src = "def encode(v, g):\n" + "\n".join(lines) + f"\n    return [{', '.join(items)}]\n"
-        scope: dict[str, Any] = {"cos": math.cos, "sin": math.sin}
-        exec(compile(src, "<observation encoder>", "exec"), scope)  # noqa: S102 - numbers only
-        return scope["encode"]
+                out.append(b if v > b else -b if v < -b else v)
+        out += goal
+        for v, b in zip(diag, self.diag_bounds):
+            v = 0.0 if v != v else v
+            out.append(b if v > b else -b if v < -b else v)
+        return np.array(out)
 
 
-class _MjIO:
-    """Lean per-step access to a :class:`~hgo_mj.plants.MujocoPlant`'s ``MjData``.
+@dataclass(frozen=True)
+class EnvConfig:
+    """An environment's validated arguments (see :class:`HgoEnv`): built by :meth:`of`, which
+    checks every argument before anything is made."""
 
-    An environment step has a budget of a few microseconds beyond MuJoCo itself, so the loop
-    reads and writes ``MjData`` through addresses looked up by name once (the joints, actuators
-    and sensors the plant's system names) in Python floats, and runs the substeps of a sample
-    in one ``mj_step(m, d, nstep)`` call. It does what ``MujocoPlant.reset``, ``step``,
-    ``state`` and ``outputs`` do, with two differences: ``reset`` skips ``mj_forward`` when
-    every output is read straight from ``qpos``/``qvel`` (the next ``mj_step`` computes it),
-    and MuJoCo's silent reset on a bad state is detected by its effect, the simulation time
-    falling back (``mj_resetData`` zeroes it), and then reported with the warning's name.
-    A model without collidable geoms runs with contacts disabled (no effect on its dynamics,
-    less work per step).
-    """
+    task: Task
+    observer: Any
+    observer_kwargs: Mapping[str, Any] | None
+    sensor: Any
+    observation: str
+    physics_dt: float
+    control_period: float
+    sample_period: float
+    integrator: str | None
+    invalid_action: str
+    info_level: str
 
-    def __init__(self, plant: Any) -> None:
-        m, d = plant.model, plant.data
-        system = plant.system
-        obj = mujoco.mjtObj
-
-        def _id(kind: Any, name: str) -> int:
-            return int(mujoco.mj_name2id(m, kind, name))
-
-        joints = [_id(obj.mjOBJ_JOINT, j) for j in system.joints]
-        self.qadr = [int(m.jnt_qposadr[j]) for j in joints]
-        self.vadr = [int(m.jnt_dofadr[j]) for j in joints]
-        self.aadr = [_id(obj.mjOBJ_ACTUATOR, a) for a in system.actuators]
-        self.nq = len(joints)
-        self.substeps = int(plant.substeps)
-        #: simulated time one ``step`` advances by, less half a physics step (reset detection)
-        self.advance = plant.substeps * float(m.opt.timestep) - 0.5 * float(m.opt.timestep)
-        self.plant, self.m, self.d = plant, m, d
-        direct = []
-        for name in plant.output_names:
-            sid = _id(obj.mjOBJ_SENSOR, name)
-            typ = int(m.sensor_type[sid])
-            on_joint = int(m.sensor_objtype[sid]) == int(obj.mjOBJ_JOINT)
-            if on_joint and typ == int(mujoco.mjtSensor.mjSENS_JOINTPOS):
-                direct.append(("q", int(m.jnt_qposadr[m.sensor_objid[sid]])))
-            elif on_joint and typ == int(mujoco.mjtSensor.mjSENS_JOINTVEL):
-                direct.append(("v", int(m.jnt_dofadr[m.sensor_objid[sid]])))
-            else:
-                direct = []
-                break
-        #: ``(array, address)`` of each output, or ``None``: use ``plant.outputs()``
-        self.out = [(d.qpos if k == "q" else d.qvel, a) for k, a in direct] or None
-        self._direct = direct
-        if not np.any(m.geom_contype) and not np.any(m.geom_conaffinity):
-            m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        self._compile()
-
-    def _compile(self) -> None:
-        """Straight-line ``step(u) -> t``, ``read_x() -> list`` and ``read_y() -> list`` for
-        this model's addresses (no loop over one-entry lists: a step has a few microseconds)."""
-        d = self.d
-        self.qpos, self.qvel, self.ctrl = d.qpos, d.qvel, d.ctrl  # views, valid while d lives
-        #: the time the next ``step`` must reach at least (MuJoCo's silent reset detection)
-        self.next_time = [float("inf")]
-        scope: dict[str, Any] = {"qpos": self.qpos, "qvel": self.qvel, "ctrl": self.ctrl,
-                                 "d": d, "m": self.m, "mj_step": mujoco.mj_step,
-                                 "nxt": self.next_time, "diverged": self._diverged}
-        writes = "".join(f"    ctrl[{a}] = u[{i}]\n" for i, a in enumerate(self.aadr))
-        xs = [f"qpos.item({a})" for a in self.qadr] + [f"qvel.item({a})" for a in self.vadr]
-        src = (f"def step(u):\n{writes}    mj_step(m, d, {self.substeps})\n    t = d.time\n"
-               f"    if t < nxt[0]:\n        diverged(u, t)\n"
-               f"    nxt[0] = t + {self.advance!r}\n    return t\n"
-               f"def read_x():\n    return [{', '.join(xs)}]\n")
-        if self.out is not None:
-            ys = [f"{'qpos' if k == 'q' else 'qvel'}.item({a})" for k, a in self._direct]
-            src += f"def read_y():\n    return [{', '.join(ys)}]\n"
-        exec(compile(src, "<environment io>", "exec"), scope)  # noqa: S102 - numbers only
-        self.step: Callable[[list[float]], float] = scope["step"]
-        self.read_x: Callable[[], list[float]] = scope["read_x"]
-        plant = self.plant
-        self.read_y: Callable[[], list[float]] = (
-            scope["read_y"] if self.out is not None else (lambda: plant.outputs().tolist()))
-
-    def reset(self, x0: list[float]) -> None:
-        m, d = self.m, self.d
-        mujoco.mj_resetData(m, d)
-        qpos, qvel, n = self.qpos, self.qvel, self.nq
-        for i, a in enumerate(self.qadr):
-            qpos[a] = x0[i]
-        for i, a in enumerate(self.vadr):
-            qvel[a] = x0[n + i]
-        if self.out is None:
-            mujoco.mj_forward(m, d)
-        self.next_time[0] = d.time + self.advance
-
-    def _diverged(self, u: list[float], t: float) -> None:
-        d = self.d
-        w = mujoco.mjtWarning
-        bad = [n for n in ("QPOS", "QVEL", "QACC")
-               if d.warning[int(getattr(w, "mjWARN_BAD" + n))].number]
-        raise DivergenceError(f"MuJoCo found a non-finite or huge value (mjWARN_BAD"
-                              f"{bad[0] if bad else '?'}) and reset the simulation near "
-                              f"t={t:g}; input was {u}")
+    @classmethod
+    def of(cls, env_cls: type[HgoEnv], *, task: Task | None, observer: Any,
+           observer_kwargs: Mapping[str, Any] | None, sensor: Any, observation: str,
+           physics_dt: float | None, control_period: float | None,
+           sample_period: float | None, integrator: str | None, invalid_action: str,
+           info_level: str, render_mode: str | None,
+           task_kwargs: Mapping[str, Any]) -> EnvConfig:
+        task = _make_task(env_cls, task, task_kwargs)
+        if observation not in OBSERVATION_MODES:
+            raise DesignError(f"unknown observation mode {observation!r}; valid: "
+                              f"{list(OBSERVATION_MODES)}")
+        if info_level not in INFO_LEVELS:
+            raise DesignError(f"info_level must be one of {list(INFO_LEVELS)}; found {info_level!r}")
+        if invalid_action not in INVALID_ACTION_MODES:
+            raise DesignError(f"invalid_action must be one of {list(INVALID_ACTION_MODES)}; found "
+                              f"{invalid_action!r}")
+        if render_mode is not None:
+            raise DesignError(f"{env_cls.__name__} does not render (headless); render_mode must "
+                              f"be None; found {render_mode!r}")
+        integ = task.integrator if integrator is None else integrator
+        if integ is not None and integ not in _INTEGRATORS:
+            raise DesignError(f"unknown integrator {integ!r}; valid: {sorted(_INTEGRATORS)}")
+        pdt = finite_scalar("physics_dt", task.physics_dt if physics_dt is None else physics_dt,
+                            positive=True)
+        tc = finite_scalar("control_period",
+                           task.control_period if control_period is None else control_period,
+                           positive=True)
+        ts_default = task.sample_period if task.sample_period is not None else tc
+        ts = finite_scalar("sample_period", ts_default if sample_period is None else sample_period,
+                           positive=True)
+        integer_multiple("control_period", tc, pdt, "physics_dt")
+        integer_multiple("sample_period", ts, pdt, "physics_dt")
+        integer_multiple("control_period", tc, ts, "sample_period")
+        return cls(task, observer, observer_kwargs, sensor, observation, pdt, tc, ts, integ,
+                   invalid_action, info_level)
 
 
-class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
+def _make_task(env_cls: type[HgoEnv], task: Task | None, task_kwargs: Mapping[str, Any]) -> Task:
+    if task is not None:
+        if not isinstance(task, Task):
+            raise DesignError(f"task must be a Task; found {type(task).__name__}")
+        if task_kwargs:
+            raise DesignError(f"give task parameters {sorted(task_kwargs)} to the Task, not "
+                              f"beside an explicit task=")
+        return task
+    cls = env_cls.task_class
+    if cls is None:
+        raise DesignError(f"{env_cls.__name__} needs task= (it has no default task)")
+    known = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+    bad = [k for k in task_kwargs if k not in known]
+    if bad:
+        loop = [p for p in inspect.signature(HgoEnv.__init__).parameters
+                if p not in ("self", "task_kwargs")]
+        raise DesignError(f"{env_cls.__name__}: unknown argument(s) {bad}; valid: "
+                          f"{sorted(loop + known)}")
+    return cls(**task_kwargs)
+
+
+#: the loop's name for the environment's observer
+_OB = "observer"
+
+
+class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
     """A MuJoCo plant, a sensor chain and an observer in the loop, under a :class:`Task`.
 
-    See the module docstring for the loop and the observation modes, and the environment
-    classes (``PendulumSwingUpEnv``, ...) for each task.
+    The environment is :class:`hgo_mj.loop.Loop` (plant -> sensor chain -> observer) plus a
+    task: ``step`` runs one control period of the loop with the action held, then reads the
+    newest measurement; the task gives reward, termination and the reset distribution. See
+    the module docstring for the observation modes, and the environment classes
+    (``PendulumSwingUpEnv``, ...) for each task. Recording episodes is a wrapper,
+    :class:`hgo_mj.envs.wrappers.RecordEpisodes`.
 
     Parameters
     ----------
@@ -384,17 +385,6 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         estimate, for the states the observer estimates: :attr:`error_names`). ``"full"``
         adds ``"time"``, ``"measurement"`` (NaN for a dropout), ``"diagnostics"`` (the
         observer's run-time quantities), ``"goal"`` and the reward terms ``"reward_<term>"``.
-        Every ``info`` entry costs a ``SyncVectorEnv`` about a microsecond per copy and step.
-    record_path : str or Path, optional
-        Write every episode, batched at its end (the next ``reset`` or ``close``), to this
-        rerun ``.rrd`` file (:class:`hgo_mj.record.Recorder`, issue 6): one row at ``reset``
-        and one per ``step`` (``steps + 1`` rows an episode; the reset row's input and reward
-        are 0) on the ``sim_time``, ``step`` and ``episode`` timelines: true state, the
-        observer's estimate by its own ``state_names`` (:attr:`estimate_names`) and errors,
-        clean and measured outputs, input, the observer's diagnostics, the reward
-        (``/env/reward``), the 3D view; after each episode the ``/metrics`` table (one row per
-        episode: seed, steps, return, RMSE per estimated state) and the ``/scenario`` document
-        (:meth:`recording_metadata`, with every episode's seed).
     render_mode : None
         No rendering (headless testbed); any other value raises.
     **task_kwargs
@@ -402,6 +392,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     Attributes
     ----------
+    config : EnvConfig
+        The validated arguments.
+    loop : hgo_mj.loop.Loop
     plant : MujocoPlant
     sensor : SensorChain
     observer : Observer or None
@@ -424,154 +417,93 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
                  observation: str = "estimate", physics_dt: float | None = None,
                  control_period: float | None = None, sample_period: float | None = None,
                  integrator: str | None = None, invalid_action: str = "clip",
-                 info_level: str = "basic", record_path: str | Path | None = None,
-                 render_mode: str | None = None, **task_kwargs: Any) -> None:
-        self._init_kwargs = dict(task=task, observer=observer, observer_kwargs=observer_kwargs,
-                                 sensor=sensor, observation=observation, physics_dt=physics_dt,
-                                 control_period=control_period, sample_period=sample_period,
-                                 integrator=integrator, invalid_action=invalid_action,
-                                 info_level=info_level, record_path=record_path,
-                                 render_mode=render_mode, **task_kwargs)
-        self.task = self._make_task(task, task_kwargs)
-        task = self.task
-        if observation not in OBSERVATION_MODES:
-            raise DesignError(f"unknown observation mode {observation!r}; valid: "
-                              f"{list(OBSERVATION_MODES)}")
-        if info_level not in INFO_LEVELS:
-            raise DesignError(f"info_level must be one of {list(INFO_LEVELS)}; found {info_level!r}")
-        self._full_info = info_level == "full"
-        if invalid_action not in INVALID_ACTION_MODES:
-            raise DesignError(f"invalid_action must be one of {list(INVALID_ACTION_MODES)}; found "
-                              f"{invalid_action!r}")
-        if render_mode is not None:
-            raise DesignError(f"{type(self).__name__} does not render (headless); render_mode must "
-                              f"be None; found {render_mode!r}")
+                 info_level: str = "basic", render_mode: str | None = None,
+                 **task_kwargs: Any) -> None:
+        EzPickle.__init__(self, task=task, observer=observer, observer_kwargs=observer_kwargs,
+                          sensor=sensor, observation=observation, physics_dt=physics_dt,
+                          control_period=control_period, sample_period=sample_period,
+                          integrator=integrator, invalid_action=invalid_action,
+                          info_level=info_level, render_mode=render_mode, **task_kwargs)
+        cfg = EnvConfig.of(type(self), task=task, observer=observer,
+                           observer_kwargs=observer_kwargs, sensor=sensor,
+                           observation=observation, physics_dt=physics_dt,
+                           control_period=control_period, sample_period=sample_period,
+                           integrator=integrator, invalid_action=invalid_action,
+                           info_level=info_level, render_mode=render_mode,
+                           task_kwargs=task_kwargs)
+        self.config, self.task = cfg, cfg.task
         self.render_mode = None
-        self.observation_mode = observation
-        self._clip = invalid_action == "clip"
-
-        # ---- time
-        pdt = finite_scalar("physics_dt", task.physics_dt if physics_dt is None else physics_dt,
-                            positive=True)
-        tc = finite_scalar("control_period",
-                           task.control_period if control_period is None else control_period,
-                           positive=True)
-        ts_default = task.sample_period if task.sample_period is not None else tc
-        ts = finite_scalar("sample_period", ts_default if sample_period is None else sample_period,
-                           positive=True)
-        integer_multiple("control_period", tc, pdt, "physics_dt")
-        integer_multiple("sample_period", ts, pdt, "physics_dt")
-        self._n_samples = integer_multiple("control_period", tc, ts, "sample_period")
-        self.physics_dt, self.control_period, self.sample_period = pdt, tc, ts
-        self.dt = tc
-        self.metadata = {**type(self).metadata, "render_fps": max(1, int(round(1.0 / tc)))}
-
-        # ---- plant
-        self.plant = make_plant(task.plant, dt=ts, physics_dt=pdt)
-        integ = task.integrator if integrator is None else integrator
-        if integ is not None:
-            if integ not in _INTEGRATORS:
-                raise DesignError(f"unknown integrator {integ!r}; valid: {sorted(_INTEGRATORS)}")
-            self.plant.model.opt.integrator = _INTEGRATORS[integ]
-        used = int(self.plant.model.opt.integrator)
-        #: the MuJoCo integrator in use, by the name ``integrator=`` takes
-        self.integrator = next(k for k, v in _INTEGRATORS.items() if int(v) == used)
-        self._io = _MjIO(self.plant)
-        system = self.plant.system
+        self.observation_mode = cfg.observation
+        self.physics_dt, self.control_period, self.sample_period = (
+            cfg.physics_dt, cfg.control_period, cfg.sample_period)
+        self.dt = cfg.control_period
+        self.metadata = {**type(self).metadata,
+                         "render_fps": max(1, int(round(1.0 / cfg.control_period)))}
+        self.plant = self._make_plant(cfg)
         self.state_names = tuple(self.plant.state_names)
         self.output_names = tuple(self.plant.output_names)
-        nu = len(self.plant.input_names)
-        if len(task.max_action) != nu:
-            raise DimensionError(f"max_action must have one entry per input "
-                                 f"{list(self.plant.input_names)}; found {len(task.max_action)}")
-
-        # ---- sensor and observer
-        self.sensor = sensor_chain(task.default_sensor if _is_default(sensor) else
-                                   copy.deepcopy(sensor))
-        self.observer = self._make_observer(observer, observer_kwargs, system)
-        if self.observer is None and observation in ("estimate", "estimate+diagnostics"):
-            raise DesignError(f"observation {observation!r} needs an observer; found observer=None")
-        if self.observer is not None:
-            self.observer.check_period(ts)
-            self.observer.reset()
-            self.estimate_names = tuple(str(s) for s in self.observer.state_names)
-            est = {name: i for i, name in enumerate(self.estimate_names)}
-            pairs = [(j, est[name]) for j, name in enumerate(self.state_names) if name in est]
-            #: ``(state index, estimate index)`` of each state the observer estimates
-            self._err_pairs = pairs
-            self._err = _error_function(pairs)
-            self.error_names = tuple(self.state_names[j] for j, _ in pairs)
-            diag = self.observer.diagnostics()
-            self.diagnostic_names = tuple(k for k in diag if k != "dropouts")
-        else:
-            self.estimate_names = self.error_names = self.diagnostic_names = ()
-
-        # ---- spaces
+        self.sensor = sensor_chain(cfg.task.default_sensor if _is_default(cfg.sensor) else
+                                   copy.deepcopy(cfg.sensor))
+        self.observer = self._make_observer(cfg.observer, cfg.observer_kwargs,
+                                            self.plant.system)
+        if self.observer is None and cfg.observation in ("estimate", "estimate+diagnostics"):
+            raise DesignError(f"observation {cfg.observation!r} needs an observer; found "
+                              f"observer=None")
+        periods = Periods.of(self.plant, cfg.sample_period, cfg.control_period)
+        self._n_samples = periods.every
+        self.loop = Loop(self.plant, self.sensor,
+                         {} if self.observer is None else {_OB: self.observer}, periods)
+        self._names()
         source = {"true": self.state_names, "measurement": self.output_names}.get(
-            observation, self.estimate_names)
-        self._plan = _Plan(task, source)
-        self._encode = self._plan.compile(len(task.goal_names))
-        low = list(self._plan.low)
-        labels = list(self._plan.labels)
-        low += [-task.goal_bound] * len(task.goal_names)
-        labels += list(task.goal_names)
-        if observation == "estimate+diagnostics":
-            self._diag_bounds = [task.bound(k) for k in self.diagnostic_names]
-            low += [-b for b in self._diag_bounds]
-            labels += [f"diagnostic:{k}" for k in self.diagnostic_names]
-        self.observation_names = tuple(labels)
-        lo = np.array(low, dtype=np.float64)
+            cfg.observation, self.estimate_names)
+        self.encoder = Encoder(cfg.task, source, self.diagnostic_names
+                               if cfg.observation == "estimate+diagnostics" else ())
+        self.observation_names = self.encoder.labels
+        lo = self.encoder.low
         self.observation_space = spaces.Box(lo, -lo, dtype=np.float64)
+        nu = len(self.plant.input_names)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(nu,), dtype=np.float32)
-        self._nu = nu
-        self._scale = task.max_action
-        self._mode = {"estimate": 0, "estimate+diagnostics": 0, "true": 1, "measurement": 2}[
-            observation]
-        self._diag_on = observation == "estimate+diagnostics"
-
-        # ---- run-time state (Python floats: a step builds arrays only for what it returns)
+        self._nu, self._scale = nu, cfg.task.max_action
+        self._clip = cfg.invalid_action == "clip"
+        self._full_info = cfg.info_level == "full"
         self._goal: tuple[float, ...] = ()
-        #: the last measurement and the observer's estimate, lists of floats
-        self._y: list[float] = [0.0] * len(self.output_names)
-        self._y_held: list[float] = [0.0] * len(self.output_names)
-        self._x_hat: list[float] | None = None
-        self._apply = [s.apply_list for s in self.sensor.stages]
-        self._rng = self.sensor.rng
-        self._update = None if self.observer is None else _list_update(self.observer)
-        lean = (self._mode == 0 and not self._diag_on and not self._full_info
-                and record_path is None)
-        #: what a step needs, in one attribute (unpacked at once: a step has microseconds)
-        self._hot = (nu, self._scale, self._io.step, self._io.read_y, self._io.read_x,
-                     self._update, self._apply, ts, self._n_samples, task, lean,
-                     getattr(self, "_err", None), self._encode)
-        self._episode = -1
-        self._recorder: Any = None
-        self.record_path = None if record_path is None else Path(record_path)
-        self._rec_rows: dict[str, list[Any]] | None = None
-        if self.record_path is not None:
-            self._open_recorder()
+        self._y_held = [0.0] * len(self.output_names)
+        self._row: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ construction
-    def _make_task(self, task: Task | None, task_kwargs: Mapping[str, Any]) -> Task:
-        if task is not None:
-            if not isinstance(task, Task):
-                raise DesignError(f"task must be a Task; found {type(task).__name__}")
-            if task_kwargs:
-                raise DesignError(f"give task parameters {sorted(task_kwargs)} to the Task, not "
-                                  f"beside an explicit task=")
-            return task
-        cls = self.task_class
-        if cls is None:
-            raise DesignError(f"{type(self).__name__} needs task= (it has no default task)")
-        sig = inspect.signature(cls.__init__)
-        known = [p for p in sig.parameters if p != "self"]
-        bad = [k for k in task_kwargs if k not in known]
-        if bad:
-            loop = [p for p in inspect.signature(HgoEnv.__init__).parameters
-                    if p not in ("self", "task_kwargs")]
-            raise DesignError(f"{type(self).__name__}: unknown argument(s) {bad}; valid: "
-                              f"{sorted(loop + known)}")
-        return cls(**task_kwargs)
+    def _make_plant(self, cfg: EnvConfig) -> Any:
+        plant = make_plant(cfg.task.plant, dt=cfg.sample_period, physics_dt=cfg.physics_dt)
+        if len(cfg.task.max_action) != len(plant.input_names):
+            raise DimensionError(f"max_action must have one entry per input "
+                                 f"{list(plant.input_names)}; found {len(cfg.task.max_action)}")
+        m = plant.model
+        if cfg.integrator is not None:
+            m.opt.integrator = _INTEGRATORS[cfg.integrator]
+        used = int(m.opt.integrator)
+        #: the MuJoCo integrator in use, by the name ``integrator=`` takes
+        self.integrator = next(k for k, v in _INTEGRATORS.items() if int(v) == used)
+        if not np.any(m.geom_contype) and not np.any(m.geom_conaffinity):
+            # no collidable geoms: contacts off changes nothing in the dynamics, saves work
+            m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        return plant
+
+    def _names(self) -> None:
+        """Names of the estimate, of the estimated states (``info["error"]``) and of the
+        observer's run-time quantities."""
+        obs = self.observer
+        if obs is None:
+            self.estimate_names = self.error_names = self.diagnostic_names = ()
+            self._err_pairs: list[tuple[int, int]] = []
+            return
+        self.estimate_names = tuple(str(s) for s in obs.state_names)
+        est = {name: i for i, name in enumerate(self.estimate_names)}
+        #: ``(state index, estimate index)`` of each state the observer estimates
+        self._err_pairs = [(j, est[name]) for j, name in enumerate(self.state_names)
+                           if name in est]
+        self._err_x = np.array([j for j, _ in self._err_pairs], dtype=np.intp)
+        self._err_h = np.array([i for _, i in self._err_pairs], dtype=np.intp)
+        self.error_names = tuple(self.state_names[j] for j, _ in self._err_pairs)
+        self.diagnostic_names = tuple(k for k in obs.diagnostic_names if k != "dropouts")
 
     def _make_observer(self, observer: Any, kwargs: Mapping[str, Any] | None,
                        system: Any) -> Observer | None:
@@ -631,23 +563,11 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             raise DesignError(f"the observer was designed for {type(obs.system).__name__}; this "
                               f"environment's plant is {type(system).__name__}")
         m = len(self.output_names)
-        outs = getattr(obs, "outputs", None)
-        if not isinstance(outs, tuple | list) or not outs:
-            outs = (getattr(obs, "output", 0),)
-        if max(outs) >= m:
-            raise DimensionError(f"the observer reads output channel {max(outs)}; the plant has "
-                                 f"{m} output(s) {list(self.output_names)}")
+        if max(obs.outputs) >= m:
+            raise DimensionError(f"the observer reads output channel {max(obs.outputs)}; the "
+                                 f"plant has {m} output(s) {list(self.output_names)}")
 
     # ------------------------------------------------------------------ the loop
-    def _measure(self) -> list[float]:
-        y = self._io.read_y()
-        if self._apply:
-            t = self._io.d.time
-            rng = self._rng
-            for f in self._apply:
-                y = f(t, y, rng)
-        return y
-
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Array, dict[str, Any]]:
         """Start an episode.
@@ -664,38 +584,20 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         -------
         observation : ndarray
         info : dict
-            ``time``, ``state``, ``measurement`` and, with an observer, ``estimate``, ``error``
-            and ``diagnostics`` (see :attr:`error_names`); ``goal`` for the reach tasks.
+            ``state`` and, with an observer, ``estimate`` and ``error`` (see
+            :attr:`error_names`); with ``info_level="full"`` also ``time``, ``measurement``,
+            ``diagnostics`` and, for the reach tasks, ``goal``.
         """
         super().reset(seed=seed)
-        if self._rec_rows is not None:
-            if self._rec_rows["t"]:
-                self._write_episode()
-            self._rec_seed = seed
-        reset_chain(self.sensor, seed)
-        self._rng = self.sensor.rng  # a new generator after a seeded reset
         task, rng = self.task, self.np_random
         x0 = task.initial_state(rng)
         goal = task.sample_goal(rng)
         if options:
             x0, goal = self._options(options, x0, goal)
         self._goal = goal
-        self._io.reset(x0)
-        obs = self.observer
-        if obs is not None:
-            obs.reset()
-            xh = getattr(obs, "x_hat_list", None)
-            self._x_hat = xh() if xh is not None else np.asarray(obs.x_hat, dtype=float).tolist()
-        y = self._measure()
-        self._y = y
-        if self._mode == 2:
-            self._y_held = [v if v == v else 0.0 for v in y]
-        self._episode += 1
-        xl = self._io.read_x()
-        info = self._info(xl, y, self._x_hat, 0.0)
-        if self._rec_rows is not None:
-            self._record_row(0.0, np.array(xl), np.array(y), None, 0.0)
-        return self._observe(xl, y, self._x_hat), info
+        self.loop.reset(x0, seed=env_seed(seed))
+        self._y_held = [0.0] * len(self.output_names)
+        return self._observe(np.zeros(self._nu), 0.0)
 
     def _options(self, options: Mapping[str, Any], x0: list[float], goal: tuple[float, ...]
                  ) -> tuple[list[float], tuple[float, ...]]:
@@ -717,146 +619,103 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
         -------
         observation, reward, terminated, truncated, info
             ``truncated`` is always False here: the time limit is ``TimeLimit``'s. ``info`` as
-            at :meth:`reset`, plus the task's reward terms ``reward_<term>``.
+            at :meth:`reset`, plus (``info_level="full"``) the task's reward terms.
         """
+        u = self._action(action)
+        U = np.broadcast_to(u, (1, self._n_samples, self._nu))
         try:
-            na = len(action)
-        except TypeError:
-            raise DimensionError(f"action must be a sequence of {self._nu} number(s); found "
-                                 f"{action!r}") from None
-        (nu, scale, io_step, read_y, read_x, update, apply, ts, n_samples, task, lean,
-         err, encode) = self._hot
-        if na == 1 == nu:
-            v = float(action[0])
-            if not -1.0 <= v <= 1.0:
-                v = self._invalid(0, v)
-            u = [v * scale[0]]
-        else:
-            if na != nu:
-                raise DimensionError(f"action must have {nu} entries; found {na}")
-            u = []
-            for i, sc in enumerate(scale):
-                v = float(action[i])
-                if not -1.0 <= v <= 1.0:
-                    v = self._invalid(i, v)
-                u.append(v * sc)
-        y, x_hat, rng = self._y, self._x_hat, self._rng
-        t = 0.0
-        for _ in range(n_samples):
-            if update is not None:
-                x_hat = update(y, u, ts)
-            t = io_step(u)
-            y = read_y()
-            for f in apply:
-                y = f(t, y, rng)
-        self._y, self._x_hat = y, x_hat
-        xl = read_x()
-        goal = self._goal
-        reward, terms = task.reward(xl, u, goal)
-        if lean:  # estimate observation, basic info, no recording: the common case, inline
-            if not math.isfinite(sum(x_hat)):  # type: ignore[arg-type]
-                self._observe(xl, y, x_hat)  # raises DivergenceError
-            return (np.array(encode(x_hat, goal)), reward, task.terminated(xl), False,
-                    {"state": np.array(xl), "estimate": np.array(x_hat),
-                     "error": np.array(err(xl, x_hat))})
-        info = self._info(xl, y, x_hat, t)
+            self.loop.segment(np.ascontiguousarray(U))
+        except LoopFailure as exc:
+            raise DivergenceError(f"{exc}") from exc.cause
+        obs, info = self._observe(u, None)
+        x = self._row["x"]
+        reward, terms = self.task.reward(x, u.tolist(), self._goal)
         if self._full_info:
             info.update(terms)
-        if self._rec_rows is not None:
-            self._record_row(t, np.array(xl), np.array(y), np.array(u), reward)
-        return self._observe(xl, y, x_hat), reward, task.terminated(xl), False, info
+        self._row["reward"] = reward
+        return obs, reward, self.task.terminated(x), False, info
 
-    def _invalid(self, i: int, v: float) -> float:
-        """An action entry outside [-1, 1]: NaN raises; clip or raise as configured."""
-        if v != v:
-            raise DesignError(f"action[{i}] is NaN")
-        if not self._clip:
-            raise DesignError(f"action[{i}] = {v:g} is outside the action space [-1, 1] "
-                              f"(invalid_action='raise')")
-        return 1.0 if v > 1.0 else -1.0
+    def _action(self, action: Any) -> Array:
+        """``u = action * max_action``, the action checked (NaN raises; outside [-1, 1]: clip
+        or raise as configured)."""
+        try:
+            a = np.asarray(action, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise DimensionError(f"action must be a sequence of {self._nu} number(s); found "
+                                 f"{action!r}") from None
+        if np.ndim(action) == 0:
+            raise DimensionError(f"action must be a sequence of {self._nu} number(s); found "
+                                 f"{action!r}")
+        if a.size != self._nu:
+            raise DimensionError(f"action must have {self._nu} entries; found {a.size}")
+        if not np.all((a >= -1.0) & (a <= 1.0)):
+            for i, v in enumerate(a.tolist()):
+                if v != v:
+                    raise DesignError(f"action[{i}] is NaN")
+                if not -1.0 <= v <= 1.0 and not self._clip:
+                    raise DesignError(f"action[{i}] = {v:g} is outside the action space [-1, 1] "
+                                      f"(invalid_action='raise')")
+            a = np.clip(a, -1.0, 1.0)
+        return a * np.asarray(self._scale)
 
-    def _observe(self, xl: list[float], y: list[float], x_hat: list[float] | None) -> Array:
-        mode = self._mode
-        if mode == 0:
-            vals = x_hat
-            if not math.isfinite(sum(vals)):  # type: ignore[arg-type]
+    def _observe(self, u: Array, reward: float | None) -> tuple[Array, dict[str, Any]]:
+        """The observation and ``info`` at the current instant: the true state, the newest
+        measurement and the observer's estimate (from the measurements before it)."""
+        X, Yc, Ym = self.loop.sample()
+        x, y = X[0, 0].tolist(), Ym[0, 0].tolist()
+        obs = self.observer
+        x_hat = diag = None
+        if obs is not None:
+            xh, _, d = obs._current()
+            x_hat = xh[0].tolist()
+            diag = obs.diagnostics()
+        self._row = {"t": self.loop.t, "x": x, "y": y, "y_clean": Yc[0, 0].tolist(),
+                     "u": u.tolist(), "x_hat": x_hat, "diagnostics": diag,
+                     "reward": 0.0 if reward is None else reward}
+        mode = self.observation_mode
+        if mode in ("estimate", "estimate+diagnostics"):
+            if not math.isfinite(sum(x_hat)):  # type: ignore[arg-type]
                 raise DivergenceError(f"the observer's estimate left the finite numbers at "
-                                      f"t={self._io.d.time:g}: {vals}")
-        elif mode == 1:
-            vals = xl
-        else:
-            vals = self._y_held
+                                      f"t={self.loop.t:g}: {x_hat}")
+            vals = x_hat
+        elif mode == "true":
+            vals = x
+        else:  # a dropout (NaN) is held at the last valid value
+            held = self._y_held
             for i, v in enumerate(y):
                 if v == v:
-                    vals[i] = v
-        out = self._encode(vals, self._goal)
-        if self._diag_on:
-            d = self.observer.diagnostics()  # type: ignore[union-attr]
-            for k, b in zip(self.diagnostic_names, self._diag_bounds):
-                v = float(d.get(k, 0.0))
-                if v != v:  # not defined yet (an excitation measure before its window fills)
-                    v = 0.0
-                out.append(b if v > b else -b if v < -b else v)
-        return np.array(out)
+                    held[i] = v
+            vals = held
+        extra = [diag[k] for k in self.diagnostic_names] if mode == "estimate+diagnostics" else ()  # type: ignore[index]
+        return self.encoder(vals, self._goal, extra), self._info(x, y, x_hat, diag)  # type: ignore[arg-type]
 
-    def _info(self, xl: list[float], y: list[float], x_hat: list[float] | None, t: float
-              ) -> dict[str, Any]:
+    def _info(self, x: list[float], y: list[float], x_hat: list[float] | None,
+              diag: dict[str, Any] | None) -> dict[str, Any]:
+        xa = np.array(x)
         if x_hat is None:
-            info: dict[str, Any] = {"state": np.array(xl)}
+            info: dict[str, Any] = {"state": xa}
         else:
-            info = {"state": np.array(xl), "estimate": np.array(x_hat),
-                    "error": np.array(self._err(xl, x_hat))}
+            xh = np.array(x_hat)
+            info = {"state": xa, "estimate": xh, "error": xa[self._err_x] - xh[self._err_h]}
         if self._full_info:
-            info["time"] = t
+            info["time"] = self.loop.t
             info["measurement"] = np.array(y)
-            if x_hat is not None:
-                info["diagnostics"] = dict(self.observer.diagnostics())  # type: ignore[union-attr]
+            if diag is not None:
+                info["diagnostics"] = dict(diag)
             if self._goal:
                 info["goal"] = np.array(self._goal)
         return info
 
-    # ------------------------------------------------------------------ recording (issue 6)
-    def _open_recorder(self) -> None:
-        """Open the rerun recording of ``record_path`` (:mod:`hgo_mj.record`, issue 6).
-
-        The observer's estimate columns are named by its own ``state_names``
-        (:attr:`estimate_names`): the states it estimates go next to the truth under
-        ``/state`` and ``/error``, the others (derivatives of a model-free observer, ...) under
-        ``/observer/<obs>/estimate``, and its ghost poses the joints it estimates."""
-        try:
-            from hgo_mj.record import Recorder
-        except ImportError as exc:  # pragma: no cover - record.py is issue 6's
-            raise DesignError(f"record_path needs hgo_mj.record (rerun recordings); {exc}") from None
-        obs = self.observer
-        names = [] if obs is None else [obs.name or type(obs).__name__]
-        states = {names[0]: self.estimate_names} if names else None
-        self._recorder = Recorder.for_plant(self.record_path, self.plant, observers=names,
-                                            observer_states=states,
-                                            recording_name=type(self).__name__)
-        self._rec_rows = {k: [] for k in ("t", "x", "y", "y_clean", "u", "x_hat", "diag",
-                                          "reward")}
-        self._rec_seed: int | None = None
-        #: per finished episode: its seed and metrics (the ``/metrics`` document)
-        self._rec_episodes: list[dict[str, Any]] = []
-
-    def _record_row(self, t: float, x: Array, y: Array, u: Array | None, reward: float) -> None:
-        rows = self._rec_rows
-        assert rows is not None
-        rows["t"].append(t)
-        rows["x"].append(x)
-        rows["y"].append(y)
-        # the plant has not moved since ``y`` was measured: the same read, before the sensor
-        rows["y_clean"].append(np.array(self._io.read_y(), dtype=float))
-        rows["u"].append(np.zeros(self._nu) if u is None else u)
-        rows["reward"].append(reward)
-        if self.observer is not None:
-            rows["x_hat"].append(np.array(self._x_hat, dtype=float))
-            rows["diag"].append(dict(self.observer.diagnostics()))
+    def current_row(self) -> dict[str, Any]:
+        """The last reset's or step's row: time ``t``, true state ``x``, measurement ``y``,
+        clean outputs ``y_clean``, input ``u``, estimate ``x_hat`` and ``diagnostics`` (None
+        without an observer), ``reward`` (0 at a reset); what a recording wrapper writes."""
+        return dict(self._row)
 
     def recording_metadata(self) -> dict[str, Any]:
         """What a recording's ``/scenario`` document holds: the environment (registered id,
         class), task, observation, periods, integrator, plant, sensor chain, observer (name,
-        type, parameters), the seed of every episode recorded so far, package versions."""
+        type, parameters) and package versions."""
         from hgo_mj.simulate import package_versions
 
         from . import ENVIRONMENTS
@@ -870,8 +729,6 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             observers[obs.name or type(obs).__name__] = {
                 "type": type(obs).__name__, "state_names": list(self.estimate_names),
                 **obs.params()}
-        episodes = getattr(self, "_rec_episodes", [])
-        seeds = [e["seed"] for e in episodes]
         return {
             "scenario": env_id or type(self).__name__,
             "environment": {"id": env_id, "class": f"{type(self).__module__}."
@@ -879,8 +736,6 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             "task": {"class": type(self.task).__name__, **self.task.params()},
             "plant": type(self.plant.system).__name__,
             "system_params": self.plant.system.params,
-            "seed": seeds[0] if seeds else getattr(self, "_rec_seed", None),
-            "seeds": {str(e["episode"]): e["seed"] for e in episodes},
             "observation": self.observation_mode,
             "physics_dt": self.physics_dt, "sample_period": self.sample_period,
             "control_period": self.control_period, "integrator": self.integrator,
@@ -889,74 +744,18 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
             "versions": package_versions(),
         }
 
-    def _episode_metrics(self, rows: Mapping[str, list[Any]]) -> dict[str, Any]:
-        """Seed, length, return and estimation error of the finished episode."""
-        steps = len(rows["t"]) - 1
-        out: dict[str, Any] = {"episode": self._episode, "seed": self._rec_seed, "steps": steps,
-                               "return": float(np.sum(rows["reward"][1:])),
-                               "terminated": bool(self.task.terminated(list(rows["x"][-1])))}
-        if self.observer is not None:
-            x, xh = np.array(rows["x"]), np.array(rows["x_hat"])
-            rmse: dict[str, float] = {}
-            final: dict[str, float] = {}
-            for j, i in self._err_pairs:
-                e = x[:, j] - xh[:, i]
-                ok = np.isfinite(e)
-                rmse[self.state_names[j]] = (float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any()
-                                             else math.nan)
-                final[self.state_names[j]] = float(abs(e[-1]))
-            out["rmse"] = rmse
-            out["final_error"] = final
-        return out
-
-    def _write_episode(self) -> None:
-        """Hand the finished episode to the recorder in one batch, then its metrics (the
-        ``/metrics`` table, one row per episode so far) and the scenario with every episode's
-        seed (``/scenario``); clear the buffer."""
-        rows = self._rec_rows
-        if rows is None or not rows["t"]:
-            return
-        rec = self._recorder
-        est = diag = None
-        if self.observer is not None:
-            name = rec.observers[0]
-            est = {name: np.array(rows["x_hat"])}
-            keys = rows["diag"][0].keys()
-            diag = {name: {k: np.array([d.get(k, math.nan) for d in rows["diag"]], dtype=float)
-                           for k in keys}}
-        rec.record_episode(self._episode, np.array(rows["t"]), np.array(rows["x"]),
-                           np.array(rows["y"]), np.array(rows["u"]),
-                           y_clean=np.array(rows["y_clean"]), estimates=est, diagnostics=diag,
-                           extra={"reward": np.array(rows["reward"])})
-        self._rec_episodes.append(self._episode_metrics(rows))
-        rec.log_metadata(self.recording_metadata())
-        rec.log_episode_metrics(self._rec_episodes)
-        for v in rows.values():
-            v.clear()
-
-    def close(self) -> None:
-        """Write the last episode of a recording and close it."""
-        if self._recorder is not None:
-            self._write_episode()
-            self._recorder.close()
-            self._recorder = None
-            self._rec_rows = None
-        super().close()
-
     # ------------------------------------------------------------------ pickling
-    def __reduce__(self) -> tuple[Callable[..., HgoEnv], tuple[Any, ...]]:
-        """Pickle as the constructor call (like Gymnasium's MuJoCo environments): the copy is a
-        fresh environment to be ``reset``; an observer instance travels in its current state.
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle as the constructor call (Gymnasium's ``EzPickle``): the copy is a fresh
+        environment to be ``reset``; an observer instance travels in its current state.
 
         Raises
         ------
         DesignError
-            The environment was given an observer instance that does not pickle (one holding
-            functions compiled at run time or local closures); an environment given the
-            observer by name (``observer="ekf", observer_kwargs=...``) always pickles."""
-        kwargs = dict(self._init_kwargs)
-        if isinstance(kwargs.get("observer"), Observer):
-            obs = kwargs["observer"]  # observers drop their compiled caches when pickled
+            The environment was given an observer instance that does not pickle; an
+            environment given the observer by name always pickles."""
+        obs = self._ezpickle_kwargs.get("observer")
+        if isinstance(obs, Observer):
             try:
                 pickle.dumps(obs)
             except (pickle.PicklingError, AttributeError, TypeError) as exc:
@@ -964,43 +763,12 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]]):
                                   f"({type(obs).__name__}) does not pickle ({exc}); give the "
                                   f"observer by name (observer={obs.name!r}, observer_kwargs="
                                   f"...) for a picklable environment") from None
-        return (_rebuild, (type(self), kwargs))
-
-
-def _error_function(pairs: Sequence[tuple[int, int]]
-                    ) -> Callable[[list[float], list[float]], list[float]]:
-    """Straight-line ``error(x, x_hat) -> [x[j] - x_hat[i], ...]`` over the ``(j, i)`` pairs
-    of a state and its estimate."""
-    items = ", ".join(f"x[{j}] - h[{i}]" for j, i in pairs)
-    scope: dict[str, Any] = {}
-    exec(compile(f"def error(x, h):\n    return [{items}]\n", "<estimation error>", "exec"),
-         scope)  # noqa: S102 - numbers only
-    return scope["error"]
-
-
-def _list_update(obs: Observer) -> Callable[[list[float], list[float], float], list[float]]:
-    """``update(y, u, dt) -> estimate`` in lists of floats: the observer's ``update_list`` when
-    it has one (the high-gain family, no arrays per sample) and it belongs to the class that
-    defines the ``update`` in use; otherwise ``update`` on arrays, its estimate as a list."""
-    mro = type(obs).__mro__
-    own_list = next((c for c in mro if "update_list" in vars(c)), None)
-    own_update = next((c for c in mro if "update" in vars(c)), None)
-    if own_list is not None and own_update is not None and issubclass(own_list, own_update):
-        return obs.update_list  # type: ignore[attr-defined,no-any-return]
-    update = obs.update
-
-    def via_arrays(y: list[float], u: list[float], dt: float) -> list[float]:
-        return np.asarray(update(np.array(y), np.array(u), dt), dtype=float).tolist()
-
-    return via_arrays
-
-
-def _rebuild(cls: type[HgoEnv], kwargs: dict[str, Any]) -> HgoEnv:
-    return cls(**kwargs)
+        return EzPickle.__getstate__(self)
 
 
 def _is_default(value: Any) -> bool:
     return isinstance(value, str) and value == "default"
 
 
-__all__ = ["HgoEnv", "INFO_LEVELS", "OBSERVATION_MODES", "Task", "chain_seed", "sensor_chain"]
+__all__ = ["HgoEnv", "INFO_LEVELS", "OBSERVATION_MODES", "EnvConfig", "Encoder", "Task",
+           "chain_seed", "env_seed", "sensor_chain"]

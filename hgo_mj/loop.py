@@ -97,6 +97,17 @@ class LoopFailure(Exception):
                                                                       segment)
 
 
+class _Continue:
+    """The type of :data:`CONTINUE`."""
+
+    def __repr__(self) -> str:
+        return "CONTINUE"
+
+
+#: ``Loop.reset(seed=CONTINUE)``: restart the sensor stages, let their generators continue
+#: (an environment's ``reset()`` without a seed)
+CONTINUE = _Continue()
+
 #: what an observer's failure inside an update may be (a shape mistake, DimensionError, is not)
 _FAILURES = (DivergenceError, ValueError, ArithmeticError)
 
@@ -148,7 +159,10 @@ class Loop:
         self.plant.reset(x0, batch=batch)
         B = self.plant.batch
         if self.sensor is not None:
-            self.sensor.reset(seed)
+            if seed is CONTINUE:
+                self.sensor.restart()
+            else:
+                self.sensor.reset(seed)
             if self.sensor.batch != B:
                 raise DimensionError(f"the sensor chain has {self.sensor.batch} stream(s) for "
                                      f"{B} plant(s): give one seed per member")
@@ -351,4 +365,4 @@ def _head(b: Block, j: int) -> Block:
     return Block(b.x_hat[:, :j], b.z_hat[:, :j], b.diagnostics[:, :j])
 
 
-__all__ = ["Drive", "Loop", "LoopFailure", "Periods", "Segment"]
+__all__ = ["CONTINUE", "Drive", "Loop", "LoopFailure", "Periods", "Segment"]
