@@ -30,7 +30,8 @@ _ARGUMENTS = """
     | `invalid_action`  | `"clip"`     | outside [-1, 1]: clip, or `"raise"`; NaN raises      |
     | `info_level`      | `"basic"`    | `info`: `state`, `estimate`, `error`; `"full"` adds  |
     |                   |              | time, measurement, diagnostics, goal, reward terms   |
-    | `record_path`     | `None`       | rerun `.rrd` file, each episode written at its end   |
+
+    Recording episodes to rerun is the wrapper `hgo_mj.envs.wrappers.RecordEpisodes`.
 """
 
 

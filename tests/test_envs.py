@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from hgo_mj.envs.wrappers import RecordEpisodes
 from rrd_reader import read_rrd
 
 from hgo_mj.exceptions import DesignError, DimensionError
@@ -472,15 +473,15 @@ def _json_blocks(text: str) -> list:
 
 
 @pytest.mark.parametrize("env_id", ["hgo_mj/PendulumSwingUp-v0", "hgo_mj/ElasticJoint2LinkReach-v0"])
-def test_record_path_holds_every_episode(tmp_path, env_id):
-    """Two episodes (6 and 4 steps) recorded through ``record_path`` and read back with rerun's
+def test_record_episodes_holds_every_episode(tmp_path, env_id):
+    """Two episodes (6 and 4 steps) recorded through ``RecordEpisodes`` and read back with rerun's
     reader: one row at reset and one per step, on the episode timeline; the true state, the
     observer's estimate of the states it estimates (the two-link arm's model-free observer:
     link angles and velocities, not the motors; its derivatives under its own names), the
     errors, inputs, rewards and diagnostics equal what ``step`` returned; the ghost, the
     scenario (with each episode's seed) and the per-episode metrics are there."""
     path = tmp_path / "episodes.rrd"
-    env = gym.make(env_id, record_path=path, max_episode_steps=10)
+    env = RecordEpisodes(gym.make(env_id, max_episode_steps=10), path)
     u = env.unwrapped
     obs_name = u.observer.name
     lengths, seeds = (6, 4), (0, 1)
@@ -579,10 +580,10 @@ def test_record_path_holds_every_episode(tmp_path, env_id):
         first += n + 1
 
 
-def test_record_path_without_observer(tmp_path):
+def test_record_episodes_without_observer(tmp_path):
     """No observer: the truth, measurements and rewards only, no error, no metrics RMSE."""
     path = tmp_path / "true.rrd"
-    env = envs.PendulumSwingUpEnv(observer=None, observation="true", record_path=path)
+    env = RecordEpisodes(envs.PendulumSwingUpEnv(observer=None, observation="true"), path)
     env.reset(seed=4)
     for _ in range(3):
         env.step(np.zeros(1, dtype=np.float32))

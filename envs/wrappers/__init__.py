@@ -6,11 +6,13 @@
   run any hgo_mj observer on them and the action, and hand the agent the estimate; for
   example Gymnasium's ``InvertedPendulum-v5`` with only the cart position and pole angle
   measured, their velocities estimated by high-gain observers.
+* :class:`RecordEpisodes`: every episode of an hgo_mj environment to a rerun recording.
 """
 
 from __future__ import annotations
 
 from .observer_in_the_loop import ObserverInTheLoop
+from .record_episodes import RecordEpisodes
 from .sensor_noise import SensorNoise
 
-__all__ = ["ObserverInTheLoop", "SensorNoise"]
+__all__ = ["ObserverInTheLoop", "RecordEpisodes", "SensorNoise"]

@@ -1,0 +1,142 @@
+"""Record every episode of an hgo_mj environment to a rerun ``.rrd`` file."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium.utils import RecordConstructorArgs
+from numpy.typing import NDArray
+
+from hgo_mj.exceptions import DesignError
+
+Array = NDArray[np.float64]
+
+_COLUMNS = ("t", "x", "y", "y_clean", "u", "x_hat", "diagnostics", "reward")
+
+
+class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
+    """Write every episode of an hgo_mj environment (:class:`~hgo_mj.envs.HgoEnv`), batched at
+    its end (the next ``reset`` or ``close``), to the rerun recording ``path``
+    (:class:`hgo_mj.record.Recorder`), as Gymnasium's ``RecordEpisodeStatistics`` records
+    statistics: one row at ``reset`` and one per ``step`` (``steps + 1`` rows an episode; the
+    reset row's input and reward are 0) on the ``sim_time``, ``step`` and ``episode``
+    timelines: true state, the observer's estimate by its own ``state_names`` and errors,
+    clean and measured outputs, input, the observer's diagnostics, the reward
+    (``/env/reward``), the 3D view; after each episode the ``/metrics`` table (one row per
+    episode: seed, steps, return, RMSE per estimated state) and the ``/scenario`` document
+    (the environment's ``recording_metadata()``, with every episode's seed).
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        An hgo_mj environment, possibly wrapped (``TimeLimit`` from ``gymnasium.make``).
+    path : str or Path
+        The ``.rrd`` file to write.
+
+    Examples
+    --------
+    >>> import gymnasium, hgo_mj.envs  # doctest: +SKIP
+    >>> env = RecordEpisodes(gymnasium.make("hgo_mj/PendulumSwingUp-v0"), "episodes.rrd")  # doctest: +SKIP
+    """
+
+    def __init__(self, env: gymnasium.Env, path: str | Path) -> None:
+        RecordConstructorArgs.__init__(self, path=str(path))
+        gymnasium.Wrapper.__init__(self, env)
+        base = env.unwrapped
+        if not hasattr(base, "current_row") or not hasattr(base, "loop"):
+            raise DesignError(f"RecordEpisodes records an hgo_mj environment (HgoEnv); found "
+                              f"{type(base).__name__}")
+        from hgo_mj.record import Recorder
+
+        self.path = Path(path)
+        obs = base.observer
+        names = [] if obs is None else [obs.name or type(obs).__name__]
+        states = {names[0]: base.estimate_names} if names else None
+        self.recorder = Recorder.for_plant(self.path, base.plant, observers=names,
+                                           observer_states=states,
+                                           recording_name=type(base).__name__)
+        self._rows: dict[str, list[Any]] = {k: [] for k in _COLUMNS}
+        self._episode = -1
+        self._seed: int | None = None
+        #: per finished episode: its seed and metrics (the ``/metrics`` document)
+        self.episodes: list[dict[str, Any]] = []
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Any, dict[str, Any]]:
+        self._write_episode()
+        out = self.env.reset(seed=seed, options=options)
+        self._episode += 1
+        self._seed = seed
+        self._add(self.env.unwrapped.current_row())
+        return out
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        out = self.env.step(action)
+        self._add(self.env.unwrapped.current_row())
+        return out
+
+    def close(self) -> None:
+        """Write the last episode and close the recording."""
+        if self.recorder is not None:
+            self._write_episode()
+            self.recorder.close()
+            self.recorder = None
+        super().close()
+
+    def _add(self, row: dict[str, Any]) -> None:
+        for k in _COLUMNS:
+            self._rows[k].append(row[k])
+
+    def metadata_document(self) -> dict[str, Any]:
+        """The environment's ``recording_metadata()`` with the seed of every episode."""
+        meta = self.env.unwrapped.recording_metadata()
+        seeds = [e["seed"] for e in self.episodes]
+        meta["seed"] = seeds[0] if seeds else self._seed
+        meta["seeds"] = {str(e["episode"]): e["seed"] for e in self.episodes}
+        return meta
+
+    def _metrics(self, x: Array, xh: Array | None, rewards: list[float]) -> dict[str, Any]:
+        base = self.env.unwrapped
+        out: dict[str, Any] = {"episode": self._episode, "seed": self._seed,
+                               "steps": len(x) - 1, "return": float(np.sum(rewards[1:])),
+                               "terminated": bool(base.task.terminated(list(x[-1])))}
+        if xh is not None:
+            rmse: dict[str, float] = {}
+            final: dict[str, float] = {}
+            for j, i in base._err_pairs:
+                e = x[:, j] - xh[:, i]
+                ok = np.isfinite(e)
+                name = base.state_names[j]
+                rmse[name] = float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any() else math.nan
+                final[name] = float(abs(e[-1]))
+            out["rmse"] = rmse
+            out["final_error"] = final
+        return out
+
+    def _write_episode(self) -> None:
+        rows = self._rows
+        if self.recorder is None or not rows["t"]:
+            return
+        rec = self.recorder
+        x = np.array(rows["x"], dtype=float)
+        est = diag = xh = None
+        if rows["x_hat"][0] is not None:
+            name = rec.observers[0]
+            xh = np.array(rows["x_hat"], dtype=float)
+            est = {name: xh}
+            keys = rows["diagnostics"][0].keys()
+            diag = {name: {k: np.array([d.get(k, math.nan) for d in rows["diagnostics"]],
+                                       dtype=float) for k in keys}}
+        rec.record_episode(self._episode, np.array(rows["t"], dtype=float), x,
+                           np.array(rows["y"], dtype=float), np.array(rows["u"], dtype=float),
+                           y_clean=np.array(rows["y_clean"], dtype=float), estimates=est,
+                           diagnostics=diag, extra={"reward": np.array(rows["reward"])})
+        self.episodes.append(self._metrics(x, xh, rows["reward"]))
+        rec.log_metadata(self.metadata_document())
+        rec.log_episode_metrics(self.episodes)
+        for v in rows.values():
+            v.clear()
