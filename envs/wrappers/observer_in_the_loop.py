@@ -12,24 +12,93 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
+from hgo_mj.loop import Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
+from hgo_mj.plants.base import Plant
 
 from .._observers import ObserverBank
-from ..core import sensor_chain
-from ._common import box_indices, env_dt, reset_chain
+from ..core import env_seed, sensor_chain
+from ._common import box_indices, env_dt
 
 Array = NDArray[np.float64]
+
+
+class EnvPlant(Plant):
+    """A Gymnasium environment as the plant of :class:`hgo_mj.loop.Loop`: its state is the
+    environment's observation, its outputs the measured signals, and ``run`` steps the
+    environment with the action the wrapper set (:attr:`action`), one step per sample.
+
+    The environment itself is reset by the wrapper (with its seed and options) before the
+    loop is; :meth:`reset` only reads its first observation.
+    """
+
+    batch = 1
+
+    def __init__(self, env: gymnasium.Env, measure: Callable[[Any], Array], dt: float,
+                 n_inputs: int) -> None:
+        self.env, self._measure, self.dt = env, measure, dt
+        self.system = None  # type: ignore[assignment]
+        self.obs: Any = None
+        self.action: Any = None
+        #: what the last environment step returned: (observation, reward, terminated,
+        #: truncated, info)
+        self.result: tuple[Any, ...] | None = None
+        self._n_inputs = n_inputs
+        self.t = 0.0
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return tuple(f"observation_{i}" for i in range(np.size(self.state)))
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        return tuple(f"u{i + 1}" for i in range(self._n_inputs))
+
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        return tuple(f"y{i + 1}" for i in range(np.size(self.outputs())))
+
+    def start(self, obs: Any) -> None:
+        """The environment was reset and observes ``obs``."""
+        self.obs, self.result, self.t = obs, None, 0.0
+
+    def reset(self, x0: Any = None, *, batch: int | None = None) -> None:
+        if x0 is not None or (batch is not None and batch != 1):
+            raise DesignError("an environment plant is reset through its environment (one copy)")
+
+    def step(self, u: Any) -> None:
+        self.result = self.env.step(self.action)
+        self.obs = self.result[0]
+        self.t += self.dt
+
+    def run(self, U: Array, steps: int) -> tuple[Array, Array]:
+        T = U.shape[1]
+        X = np.empty((1, T, np.size(self.state)))
+        Y = np.empty((1, T, np.size(self.outputs())))
+        for j in range(T):
+            X[0, j], Y[0, j] = self.state, self.outputs()
+            for _ in range(steps):
+                self.step(U[0, j])
+        return X, Y
+
+    @property
+    def state(self) -> Array:
+        return np.asarray(self.obs, dtype=float).reshape(-1)
+
+    def outputs(self) -> Array:
+        return self._measure(self.obs)
 
 
 class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
     """Measure some signals of an environment, estimate its state with hgo_mj observers, and
     hand the agent the estimate instead of the environment's observation.
 
-    At every step the observer consumes the current measurement ``y_k`` (the measured signals
-    through the sensor chain) and the input ``u_k`` (the action, or ``input(action)``) and
-    predicts the estimate at the next step, ``update(y_k, u_k, dt)``; the environment then
-    steps, and its new observation is measured for the next update. The agent's observation is
-    that estimate, rearranged by ``layout``.
+    The environment is the plant of hgo_mj's loop (:class:`hgo_mj.loop.Loop`, through
+    :class:`EnvPlant`): at every step the observer consumes the current measurement ``y_k``
+    (the measured signals through the sensor chain) and the input ``u_k`` (the action, or
+    ``input(action)``) and predicts the estimate at the next step; the environment steps, and
+    its new observation is measured for the next step. The agent's observation is that
+    estimate, rearranged by ``layout``.
 
     Parameters
     ----------
@@ -40,7 +109,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
         ``measure(env, observation) -> array`` (e.g. reading ``env.unwrapped.data``).
     observer : str, Observer or sequence of Observer
         A registered observer name: one observer per measured channel, built without a system
-        (model-free) as ``make_observer(name, None, output=i, **observer_kwargs)``, e.g.
+        (model-free) as ``make_observer(name, None, outputs=(i,), **observer_kwargs)``, e.g.
         ``"high_gain"`` with ``observer_kwargs={"order": 2, "k": 30}``: a chain of order 2 per
         signal estimates it and its velocity. Or an observer instance (e.g. one designed
         against an hgo_mj system), or several, each reading its own channel; their estimates
@@ -125,8 +194,8 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
         self.bound = float(bound)
         self.observation_space = spaces.Box(-self.bound, self.bound, shape=(len(lay),),
                                             dtype=np.float64)
-        self._y: Array | None = None
-        self._k = 0
+        self.loop: Loop | None = None
+        self.plant: EnvPlant = None  # type: ignore[assignment]
 
     def _make(self, observer: Any, kwargs: Mapping[str, Any] | None, m: int | None) -> Observer:
         if isinstance(observer, Observer):
@@ -139,9 +208,9 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
                 raise DesignError("a named observer needs measure= as indices (to know how many "
                                   "channels); with measure(env, obs) give observer instances")
             kw = dict(kwargs or {})
-            if "output" in kw:
-                raise DesignError("output is set per channel by the wrapper; do not give it")
-            members = [make_observer(observer, None, output=i, **kw) for i in range(m)]
+            if "outputs" in kw:
+                raise DesignError("outputs are set per channel by the wrapper; do not give them")
+            members = [make_observer(observer, None, outputs=(i,), **kw) for i in range(m)]
             names = [f"y{i + 1}" for i in range(m)]
             return ObserverBank(members, output_names=names)
         members = list(observer)
@@ -154,10 +223,8 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
     # ------------------------------------------------------------------ loop
     def _signals(self, obs: Any) -> Array:
         if self._measure_fn is not None:
-            y = np.asarray(self._measure_fn(self.env, obs), dtype=float).reshape(-1)
-        else:
-            y = np.asarray(obs, dtype=float)[self._idx]
-        return self.sensor(self._k * self.dt, y)
+            return np.asarray(self._measure_fn(self.env, obs), dtype=float).reshape(-1)
+        return np.asarray(obs, dtype=float)[self._idx]
 
     def _u(self, action: Any) -> Array:
         if self._input is not None:
@@ -167,38 +234,50 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
     def _observation(self, x_hat: Array) -> Array:
         if not np.all(np.isfinite(x_hat)):
             raise DivergenceError(f"the observer's estimate left the finite numbers at step "
-                                  f"{self._k}: {x_hat.tolist()}")
+                                  f"{self.loop.k}: {x_hat.tolist()}")
         return np.clip(x_hat[self.layout], -self.bound, self.bound)
+
+    def _build_loop(self, action: Any) -> None:
+        """The loop around the environment, made at the first reset (when the width of the
+        observer's input is known from the action space)."""
+        m = self._u(action).size
+        self.plant = EnvPlant(self.env, self._signals, self.dt, m)
+        self.loop = Loop(self.plant, self.sensor, {"observer": self.observer},
+                         Periods(self.dt, self.dt, 1, 1))
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Array, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
-        reset_chain(self.sensor, seed)
-        self._k = 0
-        y = self._signals(obs)
-        self._y = y
+        if self.loop is None:
+            self._build_loop(self.env.action_space.sample() * 0)
+        self.plant.start(obs)
+        self.loop.reset(seed=env_seed(seed))
+        _, _, Ym = self.loop.sample()
+        y = Ym[0, 0]
         ob = self.observer
         if self._built and self._init == "measurement" and isinstance(ob, ObserverBank):
             z0: list[float] = []
             for o in ob.members:
-                yi = float(y[o.output])
+                yi = float(y[o.outputs[0]])
                 z0 += [yi if yi == yi else 0.0] + [0.0] * (len(o.state_names) - 1)
             ob.reset(z_hat0=z0)
-        else:
-            ob.reset()
         x_hat = np.array(ob.x_hat, dtype=float)
         info = dict(info)
         info.update(estimate=x_hat.copy(), measurement=y.copy(), true_observation=np.array(obs))
         return self._observation(x_hat), info
 
     def step(self, action: Any) -> tuple[Array, Any, bool, bool, dict[str, Any]]:
-        if self._y is None:
+        if self.loop is None or self.plant.obs is None:
             raise DesignError("call reset() before step()")
-        x_hat = np.array(self.observer.update(self._y, self._u(action), self.dt), dtype=float)
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        self._k += 1
-        y = self._signals(obs)
-        self._y = y
+        self.plant.action = action
+        try:
+            self.loop.segment(self._u(action)[None, None])
+        except LoopFailure as exc:
+            raise DivergenceError(str(exc)) from exc.cause
+        obs, reward, terminated, truncated, info = self.plant.result  # type: ignore[misc]
+        x_hat = np.array(self.observer.x_hat, dtype=float)
+        _, _, Ym = self.loop.sample()
         info = dict(info)
-        info.update(estimate=x_hat.copy(), measurement=y.copy(), true_observation=np.array(obs))
+        info.update(estimate=x_hat.copy(), measurement=Ym[0, 0].copy(),
+                    true_observation=np.array(obs))
         return self._observation(x_hat), reward, terminated, truncated, info

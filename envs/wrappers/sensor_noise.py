@@ -64,11 +64,12 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
     def _measure(self, obs: Array) -> Array:
         t = self._k * self.dt
         clean = np.asarray(obs, dtype=float)
+        tt = np.array([t])
         if self._all:
-            y = self.sensor(t, clean)
+            y = self.sensor.apply(tt, clean[None, None])[0, 0]
         else:
             y = clean.copy()
-            y[self.indices] = self.sensor(t, clean[self.indices])
+            y[self.indices] = self.sensor.apply(tt, clean[self.indices][None, None])[0, 0]
         return y.astype(self.observation_space.dtype, copy=False)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
