@@ -63,6 +63,28 @@ class FunctionSignal(Signal):
         return {"function": getattr(self.fn, "__name__", repr(self.fn))}
 
 
+class TimeShift(Signal):
+    """``signal(t + shift)``: e.g. an input held over a sample period taken at the sample's
+    midpoint (``shift = dt / 2``), a second-order approximation of a continuous input for a
+    plant integrated over the sample with the input held."""
+
+    name = "time_shift"
+    summary = "another signal evaluated at t + shift"
+
+    def __init__(self, signal: Signal, shift: float) -> None:
+        if not isinstance(signal, Signal):
+            raise DesignError(f"TimeShift needs a Signal; found {type(signal).__name__}")
+        self.signal = signal
+        self.shift = finite_scalar("TimeShift.shift", shift)
+
+    def values(self, t: Array) -> Array:
+        return self.signal.values(np.asarray(t, dtype=float) + self.shift)
+
+    def params(self) -> dict[str, Any]:
+        return {"shift": self.shift, "signal": {"type": type(self.signal).__name__,
+                                                **self.signal.params()}}
+
+
 def _channels(name: str, value: Any) -> Array:
     return vector(name, np.atleast_1d(np.asarray(value, dtype=float)))
 
