@@ -25,7 +25,7 @@ from hgo_mj.inputs import make_signal
 from hgo_mj.observers import make_observer
 from hgo_mj.plants import make_plant
 from hgo_mj.plants.mujoco import model_path
-from hgo_mj.record import Kinematics, Recorder, diagnostic_path, record_trajectory
+from hgo_mj.record import Poses, Recorder, diagnostic_path, record_trajectory
 from hgo_mj.sensors import SensorChain
 from hgo_mj.simulate import Trajectory, simulate
 
@@ -360,7 +360,7 @@ def test_sigint_waits_for_the_block():
     """Ctrl-C while a block is sent is held until the block is complete, then raised."""
     import os
 
-    from hgo_mj.record import _DeferSigint
+    from hgo_mj.record.recorder import _DeferSigint
 
     done = []
     with pytest.raises(KeyboardInterrupt):
