@@ -55,9 +55,10 @@ def metrics_document(metrics: Mapping[str, Mapping[str, Any]]) -> str:
     """The ``/metrics`` document of a run: :func:`hgo_mj.metrics.format_table`, then JSON."""
     from ..metrics import format_table
 
+    table = {str(k): dict(v) for k, v in metrics.items()}
     return ("# Metrics\n\nerror e = x - x_hat per observer and state\n\n```\n"
-            + format_table(dict(metrics)) + "\n```\n\n```json\n"
-            + json.dumps(strict_json(dict(metrics)), indent=2, default=float) + "\n```\n")
+            + format_table(table) + "\n```\n\n```json\n"
+            + json.dumps(strict_json(table), indent=2, default=float) + "\n```\n")
 
 
 def _cell(v: Any) -> str:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import rerun as rr
 import rerun.blueprint as rrb
@@ -216,10 +217,18 @@ def estimate_layout(state_names: Sequence[str], observers: Sequence[str],
 def series_lines(names: Sequence[str], colors: Sequence[Sequence[int]],
                  widths: Sequence[float] | None = None, *, steps: bool = False) -> rr.SeriesLines:
     """The style of one series entity (``steps``: drawn as a piecewise-constant line)."""
-    kw: dict[str, object] = {} if widths is None else {"widths": list(widths)}
-    if steps:
-        kw["interpolation_mode"] = "StepAfter"
-    return rr.SeriesLines(names=list(names), colors=[tuple(c) for c in colors], **kw)
+    return _series_lines(tuple(names), tuple(tuple(c) for c in colors),
+                         None if widths is None else tuple(widths), steps)
+
+
+@lru_cache(maxsize=1024)
+def _series_lines(names: tuple[str, ...], colors: tuple[tuple[int, ...], ...],
+                  widths: tuple[float, ...] | None, steps: bool) -> rr.SeriesLines:
+    # built once per process (an archetype costs tens of microseconds to convert); logging
+    # the same object again makes new chunks
+    return rr.SeriesLines(names=list(names), colors=list(colors),
+                          widths=None if widths is None else list(widths),
+                          interpolation_mode="StepAfter" if steps else None)
 
 
 def signal_styles(layout: EstimateLayout, output_names: Sequence[str],

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -73,9 +74,27 @@ def geom_shape(model: Any, g: int, rgba: Sequence[int], fill: Any) -> Any:
     ``None`` for a type not drawn (height fields, SDFs)."""
     import mujoco
 
+    kind = int(model.geom_type[g])
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        if model.geom_dataid[g] < 0:
+            return None
+        k = model.geom_dataid[g]
+        v0, nv = model.mesh_vertadr[k], model.mesh_vertnum[k]
+        f0, nf = model.mesh_faceadr[k], model.mesh_facenum[k]
+        return rr.Mesh3D(vertex_positions=np.array(model.mesh_vert[v0:v0 + nv]),
+                         triangle_indices=np.array(model.mesh_face[f0:f0 + nf]),
+                         albedo_factor=list(rgba))
+    return _primitive(kind, tuple(float(v) for v in model.geom_size[g]), tuple(rgba), fill)
+
+
+@lru_cache(maxsize=1024)
+def _primitive(kind: int, size_: tuple[float, ...], rgba: tuple[int, ...], fill: Any) -> Any:
+    """A primitive geom's archetype (built once per process for each shape, colour and fill:
+    the same in every recording of a model)."""
+    import mujoco
+
     t = mujoco.mjtGeom
-    kind, size = int(model.geom_type[g]), np.array(model.geom_size[g], dtype=float)
-    col = [list(rgba)]
+    size, col = np.array(size_), [list(rgba)]
     if kind == t.mjGEOM_BOX:
         return rr.Boxes3D(half_sizes=[size], colors=col, fill_mode=fill)
     if kind == t.mjGEOM_SPHERE:
@@ -90,20 +109,17 @@ def geom_shape(model: Any, g: int, rgba: Sequence[int], fill: Any) -> Any:
     if kind == t.mjGEOM_PLANE:
         half = [size[0] or 2.0, size[1] or 2.0, 1e-3]
         return rr.Boxes3D(half_sizes=[half], colors=col, fill_mode=fill)
-    if kind == t.mjGEOM_MESH and model.geom_dataid[g] >= 0:
-        k = model.geom_dataid[g]
-        v0, nv = model.mesh_vertadr[k], model.mesh_vertnum[k]
-        f0, nf = model.mesh_faceadr[k], model.mesh_facenum[k]
-        return rr.Mesh3D(vertex_positions=np.array(model.mesh_vert[v0:v0 + nv]),
-                         triangle_indices=np.array(model.mesh_face[f0:f0 + nf]),
-                         albedo_factor=list(rgba))
-    return None
+    return None  # height fields, SDFs
 
 
 def transform(pos: Any, quat: Any) -> rr.Transform3D:
     """A rerun transform from a MuJoCo position and quaternion (``w, x, y, z``)."""
-    return rr.Transform3D(translation=np.asarray(pos, dtype=float),
-                          quaternion=rr.Quaternion(xyzw=xyzw(quat)))
+    return _transform(tuple(float(v) for v in pos), tuple(float(v) for v in quat))
+
+
+@lru_cache(maxsize=1024)
+def _transform(pos: tuple[float, ...], quat: tuple[float, ...]) -> rr.Transform3D:
+    return rr.Transform3D(translation=np.array(pos), quaternion=rr.Quaternion(xyzw=xyzw(quat)))
 
 
 class Poses:
@@ -169,12 +185,12 @@ class Poses:
         d.qpos[:] = m.qpos0
         pos = np.empty((q.shape[0], m.nbody, 3))
         quat = np.empty((q.shape[0], m.nbody, 4))
-        qpos, adr = d.qpos, self._adr
+        qpos, xpos, xquat, adr = d.qpos, d.xpos, d.xquat, self._adr  # views into d
         for k in range(q.shape[0]):
             qpos[adr] = q[k]
             mujoco.mj_kinematics(m, d)
-            pos[k] = d.xpos
-            quat[k] = d.xquat
+            pos[k] = xpos
+            quat[k] = xquat
         return pos, quat
 
     def posed_bodies(self) -> NDArray[np.intp]:

@@ -275,7 +275,7 @@ class Recorder:
         """Log a run's metadata (scenario, seed, observer parameters, versions, ...) as the
         text document ``/scenario`` (:func:`~hgo_mj.record.documents.scenario_document`) and
         as recording properties."""
-        props = documents.scenario_properties(metadata)
+        props: dict[str, Any] = dict(documents.scenario_properties(metadata))
         if props:
             self.stream.send_property("hgo_mj", rr.AnyValues(**props))
         self._document("/scenario", documents.scenario_document(metadata))
