@@ -690,7 +690,7 @@ def test_record_estimate_names_validation(tmp_path):
 
 
 def test_recordings_in_one_process_reuse_converted_styles(tmp_path):
-    """Styles and geometry are converted once per process and sent again: a second recording
+    """Styles and geometry are built once per process and logged again: a second recording
     holds the same static data, ghosts and views as the first, with poses sent in batches of
     queued rows (and the rest at close)."""
     traj = pendulum_run(1.2)
