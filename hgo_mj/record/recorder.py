@@ -613,9 +613,8 @@ class Recorder:
     def blueprint(self) -> rrb.Blueprint:
         """The default layout (:func:`hgo_mj.record.layout.blueprint`) of what has been
         recorded so far."""
-        lay = self.layout or layout.estimate_layout(
-            self.state_names, self.observers,
-            {o: self._names.get(o, self.state_names) for o in self.observers})
+        lay = self.layout or layout.estimate_layout(  # before the first block: the names given
+            self.state_names, self.observers, {o: self._names.get(o, ()) for o in self.observers})
         return layout.blueprint(lay, list(self._diag.values()), self.params,
                                 extras=bool(self._extra), world=self.scene is not None)
 
