@@ -1,6 +1,6 @@
 """What a rerun recording adds to a run: a 10 s, 1 kHz pendulum run with two observers.
 
-Usage: ``python scripts/bench_record.py [--repeats N] [--write BENCHMARKS.md]``.
+Usage: ``python scripts/bench_record.py [--repeats N] [--against REV] [--write BENCHMARKS.md]``.
 
 Three variants of the same run (same seed, bit-identical trajectories) are timed side by side
 in one process, interleaved, ``--repeats`` times each:
@@ -14,7 +14,12 @@ in one process, interleaved, ``--repeats`` times each:
   what the footer costs at ``close`` (not a target variant);
 * ``command`` and ``command_rrd``: the same scenario as a user runs it, ``hgo-mj run ...``
   end to end (simulation, metrics, ``trajectory.npz``, ``metrics.json``, the figure), without
-  and with ``--rrd``.
+  and with ``--rrd``;
+* with ``--against REV``: ``live`` and ``after`` with the single-module recorder of git
+  revision ``REV`` (``git show REV:hgo_mj/record.py``, loaded as ``hgo_mj._record_REV``), e.g.
+  ``3ced465``, whose rows, styles and geometry went to rerun as hand-built Arrow record
+  batches carrying rerun's private field metadata (``Chunk.from_record_batch`` and
+  ``send_chunks``, static chunks cached and re-sent): what that private path still buys.
 
 The target is read two ways, both reported: against the bare computation (``plain``, the
 strict reading) and against the command a user runs (``command``).
@@ -29,8 +34,10 @@ most 10% to the run, the file stays under 3 MB.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -91,6 +98,66 @@ def run_after(path: Path) -> None:
     record_trajectory(traj, path, metrics=all_metrics(traj))
 
 
+def recorder_of(rev: str, tmp: Path) -> object:
+    """The module ``hgo_mj/record.py`` of git revision ``rev``, imported inside ``hgo_mj``."""
+    root = Path(__file__).resolve().parent.parent
+    src = subprocess.run(["git", "-C", str(root), "show", f"{rev}:hgo_mj/record.py"],
+                         capture_output=True, text=True, check=True).stdout
+    name = f"hgo_mj._record_{rev}"
+    (tmp / f"record_{rev}.py").write_text(src)
+    spec = importlib.util.spec_from_file_location(name, tmp / f"record_{rev}.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+_RUN: dict[str, object] = {}
+
+
+def replay_with(mod: object):
+    """The recorder alone: the chunks ``simulate(on_chunk=...)`` hands ``live``, replayed from
+    one precomputed run, then metadata, metrics and ``close`` (no simulation in the time)."""
+    def replay(path: Path) -> None:
+        if not _RUN:
+            plant, sensor, obs, inputs = setup()
+            traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1)
+            _RUN.update(plant=plant, obs=list(obs), traj=traj, metrics=all_metrics(traj))
+        traj, rows = _RUN["traj"], len(_RUN["traj"])
+        block = int(round(RRD_CHUNK_SECONDS / float(traj.t[1] - traj.t[0])))
+        rec = mod.Recorder.for_plant(path, _RUN["plant"], _RUN["obs"], recording_name="bench_record")
+        k0 = 0
+        while k0 < rows:  # as simulate: a tail under half a chunk joins the last chunk
+            k1 = rows if rows - (k0 + block) < block // 2 else k0 + block
+            rec.write_chunk(0, traj, slice(k0, k1))
+            k0 = k1
+        rec.log_metadata(traj.metadata)
+        rec.log_metrics(_RUN["metrics"])
+        rec.close()
+
+    return replay
+
+
+def variants_of(mod: object) -> tuple:
+    """``live`` and ``after`` with the recorder module ``mod``."""
+    def live(path: Path) -> None:
+        plant, sensor, obs, inputs = setup()
+        rec = mod.Recorder.for_plant(path, plant, list(obs), recording_name="bench_record")
+        traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
+                        on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
+        rec.log_metadata(traj.metadata)
+        rec.log_metrics(all_metrics(traj))
+        rec.close()
+
+    def after(path: Path) -> None:
+        plant, sensor, obs, inputs = setup()
+        traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1)
+        mod.record_trajectory(traj, path, metrics=all_metrics(traj))
+
+    return live, after
+
+
 COMMAND = ["run", "--plant", "pendulum", "--sensor", "gaussian:std=1e-3",
            "--sensor", "quantize:counts_per_rev=4096", "--observer", "high_gain:name=hgo_k15,k=15",
            "--observer", "high_gain:name=hgo_k60,k=60",
@@ -127,15 +194,25 @@ def timed(fn, path: Path) -> tuple[float, float]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--against", metavar="REV",
+                    help="also time the hgo_mj/record.py of this git revision (live, after)")
     ap.add_argument("--write", help="replace the bench_record block of this markdown file")
     args = ap.parse_args()
+    import hgo_mj.record
+
     variants = {"plain": run_plain, "live": run_live, "after": run_after,
-                "live_nofooter": run_live_nofooter, "command": run_command,
-                "command_rrd": run_command_rrd}
+                "live_nofooter": run_live_nofooter, "replay": replay_with(hgo_mj.record),
+                "command": run_command, "command_rrd": run_command_rrd}
     times: dict[str, list[float]] = {k: [] for k in variants}
     cpu: dict[str, list[float]] = {k: [] for k in variants}
     sizes: dict[str, int] = {}
     with tempfile.TemporaryDirectory() as tmp:
+        if args.against:
+            mod = recorder_of(args.against, Path(tmp))
+            live, after = variants_of(mod)
+            variants.update({"live_rev": live, "after_rev": after, "replay_rev": replay_with(mod)})
+            times.update(live_rev=[], after_rev=[], replay_rev=[])
+            cpu.update(live_rev=[], after_rev=[], replay_rev=[])
         for name, fn in variants.items():  # warm-up: imports, first MjModel, rerun's threads
             fn(Path(tmp) / f"warm_{name}.rrd")
         for r in range(args.repeats):
@@ -150,9 +227,10 @@ def main() -> int:
     med = {k: statistics.median(v) for k, v in times.items()}
     best_cpu = {k: min(v) for k, v in cpu.items()}
     lines = [
-        "## Issue 6: rerun recordings",
+        "## Issue 6 and 10: rerun recordings",
         "",
-        *header(f"`python scripts/bench_record.py --repeats {args.repeats}` (each variant run "
+        *header(f"`python scripts/bench_record.py --repeats {args.repeats}"
+                f"{f' --against {args.against}' if args.against else ''}` (each variant run "
                 f"{args.repeats} times, interleaved, after one warm-up; best and median)"),
         f"Run: pendulum.xml, {DURATION:g} s at 1 kHz ({int(DURATION * 1000) + 1} samples), sensor "
         "gaussian + quantize, two high-gain observers (k = 15, 60), multisine input.",
@@ -166,12 +244,23 @@ def main() -> int:
               "after": "`simulate`, then `record_trajectory`",
               "live_nofooter": "recorded during the run, `Recorder(footer=False)` (for comparison)",
               "command": "`hgo-mj run ...` end to end (npz, metrics.json, figure)",
-              "command_rrd": "`hgo-mj run ... --rrd` end to end"}
+              "command_rrd": "`hgo-mj run ... --rrd` end to end",
+              "replay": "the recorder alone: `live`'s chunks replayed from a precomputed run",
+              "replay_rev": f"the recorder alone, `record.py` of {args.against}",
+              "live_rev": f"recorded during the run, `record.py` of {args.against} (private Arrow path)",
+              "after_rev": f"`simulate`, then `record_trajectory` of {args.against} (private Arrow path)"}
     base_of = {k: ("command" if k.startswith("command") else "plain") for k in variants}
+    if args.against:  # next to the variants they compare with
+        order = ["plain", "live", "live_rev", "after", "after_rev", "live_nofooter", "replay",
+                 "replay_rev", "command", "command_rrd"]
+        variants = {k: variants[k] for k in order}
     for k in variants:
         b = base_of[k]
         added = "" if k == b else f"{100 * (best[k] / best[b] - 1):+.1f}%"
         added_cpu = "" if k == b else f"{100 * (best_cpu[k] / best_cpu[b] - 1):+.1f}%"
+        if k.startswith("replay"):  # its whole time is what it adds
+            added = f"+{100 * best[k] / best[b]:.1f}%"
+            added_cpu = f"+{100 * best_cpu[k] / best_cpu[b]:.1f}%"
         size = f"{sizes[k] / 1e6:.2f}" if k in sizes else ""
         lines.append(f"| {labels[k]} | {1e3 * best[k]:.1f} | {1e3 * med[k]:.1f} | {added} | "
                      f"{1e3 * best_cpu[k]:.1f} | {added_cpu} | {size} |")

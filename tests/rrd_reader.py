@@ -77,4 +77,11 @@ def blueprint_views(path: Path) -> list[tuple[str, str]]:
     return views
 
 
-__all__ = ["Entity", "blueprint_views", "read_rrd"]
+def chunk_ids(path: Path) -> list[str]:
+    """The id of every chunk of the file, its recording's and its blueprints' (in file order)."""
+    reader = RrdReader(path)
+    stores = [None, *reader.blueprints()]
+    return [chunk.id for store in stores for chunk in reader.stream(store=store)]
+
+
+__all__ = ["Entity", "blueprint_views", "chunk_ids", "read_rrd"]

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 import pytest
 import rerun as rr
-from rrd_reader import blueprint_views, read_rrd
+from rrd_reader import blueprint_views, chunk_ids, read_rrd
 
 from hgo_mj.cli import RRD_CHUNK_SECONDS, main
 from hgo_mj.exceptions import DesignError, DimensionError
@@ -25,7 +25,7 @@ from hgo_mj.inputs import make_signal
 from hgo_mj.observers import make_observer
 from hgo_mj.plants import make_plant
 from hgo_mj.plants.mujoco import model_path
-from hgo_mj.record import Kinematics, Recorder, diagnostic_path, record_trajectory
+from hgo_mj.record import Poses, Recorder, diagnostic_path, record_trajectory
 from hgo_mj.sensors import SensorChain
 from hgo_mj.simulate import Trajectory, simulate
 
@@ -264,8 +264,22 @@ def test_diagnostic_paths(key, path):
     assert diagnostic_path("o", key, ("a1", "a2"))[0] == path
 
 
-def test_kinematics_matches_mj_kinematics():
+def _mj_poses(m, joints, q):
+    """MuJoCo's own body poses: the joint positions ``q`` set into qpos (the rest at qpos0)."""
+    d = mujoco.MjData(m)
+    d.qpos[:] = m.qpos0
+    for c, j in enumerate(joints):
+        d.qpos[m.jnt_qposadr[m.joint(j).id]] = q[c]
+    mujoco.mj_kinematics(m, d)
+    return d.xpos.copy(), d.xquat.copy()
+
+
+def test_poses_match_mj_kinematics():
+    """Slide and hinge joints with anchors on two nested bodies, all driven or one only: the
+    rows posed together equal MuJoCo's poses of each row alone, and ``moving`` marks the
+    bodies the driven joints move."""
     xml = """<mujoco><worldbody>
+      <geom name="floor" type="plane" size="1 1 .1"/>
       <body name="a" pos="0.1 0.2 0.3" euler="0.3 0.2 0.1">
         <joint name="s" type="slide" axis="1 1 0"/>
         <joint name="h1" type="hinge" axis="0 0 1" pos="0.05 0 0"/>
@@ -277,39 +291,46 @@ def test_kinematics_matches_mj_kinematics():
         </body>
       </body></worldbody></mujoco>"""
     m = mujoco.MjModel.from_xml_string(xml)
-    d = mujoco.MjData(m)
     rng = np.random.default_rng(1)
-    for joints in (("s", "h1", "h2", "h3"), ("h2",)):
-        kin = Kinematics(m, joints)
+    for joints, moving in ((("s", "h1", "h2", "h3"), [False, True, True]),
+                           (("h2",), [False, False, True])):
+        poses = Poses(m, joints)
+        assert poses.moving.tolist() == moving
         q = rng.uniform(-2, 2, size=(6, len(joints)))
-        pos, quat = kin.poses(q)
+        pos, quat = poses.poses(q)
+        assert pos.shape == (6, m.nbody, 3) and quat.shape == (6, m.nbody, 4)
         for k in range(6):
-            d.qpos[:] = m.qpos0
-            for c, j in enumerate(joints):
-                d.qpos[m.jnt_qposadr[m.joint(j).id]] = q[k, c]
-            mujoco.mj_kinematics(m, d)
-            for b in range(m.nbody):
-                r = min(k, pos[b].shape[0] - 1)
-                np.testing.assert_allclose(pos[b][r], d.xpos[b], atol=1e-12)
-                np.testing.assert_allclose(abs(np.dot(quat[b][r], d.xquat[b])), 1.0, atol=1e-12)
+            xpos, xquat = _mj_poses(m, joints, q[k])
+            np.testing.assert_array_equal(pos[k], xpos)
+            np.testing.assert_array_equal(quat[k], xquat)
+    with pytest.raises(DesignError, match="joint 'free' must be a hinge or slide joint"):
+        Poses(mujoco.MjModel.from_xml_string(
+            '<mujoco><worldbody><body><joint name="free" type="free"/><geom size=".1"/>'
+            '</body></worldbody></mujoco>'), ("free",))
 
 
-@pytest.mark.parametrize("model", ["elastic_joint_2link.xml", "cart_pendulum.xml"])
-def test_kinematics_of_shipped_models(model):
+@pytest.mark.parametrize("model", ["pendulum.xml", "elastic_joint.xml", "elastic_joint_2link.xml",
+                                   "cart_pendulum.xml"])
+def test_poses_of_shipped_models(model):
+    """Every shipped model posed at random joint positions of its system: MuJoCo's xpos and
+    xquat, every body; the geometry drawn is the bodies' visible geoms."""
     from hgo_mj.systems import SYSTEMS
 
     joints = next(c.joints for c in SYSTEMS.values() if c.model_file == model)
     m = mujoco.MjModel.from_xml_path(str(model_path(model)))
-    d = mujoco.MjData(m)
-    q = np.random.default_rng(2).uniform(-3, 3, size=(3, len(joints)))
-    pos, _ = Kinematics(m, joints).poses(q)
-    for k in range(3):
-        d.qpos[:] = m.qpos0
-        for c, j in enumerate(joints):
-            d.qpos[m.jnt_qposadr[m.joint(j).id]] = q[k, c]
-        mujoco.mj_kinematics(m, d)
-        np.testing.assert_allclose(np.array([p[min(k, len(p) - 1)] for p in pos]), d.xpos,
-                                   atol=1e-12)
+    q = np.random.default_rng(2).uniform(-3, 3, size=(5, len(joints)))
+    poses = Poses(m, joints)
+    pos, quat = poses.poses(q)
+    for k in range(5):
+        xpos, xquat = _mj_poses(m, joints, q[k])
+        np.testing.assert_allclose(pos[k], xpos, atol=1e-12)
+        np.testing.assert_allclose(quat[k], xquat, atol=1e-12)
+    assert poses.moving[1:].any() and not poses.moving[0]
+    assert set(poses.posed_bodies()) <= set(np.flatnonzero(poses.moving))
+    true = dict(poses.geometry())
+    ghost = dict(poses.geometry("/world/estimate/o", (1, 2, 3)))
+    assert len(true) >= len(ghost) > 0
+    assert all(p.startswith("/world/estimate/o/") for p in ghost)
 
 
 def test_scenario_metadata_is_strict_json(tmp_path):
@@ -325,6 +346,103 @@ def test_scenario_metadata_is_strict_json(tmp_path):
     block = text.split("```json\n")[1].split("\n```")[0]
     md = json.loads(block, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
     assert md["x0"] == [None, 0.0] and md["observers"]["a"] == {"k": None, "p": "p"}
+
+
+# ----------------------------------------------------------------------------- layout (pure)
+def _views(container):
+    """(class, origin, name, contents) of every view below a blueprint container, in order."""
+    import rerun.blueprint as rrb
+
+    out = []
+    for item in container.contents:
+        if isinstance(item, rrb.Container):
+            out += _views(item)
+        else:
+            out.append((item.class_identifier, str(item.origin), item.name, item.contents))
+    return out
+
+
+def _style(archetype):
+    return {name: getattr(archetype, name).as_arrow_array().to_pylist()
+            for name in ("names", "colors", "widths", "interpolation_mode")
+            if getattr(archetype, name) is not None}
+
+
+def test_layout_matches_estimates_by_name():
+    from hgo_mj.record import layout
+
+    lay = layout.estimate_layout(("angle", "rate", "motor"), ("a", "b"),
+                                 {"a": ("angle", "rate", "motor"), "b": ("rate", "y_d2", "angle")})
+    assert lay.est_of == ((("a", 0), ("b", 2)), (("a", 1), ("b", 0)), (("a", 2),))
+    assert lay.own == {"a": (), "b": (("y_d2", 1),)}
+    assert lay.joint_observers(1) == {"a", "b"} and lay.joint_columns("b", 2) == [2, 0]
+    assert layout.default_names(("p", "v"), 2) == ("p", "v")
+    assert layout.default_names(("p", "v"), 3) == ("x_hat_1", "x_hat_2", "x_hat_3")
+    with pytest.raises(DesignError, match="must be distinct and not empty"):
+        layout.check_names("a", ["x", "x"])
+    styles = dict(layout.signal_styles(lay, ("angle",), ("torque",)))
+    assert list(styles) == ["/state/angle", "/error/angle", "/state/rate", "/error/rate",
+                            "/state/motor", "/error/motor", "/observer/b/estimate/y_d2",
+                            "/sensor/angle", "/input/torque"]
+    angle = _style(styles["/state/angle"])
+    assert angle["names"] == ["angle true", "angle a", "angle b"] and angle["widths"] == [2, 1, 1]
+    assert len(set(angle["colors"])) == 3
+    assert _style(styles["/error/motor"])["names"] == ["motor error a"]
+    assert _style(styles["/error/angle"])["colors"] == angle["colors"][1:]
+    # a parameter estimate gets the true value next to it, both drawn as steps
+    theta = dict(layout.diagnostic_styles("b", 1, "theta_hat_mass", {"mass": 1.0}))
+    assert list(theta) == ["/observer/b/theta/mass", "/plant/param/mass"]
+    assert _style(theta["/plant/param/mass"])["names"] == ["mass true"]
+    assert all(_style(a)["interpolation_mode"] == [2] for a in theta.values())  # StepAfter
+    assert layout.part("a/b c") == r"a\/b\ c"  # one path part
+
+
+def test_blueprint_is_a_pure_function_of_the_layout():
+    from hgo_mj.record import layout
+
+    lay = layout.estimate_layout(("angle", "rate"), ("a", "z"),
+                                 {"a": ("angle", "rate"), "z": ("z1", "z2")})
+    diags = [layout.diagnostic_path("a", k, ("mass",)) for k in ("k", "mass", "dropouts")]
+    bp = layout.blueprint(lay, diags, {"mass": 1.0}, extras=True, world=True)
+    views = _views(bp.root_container)
+    kinds = [(v[0], v[1]) for v in views]
+    for view in [("3D", "/world"), ("TextDocument", "/metrics"), ("TextDocument", "/scenario"),
+                 ("TimeSeries", "/state/angle"), ("TimeSeries", "/state/rate"),
+                 ("TimeSeries", "/error/angle"), ("TimeSeries", "/observer/z/estimate"),
+                 ("TimeSeries", "/input"), ("TimeSeries", "/sensor"), ("TimeSeries", "/env")]:
+        assert view in kinds, (view, kinds)
+    by_name = {v[2]: v for v in views}
+    assert [str(c) for c in by_name["mass: true vs estimated"][3]] == [
+        "/plant/param/mass", "/observer/a/theta/mass"]
+    assert [str(c) for c in by_name["gains"][3]] == ["/observer/a/gain"]
+    assert [str(c) for c in by_name["other diagnostics"][3]] == ["/observer/a/diagnostics/dropouts"]
+    assert bp.time_panel is not None
+    # no 3D view for an ODE plant, no error column when no plant state is estimated
+    lay = layout.estimate_layout(("x1",), ("z",), {"z": ("z1",)})
+    kinds = [(v[0], v[1]) for v in _views(layout.blueprint(lay).root_container)]
+    assert ("3D", "/world") not in kinds and not any(o.startswith("/error") for _, o in kinds)
+    assert ("TimeSeries", "/env") not in kinds
+
+
+def test_documents_are_markdown_with_strict_json():
+    import json
+
+    from hgo_mj.record import documents
+
+    md = {"scenario": "s", "plant": "Pendulum", "seed": 3, "x0": [float("nan"), 0.0],
+          "observers": {"a": {"k": 2.0}}, "versions": {"mujoco": "4"}}
+    text = documents.scenario_document(md)
+    assert text.startswith("# s\n") and "- **seed**: `3`" in text and "- mujoco 4" in text
+    assert json.loads(text.split("```json\n")[1].split("\n```")[0])["x0"] == [None, 0.0]
+    assert documents.scenario_properties(md) == {
+        "scenario": "s", "plant": "Pendulum", "seed": "3", "observers": '{"a": {"k": 2.0}}',
+        "versions": '{"mujoco": "4"}'}
+    eps = [{"episode": 0, "seed": 1, "steps": 10, "return": -1.5, "terminated": False,
+            "rmse": {"angle": 0.25}}, {"episode": 1, "seed": None, "rmse": {"rate": float("inf")}}]
+    text = documents.episode_metrics_document(eps)
+    assert "| episode | seed | steps | return | terminated | rmse angle | rmse rate |" in text
+    assert "| 0 | 1 | 10 | -1.5 | False | 0.25 | - |" in text
+    assert json.loads(text.split("```json\n")[1].split("\n```")[0])[1]["rmse"] == {"rate": None}
 
 
 # ----------------------------------------------------------------------------- errors
@@ -360,7 +478,7 @@ def test_sigint_waits_for_the_block():
     """Ctrl-C while a block is sent is held until the block is complete, then raised."""
     import os
 
-    from hgo_mj.record import _DeferSigint
+    from hgo_mj.record.recorder import _DeferSigint
 
     done = []
     with pytest.raises(KeyboardInterrupt):
@@ -572,7 +690,7 @@ def test_record_estimate_names_validation(tmp_path):
 
 
 def test_recordings_in_one_process_reuse_converted_styles(tmp_path):
-    """Styles and geometry are converted once per process and sent again: a second recording
+    """Styles and geometry are built once per process and logged again: a second recording
     holds the same static data, ghosts and views as the first, with poses sent in batches of
     queued rows (and the rest at close)."""
     traj = pendulum_run(1.2)
@@ -593,6 +711,20 @@ def test_recordings_in_one_process_reuse_converted_styles(tmp_path):
         assert steps[0] == 0 and steps[-1] == len(traj) - 1  # every block, the last row too
         assert np.all(np.diff(steps) > 0)
     assert b["/state/angle"].rows == len(traj)
+
+
+def test_recordings_in_one_process_have_unique_chunk_ids(tmp_path):
+    """Two recordings of the same run written in one process (styles, geometry, blueprint and
+    rows alike) share no chunk id, and no file repeats one."""
+    traj = pendulum_run(0.6)
+    ids = []
+    for name in ("a.rrd", "b.rrd"):
+        with Recorder.for_trajectory(tmp_path / name, traj) as rec:
+            rec.record_trajectory(traj, chunk_seconds=0.2)
+        ids.append(chunk_ids(tmp_path / name))
+    a, b = ids
+    assert len(a) > 20 and len(set(a)) == len(a) and len(set(b)) == len(b)
+    assert not set(a) & set(b)
 
 
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")

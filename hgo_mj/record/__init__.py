@@ -1,0 +1,14 @@
+"""Headless rerun recordings (``.rrd``) of true versus estimated signals, for review.
+
+- :mod:`~hgo_mj.record.layout`: entity paths, series styles and the default blueprint (pure);
+- :mod:`~hgo_mj.record.documents`: the ``/scenario`` and ``/metrics`` text documents;
+- :mod:`~hgo_mj.record.poses`: the MuJoCo geometry and its poses by ``mujoco.mj_kinematics``;
+- :mod:`~hgo_mj.record.recorder`: :class:`Recorder`, on rerun's public API.
+"""
+
+from .layout import EPISODE, SIM_TIME, STEP, diagnostic_path, observer_color
+from .poses import Poses
+from .recorder import Recorder, record_trajectory
+
+__all__ = ["EPISODE", "SIM_TIME", "STEP", "Poses", "Recorder", "diagnostic_path",
+           "observer_color", "record_trajectory"]
