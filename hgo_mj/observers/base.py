@@ -50,6 +50,7 @@ observers of other packages register through the entry-point group ``hgo_mj.obse
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -117,6 +118,14 @@ def batch_rows(name: str, value: Any, width: int, batch: int | None) -> Array:
     return out
 
 
+def _positive_dt(dt: Any) -> float:
+    """``dt`` as a float: a positive finite real number (a bool or a string is refused)."""
+    if not (isinstance(dt, (float, int, np.floating, np.integer)) and not isinstance(dt, bool)
+            and math.isfinite(dt) and dt > 0):
+        raise DesignError(f"dt must be a positive finite number; found {dt!r}")
+    return float(dt)
+
+
 class Observer(ABC):
     """Abstract base of every observer family (see the module docstring for the contract).
 
@@ -150,7 +159,8 @@ class Observer(ABC):
     summary: ClassVar[str] = ""
     reference: ClassVar[str] = ""
     #: the family's own run-time quantities, in the order ``_advance`` writes them into ``D``
-    family_diagnostics: ClassVar[tuple[str, ...]] = ()
+    #: (a class attribute; an instance may set its own where they depend on its form)
+    family_diagnostics: tuple[str, ...] = ()
     #: whether ``system`` needs a single-output normal form (``normal_form_order``)
     needs_normal_form: ClassVar[bool] = True
 
@@ -169,6 +179,11 @@ class Observer(ABC):
         self.on_unstable = one_of("on_unstable", on_unstable, ON_UNSTABLE)
         self.n = self._order(system, order)
         self._cols = np.array(self.outputs, dtype=np.intp)
+        self._max_col = max(self.outputs)
+        #: the channels as a slice where they are consecutive (no fancy-index copy)
+        lo, hi = self.outputs[0], self.outputs[-1] + 1
+        self._cols_index: slice | Array = (slice(lo, hi) if self.outputs == tuple(range(lo, hi))
+                                           else self._cols)
         self.batch = 1
         self._batched = False
         self._u_last: Array = np.zeros((1, self.n_inputs or 0))
@@ -230,7 +245,7 @@ class Observer(ABC):
     def _current(self) -> tuple[Array, Array, Array]:
         """The current ``(x_hat (B, n_x), z_hat (B, n), family diagnostics (B, d))``."""
 
-    def check_period(self, dt: float) -> None:
+    def check_period(self, dt: float) -> None:  # noqa: B027 - optional, default: no check
         """Check that the update is stable at the sample period ``dt`` (the loop calls this
         before a run) and react as ``on_unstable`` says, naming the largest stable period.
         Default: nothing to check (an update stable for every period)."""
@@ -277,7 +292,7 @@ class Observer(ABC):
         :meth:`_advance_checked` on arrays it has already checked."""
         Y = np.asarray(Y, dtype=float)
         U = np.asarray(U, dtype=float)
-        if Y.ndim != 3 or Y.shape[0] != self.batch or Y.shape[2] <= int(self._cols.max()):
+        if Y.ndim != 3 or Y.shape[0] != self.batch or Y.shape[2] <= self._max_col:
             raise DimensionError(f"{self.name}: y must have shape (B={self.batch}, T, p) with "
                                  f"channel(s) {list(self.outputs)}; found shape {Y.shape}")
         m = self.n_inputs
@@ -285,28 +300,33 @@ class Observer(ABC):
                 m is not None and U.shape[2] != m):
             raise DimensionError(f"{self.name}: u must have shape ({self.batch}, {Y.shape[1]}, "
                                  f"{'m' if m is None else m}); found shape {U.shape}")
-        if not (isinstance(dt, (float, int, np.floating, np.integer)) and not isinstance(dt, bool)
-                and np.isfinite(dt) and dt > 0):
-            raise DesignError(f"dt must be a positive finite number; found {dt!r}")
-        return self._advance_checked(Y, U, float(dt))
+        return self._advance_checked(Y, U, _positive_dt(dt))
 
     def _advance_checked(self, Y: Array, U: Array, dt: float) -> Block:
         """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float)."""
-        Yo = np.ascontiguousarray(Y[:, :, self._cols])
-        if np.isinf(Yo).any():
-            b, j, c = (int(v[0]) for v in np.nonzero(np.isinf(Yo)))
-            raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
-                                  f"{Yo[b, j, c]} (member {b}, sample {j})")
+        cols = self._cols_index
+        Yo = np.ascontiguousarray(Y[:, :, cols])
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
         X = np.empty((B, T, len(self.state_names)))
         Z = np.empty((B, T, self.n))
         D = np.empty((B, T, nd + 1))
-        lost = np.isnan(Yo).any(axis=2)
-        U = np.ascontiguousarray(U)
+        if not np.isfinite(Yo).all():  # dropouts (NaN) counted; an infinite value refused
+            if np.isinf(Yo).any():
+                b, j, c = (int(v[0]) for v in np.nonzero(np.isinf(Yo)))
+                raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
+                                      f"{Yo[b, j, c]} (member {b}, sample {j})")
+            lost = np.cumsum(np.isnan(Yo).any(axis=2), axis=1)
+        else:
+            lost = None
+        if not U.flags.c_contiguous:
+            U = np.ascontiguousarray(U)
         self._advance(Yo, U, dt, X, Z, D[:, :, :nd])
-        D[:, :, nd] = self._dropouts[:, None] + np.cumsum(lost, axis=1)
-        self._dropouts = D[:, -1, nd].astype(np.int64) if T else self._dropouts
+        if lost is None:
+            D[:, :, nd] = self._dropouts[:, None]
+        else:
+            D[:, :, nd] = self._dropouts[:, None] + lost
+            self._dropouts = self._dropouts + lost[:, -1]
         if T:
             self._u_last = U[:, -1]
         return Block(X, Z, D)
@@ -323,16 +343,18 @@ class Observer(ABC):
                                  f"holds a batch of {self.batch} (use step or advance)")
         ya = np.asarray(y, dtype=float)
         ua = np.asarray(u, dtype=float)
-        if ya.ndim != 1 or ya.shape[0] <= int(self._cols.max()):
+        if ya.ndim != 1 or ya.shape[0] <= self._max_col:
             raise DimensionError(f"{self.name}: y must be a vector with channel(s) "
                                  f"{list(self.outputs)} (the measured outputs this observer "
                                  f"reads); found {y!r}")
         m = self.n_inputs
-        if ua.ndim != 1 or (m is not None and ua.shape != (m,)):
+        if ua.ndim != 1 or (m is not None and ua.shape[0] != m):
             raise DimensionError(f"{self.name}: u must have shape ({'m' if m is None else m},); "
                                  f"found shape {ua.shape}")
-        blk = self.advance(ya[None, None], ua[None, None], dt)
-        return blk.x_hat[0, 0].copy()
+        if not (type(dt) is float and dt > 0 and dt < math.inf):
+            dt = _positive_dt(dt)
+        return self._advance_checked(ya.reshape(1, 1, -1), ua.reshape(1, 1, -1),
+                                     dt).x_hat[0, 0]
 
     def run(self, ys: Any, us: Any, dt: float, *, x_hat0: Any = None) -> Block:
         """Offline driver over recorded data (filterpy's ``batch_filter``): reset (unbatched,
