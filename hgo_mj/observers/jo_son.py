@@ -174,6 +174,25 @@ def eq27(S: Array, y: Array, c: Array, go: Array, be: Array, fo: Array, gb: Arra
 
 
 @njit(cache=True)
+def axpy(S: Array, a: float, k: Array, out: Array) -> None:  # pragma: no cover - jit
+    """``out = S + a k``: a stage of the Runge-Kutta scheme (Euler: the step itself)."""
+    B, w = S.shape
+    for i in range(B):
+        for m in range(w):
+            out[i, m] = S[i, m] + a * k[i, m]
+
+
+@njit(cache=True)
+def rk4_combine(S: Array, h6: float, k1: Array, k2: Array, k3: Array, k4: Array,
+                out: Array) -> None:  # pragma: no cover - jit
+    """``out = S + h/6 (k1 + 2 (k2 + k3) + k4)``: the classical RK4 step."""
+    B, w = S.shape
+    for i in range(B):
+        for m in range(w):
+            out[i, m] = S[i, m] + h6 * (k1[i, m] + 2.0 * (k2[i, m] + k3[i, m]) + k4[i, m])
+
+
+@njit(cache=True)
 def gram_push(buf: Array, M: Array, v: Array, i: int, full: bool) -> None:  # pragma: no cover
     """Slide the excitation window by one sample: row ``i`` of the ring ``buf`` ``(B, W, p)``
     leaves (if ``full``) and ``v`` ``(B, p)`` enters; ``M`` ``(B, p, p)`` is the running
@@ -201,6 +220,57 @@ def gram_sum(buf: Array, M: Array) -> None:  # pragma: no cover - jit
                 for w in range(W):
                     s += buf[b, w, k] * buf[b, w, m]
                 M[b, k, m] = s
+
+
+@njit(cache=True)
+def min_eig_sym(M: Array, scale: float, out: Array) -> None:  # pragma: no cover - jit
+    """``out[b]`` = the smallest eigenvalue of the symmetric ``scale * M[b]`` (``M``
+    ``(B, p, p)``) by cyclic Jacobi rotations (a rotation is skipped where the off-diagonal
+    entry is below the machine precision relative to its diagonal pair, and the entry a
+    rotation annihilates is set to zero; at most 50 sweeps);
+    NaN for a non-finite matrix. A small ``p`` is a few rotations: no LAPACK call per member."""
+    B, p, _ = M.shape
+    a = np.empty((p, p))
+    for b in range(B):
+        finite = True
+        for i in range(p):
+            for j in range(p):
+                a[i, j] = scale * M[b, i, j]
+                if not np.isfinite(a[i, j]):
+                    finite = False
+        if not finite:
+            out[b] = np.nan
+            continue
+        for _ in range(50):
+            rotated = False
+            for i in range(p - 1):
+                for j in range(i + 1, p):
+                    aij = a[i, j]
+                    if abs(aij) <= 2.2e-16 * math.sqrt(abs(a[i, i] * a[j, j])) or aij == 0.0:
+                        continue
+                    rotated = True
+                    th = (a[j, j] - a[i, i]) / (2.0 * aij)
+                    if abs(th) > 1e150:
+                        t = 0.5 / th
+                    else:
+                        t = (1.0 if th >= 0.0 else -1.0) / (abs(th) + math.sqrt(th * th + 1.0))
+                    c = 1.0 / math.sqrt(t * t + 1.0)
+                    s = t * c
+                    for k in range(p):  # columns: A P
+                        aki, akj = a[k, i], a[k, j]
+                        a[k, i] = c * aki - s * akj
+                        a[k, j] = s * aki + c * akj
+                    for k in range(p):  # rows: P^T (A P)
+                        aik, ajk = a[i, k], a[j, k]
+                        a[i, k] = c * aik - s * ajk
+                        a[j, k] = s * aik + c * ajk
+                    a[i, j] = a[j, i] = 0.0  # annihilated (rounding left out)
+            if not rotated:
+                break
+        lo = a[0, 0]
+        for i in range(1, p):
+            lo = min(lo, a[i, i])
+        out[b] = lo
 
 
 @register
@@ -372,7 +442,8 @@ class JoSonObserver(Observer):
                 raise DesignError(f"T(x_hat0) of {f.label} must be finite; found {z.tolist()}")
         else:
             z = z0 if z0 is not None else np.zeros((B, f.n))
-        x = f.physical_rows(z)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            x = f.physical_rows(z)
         bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
         if bad.size:
             b = int(bad[0])
@@ -394,17 +465,14 @@ class JoSonObserver(Observer):
         """:math:`\\gamma_o(y, u)` ``(N, r)``, :math:`\\beta(y, u)` ``(N, p)`` and
         :math:`\\gamma_{\\bar o}(y, u)` ``(N, n - r)`` of the rows ``y`` ``(N,)``, ``u``
         ``(N, m + a)`` (``u`` with the ``aux_outputs`` channels appended)."""
-        with np.errstate(invalid="ignore"):
-            return self.form.signals(np.asarray(y, dtype=float), np.asarray(u, dtype=float))
+        return self.form.signals(np.asarray(y, dtype=float), np.asarray(u, dtype=float))
 
-    def _eq27(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array) -> Array:
-        """:func:`eq27` at the rows ``S`` with the held signals (``f_obar`` evaluated here)."""
+    def _eq27(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
+              out: Array) -> Array:
+        """:func:`eq27` at the rows ``S`` with the held signals into ``out`` (``f_obar``
+        evaluated here, at ``S``)."""
         f = self.form
-        if f.n_obar:
-            fo = f.f_obar_rows(y, S[:, f.r:f.n])
-        else:
-            fo = gb
-        out = np.empty_like(S)
+        fo = f.f_obar_rows(y, S[:, f.r:f.n]) if f.n_obar else gb
         eq27(S, y, c, go, be, fo, gb, self.K_, f.b, f.A_obar_o, self.gamma, f.r, out)
         return out
 
@@ -416,21 +484,28 @@ class JoSonObserver(Observer):
         y = np.ascontiguousarray(y, dtype=float)
         go, be, gb = self.signals(y, u)
         cc = np.ascontiguousarray(np.broadcast_to(np.asarray(c, dtype=float), y.shape))
-        return self._eq27(S, y, cc, go, be, gb)
+        return self._eq27(S, y, cc, go, be, gb, np.empty_like(S))
 
     def _integrate(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
-                   h: float) -> Array:
-        """``substeps`` steps of RK4 (or Euler) of eq. 27 over ``h`` each, signals held."""
+                   h: float, k: Array) -> Array:
+        """``substeps`` steps of RK4 (or Euler) of eq. 27 over ``h`` each, the signals held;
+        ``k`` ``(5, B, n + p)`` holds the stages and the stage state. Returns a new array."""
         h2, h6 = 0.5 * h, h / 6.0
+        St = k[4]
         for _ in range(self.substeps):
-            k1 = self._eq27(S, y, c, go, be, gb)
+            nxt = np.empty_like(S)
+            self._eq27(S, y, c, go, be, gb, k[0])
             if self.method == "euler":
-                S = S + h * k1
-                continue
-            k2 = self._eq27(S + h2 * k1, y, c, go, be, gb)
-            k3 = self._eq27(S + h2 * k2, y, c, go, be, gb)
-            k4 = self._eq27(S + h * k3, y, c, go, be, gb)
-            S = S + h6 * (k1 + 2.0 * (k2 + k3) + k4)
+                axpy(S, h, k[0], nxt)
+            else:
+                axpy(S, h2, k[0], St)
+                self._eq27(St, y, c, go, be, gb, k[1])
+                axpy(S, h2, k[1], St)
+                self._eq27(St, y, c, go, be, gb, k[2])
+                axpy(S, h, k[2], St)
+                self._eq27(St, y, c, go, be, gb, k[3])
+                rk4_combine(S, h6, k[0], k[1], k[2], k[3], nxt)
+            S = nxt
         return S
 
     def _excite(self, be: Array, dt: float) -> None:
@@ -450,13 +525,11 @@ class JoSonObserver(Observer):
         if self._gram_i == buf.shape[1]:
             self._gram_i, self._gram_full = 0, True
             gram_sum(buf, self._gram_M)
-        G = self._gram_M * dt
         if p == 1:
-            self._excitation = G[:, 0, 0].copy()
+            self._excitation = self._gram_M[:, 0, 0] * dt
             return
-        ok = np.all(np.isfinite(G), axis=(1, 2))
-        exc = np.full(B, math.nan)
-        exc[ok] = np.linalg.eigvalsh(G[ok])[:, 0]
+        exc = np.empty(B)
+        min_eig_sym(self._gram_M, dt, exc)
         self._excitation = exc
 
     # ------------------------------------------------------------------ interface
@@ -475,6 +548,18 @@ class JoSonObserver(Observer):
                 warnings.warn(str(exc), RuntimeWarning, stacklevel=2)
 
     def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        # floating-point warnings are silenced over the block: a blown-up state raises
+        # DivergenceError below, an undefined inverse map is counted (inverse_failures_)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            S = self._samples(Y, U, dt, Z, D)
+            if not np.isfinite(S).all():
+                self._diverged(Z, D)
+            self._S = S
+            self._physical(Z, X)
+
+    def _samples(self, Y: Array, U: Array, dt: float, Z: Array, D: Array) -> Array:
+        """Integrate eq. 27 over the T samples of the block; return the final state (the
+        observer's own is left as it was until the block is checked)."""
         f = self.form
         B, T = Y.shape[0], Y.shape[1]
         r, n, p, a = f.r, f.n, f.p, len(f.aux_outputs)
@@ -494,26 +579,33 @@ class JoSonObserver(Observer):
                       self.signals(yT.reshape(T * B), UU.reshape(T * B, -1)))
         c = np.where(lost, 0.0, 1.0)
         h = dt / self.substeps
+        k = np.empty((5, *self._S.shape))
         S = self._S
         for j in range(T):
             y = yT[j]
             if lost[j].any():  # a dropout: the signals at the predicted output z_hat_r
-                k = lost[j]
-                y[k] = S[k, r - 1]
-                go[j][k], be[j][k], gb[j][k] = self.signals(y[k], UU[j][k])
+                m = lost[j]
+                y[m] = S[m, r - 1]
+                go[j][m], be[j][m], gb[j][m] = self.signals(y[m], UU[j][m])
             self._excite(be[j], dt)
-            S = self._integrate(S, y, c[j], go[j], be[j], gb[j], h)
-            if not np.all(np.isfinite(S)):
-                m = int(np.flatnonzero(~np.all(np.isfinite(S), axis=1))[0])
-                raise DivergenceError(f"the Jo-Son observer left the finite numbers: state "
-                                      f"(z_hat, theta_hat) = {S[m].tolist()} (member {m}, "
-                                      f"sample {j})")
+            S = self._integrate(S, y, c[j], go[j], be[j], gb[j], h, k)
             Z[:, j] = S[:, :n]
             D[:, j, :p] = S[:, n:]
             if self.excitation_window is not None:
                 D[:, j, p] = self._excitation
-        self._S = S
-        self._physical(Z, X)
+        return S
+
+    def _diverged(self, Z: Array, D: Array) -> None:
+        """Raise :class:`DivergenceError` naming the first sample and member whose state left
+        the finite numbers."""
+        n = self.form.n
+        bad = ~(np.isfinite(Z).all(axis=2) & np.isfinite(D[:, :, :self.form.p]).all(axis=2))
+        j = int(np.flatnonzero(bad.any(axis=0))[0])
+        m = int(np.flatnonzero(bad[:, j])[0])
+        state = np.concatenate((Z[m, j], D[m, j, :self.form.p]))
+        raise DivergenceError(f"the Jo-Son observer left the finite numbers: state "
+                              f"(z_hat, theta_hat) = {state.tolist()} (member {m}, sample {j}; "
+                              f"n = {n})")
 
     def _physical(self, Z: Array, X: Array) -> None:
         """``X`` = :math:`T^{-1}(\\hat z)` of the rows ``Z`` ``(B, T, n)``; where the map is

@@ -219,13 +219,11 @@ class JoSonForm:
 
     def physical_rows(self, Z: Array) -> Array:
         """:math:`T^{-1}` of the rows ``Z`` ``(N, n)``, ``(N, n_x)`` (``Z`` itself without a map);
-        non-finite where the map is undefined (floating-point warnings silenced: the observer
-        counts those rows)."""
+        non-finite where the map is undefined."""
         if self.to_physical is None:
             return np.array(Z, dtype=float)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            return self.rows("to_physical(z)", self.to_physical, len(self.state_names),
-                             Z.shape[0], np.ascontiguousarray(Z.T))
+        return self.rows("to_physical(z)", self.to_physical, len(self.state_names),
+                         Z.shape[0], np.ascontiguousarray(Z.T))
 
     def normal_rows(self, X: Array) -> Array:
         """:math:`T` of the physical rows ``X`` ``(N, n_x)``, ``(N, n)``.
