@@ -390,7 +390,9 @@ class JoSonObserver(Observer):
         if excitation_window is not None:
             excitation_window = finite_scalar("excitation_window", excitation_window, positive=True)
         self.excitation_window = excitation_window
-        self.family_diagnostics = tuple(f"theta_{nm}" for nm in form.theta_names) + (
+        # per instance: the names follow the form's parameters
+        names = tuple(f"theta_{nm}" for nm in form.theta_names)
+        self.family_diagnostics = names + (  # type: ignore[misc]
             ("excitation",) if excitation_window is not None else ())
         self._init = (x_hat0, z_hat0, theta_hat0)
         self.reset()
@@ -563,7 +565,7 @@ class JoSonObserver(Observer):
         f = self.form
         B, T = Y.shape[0], Y.shape[1]
         r, n, p, a = f.r, f.n, f.p, len(f.aux_outputs)
-        lost = np.isnan(Y).any(axis=2).T  # (T, B): y or an auxiliary channel lost
+        lost = np.asarray(np.isnan(Y).any(axis=2)).T  # (T, B): y or an aux channel lost
         yT = np.ascontiguousarray(Y[:, :, 0].T)  # (T, B): sample-major, each sample contiguous
         UU = np.ascontiguousarray(U.transpose(1, 0, 2))  # (T, B, m)
         if a:  # known inputs: the auxiliary channels, lost ones held (0 before any)
@@ -599,7 +601,7 @@ class JoSonObserver(Observer):
         """Raise :class:`DivergenceError` naming the first sample and member whose state left
         the finite numbers."""
         n = self.form.n
-        bad = ~(np.isfinite(Z).all(axis=2) & np.isfinite(D[:, :, :self.form.p]).all(axis=2))
+        bad = ~np.asarray(np.isfinite(Z).all(axis=2) & np.isfinite(D[:, :, :self.form.p]).all(axis=2))
         j = int(np.flatnonzero(bad.any(axis=0))[0])
         m = int(np.flatnonzero(bad[:, j])[0])
         state = np.concatenate((Z[m, j], D[m, j, :self.form.p]))
@@ -615,7 +617,7 @@ class JoSonObserver(Observer):
         if T == 0:
             return
         Xf = self.form.physical_rows(Z.reshape(B * T, n)).reshape(B, T, -1)
-        ok = np.all(np.isfinite(Xf), axis=2)
+        ok = np.asarray(np.isfinite(Xf).all(axis=2))
         if ok.all():
             X[...] = Xf
             self._x_held = Xf[:, -1].copy()

@@ -127,8 +127,8 @@ class JoSonForm:
                               f"{n_unobservable!r}")
         self.n_obar = int(n_unobservable)
         self.n = self.r + self.n_obar
-        self.gamma_o = _callable("gamma_o", gamma_o)
-        self.beta = _callable("beta", beta)
+        self.gamma_o: Rows = _callable("gamma_o", gamma_o)  # type: ignore[assignment]
+        self.beta: Rows = _callable("beta", beta)  # type: ignore[assignment]
         self.f_obar = _callable("f_obar", f_obar, optional=True)
         self.gamma_obar = _callable("gamma_obar", gamma_obar, optional=True)
         if self.n_obar and self.f_obar is None:
