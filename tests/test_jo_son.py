@@ -88,14 +88,35 @@ def test_example_form_is_eq_31():
             np.testing.assert_allclose(form.from_physical(x), z, atol=1e-14)
 
 
+def test_form_functions_work_on_rows_component_first():
+    """The same functions serve one point and N members (rows, component first)."""
+    rng = np.random.default_rng(1)
+    form = JoSonExample().form("jo_son")
+    Z, U = rng.uniform(-1.5, 1.5, (7, 3)), rng.uniform(-1, 1, (7, 1))
+    go, be, gb = form.signals(Z[:, 1], U)
+    assert go.shape == (7, 2) and be.shape == (7, 1) and gb.shape == (7, 1)
+    for i in range(7):
+        np.testing.assert_allclose(go[i], form.gamma_o(Z[i, 1], U[i]), rtol=1e-15)
+        np.testing.assert_allclose(be[i], form.beta(Z[i, 1], U[i]), rtol=1e-15)
+    np.testing.assert_allclose(form.physical_rows(Z), [form.to_physical(z) for z in Z], rtol=1e-15)
+    np.testing.assert_allclose(form.normal_rows(form.physical_rows(Z)), Z, atol=1e-14)
+    assert JoSonForm.example().label == form.label
+
+
+def test_forms_are_declared_by_the_systems():
+    assert "jo_son" in JoSonExample.forms and "jo_son" in ElasticJoint.forms
+    assert JoSonForm is __import__("hgo_mj.systems.jo_son_form", fromlist=["JoSonForm"]).JoSonForm
+    form = ElasticJoint().form("jo_son", sensors="motor_side")
+    assert form.theta_names == JoSonForm.elastic_joint_motor_side().theta_names
+
+
 def test_observer_rhs_is_eq_27_with_z_hat1():
     """The second line uses z_hat1 (the paper prints z1): with a wrong z1 the paper's literal
     equation would differ; ours depends on the estimate only."""
     ob = _observer()
     s = [0.3, -0.2, 0.1, 0.5]  # z_hat1, z_hat2, z_hat3, theta_hat
     y, u = 0.4, np.array([0.7])
-    go, be, gb = ob.signals(y, u)
-    d = ob.rhs(s, y, go, be, gb)
+    d = ob.rhs(np.array([s]), np.array([y]), u[None])[0]
     e = y - s[1]
     K = ob.K_
     assert d[0] == pytest.approx(-y ** 5 + (y * np.sin(y) + y * y) * 0.7 + 2 * s[3] * y * 0.7 + K[0] * e)
@@ -114,8 +135,7 @@ def test_true_start_stays_exact_in_continuous_time():
     def f(t, s):
         x = s[:3]
         u = jo_son_input(t)
-        go, be, gb = ob.signals(x[0], u)
-        return np.concatenate((sys_.dynamics(t, x, u, sys_.params), ob.rhs(s[3:], x[0], go, be, gb)))
+        return np.concatenate((sys_.dynamics(t, x, u, sys_.params), ob.rhs(s[None, 3:], x[:1], u[None])[0]))
 
     s0 = np.concatenate((sys_.default_x0, ob.z_hat, ob.theta_hat_))
     sol = solve_ivp(f, (0, 10), s0, method="DOP853", rtol=1e-11, atol=1e-13)
@@ -146,8 +166,7 @@ def test_dropout_holds_the_prediction_and_counts():
     assert ob.dropouts_ == 1 and ob.diagnostics()["dropouts"] == 1.0
     np.testing.assert_array_equal(ob.theta_hat_, th)
     # open loop: the chain driven by the signals at the predicted output z_hat2
-    go, be, gb = ob.signals(z[1], u)
-    sol = solve_ivp(lambda t, s: ob.rhs(s, z[1], go, be, gb, c=0.0), (0, 0.01),
+    sol = solve_ivp(lambda t, s: ob.rhs(s[None], z[1:2], u[None], c=0.0)[0], (0, 0.01),
                     np.concatenate((z, th)), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(ob.z_hat, sol.y[:3, -1], rtol=1e-8, atol=1e-10)
     with pytest.raises(DivergenceError, match=r"measurement y\[0\] is -inf"):
@@ -163,10 +182,11 @@ def test_lost_auxiliary_output_holds_only_the_auxiliary_channels():
     ob.update(np.array([0.1, np.nan, 0.25]), np.array([0.7]), 0.001)
     assert ob.dropouts_ == 1
     # the known torque of this sample, the last link angle, the current motor angle
-    np.testing.assert_array_equal(seen[-1], [0.7, 0.3, 0.25])
+    np.testing.assert_array_equal(seen[-1], [[0.7, 0.3, 0.25]])
     ob.reset()
     ob.update(np.array([0.1, np.nan, np.nan]), np.array([0.7]), 0.001)
-    np.testing.assert_array_equal(seen[-1], [0.7, 0.0, 0.0])  # nothing to hold yet
+    np.testing.assert_array_equal(seen[-1], [[0.7, 0.0, 0.0]])  # nothing to hold yet
+    assert ob.outputs == (0, 1, 2)  # y, then the form's auxiliary channels
 
 
 def test_reset_where_the_inverse_map_is_undefined_is_refused():
@@ -182,6 +202,13 @@ def test_reset_where_the_inverse_map_is_undefined_is_refused():
             ob.reset(z_hat0=np.zeros(1))
         with pytest.raises(DesignError, match="inverse map"):
             JoSonObserver(form=form, lam=1.0, gamma=1.0, z_hat0=np.zeros(1))
+        with pytest.raises(DesignError, match=r"z = \[0.0\] \(member 2\) lies where the inverse"):
+            ob.reset(z_hat0=[[1.0], [2.0], [0.0]])
+    # later, where the map is undefined, x_hat holds its last value and the failure is counted
+    ob.reset(z_hat0=[1.0])
+    with np.errstate(all="ignore"):
+        blk = ob.run(np.zeros((3, 1)), np.zeros((3, 1)), 0.5, x_hat0=None)
+    assert ob.inverse_failures_ == 0 and np.all(np.isfinite(blk.x_hat))
 
 
 def test_check_period():
@@ -190,6 +217,9 @@ def test_check_period():
                                           r"its poles \[-500.0, -2.0\].*largest stable step is 0.004"):
         ob.check_period(0.01)
     _observer(lam=2.0).check_period(0.01)
+    with pytest.warns(RuntimeWarning, match="unstable"):
+        _observer(lam=500.0, method="euler", on_unstable="warn").check_period(0.01)
+    _observer(lam=500.0, method="euler", on_unstable="ignore").check_period(0.01)
 
 
 # ------------------------------------------------------------------ MuJoCo: motor-side sensors
@@ -212,8 +242,8 @@ def test_system_without_the_form_is_named():
     with pytest.raises(DesignError, match=r"canonical form of paper 003, eq. 10.*Pendulum provides "
                                           r"none"):
         JoSonObserver(Pendulum.from_mjmodel(make_plant("pendulum").model))
-    with pytest.raises(DesignError, match=r"ElasticJoint provides none.*relative degree >= 2, so "
-                                          r"b_r = 0.*elastic_joint_motor_side"):
+    with pytest.raises(DesignError, match=r"ElasticJoint provides no Jo-Son form.*relative degree "
+                                          r">= 2, so b_r = 0.*elastic_joint_motor_side"):
         make_observer("jo_son", ElasticJoint.from_mjmodel(make_plant("elastic_joint").model))
     with pytest.raises(DesignError, match="needs a system with a derived form or form="):
         JoSonObserver()
@@ -248,18 +278,33 @@ def test_bad_forms_and_shapes():
         JoSonForm([1.0], go, 1.0, n_params=1)
     bad = JoSonForm([1.0], go, lambda y, u: (y, u[0]), n_params=1)
     ob = JoSonObserver(form=bad)
-    with pytest.raises(DimensionError, match=r"beta\(y, u\) of .* must return p = 1 values; found 2"):
+    with pytest.raises(DimensionError, match=r"beta\(y, u\) of .* must return 1 values; found 2"):
+        ob.update(np.array([1.0]), np.array([0.0]), 0.01)
+    ob = JoSonObserver(form=JoSonForm([1.0], go, lambda y, u: (u[1],), n_params=1))
+    with pytest.raises(DimensionError, match=r"beta\(y, u\) of adaptive observer canonical form "
+                                             r"failed on arguments of shapes \(\(1,\), \(1, 1\)\)"):
+        ob.update(np.array([1.0]), np.array([0.0]), 0.01)
+    ob = JoSonObserver(form=JoSonForm([1.0], go, lambda y, u: (np.ones(3),), n_params=1))
+    with pytest.raises(DimensionError, match=r"components of 1 member\(s\); found shapes \[\(3,\)\]"):
         ob.update(np.array([1.0]), np.array([0.0]), 0.01)
     ob = _observer()
-    with pytest.raises(DimensionError, match=r"signals of Jo-Son example eq. 31 failed on y = 1.0, "
-                                             r"u of shape \(0,\)"):
+    with pytest.raises(DimensionError, match=r"u must have shape \(1,\); found shape \(0,\)"):
         ob.update(np.array([1.0]), np.array([]), 0.01)
-    with pytest.raises(DimensionError, match=r"y must be a vector with channels 0 \(output\)"):
+    with pytest.raises(DimensionError, match=r"y must be a vector with channel\(s\) \[0\]"):
         ob.update(np.array([]), np.array([0.0]), 0.01)
-    with pytest.raises(DimensionError, match="theta_hat0 must have length 1; found length 2"):
+    with pytest.raises(DimensionError, match=r"theta_hat0 must have shape \(1,\) or \(1, 1\); "
+                                             r"found shape \(2,\)"):
         _observer(theta_hat0=[1.0, 2.0])
-    with pytest.raises(DimensionError, match="z_hat0 must have length 3; found length 2"):
+    with pytest.raises(DimensionError, match=r"z_hat0 must have shape \(3,\) or \(B, 3\); found "
+                                             r"shape \(2,\)"):
         _observer(z_hat0=[1.0, 2.0])
+    with pytest.raises(DesignError, match=r"outputs must be a non-empty sequence.*found 0"):
+        _observer(outputs=0)
+    with pytest.raises(DesignError, match=r"outputs of the Jo-Son observer is the channel of y, a "
+                                          r"1-tuple.*found \[0, 1\]"):
+        _observer(outputs=(0, 1))
+    with pytest.raises(DesignError, match=r"outputs must be distinct channels; found \[1, 1, 2\]"):
+        JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), outputs=(1,))
     with pytest.raises(DesignError, match="x_hat0 in physical coordinates needs the form's "
                                           "from_physical"):
         JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), x_hat0=[1.0])

@@ -53,24 +53,18 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+import warnings
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, vector
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
-from .base import Array, Observer
-from .bastin_gevers import (
-    Rebuildable,
-    SlidingGram,
-    _callable,
-    _names,
-    check_rk_period,
-    initial_estimate,
-    rk_step,
-)
+from ..systems.jo_son_form import JoSonForm
+from .base import Array, Observer, batch_rows, check_outputs, register
+from .bastin_gevers import check_rk_period
 
 __all__ = ["JoSonForm", "JoSonObserver", "jo_son_gain"]
 
@@ -130,234 +124,156 @@ def jo_son_gain(b: Any, lam: float) -> Array:
     return (Ab + lam * b) / br
 
 
-class JoSonForm(Rebuildable):
-    """Adaptive observer canonical form of paper 003, eq. 10.
+# ======================================================================================
+# kernels: arrays, floats and ints only; one loop over the B members inside
+# ======================================================================================
 
-    Parameters
-    ----------
-    b : array_like, shape (r,)
-        The direction :math:`b` along which the parameters enter :math:`\\dot z_o`.
-    gamma_o : callable ``(y, u) -> (r,)``
-        :math:`\\gamma_o(y, u)`.
-    beta : callable ``(y, u) -> (p,)``
-        :math:`\\beta(y, u)`, the regressor (eq. 10: :math:`b \\beta^T \\theta`).
-    n_unobservable : int
-        :math:`n - r`, the dimension of :math:`z_{\\bar o}` (0: none).
-    f_obar : callable ``(y, z_obar) -> (n-r,)``, optional
-        :math:`f_{\\bar o}(y, z_{\\bar o})` (required when ``n_unobservable > 0``).
-    gamma_obar : callable ``(y, u) -> (n-r,)``, optional
-        :math:`\\gamma_{\\bar o}(y, u)` (default zero).
-    A_obar_o : array_like, shape (n-r, r), optional
-        :math:`A_{\\bar o o}` (default zero).
-    theta_names : sequence of str, optional
-        ``p`` names (default ``"1".."p"``); the observer reports ``theta_<name>``.
-    to_physical : callable ``z -> x``, optional
-        :math:`T^{-1}` (eq. 27, first line); default: ``x_hat = z_hat``.
-    from_physical : callable ``x -> z``, optional
-        :math:`T` (to start from a physical ``x_hat0``).
-    state_names : sequence of str, optional
-        Names of ``x`` (default ``z1..zn``).
-    aux_outputs : sequence of int
-        Indices of further measured channels appended to the input vector ``u`` that
-        ``gamma_o``, ``beta`` and ``gamma_obar`` receive (signals measured but used as known
-        inputs, e.g. a second sensor).
-    label : str
-        What the form is of, for messages.
 
-    References
-    ----------
-    Paper 003, eq. 9-10; Theorem 3.1 (conditions for the coordinates to exist).
+@njit(cache=True)
+def eq27(S: Array, y: Array, c: Array, go: Array, be: Array, fo: Array, gb: Array, K: Array,
+         b: Array, A: Array, G: Array, r: int, out: Array) -> None:  # pragma: no cover - jit
+    """Right-hand side of eq. 27 (paper 003, Theorem 3.4) for the rows of ``S`` ``(B, n + p)``
+    ``= (z_hat_o, z_hat_obar, theta_hat)``, written into ``out``:
+
+    .. math::
+
+        \\dot{\\hat z}_o &= A_o \\hat z_o + \\gamma_o + b\\, \\beta^T \\hat\\theta + K e,
+        \\qquad e = c\\, (y - \\hat z_r) \\\\
+        \\dot{\\hat z}_{\\bar o} &= A_{\\bar o o} \\hat z_o + f_{\\bar o}(y, \\hat z_{\\bar o})
+                                    + \\gamma_{\\bar o} \\\\
+        \\dot{\\hat\\theta} &= \\Gamma \\beta\\, e
+
+    with the signals held over the sample: ``go`` :math:`\\gamma_o(y, u)` ``(B, r)``, ``be``
+    :math:`\\beta(y, u)` ``(B, p)``, ``gb`` :math:`\\gamma_{\\bar o}(y, u)` ``(B, n - r)``;
+    ``fo`` is :math:`f_{\\bar o}(y, \\hat z_{\\bar o})` at this ``S``. ``c`` is 1 (correct) or
+    0 (a dropout: prediction without output injection). The second line reads
+    :math:`A_{\\bar o o} \\hat z_o` where the paper prints :math:`\\hat z_{\\bar o}` (see the
+    module docstring).
     """
-
-    def __init__(self, b: Any, gamma_o: Callable[[float, Array], Any],
-                 beta: Callable[[float, Array], Any], *, n_unobservable: int = 0,
-                 f_obar: Callable[[float, Array], Any] | None = None,
-                 gamma_obar: Callable[[float, Array], Any] | None = None,
-                 A_obar_o: Any = None, theta_names: Sequence[str] | None = None,
-                 n_params: int | None = None,
-                 to_physical: Callable[[Array], Any] | None = None,
-                 from_physical: Callable[[Array], Any] | None = None,
-                 state_names: Sequence[str] | None = None, aux_outputs: Sequence[int] = (),
-                 label: str = "adaptive observer canonical form") -> None:
-        self.b = vector("b", b)
-        if self.b.size < 1:
-            raise DimensionError("b must have r >= 1 entries; found none")
-        self.r = int(self.b.size)
-        if int(n_unobservable) != n_unobservable or n_unobservable < 0:
-            raise DesignError(f"n_unobservable must be a non-negative integer; found "
-                              f"{n_unobservable!r}")
-        self.n_obar = int(n_unobservable)
-        self.n = self.r + self.n_obar
-        self.gamma_o = _callable("gamma_o", gamma_o)
-        self.beta = _callable("beta", beta)
-        self.f_obar = _callable("f_obar", f_obar, optional=True)
-        self.gamma_obar = _callable("gamma_obar", gamma_obar, optional=True)
-        if self.n_obar and self.f_obar is None:
-            raise DesignError(f"an unobservable part of dimension {self.n_obar} needs f_obar "
-                              f"(eq. 10); found none")
-        if not self.n_obar and (f_obar is not None or gamma_obar is not None):
-            raise DesignError("f_obar and gamma_obar need n_unobservable > 0")
-        if A_obar_o is None:
-            self.A_obar_o = np.zeros((self.n_obar, self.r))
-        else:
-            A = np.array(A_obar_o, dtype=float)
-            if A.shape != (self.n_obar, self.r):
-                raise DimensionError(f"A_obar_o must have shape (n-r, r) = ({self.n_obar}, "
-                                     f"{self.r}); found {A.shape}")
-            self.A_obar_o = A
-        if theta_names is None and n_params is None:
-            raise DesignError("give theta_names or n_params (the number p of parameters)")
-        p = len(theta_names) if theta_names is not None else int(n_params)  # type: ignore[arg-type]
-        if p < 1:
-            raise DimensionError(f"the form needs p >= 1 parameters; found {p}")
-        self.p = p
-        self.theta_names = _names("theta_names", theta_names, p, [str(i + 1) for i in range(p)])
-        self.to_physical = _callable("to_physical", to_physical, optional=True)
-        self.from_physical = _callable("from_physical", from_physical, optional=True)
-        self.state_names = _names("state_names", state_names, len(state_names or ()) or self.n,
-                                  [f"z{i + 1}" for i in range(self.n)])
-        aux = tuple(int(i) for i in aux_outputs)
-        if any(i < 0 for i in aux):
-            raise DesignError(f"aux_outputs must be channel indices >= 0; found {list(aux)}")
-        self.aux_outputs = aux
-        self.label = str(label)
-
-    def __repr__(self) -> str:
-        return (f"JoSonForm({self.label}: r={self.r}, n={self.n}, b={self.b.tolist()}, "
-                f"theta={list(self.theta_names)})")
-
-    # ------------------------------------------------------------------ factories
-    @classmethod
-    def from_system(cls, system: System, **kw: Any) -> JoSonForm:
-        """The form eq. 10 of a system where one is derived.
-
-        * :class:`~hgo_mj.systems.papers.JoSonExample`: eq. 31;
-        * any system with a method ``jo_son_form(**kw)`` returning a :class:`JoSonForm`.
-
-        For the MuJoCo elastic joint see :meth:`elastic_joint_motor_side` (it needs a sensor
-        choice other than the plant's default output).
-
-        Raises
-        ------
-        DesignError
-            For a system without the form, naming what is missing.
-        """
-        from ..systems.elastic_joint import ElasticJoint
-        from ..systems.papers import JoSonExample
-
-        if isinstance(system, JoSonExample):
-            return cls.example(system, **kw)
-        form = cls._system_method(system, "jo_son_form", kw, cls.from_system)
-        if form is not None:
-            return form
-        hint = ""
-        if isinstance(system, ElasticJoint):
-            hint = (" (with its default link-angle sensor every parameter reaches y with relative "
-                    "degree >= 2, so b_r = 0; measure the motor velocity and the spring deflection "
-                    "and use JoSonForm.elastic_joint_motor_side())")
-        raise DesignError(
-            f"the Jo-Son observer needs the adaptive observer canonical form of paper 003, eq. 10 "
-            f"(b, gamma_o, beta, and f_obar for an unobservable part); {type(system).__name__} "
-            f"provides none (no method jo_son_form() and no derivation in "
-            f"hgo_mj.observers.jo_son){hint}; see docs/adaptive_canonical_forms.md")
-
-    @classmethod
-    def example(cls, system: Any = None) -> JoSonForm:
-        """The form eq. 31 of the example eq. 28 (:class:`~hgo_mj.systems.papers.JoSonExample`).
-
-        :math:`r = 2`, :math:`b = (2, 1)`, :math:`\\beta = y u`,
-        :math:`\\gamma_o = (-y^5 + (y \\sin y + y^2) u,\\ -\\tfrac43 y^3 + u)`,
-        :math:`f_{\\bar o}(y, z_3) = -z_3 - (z_3 + y^2/2)^3`,
-        :math:`\\gamma_{\\bar o} = -y^2/2 + y^4`, :math:`A_{\\bar o o} = 0`, and
-        :math:`T^{-1}(z) = (z_2, z_1 - z_2^3/3, z_3 + z_2^2/2)` (eq. 30).
-
-        References
-        ----------
-        Paper 003, eq. 28, 30, 31.
-        """
-        from ..systems.papers import JoSonExample
-
-        sys_ = JoSonExample() if system is None else system
-        b = np.array(JoSonExample.b, dtype=float)
-
-        def gamma_o(y: float, u: Array) -> tuple[float, float]:
-            uu = u[0]
-            return (-y ** 5 + (y * math.sin(y) + y * y) * uu, -4.0 / 3.0 * y ** 3 + uu)
-
-        def beta(y: float, u: Array) -> tuple[float]:
-            return (y * u[0],)
-
-        def f_obar(y: float, zb: Array) -> tuple[float]:
-            c = zb[0] + 0.5 * y * y
-            return (-zb[0] - c * c * c,)
-
-        def gamma_obar(y: float, u: Array) -> tuple[float]:
-            return (-0.5 * y * y + y ** 4,)
-
-        def to_physical(z: Array) -> Array:
-            return np.array([z[1], z[0] - z[1] ** 3 / 3.0, z[2] + 0.5 * z[1] ** 2])
-
-        return cls(b, gamma_o, beta, n_unobservable=1, f_obar=f_obar, gamma_obar=gamma_obar,
-                   theta_names=("theta",), to_physical=to_physical,
-                   from_physical=sys_.to_canonical, state_names=sys_.state_names,
-                   label="Jo-Son example eq. 31")._made_by(cls.example, system)
-
-    @classmethod
-    def elastic_joint_motor_side(cls, aux_outputs: Sequence[int] = (1, 2),
-                                 unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")
-                                 ) -> JoSonForm:
-        """The motor side of the elastic joint in the form eq. 10, measured by a motor
-        tachometer, with the spring deflection measured as a known signal.
-
-        With :math:`y = \\dot\\theta_m` (MJCF sensor ``motor_velocity``) and the deflection
-        :math:`\\delta = q - \\theta_m` from the link and motor encoders
-        (``link_angle - motor_angle``, channels ``aux_outputs``), the motor equation is
-
-        .. math::
-
-            \\dot y = \\frac{b}{J} u - \\frac{d_m}{J} y + \\frac{K}{J} \\delta,
-
-        i.e. eq. 10 with :math:`r = 1`, :math:`b = (1)`, :math:`\\gamma_o = 0`,
-        :math:`\\beta = (u, -y, \\delta)` and :math:`\\theta = (b/J, d_m/J, K/J)`: every
-        parameter reaches the output with relative degree one, :math:`b_r = 1 > 0`, and
-        :math:`W(s) = 1/(s + \\lambda)` is SPR. The link side is not part of the observer's
-        model (it enters only through the measured :math:`\\delta`), so :math:`n = r = 1`.
-        A parameter may be declared known by leaving it out of ``unknown`` only if it is
-        moved into :math:`\\gamma_o`; this factory estimates all three.
-
-        Parameters
-        ----------
-        aux_outputs : (int, int)
-            Channels of ``link_angle`` and ``motor_angle`` in the measurement vector (the plant
-            built with ``outputs=("motor_velocity", "link_angle", "motor_angle")`` has them at
-            1 and 2).
-
-        References
-        ----------
-        Paper 003, eq. 10, Corollary 3.3; docs/adaptive_canonical_forms.md (why the link-angle
-        sensor does not qualify).
-        """
-        aux = tuple(int(i) for i in aux_outputs)
-        if len(aux) != 2:
-            raise DimensionError(f"aux_outputs must name 2 channels (link_angle, motor_angle); "
-                                 f"found {list(aux)}")
-        if tuple(unknown) != ("b_over_J", "dm_over_J", "K_over_J"):
-            raise DesignError(f"the motor-side form estimates ('b_over_J', 'dm_over_J', "
-                              f"'K_over_J'); found {list(unknown)}")
-
-        def gamma_o(y: float, u: Array) -> tuple[float]:
-            return (0.0,)
-
-        def beta(y: float, u: Array) -> tuple[float, float, float]:
-            # u = (torque, link_angle, motor_angle)
-            return (u[0], -y, u[1] - u[2])
-
-        return cls([1.0], gamma_o, beta, theta_names=tuple(unknown),
-                   state_names=("motor_velocity",), aux_outputs=aux,
-                   label="elastic joint motor side: y = motor velocity, deflection measured"
-                   )._made_by(cls.elastic_joint_motor_side, aux_outputs, unknown)
+    B, w = S.shape
+    p = be.shape[1]
+    n = w - p
+    for i in range(B):
+        e = c[i] * (y[i] - S[i, r - 1])  # y - C_o z_hat_o
+        bt = 0.0  # beta^T theta_hat
+        for m in range(p):
+            bt += be[i, m] * S[i, n + m]
+        out[i, 0] = go[i, 0] + b[0] * bt + K[0] * e  # (A_o z)_1 = 0
+        for k in range(1, r):  # (A_o z)_k = z_(k-1)
+            out[i, k] = S[i, k - 1] + go[i, k] + b[k] * bt + K[k] * e
+        for j in range(n - r):
+            a = 0.0  # (A_obar_o z_hat_o)_j
+            for k in range(r):
+                a += A[j, k] * S[i, k]
+            out[i, r + j] = fo[i, j] + gb[i, j] + a
+        for m in range(p):
+            g = 0.0  # (Gamma beta)_m
+            for k in range(p):
+                g += G[m, k] * be[i, k]
+            out[i, n + m] = g * e
 
 
+@njit(cache=True)
+def axpy(S: Array, a: float, k: Array, out: Array) -> None:  # pragma: no cover - jit
+    """``out = S + a k``: a stage of the Runge-Kutta scheme (Euler: the step itself)."""
+    B, w = S.shape
+    for i in range(B):
+        for m in range(w):
+            out[i, m] = S[i, m] + a * k[i, m]
+
+
+@njit(cache=True)
+def rk4_combine(S: Array, h6: float, k1: Array, k2: Array, k3: Array, k4: Array,
+                out: Array) -> None:  # pragma: no cover - jit
+    """``out = S + h/6 (k1 + 2 (k2 + k3) + k4)``: the classical RK4 step."""
+    B, w = S.shape
+    for i in range(B):
+        for m in range(w):
+            out[i, m] = S[i, m] + h6 * (k1[i, m] + 2.0 * (k2[i, m] + k3[i, m]) + k4[i, m])
+
+
+@njit(cache=True)
+def gram_push(buf: Array, M: Array, v: Array, i: int, full: bool) -> None:  # pragma: no cover
+    """Slide the excitation window by one sample: row ``i`` of the ring ``buf`` ``(B, W, p)``
+    leaves (if ``full``) and ``v`` ``(B, p)`` enters; ``M`` ``(B, p, p)`` is the running
+    :math:`\\sum v v^T` over the window."""
+    B, _, p = buf.shape
+    for b in range(B):
+        for k in range(p):
+            for m in range(p):
+                if full:
+                    M[b, k, m] -= buf[b, i, k] * buf[b, i, m]
+                M[b, k, m] += v[b, k] * v[b, m]
+        for k in range(p):
+            buf[b, i, k] = v[b, k]
+
+
+@njit(cache=True)
+def gram_sum(buf: Array, M: Array) -> None:  # pragma: no cover - jit
+    """``M`` = :math:`\\sum v v^T` over every row of the ring ``buf``, recomputed exactly (once
+    a window, so that the running sum of :func:`gram_push` does not drift)."""
+    B, W, p = buf.shape
+    for b in range(B):
+        for k in range(p):
+            for m in range(p):
+                s = 0.0
+                for w in range(W):
+                    s += buf[b, w, k] * buf[b, w, m]
+                M[b, k, m] = s
+
+
+@njit(cache=True)
+def min_eig_sym(M: Array, scale: float, out: Array) -> None:  # pragma: no cover - jit
+    """``out[b]`` = the smallest eigenvalue of the symmetric ``scale * M[b]`` (``M``
+    ``(B, p, p)``) by cyclic Jacobi rotations (a rotation is skipped where the off-diagonal
+    entry is below the machine precision relative to its diagonal pair, and the entry a
+    rotation annihilates is set to zero; at most 50 sweeps);
+    NaN for a non-finite matrix. A small ``p`` is a few rotations: no LAPACK call per member."""
+    B, p, _ = M.shape
+    a = np.empty((p, p))
+    for b in range(B):
+        finite = True
+        for i in range(p):
+            for j in range(p):
+                a[i, j] = scale * M[b, i, j]
+                if not np.isfinite(a[i, j]):
+                    finite = False
+        if not finite:
+            out[b] = np.nan
+            continue
+        for _ in range(50):
+            rotated = False
+            for i in range(p - 1):
+                for j in range(i + 1, p):
+                    aij = a[i, j]
+                    if abs(aij) <= 2.2e-16 * math.sqrt(abs(a[i, i] * a[j, j])) or aij == 0.0:
+                        continue
+                    rotated = True
+                    th = (a[j, j] - a[i, i]) / (2.0 * aij)
+                    if abs(th) > 1e150:
+                        t = 0.5 / th
+                    else:
+                        t = (1.0 if th >= 0.0 else -1.0) / (abs(th) + math.sqrt(th * th + 1.0))
+                    c = 1.0 / math.sqrt(t * t + 1.0)
+                    s = t * c
+                    for k in range(p):  # columns: A P
+                        aki, akj = a[k, i], a[k, j]
+                        a[k, i] = c * aki - s * akj
+                        a[k, j] = s * aki + c * akj
+                    for k in range(p):  # rows: P^T (A P)
+                        aik, ajk = a[i, k], a[j, k]
+                        a[i, k] = c * aik - s * ajk
+                        a[j, k] = s * aik + c * ajk
+                    a[i, j] = a[j, i] = 0.0  # annihilated (rounding left out)
+            if not rotated:
+                break
+        lo = a[0, 0]
+        for i in range(1, p):
+            lo = min(lo, a[i, i])
+        out[b] = lo
+
+
+@register
 class JoSonObserver(Observer):
     """Adaptive observer of Jo and Son (paper 003, eq. 27) on a :class:`JoSonForm`.
 
@@ -371,47 +287,67 @@ class JoSonObserver(Observer):
         \\dot{\\hat\\theta} = \\Gamma \\beta(y, u) (y - \\hat z_r)
 
     The measurement and the input are held over a sample; ``gamma_o``, ``beta`` and
-    ``gamma_obar`` are evaluated once per sample, ``f_obar`` at every stage of the RK4 (or
-    Euler) integration.
+    ``gamma_obar`` are evaluated once per sample (for a whole block of samples at once, on
+    rows), ``f_obar`` at every stage of the RK4 (or Euler) integration; the arithmetic of
+    eq. 27 is the kernel :func:`eq27`, one loop over the B members.
+
+    State as data: ``(B, n + p)`` rows ``(z_hat_o, z_hat_obar, theta_hat)``, the held
+    auxiliary channels ``(B, a)`` and the excitation window.
 
     Parameters
     ----------
     system : System, optional
-        A system with a derived form (:meth:`JoSonForm.from_system`); not needed when ``form``
-        is given.
+        A system that declares the ``"jo_son"`` form (``system.form("jo_son")``); not needed
+        when ``form`` is given.
     form : JoSonForm, optional
         The canonical form eq. 10.
     lam : float
         :math:`\\lambda > 0` of eq. 25 (the paper's example: 2).
     gamma : float, array_like (p,) or (p, p)
         :math:`\\Gamma`, symmetric positive definite (the example: 5).
-    output : int
-        Index of the measured channel that is ``y``.
-    theta_hat0 : array_like (p,), optional
-        Initial parameter estimate (default zero).
+    outputs : tuple of int
+        The channel of ``y``, a 1-tuple. The form's ``aux_outputs`` are read too (as known
+        inputs appended to ``u``): :attr:`outputs` is ``(y channel, *aux_outputs)``, and a
+        NaN in any of them is a dropout (the lost auxiliary channels hold their last value,
+        0 before any).
+    theta_hat0 : array_like (p,) or (B, p), optional
+        Initial parameter estimate (default zero); :meth:`reset` takes one too.
     x_hat0, z_hat0 : array_like, optional
         Initial estimate in physical coordinates (needs ``from_physical``) or in the form's
-        coordinates (default zero).
+        coordinates (default zero), used by a :meth:`reset` that is given neither.
     method : {"rk4", "euler"}
     substeps : int
         Integration steps per sample.
     excitation_window : float or None
         Window of the diagnostic ``excitation``: the smallest eigenvalue of
         :math:`\\int \\beta \\beta^T` over it (identifiability of :math:`\\theta`; the state
-        estimate converges without it, Theorem 3.2).
+        estimate converges without it, Theorem 3.2). The window keeps the last
+        ``round(window / dt)`` regressors of every member (``B W p`` floats); None drops the
+        diagnostic (and its cost).
+    on_unstable : {"raise", "warn", "ignore"}
+        What :meth:`check_period` does at a period where the integration is unstable.
 
     Attributes
     ----------
-    theta_hat_ : ndarray (p,)
+    theta_hat_ : ndarray (p,) or (B, p)
     K_ : ndarray (r,)
         The gain of eq. 25.
-    dropouts_ : int
+    excitation_ : float or ndarray (B,)
 
     Raises
     ------
     DesignError
         Where the conditions of Corollary 3.3 fail (:func:`jo_son_gain`), Gamma is not
-        symmetric positive definite, or the system has no form.
+        symmetric positive definite, the system has no form, or the initial estimate lies where
+        the inverse map :math:`T^{-1}` is undefined.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems.papers import JoSonExample
+    >>> ob = JoSonObserver(JoSonExample(), lam=2.0, gamma=5.0)
+    >>> ob.reset(batch=4)
+    >>> ob.z_hat.shape, ob.theta_hat_.shape
+    ((4, 3), (4, 1))
 
     References
     ----------
@@ -421,11 +357,12 @@ class JoSonObserver(Observer):
     name = "jo_son"
     summary = "Jo-Son adaptive observer on the generalized observer canonical form, SPR gain"
     reference = "paper 003 (Jo, Son 2004), eq. 10, 25, 27"
+    needs_normal_form = False
 
     def __init__(self, system: System | None = None, *, form: JoSonForm | None = None,
-                 lam: float = 2.0, gamma: Any = 1.0, output: int = 0, theta_hat0: Any = None,
+                 lam: float = 2.0, gamma: Any = 1.0, outputs: Any = (0,), theta_hat0: Any = None,
                  x_hat0: Any = None, z_hat0: Any = None, method: str = "rk4", substeps: int = 1,
-                 excitation_window: float | None = 10.0) -> None:
+                 excitation_window: float | None = 10.0, on_unstable: str = "raise") -> None:
         if system is not None and not isinstance(system, System):
             raise DesignError(f"system must be a System instance or None; found "
                               f"{type(system).__name__}")
@@ -433,213 +370,293 @@ class JoSonObserver(Observer):
             if system is None:
                 raise DesignError("JoSonObserver needs a system with a derived form or "
                                   "form=JoSonForm(...)")
-            form = JoSonForm.from_system(system)
+            form = self._form_of(system)
         elif not isinstance(form, JoSonForm):
             raise DesignError(f"form must be a JoSonForm; found {type(form).__name__}")
-        super().__init__(None, form.n, output)
-        self.system = system
+        y_channel = check_outputs(outputs)
+        if len(y_channel) != 1:
+            raise DesignError(f"outputs of the Jo-Son observer is the channel of y, a 1-tuple "
+                              f"(the form eq. 10 has one output; its aux_outputs "
+                              f"{list(form.aux_outputs)} are read as known inputs); found "
+                              f"{list(y_channel)}")
         self.form = form
+        super().__init__(system, order=form.n, outputs=(*y_channel, *form.aux_outputs),
+                         on_unstable=on_unstable)
         self.lam = finite_scalar("lambda", lam)
         self.K_ = jo_son_gain(form.b, self.lam)
         self.gamma = symmetric_matrix("gamma", gamma, form.p, dim="m")
-        # plain-float copies for the per-sample path (numpy scalar indexing is slow)
-        self._Kl, self._bl = self.K_.tolist(), form.b.tolist()
-        self._Gl = self.gamma.tolist()
-        self._Al = form.A_obar_o.tolist() if np.any(form.A_obar_o) else None
         self.method = one_of("method", method, METHODS)
         self.substeps = positive_int("substeps", substeps)
         if excitation_window is not None:
             excitation_window = finite_scalar("excitation_window", excitation_window, positive=True)
         self.excitation_window = excitation_window
-        self._gram = SlidingGram(form.p, excitation_window) if excitation_window is not None else None
-        self.diagnostic_names = tuple(f"theta_{nm}" for nm in form.theta_names) + (
-            ("excitation",) if self._gram is not None else ())
+        # per instance: the names follow the form's parameters
+        names = tuple(f"theta_{nm}" for nm in form.theta_names)
+        self.family_diagnostics = names + (  # type: ignore[misc]
+            ("excitation",) if excitation_window is not None else ())
         self._init = (x_hat0, z_hat0, theta_hat0)
-        self.reset(x_hat0, z_hat0=z_hat0, theta_hat0=theta_hat0)
+        self.reset()
 
-    # ------------------------------------------------------------------ reset
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
-              theta_hat0: Any = None) -> None:
-        """Restart from ``x_hat0``/``z_hat0`` and ``theta_hat0`` (default: the constructor's)."""
-        f = self.form
-        if x_hat0 is None and z_hat0 is None and theta_hat0 is None:
-            x_hat0, z_hat0, theta_hat0 = self._init
-
-        def physical(x_hat0: Any, th: Array) -> Array:
-            if f.from_physical is None:
-                raise DesignError(f"x_hat0 in physical coordinates needs the form's from_physical "
-                                  f"map (T of eq. 27); {f.label} has none: give z_hat0")
-            return vector("T(x_hat0)", f.from_physical(vector("x_hat0", x_hat0, len(f.state_names))),
-                          f.n)
-
-        z, th = initial_estimate(f.n, f.p, x_hat0, z_hat0, theta_hat0, physical)
-        self._s: list[float] = np.concatenate((z, th)).tolist()
-        self._aux_last: list[float] | None = None
-        self._restart_counters()
-        if self._gram is not None:
-            self._gram.reset()
-        self._xp = np.array(z)
-        if f.to_physical is not None:
-            x = np.asarray(f.to_physical(z), dtype=float).reshape(-1)
-            if not all(map(math.isfinite, x)):
-                raise DesignError(f"the initial estimate z = {z.tolist()} lies where the inverse "
-                                  f"map T^-1 of {f.label} is undefined (it gives {x.tolist()}); "
-                                  f"give x_hat0 / z_hat0 inside its domain")
-            self._xp = x
-
-    # ------------------------------------------------------------------ dynamics
-    def signals(self, y: float, u: Array) -> tuple[list[float], list[float], list[float]]:
-        """:math:`\\gamma_o(y, u)`, :math:`\\beta(y, u)`, :math:`\\gamma_{\\bar o}(y, u)`
-        (shape-checked lists); ``u`` here includes the ``aux_outputs`` channels."""
-        f = self.form
-        try:
-            return self._signals(y, u)
-        except (IndexError, TypeError) as exc:
-            raise DimensionError(f"the signals of {f.label} failed on y = {y!r}, u of shape "
-                                 f"{np.shape(u)}: {exc}") from None
-
-    def _signals(self, y: float, u: Array) -> tuple[list[float], list[float], list[float]]:
-        f = self.form
-        go = [float(v) for v in f.gamma_o(y, u)]
-        if len(go) != f.r:
-            raise DimensionError(f"gamma_o(y, u) of {f.label} must return r = {f.r} values; "
-                                 f"found {len(go)}")
-        be = [float(v) for v in f.beta(y, u)]
-        if len(be) != f.p:
-            raise DimensionError(f"beta(y, u) of {f.label} must return p = {f.p} values; found "
-                                 f"{len(be)}")
-        if f.n_obar:
-            gb = [0.0] * f.n_obar if f.gamma_obar is None else [float(v) for v in f.gamma_obar(y, u)]
-            if len(gb) != f.n_obar:
-                raise DimensionError(f"gamma_obar(y, u) of {f.label} must return n - r = "
-                                     f"{f.n_obar} values; found {len(gb)}")
-        else:
-            gb = []
-        return go, be, gb
-
-    def rhs(self, s: Any, y: float, go: Sequence[float], be: Sequence[float],
-            gb: Sequence[float], c: float = 1.0) -> list[float]:
-        """Right-hand side of eq. 27 for the flat state ``s = (z_o, z_obar, theta_hat)`` with
-        the signals held (public for continuous-time checks); ``c = 0`` drops the output
-        injection (a dropout)."""
-        f = self.form
-        r, n = f.r, f.n
-        zo, th = s[:r], s[n:]
-        e = c * (y - zo[r - 1])
-        bt = 0.0
-        for bi, ti in zip(be, th):
-            bt += bi * ti
-        out = [go[0] + self._bl[0] * bt + self._Kl[0] * e]
-        for i in range(1, r):
-            out.append(zo[i - 1] + go[i] + self._bl[i] * bt + self._Kl[i] * e)
-        if f.n_obar:
-            fo = f.f_obar(y, s[r:n])  # type: ignore[misc]
-            A = self._Al
-            for j in range(f.n_obar):
-                v = float(fo[j]) + gb[j]
-                if A is not None:
-                    v += sum(a * z for a, z in zip(A[j], zo))
-                out.append(v)
-        for row in self._Gl:
-            g = 0.0
-            for gl, bl in zip(row, be):
-                g += gl * bl
-            out.append(g * e)
-        return out
-
-    # ------------------------------------------------------------------ interface
-    def check_period(self, dt: float) -> None:
-        """Refuse a sample period for which the integration of the observer's linear modes
-        (the roots of :math:`(s + \\lambda)(b_r s^{r-1} + \\dots + b_1)`, eq. 26) is unstable."""
-        b = self.form.b
-        lam_ = np.concatenate(([-self.lam], np.roots(b[::-1]) if b.size > 1 else []))
-        check_rk_period("the Jo-Son observer", lam_, dt, self.method, self.substeps)
-
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``; integrate eq. 27 over ``dt``; return
-        ``x_hat(t_k + dt)``."""
-        f = self.form
-        yv = y
-        try:
-            yi = float(yv[self.output])
-            aux = [float(yv[i]) for i in f.aux_outputs]
-        except (IndexError, TypeError):
-            raise DimensionError(f"y must be a vector with channels {self.output} (output) and "
-                                 f"{list(f.aux_outputs)} (aux_outputs); found {y!r}") from None
-        u = np.asarray(u, dtype=float).reshape(-1)
-        aux_lost = any(a != a for a in aux)
-        if aux_lost:  # hold the lost auxiliary channels (0 before any), keep the known control
-            last = self._aux_last if self._aux_last is not None else [0.0] * len(aux)
-            aux = [b if a != a else a for a, b in zip(aux, last)]
-        if aux:
-            self._aux_last = aux
-            u = np.concatenate((u, aux))
-        s = self._s
-        if yi != yi or aux_lost:  # dropout: predict without correction
-            self.dropouts_ += 1
-            c = 0.0
-            yi = s[f.r - 1]
-        elif yi in (math.inf, -math.inf):
-            raise DivergenceError(f"measurement y[{self.output}] is {yi}")
-        else:
-            c = 1.0
-        go, be, gb = self.signals(yi, u)
-        if self._gram is not None:
-            self._gram.add(np.array(be), dt)
-        s = rk_step(self.rhs, s, dt / self.substeps, self.method, self.substeps, yi, go, be, gb, c)
-        if not all(map(math.isfinite, s)):
-            raise DivergenceError(f"the Jo-Son observer left the finite numbers: state "
-                                  f"(z_hat, theta_hat) = {s}")
-        self._s = s
-        self._refresh_physical()
-        return self._xp.copy()
-
-    # ------------------------------------------------------------------ estimates
-    def _refresh_physical(self) -> None:
-        f = self.form
-        if f.to_physical is None:
-            self._xp = np.array(self._s[:f.n])
-            return
-        x = f.to_physical(self._s[:f.n])
-        if all(map(math.isfinite, x)):
-            self._xp = np.asarray(x, dtype=float).reshape(-1)
-        else:
-            self.inverse_failures_ += 1
+    @staticmethod
+    def _form_of(system: System) -> JoSonForm:
+        """``system.form("jo_son")``, or an error naming what is missing."""
+        if "jo_son" not in system.forms:
+            raise DesignError(
+                f"the Jo-Son observer needs the adaptive observer canonical form of paper 003, "
+                f"eq. 10 (b, gamma_o, beta, and f_obar for an unobservable part); "
+                f"{type(system).__name__} provides none (its forms: {list(system.forms)}; a "
+                f"system declares forms = (..., 'jo_son') and _form_jo_son()); see "
+                f"docs/adaptive_canonical_forms.md")
+        form = system.form("jo_son")
+        if not isinstance(form, JoSonForm):
+            raise DesignError(f"{type(system).__name__}.form('jo_son') must return a JoSonForm; "
+                              f"found {type(form).__name__}")
+        return form
 
     @property
     def state_names(self) -> tuple[str, ...]:
         return self.form.state_names
 
-    @property
-    def z_hat(self) -> Array:
-        """Estimate in the form's coordinates :math:`(\\hat z_o, \\hat z_{\\bar o})`."""
-        return np.array(self._s[:self.form.n])
+    # ------------------------------------------------------------------ reset
+    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+              batch: int | None = None, theta_hat0: Any = None) -> None:
+        """Restart ``batch`` copies from ``x_hat0`` / ``z_hat0`` (neither: the constructor's)
+        and ``theta_hat0`` (``(p,)`` or ``(B, p)``; default: the constructor's, else zero).
 
-    @property
-    def x_hat(self) -> Array:
-        """:math:`T^{-1}(\\hat z)` (eq. 27), or ``z_hat`` without a physical map."""
-        return self._xp.copy()
+        Raises
+        ------
+        DesignError
+            ``x_hat0`` given for a form without ``from_physical``, or an initial estimate where
+            the inverse map :math:`T^{-1}` is undefined (non-finite), naming the member.
+        """
+        if x_hat0 is None and z_hat0 is None:
+            x_hat0, z_hat0 = self._init[0], self._init[1]
+        self._theta_hat0 = self._init[2] if theta_hat0 is None else theta_hat0
+        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch)
 
-    @property
-    def theta_hat_(self) -> Array:
-        return np.array(self._s[self.form.n:])
+    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+        f, B = self.form, self.batch
+        th = (np.zeros((B, f.p)) if self._theta_hat0 is None
+              else batch_rows("theta_hat0", self._theta_hat0, f.p, B))
+        if x0 is not None:
+            z = f.normal_rows(x0)
+            if not np.all(np.isfinite(z)):
+                raise DesignError(f"T(x_hat0) of {f.label} must be finite; found {z.tolist()}")
+        else:
+            z = z0 if z0 is not None else np.zeros((B, f.n))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            x = f.physical_rows(z)
+        bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
+        if bad.size:
+            b = int(bad[0])
+            who = f" (member {b})" if self._batched else ""
+            raise DesignError(f"the initial estimate z = {z[b].tolist()}{who} lies where the "
+                              f"inverse map T^-1 of {f.label} is undefined (it gives "
+                              f"{x[b].tolist()}); give x_hat0 / z_hat0 inside its domain")
+        self._S = np.ascontiguousarray(np.concatenate((z, th), axis=1))
+        self._x_held = x
+        self._aux_last = np.zeros((B, len(f.aux_outputs)))
+        self._gram_buf: Array | None = None
+        self._gram_dt = math.nan
+        self._gram_M = np.zeros((B, f.p, f.p))
+        self._gram_i, self._gram_full = 0, False
+        self._excitation = np.zeros(B)
 
-    @property
-    def excitation_(self) -> float:
-        return self._gram.min_eig if self._gram is not None else math.nan
+    # ------------------------------------------------------------------ dynamics
+    def signals(self, y: Any, u: Any) -> tuple[Array, Array, Array]:
+        """:math:`\\gamma_o(y, u)` ``(N, r)``, :math:`\\beta(y, u)` ``(N, p)`` and
+        :math:`\\gamma_{\\bar o}(y, u)` ``(N, n - r)`` of the rows ``y`` ``(N,)``, ``u``
+        ``(N, m + a)`` (``u`` with the ``aux_outputs`` channels appended)."""
+        return self.form.signals(np.asarray(y, dtype=float), np.asarray(u, dtype=float))
 
-    def diagnostics(self) -> dict[str, float]:
+    def _eq27(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
+              out: Array) -> Array:
+        """:func:`eq27` at the rows ``S`` with the held signals into ``out`` (``f_obar``
+        evaluated here, at ``S``)."""
         f = self.form
-        out = {f"theta_{nm}": v for nm, v in zip(f.theta_names, self._s[f.n:])}
-        if self._gram is not None:
-            out["excitation"] = self._gram.min_eig
-        out["dropouts"] = float(self.dropouts_)
+        fo = f.f_obar_rows(y, S[:, f.r:f.n]) if f.n_obar else gb
+        eq27(S, y, c, go, be, fo, gb, self.K_, f.b, f.A_obar_o, self.gamma, f.r, out)
         return out
+
+    def rhs(self, S: Any, y: Any, u: Any, c: Any = 1.0) -> Array:
+        """Right-hand side of eq. 27 at the rows ``S`` ``(N, n + p)`` ``= (z_hat, theta_hat)``
+        with ``y`` ``(N,)`` and ``u`` ``(N, m + a)``: the same arithmetic as the sampled
+        update, for continuous-time checks. ``c = 0`` drops the output injection."""
+        S = np.ascontiguousarray(S, dtype=float)
+        y = np.ascontiguousarray(y, dtype=float)
+        go, be, gb = self.signals(y, u)
+        cc = np.ascontiguousarray(np.broadcast_to(np.asarray(c, dtype=float), y.shape))
+        return self._eq27(S, y, cc, go, be, gb, np.empty_like(S))
+
+    def _integrate(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
+                   h: float, k: Array) -> Array:
+        """``substeps`` steps of RK4 (or Euler) of eq. 27 over ``h`` each, the signals held;
+        ``k`` ``(5, B, n + p)`` holds the stages and the stage state. Returns a new array."""
+        h2, h6 = 0.5 * h, h / 6.0
+        St = k[4]
+        for _ in range(self.substeps):
+            nxt = np.empty_like(S)
+            self._eq27(S, y, c, go, be, gb, k[0])
+            if self.method == "euler":
+                axpy(S, h, k[0], nxt)
+            else:
+                axpy(S, h2, k[0], St)
+                self._eq27(St, y, c, go, be, gb, k[1])
+                axpy(S, h2, k[1], St)
+                self._eq27(St, y, c, go, be, gb, k[2])
+                axpy(S, h, k[2], St)
+                self._eq27(St, y, c, go, be, gb, k[3])
+                rk4_combine(S, h6, k[0], k[1], k[2], k[3], nxt)
+            S = nxt
+        return S
+
+    def _excite(self, be: Array, dt: float) -> None:
+        """Add the regressors ``be`` ``(B, p)`` of one sample to the excitation window and
+        update its smallest eigenvalue (a new window when ``dt`` changes)."""
+        if self.excitation_window is None:
+            return
+        B, p = be.shape
+        if self._gram_buf is None or dt != self._gram_dt:
+            W = max(1, int(round(self.excitation_window / dt)))
+            self._gram_buf = np.zeros((B, W, p))
+            self._gram_M = np.zeros((B, p, p))
+            self._gram_i, self._gram_full, self._gram_dt = 0, False, dt
+        buf = self._gram_buf
+        gram_push(buf, self._gram_M, be, self._gram_i, self._gram_full)
+        self._gram_i += 1
+        if self._gram_i == buf.shape[1]:
+            self._gram_i, self._gram_full = 0, True
+            gram_sum(buf, self._gram_M)
+        if p == 1:
+            self._excitation = self._gram_M[:, 0, 0] * dt
+            return
+        exc = np.empty(B)
+        min_eig_sym(self._gram_M, dt, exc)
+        self._excitation = exc
+
+    # ------------------------------------------------------------------ interface
+    def check_period(self, dt: float) -> None:
+        """Check the sample period against the integration of the observer's linear modes
+        (the roots of :math:`(s + \\lambda)(b_r s^{r-1} + \\dots + b_1)`, eq. 26) and react as
+        ``on_unstable`` says."""
+        b = self.form.b
+        lam_ = np.concatenate(([-self.lam], np.roots(b[::-1]) if b.size > 1 else []))
+        try:
+            check_rk_period("the Jo-Son observer", lam_, dt, self.method, self.substeps)
+        except DesignError as exc:
+            if self.on_unstable == "raise":
+                raise
+            if self.on_unstable == "warn":
+                warnings.warn(str(exc), RuntimeWarning, stacklevel=2)
+
+    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        # floating-point warnings are silenced over the block: a blown-up state raises
+        # DivergenceError below, an undefined inverse map is counted (inverse_failures_)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            S = self._samples(Y, U, dt, Z, D)
+            if not np.isfinite(S).all():
+                self._diverged(Z, D)
+            self._S = S
+            self._physical(Z, X)
+
+    def _samples(self, Y: Array, U: Array, dt: float, Z: Array, D: Array) -> Array:
+        """Integrate eq. 27 over the T samples of the block; return the final state (the
+        observer's own is left as it was until the block is checked)."""
+        f = self.form
+        B, T = Y.shape[0], Y.shape[1]
+        r, n, p, a = f.r, f.n, f.p, len(f.aux_outputs)
+        lost = np.asarray(np.isnan(Y).any(axis=2)).T  # (T, B): y or an aux channel lost
+        yT = np.ascontiguousarray(Y[:, :, 0].T)  # (T, B): sample-major, each sample contiguous
+        UU = np.ascontiguousarray(U.transpose(1, 0, 2))  # (T, B, m)
+        if a:  # known inputs: the auxiliary channels, lost ones held (0 before any)
+            aux = Y[:, :, 1:].transpose(1, 0, 2).copy()
+            last = self._aux_last
+            for j in range(T):
+                aux[j] = np.where(np.isnan(aux[j]), last, aux[j])
+                last = aux[j]
+            self._aux_last = last.copy()
+            UU = np.concatenate((UU, aux), axis=2)
+        # the held signals of eq. 27 at the measured y, the whole block at once
+        go, be, gb = (v.reshape(T, B, -1) for v in
+                      self.signals(yT.reshape(T * B), UU.reshape(T * B, -1)))
+        c = np.where(lost, 0.0, 1.0)
+        h = dt / self.substeps
+        k = np.empty((5, *self._S.shape))
+        S = self._S
+        for j in range(T):
+            y = yT[j]
+            if lost[j].any():  # a dropout: the signals at the predicted output z_hat_r
+                m = lost[j]
+                y[m] = S[m, r - 1]
+                go[j][m], be[j][m], gb[j][m] = self.signals(y[m], UU[j][m])
+            self._excite(be[j], dt)
+            S = self._integrate(S, y, c[j], go[j], be[j], gb[j], h, k)
+            Z[:, j] = S[:, :n]
+            D[:, j, :p] = S[:, n:]
+            if self.excitation_window is not None:
+                D[:, j, p] = self._excitation
+        return S
+
+    def _diverged(self, Z: Array, D: Array) -> None:
+        """Raise :class:`DivergenceError` naming the first sample and member whose state left
+        the finite numbers."""
+        n = self.form.n
+        bad = ~np.asarray(np.isfinite(Z).all(axis=2) & np.isfinite(D[:, :, :self.form.p]).all(axis=2))
+        j = int(np.flatnonzero(bad.any(axis=0))[0])
+        m = int(np.flatnonzero(bad[:, j])[0])
+        state = np.concatenate((Z[m, j], D[m, j, :self.form.p]))
+        raise DivergenceError(f"the Jo-Son observer left the finite numbers: state "
+                              f"(z_hat, theta_hat) = {state.tolist()} (member {m}, sample {j}; "
+                              f"n = {n})")
+
+    def _physical(self, Z: Array, X: Array) -> None:
+        """``X`` = :math:`T^{-1}(\\hat z)` of the rows ``Z`` ``(B, T, n)``; where the map is
+        undefined (non-finite) the member holds its last valid value, counted in
+        ``inverse_failures_``."""
+        B, T, n = Z.shape
+        if T == 0:
+            return
+        Xf = self.form.physical_rows(Z.reshape(B * T, n)).reshape(B, T, -1)
+        ok = np.asarray(np.isfinite(Xf).all(axis=2))
+        if ok.all():
+            X[...] = Xf
+            self._x_held = Xf[:, -1].copy()
+            return
+        for b in range(B):
+            held = self._x_held[b]
+            for j in range(T):
+                if ok[b, j]:
+                    held = Xf[b, j]
+                else:
+                    self._inverse_failures[b] += 1
+                X[b, j] = held
+            self._x_held[b] = held
+
+    def _current(self) -> tuple[Array, Array, Array]:
+        n = self.form.n
+        d = self._S[:, n:]
+        if self.excitation_window is not None:
+            d = np.concatenate((d, self._excitation[:, None]), axis=1)
+        return self._x_held.copy(), self._S[:, :n].copy(), d.copy()
+
+    # ------------------------------------------------------------------ estimates
+    @property
+    def theta_hat_(self) -> Any:
+        """:math:`\\hat\\theta`, ``(p,)`` or ``(B, p)``."""
+        return self._public(self._S[:, self.form.n:].copy())
+
+    @property
+    def excitation_(self) -> Any:
+        """The smallest eigenvalue of the excitation window (NaN without one)."""
+        if self.excitation_window is None:
+            return self._public(np.full(self.batch, math.nan))
+        return self._public(self._excitation.copy())
 
     def params(self) -> dict[str, Any]:
         f = self.form
         return {"form": f.label, "r": f.r, "n": f.n, "b": f.b.tolist(), "lambda": self.lam,
                 "K": self.K_.tolist(), "gamma": self.gamma.tolist(),
-                "theta_names": list(f.theta_names), "output": self.output,
-                "method": self.method, "substeps": self.substeps,
-                "excitation_window": self.excitation_window}
+                "theta_names": list(f.theta_names), "outputs": list(self.outputs),
+                "aux_outputs": list(f.aux_outputs), "method": self.method,
+                "substeps": self.substeps, "excitation_window": self.excitation_window,
+                "on_unstable": self.on_unstable}

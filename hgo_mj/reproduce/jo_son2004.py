@@ -22,7 +22,7 @@ equation where the paper prints ``z1``.
 2. **A MuJoCo plant where Corollary 3.3 holds** (``docs/adaptive_canonical_forms.md``): the
    elastic joint (``models/elastic_joint.xml``) measured by a motor tachometer, with the spring
    deflection from the link and motor encoders as a known signal
-   (:meth:`~hgo_mj.observers.jo_son.JoSonForm.elastic_joint_motor_side`): ``r = 1``,
+   (:func:`~hgo_mj.systems.elastic_joint.jo_son_motor_side`): ``r = 1``,
    ``b = (1)``, ``theta = (b/J, d_m/J, K/J)``, ``lambda = 50``,
    ``Gamma = diag(1e4, 20, 1e6)``, a multisine torque, 30 s, sample period 1 ms (and 0.5 ms,
    MuJoCo's step shortened with it, to show that the remaining bias is ``O(dt)``).
@@ -101,14 +101,15 @@ def part_example(sampled_periods: tuple[float, ...] = (0.01, 0.001)) -> tuple[di
     def f(t: float, s: Array) -> Array:
         x = s[:3]
         u = jo_son_input(t)
-        go, be, gb = ob.signals(x[0], u)
-        return np.concatenate((sys_.dynamics(t, x, u, sys_.params), ob.rhs(s[3:], x[0], go, be, gb)))
+        # eq. 27 on one row (the observer's own right-hand side), y = x1 measured exactly
+        return np.concatenate((sys_.dynamics(t, x, u, sys_.params),
+                               ob.rhs(s[None, 3:], x[:1], u[None])[0]))
 
     ts = np.linspace(0.0, T, 60001)
     sol = solve_ivp(f, (0.0, T), np.concatenate((sys_.default_x0, np.zeros(4))), method="DOP853",
                     rtol=1e-11, atol=1e-13, t_eval=ts)
     x = sol.y[:3].T
-    x_hat = np.array([form.to_physical(z) for z in sol.y[3:6].T])
+    x_hat = form.physical_rows(sol.y[3:6].T)
     theta_hat = sol.y[6]
     e = np.linalg.norm(x - x_hat, axis=1)
     cont = {f"t_error_stays_below_{lv:g}": stays_below(ts, e, lv) for lv in LEVELS}

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -76,6 +76,30 @@ class ElasticJoint(_MujocoSystem):
     model_file = "elastic_joint.xml"
     joints = ("link", "motor")
     actuators = ("torque",)
+    #: the Jo-Son form of the motor side (:meth:`_form_jo_son`, ``sensors="motor_side"``)
+    forms = ("jo_son",)
+
+    def _form_jo_son(self, sensors: str = "link_angle", aux_outputs: Sequence[int] = (1, 2),
+                     unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> Any:
+        """The Jo-Son form (paper 003, eq. 10) for the motor-side sensors
+        (:func:`jo_son_motor_side`); the default link-angle sensor has none, and the error says
+        why and what to measure instead.
+
+        Raises
+        ------
+        DesignError
+            ``sensors`` is not ``"motor_side"``.
+        """
+        if sensors != "motor_side":
+            from ..exceptions import DesignError
+
+            raise DesignError(
+                f"{type(self).__name__} provides no Jo-Son form (paper 003, eq. 10) for the "
+                f"sensors {sensors!r}: with its default link-angle sensor every parameter "
+                f"reaches y with relative degree >= 2, so b_r = 0; measure the motor velocity "
+                f"and the spring deflection and use form('jo_son', sensors='motor_side') "
+                f"(JoSonForm.elastic_joint_motor_side()); see docs/adaptive_canonical_forms.md")
+        return jo_son_motor_side(aux_outputs, unknown)
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
@@ -191,3 +215,68 @@ class ElasticJoint(_MujocoSystem):
 
     def phi_unchecked(self, z: Array, u: Array) -> float:
         return self._phi(z, u, self.params)
+
+
+# ----------------------------------------------------------------------------------------
+# Jo-Son form of the motor side (paper 003, eq. 10), rows component first: y (N,), u (3, N)
+# ----------------------------------------------------------------------------------------
+
+
+def _motor_gamma_o(y: Any, u: Any) -> tuple[float]:
+    """:math:`\\gamma_o = 0`."""
+    return (0.0,)
+
+
+def _motor_beta(y: Any, u: Any) -> tuple[Any, Any, Any]:
+    """:math:`\\beta = (u, -y, \\delta)` with ``u = (torque, link_angle, motor_angle)`` and
+    the deflection :math:`\\delta = q - \\theta_m`."""
+    return (u[0], -y, u[1] - u[2])
+
+
+def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
+                      unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> Any:
+    """The motor side of the elastic joint in the form eq. 10 of paper 003, measured by a motor
+    tachometer, with the spring deflection measured as a known signal.
+
+    With :math:`y = \\dot\\theta_m` (MJCF sensor ``motor_velocity``) and the deflection
+    :math:`\\delta = q - \\theta_m` from the link and motor encoders
+    (``link_angle - motor_angle``, channels ``aux_outputs``), the motor equation is
+
+    .. math::
+
+        \\dot y = \\frac{b}{J} u - \\frac{d_m}{J} y + \\frac{K}{J} \\delta,
+
+    i.e. eq. 10 with :math:`r = 1`, :math:`b = (1)`, :math:`\\gamma_o = 0`,
+    :math:`\\beta = (u, -y, \\delta)` and :math:`\\theta = (b/J, d_m/J, K/J)`: every
+    parameter reaches the output with relative degree one, :math:`b_r = 1 > 0`, and
+    :math:`W(s) = 1/(s + \\lambda)` is SPR. The link side is not part of the observer's
+    model (it enters only through the measured :math:`\\delta`), so :math:`n = r = 1`.
+    This form estimates all three parameters.
+
+    Parameters
+    ----------
+    aux_outputs : (int, int)
+        Channels of ``link_angle`` and ``motor_angle`` in the measurement vector (the plant
+        built with ``outputs=("motor_velocity", "link_angle", "motor_angle")`` has them at
+        1 and 2).
+    unknown : sequence of str
+        Must be ``("b_over_J", "dm_over_J", "K_over_J")``.
+
+    References
+    ----------
+    Paper 003, eq. 10, Corollary 3.3; docs/adaptive_canonical_forms.md (why the link-angle
+    sensor does not qualify).
+    """
+    from ..exceptions import DesignError, DimensionError
+    from .jo_son_form import JoSonForm
+
+    aux = tuple(int(i) for i in aux_outputs)
+    if len(aux) != 2:
+        raise DimensionError(f"aux_outputs must name 2 channels (link_angle, motor_angle); "
+                             f"found {list(aux)}")
+    if tuple(unknown) != ("b_over_J", "dm_over_J", "K_over_J"):
+        raise DesignError(f"the motor-side form estimates ('b_over_J', 'dm_over_J', "
+                          f"'K_over_J'); found {list(unknown)}")
+    return JoSonForm([1.0], _motor_gamma_o, _motor_beta, theta_names=tuple(unknown),
+                     state_names=("motor_velocity",), aux_outputs=aux,
+                     label="elastic joint motor side: y = motor velocity, deflection measured")

@@ -757,6 +757,49 @@ def jo_son_input(t: float) -> Array:
     return np.array([math.sin(math.pi * t / 3.0) * math.sin(math.pi * t / 2.0)])
 
 
+# The form eq. 30-31 on rows, component first (``y`` (N,), ``u`` (1, N), ``z`` (3, N)): see
+# hgo_mj.systems.jo_son_form. Module level, so that the form pickles.
+
+
+def jo_son_T(x: Any) -> tuple[Any, Any, Any]:
+    """Eq. 30, :math:`z = T(x) = (x_1^3/3 + x_2,\\ x_1,\\ x_3 - x_1^2/2)`, component first."""
+    return (x[0] ** 3 / 3.0 + x[1], x[0], x[2] - 0.5 * x[0] ** 2)
+
+
+def jo_son_T_inverse(z: Any) -> tuple[Any, Any, Any]:
+    """Inverse of eq. 30, :math:`x = (z_2,\\ z_1 - z_2^3/3,\\ z_3 + z_2^2/2)`, component
+    first."""
+    z2 = z[1]
+    return (z2, z[0] - z2 * z2 * z2 / 3.0, z[2] + 0.5 * (z2 * z2))
+
+
+# powers as products: pow() of a negative base takes a slow path in libm (60 ns an element)
+
+
+def _jo_son_gamma_o(y: Any, u: Any) -> tuple[Any, Any]:
+    """Eq. 31: :math:`\\gamma_o = (-y^5 + (y \\sin y + y^2) u,\\ -\\tfrac43 y^3 + u)`."""
+    uu = u[0]
+    y2 = y * y
+    return (-(y2 * y2 * y) + (y * np.sin(y) + y2) * uu, -4.0 / 3.0 * (y2 * y) + uu)
+
+
+def _jo_son_beta(y: Any, u: Any) -> tuple[Any]:
+    """Eq. 31: :math:`\\beta = y u`."""
+    return (y * u[0],)
+
+
+def _jo_son_f_obar(y: Any, zb: Any) -> tuple[Any]:
+    """Eq. 31: :math:`f_{\\bar o}(y, z_3) = -z_3 - (z_3 + y^2/2)^3`."""
+    c = zb[0] + 0.5 * y * y
+    return (-zb[0] - c * c * c,)
+
+
+def _jo_son_gamma_obar(y: Any, u: Any) -> tuple[Any]:
+    """Eq. 31: :math:`\\gamma_{\\bar o} = -y^2/2 + y^4`."""
+    y2 = y * y
+    return (-0.5 * y2 + y2 * y2,)
+
+
 class JoSonExample(System):
     """Example of paper 003, eq. 28: a not-observable system with one unknown parameter.
 
@@ -815,6 +858,8 @@ class JoSonExample(System):
     default_x0: ClassVar[tuple[float, ...]] = (0.5, 1.0, -1.0)
     #: ``b`` of the canonical form eq. 10 / 31 (``b_r = 1 > 0``, ``s + 2`` Hurwitz)
     b: ClassVar[tuple[float, float]] = (2.0, 1.0)
+    #: the adaptive observer canonical form eq. 31 (:meth:`_form_jo_son`)
+    forms: ClassVar[tuple[str, ...]] = ("jo_son",)
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
@@ -834,13 +879,33 @@ class JoSonExample(System):
 
     def to_canonical(self, x: Any) -> Array:
         """Eq. 30: :math:`z = T(x) = (x_1^3/3 + x_2,\\ x_1,\\ x_3 - x_1^2/2)`."""
-        x = vector("x", x, 3)
-        return np.array([x[0] ** 3 / 3.0 + x[1], x[0], x[2] - 0.5 * x[0] ** 2])
+        return np.array(jo_son_T(vector("x", x, 3)))
 
     def from_canonical(self, z: Any) -> Array:
         """Inverse of eq. 30: :math:`x = (z_2,\\ z_1 - z_2^3/3,\\ z_3 + z_2^2/2)`."""
-        z = vector("z", z, 3)
-        return np.array([z[1], z[0] - z[1] ** 3 / 3.0, z[2] + 0.5 * z[1] ** 2])
+        return np.array(jo_son_T_inverse(vector("z", z, 3)))
+
+    def _form_jo_son(self) -> Any:
+        """The adaptive observer canonical form eq. 31 (paper 003, eq. 10).
+
+        :math:`r = 2`, :math:`b = (2, 1)`, :math:`\\beta = y u`,
+        :math:`\\gamma_o = (-y^5 + (y \\sin y + y^2) u,\\ -\\tfrac43 y^3 + u)`,
+        :math:`f_{\\bar o}(y, z_3) = -z_3 - (z_3 + y^2/2)^3`,
+        :math:`\\gamma_{\\bar o} = -y^2/2 + y^4`, :math:`A_{\\bar o o} = 0`, and
+        :math:`T^{-1}(z) = (z_2, z_1 - z_2^3/3, z_3 + z_2^2/2)` (eq. 30). Its functions are
+        module level (rows, component first), so the form pickles.
+
+        References
+        ----------
+        Paper 003, eq. 28, 30, 31.
+        """
+        from .jo_son_form import JoSonForm
+
+        return JoSonForm(self.b, _jo_son_gamma_o, _jo_son_beta, n_unobservable=1,
+                         f_obar=_jo_son_f_obar, gamma_obar=_jo_son_gamma_obar,
+                         theta_names=("theta",), to_physical=jo_son_T_inverse,
+                         from_physical=jo_son_T, state_names=self.state_names,
+                         label="Jo-Son example eq. 31")
 
     @staticmethod
     def beta(y: float, u: float) -> float:

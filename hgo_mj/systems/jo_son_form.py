@@ -1,0 +1,261 @@
+"""The adaptive observer canonical form of Jo and Son (paper 003, eq. 9-10), as data.
+
+A system that has this form builds it (``forms = ("jo_son",)`` and ``_form_jo_son(**options)``,
+see :meth:`hgo_mj.systems.base.System.form`); the Jo-Son observer
+(:class:`hgo_mj.observers.jo_son.JoSonObserver`) asks for it by name and never imports a
+concrete system. The form lives here, in the systems package, so that systems build it without
+importing an observer.
+
+.. math::
+
+    \\dot z_o &= A_o z_o + \\gamma_o(y, u) + b\\, \\beta^T(y, u)\\, \\theta \\\\
+    \\dot z_{\\bar o} &= A_{\\bar o o} z_o + f_{\\bar o}(y, z_{\\bar o}) + \\gamma_{\\bar o}(y, u) \\\\
+    y &= C_o z_o = z_{o, r}
+
+with :math:`A_o` the lower shift and :math:`C_o = (0, \\dots, 0, 1)`.
+
+**The form's functions work on rows, component first** (the layout of scipy's
+``solve_ivp(..., vectorized=True)``): ``y`` is ``(N,)``, one value per member, ``u`` is
+``(m, N)`` (``u[0]`` the first input of every member), ``z_obar`` ``(n - r, N)``, ``z`` ``(n, N)``,
+``x`` ``(n_x, N)``; each function returns a sequence of components, each a number or an
+``(N,)`` array. Written with numpy functions (``np.sin``, not ``math.sin``), the same code
+serves one point (``y`` a float, ``u`` of shape ``(m,)``) and N members at once:
+``beta = lambda y, u: (y * u[0],)``.
+
+References
+----------
+.. [003] N.-H. Jo, Y.-I. Son, "Adaptive observer design for nonlinear systems using generalized
+   nonlinear observer canonical form", KSME Int. J. 18(7), 2004
+   (``shared/papers/003_bd61d49996cbe973.txt``): eq. 9-10 (form), Theorem 3.1.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from .._validate import vector
+from ..exceptions import DesignError, DimensionError
+from .base import Array
+
+__all__ = ["JoSonForm"]
+
+Rows = Callable[..., Sequence[Any]]
+
+
+def _callable(name: str, f: Any, optional: bool = False) -> Rows | None:
+    if f is None and optional:
+        return None
+    if not callable(f):
+        raise DesignError(f"{name} must be a callable; found {type(f).__name__}")
+    return f  # type: ignore[no-any-return]
+
+
+def _names(name: str, value: Sequence[str] | None, count: int,
+           default: Sequence[str]) -> tuple[str, ...]:
+    if value is None:
+        return tuple(default)
+    out = tuple(str(v) for v in value)
+    if len(out) != count:
+        raise DimensionError(f"{name} must have {count} entries; found {len(out)}: {list(out)}")
+    if len(set(out)) != len(out):
+        raise DesignError(f"{name} must be distinct; found {list(out)}")
+    return out
+
+
+class JoSonForm:
+    """Adaptive observer canonical form of paper 003, eq. 10.
+
+    Parameters
+    ----------
+    b : array_like, shape (r,)
+        The direction :math:`b` along which the parameters enter :math:`\\dot z_o`.
+    gamma_o : callable ``(y, u) -> r components``
+        :math:`\\gamma_o(y, u)` (rows, component first: see the module docstring).
+    beta : callable ``(y, u) -> p components``
+        :math:`\\beta(y, u)`, the regressor (eq. 10: :math:`b \\beta^T \\theta`).
+    n_unobservable : int
+        :math:`n - r`, the dimension of :math:`z_{\\bar o}` (0: none).
+    f_obar : callable ``(y, z_obar) -> n - r components``, optional
+        :math:`f_{\\bar o}(y, z_{\\bar o})` (required when ``n_unobservable > 0``).
+    gamma_obar : callable ``(y, u) -> n - r components``, optional
+        :math:`\\gamma_{\\bar o}(y, u)` (default zero).
+    A_obar_o : array_like, shape (n-r, r), optional
+        :math:`A_{\\bar o o}` (default zero).
+    theta_names : sequence of str, optional
+        ``p`` names (default ``"1".."p"``); the observer reports ``theta_<name>``.
+    n_params : int, optional
+        ``p``, when ``theta_names`` is not given.
+    to_physical : callable ``z -> n_x components``, optional
+        :math:`T^{-1}` (eq. 27, first line); default: ``x_hat = z_hat``.
+    from_physical : callable ``x -> n components``, optional
+        :math:`T` (to start from a physical ``x_hat0``).
+    state_names : sequence of str, optional
+        Names of ``x`` (default ``z1..zn``).
+    aux_outputs : sequence of int
+        Indices of further measured channels appended to the input ``u`` that ``gamma_o``,
+        ``beta`` and ``gamma_obar`` receive (signals measured but used as known inputs, e.g. a
+        second sensor): ``u`` has ``m + len(aux_outputs)`` components.
+    label : str
+        What the form is of, for messages.
+
+    Notes
+    -----
+    A form pickles when its functions do (module-level functions, bound methods of a system):
+    the forms the systems build are written that way. A form of closures or lambdas does not.
+
+    References
+    ----------
+    Paper 003, eq. 9-10; Theorem 3.1 (conditions for the coordinates to exist).
+    """
+
+    def __init__(self, b: Any, gamma_o: Rows, beta: Rows, *, n_unobservable: int = 0,
+                 f_obar: Rows | None = None, gamma_obar: Rows | None = None,
+                 A_obar_o: Any = None, theta_names: Sequence[str] | None = None,
+                 n_params: int | None = None, to_physical: Rows | None = None,
+                 from_physical: Rows | None = None, state_names: Sequence[str] | None = None,
+                 aux_outputs: Sequence[int] = (),
+                 label: str = "adaptive observer canonical form") -> None:
+        self.b = vector("b", b)
+        if self.b.size < 1:
+            raise DimensionError("b must have r >= 1 entries; found none")
+        self.r = int(self.b.size)
+        if int(n_unobservable) != n_unobservable or n_unobservable < 0:
+            raise DesignError(f"n_unobservable must be a non-negative integer; found "
+                              f"{n_unobservable!r}")
+        self.n_obar = int(n_unobservable)
+        self.n = self.r + self.n_obar
+        self.gamma_o: Rows = _callable("gamma_o", gamma_o)  # type: ignore[assignment]
+        self.beta: Rows = _callable("beta", beta)  # type: ignore[assignment]
+        self.f_obar = _callable("f_obar", f_obar, optional=True)
+        self.gamma_obar = _callable("gamma_obar", gamma_obar, optional=True)
+        if self.n_obar and self.f_obar is None:
+            raise DesignError(f"an unobservable part of dimension {self.n_obar} needs f_obar "
+                              f"(eq. 10); found none")
+        if not self.n_obar and (f_obar is not None or gamma_obar is not None):
+            raise DesignError("f_obar and gamma_obar need n_unobservable > 0")
+        if A_obar_o is None:
+            self.A_obar_o = np.zeros((self.n_obar, self.r))
+        else:
+            A = np.array(A_obar_o, dtype=float)
+            if A.shape != (self.n_obar, self.r):
+                raise DimensionError(f"A_obar_o must have shape (n-r, r) = ({self.n_obar}, "
+                                     f"{self.r}); found {A.shape}")
+            self.A_obar_o = A
+        if theta_names is None and n_params is None:
+            raise DesignError("give theta_names or n_params (the number p of parameters)")
+        p = len(theta_names) if theta_names is not None else int(n_params)  # type: ignore[arg-type]
+        if p < 1:
+            raise DimensionError(f"the form needs p >= 1 parameters; found {p}")
+        self.p = p
+        self.theta_names = _names("theta_names", theta_names, p, [str(i + 1) for i in range(p)])
+        self.to_physical = _callable("to_physical", to_physical, optional=True)
+        self.from_physical = _callable("from_physical", from_physical, optional=True)
+        self.state_names = _names("state_names", state_names, len(state_names or ()) or self.n,
+                                  [f"z{i + 1}" for i in range(self.n)])
+        if self.to_physical is None and len(self.state_names) != self.n:
+            raise DimensionError(f"without to_physical the estimate is z: state_names must have "
+                                 f"n = {self.n} entries; found {list(self.state_names)}")
+        aux = tuple(int(i) for i in aux_outputs)
+        if any(i < 0 for i in aux):
+            raise DesignError(f"aux_outputs must be channel indices >= 0; found {list(aux)}")
+        self.aux_outputs = aux
+        self.label = str(label)
+
+    def __repr__(self) -> str:
+        return (f"JoSonForm({self.label}: r={self.r}, n={self.n}, b={self.b.tolist()}, "
+                f"theta={list(self.theta_names)})")
+
+    # ------------------------------------------------------------ evaluation on rows
+    def rows(self, what: str, f: Rows, count: int, N: int, *args: Any) -> Array:
+        """``f(*args)`` (component first) as a C-contiguous ``(N, count)`` float array.
+
+        Raises
+        ------
+        DimensionError
+            ``f`` fails on the shapes given (an index past the input's width), returns a number
+            of components other than ``count``, or components of another length than ``N``.
+        """
+        try:
+            comps = f(*args)
+            k = len(comps)
+        except (IndexError, TypeError) as exc:
+            shapes = ", ".join(str(np.shape(a)) for a in args)
+            raise DimensionError(f"{what} of {self.label} failed on arguments of shapes "
+                                 f"({shapes}): {exc}") from None
+        if k != count:
+            raise DimensionError(f"{what} of {self.label} must return {count} values; found {k}")
+        out = np.empty((N, count))
+        try:
+            for i, c in enumerate(comps):
+                out[:, i] = c
+        except ValueError:
+            raise DimensionError(f"{what} of {self.label} must return components of {N} "
+                                 f"member(s); found shapes {[np.shape(c) for c in comps]}"
+                                 ) from None
+        return out
+
+    def signals(self, y: Array, u: Array) -> tuple[Array, Array, Array]:
+        """:math:`\\gamma_o(y, u)` ``(N, r)``, :math:`\\beta(y, u)` ``(N, p)`` and
+        :math:`\\gamma_{\\bar o}(y, u)` ``(N, n - r)`` of the members ``y`` ``(N,)``, ``u``
+        ``(N, m)`` (rows; ``u`` includes the ``aux_outputs`` channels)."""
+        N = y.shape[0]
+        uc = np.ascontiguousarray(u.T)  # component first, each component contiguous
+        go = self.rows("gamma_o(y, u)", self.gamma_o, self.r, N, y, uc)
+        be = self.rows("beta(y, u)", self.beta, self.p, N, y, uc)
+        if self.gamma_obar is None:
+            gb = np.zeros((N, self.n_obar))
+        else:
+            gb = self.rows("gamma_obar(y, u)", self.gamma_obar, self.n_obar, N, y, uc)
+        return go, be, gb
+
+    def f_obar_rows(self, y: Array, z_obar: Array) -> Array:
+        """:math:`f_{\\bar o}(y, \\hat z_{\\bar o})` ``(N, n - r)`` of the rows ``z_obar``
+        ``(N, n - r)``."""
+        return self.rows("f_obar(y, z_obar)", self.f_obar, self.n_obar,  # type: ignore[arg-type]
+                         y.shape[0], y, np.ascontiguousarray(z_obar.T))
+
+    def physical_rows(self, Z: Array) -> Array:
+        """:math:`T^{-1}` of the rows ``Z`` ``(N, n)``, ``(N, n_x)`` (``Z`` itself without a map);
+        non-finite where the map is undefined."""
+        if self.to_physical is None:
+            return np.array(Z, dtype=float)
+        return self.rows("to_physical(z)", self.to_physical, len(self.state_names),
+                         Z.shape[0], np.ascontiguousarray(Z.T))
+
+    def normal_rows(self, X: Array) -> Array:
+        """:math:`T` of the physical rows ``X`` ``(N, n_x)``, ``(N, n)``.
+
+        Raises
+        ------
+        DesignError
+            The form has no ``from_physical`` map.
+        """
+        if self.from_physical is None:
+            raise DesignError(f"x_hat0 in physical coordinates needs the form's from_physical "
+                              f"map (T of eq. 27); {self.label} has none: give z_hat0")
+        return self.rows("from_physical(x)", self.from_physical, self.n, X.shape[0],
+                         np.ascontiguousarray(X.T))
+
+    # ------------------------------------------------------------------ factories
+    @classmethod
+    def example(cls, system: Any = None) -> JoSonForm:
+        """The form eq. 31 of the example eq. 28: ``JoSonExample().form("jo_son")``
+        (:meth:`hgo_mj.systems.papers.JoSonExample._form_jo_son`)."""
+        from .papers import JoSonExample
+
+        sys_ = JoSonExample() if system is None else system
+        return sys_.form("jo_son")  # type: ignore[no-any-return]
+
+    @classmethod
+    def elastic_joint_motor_side(cls, aux_outputs: Sequence[int] = (1, 2),
+                                 unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")
+                                 ) -> JoSonForm:
+        """The motor side of the elastic joint, measured by a motor tachometer with the spring
+        deflection as a known signal (:func:`hgo_mj.systems.elastic_joint.jo_son_motor_side`,
+        also ``ElasticJoint().form("jo_son", sensors="motor_side")``)."""
+        from .elastic_joint import jo_son_motor_side
+
+        return jo_son_motor_side(aux_outputs, unknown)
