@@ -617,11 +617,12 @@ class BesanconObserver(Observer):
             x_hat0, z_hat0 = ix, iz
         theta_hat0 = ith if theta_hat0 is None else theta_hat0
         Gamma0 = iG if Gamma0 is None else Gamma0
-        if batch is None and x_hat0 is None and z_hat0 is None:
-            if theta_hat0 is not None and np.ndim(theta_hat0) == 2:
-                batch = int(np.shape(theta_hat0)[0])
-            elif Gamma0 is not None and np.ndim(Gamma0) == 3:
-                batch = int(np.shape(Gamma0)[0])
+        if batch is None:  # the batch of any value given per member
+            given = x_hat0 if x_hat0 is not None else z_hat0
+            for v, nd in ((given, 2), (theta_hat0, 2), (Gamma0, 3)):
+                if v is not None and np.ndim(v) == nd:
+                    batch = int(np.shape(v)[0])
+                    break
         self._pending = (theta_hat0, Gamma0)
         super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch)
 
@@ -666,8 +667,9 @@ class BesanconObserver(Observer):
         if f.to_physical is not None:
             xp = np.asarray(f.to_physical(z, th, u0), dtype=float).reshape(B, -1)
             if not np.all(np.isfinite(xp)):
-                raise DesignError(f"the initial estimate (z = {z[0].tolist()}, theta = "
-                                  f"{th[0].tolist()}) lies where the map of {f.label} to physical "
+                b = int(np.argmin(np.all(np.isfinite(xp), axis=1)))
+                raise DesignError(f"the initial estimate (z = {z[b].tolist()}, theta = "
+                                  f"{th[b].tolist()}) lies where the map of {f.label} to physical "
                                   f"coordinates is undefined; give theta_hat0 inside its domain "
                                   f"(e.g. a positive stiffness)")
             self._x_held = xp.copy()

@@ -67,12 +67,12 @@ CASES = [
         method="rk4"), 0.001, _z_theta(2, 3, np.array([0.1, 30.0, 20.0]))),
     ("elastic-joint-physical", lambda: BesanconObserver(
         ElasticJoint(), lam=20.0, gain=[1e-5, 1e-7, 1e-7], X=2e4, Theta=30.0,
-        hold="innovation", excitation_window=0.05), 0.001, _ej_physical),
+        theta_hat0=[0.8, 7.0, 5.6], hold="innovation", excitation_window=0.05), 0.001, _ej_physical),
     ("elastic-joint-stiffness-only", lambda: BesanconObserver(
         ElasticJoint(), unknown=("stiffness",), lam=20.0, gain=1e-6, theta_hat0=[9.0]), 0.001,
      _z_theta(4, 1, np.array([9.0]), zs=0.01)),
     ("two-link-arm", lambda: BesanconObserver(
-        ElasticJoint2Link(), lam=30.0, gain=[1e-6, 1e-7], X=1e5, Theta=100.0,
+        ElasticJoint2Link(), lam=30.0, gain=[1e-6, 1e-7], X=1e5, Theta=100.0, theta_hat0=[14.0, 4.2],
         hold="innovation", adapt_after=0.02, excitation_window=0.05), 0.001,
      _z_theta(8, 2, np.array([14.0, 4.2]), zs=0.01)),
 ]
