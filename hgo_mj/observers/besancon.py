@@ -151,27 +151,28 @@ def affine_form(system: Any, unknown: Sequence[str] | None = None) -> AffineForm
 FIRST, LAST, INNOVATION = 1, 2, 4
 
 
-@njit(cache=True)
-def _saturate(s: Array, X: float, Theta: float, xt: Array,
-              tt: Array) -> None:  # pragma: no cover - compiled
-    """:math:`\\tilde x, \\tilde\\theta` of Theorem 3.1: ``x_hat`` and ``theta_hat`` of the row
-    ``s`` scaled back onto the balls of radius ``X`` and ``Theta`` where they leave them."""
-    n, q = xt.shape[0], tt.shape[0]
+@njit(cache=True, inline="always")
+def _saturate(S: Array, m: int, X: float, Theta: float, Xt: Array,
+              Tt: Array) -> None:  # pragma: no cover - compiled
+    """:math:`\\tilde x, \\tilde\\theta` of Theorem 3.1 for row ``m``: ``x_hat`` and
+    ``theta_hat`` of ``S[m]`` scaled back onto the balls of radius ``X`` and ``Theta`` where
+    they leave them (written into ``Xt[m]``, ``Tt[m]``)."""
+    n, q = Xt.shape[1], Tt.shape[1]
     nx = 0.0
     for i in range(n):
-        nx += s[i] * s[i]
+        nx += S[m, i] * S[m, i]
     c = X / math.sqrt(nx) if nx > X * X else 1.0
     for i in range(n):
-        xt[i] = s[i] * c
+        Xt[m, i] = S[m, i] * c
     nt = 0.0
     for j in range(q):
-        nt += s[n + j] * s[n + j]
+        nt += S[m, n + j] * S[m, n + j]
     ct = Theta / math.sqrt(nt) if nt > Theta * Theta else 1.0
     for j in range(q):
-        tt[j] = s[n + j] * ct
+        Tt[m, j] = S[m, n + j] * ct
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _unpack(P: Array, n: int, q: int, p: int) -> tuple[float, float, float, Array, Array, Array,
                                                        Array]:  # pragma: no cover - compiled
     """The design vector ``P`` (:meth:`BesanconObserver._design`) as ``(lambda, X, Theta,
@@ -188,25 +189,26 @@ def _unpack(P: Array, n: int, q: int, p: int) -> tuple[float, float, float, Arra
     return P[0], P[1], P[2], lamK, lampow, lam_e, psicoef
 
 
-@njit(cache=True)
-def _derivative(s: Array, xt: Array, tt: Array, phi: Array, psi: Array, e: Array,
-                chains: Array, P: Array, Sg: Array, v: Array, w: Array,
+@njit(cache=True, inline="always")
+def _derivative(S: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, m: int, e: Array,
+                chains: Array, lam: float, lamK: Array, lampow: Array, lam_e: Array,
+                psicoef: Array, Sg: Array, v: Array, w: Array,
                 out: Array) -> None:  # pragma: no cover - compiled
-    """Eq. 12 / 24 for one row ``s = (x_hat, theta_hat, Gamma_hat)`` (writes ``out``).
+    """Eq. 12 / 24 for row ``m`` of ``S``, the state ``(x_hat, theta_hat, Gamma_hat)``
+    (writes ``out`` ``(N,)``).
 
-    ``xt, tt`` the saturated estimates, ``phi`` ``(n,)`` and ``psi`` ``(p, q)`` (last row of
-    each chain) the form's terms at ``xt``, ``e`` ``(p,)`` the innovations
-    :math:`\\tilde y`; ``chains[c] = (first, order)``; ``P`` the design (:func:`_unpack`),
+    ``Xt[m], Tt[m]`` the saturated estimates, ``phi[m]`` ``(n,)`` and ``psi[m]`` ``(p, q)``
+    (last row of each chain) the form's terms at ``Xt[m]``, ``e`` ``(p,)`` the innovations
+    :math:`\\tilde y`; ``chains[c] = (first, order)``; the design as :func:`_unpack` gives it;
     ``Sg`` the adaptation gain :math:`S`; ``v, w`` scratch ``(q,)``.
     """
-    n, q, p = xt.shape[0], tt.shape[0], chains.shape[0]
-    lam, _, _, lamK, lampow, lam_e, psicoef = _unpack(P, n, q, p)
-    G = n + q  # Gamma_hat[i, j] is s[G + i * q + j]
+    n, q, p = Xt.shape[1], Tt.shape[1], chains.shape[0]
+    G = n + q  # Gamma_hat[i, j] is S[m, G + i * q + j]
     # v = Gamma^T C^T y~ ,  w = S v
     for j in range(q):
         acc = 0.0
         for c in range(p):
-            acc += s[G + chains[c, 0] * q + j] * e[c]
+            acc += S[m, G + chains[c, 0] * q + j] * e[c]
         v[j] = acc
     for j in range(q):
         acc = 0.0
@@ -220,37 +222,37 @@ def _derivative(s: Array, xt: Array, tt: Array, phi: Array, psi: Array, e: Array
             # x_hat' = A x + phi(x~) + psi(x~) theta~ + Lambda^-1 [lambda K + Gamma S Gamma^T C^T] y~
             corr = lamK[i] * e[c]
             for j in range(q):
-                corr += s[G + i * q + j] * w[j]
-            d = phi[i]
+                corr += S[m, G + i * q + j] * w[j]
+            d = phi[m, i]
             if r < o - 1:
-                d = s[i + 1] + d
+                d = S[m, i + 1] + d
             else:
                 pt = 0.0
                 for j in range(q):
-                    pt += psi[c, j] * tt[j]
+                    pt += psi[m, c, j] * Tt[m, j]
                 d = d + pt
             out[i] = d + lampow[i] * corr
             # Gamma' = lambda (A - K C) Gamma + Lambda psi(x~) I_lambda
             for j in range(q):
-                g = -lamK[i] * s[G + f * q + j]
+                g = -lamK[i] * S[m, G + f * q + j]
                 if r < o - 1:
-                    g = lam * s[G + (i + 1) * q + j] + g
+                    g = lam * S[m, G + (i + 1) * q + j] + g
                 else:
-                    g = g + psicoef[c, j] * psi[c, j]
+                    g = g + psicoef[c, j] * psi[m, c, j]
                 out[G + i * q + j] = g
     # theta_hat' = I_lambda S Gamma^T C^T y~
     for j in range(q):
         out[n + j] = lam_e[j] * w[j]
 
 
-@njit(cache=True)
-def _innovations(sk: Array, EM: Array, chains: Array, innov: bool,
+@njit(cache=True, inline="always")
+def _innovations(Sk: Array, m: int, EM: Array, chains: Array, innov: bool,
                  e: Array) -> None:  # pragma: no cover - compiled
-    """:math:`\\tilde y` of one row: the held innovations ``EM[0]`` (``innov``), else the held
-    measurements ``EM[0]`` minus :math:`C \\hat x` of the stage state ``sk``, masked by
-    ``EM[1]`` (0 for a dropped channel)."""
+    """:math:`\\tilde y` of row ``m``: the held innovations ``EM[m, 0]`` (``innov``), else the
+    held measurements ``EM[m, 0]`` minus :math:`C \\hat x` of the stage state ``Sk[m]``,
+    masked by ``EM[m, 1]`` (0 for a dropped channel)."""
     for c in range(chains.shape[0]):
-        e[c] = EM[0, c] if innov else (EM[0, c] - sk[chains[c, 0]]) * EM[1, c]
+        e[c] = EM[m, 0, c] if innov else (EM[m, 0, c] - Sk[m, chains[c, 0]]) * EM[m, 1, c]
 
 
 @njit(cache=True)
@@ -293,16 +295,19 @@ def _stage(S0: Array, Sk: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, E
     or on the ``LAST`` stage the step ``S0 + h Acc``, and its saturation ``Xtn, Ttn``.
     Returns the number of members whose step is not finite (0 but on the last stage)."""
     B, N = Sk.shape
-    X, Theta = P[1], P[2]
+    n, q, p = Xt.shape[1], Tt.shape[1], chains.shape[0]
+    lam, X, Theta, lamK, lampow, lam_e, psicoef = _unpack(P, n, q, p)
     first, last, innov = (flags & FIRST) != 0, (flags & LAST) != 0, (flags & INNOVATION) != 0
     k = np.empty(N)
-    e = np.empty(chains.shape[0])
-    v = np.empty(Tt.shape[1])
-    w = np.empty(Tt.shape[1])
+    e = np.empty(p)
+    v = np.empty(q)
+    w = np.empty(q)
+    ah = a * h
     bad = 0
     for m in range(B):
-        _innovations(Sk[m], EM[m], chains, innov, e)
-        _derivative(Sk[m], Xt[m], Tt[m], phi[m], psi[m], e, chains, P, Sg, v, w, k)
+        _innovations(Sk, m, EM, chains, innov, e)
+        _derivative(Sk, Xt, Tt, phi, psi, m, e, chains, lam, lamK, lampow, lam_e, psicoef, Sg,
+                    v, w, k)
         if first:
             for i in range(N):
                 Acc[m, i] = b * k[i]
@@ -316,10 +321,9 @@ def _stage(S0: Array, Sk: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, E
                 ok = ok and math.isfinite(Snext[m, i])
             bad += 0 if ok else 1
         else:
-            ah = a * h
             for i in range(N):
                 Snext[m, i] = S0[m, i] + ah * k[i]
-        _saturate(Snext[m], X, Theta, Xtn[m], Ttn[m])
+        _saturate(Snext, m, X, Theta, Xtn, Ttn)
     return bad
 
 
@@ -328,7 +332,7 @@ def _saturate_rows(S: Array, X: float, Theta: float, Xt: Array,
                    Tt: Array) -> None:  # pragma: no cover - compiled
     """:func:`_saturate` of every row of ``S``."""
     for m in range(S.shape[0]):
-        _saturate(S[m], X, Theta, Xt[m], Tt[m])
+        _saturate(S, m, X, Theta, Xt, Tt)
 
 
 @njit(cache=True)
@@ -336,13 +340,17 @@ def _derivative_rows(S: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, EM:
                      chains: Array, P: Array, Sg: Array, out: Array) -> None:  # pragma: no cover - compiled
     """:func:`_derivative` of every row of ``S`` with the measurements held (for checks and
     the continuous-time reproduction)."""
-    q = Tt.shape[1]
-    e = np.empty(chains.shape[0])
+    n, q, p = Xt.shape[1], Tt.shape[1], chains.shape[0]
+    lam, _, _, lamK, lampow, lam_e, psicoef = _unpack(P, n, q, p)
+    e = np.empty(p)
     v = np.empty(q)
     w = np.empty(q)
+    k = np.empty(S.shape[1])
     for m in range(S.shape[0]):
-        _innovations(S[m], EM[m], chains, False, e)
-        _derivative(S[m], Xt[m], Tt[m], phi[m], psi[m], e, chains, P, Sg, v, w, out[m])
+        _innovations(S, m, EM, chains, False, e)
+        _derivative(S, Xt, Tt, phi, psi, m, e, chains, lam, lamK, lampow, lam_e, psicoef, Sg,
+                    v, w, k)
+        out[m] = k
 
 
 # ======================================================================================
