@@ -153,7 +153,7 @@ FIRST, LAST, INNOVATION = 1, 2, 4
 
 @njit(cache=True, inline="always")
 def _saturate(S: Array, m: int, X: float, Theta: float, Xt: Array,
-              Tt: Array) -> None:  # pragma: no cover - compiled
+              Tt: Array) -> None:
     """:math:`\\tilde x, \\tilde\\theta` of Theorem 3.1 for row ``m``: ``x_hat`` and
     ``theta_hat`` of ``S[m]`` scaled back onto the balls of radius ``X`` and ``Theta`` where
     they leave them (written into ``Xt[m]``, ``Tt[m]``)."""
@@ -174,7 +174,7 @@ def _saturate(S: Array, m: int, X: float, Theta: float, Xt: Array,
 
 @njit(cache=True, inline="always")
 def _unpack(P: Array, n: int, q: int, p: int) -> tuple[float, float, float, Array, Array, Array,
-                                                       Array]:  # pragma: no cover - compiled
+                                                       Array]:
     """The design vector ``P`` (:meth:`BesanconObserver._design`) as ``(lambda, X, Theta,
     lamK, lampow, lam_e, psicoef)``: per state ``i`` in chain ``c`` at depth ``r``,
     ``lamK[i]`` :math:`= \\lambda K_c[r]` and ``lampow[i]`` :math:`= \\lambda^r`
@@ -191,9 +191,9 @@ def _unpack(P: Array, n: int, q: int, p: int) -> tuple[float, float, float, Arra
 
 @njit(cache=True, inline="always")
 def _derivative(S: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, m: int, e: Array,
-                chains: Array, lam: float, lamK: Array, lampow: Array, lam_e: Array,
+                chains: Any, lam: float, lamK: Array, lampow: Array, lam_e: Array,
                 psicoef: Array, Sg: Array, v: Array, w: Array,
-                out: Array) -> None:  # pragma: no cover - compiled
+                out: Array) -> None:
     """Eq. 12 / 24 for row ``m`` of ``S``, the state ``(x_hat, theta_hat, Gamma_hat)``
     (writes ``out`` ``(N,)``).
 
@@ -246,8 +246,8 @@ def _derivative(S: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, m: int, 
 
 
 @njit(cache=True, inline="always")
-def _innovations(Sk: Array, m: int, EM: Array, chains: Array, innov: bool,
-                 e: Array) -> None:  # pragma: no cover - compiled
+def _innovations(Sk: Array, m: int, EM: Array, chains: Any, innov: bool,
+                 e: Array) -> None:
     """:math:`\\tilde y` of row ``m``: the held innovations ``EM[m, 0]`` (``innov``), else the
     held measurements ``EM[m, 0]`` minus :math:`C \\hat x` of the stage state ``Sk[m]``,
     masked by ``EM[m, 1]`` (0 for a dropped channel)."""
@@ -256,8 +256,8 @@ def _innovations(Sk: Array, m: int, EM: Array, chains: Array, innov: bool,
 
 
 @njit(cache=True)
-def _begin(S: Array, Y: Array, chains: Array, innov: bool, gram_dt: float, EM: Array,
-           acc: Array) -> None:  # pragma: no cover - compiled
+def _begin(S: Array, Y: Array, chains: Any, innov: bool, gram_dt: float, EM: Array,
+           acc: Array) -> None:
     """At a sample: the held values ``EM[:, 0]`` (innovations ``y - C x_hat``, or the
     measurements) and masks ``EM[:, 1]`` of every member from ``Y`` ``(B, p)`` (NaN: a
     dropout, value 0, mask 0); with ``gram_dt > 0`` add ``gram_dt``
@@ -287,8 +287,8 @@ def _begin(S: Array, Y: Array, chains: Array, innov: bool, gram_dt: float, EM: A
 
 @njit(cache=True)
 def _stage(S0: Array, Sk: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, EM: Array,
-           chains: Array, P: Array, Sg: Array, h: float, a: float, b: float, flags: int,
-           Acc: Array, Snext: Array, Xtn: Array, Ttn: Array) -> int:  # pragma: no cover - compiled
+           chains: Any, P: Array, Sg: Array, h: float, a: float, b: float, flags: int,
+           Acc: Array, Snext: Array, Xtn: Array, Ttn: Array) -> int:
     """One Runge-Kutta stage of every member: ``k`` = eq. 12 / 24 at the stage state ``Sk``
     (saturated ``Xt, Tt``, the form's terms ``phi, psi`` there, innovations from ``EM``);
     ``Acc`` = (``FIRST`` stage) or += ``b k``; the next stage's state ``Snext = S0 + a h k``,
@@ -329,7 +329,7 @@ def _stage(S0: Array, Sk: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, E
 
 @njit(cache=True)
 def _saturate_rows(S: Array, X: float, Theta: float, Xt: Array,
-                   Tt: Array) -> None:  # pragma: no cover - compiled
+                   Tt: Array) -> None:
     """:func:`_saturate` of every row of ``S``."""
     for m in range(S.shape[0]):
         _saturate(S, m, X, Theta, Xt, Tt)
@@ -337,7 +337,7 @@ def _saturate_rows(S: Array, X: float, Theta: float, Xt: Array,
 
 @njit(cache=True)
 def _derivative_rows(S: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, EM: Array,
-                     chains: Array, P: Array, Sg: Array, out: Array) -> None:  # pragma: no cover - compiled
+                     chains: Any, P: Array, Sg: Array, out: Array) -> None:
     """:func:`_derivative` of every row of ``S`` with the measurements held (for checks and
     the continuous-time reproduction)."""
     n, q, p = Xt.shape[1], Tt.shape[1], chains.shape[0]
@@ -514,7 +514,8 @@ class BesanconObserver(Observer):
         self.adapt_after = finite_scalar("adapt_after", adapt_after, nonnegative=True)
         self._design()
         self._extra = tuple(k for k in form.true_physical if k not in form.theta_names)
-        self.family_diagnostics = tuple(f"theta_{nm}" for nm in form.theta_names) + tuple(
+        self.family_diagnostics = tuple(  # type: ignore[misc]  # per instance: the form's names
+            f"theta_{nm}" for nm in form.theta_names) + tuple(
             f"theta_{k}" for k in self._extra) + ("excitation",)
         self._init = (x_hat0, z_hat0, theta_hat0, Gamma0)
         self.reset()

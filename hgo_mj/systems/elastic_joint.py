@@ -18,7 +18,7 @@ AFFINE_PARAMS = ("MgL", "stiffness")
 
 
 @njit(cache=True)
-def _affine_terms(Z: Array, U: Array, c: Array, mode: int) -> tuple[Array, Array]:  # pragma: no cover - compiled
+def _affine_terms(Z: Array, U: Array, c: Array, mode: int) -> tuple[Array, Array]:
     """Rows of the elastic joint's form eq. 9 (``ElasticJoint._form_affine``):
     ``y^(4) = phi_4 + psi_1 MgL + psi_2 K + psi_3 K MgL``. ``c = (I, J, d_l/I, d_m/J, d_m,
     b, K, MgL)``; ``mode`` 0: theta = (MgL, K, K MgL); 1: theta = MgL (K known); 2: theta = K
@@ -50,7 +50,7 @@ def _affine_terms(Z: Array, U: Array, c: Array, mode: int) -> tuple[Array, Array
 
 
 @njit(cache=True)
-def _affine_to_physical(Z: Array, TH: Array, c: Array, mode: int) -> Array:  # pragma: no cover - compiled
+def _affine_to_physical(Z: Array, TH: Array, c: Array, mode: int) -> Array:
     """Rows of ``x = (q, theta, q', theta')`` from ``z`` and the parameter estimates (the
     inverse normal-form map with ``K``, ``MgL`` from ``theta``); NaN where undefined (a
     stiffness estimate not > 0, a non-finite load). ``c = (I, d_l, K, m, g, L)``."""

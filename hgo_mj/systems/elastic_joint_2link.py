@@ -15,7 +15,7 @@ from .base import Array
 
 
 @njit(cache=True)
-def _affine_parts(z: Array, u0: float, u1: float, c: Array) -> tuple[float, ...]:  # pragma: no cover - compiled
+def _affine_parts(z: Array, u0: float, u1: float, c: Array) -> tuple[float, ...]:
     """The pieces of the two-link form eq. 21 at one point ``z = (q1, q1', q1'', q1''', q2,
     ...)`` (``ElasticJoint2Link._form_affine``): ``M^-1`` (``i11, i12, i22``), the right-hand
     side ``r`` of ``M q'''' = r + diag(w) K``, ``w``, and ``L = M q'' + c + g + D q'``, ``L'``.
@@ -71,7 +71,7 @@ def _affine_parts(z: Array, u0: float, u1: float, c: Array) -> tuple[float, ...]
 
 
 @njit(cache=True)
-def _affine_terms(Z: Array, U: Array, c: Array) -> tuple[Array, Array]:  # pragma: no cover - compiled
+def _affine_terms(Z: Array, U: Array, c: Array) -> tuple[Array, Array]:
     """Rows of the two-link form eq. 21: ``phi = (0, 0, 0, [M^-1 r]_1, 0, 0, 0, [M^-1 r]_2)``,
     ``psi_last[c] = [M^-1 diag(w)]_c``."""
     N = Z.shape[0]
@@ -89,7 +89,7 @@ def _affine_terms(Z: Array, U: Array, c: Array) -> tuple[Array, Array]:  # pragm
 
 
 @njit(cache=True)
-def _affine_to_physical(Z: Array, TH: Array, U: Array, c: Array) -> Array:  # pragma: no cover - compiled
+def _affine_to_physical(Z: Array, TH: Array, U: Array, c: Array) -> Array:
     """Rows of ``x = (q1, q2, theta1, theta2, q1', q2', theta1', theta2')`` from ``z`` and the
     stiffness estimates: ``theta = q + K^-1 L``, ``theta' = q' + K^-1 L'``; NaN where an
     estimate is not > 0."""

@@ -552,7 +552,7 @@ def besancon_ex2_input(t: float) -> Array:
 
 
 @njit(cache=True)
-def _besancon_ex1_terms(Z: Array, U: Array) -> tuple[Array, Array]:  # pragma: no cover - compiled
+def _besancon_ex1_terms(Z: Array, U: Array) -> tuple[Array, Array]:
     """Rows of :class:`BesanconExample1` in the form eq. 9: :math:`\\varphi = (u, -x_1 - 2
     \\sin x_2)`, :math:`\\psi_{2\\cdot} = (\\arctan x_2, \\cos(x_1 x_2))`."""
     N = Z.shape[0]
@@ -568,7 +568,7 @@ def _besancon_ex1_terms(Z: Array, U: Array) -> tuple[Array, Array]:  # pragma: n
 
 
 @njit(cache=True)
-def _besancon_ex2_terms(Z: Array, U: Array) -> tuple[Array, Array]:  # pragma: no cover - compiled
+def _besancon_ex2_terms(Z: Array, U: Array) -> tuple[Array, Array]:
     """Rows of :class:`BesanconExample2` in the form eq. 21: :math:`\\varphi = (0, \\sin(x_1
     x_2), 0, v)`, :math:`\\psi_{2\\cdot} = (\\cos(x_1 x_2), x_4 x_3^2)`, :math:`\\psi_{4\\cdot} = 0`."""
     N = Z.shape[0]
@@ -599,7 +599,7 @@ def _paper001_form(system: System, unknown: Any, terms: Any, label: str) -> Any:
     return AffineForm(orders=orders, theta_names=system.param_names, terms=terms, label=label,
                       theta=system.theta,  # type: ignore[attr-defined]
                       state_names=system.state_names, n_inputs=1
-                      )._made_by(type(system)._form_affine, system, unknown)
+                      )._made_by(type(system)._form_affine, system, unknown)  # type: ignore[attr-defined]
 
 
 class BesanconExample1(System):

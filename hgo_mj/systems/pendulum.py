@@ -19,7 +19,7 @@ AFFINE_PARAMS = ("g_over_l", "b_over_J", "d_over_J")
 
 
 @njit(cache=True)
-def _affine_terms(Z: Array, U: Array, unknown: Any, known: Array) -> tuple[Array, Array]:  # pragma: no cover - compiled
+def _affine_terms(Z: Array, U: Array, unknown: Any, known: Array) -> tuple[Array, Array]:
     """Rows of the pendulum's form eq. 9: ``z2' = phi_2 + psi theta`` with the basis regressors
     ``r = (-sin z1, u, -z2)`` of ``(g_over_l, b_over_J, d_over_J)``; ``psi`` holds the columns
     ``unknown`` (indices into ``r``), ``phi_2 = sum_k known_k r_k`` the rest (``known_k`` the
