@@ -1,5 +1,6 @@
 """The adaptive high-gain observer of Besançon, Zhang, Hammouri (paper 001, eq. 12 / 24) and
-the forms eq. 9 / 21 it is designed on (hgo_mj/observers/besancon.py)."""
+the forms eq. 9 / 21 it is designed on (hgo_mj/observers/besancon.py, the systems' declared
+``"affine"`` forms, hgo_mj/systems/affine_form.py)."""
 
 from __future__ import annotations
 
@@ -9,14 +10,7 @@ import pytest
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.inputs import Multisine
 from hgo_mj.observers import OBSERVERS, make_observer
-from hgo_mj.observers.besancon import (
-    AffineForm,
-    BesanconObserver,
-    affine_form,
-    elastic_joint_2link_form,
-    elastic_joint_form,
-    pendulum_form,
-)
+from hgo_mj.observers.besancon import AffineForm, BesanconObserver, affine_form
 from hgo_mj.plants import make_plant
 from hgo_mj.plants.ode import OdePlant
 from hgo_mj.sensors import Dropout, GaussianNoise, SensorChain
@@ -58,7 +52,7 @@ def test_fast_example_forms_equal_the_protocol(system):
                                      ("d_over_J", "g_over_l", "b_over_J")])
 def test_pendulum_form_reproduces_phi(unknown):
     s = Pendulum()
-    f = pendulum_form(s, unknown)
+    f = s.form("affine", unknown=unknown)
     for _ in range(10):
         z = RNG.normal(size=2)
         u = RNG.normal(size=1)
@@ -69,7 +63,7 @@ def test_pendulum_form_reproduces_phi(unknown):
 def test_elastic_joint_form_reproduces_the_normal_form(unknown):
     """y'''' = phi0 + psi theta (affine in (MgL, K, K MgL)) equals the system's phi."""
     s = ElasticJoint()
-    f = elastic_joint_form(s, unknown)
+    f = s.form("affine", unknown=unknown)
     for _ in range(20):
         z = RNG.normal(size=4) * [1, 3, 30, 300]
         u = RNG.normal(size=1)
@@ -77,12 +71,18 @@ def test_elastic_joint_form_reproduces_the_normal_form(unknown):
         assert lhs[3] == pytest.approx(s.phi(z, u), rel=1e-12, abs=1e-9)
         np.testing.assert_array_equal(lhs[:3], z[1:])
     # physical parameters map back
-    phys = f.physical_params(f.theta)
+    phys = {k: float(v[0]) for k, v in f.physical_params(f.theta[None]).items()}
     assert phys.get("stiffness", 10.0) == pytest.approx(s.params["stiffness"])
     if "MgL" in phys:
         assert phys["MgL"] == pytest.approx(s.params["mass"] * s.params["g"] * s.params["com_distance"])
     x = np.array([0.3, 0.2, -0.4, 1.1])
-    np.testing.assert_allclose(f.to_physical(s.to_normal(x), f.theta, np.zeros(1)), x, rtol=1e-12)
+    np.testing.assert_allclose(f.to_physical(s.to_normal(x)[None], f.theta[None], np.zeros((1, 1)))[0],
+                               x, rtol=1e-12)
+    # rows where the map is undefined (a stiffness estimate not > 0) are NaN
+    if "stiffness" in phys:
+        th = f.theta.copy()
+        th[list(f.theta_names).index("stiffness")] = 0.0
+        assert np.all(np.isnan(f.to_physical(s.to_normal(x)[None], th[None], np.zeros((1, 1)))))
 
 
 def _fd_derivatives(s, x, u, eps=1e-4):
@@ -106,7 +106,7 @@ def test_two_link_form_reproduces_the_fourth_derivatives():
     """The two-output form eq. 21 of the two-link arm: q'''' = phi + psi (K1, K2) against
     finite differences of the MuJoCo-matched analytic dynamics, and the map to the motors."""
     s = ElasticJoint2Link()
-    f = elastic_joint_2link_form(s)
+    f = s.form("affine")
     assert f.orders == (4, 4) and f.theta_names == ("stiffness1", "stiffness2")
     for _ in range(5):
         x = RNG.normal(size=8) * [0.5, 0.5, 0.5, 0.5, 1, 1, 1, 1]
@@ -116,7 +116,10 @@ def test_two_link_form_reproduces_the_fourth_derivatives():
         z = np.array([x[0], x[4], a[0], j[0], x[1], x[5], a[1], j[1]])
         rhs = f.rhs(z, u, f.theta)
         np.testing.assert_allclose(rhs[[3, 7]], snap, rtol=2e-5, atol=2e-3 * np.abs(snap).max())
-        np.testing.assert_allclose(f.to_physical(z, f.theta, u), x, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(f.to_physical(z[None], f.theta[None], u[None])[0], x, rtol=1e-6,
+                                   atol=1e-6)
+    with pytest.raises(DesignError, match=r"the two-link form estimates \['stiffness1', 'stiffness2'\]"):
+        s.form("affine", unknown=("stiffness1",))
 
 
 def test_protocol_checks():
@@ -150,7 +153,11 @@ def test_protocol_checks():
     with pytest.raises(DesignError, match="pendulum parameters to estimate must be distinct names"):
         BesanconObserver(Pendulum(), lam=5.0, unknown=("mass",))
     with pytest.raises(DesignError, match="elastic-joint parameters to estimate"):
-        elastic_joint_form(ElasticJoint(), ("stiffness", "stiffness"))
+        ElasticJoint().form("affine", unknown=("stiffness", "stiffness"))
+    with pytest.raises(DesignError, match="unknown= chooses parameters of a derived form"):
+        BesanconObserver(BesanconExample1(), lam=5.0, unknown=("theta1",))
+    with pytest.raises(DesignError, match="BioreactorBullinger does not declare the 'affine' form"):
+        BioreactorBullinger().form("affine")
 
 
 # ----------------------------------------------------------------------------- validation
@@ -194,7 +201,7 @@ def test_construction_validation():
 
 def test_unequal_orders_need_exponents():
     f = AffineForm(orders=(2, 1), theta_names=("a",), label="test",
-                   terms=lambda z, u: ((0.0, 0.0, 0.0), ((1.0,), (0.0,))))
+                   terms=lambda Z, U: (np.zeros((len(Z), 3)), np.tile([[[1.0], [0.0]]], (len(Z), 1, 1))))
     with pytest.raises(DesignError, match=r"unequal orders \[2, 1\]: I_lambda of eq. 24 needs"):
         BesanconObserver(form=f, lam=5.0)
     ob = BesanconObserver(form=f, lam=5.0, theta_exponents=[2])
@@ -245,14 +252,19 @@ def _eq12_numpy(ob, s, y, u):
     (BesanconExample2(), {"X": 4.0, "Theta": 3.0, "K0": [(2.0, 1.0), (4.0, 4.0)]}),
     (ElasticJoint(), {"theta_hat0": [1.0, 9.0, 9.0], "gain": [1e-5, 1e-7, 1e-7]}),
 ])
-def test_generated_rhs_is_eq_12_24(system, kw):
+def test_kernel_rhs_is_eq_12_24(system, kw):
+    """The numba right-hand side (one row at a time, and 10 rows at once) is eq. 12 / 24
+    written with numpy matrices."""
     ob = BesanconObserver(system, lam=7.0, **kw)
-    for _ in range(10):
-        s = tuple(RNG.normal(size=len(ob._s)) * 2)
-        y = RNG.normal(size=ob.form.p)
-        u = RNG.normal(size=len(system.input_names))
-        got = np.array(ob._rhs(s, list(y), [1.0] * ob.form.p, u))
+    N = ob.state_rows.shape[1]
+    assert N == ob.n + ob.q + ob.n * ob.q
+    S = RNG.normal(size=(10, N)) * 2
+    Y = RNG.normal(size=(10, ob.form.p))
+    U = RNG.normal(size=(10, len(system.input_names)))
+    rows = ob._rhs(S, Y, U)
+    for s, y, u, got in zip(S, Y, U, rows):
         np.testing.assert_allclose(got, _eq12_numpy(ob, s, y, u), rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(ob._rhs(s, y, u)[0], got)
 
 
 @pytest.mark.parametrize("system", [BesanconExample1(), BesanconExample2()])
@@ -277,7 +289,7 @@ def test_error_equations_20(system):
         x = RNG.normal(size=n)
         s = np.concatenate((RNG.normal(size=n), th + RNG.normal(size=q), RNG.normal(size=n * q)))
         u = RNG.normal(size=1)
-        ds = np.array(ob._rhs(tuple(s), list(C @ x), [1.0] * f.p, u))
+        ds = ob._rhs(s, C @ x, u)[0]
         dx_true = f.rhs(x, u, th)
         xh, thh, G = s[:n], s[n:n + q], s[n + q:].reshape(n, q)
         dxh, dthh, dG = ds[:n], ds[n:n + q], ds[n + q:].reshape(n, q)
@@ -298,11 +310,18 @@ def test_nan_measurement_is_held_and_counted():
     a = BesanconObserver(s, lam=10.0, z_hat0=[0.5, 0.1], theta_hat0=[0.5, 1.0])
     b = BesanconObserver(s, lam=10.0, z_hat0=[0.5, 0.1], theta_hat0=[0.5, 1.0])
     u = np.array([0.3])
+    s0 = a.state_rows[0]
     xa = a.update(np.array([np.nan]), u, 0.01)
     assert a.dropouts_ == 1
-    # open loop: the same as a measurement equal to the prediction with the masks off
-    s_open = b._step(b._s, [0.0], [0.0], u, 0.01)
-    np.testing.assert_array_equal(xa, np.array(s_open[:2]))
+    # open loop: Heun's step of eq. 12 without output injection (y~ = 0 at every stage)
+
+    def f(v):
+        return _eq12_numpy(b, v, [v[0]], u)
+
+    k1 = f(s0)
+    s_open = s0 + 0.01 / 2 * (k1 + f(s0 + 0.01 * k1))
+    np.testing.assert_allclose(a.state_rows[0], s_open, rtol=1e-13, atol=1e-15)
+    np.testing.assert_array_equal(xa, a.state_rows[0, :2])
     np.testing.assert_array_equal(a.theta_hat_, [0.5, 1.0])  # no adaptation without y
     assert a.diagnostics()["dropouts"] == 1.0
     with pytest.raises(DivergenceError, match=r"measurement y\[0\] is inf"):
@@ -344,7 +363,7 @@ def test_pendulum_mujoco_parameters():
     noisy encoder-like sensor: both within 1 % after 20 s (adaptation gain 100)."""
     plant = make_plant("pendulum", 0.001)
     s = plant.system
-    f = pendulum_form(s)
+    f = s.form("affine")
     sensor = SensorChain([GaussianNoise(std=1e-4)], seed=1)
     ob = BesanconObserver(s, lam=20.0, gain=100.0, hold="innovation")
     traj = simulate(plant, sensor, {"b": ob}, Multisine([0.3, 0.2, 0.1], [0.3, 0.7, 1.9]), 20.0,
@@ -462,7 +481,8 @@ def test_integrators_are_the_textbook_ones(method):
     """One generated step equals Euler / Heun / classical RK4 of eq. 12 written with numpy."""
     s = BesanconExample1()
     ob = BesanconObserver(s, lam=7.0, method=method, gain=[[2.0, 0.3], [0.3, 0.5]])
-    st = tuple(RNG.normal(size=len(ob._s)))
+    n, q = ob.n, ob.q
+    st = RNG.normal(size=n + q + n * q)
     y, u, h = [0.4], np.array([0.2]), 0.01
 
     def f(v):
@@ -480,4 +500,7 @@ def test_integrators_are_the_textbook_ones(method):
         k3 = f(x + h / 2 * k2)
         k4 = f(x + h * k3)
         ref = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    np.testing.assert_allclose(ob._step(st, y, [1.0], u, h), ref, rtol=1e-12, atol=1e-12)
+    ob.reset(z_hat0=st[:n], theta_hat0=st[n:n + q], Gamma0=st[n + q:].reshape(n, q))
+    np.testing.assert_array_equal(ob.state_rows[0], st)
+    ob.update(np.array(y), u, h)
+    np.testing.assert_allclose(ob.state_rows[0], ref, rtol=1e-12, atol=1e-12)

@@ -143,15 +143,14 @@ def run_continuous(system: Any, cfg: dict[str, Any], inp_exact: Any,
     ob = _observer(system, cfg, hold="measurement")
     rhs, dyn, p = ob._rhs, system.dynamics, system.params
     n = len(system.state_names)
-    chans = [f for f in ob.form.firsts]
-    ones = [1.0] * len(chans)
+    chans = list(ob.form.firsts)
 
     def F(t: float, w: Array) -> Array:
         u = inp_exact(t)
         x = w[:n]
-        return np.concatenate((dyn(t, x, u, p), rhs(tuple(w[n:]), [x[c] for c in chans], ones, u)))
+        return np.concatenate((dyn(t, x, u, p), rhs(w[n:], x[chans], u)[0]))
 
-    w0 = np.concatenate((cfg["x0"], ob._s))
+    w0 = np.concatenate((cfg["x0"], ob.state_rows[0]))
     sol = solve_ivp(F, (0.0, cfg["horizon"]), w0, method="LSODA", rtol=1e-8, atol=1e-10,
                     t_eval=t_eval)
     return {"t": sol.t, "x": sol.y[:n].T, "x_hat": sol.y[n:n + ob.n].T,

@@ -7,9 +7,75 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+from numba import njit
 
+from ..exceptions import DesignError
 from ._mujoco import _MjReader, _MujocoSystem
 from .base import Array
+
+#: the parameters of the elastic joint's affine form (paper 001, eq. 9)
+AFFINE_PARAMS = ("MgL", "stiffness")
+
+
+@njit(cache=True)
+def _affine_terms(Z: Array, U: Array, c: Array, mode: int) -> tuple[Array, Array]:
+    """Rows of the elastic joint's form eq. 9 (``ElasticJoint._form_affine``):
+    ``y^(4) = phi_4 + psi_1 MgL + psi_2 K + psi_3 K MgL``. ``c = (I, J, d_l/I, d_m/J, d_m,
+    b, K, MgL)``; ``mode`` 0: theta = (MgL, K, K MgL); 1: theta = MgL (K known); 2: theta = K
+    (MgL known)."""
+    I, J, delta, rm, dm, bg, k_true, mgl_true = c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]
+    IJ = I * J
+    N = Z.shape[0]
+    phi = np.zeros((N, 4))
+    psi = np.empty((N, 1, 3 if mode == 0 else 1))
+    for b in range(N):
+        z1, z2, z3, z4 = Z[b, 0], Z[b, 1], Z[b, 2], Z[b, 3]
+        s, co = math.sin(z1), math.cos(z1)
+        ps1 = (s * z2 * z2 - co * z3 - rm * co * z2) / I
+        ps2 = -z3 / I - (z3 + delta * z2) / J - dm * z2 / IJ + bg * U[b, 0] / IJ
+        ps3 = -s / IJ
+        ph = -delta * z4 - rm * (z4 + delta * z3)
+        if mode == 0:
+            phi[b, 3] = ph
+            psi[b, 0, 0] = ps1
+            psi[b, 0, 1] = ps2
+            psi[b, 0, 2] = ps3
+        elif mode == 1:
+            phi[b, 3] = ph + k_true * ps2
+            psi[b, 0, 0] = ps1 + k_true * ps3
+        else:
+            phi[b, 3] = ph + mgl_true * ps1
+            psi[b, 0, 0] = ps2 + mgl_true * ps3
+    return phi, psi
+
+
+@njit(cache=True)
+def _affine_to_physical(Z: Array, TH: Array, c: Array, mode: int) -> Array:
+    """Rows of ``x = (q, theta, q', theta')`` from ``z`` and the parameter estimates (the
+    inverse normal-form map with ``K``, ``MgL`` from ``theta``); NaN where undefined (a
+    stiffness estimate not > 0, a non-finite load). ``c = (I, d_l, K, m, g, L)``."""
+    I, dl, k_true, m_true, g, L = c[0], c[1], c[2], c[3], c[4], c[5]
+    N = Z.shape[0]
+    X = np.empty((N, 4))
+    for b in range(N):
+        k, mass = k_true, m_true
+        if mode == 0:
+            k = TH[b, 1]
+            mass = (TH[b, 2] / k if k != 0.0 else np.nan) / (g * L)
+        elif mode == 1:
+            mass = TH[b, 0] / (g * L)
+        else:
+            k = TH[b, 0]
+        mgl = mass * g * L
+        if not (k > 0.0) or not math.isfinite(mgl):
+            X[b, :] = np.nan
+            continue
+        q, w, a, j = Z[b, 0], Z[b, 1], Z[b, 2], Z[b, 3]
+        X[b, 0] = q
+        X[b, 1] = q + (I * a + mgl * math.sin(q) + dl * w) / k
+        X[b, 2] = w
+        X[b, 3] = w + (I * j + mgl * math.cos(q) * w + dl * a) / k
+    return X
 
 
 class ElasticJoint(_MujocoSystem):
@@ -77,7 +143,7 @@ class ElasticJoint(_MujocoSystem):
     joints = ("link", "motor")
     actuators = ("torque",)
     #: the Jo-Son form of the motor side (:meth:`_form_jo_son`, ``sensors="motor_side"``)
-    forms = ("jo_son",)
+    forms = ("affine", "jo_son")
 
     def _form_jo_son(self, sensors: str = "link_angle", aux_outputs: Sequence[int] = (1, 2),
                      unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> Any:
@@ -267,7 +333,7 @@ def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
     Paper 003, eq. 10, Corollary 3.3; docs/adaptive_canonical_forms.md (why the link-angle
     sensor does not qualify).
     """
-    from ..exceptions import DesignError, DimensionError
+    from ..exceptions import DimensionError
     from .jo_son_form import JoSonForm
 
     aux = tuple(int(i) for i in aux_outputs)
@@ -280,3 +346,108 @@ def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
     return JoSonForm([1.0], _motor_gamma_o, _motor_beta, theta_names=tuple(unknown),
                      state_names=("motor_velocity",), aux_outputs=aux,
                      label="elastic joint motor side: y = motor velocity, deflection measured")
+
+    # ------------------------------------------------------------------ forms
+    def _form_affine(self, unknown: Any = None) -> Any:
+        """The elastic joint seen from the link angle, in the form eq. 9 of paper 001, affine
+        in its parameters (:class:`~hgo_mj.systems.affine_form.AffineForm`).
+
+        In the normal form :math:`z = (y, \\dot y, \\ddot y, y^{(3)})` (link inertia
+        :math:`I`, motor inertia :math:`J`, damping :math:`d_l, d_m` and gear :math:`b` known,
+        :math:`\\delta = d_l / I`), differentiating the link equation twice and eliminating
+        the motor angle gives (checked in ``tests/test_besancon.py``)
+
+        .. math::
+
+            y^{(4)} = \\underbrace{-\\delta z_4 - \\tfrac{d_m}{J}(z_4 + \\delta z_3)}_{\\varphi_4}
+                + \\psi_1\\, MgL + \\psi_2\\, K + \\psi_3\\, K\\, MgL,
+
+        .. math::
+
+            \\psi_1 &= \\left(\\sin z_1\\, z_2^2 - \\cos z_1\\, z_3
+                       - \\tfrac{d_m}{J} \\cos z_1\\, z_2\\right) / I, \\\\
+            \\psi_2 &= -\\frac{z_3}{I} - \\frac{z_3 + \\delta z_2}{J} - \\frac{d_m z_2}{I J}
+                       + \\frac{b\\, u}{I J}, \\qquad
+            \\psi_3 = -\\frac{\\sin z_1}{I J}.
+
+        :math:`y^{(4)}` is *not* affine in :math:`(K, MgL)` (the product :math:`K\\,MgL`
+        appears), but it is affine in :math:`\\theta = (MgL, K, K\\,MgL)` (``unknown`` both,
+        the default): the observer estimates three numbers and the physical ones are mapped
+        back as :math:`\\hat K = \\hat\\theta_2` and :math:`\\widehat{MgL} = \\hat\\theta_3 /
+        \\hat\\theta_2` (the regressor :math:`\\psi_3` is the best excited: it does not need
+        :math:`z_3`, the noisiest estimate). With one of them known, :math:`\\theta` is that
+        one parameter and the product term joins its regressor (:math:`\\psi_1 + K \\psi_3` or
+        :math:`\\psi_2 + MgL\\, \\psi_3`). The physical state (motor angle and velocity) comes
+        from the inverse map with the current estimates (NaN rows where a stiffness estimate
+        is not positive).
+
+        Raises
+        ------
+        DesignError
+            ``unknown`` is not a non-empty sequence of distinct names of ``AFFINE_PARAMS``.
+
+        References
+        ----------
+        Paper 001, eq. 9; Nicosia and Tornambè (1989) for the problem.
+        """
+        from .affine_form import AffineForm
+
+        p = dict(self.params)
+        I, J = p["link_inertia"], p["motor_inertia"]
+        dl, dm, b = p["link_damping"], p["motor_damping"], p["gear"]
+        g, L = p["g"], p["com_distance"]
+        mgl_true = p["mass"] * g * L
+        k_true = p["stiffness"]
+        order = AFFINE_PARAMS if unknown is None else tuple(unknown)
+        if (not order or any(u not in AFFINE_PARAMS for u in order)
+                or len(set(order)) != len(order)):
+            raise DesignError(f"elastic-joint parameters to estimate must be distinct names from "
+                              f"{list(AFFINE_PARAMS)}; found {list(order)}")
+        both = len(order) == 2
+        mode = 0 if both else (1 if order[0] == "MgL" else 2)
+        if both:
+            names: tuple[str, ...] = ("MgL_direct", "stiffness", "stiffness_MgL")
+            theta = [mgl_true, k_true, k_true * mgl_true]
+        else:
+            names = (order[0],)
+            theta = [mgl_true if mode == 1 else k_true]
+        c_terms = np.array([I, J, dl / I, dm / J, dm, b, k_true, mgl_true])
+        c_phys = np.array([I, dl, k_true, p["mass"], g, L])
+
+        def terms(Z: Array, U: Array) -> tuple[Array, Array]:
+            return _affine_terms(Z, U, c_terms, mode)  # type: ignore[no-any-return]
+
+        def to_physical(Z: Array, TH: Array, U: Array) -> Array:
+            return _affine_to_physical(Z, TH, c_phys, mode)  # type: ignore[no-any-return]
+
+        def physical(TH: Array) -> dict[str, Array]:
+            if mode == 0:
+                k = TH[:, 1].copy()
+                safe = np.where(k != 0.0, k, 1.0)
+                return {"stiffness": k, "MgL": np.where(k != 0.0, TH[:, 2] / safe, np.nan)}
+            return {"MgL" if mode == 1 else "stiffness": TH[:, 0].copy()}
+
+        def params_for(th: Array) -> dict[str, float]:
+            q = dict(p)
+            phys = {k: float(v[0]) for k, v in physical(np.asarray(th, dtype=float)[None]).items()}
+            if "stiffness" in phys:
+                if not phys["stiffness"] > 0:
+                    raise DesignError(f"stiffness estimate {phys['stiffness']:.4g} is not > 0")
+                q["stiffness"] = phys["stiffness"]
+            if "MgL" in phys:
+                if not math.isfinite(phys["MgL"]):
+                    raise DesignError("MgL estimate is not finite")
+                q["mass"] = phys["MgL"] / (g * L)
+            return q
+
+        def from_physical(x: Array, th: Array, u: Array) -> Array:
+            return ElasticJoint._to_normal(x, params_for(th))
+
+        return AffineForm(orders=(4,), theta_names=names, terms=terms,
+                          label=f"elastic joint, link angle, unknown {list(order)}", theta=theta,
+                          state_names=("link_angle", "link_velocity", "link_acceleration",
+                                       "link_jerk"), n_inputs=1,
+                          to_physical=to_physical, from_physical=from_physical,
+                          physical_state_names=self.state_names, physical_params=physical,
+                          true_physical={"stiffness": k_true, "MgL": mgl_true}
+                          )._made_by(ElasticJoint._form_affine, self, unknown)

@@ -7,9 +7,110 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from numba import njit
 
+from ..exceptions import DesignError
 from ._mujoco import _MjReader, _MujocoSystem
 from .base import Array
+
+
+@njit(cache=True)
+def _affine_parts(z: Array, u0: float, u1: float, c: Array) -> tuple[float, ...]:
+    """The pieces of the two-link form eq. 21 at one point ``z = (q1, q1', q1'', q1''', q2,
+    ...)`` (``ElasticJoint2Link._form_affine``): ``M^-1`` (``i11, i12, i22``), the right-hand
+    side ``r`` of ``M q'''' = r + diag(w) K``, ``w``, and ``L = M q'' + c + g + D q'``, ``L'``.
+    ``c = (alpha, beta, I2, g s1', g s2, d1, d2, J1, J2, dm1, dm2, b1, b2)``."""
+    alpha, beta, i2, gs1, gs2 = c[0], c[1], c[2], c[3], c[4]
+    d1, d2, J1, J2, dm1, dm2, b1, b2 = c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12]
+    q1, w1, a1, j1, q2, w2, a2, j2 = z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7]
+    c2, sn2 = math.cos(q2), math.sin(q2)
+    # inertia matrix and its time derivatives (M' = dM/dq2 * w2, ...)
+    m11 = alpha + 2.0 * beta * c2
+    m12 = i2 + beta * c2
+    m22 = i2
+    dfac = -beta * sn2 * w2                     # d/dt (beta cos q2)
+    ddfac = -beta * (c2 * w2 * w2 + sn2 * a2)   # d2/dt2 (beta cos q2)
+    # Coriolis c = h (v1, v2), h = beta sin q2
+    h = beta * sn2
+    hd = beta * c2 * w2
+    hdd = beta * (c2 * a2 - sn2 * w2 * w2)
+    v1 = -2.0 * w1 * w2 - w2 * w2
+    v2 = w1 * w1
+    v1d = -2.0 * (a1 * w2 + w1 * a2) - 2.0 * w2 * a2
+    v2d = 2.0 * w1 * a1
+    v1dd = -2.0 * (j1 * w2 + 2.0 * a1 * a2 + w1 * j2) - 2.0 * (a2 * a2 + w2 * j2)
+    v2dd = 2.0 * (a1 * a1 + w1 * j1)
+    cc1, cc2 = h * v1, h * v2
+    cd1, cd2 = hd * v1 + h * v1d, hd * v2 + h * v2d
+    cdd1 = hdd * v1 + 2.0 * hd * v1d + h * v1dd
+    cdd2 = hdd * v2 + 2.0 * hd * v2d + h * v2dd
+    # gravity and its derivatives
+    sq1, cq1 = math.sin(q1), math.cos(q1)
+    s12, c12 = math.sin(q1 + q2), math.cos(q1 + q2)
+    ws, as_ = w1 + w2, a1 + a2
+    gg1 = gs1 * sq1 + gs2 * s12
+    gg2 = gs2 * s12
+    gd1 = gs1 * cq1 * w1 + gs2 * c12 * ws
+    gd2 = gs2 * c12 * ws
+    gdd1 = gs1 * (cq1 * a1 - sq1 * w1 * w1) + gs2 * (c12 * as_ - s12 * ws * ws)
+    gdd2 = gs2 * (c12 * as_ - s12 * ws * ws)
+    # L = M q'' + c + g + D q' and L'
+    L1 = m11 * a1 + m12 * a2 + cc1 + gg1 + d1 * w1
+    L2 = m12 * a1 + m22 * a2 + cc2 + gg2 + d2 * w2
+    Ld1 = (2.0 * dfac * a1 + dfac * a2 + m11 * j1 + m12 * j2) + cd1 + gd1 + d1 * a1
+    Ld2 = (dfac * a1 + m12 * j1 + m22 * j2) + cd2 + gd2 + d2 * a2
+    # rhs of M q'''' = ...
+    r1 = (-dm1 / J1 * Ld1 - 2.0 * (2.0 * dfac * j1 + dfac * j2)
+          - (2.0 * ddfac * a1 + ddfac * a2) - cdd1 - gdd1 - d1 * j1)
+    r2 = (-dm2 / J2 * Ld2 - 2.0 * (dfac * j1) - (ddfac * a1) - cdd2 - gdd2 - d2 * j2)
+    wv1 = (b1 * u0 - dm1 * w1 - L1) / J1 - a1
+    wv2 = (b2 * u1 - dm2 * w2 - L2) / J2 - a2
+    det = m11 * m22 - m12 * m12
+    i11, i12, i22 = m22 / det, -m12 / det, m11 / det
+    return i11, i12, i22, r1, r2, wv1, wv2, L1, L2, Ld1, Ld2
+
+
+@njit(cache=True)
+def _affine_terms(Z: Array, U: Array, c: Array) -> tuple[Array, Array]:
+    """Rows of the two-link form eq. 21: ``phi = (0, 0, 0, [M^-1 r]_1, 0, 0, 0, [M^-1 r]_2)``,
+    ``psi_last[c] = [M^-1 diag(w)]_c``."""
+    N = Z.shape[0]
+    phi = np.zeros((N, 8))
+    psi = np.empty((N, 2, 2))
+    for b in range(N):
+        i11, i12, i22, r1, r2, wv1, wv2, _, _, _, _ = _affine_parts(Z[b], U[b, 0], U[b, 1], c)
+        phi[b, 3] = i11 * r1 + i12 * r2
+        phi[b, 7] = i12 * r1 + i22 * r2
+        psi[b, 0, 0] = i11 * wv1
+        psi[b, 0, 1] = i12 * wv2
+        psi[b, 1, 0] = i12 * wv1
+        psi[b, 1, 1] = i22 * wv2
+    return phi, psi
+
+
+@njit(cache=True)
+def _affine_to_physical(Z: Array, TH: Array, U: Array, c: Array) -> Array:
+    """Rows of ``x = (q1, q2, theta1, theta2, q1', q2', theta1', theta2')`` from ``z`` and the
+    stiffness estimates: ``theta = q + K^-1 L``, ``theta' = q' + K^-1 L'``; NaN where an
+    estimate is not > 0."""
+    N = Z.shape[0]
+    X = np.empty((N, 8))
+    for b in range(N):
+        k1, k2 = TH[b, 0], TH[b, 1]
+        if not (k1 > 0.0 and k2 > 0.0):
+            X[b, :] = np.nan
+            continue
+        _, _, _, _, _, _, _, L1, L2, Ld1, Ld2 = _affine_parts(Z[b], U[b, 0], U[b, 1], c)
+        q1, w1, q2, w2 = Z[b, 0], Z[b, 1], Z[b, 4], Z[b, 5]
+        X[b, 0] = q1
+        X[b, 1] = q2
+        X[b, 2] = q1 + L1 / k1
+        X[b, 3] = q2 + L2 / k2
+        X[b, 4] = w1
+        X[b, 5] = w2
+        X[b, 6] = w1 + Ld1 / k1
+        X[b, 7] = w2 + Ld2 / k2
+    return X
 
 
 class ElasticJoint2Link(_MujocoSystem):
@@ -93,6 +194,7 @@ class ElasticJoint2Link(_MujocoSystem):
     model_file = "elastic_joint_2link.xml"
     joints = ("link1", "link2", "motor1", "motor2")
     actuators = ("torque1", "torque2")
+    forms = ("affine",)
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
@@ -157,3 +259,77 @@ class ElasticJoint2Link(_MujocoSystem):
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
         return np.array([float(x[0]), float(x[1])])
+
+    # ------------------------------------------------------------------ forms
+    def _form_affine(self, unknown: Any = None) -> Any:
+        """The two-link elastic arm seen from both link angles: the two-output form eq. 21 of
+        paper 001 (:class:`~hgo_mj.systems.affine_form.AffineForm`), unknown ``stiffness1``,
+        ``stiffness2``.
+
+        With :math:`z[c] = (q_c, \\dot q_c, \\ddot q_c, q_c^{(3)})` for :math:`c = 1, 2`
+        (orders 4 and 4) and the link equation written as :math:`L := M(q)\\ddot q + c(q,
+        \\dot q) + g(q) + D \\dot q = -K (q - \\theta)`, the motor equation
+        :math:`J \\ddot\\theta + D_m \\dot\\theta - K(q - \\theta) = B u` with
+        :math:`\\theta = q + K^{-1} L` gives, for diagonal :math:`K, J, D_m`,
+
+        .. math::
+
+            \\ddot L = K w - J^{-1} D_m \\dot L, \\qquad
+            w = J^{-1}(B u - D_m \\dot q - L) - \\ddot q,
+
+        and :math:`\\ddot L = M q^{(4)} + 2 \\dot M q^{(3)} + \\ddot M \\ddot q + \\ddot c
+        + \\ddot g + D q^{(3)}`, so
+
+        .. math::
+
+            q^{(4)} = \\underbrace{M^{-1}\\left[-J^{-1} D_m \\dot L - 2 \\dot M q^{(3)}
+                      - \\ddot M \\ddot q - \\ddot c - \\ddot g - D q^{(3)}\\right]}_{\\varphi}
+                      + \\underbrace{M^{-1} \\mathrm{diag}(w)}_{\\psi}
+                        \\begin{pmatrix} K_1 \\\\ K_2 \\end{pmatrix}.
+
+        Both stiffnesses enter both chains' last rows (through :math:`M^{-1}`), the orders are
+        equal, so eq. 24 applies with :math:`I_\\lambda = \\lambda^4 I`. The structure [A1']
+        holds: each chain's last entry depends on the other chain. The motor-2 rotor body's
+        axial inertia :math:`J_r = 10^{-12}` kg m^2 of the MJCF is neglected (Spong's
+        assumption); the time derivatives of :math:`M, c, g` along the trajectory are
+        analytic. The map to the physical state (motor angles) is ``to_physical``.
+
+        Raises
+        ------
+        DesignError
+            ``unknown`` is given and is not ``("stiffness1", "stiffness2")``.
+
+        References
+        ----------
+        Paper 001, eq. 21 ([A1']), eq. 24; Spong (1987) for the model.
+        """
+        from .affine_form import AffineForm
+
+        if unknown is not None and tuple(unknown) != ("stiffness1", "stiffness2"):
+            raise DesignError(f"the two-link form estimates ['stiffness1', 'stiffness2']; found "
+                              f"unknown={list(unknown)}")
+        p = dict(self.params)
+        l1, s2, i2, m2 = p["link1_length"], p["link2_moment"], p["link2_inertia"], p["link2_mass"]
+        g0 = p["g"]
+        c = np.array([p["link1_inertia"] + i2 + m2 * l1 * l1, l1 * s2, i2,
+                      g0 * (p["link1_moment"] + m2 * l1), g0 * s2,
+                      p["link1_damping"], p["link2_damping"],
+                      p["motor1_inertia"], p["motor2_inertia"],
+                      p["motor1_damping"], p["motor2_damping"], p["gear1"], p["gear2"]])
+
+        def terms(Z: Array, U: Array) -> tuple[Array, Array]:
+            return _affine_terms(Z, U, c)  # type: ignore[no-any-return]
+
+        def to_physical(Z: Array, TH: Array, U: Array) -> Array:
+            return _affine_to_physical(Z, TH, U, c)  # type: ignore[no-any-return]
+
+        names = ("link1_angle", "link1_velocity", "link1_acceleration", "link1_jerk",
+                 "link2_angle", "link2_velocity", "link2_acceleration", "link2_jerk")
+        return AffineForm(orders=(4, 4), theta_names=("stiffness1", "stiffness2"), terms=terms,
+                          label="two-link elastic arm, both link angles, unknown K1, K2",
+                          theta=[p["stiffness1"], p["stiffness2"]], state_names=names,
+                          n_inputs=2, to_physical=to_physical,
+                          physical_state_names=self.state_names,
+                          true_physical={"stiffness1": p["stiffness1"],
+                                         "stiffness2": p["stiffness2"]}
+                          )._made_by(ElasticJoint2Link._form_affine, self, unknown)

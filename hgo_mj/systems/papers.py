@@ -36,6 +36,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
+from numba import njit
 
 from .._validate import finite_scalar, vector
 from ..exceptions import DesignError
@@ -550,6 +551,57 @@ def besancon_ex2_input(t: float) -> Array:
     return besancon_ex2_signal(t)[2:]
 
 
+@njit(cache=True)
+def _besancon_ex1_terms(Z: Array, U: Array) -> tuple[Array, Array]:
+    """Rows of :class:`BesanconExample1` in the form eq. 9: :math:`\\varphi = (u, -x_1 - 2
+    \\sin x_2)`, :math:`\\psi_{2\\cdot} = (\\arctan x_2, \\cos(x_1 x_2))`."""
+    N = Z.shape[0]
+    phi = np.empty((N, 2))
+    psi = np.empty((N, 1, 2))
+    for b in range(N):
+        x1, x2 = Z[b, 0], Z[b, 1]
+        phi[b, 0] = U[b, 0]
+        phi[b, 1] = -x1 - 2.0 * math.sin(x2)
+        psi[b, 0, 0] = math.atan(x2)
+        psi[b, 0, 1] = math.cos(x1 * x2)
+    return phi, psi
+
+
+@njit(cache=True)
+def _besancon_ex2_terms(Z: Array, U: Array) -> tuple[Array, Array]:
+    """Rows of :class:`BesanconExample2` in the form eq. 21: :math:`\\varphi = (0, \\sin(x_1
+    x_2), 0, v)`, :math:`\\psi_{2\\cdot} = (\\cos(x_1 x_2), x_4 x_3^2)`, :math:`\\psi_{4\\cdot} = 0`."""
+    N = Z.shape[0]
+    phi = np.zeros((N, 4))
+    psi = np.zeros((N, 2, 2))
+    for b in range(N):
+        x1, x2, x3, x4 = Z[b, 0], Z[b, 1], Z[b, 2], Z[b, 3]
+        w = x1 * x2
+        phi[b, 1] = math.sin(w)
+        phi[b, 3] = U[b, 0]
+        psi[b, 0, 0] = math.cos(w)
+        psi[b, 0, 1] = x4 * x3 * x3
+    return phi, psi
+
+
+def _paper001_form(system: System, unknown: Any, terms: Any, label: str) -> Any:
+    """The form of one of paper 001's examples: the compiled ``terms`` for the class itself,
+    the protocol (its ``phi0``, ``regressor``, evaluated row by row) for a subclass that may
+    have changed them."""
+    from .affine_form import AffineForm
+
+    if unknown is not None:
+        raise DesignError(f"unknown= chooses parameters of a derived form; "
+                          f"{type(system).__name__} gives its own (regressor columns)")
+    if type(system) not in (BesanconExample1, BesanconExample2):
+        return AffineForm.from_protocol(system)
+    orders = (2,) if type(system) is BesanconExample1 else (2, 2)
+    return AffineForm(orders=orders, theta_names=system.param_names, terms=terms, label=label,
+                      theta=system.theta,  # type: ignore[attr-defined]
+                      state_names=system.state_names, n_inputs=1
+                      )._made_by(type(system)._form_affine, system, unknown)  # type: ignore[attr-defined]
+
+
 class BesanconExample1(System):
     """First example of paper 001, section 4: single output, two unknown parameters.
 
@@ -591,6 +643,7 @@ class BesanconExample1(System):
     param_names: ClassVar[tuple[str, ...]] = ("theta1", "theta2")
     default_params: ClassVar[Mapping[str, float]] = {"theta1": 1.0, "theta2": 2.0}
     default_x0: ClassVar[tuple[float, ...]] = (1.0, 1.0)
+    forms: ClassVar[tuple[str, ...]] = ("affine",)
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
@@ -631,6 +684,12 @@ class BesanconExample1(System):
         x = vector("x", x, 2)
         vector("u", u, 1)
         return np.array([[0.0, 0.0], [math.atan(x[1]), math.cos(x[0] * x[1])]])
+
+    def _form_affine(self, unknown: Any = None) -> Any:
+        """This system in the form eq. 9 (an :class:`~hgo_mj.systems.affine_form.AffineForm`
+        with compiled rows, equal to :meth:`AffineForm.from_protocol` of :meth:`phi0` and
+        :meth:`regressor`, checked in ``tests/test_besancon.py``)."""
+        return _paper001_form(self, unknown, _besancon_ex1_terms, "paper 001 example 1 (eq. 9)")
 
 
 class BesanconExample2(System):
@@ -691,6 +750,7 @@ class BesanconExample2(System):
     param_names: ClassVar[tuple[str, ...]] = ("theta1", "theta2")
     default_params: ClassVar[Mapping[str, float]] = {"theta1": 10.0, "theta2": -5.0}
     default_x0: ClassVar[tuple[float, ...]] = (1.0, 1.0, 0.1, 2.0)
+    forms: ClassVar[tuple[str, ...]] = ("affine",)
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
@@ -739,6 +799,11 @@ class BesanconExample2(System):
         psi = np.zeros((4, 2))
         psi[1] = (math.cos(x[0] * x[1]), x[3] * x[2] * x[2])
         return psi
+
+    def _form_affine(self, unknown: Any = None) -> Any:
+        """This system in the form eq. 21 (chains ``(y, y')`` and ``(u, u')``; compiled rows,
+        equal to :meth:`AffineForm.from_protocol` of :meth:`phi0` and :meth:`regressor`)."""
+        return _paper001_form(self, unknown, _besancon_ex2_terms, "paper 001 example 2 (eq. 21)")
 
 
 # =====================================================================================

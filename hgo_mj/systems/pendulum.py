@@ -7,9 +7,35 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from numba import njit
 
+from ..exceptions import DesignError
 from ._mujoco import _MjReader, _SecondOrderMujocoSystem
 from .base import Array
+
+#: the parameters of the pendulum's affine form (paper 001, eq. 9), in the order of
+#: :func:`_affine_terms`' basis regressors
+AFFINE_PARAMS = ("g_over_l", "b_over_J", "d_over_J")
+
+
+@njit(cache=True)
+def _affine_terms(Z: Array, U: Array, unknown: Any, known: Array) -> tuple[Array, Array]:
+    """Rows of the pendulum's form eq. 9: ``z2' = phi_2 + psi theta`` with the basis regressors
+    ``r = (-sin z1, u, -z2)`` of ``(g_over_l, b_over_J, d_over_J)``; ``psi`` holds the columns
+    ``unknown`` (indices into ``r``), ``phi_2 = sum_k known_k r_k`` the rest (``known_k`` the
+    true value of a known parameter, 0 for an unknown one)."""
+    N = Z.shape[0]
+    phi = np.zeros((N, 2))
+    psi = np.empty((N, 1, unknown.shape[0]))
+    r = np.empty(3)
+    for b in range(N):
+        r[0] = -math.sin(Z[b, 0])
+        r[1] = U[b, 0]
+        r[2] = -Z[b, 1]
+        phi[b, 1] = 0.0 + known[0] * r[0] + known[1] * r[1] + known[2] * r[2]
+        for j in range(unknown.shape[0]):
+            psi[b, 0, j] = r[unknown[j]]
+    return phi, psi
 
 
 class Pendulum(_SecondOrderMujocoSystem):
@@ -52,6 +78,7 @@ class Pendulum(_SecondOrderMujocoSystem):
     model_file = "pendulum.xml"
     joints = ("hinge",)
     actuators = ("torque",)
+    forms = ("affine",)
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
@@ -100,3 +127,53 @@ class Pendulum(_SecondOrderMujocoSystem):
             out[1, j] = d[nm]
         return out
 
+    # ------------------------------------------------------------------ forms
+    def _form_affine(self, unknown: Any = None) -> Any:
+        """The pendulum :math:`J\\ddot y = -m g l_c \\sin y - d \\dot y + b u` in the form
+        eq. 9 of paper 001 (:class:`~hgo_mj.systems.affine_form.AffineForm`).
+
+        With :math:`a = m g l_c / J` (``g_over_l``), :math:`\\beta = b/J` (``b_over_J``) and
+        :math:`\\delta = d/J` (``d_over_J``), :math:`z = (y, \\dot y)`:
+
+        .. math::
+
+            \\dot z_1 = z_2, \\qquad
+            \\dot z_2 = \\underbrace{-\\delta z_2}_{\\varphi_2}
+                      + \\begin{pmatrix} -\\sin z_1 & u \\end{pmatrix}
+                        \\begin{pmatrix} a \\\\ \\beta \\end{pmatrix}
+
+        for the default ``unknown = ("g_over_l", "b_over_J")`` (damping known, read from the
+        system); a known parameter moves into :math:`\\varphi`, ``d_over_J`` may be estimated
+        too (regressor :math:`-z_2`). The names match the Bastin-Gevers form of the same plant.
+
+        Raises
+        ------
+        DesignError
+            ``unknown`` is not a non-empty sequence of distinct names of ``AFFINE_PARAMS``.
+
+        References
+        ----------
+        Paper 001, eq. 9 (form), eq. 7 (regressor structure).
+        """
+        from .affine_form import AffineForm
+
+        p = self.params
+        J = p["inertia"]
+        true = {"g_over_l": p["mass"] * p["g"] * p["com_distance"] / J, "b_over_J": p["gear"] / J,
+                "d_over_J": p["damping"] / J}
+        order = ("g_over_l", "b_over_J") if unknown is None else tuple(unknown)
+        bad = [u for u in order if u not in AFFINE_PARAMS]
+        if bad or not order or len(set(order)) != len(order):
+            raise DesignError(f"pendulum parameters to estimate must be distinct names from "
+                              f"{list(AFFINE_PARAMS)}; found {list(order)}")
+        idx = np.array([AFFINE_PARAMS.index(k) for k in order], dtype=np.int64)
+        known = np.array([0.0 if k in order else true[k] for k in AFFINE_PARAMS])
+
+        def terms(Z: Array, U: Array) -> tuple[Array, Array]:
+            return _affine_terms(Z, U, idx, known)  # type: ignore[no-any-return]
+
+        return AffineForm(orders=(2,), theta_names=order, terms=terms,
+                          label=f"pendulum y'' = -d/J y' - a sin y + b/J u, unknown {list(order)}",
+                          theta=[true[k] for k in order], state_names=self.state_names,
+                          n_inputs=1, true_physical={k: true[k] for k in order}
+                          )._made_by(Pendulum._form_affine, self, unknown)
