@@ -304,7 +304,7 @@ class BatchedBullinger(BioreactorBullinger):
     (BatchedBullinger(), 2, True),
 ])
 def test_ode_batch_equals_single_and_the_step_loop(system, steps, vectorized):
-    plant = OdePlant(system, dt=0.01)
+    plant = OdePlant(system, dt=0.01, physics_dt=0.005)
     n, m = len(system.state_names), len(system.input_names)
     X0, U = members(n, m, 200, seed=2, scale_x=0.01, scale_u=0.05)
     X0 += np.array(system.default_x0)
@@ -312,8 +312,8 @@ def test_ode_batch_equals_single_and_the_step_loop(system, steps, vectorized):
     plant.reset(X0)
     X, Yc = plant.run(U, steps)
     assert hasattr(type(system), "dynamics_batch") == vectorized
-    ref = OdePlant(type(system)(), dt=0.01)
-    alone = OdePlant(type(system)(), dt=0.01)
+    ref = OdePlant(type(system)(), dt=0.01, physics_dt=0.005)
+    alone = OdePlant(type(system)(), dt=0.01, physics_dt=0.005)
     for b in range(B):
         Xr, Yr, xe, te = step_loop(ref, X0[b], U[b], steps)
         np.testing.assert_array_equal(X[b], Xr)
