@@ -23,7 +23,6 @@ paths that give the same bits (both call ``mj_step`` on the same state; tested):
 
 from __future__ import annotations
 
-import math
 import os
 from importlib import resources
 from pathlib import Path
@@ -161,8 +160,17 @@ class MujocoPlant(Plant):
         if isinstance(nthread, bool) or not isinstance(nthread, (int, np.integer)) or nthread < 1:
             raise DesignError(f"nthread must be a positive integer; found {nthread!r}")
         self.nthread = int(nthread)
-        # the batched paths' addresses, looked up once: in the full physics state (time first,
-        # then qpos and qvel), in sensordata, and which sensors need the acceleration stage
+        self._batch_layout()
+        self._aid_arr = np.array(self._aid, dtype=np.intp)
+        self._rollout: Any = None
+        self._rdata: list[Any] = []
+        self.reset()
+
+    def _batch_layout(self) -> None:
+        """The batched paths' addresses, looked up once: in the full physics state (time
+        first, then qpos and qvel), in ``sensordata``, and which sensors need the
+        acceleration stage."""
+        m = self.model
         self._nstate = int(mujoco.mj_stateSize(m, _FULL))
         self._sq = 1 + self._qadr
         self._sv = 1 + m.nq + self._vadr
@@ -178,12 +186,8 @@ class MujocoPlant(Plant):
                 self._batch_src.append(("state", 1 + m.nq + a))
             else:
                 s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
-                self._batch_src.append(("acc" if int(m.sensor_needstage[s]) >= acc else "sensor",
-                                        a))
-        self._aid_arr = np.array(self._aid, dtype=np.intp)
-        self._rollout: Any = None
-        self._rdata: list[Any] = []
-        self.reset()
+                stage = "acc" if int(m.sensor_needstage[s]) >= acc else "sensor"
+                self._batch_src.append((stage, a))
 
     @property
     def output_names(self) -> tuple[str, ...]:

@@ -106,7 +106,6 @@ class OdePlant(Plant):
         the system has it, else member by member (module docstring)."""
         U, steps = check_block(U, steps, self.batch, len(self.system.input_names))
         B, T, _ = U.shape
-        sysm, p = self.system, self.system.params
         X = np.full((B, T, self._n), np.nan)
         Yc = np.full((B, T, len(self.output_names)), np.nan)
         # the clock is the same for every member: the start time of each plant step
@@ -115,7 +114,7 @@ class OdePlant(Plant):
             starts[i] = self.t
             self._advance_time()
         bad_u = ~np.all(np.isfinite(U), axis=2)          # (B, T)
-        batch_f = getattr(sysm, "dynamics_batch", None)
+        batch_f = getattr(self.system, "dynamics_batch", None)
         fails: list[tuple[int, int, str]] = []            # (sample, member, message)
         if batch_f is not None:
             self._run_rows(batch_f, U, steps, starts, bad_u, X, Yc, fails)

@@ -373,3 +373,45 @@ def test_ode_unbatched_stays_1d_and_batched_step():
     ref.step([1.0])
     np.testing.assert_array_equal(plant.state, np.tile(ref.state, (2, 1)))
     assert plant.t == ref.t
+
+
+def test_mujoco_threads_give_the_same_bits():
+    X0, U = members(2, 1, 100, seed=12)
+    runs = []
+    for nthread in (1, 2, 3):
+        plant = make_plant("pendulum", 0.002, nthread=nthread)
+        plant.reset(X0)
+        runs.append(plant.run(U, 2))
+    for X, Yc in runs[1:]:
+        np.testing.assert_array_equal(X, runs[0][0])
+        np.testing.assert_array_equal(Yc, runs[0][1])
+
+
+@pytest.mark.parametrize("B_", [1, 6])
+def test_mujoco_a_member_the_rollout_stopped_is_stepped_again(B_, monkeypatch):
+    """The rollout stops a member at any MuJoCo warning (not only a bad-state reset) and
+    repeats its state: seen by its time column, the member is stepped again in the loop, which
+    gives what mj_step gives."""
+    X0, U = members(2, 1, 120, seed=13)
+    plant = make_plant("pendulum", 0.002)
+    plant.reset(X0[:B_])
+    ref = plant.run(U[:B_], 2), plant.state
+
+    class Freezing:
+        """A pool whose rollout freezes the last member after 37 steps."""
+
+        def __init__(self, pool):
+            self.pool = pool
+
+        def rollout(self, *args, state, **kw):
+            self.pool.rollout(*args, state=state, **kw)
+            state[-1, 37:] = state[-1, 36]
+            return state, kw.get("sensordata")
+
+    pool, datas = plant._rollout_pool()
+    monkeypatch.setattr(plant, "_rollout_pool", lambda: (Freezing(pool), datas))
+    plant.reset(X0[:B_])
+    got = plant.run(U[:B_], 2), plant.state
+    np.testing.assert_array_equal(got[0][0], ref[0][0])
+    np.testing.assert_array_equal(got[0][1], ref[0][1])
+    np.testing.assert_array_equal(got[1], ref[1])

@@ -12,9 +12,22 @@ import numpy as np
 import pytest
 
 from hgo_mj.exceptions import DesignError, DimensionError
-from hgo_mj.sensors import (STAGES, Bias, Delay, Dropout, GaussianNoise, Outliers, Quantization,
-                            RandomWalkDrift, SampleHold, Saturation, SensorChain, Stage,
-                            UniformNoise, stream_generators)
+from hgo_mj.sensors import (
+    STAGES,
+    Bias,
+    Delay,
+    Dropout,
+    GaussianNoise,
+    Outliers,
+    Quantization,
+    RandomWalkDrift,
+    SampleHold,
+    Saturation,
+    SensorChain,
+    Stage,
+    UniformNoise,
+    stream_generators,
+)
 
 B, T, P = 64, 200, 2
 SEEDS = list(range(100, 100 + B))
@@ -251,3 +264,17 @@ def test_a_stage_without_a_batched_apply_is_refused():
     np.testing.assert_array_equal(chain(0.0, [1.0]), [2.0])   # the per-sample path works
     with pytest.raises(DesignError, match=r"Custom has no batched apply\(t, Y, draws\)"):
         chain.apply([0.0], np.ones((1, 1, 1)))
+
+
+def test_long_blocks_beyond_the_draw_block():
+    """Blocks longer than the kept draw block (1024 per stream) draw what they need: the
+    same stream as default_rng(seed) call after call."""
+    n = 3000
+    chain = SensorChain([GaussianNoise(std=1.0)])
+    chain.reset([5, 6])
+    t = np.arange(n) * 1e-3
+    out = np.concatenate([chain.apply(t[:10], np.zeros((2, 10, 1))),
+                          chain.apply(t[10:2500], np.zeros((2, 2490, 1))),
+                          chain.apply(t[2500:], np.zeros((2, 500, 1)))], axis=1)
+    for b, sd in enumerate((5, 6)):
+        np.testing.assert_array_equal(out[b, :, 0], np.random.default_rng(sd).standard_normal(n))
