@@ -509,6 +509,7 @@ class MujocoPlant(Plant):
             d = self.data
             mujoco.mj_setState(m, d, S0[0], _FULL)
             d.ctrl[:] = C0[0]
+            mujoco.mj_forward(m, d)  # the derived quantities (poses, ...) of that state
         else:
             self._S[:] = S0
             self._C[:] = C0
