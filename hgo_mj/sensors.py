@@ -216,6 +216,58 @@ class _Draws:
         return np.concatenate((got, rest)) if got else rest
 
 
+class _Streams:
+    """The B generators of one random stage in a batched chain (one per stream) and their
+    variates, drawn in blocks ``(B, K)`` and handed out in stream order with one cursor (every
+    stream takes the same count at each call). A block of 16 per stream at first, doubling up
+    to 1024; a call that needs more than the block holds draws what it needs. The values a
+    stream gets are those of consecutive calls of ``getattr(gen, kind)``, however the calls are
+    cut, so a batched run does not depend on its block sizes.
+
+    The buffer is kept and reused (fresh megabytes cost page faults at every refill) and kept
+    stream-major, each generator filling its own row: a transposed (draw-major) copy cost more
+    (about 8 ns a value, measured) than the strided read of one sample's draws.
+    """
+
+    __slots__ = ("_block", "_buf", "_kind", "_pos", "_store", "gens")
+
+    def __init__(self, gens: Sequence[np.random.Generator], kind: str) -> None:
+        self.gens = tuple(gens)
+        self._kind = kind
+        self._store = np.empty((len(self.gens), 0))
+        self._buf = self._store
+        self._pos = 0
+        self._block = _FIRST_BLOCK
+
+    def _refill(self, size: int) -> Array:
+        """Draw the next ``size`` variates of every stream into the kept buffer, ``(B, size)``."""
+        if size > _MAX_BLOCK:               # a long block: drawn into a buffer of its own
+            buf = np.empty((len(self.gens), size))
+        else:
+            if self._store.shape[1] < size:
+                self._store = np.empty((len(self.gens), size))
+            buf = self._store[:, :size]
+        draw = self._kind
+        for row, g in zip(buf, self.gens):
+            getattr(g, draw)(size, out=row)
+        return buf
+
+    def take(self, n: int) -> Array:
+        """The next ``n`` variates of every stream, ``(B, n)`` (a view, valid until the next
+        call: do not write into it)."""
+        buf, pos = self._buf, self._pos
+        if pos + n <= buf.shape[1]:
+            self._pos = pos + n
+            return buf[:, pos:pos + n]
+        rest = buf[:, pos:].copy()          # the kept buffer is about to be drawn into
+        need = n - rest.shape[1]
+        size = max(need, self._block)
+        self._block = min(2 * self._block, _MAX_BLOCK)
+        self._buf, self._pos = self._refill(size), need
+        head = self._buf[:, :need]
+        return np.concatenate((rest, head), axis=1) if rest.shape[1] else head
+
+
 class Stage:
     """One step of a sensor chain (base class).
 
@@ -233,9 +285,14 @@ class Stage:
 
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
+    #: the kind of variates a random stage draws (``"standard_normal"`` or ``"random"``, a
+    #: method of :class:`numpy.random.Generator`); None for a deterministic stage
+    draws: ClassVar[str | None] = None
 
     def __init__(self) -> None:
         self._params: dict[str, Any] = {}
+        #: the batched path's per-member state (None: fresh, see :meth:`reset_batch`)
+        self._bstate: Any = None
         self._n: int | None = None      # channel count fixed by per-channel parameters
         self._n_from = ""               # name of the parameter that fixed it
 
@@ -303,6 +360,44 @@ class Stage:
         Variates a stage has drawn in advance but not used are kept: they are the next values
         of its stream (see the module docstring)."""
 
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        """The batched primitive: apply the stage to a block of samples of B streams.
+
+        Parameters
+        ----------
+        t : ndarray, shape (T,)
+            Sample times, finite, non-decreasing (shared by the streams).
+        Y : ndarray, shape (B, T, p)
+            Input samples of every stream (not modified).
+        draws : _Streams or None
+            The stage's own variates, one generator per stream (random stages; see
+            :class:`SensorChain`); None for deterministic stages.
+
+        Returns
+        -------
+        ndarray, shape (B, T, p)
+            A new array. Stateful stages (held samples, delay lines, drift, counters) keep one
+            state per stream across blocks, cleared by :meth:`reset_batch`; a block of ``T``
+            samples gives what ``T`` blocks of one sample give.
+        """
+        raise DesignError(f"{type(self).__name__} has no batched apply(t, Y, draws); implement "
+                          "it to use the stage in a batched chain")
+
+    def reset_batch(self) -> None:
+        """Clear the batched path's per-stream state (the next :meth:`apply` starts fresh)."""
+        self._bstate = None
+
+    def _fresh_state(self, B: int, make: Any) -> Any:
+        """The per-stream state for ``B`` streams: made by ``make()`` on the first block,
+        refused when B changes without :meth:`reset_batch`."""
+        st = self._bstate
+        if st is None:
+            st = self._bstate = (B, make())
+        elif st[0] != B:
+            raise DimensionError(f"{type(self).__name__}: the batch changed from {st[0]} to {B} "
+                                 "streams without reset_batch()")
+        return st[1]
+
     def params(self) -> dict[str, Any]:
         """The constructor parameters, as JSON-friendly values."""
         return {k: (list(v) if isinstance(v, list) else v) for k, v in self._params.items()}
@@ -337,6 +432,7 @@ class GaussianNoise(Stage):
 
     name = "gaussian"
     summary = "additive white Gaussian noise: std=, or psd= with sample_time= (var = psd/Ts)"
+    draws = "standard_normal"
 
     def __init__(self, std: float | ArrayLike | None = None, *,
                  psd: float | ArrayLike | None = None,
@@ -395,6 +491,12 @@ class GaussianNoise(Stage):
         self._check_width(len(y))
         return [v + s * one(rng) for v, s in zip(y, self._std_list)]  # type: ignore[arg-type]
 
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        B, T, p = Y.shape
+        self._check_width(p)
+        z = draws.take(T * p).reshape(B, T, p)  # type: ignore[union-attr]
+        return Y + self._std * z
+
 
 class UniformNoise(Stage):
     """Additive white noise uniform on ``[-half_width, half_width]``.
@@ -407,6 +509,7 @@ class UniformNoise(Stage):
 
     name = "uniform"
     summary = "additive white noise uniform on [-half_width, half_width] (var = hw^2/3)"
+    draws = "random"
 
     def __init__(self, half_width: float | ArrayLike) -> None:
         super().__init__()
@@ -443,6 +546,12 @@ class UniformNoise(Stage):
         return [(2.0 * one(rng) - 1.0) * h + v
                 for v, h in zip(y, self._hw_list)]  # type: ignore[arg-type]
 
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        B, T, p = Y.shape
+        self._check_width(p)
+        u = draws.take(T * p).reshape(B, T, p)  # type: ignore[union-attr]
+        return (u * 2.0 - 1.0) * self._hw + Y  # [0, 1) -> [-1, 1) -> [-hw, hw), as __call__
+
 
 class Bias(Stage):
     """Constant additive offset.
@@ -474,6 +583,10 @@ class Bias(Stage):
         self._check_width(len(y))
         return [v + o for v, o in zip(y, self._offset_list)]  # type: ignore[arg-type]
 
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        self._check_width(Y.shape[2])
+        return Y + self._offset
+
 
 class RandomWalkDrift(Stage):
     """Bias that performs a random walk (integrated white noise).
@@ -498,6 +611,7 @@ class RandomWalkDrift(Stage):
 
     name = "drift"
     summary = "random-walk bias: b += N(0, sigma^2 dt) each call, output y + b"
+    draws = "standard_normal"
 
     def __init__(self, sigma: float | ArrayLike, initial: float | ArrayLike = 0.0) -> None:
         super().__init__()
@@ -538,6 +652,38 @@ class RandomWalkDrift(Stage):
             self._b += z
         self._t = t
         return y + self._b
+
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        """Per stream the bias ``b`` (B, p) and the last time, across blocks; the increments of
+        a block are summed in order (``numpy.cumsum``: the same additions as call by call)."""
+        B, T, p = Y.shape
+        self._check_width(p)
+        st = self._fresh_state(B, lambda: {"b": None, "t": 0.0})
+        z = draws.take(T * p).reshape(B, T, p)  # type: ignore[union-attr]
+        if st["b"] is not None and st["b"].shape[1] != p:
+            raise DimensionError(f"RandomWalkDrift: y changed length from {st['b'].shape[1]} "
+                                 f"to {p} without reset()")
+        first = st["b"] is None
+        prev = np.concatenate(([st["t"]], t[:-1]))
+        dt = t - prev
+        if first:
+            dt[0] = 0.0
+        bad = np.flatnonzero(dt < 0)
+        if bad.size:
+            k = int(bad[0])
+            raise DesignError(f"RandomWalkDrift: time must not decrease; found t={t[k]} after "
+                              f"t={prev[k]} (call reset() before restarting)")
+        inc = z * self._sigma
+        inc *= np.sqrt(dt)[None, :, None]
+        if first:
+            b0 = np.zeros((B, p))
+            b0 += self._initial
+            inc[:, 0] = b0          # the first sample sets the initial bias (its draw unused)
+        else:
+            inc[:, 0] += st["b"]    # the bias so far plus the first increment
+        b = np.cumsum(inc, axis=1)
+        st["b"], st["t"] = b[:, -1].copy(), float(t[-1])
+        return Y + b
 
 
 class Quantization(Stage):
@@ -612,6 +758,10 @@ class Quantization(Stage):
             return [_rint(v / res) * res for v in y]
         return [_rint(v / r) * r for v, r in zip(y, self._res_list)]  # type: ignore[arg-type]
 
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        self._check_width(Y.shape[2])
+        return np.rint(Y / self._res) * self._res
+
 
 def _rint(q: float) -> float:
     """:func:`numpy.rint` of a Python float, as a Python float: ties to even, NaN and +-inf
@@ -659,6 +809,26 @@ class SampleHold(Stage):
             self._k = k
             self._held = y.copy()
         return self._held.copy()
+
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        """The sample index ``k`` of every time (shared by the streams) decides where a new
+        sample is taken; per stream the held sample carries over to the next block."""
+        B, T, p = Y.shape
+        st = self._fresh_state(B, lambda: {"k": None, "held": None})
+        if st["held"] is not None and st["held"].shape[1] != p:
+            raise DimensionError(f"SampleHold: y changed length from {st['held'].shape[1]} to "
+                                 f"{p} without reset()")
+        eps = np.minimum(1e-9 * np.maximum(1.0, np.abs(t)), 1e-3 * self._period)
+        k = np.floor((t + eps) / self._period)
+        new = np.empty(T, dtype=bool)
+        new[0] = st["held"] is None or k[0] != st["k"]
+        new[1:] = k[1:] != k[:-1]
+        src = np.maximum.accumulate(np.where(new, np.arange(T), -1))
+        out = Y[:, np.maximum(src, 0)]
+        if src[0] < 0:              # the samples before the block's first new one: held
+            out[:, src < 0] = st["held"][:, None]
+        st["k"], st["held"] = float(k[-1]), out[:, -1].copy()
+        return out
 
 
 class Delay(Stage):
@@ -715,6 +885,36 @@ class Delay(Stage):
         # first input (an entry is only dropped once its successor is old enough).
         return buf[0][1].copy()
 
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        """The delay line of :meth:`__call__` for a block: the times (shared by the streams)
+        give, for each sample, the index of the entry it returns (the latest received at or
+        before ``t - delay``, never moving back; the first input until one exists); per stream
+        the entries still needed carry over to the next block."""
+        B, T, p = Y.shape
+        st = self._fresh_state(B, lambda: {"t": None, "Y": None})
+        if st["t"] is not None:
+            if st["Y"].shape[2] != p:
+                raise DimensionError(f"Delay: y changed length from {st['Y'].shape[2]} to {p} "
+                                     "without reset()")
+            times = np.concatenate((st["t"], t))
+            vals = np.concatenate((st["Y"], Y), axis=1)
+        else:
+            times, vals = t, Y
+        back = np.flatnonzero(times[1:] < times[:-1])
+        if back.size:
+            k = int(back[0])
+            raise DesignError(f"Delay: time must not decrease; found t={times[k + 1]} after "
+                              f"t={times[k]} (call reset() before restarting)")
+        H = times.shape[0] - T
+        target = t - self._delay + 1e-9 * np.maximum(1.0, np.abs(t))
+        idx = np.searchsorted(times, target, side="right") - 1
+        idx = np.maximum(np.minimum(idx, H + np.arange(T)), 0)
+        idx = np.maximum.accumulate(idx)
+        out = vals[:, idx]
+        front = int(idx[-1])
+        st["t"], st["Y"] = times[front:].copy(), vals[:, front:].copy()
+        return out
+
 
 class Dropout(Stage):
     """Lose samples: with probability ``p`` per call and channel the sample becomes NaN.
@@ -734,6 +934,7 @@ class Dropout(Stage):
 
     name = "dropout"
     summary = "with probability p= per sample and channel, the sample becomes NaN"
+    draws = "random"
 
     def __init__(self, p: float | ArrayLike) -> None:
         super().__init__()
@@ -769,6 +970,22 @@ class Dropout(Stage):
                 self.count += 1
         return out
 
+    @property
+    def counts(self) -> NDArray[np.int64] | None:
+        """Samples dropped per stream by the batched path since :meth:`reset_batch` (None
+        before the first block)."""
+        return None if self._bstate is None else self._bstate[1].copy()
+
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        B, T, p = Y.shape
+        self._check_width(p)
+        counts = self._fresh_state(B, lambda: np.zeros(B, dtype=np.int64))
+        hit = draws.take(T * p).reshape(B, T, p) < self._p  # type: ignore[union-attr]
+        out = Y.copy()
+        out[hit] = np.nan
+        counts += np.count_nonzero(hit, axis=(1, 2))
+        return out
+
 
 class Outliers(Stage):
     """Rare spikes: with probability ``p`` per call and channel, add ``+-magnitude``.
@@ -791,6 +1008,7 @@ class Outliers(Stage):
 
     name = "outliers"
     summary = "with probability p= per sample and channel, add +-magnitude= (random sign)"
+    draws = "random"
 
     def __init__(self, p: float | ArrayLike, magnitude: float | ArrayLike) -> None:
         super().__init__()
@@ -817,6 +1035,23 @@ class Outliers(Stage):
             out[hit] += spike[hit]
             self.count += k
         return out
+
+    @property
+    def counts(self) -> NDArray[np.int64] | None:
+        """Outliers added per stream by the batched path since :meth:`reset_batch` (None
+        before the first block)."""
+        return None if self._bstate is None else self._bstate[1].copy()
+
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        """Per sample ``2 p`` uniform numbers (hit, then sign), as :meth:`__call__`."""
+        B, T, p = Y.shape
+        self._check_width(p)
+        counts = self._fresh_state(B, lambda: np.zeros(B, dtype=np.int64))
+        u = draws.take(T * 2 * p).reshape(B, T, 2, p)  # type: ignore[union-attr]
+        hit = u[:, :, 0] < self._p
+        spike = np.where(u[:, :, 1] < 0.5, -1.0, 1.0) * self._mag
+        counts += np.count_nonzero(hit, axis=(1, 2))
+        return np.where(hit, Y + spike, Y)
 
 
 class Saturation(Stage):
@@ -855,6 +1090,12 @@ class Saturation(Stage):
         lo = [self._low] * n if self._low_list is None else self._low_list
         hi = [self._high] * n if self._high_list is None else self._high_list
         return [a if v < a else (b if v > b else v) for v, a, b in zip(y, lo, hi)]
+
+    def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
+        self._check_width(Y.shape[2])
+        out = np.maximum(Y, self._low)          # NaN propagates, as __call__
+        np.minimum(out, self._high, out=out)
+        return out
 
 
 #: Registry of the stages by name (the ``stage`` key of a spec).
@@ -928,6 +1169,27 @@ def _check_seed(seed: Any) -> int | None:
     return int(seed)
 
 
+def _is_seed_sequence(seed: Any) -> bool:
+    """A sequence of seeds (B streams), as opposed to one seed or None."""
+    return isinstance(seed, (Sequence, np.ndarray)) and not isinstance(seed, (str, bytes))
+
+
+def stream_generators(seed: int | None, count: int) -> list[np.random.Generator]:
+    """The generators of the ``count`` random stages of one stream with seed ``seed``: the
+    first is ``numpy.random.default_rng(seed)`` (the one generator of a chain before the batch
+    axis: a chain with one random stage gives the same numbers as then), the ``k``-th one
+    after it (``k = 1, 2, ...``) is seeded by the ``(k-1)``-th child of
+    ``SeedSequence(seed)`` (``SeedSequence(seed, spawn_key=(k - 1,))``, what
+    ``SeedSequence(seed).spawn`` gives), a stream independent of the first. ``seed`` None:
+    fresh OS entropy, shared by the stage generators of the stream."""
+    root = np.random.SeedSequence(seed)
+    gens = [np.random.default_rng(root)] if count else []
+    for k in range(1, count):
+        child = np.random.SeedSequence(root.entropy, spawn_key=(k - 1,))
+        gens.append(np.random.default_rng(child))
+    return gens
+
+
 class SensorChain:
     """A sequence of sensor stages applied in order, with one seeded random generator.
 
@@ -940,11 +1202,26 @@ class SensorChain:
         bit-identical output sequences.  ``None`` draws fresh OS entropy (at construction and
         at every :meth:`reset` without a seed).
 
+    Notes
+    -----
+    **Batched streams** (:meth:`reset` with a sequence of B seeds, then :meth:`apply` on blocks
+    ``(B, T, p)``): every random stage of a stream draws from its own generator
+    (:func:`stream_generators`): the first random stage from ``default_rng(seed)``, as the one
+    shared generator did, later ones from generators spawned from the seed. So a chain with one
+    random stage (e.g. Gaussian noise then quantization) gives, per stream, exactly the numbers
+    of ``chain(t, y)`` sample by sample with that seed; a chain with two or more random stages
+    gives other (equally distributed) numbers than the per-sample path, where the stages share
+    one generator. Each stream is the same whether run alone or in a batch, and whatever the
+    block sizes.
+
     Examples
     --------
     >>> chain = SensorChain([Bias(0.1), GaussianNoise(std=0.01)], seed=0)
     >>> chain(0.0, np.zeros(2)).shape
     (2,)
+    >>> chain.reset([0, 1, 2])
+    >>> chain.apply(np.array([0.0, 0.01]), np.zeros((3, 2, 2))).shape
+    (3, 2, 2)
     """
 
     def __init__(self, stages: Sequence[Stage] = (), seed: int | None = None) -> None:
@@ -958,7 +1235,25 @@ class SensorChain:
         self._seed = self._seed0
         self._rng = np.random.default_rng(self._seed)
         self._dropout_stages = tuple(s for s in stages if isinstance(s, Dropout))
+        self._start_streams((self._seed,), batched=False)
 
+    def _start_streams(self, seeds: tuple[int | None, ...], batched: bool) -> None:
+        """The batched path's generators: per random stage one :class:`_Streams` of the B
+        streams (None for deterministic stages); every stage's per-stream state cleared."""
+        random = [s for s in self._stages if s.draws is not None]
+        per_stream = [stream_generators(sd, len(random)) for sd in seeds]
+        k = 0
+        streams: list[_Streams | None] = []
+        for s in self._stages:
+            if s.draws is None:
+                streams.append(None)
+            else:
+                streams.append(_Streams([g[k] for g in per_stream], s.draws))
+                k += 1
+            s.reset_batch()
+        self._streams = tuple(streams)
+        self._seeds = seeds
+        self._batched = batched
     @property
     def stages(self) -> tuple[Stage, ...]:
         """The stages, in the order they are applied."""
@@ -978,6 +1273,76 @@ class SensorChain:
     def dropouts(self) -> int:
         """Total number of samples dropped by the :class:`Dropout` stages since the reset."""
         return sum(s.count for s in self._dropout_stages)
+
+    @property
+    def batch(self) -> int:
+        """Number of streams B of the batched path (1 after a reset with one seed)."""
+        return len(self._seeds)
+
+    @property
+    def batched(self) -> bool:
+        """Whether the chain was reset with a sequence of seeds."""
+        return self._batched
+
+    @property
+    def seeds(self) -> tuple[int | None, ...]:
+        """The seeds of the B streams."""
+        return self._seeds
+
+    def dropout_counts(self) -> NDArray[np.int64]:
+        """Samples dropped per stream by the :class:`Dropout` stages on the batched path since
+        the reset, shape ``(B,)``."""
+        out = np.zeros(self.batch, dtype=np.int64)
+        for s in self._dropout_stages:
+            c = s.counts
+            if c is not None:
+                out += c
+        return out
+
+    def apply(self, t: ArrayLike, Y: ArrayLike) -> Array:
+        """Measure a block: apply every stage in order to the clean outputs of B streams.
+
+        Parameters
+        ----------
+        t : array_like, shape (T,)
+            Sample times, seconds: finite, non-decreasing, continuing the previous block's.
+        Y : array_like, shape (B, T, p)
+            Clean outputs of every stream at those times (not modified); B is :attr:`batch`.
+
+        Returns
+        -------
+        ndarray, shape (B, T, p)
+            The measurements, a new array (NaN where a sample was dropped). Stream ``b`` is
+            what the chain gives alone with seed ``seeds[b]``, and a block of ``T`` samples is
+            what the same samples give cut into any smaller blocks.
+
+        Raises
+        ------
+        DimensionError
+            ``t`` not 1-D, ``Y`` not ``(B, T, p)`` with that B and T, or ``p`` not matching a
+            per-channel parameter.
+        DesignError
+            ``t`` not finite, or decreasing where a stage keeps time (drift, delay).
+        """
+        try:
+            tt = np.asarray(t, dtype=np.float64)
+            y = np.asarray(Y, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise DimensionError("SensorChain.apply: t (T,) and Y (B, T, p) must be arrays of "
+                                 "numbers") from None
+        if tt.ndim != 1:
+            raise DimensionError(f"SensorChain.apply: t must be 1-D (T,); found shape "
+                                 f"{tt.shape}")
+        if y.ndim != 3 or y.shape[0] != self.batch or y.shape[1] != tt.shape[0]:
+            raise DimensionError(f"SensorChain.apply: Y must have shape (B, T, p) = "
+                                 f"({self.batch}, {tt.shape[0]}, p); found shape {y.shape}")
+        if not np.all(np.isfinite(tt)):
+            raise DesignError(f"SensorChain.apply: t must be finite; found {tt.tolist()}")
+        if not self._stages or tt.shape[0] == 0:
+            return y.copy()
+        for s, draws in zip(self._stages, self._streams):
+            y = s.apply(tt, y, draws)
+        return y
 
     def __len__(self) -> int:
         return len(self._stages)
@@ -1023,19 +1388,29 @@ class SensorChain:
             y = s(t, y, rng)
         return y
 
-    def reset(self, seed: int | None = None) -> None:
-        """Re-seed the generator and reset every stage.
+    def reset(self, seed: int | Sequence[int | None] | None = None) -> None:
+        """Re-seed the generator(s) and reset every stage.
 
         Parameters
         ----------
-        seed : int or None, default None
+        seed : int, None, or sequence of int or None
             New seed; ``None`` re-uses the constructor's seed (which, if itself ``None``,
-            means fresh OS entropy).
+            means fresh OS entropy). A sequence of B seeds starts B streams for
+            :meth:`apply` (a ``None`` entry: fresh OS entropy for that stream).
         """
-        self._seed = self._seed0 if seed is None else _check_seed(seed)
+        if _is_seed_sequence(seed):
+            seeds = tuple(_check_seed(sd) for sd in seed)  # type: ignore[union-attr]
+            if not seeds:
+                raise DesignError("seed: a sequence of seeds needs at least one; found none")
+            self._seed = seeds[0]
+            batched = True
+        else:
+            self._seed = self._seed0 if seed is None else _check_seed(seed)
+            seeds, batched = (self._seed,), False
         self._rng = np.random.default_rng(self._seed)
         for s in self._stages:
             s.reset()
+        self._start_streams(seeds, batched)
 
     def describe(self) -> list[dict[str, Any]]:
         """The chain as JSON-friendly data: ``[{"stage": name, **params}, ...]``.

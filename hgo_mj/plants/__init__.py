@@ -16,7 +16,8 @@ def make_plant(name: str, dt: float | None = None, *, physics_dt: float | None =
     """Build the plant of a registered system.
 
     MuJoCo systems take their parameters from their MJCF (edit the file, or pass
-    ``model_file=``); ODE systems take parameter overrides as keywords.
+    ``model_file=``; ``outputs=`` and the rollout's ``nthread=`` as :class:`MujocoPlant`);
+    ODE systems take parameter overrides as keywords.
     """
     from ..systems import SYSTEMS
 
@@ -25,7 +26,7 @@ def make_plant(name: str, dt: float | None = None, *, physics_dt: float | None =
     cls = SYSTEMS[name]
     if cls.model_file is not None:
         reject_unknown(f"plant {name!r} (MuJoCo: parameters come from {cls.model_file})",
-                       params, ["model_file", "outputs"])
+                       params, ["model_file", "outputs", "nthread"])
         return MujocoPlant(cls, 0.001 if dt is None else dt, physics_dt=physics_dt, **params)
     system = cls(**params)
     return OdePlant(system, getattr(cls, "default_dt", 0.01) if dt is None else dt,

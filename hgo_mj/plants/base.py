@@ -1,4 +1,22 @@
-"""The true plant: owns time and the true state."""
+"""The true plant: owns time and the true state, for one member or a batch of B members.
+
+The batched contract (what the loop drives):
+
+* ``reset(x0=None, *, batch=None)``: ``x0`` of shape ``(n,)`` (every member) or ``(B, n)``;
+  ``batch`` the number of members B. Plain ``reset()`` / ``reset(x0 (n,))`` is the unbatched
+  plant (B = 1, public arrays 1-D as before); ``batch=`` or a 2-D ``x0`` makes it batched
+  (``state`` ``(B, n)``, ``outputs()`` ``(B, p)``), also for B = 1.
+* ``run(U, steps) -> (X, Yc)``: ``U`` ``(B, T, m)``; for each sample ``j`` the true state
+  ``X[:, j]`` ``(B, T, n)`` and clean outputs ``Yc[:, j]`` ``(B, T, p)`` are recorded at the
+  current instant, then ``U[:, j]`` is held for ``steps`` plant steps of ``dt`` each. After
+  ``run`` the plant is at the instant after the last sample. Every member is independent and
+  gives exactly (bit for bit) what it gives when run alone.
+* a failure (a non-finite or out-of-range input, a state leaving the finite numbers) raises
+  :class:`~hgo_mj.exceptions.DivergenceError` naming the member and the time, with the
+  attributes ``member``, ``t``, ``rows`` (the samples of the block recorded for every member:
+  ``X[:, :rows]``, ``Yc[:, :rows]`` are valid) and ``X``, ``Yc`` (the block's arrays, NaN where
+  nothing was recorded). After a failure the plant must be reset.
+"""
 
 from __future__ import annotations
 
@@ -8,13 +26,92 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 
 Array = NDArray[np.float64]
 
 
+def initial_states(x0: Any, batch: Any, default: Array, n: int) -> tuple[Array, bool]:
+    """The members' initial states ``(B, n)`` (a fresh float array) and whether the plant is
+    batched, from :meth:`Plant.reset`'s ``x0`` (None: ``default``; ``(n,)``: every member;
+    ``(B, n)``) and ``batch`` (None or a positive integer).
+
+    Raises
+    ------
+    DimensionError
+        ``x0`` is neither ``(n,)`` nor ``(B, n)``, or its B differs from ``batch``.
+    DesignError
+        ``batch`` is not a positive integer, or ``x0`` is not finite.
+    """
+    if batch is not None and (isinstance(batch, bool) or not isinstance(batch, (int, np.integer))
+                              or batch < 1):
+        raise DesignError(f"batch must be a positive integer or None; found {batch!r}")
+    if x0 is None:
+        x = np.array(default, dtype=float).reshape(1, n)
+    else:
+        try:
+            x = np.array(x0, dtype=float)
+        except (TypeError, ValueError):
+            raise DimensionError(f"x0 must be an array of numbers, (n,) or (B, n); found "
+                                 f"{x0!r}") from None
+        if x.ndim == 1:
+            if x.shape != (n,):
+                raise DimensionError(f"x0 must have length {n}; found length {x.size}")
+            x = x.reshape(1, n)
+        elif x.ndim == 2:
+            if x.shape[1] != n or x.shape[0] < 1:
+                raise DimensionError(f"x0 must have shape (B, {n}); found shape {x.shape}")
+            if batch is not None and x.shape[0] != batch:
+                raise DimensionError(f"x0 has {x.shape[0]} rows but batch is {batch}")
+        else:
+            raise DimensionError(f"x0 must be (n,) or (B, n) with n = {n}; found shape "
+                                 f"{x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise DesignError(f"x0 must be finite; found {x.tolist()}")
+    batched = batch is not None or (x0 is not None and np.ndim(x0) == 2)
+    B = x.shape[0] if batch is None else int(batch)
+    if x.shape[0] != B:
+        x = np.repeat(x, B, axis=0)
+    return np.ascontiguousarray(x), batched
+
+
+def check_block(U: Any, steps: Any, batch: int, m: int) -> tuple[Array, int]:
+    """``U`` as a C-contiguous float64 ``(B, T, m)`` array and ``steps`` as a positive int.
+
+    Raises
+    ------
+    DimensionError
+        ``U`` is not 3-D ``(batch, T, m)``.
+    DesignError
+        ``steps`` is not a positive integer.
+    """
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise DesignError(f"steps must be a positive integer (plant steps per sample); found "
+                          f"{steps!r}")
+    try:
+        u = np.ascontiguousarray(U, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise DimensionError(f"U must be an array of numbers (B, T, m); found {U!r}") from None
+    if u.ndim != 3 or u.shape[0] != batch or u.shape[2] != m:
+        raise DimensionError(f"U must have shape (B, T, m) = ({batch}, T, {m}); found shape "
+                             f"{u.shape}")
+    return u, int(steps)
+
+
+def divergence(message: str, member: int, t: float, rows: int, X: Array,
+               Yc: Array) -> DivergenceError:
+    """A :class:`DivergenceError` carrying ``member``, ``t``, ``rows`` and the block's
+    ``X``, ``Yc`` (see the module docstring)."""
+    exc = DivergenceError(message)
+    exc.member, exc.t, exc.rows = member, t, rows  # type: ignore[attr-defined]
+    exc.X, exc.Yc = X, Yc  # type: ignore[attr-defined]
+    return exc
+
+
 class Plant(ABC):
-    """A simulated plant. ``step(u)`` advances one control period with ``u`` held.
+    """A simulated plant. ``step(u)`` advances one control period with ``u`` held; ``run(U,
+    steps)`` advances a block of samples for B members at once (module docstring).
 
     Attributes
     ----------
@@ -42,13 +139,66 @@ class Plant(ABC):
     def output_names(self) -> tuple[str, ...]:
         return self.system.output_names
 
+    #: number of members (set by :meth:`reset`)
+    batch: int = 1
+    #: whether the plant was reset batched (public arrays with a leading axis B)
+    batched: bool = False
+
     @abstractmethod
-    def reset(self, x0: Any = None) -> None:
-        """Set time to zero and the state to ``x0`` (default: ``system.default_x0``)."""
+    def reset(self, x0: Any = None, *, batch: int | None = None) -> None:
+        """Set time to zero and the state to ``x0`` (default: ``system.default_x0``):
+        ``(n,)`` for every member or ``(B, n)``; ``batch`` the number of members."""
 
     @abstractmethod
     def step(self, u: Any) -> None:
-        """Advance one control period ``dt`` with the input ``u`` held."""
+        """Advance one control period ``dt`` with the input ``u`` held (``(m,)``; ``(B, m)``
+        for a batched plant)."""
+
+    def run(self, U: Any, steps: int) -> tuple[Array, Array]:
+        """Advance ``U.shape[1]`` samples of ``steps`` plant steps each (module docstring).
+
+        Parameters
+        ----------
+        U : array_like, shape (B, T, m)
+            The input of every member at every sample, held over the sample.
+        steps : int
+            Plant steps (each :attr:`dt`) per sample.
+
+        Returns
+        -------
+        X : ndarray, shape (B, T, n)
+            The true state at each sample instant, before its input is applied.
+        Yc : ndarray, shape (B, T, p)
+            The clean outputs at the same instants.
+
+        Raises
+        ------
+        DimensionError
+            ``U`` is not ``(B, T, m)``.
+        DivergenceError
+            A member's input or state left the allowed numbers (message names the member and
+            the time; attributes ``member``, ``t``, ``rows``, ``X``, ``Yc``).
+
+        The default serves unbatched plants through :meth:`step`, :attr:`state` and
+        :meth:`outputs`; the shipped plants override it with their batched paths.
+        """
+        U, steps = check_block(U, steps, self.batch, len(self.input_names))
+        if self.batch != 1:
+            raise DesignError(f"{type(self).__name__} implements no batched run; reset it with "
+                              f"one member (found batch {self.batch})")
+        T = U.shape[1]
+        X = np.full((1, T, len(self.state_names)), np.nan)
+        Yc = np.full((1, T, len(self.output_names)), np.nan)
+        for j in range(T):
+            t = float(self.t)
+            X[0, j] = np.asarray(self.state, dtype=float).reshape(-1)
+            Yc[0, j] = np.asarray(self.outputs(), dtype=float).reshape(-1)
+            try:
+                for _ in range(steps):
+                    self.step(U[0, j])
+            except DivergenceError as exc:
+                raise divergence(f"member 0 at t={t:g}: {exc}", 0, t, j + 1, X, Yc) from exc
+        return X, Yc
 
     @property
     @abstractmethod

@@ -1,20 +1,49 @@
-"""MuJoCo as the true plant."""
+"""MuJoCo as the true plant, for one member or a batch of B members.
+
+Batched runs (:meth:`MujocoPlant.run`) step every member with ``mj_step``, through one of two
+paths that give the same bits (both call ``mj_step`` on the same state; tested):
+
+* a Python loop over the samples calling ``mj_step(m, d, steps * substeps)`` on the plant's one
+  ``MjData`` (one member: a short block; B > 1 members are loaded into it one after the other:
+  blocks of a single physics step, and models whose constraints use the solver's warm start);
+* ``mujoco.rollout.Rollout(nthread=...)``: the whole block, every member, in MuJoCo's thread
+  pool, the control held for ``steps * substeps`` physics steps. The state is read from the
+  returned full physics state (``mjSTATE_FULLPHYSICS``: time, qpos, qvel, ...), position and
+  velocity stage sensors from the returned ``sensordata`` (taken inside the first ``mj_step``
+  of each sample, i.e. at the sample instant), acceleration-stage sensors by ``mj_forward`` at
+  the sample instant with the control held before it (as :meth:`MujocoPlant.outputs` does).
+  The rollout does not return ``qacc_warmstart``; it is used only by the constraint solver, so
+  the rollout serves only models that cannot hold constraints (no joint or tendon limits,
+  equality constraints, friction loss or possible contacts; or the warm start or constraints
+  disabled): every shipped model. Long blocks are cut into chunks of bounded memory. The
+  rollout stops a member at its first MuJoCo warning; such a member (seen as a time column
+  that stops advancing or resets) is stepped again in the Python loop, which raises the
+  :class:`DivergenceError` for a bad-state reset and otherwise gives what ``mj_step`` gives.
+"""
 
 from __future__ import annotations
 
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import mujoco
+import mujoco.rollout
 import numpy as np
 
 from .._validate import finite_scalar, integer_multiple, vector
 from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
-from .base import Array, Plant
+from .base import Array, Plant, check_block, divergence, initial_states
 
 _mj_step = mujoco.mj_step
+_FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+#: a block of one member with fewer physics steps runs in the Python loop (the rollout's fixed
+#: cost is about that of this many loop samples; measured in scripts/bench_batch.py)
+_ROLLOUT_MIN_STEPS = 64
+#: doubles in the rollout's buffers (controls, states, sensors) per chunk: 32 MiB
+_CHUNK_DOUBLES = 1 << 22
 
 #: MuJoCo's mjMAXVAL: a larger control is zeroed with the warning mjWARN_BADCTRL
 _MAX_CTRL = 1e10
@@ -23,6 +52,24 @@ _DIRECT_SENSORS = {
     int(mujoco.mjtSensor.mjSENS_JOINTPOS): "qpos",
     int(mujoco.mjtSensor.mjSENS_JOINTVEL): "qvel",
 }
+
+
+def _constraint_free(m: Any) -> bool:
+    """Whether the model can never hold a constraint that the solver's warm start affects
+    (then a state without ``qacc_warmstart`` continues exactly)."""
+    flags, d = int(m.opt.disableflags), mujoco.mjtDisableBit
+    if flags & (int(d.mjDSBL_CONSTRAINT) | int(d.mjDSBL_WARMSTART)):
+        return True
+    limits = not flags & int(d.mjDSBL_LIMIT) and (bool(np.any(m.jnt_limited))
+                                                  or bool(np.any(m.tendon_limited)))
+    equality = not flags & int(d.mjDSBL_EQUALITY) and m.neq > 0
+    friction = not flags & int(d.mjDSBL_FRICTIONLOSS) and (
+        bool(np.any(m.dof_frictionloss)) or bool(np.any(m.tendon_frictionloss)))
+    contype = int(np.bitwise_or.reduce(m.geom_contype)) if m.ngeom else 0
+    conaff = int(np.bitwise_or.reduce(m.geom_conaffinity)) if m.ngeom else 0
+    contact = not flags & int(d.mjDSBL_CONTACT) and (
+        m.npair > 0 or getattr(m, "nflex", 0) > 0 or (contype & conaff) != 0)
+    return not (limits or equality or friction or contact)
 
 
 def model_path(name: str) -> Path:
@@ -51,6 +98,9 @@ class MujocoPlant(Plant):
         MJCF sensor names to return from :meth:`outputs`; default ``system.output_names``.
     model_file : str or Path, optional
         Another MJCF file for the same system (e.g. a modified copy); default the shipped one.
+    nthread : int, optional
+        Threads of the batched rollout (``mujoco.rollout.Rollout``); default
+        ``min(2, os.cpu_count())``.
 
     Notes
     -----
@@ -60,7 +110,8 @@ class MujocoPlant(Plant):
     """
 
     def __init__(self, system: type[System], dt: float = 0.001, *, physics_dt: float | None = None,
-                 outputs: Any = None, model_file: str | Path | None = None) -> None:
+                 outputs: Any = None, model_file: str | Path | None = None,
+                 nthread: int | None = None) -> None:
         if system.model_file is None:
             raise DesignError(f"{system.__name__} is not a MuJoCo system; use OdePlant")
         path = Path(model_file) if model_file is not None else model_path(system.model_file)
@@ -104,20 +155,70 @@ class MujocoPlant(Plant):
                 self._sensor_src.append(("sensordata", int(m.sensor_adr[s])))
                 self._needs_forward = True
         self._x0 = vector("system.default_x0", system.default_x0, 2 * self._nq)
+        if nthread is None:
+            nthread = min(2, os.cpu_count() or 1)
+        if isinstance(nthread, bool) or not isinstance(nthread, (int, np.integer)) or nthread < 1:
+            raise DesignError(f"nthread must be a positive integer; found {nthread!r}")
+        self.nthread = int(nthread)
+        self._batch_layout()
+        self._aid_arr = np.array(self._aid, dtype=np.intp)
+        self._rollout: Any = None
+        self._rdata: list[Any] = []
         self.reset()
+
+    def _batch_layout(self) -> None:
+        """The batched paths' addresses, looked up once: in the full physics state (time
+        first, then qpos and qvel), in ``sensordata``, and which sensors need the
+        acceleration stage."""
+        m = self.model
+        self._nstate = int(mujoco.mj_stateSize(m, _FULL))
+        self._sq = 1 + self._qadr
+        self._sv = 1 + m.nq + self._vadr
+        self._rollout_ok = _constraint_free(m)
+        acc = int(mujoco.mjtStage.mjSTAGE_ACC)
+        #: per output: ("state", column in the full state) | ("sensor", sensordata address) |
+        #: ("acc", sensordata address)
+        self._batch_src: list[tuple[str, int]] = []
+        for name, (kind, a) in zip(self._output_names, self._sensor_src):
+            if kind == "qpos":
+                self._batch_src.append(("state", 1 + a))
+            elif kind == "qvel":
+                self._batch_src.append(("state", 1 + m.nq + a))
+            else:
+                s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
+                stage = "acc" if int(m.sensor_needstage[s]) >= acc else "sensor"
+                self._batch_src.append((stage, a))
 
     @property
     def output_names(self) -> tuple[str, ...]:
         return self._output_names
 
-    def reset(self, x0: Any = None) -> None:
-        x0 = self._x0 if x0 is None else vector("x0", x0, 2 * self._nq)
+    def reset(self, x0: Any = None, *, batch: int | None = None) -> None:
+        """Time zero and the state ``x0`` (``(n,)`` for every member, or ``(B, n)``; default
+        ``system.default_x0``), ``batch`` members (see :mod:`hgo_mj.plants.base`).
+
+        One member lives in :attr:`data`; B > 1 members are kept as full physics states
+        ``(B, nstate)`` with their controls, and are loaded into :attr:`data` to be read."""
+        if x0 is not None and batch is None and np.ndim(x0) <= 1:
+            x0 = vector("x0", x0, 2 * self._nq)
+        X0, self.batched = initial_states(x0, batch, self._x0, 2 * self._nq)
+        self.batch = B = X0.shape[0]
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        d.qpos[self._qadr] = x0[: self._nq]
-        d.qvel[self._vadr] = x0[self._nq:]
+        d.qpos[self._qadr] = X0[0, : self._nq]
+        d.qvel[self._vadr] = X0[0, self._nq:]
         mujoco.mj_forward(m, d)
         self._cache()
+        if B > 1:
+            # the members' full physics states: the reset one with their qpos and qvel
+            # (mj_forward changes none of it), zero controls and warm starts
+            s0 = np.empty(self._nstate)
+            mujoco.mj_getState(m, d, s0, _FULL)
+            self._S = np.repeat(s0[None], B, axis=0)
+            self._S[:, self._sq] = X0[:, : self._nq]
+            self._S[:, self._sv] = X0[:, self._nq:]
+            self._C = np.zeros((B, m.nu))
+            self._W = np.zeros((B, m.nv))
 
     def _cache(self) -> None:
         """What :meth:`step` and the ``*_list`` readers need, in one attribute each: MjData's
@@ -147,6 +248,7 @@ class MujocoPlant(Plant):
         state = self.__dict__.copy()
         for key in ("_bad", "_hot", "_read", "_out"):
             state.pop(key, None)
+        state["_rollout"], state["_rdata"] = None, []  # a thread pool: made again when needed
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -154,6 +256,9 @@ class MujocoPlant(Plant):
         self._cache()
 
     def step(self, u: Any) -> None:
+        if self.batched:
+            self.run(np.asarray(u, dtype=float)[:, None, :], 1)
+            return
         m, d, ctrl, aid, a0, substeps, bad = self._hot
         if a0 is not None:  # one actuator (the common case): no loop
             ui = float(u[0])
@@ -184,10 +289,19 @@ class MujocoPlant(Plant):
 
     @property
     def t(self) -> float:  # type: ignore[override]
+        if self.batch > 1:
+            return float(self._S[0, 0])
         return float(self.data.time)
 
     @property
     def state(self) -> Array:
+        if self.batch > 1:
+            return np.concatenate((self._S[:, self._sq], self._S[:, self._sv]), axis=1)
+        if self.batched:
+            return self._state1()[None]
+        return self._state1()
+
+    def _state1(self) -> Array:
         d = self.data
         if self._slices is not None:
             qs, vs = self._slices
@@ -198,6 +312,17 @@ class MujocoPlant(Plant):
         return x
 
     def outputs(self) -> Array:
+        if self.batch > 1:
+            out = np.empty((self.batch, len(self._output_names)))
+            for b in range(self.batch):
+                self._load(b)
+                out[b] = self._outputs1()
+            return out
+        if self.batched:
+            return self._outputs1()[None]
+        return self._outputs1()
+
+    def _outputs1(self) -> Array:
         d = self.data
         if self._needs_forward:
             mujoco.mj_forward(self.model, d)
@@ -224,3 +349,209 @@ class MujocoPlant(Plant):
             src, a = out[0]
             return [src.item(a)]
         return [src.item(a) for src, a in out]
+
+    # ------------------------------------------------------------------ batched paths
+    def _load(self, b: int) -> None:
+        """Put member ``b`` (B > 1) into :attr:`data`: its full physics state, controls and
+        warm start; its warning counters start at zero."""
+        if self.batch == 1:
+            return
+        m, d = self.model, self.data
+        mujoco.mj_setState(m, d, self._S[b], _FULL)
+        d.ctrl[:] = self._C[b]
+        d.qacc_warmstart[:] = self._W[b]
+        for w in d.warning:
+            w.number = 0
+
+    def _save(self, b: int) -> None:
+        """Copy :attr:`data` back into member ``b`` (B > 1)."""
+        if self.batch == 1:
+            return
+        m, d = self.model, self.data
+        mujoco.mj_getState(m, d, self._S[b], _FULL)
+        self._C[b] = d.ctrl
+        self._W[b] = d.qacc_warmstart
+
+    def run(self, U: Any, steps: int) -> tuple[Array, Array]:
+        """Advance ``T`` samples of ``steps`` plant steps (``steps * substeps`` MuJoCo steps)
+        for every member (see :meth:`Plant.run` and the module docstring for the two paths).
+
+        Raises
+        ------
+        DivergenceError
+            An input not finite or not below MuJoCo's ``mjMAXVAL`` (1e10) in magnitude
+            (MuJoCo would zero it), or MuJoCo's reset of a non-finite or huge state; the
+            message names the member and the sample time (the earliest failure of the block).
+        """
+        U, steps = check_block(U, steps, self.batch, len(self._aid))
+        B, T, _ = U.shape
+        X = np.full((B, T, 2 * self._nq), np.nan)
+        Yc = np.full((B, T, len(self._output_names)), np.nan)
+        ok = np.abs(U) < _MAX_CTRL                        # False for NaN
+        bad = ~np.all(ok, axis=2)
+        jbad = int(np.argmax(bad.any(axis=0))) if bad.any() else T
+        nstep = steps * self.substeps
+        fails: list[tuple[int, int, float, str]] = []     # (sample, member, time, message)
+        if jbad:
+            if (self._rollout_ok and jbad * nstep >= 2
+                    and (B > 1 or jbad * nstep >= _ROLLOUT_MIN_STEPS)):
+                self._run_rollout(U[:, :jbad], nstep, X, Yc, fails)
+            else:
+                for b in range(B):
+                    self._load(b)
+                    self._run_loop(b, U[b, :jbad], nstep, X[b], Yc[b], fails)
+                    self._save(b)
+        if not fails and jbad < T:
+            b = int(np.argmax(bad[:, jbad]))
+            i = int(np.argmax(~ok[b, jbad]))
+            self._record_now(X, Yc, jbad)
+            t = self.t
+            fails.append((jbad, b, t, str(self._bad_input(i, float(U[b, jbad, i])))))
+        if fails:
+            j, b, t, msg = min(fails)
+            raise divergence(f"member {b} at t={t:g}: {msg}", b, t, j + 1, X, Yc)
+        return X, Yc
+
+    def _record_now(self, X: Array, Yc: Array, j: int) -> None:
+        """Record every member's current state and outputs as sample ``j``."""
+        for b in range(self.batch):
+            self._load(b)
+            X[b, j] = self._state1()
+            Yc[b, j] = self._outputs1()
+
+    def _run_loop(self, b: int, U: Array, nstep: int, X: Array, Yc: Array,
+                  fails: list[tuple[int, int, float, str]]) -> None:
+        """Member ``b`` (loaded in :attr:`data`) through the samples of ``U`` ``(T, m)`` with
+        ``mj_step``, recording into ``X`` ``(T, n)`` and ``Yc`` ``(T, p)``."""
+        m, d, ctrl, aid, _, _, bad = self._hot
+        aid_arr = self._aid_arr
+        qpos, qvel = d.qpos, d.qvel
+        qa, va, nq = self._qadr, self._vadr, self._nq
+        for j in range(U.shape[0]):
+            X[j, :nq] = qpos[qa]
+            X[j, nq:] = qvel[va]
+            Yc[j] = self._outputs1()
+            t = float(d.time)
+            ctrl[aid_arr] = U[j]
+            _mj_step(m, d, nstep)
+            if any(bad):
+                which = [n for n, w in zip(("QPOS", "QVEL", "QACC"), self._bad) if w.number]
+                fails.append((j, b, t, f"MuJoCo found a non-finite or huge value and reset the "
+                                       f"simulation (mjWARN_BAD{which[0]}); input was "
+                                       f"{U[j].tolist()}"))
+                return
+
+    def _rollout_pool(self) -> tuple[Any, list[Any]]:
+        if self._rollout is None:
+            self._rollout = mujoco.rollout.Rollout(nthread=self.nthread)
+            self._rdata = [mujoco.MjData(self.model) for _ in range(self.nthread)]
+        return self._rollout, self._rdata
+
+    def _run_rollout(self, U: Array, nstep: int, X: Array, Yc: Array,
+                     fails: list[tuple[int, int, float, str]]) -> None:
+        """Every member through the samples of ``U`` ``(B, T, m)`` with
+        ``mujoco.rollout``, in chunks of samples of bounded memory."""
+        m = self.model
+        B, T, _ = U.shape
+        ns, nsd, nu = self._nstate, m.nsensordata, m.nu
+        if B == 1:
+            S0 = np.empty((1, ns))
+            mujoco.mj_getState(m, self.data, S0[0], _FULL)
+            C0 = np.array(self.data.ctrl, dtype=float)[None]
+        else:
+            S0, C0 = self._S.copy(), self._C.copy()
+        if not np.all(S0[:, 0] == S0[0, 0]):
+            raise DesignError("the members' clocks differ (a member failed before): reset the "
+                              "plant")
+        pool, datas = self._rollout_pool()
+        models = [m] * B
+        per_sample = B * nstep * (ns + nsd + nu)
+        chunk = max(1, min(T, _CHUNK_DOUBLES // max(per_sample, 1)))
+        h = float(m.opt.timestep)
+        sq, sv, nq = self._sq, self._sv, self._nq
+        uses_sd = any(k == "sensor" for k, _ in self._batch_src)
+        acc = [(i, a) for i, (k, a) in enumerate(self._batch_src) if k == "acc"]
+        broken = np.zeros(B, dtype=bool)
+        for j0 in range(0, T, chunk):
+            j1 = min(T, j0 + chunk)
+            n = (j1 - j0) * nstep
+            S0 = np.ascontiguousarray(S0)
+            ctrl = np.repeat(C0[:, None, :], n, axis=1)
+            ctrl[:, :, self._aid_arr] = np.repeat(U[:, j0:j1], nstep, axis=1)
+            state = np.empty((B, n, ns))
+            sens = np.empty((B, n, nsd)) if uses_sd else None
+            # shapes and dtypes are made here: MuJoCo's own checks are skipped
+            pool.rollout(models, datas, S0, ctrl, nstep=n, state=state, sensordata=sens,
+                         skip_checks=True)
+            # the sample instants: the chunk's initial state, then the end of each sample
+            inst = np.concatenate((S0[:, None], state[:, nstep - 1:n - 1:nstep]), axis=1)
+            X[:, j0:j1, :nq] = inst[:, :, sq]
+            X[:, j0:j1, nq:] = inst[:, :, sv]
+            for i, (kind, a) in enumerate(self._batch_src):
+                if kind == "state":
+                    Yc[:, j0:j1, i] = inst[:, :, a]
+                elif kind == "sensor":
+                    Yc[:, j0:j1, i] = sens[:, ::nstep, a]  # type: ignore[index]
+            if acc:
+                prev = np.concatenate((C0[:, None], ctrl[:, nstep - 1:n - 1:nstep]), axis=1)
+                self._acc_outputs(inst, prev, acc, Yc[:, j0:j1])
+            # a member the rollout stopped (a MuJoCo warning) has a time column that resets
+            # or stops: step it again in the loop, from the chunk's start
+            times = np.add.accumulate(np.concatenate(([S0[0, 0]], np.full(n, h))))[1:]
+            stopped = np.flatnonzero(np.any(state[:, :, 0] != times, axis=1) & ~broken)
+            for b in stopped.tolist():
+                self._redo(b, S0[b], C0[b], U[b, j0:j1], nstep, X[b, j0:j1], Yc[b, j0:j1],
+                           j0, fails, state[b, -1])
+                broken[b] = any(f[1] == b for f in fails)
+            S0 = state[:, -1].copy()
+            C0 = ctrl[:, -1].copy()
+        if B == 1:
+            d = self.data
+            mujoco.mj_setState(m, d, S0[0], _FULL)
+            d.ctrl[:] = C0[0]
+            mujoco.mj_forward(m, d)  # the derived quantities (poses, ...) of that state
+        else:
+            self._S[:] = S0
+            self._C[:] = C0
+
+    def _redo(self, b: int, s0: Array, c0: Array, U: Array, nstep: int, X: Array, Yc: Array,
+              j0: int, fails: list[tuple[int, int, float, str]], end: Array) -> None:
+        """Step member ``b`` of a chunk again with ``mj_step`` from its chunk start ``s0``
+        (controls ``c0``), overwriting its records and its end state ``end``."""
+        m, d = self.model, self.data
+        if self.batch > 1:
+            keep = (self._S[b].copy(), self._C[b].copy(), self._W[b].copy())
+            self._S[b], self._C[b], self._W[b] = s0, c0, 0.0
+            self._load(b)
+        else:
+            mujoco.mj_setState(m, d, s0, _FULL)
+            d.ctrl[:] = c0
+            for w in d.warning:
+                w.number = 0
+        before = len(fails)
+        self._run_loop(b, U, nstep, X, Yc, fails)
+        for k in range(before, len(fails)):
+            j, bb, t, msg = fails[k]
+            fails[k] = (j + j0, bb, t, msg)
+        mujoco.mj_getState(m, d, end, _FULL)
+        if self.batch > 1:
+            self._S[b], self._C[b], self._W[b] = keep
+
+    def _acc_outputs(self, inst: Array, prev: Array, acc: list[tuple[int, int]],
+                     Yc: Array) -> None:
+        """Acceleration-stage sensors at the sample instants ``inst`` ``(B, T, nstate)`` with
+        the controls held before them ``prev`` ``(B, T, nu)``: ``mj_forward`` on :attr:`data`
+        (what :meth:`outputs` does at a sample)."""
+        m, d = self.model, self.data
+        keep = np.empty(self._nstate)
+        mujoco.mj_getState(m, d, keep, _FULL)
+        keep_ctrl = np.array(d.ctrl)
+        for b in range(inst.shape[0]):
+            for j in range(inst.shape[1]):
+                mujoco.mj_setState(m, d, inst[b, j], _FULL)
+                d.ctrl[:] = prev[b, j]
+                mujoco.mj_forward(m, d)
+                for i, a in acc:
+                    Yc[b, j, i] = d.sensordata[a]
+        mujoco.mj_setState(m, d, keep, _FULL)
+        d.ctrl[:] = keep_ctrl

@@ -1,8 +1,19 @@
-"""An analytic system integrated by fixed-step RK4 as the true plant (the papers' examples)."""
+"""An analytic system integrated by fixed-step RK4 as the true plant (the papers' examples).
+
+Batched runs (:meth:`OdePlant.run` with B members) integrate every member with the same RK4
+as :meth:`OdePlant.step`. A system that offers a vectorized ``dynamics_batch(t, X, U, p)``
+(rows ``X`` ``(B, n)``, ``U`` ``(B, m)``, returning ``(B, n)``) and optionally
+``output_batch(X, p)`` ``(B, p)`` is integrated over the rows at once with numpy; otherwise
+(every shipped system today) the members are integrated one after the other in a Python loop.
+Either way a member gives the bits it gives alone: the loop calls the very same
+``dynamics``; ``dynamics_batch`` must evaluate, row by row, the same floating-point operations
+as ``dynamics`` (tested with a system written both ways).
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -10,7 +21,22 @@ import numpy as np
 from .._validate import finite_scalar, integer_multiple, vector
 from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
-from .base import Array, Plant
+from .base import Array, Plant, check_block, divergence, initial_states
+
+
+def _rk4(f: Callable[..., Any], p: Mapping[str, float], x: Any, u: Any, t: float, h: float,
+         substeps: int) -> tuple[Any, float]:
+    """``substeps`` classical RK4 steps of ``h`` from ``(t, x)`` with ``u`` held: the new state
+    and time. ``x`` is ``(n,)`` with ``f = dynamics`` or ``(B, n)`` with ``f = dynamics_batch``
+    (the same operations row by row)."""
+    for _ in range(substeps):
+        k1 = f(t, x, u, p)
+        k2 = f(t + h / 2, x + h / 2 * k1, u, p)
+        k3 = f(t + h / 2, x + h / 2 * k2, u, p)
+        k4 = f(t + h, x + h * k3, u, p)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        t += h
+    return x, t
 
 
 class OdePlant(Plant):
@@ -39,34 +65,137 @@ class OdePlant(Plant):
         self._x0 = vector("system.default_x0", system.default_x0, self._n)
         self.reset()
 
-    def reset(self, x0: Any = None) -> None:
-        self._x = self._x0.copy() if x0 is None else vector("x0", x0, self._n)
+    def reset(self, x0: Any = None, *, batch: int | None = None) -> None:
+        X0, self.batched = initial_states(x0, batch, self._x0, self._n)
+        self.batch = X0.shape[0]
+        #: the members' states (B, n); ``_x`` is row 0 (the unbatched plant's state)
+        self._X = X0
+        self._x = X0[0].copy()
         self.t = 0.0
         self._k = 0
 
+    def _advance_time(self) -> None:
+        """One plant step of the clock: ``substeps`` additions of ``physics_dt``, then the
+        time snapped to ``k * dt`` when it is that to rounding (as :meth:`step` always did)."""
+        t = self.t
+        for _ in range(self.substeps):
+            t += self.physics_dt
+        self._k += 1
+        self.t = self._k * self.dt if math.isclose(t, self._k * self.dt) else t
+
     def step(self, u: Any) -> None:
+        if self.batched:
+            self.run(np.asarray(u, dtype=float)[:, None, :], 1)
+            return
         u = np.asarray(u, dtype=float)
         if not np.all(np.isfinite(u)):
             raise DivergenceError(f"input u must be finite; found {u.tolist()}")
-        f, p, h = self.system.dynamics, self.system.params, self.physics_dt
-        x, t = self._x, self.t
-        for _ in range(self.substeps):
-            k1 = f(t, x, u, p)
-            k2 = f(t + h / 2, x + h / 2 * k1, u, p)
-            k3 = f(t + h / 2, x + h / 2 * k2, u, p)
-            k4 = f(t + h, x + h * k3, u, p)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            t += h
+        x, t = _rk4(self.system.dynamics, self.system.params, self._x, u, self.t,
+                    self.physics_dt, self.substeps)
         if not np.all(np.isfinite(x)):
             raise DivergenceError(f"{type(self.system).__name__} state left the finite numbers "
                                   f"at t={t:g}: {x.tolist()}")
         self._k += 1
         self._x = x
+        self._X[0] = x
         self.t = self._k * self.dt if math.isclose(t, (self._k) * self.dt) else t
+
+    def run(self, U: Any, steps: int) -> tuple[Array, Array]:
+        """Advance ``T`` samples of ``steps`` plant steps for every member (see
+        :meth:`Plant.run`): rows integrated together through ``system.dynamics_batch`` where
+        the system has it, else member by member (module docstring)."""
+        U, steps = check_block(U, steps, self.batch, len(self.system.input_names))
+        B, T, _ = U.shape
+        X = np.full((B, T, self._n), np.nan)
+        Yc = np.full((B, T, len(self.output_names)), np.nan)
+        # the clock is the same for every member: the start time of each plant step
+        starts = np.empty(T * steps)
+        for i in range(T * steps):
+            starts[i] = self.t
+            self._advance_time()
+        bad_u = ~np.all(np.isfinite(U), axis=2)          # (B, T)
+        batch_f = getattr(self.system, "dynamics_batch", None)
+        fails: list[tuple[int, int, str]] = []            # (sample, member, message)
+        if batch_f is not None:
+            self._run_rows(batch_f, U, steps, starts, bad_u, X, Yc, fails)
+        else:
+            self._run_members(U, steps, starts, bad_u, X, Yc, fails)
+        if fails:
+            j, b, msg = min(fails)
+            raise divergence(f"member {b}: {msg}", b, float(starts[j * steps]), j + 1, X, Yc)
+        self._x = self._X[0].copy()
+        return X, Yc
+
+    def _fail_message(self, x: Any, t: float) -> str:
+        return (f"{type(self.system).__name__} state left the finite numbers at t={t:g}: "
+                f"{np.asarray(x).tolist()}")
+
+    def _run_members(self, U: Array, steps: int, starts: Array, bad_u: Array, X: Array,
+                     Yc: Array, fails: list[tuple[int, int, str]]) -> None:
+        """Member after member: the same calls as :meth:`step`."""
+        f, out, p = self.system.dynamics, self.system.output, self.system.params
+        h, sub, T = self.physics_dt, self.substeps, U.shape[1]
+        st = starts.tolist()
+        for b in range(U.shape[0]):
+            x = self._X[b].copy()
+            for j in range(T):
+                X[b, j] = x
+                Yc[b, j] = np.asarray(out(x, p), dtype=float)
+                if bad_u[b, j]:
+                    fails.append((j, b, f"input u must be finite; found {U[b, j].tolist()} at "
+                                        f"t={st[j * steps]:g}"))
+                    break
+                u = U[b, j]
+                for s in range(steps):
+                    x, t = _rk4(f, p, x, u, st[j * steps + s], h, sub)
+                    if not np.all(np.isfinite(x)):
+                        fails.append((j, b, self._fail_message(x, t)))
+                        break
+                else:
+                    continue
+                break
+            self._X[b] = x
+
+    def _run_rows(self, f: Callable[..., Any], U: Array, steps: int, starts: Array,
+                  bad_u: Array, X: Array, Yc: Array, fails: list[tuple[int, int, str]]) -> None:
+        """All rows at once with ``dynamics_batch`` (and ``output_batch`` where given); a row
+        that fails is recorded and carried along (rows do not interact), the others go on."""
+        sysm, p = self.system, self.system.params
+        out_b = getattr(sysm, "output_batch", None)
+        h, sub, (B, T, _) = self.physics_dt, self.substeps, U.shape
+        x = self._X.copy()
+        alive = np.ones(B, dtype=bool)
+        st = starts.tolist()
+        with np.errstate(all="ignore"):
+            for j in range(T):
+                X[alive, j] = x[alive]
+                if out_b is not None:
+                    Yc[alive, j] = np.asarray(out_b(x[alive], p), dtype=float)
+                else:
+                    for b in np.flatnonzero(alive).tolist():
+                        Yc[b, j] = np.asarray(sysm.output(x[b], p), dtype=float)
+                for b in np.flatnonzero(alive & bad_u[:, j]).tolist():
+                    fails.append((j, b, f"input u must be finite; found {U[b, j].tolist()} at "
+                                        f"t={st[j * steps]:g}"))
+                    alive[b] = False
+                u = U[:, j]
+                for s in range(steps):
+                    xn, t = _rk4(f, p, x, u, st[j * steps + s], h, sub)
+                    broke = alive & ~np.all(np.isfinite(xn), axis=1)
+                    for b in np.flatnonzero(broke).tolist():
+                        fails.append((j, b, self._fail_message(xn[b], t)))
+                    alive &= ~broke
+                    x = np.where(alive[:, None], xn, x)
+        self._X[:] = x
 
     @property
     def state(self) -> Array:
+        if self.batched:
+            return self._X.copy()
         return self._x.copy()
 
     def outputs(self) -> Array:
+        if self.batched:
+            out, p = self.system.output, self.system.params
+            return np.array([np.asarray(out(x, p), dtype=float) for x in self._X])
         return np.asarray(self.system.output(self._x, self.system.params), dtype=float)

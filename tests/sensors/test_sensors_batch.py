@@ -1,0 +1,280 @@
+"""Batched sensor chains: ``SensorChain.reset(seeds)`` and ``apply(t, Y (B, T, p))``.
+
+Every stream equals the same seed run alone, bit for bit; a block equals the same samples cut
+into smaller blocks; a chain with one random stage gives exactly the numbers of the per-sample
+path (``chain(t, y)`` and the stages' ``apply_list``); in a chain with more random stages the
+later ones draw from generators spawned from the seed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.sensors import (
+    STAGES,
+    Bias,
+    Delay,
+    Dropout,
+    GaussianNoise,
+    Outliers,
+    Quantization,
+    RandomWalkDrift,
+    SampleHold,
+    Saturation,
+    SensorChain,
+    Stage,
+    UniformNoise,
+    stream_generators,
+)
+
+B, T, P = 64, 200, 2
+SEEDS = list(range(100, 100 + B))
+
+CHAINS = {
+    "gaussian": lambda: [GaussianNoise(std=[0.1, 0.2])],
+    "gaussian_psd": lambda: [GaussianNoise(psd=0.25e-6, sample_time=0.01)],
+    "uniform": lambda: [UniformNoise([0.2, 0.05])],
+    "bias": lambda: [Bias([0.1, -0.3])],
+    "drift": lambda: [RandomWalkDrift(0.3, initial=[0.1, -0.1])],
+    "quantize": lambda: [Quantization(resolution=0.05)],
+    "encoder": lambda: [Quantization(counts_per_rev=[2048, 512])],
+    "sample_hold": lambda: [SampleHold(0.03)],
+    "delay": lambda: [Delay(0.05)],
+    "delay_fractional": lambda: [Delay(0.017)],
+    "dropout": lambda: [Dropout([0.2, 0.5])],
+    "outliers": lambda: [Outliers(0.1, [1.0, 2.0])],
+    "saturate": lambda: [Saturation(-0.5, [0.4, 0.6])],
+    "gaussian+quantize": lambda: [GaussianNoise(std=0.01), Quantization(resolution=0.005)],
+    "deterministic": lambda: [Delay(0.02), SampleHold(0.03), Bias(0.1), Quantization(0.01),
+                              Saturation(-1.0, 1.0)],
+    # two and more random stages: the later ones on spawned generators
+    "recommended": lambda: [Delay(0.02), SampleHold(0.02), Bias(0.05), RandomWalkDrift(0.1),
+                            GaussianNoise(std=0.02), Outliers(0.05, 0.5), Quantization(0.01),
+                            Saturation(-2.0, 2.0), Dropout(0.1)],
+    "gaussian+dropout": lambda: [GaussianNoise(std=1.0), Dropout(0.5)],
+}
+ONE_RANDOM = [k for k, mk in CHAINS.items()
+              if sum(s.draws is not None for s in mk()) <= 1]
+
+
+def test_every_stage_is_covered():
+    covered = {type(s) for mk in CHAINS.values() for s in mk()}
+    assert covered == set(STAGES.values())
+    assert set(ONE_RANDOM) == set(CHAINS) - {"recommended", "gaussian+dropout"}
+
+
+def times(irregular: bool) -> np.ndarray:
+    t = np.arange(T) * 0.01
+    if irregular:
+        t = t + np.random.default_rng(0).uniform(0, 0.004, T)
+        t[::17] = t[np.maximum(np.arange(0, T, 17) - 1, 0)]   # repeated times too
+    return np.maximum.accumulate(t)
+
+
+def clean(seed=7) -> np.ndarray:
+    Y = np.random.default_rng(seed).standard_normal((B, T, P)).cumsum(axis=1) * 0.05
+    Y[3, 10:20] = np.nan      # NaN inputs (an earlier dropout) pass through
+    return Y
+
+
+@pytest.mark.parametrize("irregular", [False, True])
+@pytest.mark.parametrize("name", list(CHAINS))
+def test_batch_equals_each_seed_alone(name, irregular):
+    t, Y = times(irregular), clean()
+    Y0 = Y.copy()
+    chain = SensorChain(CHAINS[name]())
+    chain.reset(SEEDS)
+    assert chain.batch == B and chain.batched and chain.seeds == tuple(SEEDS)
+    out = chain.apply(t, Y)
+    np.testing.assert_array_equal(Y, Y0)          # input not modified
+    assert out.shape == (B, T, P)
+    alone = SensorChain(CHAINS[name]())
+    for b, sd in enumerate(SEEDS):
+        alone.reset(sd)                            # one seed: B = 1, unbatched
+        assert alone.batch == 1 and not alone.batched
+        np.testing.assert_array_equal(alone.apply(t, Y[b:b + 1])[0], out[b])
+    if name in ONE_RANDOM:
+        # the per-sample path of before, call by call, with the same seed: the same bits
+        per_sample = SensorChain(CHAINS[name]())
+        for b in (0, 1, B - 1):
+            per_sample.reset(SEEDS[b])
+            ref = np.array([per_sample(tj, Y[b, j]) for j, tj in enumerate(t)])
+            np.testing.assert_array_equal(ref, out[b])
+            per_sample.reset(SEEDS[b])
+            ref = []
+            for j, tj in enumerate(t):
+                y = Y[b, j].tolist()
+                for s in per_sample.stages:
+                    y = s.apply_list(tj, y, per_sample.rng)
+                ref.append(y)
+            np.testing.assert_array_equal(np.array(ref), out[b])
+
+
+@pytest.mark.parametrize("cuts", [(1,) * T, (7,) * 28 + (4,), (3, 50, 1, 146), (T,)])
+@pytest.mark.parametrize("name", list(CHAINS))
+def test_blocks_cut_anywhere(name, cuts):
+    t, Y = times(True), clean()[:8]
+    chain = SensorChain(CHAINS[name]())
+    chain.reset(SEEDS[:8])
+    whole = chain.apply(t, Y)
+    chain.reset(SEEDS[:8])
+    parts, j = [], 0
+    for c in cuts:
+        parts.append(chain.apply(t[j:j + c], Y[:, j:j + c]))
+        j += c
+    assert j == T
+    np.testing.assert_array_equal(np.concatenate(parts, axis=1), whole)
+
+
+def test_reset_restarts_the_streams_and_none_reuses_the_constructor_seed():
+    t, Y = times(False), clean()[:4]
+    chain = SensorChain(CHAINS["recommended"](), seed=5)
+    chain.reset(SEEDS[:4])
+    a = chain.apply(t, Y)
+    chain.reset(SEEDS[:4])
+    np.testing.assert_array_equal(chain.apply(t, Y), a)
+    chain.reset()                                  # the constructor's seed, one stream
+    assert chain.seeds == (5,) and not chain.batched
+    b = chain.apply(t, Y[:1])
+    chain.reset([5])
+    np.testing.assert_array_equal(chain.apply(t, Y[:1]), b)
+    fresh = SensorChain(CHAINS["recommended"](), seed=5)   # the constructor starts a stream
+    np.testing.assert_array_equal(fresh.apply(t, Y[:1]), b)
+
+
+def test_later_random_stages_draw_from_spawned_generators():
+    """Gaussian noise then dropout on zeros: the values are default_rng(seed)'s normals, the
+    lost samples those where the first child of SeedSequence(seed) draws below p."""
+    seed, n = 42, 300
+    chain = SensorChain([GaussianNoise(std=1.0), Dropout(0.5)])
+    chain.reset([seed])
+    out = chain.apply(np.arange(n) * 0.1, np.zeros((1, n, 1)))[0, :, 0]
+    z = np.random.default_rng(seed).standard_normal(n)
+    u = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0]).random(n)
+    np.testing.assert_array_equal(np.isnan(out), u < 0.5)
+    np.testing.assert_array_equal(out[u >= 0.5], z[u >= 0.5])
+    gens = stream_generators(seed, 3)
+    assert gens[1].random() == np.random.default_rng(
+        np.random.SeedSequence(seed).spawn(2)[0]).random()
+    assert gens[2].random() == np.random.default_rng(
+        np.random.SeedSequence(seed).spawn(2)[1]).random()
+
+
+def test_dropout_counts_per_stream():
+    t, Y = times(False), np.zeros((B, T, P))
+    chain = SensorChain([Dropout(0.3), Dropout([0.0, 0.1])])
+    chain.reset(SEEDS)
+    out = chain.apply(t[:50], Y[:, :50])
+    out2 = chain.apply(t[50:], Y[:, 50:])
+    lost = np.isnan(np.concatenate((out, out2), axis=1)).sum(axis=(1, 2))
+    # a sample lost twice counts twice: the counts are at least the NaNs
+    counts = chain.dropout_counts()
+    assert counts.shape == (B,) and np.all(counts >= lost) and counts.sum() > 0
+    one = SensorChain([Dropout(0.3)])
+    one.reset(SEEDS)
+    o = one.apply(t, Y)
+    np.testing.assert_array_equal(one.dropout_counts(), np.isnan(o).sum(axis=(1, 2)))
+    np.testing.assert_array_equal(one.stages[0].counts, one.dropout_counts())
+    one.reset(SEEDS)
+    assert one.stages[0].counts is None and one.dropout_counts().sum() == 0
+
+
+def test_outlier_counts_per_stream():
+    t, Y = times(False), np.zeros((8, T, 1))
+    chain = SensorChain([Outliers(0.2, 1.0)])
+    chain.reset(SEEDS[:8])
+    out = chain.apply(t, Y)
+    np.testing.assert_array_equal(chain.stages[0].counts, (out != 0).sum(axis=(1, 2)))
+
+
+def test_empty_chain_and_empty_block():
+    chain = SensorChain([])
+    chain.reset([1, 2])
+    Y = np.ones((2, 3, 1))
+    out = chain.apply([0.0, 0.1, 0.2], Y)
+    np.testing.assert_array_equal(out, Y)
+    assert out is not Y
+    full = SensorChain(CHAINS["recommended"]())
+    full.reset([1, 2])
+    assert full.apply(np.empty(0), np.empty((2, 0, 1))).shape == (2, 0, 1)
+
+
+def test_apply_errors():
+    chain = SensorChain([Delay(0.1), RandomWalkDrift(0.1), GaussianNoise(std=[0.1, 0.2])])
+    chain.reset([1, 2, 3])
+    with pytest.raises(DimensionError, match=r"Y must have shape \(B, T, p\) = \(3, 2, p\); "
+                                             r"found shape \(2, 2, 2\)"):
+        chain.apply([0.0, 0.1], np.zeros((2, 2, 2)))
+    with pytest.raises(DimensionError, match=r"Y must have shape .* found shape \(2, 2\)"):
+        chain.apply([0.0, 0.1], np.zeros((2, 2)))
+    with pytest.raises(DimensionError, match=r"t must be 1-D \(T,\); found shape \(\)"):
+        chain.apply(0.0, np.zeros((3, 1, 2)))
+    with pytest.raises(DesignError, match=r"t must be finite; found \[0.0, nan\]"):
+        chain.apply([0.0, np.nan], np.zeros((3, 2, 2)))
+    with pytest.raises(DimensionError, match=r"GaussianNoise.std has 2 entries .* but y has 3"):
+        chain.apply([0.0], np.zeros((3, 1, 3)))
+    chain.reset([1, 2, 3])
+    chain.apply([0.0, 0.1], np.zeros((3, 2, 2)))
+    with pytest.raises(DesignError, match=r"Delay: time must not decrease; found t=0.05 after "
+                                          r"t=0.1"):
+        chain.apply([0.05], np.zeros((3, 1, 2)))
+    drift = SensorChain([RandomWalkDrift(0.1)])
+    drift.reset([1])
+    with pytest.raises(DesignError, match=r"RandomWalkDrift: time must not decrease; found "
+                                          r"t=0.1 after t=0.2"):
+        drift.apply([0.0, 0.2, 0.1], np.zeros((1, 3, 1)))
+    hold = SampleHold(0.1)
+    hold.apply(np.array([0.0]), np.zeros((2, 1, 1)), None)
+    with pytest.raises(DimensionError, match=r"SampleHold: the batch changed from 2 to 3 "
+                                             r"streams without reset_batch\(\)"):
+        hold.apply(np.array([0.1]), np.zeros((3, 1, 1)), None)
+    with pytest.raises(DimensionError, match=r"SampleHold: y changed length from 1 to 2"):
+        hold.apply(np.array([0.1]), np.zeros((2, 1, 2)), None)
+    hold.reset_batch()
+    hold.apply(np.array([0.1]), np.zeros((3, 1, 2)), None)
+
+
+def test_reset_seed_errors():
+    chain = SensorChain([GaussianNoise(std=0.1)])
+    with pytest.raises(DesignError, match="a sequence of seeds needs at least one"):
+        chain.reset([])
+    with pytest.raises(DesignError, match=r"seed must be a non-negative integer or None; "
+                                          r"found -1"):
+        chain.reset([1, -1])
+    with pytest.raises(DesignError, match=r"seed must be a non-negative integer or None; "
+                                          r"found 1.5"):
+        chain.reset([1.5])
+    chain.reset(np.arange(3))                       # an array of seeds
+    assert chain.seeds == (0, 1, 2)
+    chain.reset([None, None])                       # fresh entropy per stream
+    out = chain.apply([0.0], np.zeros((2, 1, 1)))
+    assert out[0, 0, 0] != out[1, 0, 0]
+
+
+def test_a_stage_without_a_batched_apply_is_refused():
+    class Custom(Stage):
+        name = "custom"
+
+        def __call__(self, t, y, rng):
+            return y * 2.0
+
+    chain = SensorChain([Custom()])
+    np.testing.assert_array_equal(chain(0.0, [1.0]), [2.0])   # the per-sample path works
+    with pytest.raises(DesignError, match=r"Custom has no batched apply\(t, Y, draws\)"):
+        chain.apply([0.0], np.ones((1, 1, 1)))
+
+
+def test_long_blocks_beyond_the_draw_block():
+    """Blocks longer than the kept draw block (1024 per stream) draw what they need: the
+    same stream as default_rng(seed) call after call."""
+    n = 3000
+    chain = SensorChain([GaussianNoise(std=1.0)])
+    chain.reset([5, 6])
+    t = np.arange(n) * 1e-3
+    out = np.concatenate([chain.apply(t[:10], np.zeros((2, 10, 1))),
+                          chain.apply(t[10:2500], np.zeros((2, 2490, 1))),
+                          chain.apply(t[2500:], np.zeros((2, 500, 1)))], axis=1)
+    for b, sd in enumerate((5, 6)):
+        np.testing.assert_array_equal(out[b, :, 0], np.random.default_rng(sd).standard_normal(n))
