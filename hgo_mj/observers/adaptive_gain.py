@@ -26,30 +26,42 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable
 from functools import lru_cache
 from math import comb
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike
 
 from .._validate import finite_scalar
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
-from .base import Array, Observer
+from .base import Array, Observer, register
 from .high_gain import (
-    _is_identity,
-    affine_step,
-    bounds_floats,
     bounds_pair,
     check_options,
-    clip_floats,
     largest_stable_step,
     one_step_map,
     sampled_chain,
 )
+from .riccati import (
+    bounds_rows,
+    cached,
+    initial_rows,
+    is_identity_map,
+    model_rk4,
+    physical_rows,
+    report,
+    rk4_combine,
+    saturated,
+    to_physical,
+)
+
+#: method codes of the kernels
+EXACT, EULER, RK4 = 0, 1, 2
+_CODES = {"exact": EXACT, "euler": EULER, "rk4": RK4}
 
 
 def dead_zone(e: ArrayLike, lam: float, lam_hat: float) -> Array:
@@ -76,63 +88,244 @@ def _max_stable_kdt(p: tuple[float, ...], method: str) -> float:
     return largest_stable_step(lambda tau: one_step_map(pa, 1.0, tau, method)[0], start, 1e6)
 
 
-# ------------------------------------------------------------------ code generation
-def _dead_zone_lines(q: str, lam: float, lam_hat: float, gamma: float) -> list[str]:
-    """Plain-float lines computing ``q = gamma d(e)^2`` from the local ``e``."""
-    return ["    a = e if e >= 0.0 else -e",
-            f"    if a > {lam!r}:",
-            f"        d = a - {lam!r} if a < {lam_hat!r} else {lam_hat - lam!r}",
-            f"        {q} = {gamma!r} * d * d",
-            "    else:",
-            f"        {q} = 0.0"]
+# ------------------------------------------------------------------------- the equations
+@njit(cache=True)
+def adaptation_rate(e, lam, lam_hat, gamma):  # pragma: no cover - compiled
+    """:math:`\\dot k = \\gamma\\, d_{\\lambda, \\hat\\lambda}^2(e)` (paper 000, eq. 4-5)."""
+    a = e if e >= 0.0 else -e
+    if a > lam:
+        d = a - lam if a < lam_hat else lam_hat - lam
+        return gamma * d * d
+    return 0.0
 
 
-def _flow_source(p: Array, dt: float, method: str, lam: float, lam_hat: float, gamma: float,
-                 model: bool, held: bool = False) -> str:
-    """``step(y, k, z0, ..., [f | w]) -> (k+, z0+, ...)``: euler or rk4 of the joint ODE in
-    ``(k, z)`` with ``y`` held, unrolled into plain-float statements. With ``model`` the last
-    derivative adds ``f(z0, ..., z_{n-1})`` at every stage; with ``held`` (euler) the model
-    term's value ``w``, held over the sample, is added as ``+ dt w`` to the last state (after
-    the rest of its update, so the sums are those of adding ``dt B w`` afterwards)."""
+@njit(cache=True)
+def joint_rhs(s, y, phi, p, lam, lam_hat, gamma, ds):  # pragma: no cover - compiled
+    """The joint ODE of ``s = (k, z_1..z_n)`` with ``y`` held (paper 000, eq. 2 and 4-5):
+
+    .. math::
+
+        \\dot k = \\gamma d^2(y - \\hat z_1), \\quad
+        \\dot{\\hat z}_i = \\hat z_{i+1} + p_i k^i (y - \\hat z_1), \\quad
+        \\dot{\\hat z}_n = p_n k^n (y - \\hat z_1) + \\varphi
+
+    (``phi`` the model term, 0 without one)."""
     n = p.size
-    zs = [f"z{i}" for i in range(n)]
-    args = ", ".join(["y", "k", *zs] + (["f"] if model else []) + (["w"] if held else []))
-    lines = [f"def step({args}):"]
-    stages = [("s1", None, 0.0)] if method == "euler" else [
-        ("s1", None, 0.0), ("s2", "s1", dt / 2), ("s3", "s2", dt / 2), ("s4", "s3", dt)]
-    for tag, prev, h in stages:
-        if prev is None:
-            kk, zz = "k", zs
-        else:  # stage input: state + h * previous derivative
-            kk = f"k_{tag}"
-            lines.append(f"    {kk} = k + {h!r} * q_{prev}")
-            zz = [f"{z}_{tag}" for z in zs]
-            lines += [f"    {zz[i]} = {zs[i]} + {h!r} * d{i}_{prev}" for i in range(n)]
-        lines.append(f"    e = y - {zz[0]}")
-        lines += _dead_zone_lines(f"q_{tag}", lam, lam_hat, gamma)
-        lines.append(f"    t = {kk} * e")  # t = k^i e, built up
+    k = s[0]
+    e = y - s[1]
+    ds[0] = adaptation_rate(e, lam, lam_hat, gamma)
+    t = k * e  # k^i e, built up
+    for i in range(n):
+        if i:
+            t = t * k
+        if i < n - 1:
+            ds[1 + i] = s[2 + i] + p[i] * t
+        else:
+            ds[1 + i] = p[i] * t + phi
+
+
+@njit(cache=True)
+def matched_coefficients(tau, mode, r, cbin, rre, pa, pb, pb2, c, work):  # pragma: no cover
+    """Coefficients ``c`` (leading 1 first) of :math:`\\prod_i (w - w_i)`,
+    :math:`w_i = e^{\\tau r_i} - 1`, ``r_i`` the roots of ``s^n + p_1 s^(n-1) + ... + p_n``:
+    the pole-matched gain at ``tau = k dt`` is ``W c[1:]`` (see :func:`exact_matrices`).
+
+    ``mode`` 0: one root ``r`` of multiplicity ``n`` (binomial ``p``), ``c_j = C(n, j) m^j``,
+    ``m = -expm1(tau r)``. ``mode`` 1: the real roots ``rre`` (``w = expm1(tau r)``) and the
+    pairs ``pa +- i pb`` (``Re w = expm1(tau a) cos(tau b) - 2 sin^2(tau b / 2)``, no
+    cancellation; ``Im w = e^(tau a) sin(tau b)``), multiplied out factor by factor."""
+    n = c.size - 1
+    c[0] = 1.0
+    if mode == 0:
+        m = -math.expm1(tau * r)
+        mp = m
+        for j in range(1, n + 1):
+            if j > 1:
+                mp = mp * m
+            c[j] = cbin[j] * mp
+        return
+    deg = 0
+    f = np.empty(3)
+    for q in range(rre.size + pa.size):
+        if q < rre.size:
+            f[0], f[1] = 1.0, -math.expm1(tau * rre[q])
+            nf = 2
+        else:
+            i = q - rre.size
+            ea = math.expm1(tau * pa[i])
+            sh = math.sin(tau * pb2[i])
+            re = ea * math.cos(tau * pb[i]) - 2.0 * sh * sh
+            im = (ea + 1.0) * math.sin(tau * pb[i])
+            f[0], f[1], f[2] = 1.0, -2.0 * re, re * re + im * im
+            nf = 3
+        for j in range(deg + nf):
+            acc = 0.0
+            for a in range(nf):
+                if 0 <= j - a <= deg:
+                    acc += f[a] * c[j - a]
+            work[j] = acc
+        deg += nf - 1
+        for j in range(deg + 1):
+            c[j] = work[j]
+
+
+@njit(cache=True)
+def adaptive_sample(s, y, phi, model, method, dt, p, lam, lam_hat, gamma, Phi, W, mode, r,
+                    cbin, rre, pa, pb, pb2, M0, g0, t, d1, d2, d3, d4, c, work):  # pragma: no cover
+    """One sample of one member: ``s = (k, z)`` into ``t``.
+
+    * ``y`` NaN (a dropout): ``z+ = M0 z + g0 phi`` (the prediction without correction), ``k``
+      held (nothing to adapt to).
+    * ``exact``: ``z+ = Phi z + Ld(k) e + g0 phi`` with the pole-matched gain at the
+      start-of-sample ``k`` (``Ld = W c(k dt)``, :func:`matched_coefficients`) and
+      ``k+ = k + dt gamma d^2(e)``, ``e = y - z_1``.
+    * ``euler``: ``s+ = s + dt f(s)`` (:func:`joint_rhs`), plus ``dt phi`` in the last row.
+    * ``rk4``: classical RK4 of :func:`joint_rhs` (``phi`` 0: the model term at every stage
+      is driven from Python, :meth:`AdaptiveGainObserver._advance`).
+    """
+    n = p.size
+    if y != y:
+        t[0] = s[0]
         for i in range(n):
-            if i:
-                lines.append(f"    t = t * {kk}")
-            nxt = f"{zz[i + 1]} + " if i < n - 1 else ""
-            extra = f" + f({', '.join(zz)})" if (model and i == n - 1) else ""
-            gain = "t" if p[i] == 1.0 else f"{float(p[i])!r} * t"
-            lines.append(f"    d{i}_{tag} = {nxt}{gain}{extra}")
-    if method == "euler":
-        out = [f"k + {dt!r} * q_s1"] + [f"{zs[i]} + {dt!r} * d{i}_s1" for i in range(n)]
-        if held:
-            out[-1] += f" + {dt!r} * w"
+            acc = 0.0
+            for j in range(n):
+                acc += M0[i, j] * s[1 + j]
+            t[1 + i] = acc + g0[i] * phi if model else acc
+        return
+    if method == 0:
+        k = s[0]
+        e = y - s[1]
+        matched_coefficients(k * dt, mode, r, cbin, rre, pa, pb, pb2, c, work)
+        for i in range(n):
+            gi = 0.0
+            for j in range(n):
+                if W[i, j] != 0.0:
+                    gi += W[i, j] * c[j + 1]
+            acc = 0.0
+            for j in range(i, n):
+                acc += Phi[i, j] * s[1 + j]
+            v = acc + gi * e
+            t[1 + i] = v + g0[i] * phi if model else v
+        t[0] = k + dt * adaptation_rate(e, lam, lam_hat, gamma)
+    elif method == 1:
+        joint_rhs(s, y, 0.0, p, lam, lam_hat, gamma, d1)
+        for i in range(n + 1):
+            t[i] = s[i] + dt * d1[i]
+        if model:
+            t[n] = t[n] + dt * phi
     else:
+        h = dt / 2
+        joint_rhs(s, y, 0.0, p, lam, lam_hat, gamma, d1)
+        for i in range(n + 1):
+            t[i] = s[i] + h * d1[i]
+        joint_rhs(t, y, 0.0, p, lam, lam_hat, gamma, d2)
+        for i in range(n + 1):
+            t[i] = s[i] + h * d2[i]
+        joint_rhs(t, y, 0.0, p, lam, lam_hat, gamma, d3)
+        for i in range(n + 1):
+            t[i] = s[i] + dt * d3[i]
+        joint_rhs(t, y, 0.0, p, lam, lam_hat, gamma, d4)
         h6 = dt / 6.0
-
-        def comb(v: str) -> str:
-            return f"{h6!r} * ({v}_s1 + 2.0 * ({v}_s2 + {v}_s3) + {v}_s4)"
-
-        out = [f"k + {comb('q')}"] + [f"{zs[i]} + {comb(f'd{i}')}" for i in range(n)]
-    lines.append(f"    return ({', '.join(out)},)")
-    return "\n".join(lines) + "\n"
+        for i in range(n + 1):
+            t[i] = s[i] + h6 * (d1[i] + 2.0 * (d2[i] + d3[i]) + d4[i])
 
 
+@njit(cache=True)
+def gain_limits(t, j, i, k_limit, k_max, k_stab, reached, crossed, k_cross):  # pragma: no cover
+    """``k`` after a sample against its bounds: clipped to ``k_max`` (``reached[i]`` set), and
+    the first sample at which it passes ``k_stab`` (the largest gain at which euler/rk4 are
+    stable at this period) recorded in ``crossed[i]``, ``k_cross[i]``. Returns whether this
+    sample crossed."""
+    if not t[0] > k_limit:
+        return False
+    if t[0] >= k_max:
+        reached[i] = True
+        t[0] = k_max
+    if t[0] >= k_stab and crossed[i] < 0:
+        crossed[i] = j
+        k_cross[i] = t[0]
+        return True
+    return False
+
+
+@njit(cache=True)
+def adaptive_run(S, Y, PHI, j0, model, method, dt, p, lam, lam_hat, gamma, Phi, W, mode, r,
+                 cbin, rre, pa, pb, pb2, M0, g0, k_limit, k_max, k_stab, stop, lo, hi, sat,
+                 Z, D, reached, crossed, k_cross):  # pragma: no cover - compiled
+    """Samples ``j0 .. j0 + T'`` (``T' = PHI.shape[1]``, ``PHI`` the model term held over each
+    sample) of :func:`adaptive_sample` for each member (``S`` ``(B, n + 1)``, ``k`` first,
+    updated in place), with :func:`gain_limits`; ``sat(z)`` into ``Z[:, j]`` and ``k`` into
+    ``D[:, j, 0]``. With ``stop`` a member stops before the sample at which ``k`` crosses
+    ``k_stab`` (the caller raises)."""
+    B = S.shape[0]
+    n = p.size
+    Tc = PHI.shape[1]
+    s = np.empty(n + 1)
+    t = np.empty(n + 1)
+    d1 = np.empty(n + 1)
+    d2 = np.empty(n + 1)
+    d3 = np.empty(n + 1)
+    d4 = np.empty(n + 1)
+    c = np.empty(n + 1)
+    work = np.empty(n + 1)
+    for i in range(B):
+        for q in range(n + 1):
+            s[q] = S[i, q]
+        for jj in range(Tc):
+            j = j0 + jj
+            y = Y[i, j, 0]
+            adaptive_sample(s, y, PHI[i, jj], model, method, dt, p, lam, lam_hat, gamma, Phi,
+                            W, mode, r, cbin, rre, pa, pb, pb2, M0, g0, t, d1, d2, d3, d4, c,
+                            work)
+            if y == y and gain_limits(t, j, i, k_limit, k_max, k_stab, reached, crossed,
+                                      k_cross) and stop:
+                break
+            for q in range(n + 1):
+                s[q] = t[q]
+            D[i, j, 0] = s[0]
+            for q in range(n):
+                v = s[1 + q]
+                if sat:
+                    if v < lo[q]:
+                        v = lo[q]
+                    elif v > hi[q]:
+                        v = hi[q]
+                Z[i, j, q] = v
+        for q in range(n + 1):
+            S[i, q] = s[q]
+
+
+@njit(cache=True)
+def adaptive_limits(S, Sprev, Y, j, k_limit, k_max, k_stab, stop, reached, crossed,
+                    k_cross):  # pragma: no cover - compiled
+    """:func:`gain_limits` over the members after an RK4 sample driven from Python (the model
+    term at every stage); a member that crosses with ``stop`` gets its state back."""
+    B, N = S.shape
+    for i in range(B):
+        y = Y[i, j, 0]
+        if y == y and gain_limits(S[i], j, i, k_limit, k_max, k_stab, reached, crossed,
+                                  k_cross) and stop:
+            for q in range(N):
+                S[i, q] = Sprev[i, q]
+
+
+@njit(cache=True)
+def adaptive_rhs(V, Y, j, PHI, p, lam, lam_hat, gamma, Dv):  # pragma: no cover - compiled
+    """:func:`joint_rhs` of every member (an RK4 stage with the model term ``PHI``); over a
+    dropout, the prediction without correction (``k`` held)."""
+    B, N = V.shape
+    for i in range(B):
+        y = Y[i, j, 0]
+        if y == y:
+            joint_rhs(V[i], y, PHI[i], p, lam, lam_hat, gamma, Dv[i])
+        else:
+            Dv[i, 0] = 0.0
+            for q in range(1, N - 1):
+                Dv[i, q] = V[i, q + 1]
+            Dv[i, N - 1] = PHI[i]
+
+
+# --------------------------------------------------------------------- per-period design
 def _root_groups(p: Array) -> tuple[list[float], list[tuple[float, float]]]:
     """Roots of ``s^n + p_1 s^(n-1) + ... + p_n``: the real ones and the ``(re, im > 0)`` pairs."""
     roots = np.roots(np.concatenate(([1.0], p)))
@@ -148,18 +341,26 @@ def _root_groups(p: Array) -> tuple[list[float], list[tuple[float, float]]]:
     return real, pairs
 
 
-def _exact_source(p: Array, dt: float, lam: float, lam_hat: float, gamma: float,
-                  g: Array | None = None) -> str:
-    """``step(y, k, z0, ..., [w])``: the sampled-data observer at gain ``k`` plus the adaptation
-    of ``k`` with the sampled innovation held (see :class:`AdaptiveGainObserver`, ``exact``).
-    With ``g``, the held model term ``w`` enters as ``+ g w``, added last to each row.
-
-    The pole-matched gain of :func:`~hgo_mj.observers.high_gain.matched_gain` is linear in the
-    coefficients ``c_j`` of ``prod_i (w - w_i)``, ``w_i = expm1(k dt r_i)`` (Ackermann: the
-    ``N^n`` term vanishes, ``N = Phi - I`` being nilpotent): ``Ld = W c`` with ``W`` fixed for a
-    given ``dt``. Only the ``c_j`` depend on ``k``; they are expanded here into plain floats.
-    """
+def root_data(p: Array) -> tuple[Any, ...]:
+    """``(mode, r, cbin, rre, pa, pb, pb2)`` of :func:`matched_coefficients` for ``p``."""
     n = p.size
+    r = -p[0] / n
+    cbin = np.array([float(comb(n, j)) for j in range(n + 1)])
+    empty = np.zeros(0)
+    if np.allclose(p, [comb(n, i) * (-r) ** i for i in range(1, n + 1)], rtol=1e-13, atol=0.0):
+        # one root of multiplicity n (the default binomial p): one expm1, no split roots
+        return 0, float(r), cbin, empty, empty, empty, empty
+    real, pairs = _root_groups(p)
+    pa = np.array([a for a, _ in pairs])
+    pb = np.array([b for _, b in pairs])
+    return 1, 0.0, cbin, np.array(real), pa, pb, pb / 2
+
+
+def exact_matrices(n: int, dt: float) -> tuple[Array, Array]:
+    """``(Phi, W)`` at the period ``dt``: ``Phi = e^{A dt}`` and the fixed matrix ``W`` with
+    which the pole-matched gain of :func:`~hgo_mj.observers.high_gain.matched_gain` is linear
+    in the coefficients ``c_j`` of ``prod_i (w - w_i)`` (Ackermann: the ``N^n`` term vanishes,
+    ``N = Phi - I`` being nilpotent): ``Ld = W c``. Only the ``c_j`` depend on ``k``."""
     N = sampled_chain(n, 1.0)[0] - np.eye(n)
     obs = np.array([np.linalg.matrix_power(N, i)[0] for i in range(n)])
     en = np.zeros(n)
@@ -169,79 +370,10 @@ def _exact_source(p: Array, dt: float, lam: float, lam_hat: float, gamma: float,
     W = np.column_stack([np.linalg.matrix_power(N, n - j) @ v for j in range(1, n + 1)])
     W[np.abs(W) < 1e-12 * np.abs(W).max(axis=1, keepdims=True)] = 0.0  # round-off of exact zeros
     W = W / (dt ** np.arange(n))[:, None]
-    Phi = sampled_chain(n, dt)[0]
-    zs = [f"z{i}" for i in range(n)]
-    extra = "" if g is None else ", w"
-    lines = [f"def step(y, k, {', '.join(zs)}{extra}):", "    e = y - z0", f"    tau = k * {dt!r}"]
-    r = -p[0] / n
-    if np.allclose(p, [comb(n, i) * (-r) ** i for i in range(1, n + 1)], rtol=1e-13, atol=0.0):
-        # one root of multiplicity n (the default binomial p): prod (w - w_0)^n, one expm1,
-        # and no numerically split roots
-        lines += [f"    m = -expm1(tau * {float(r)!r})", "    c1 = m" if n == 1 else
-                  f"    c1 = {float(n)!r} * m"]
-        coef = ["1.0", "c1"]
-        for j in range(2, n + 1):
-            lines += [f"    mp{j} = {'m' if j == 2 else f'mp{j - 1}'} * m",
-                      f"    c{j} = {float(comb(n, j))!r} * mp{j}"]
-            coef.append(f"c{j}")
-        return _exact_tail(lines, coef, W, Phi, zs, dt, lam, lam_hat, gamma, g)
-    real, pairs = _root_groups(p)
-    factors: list[list[str]] = []
-    for i, r in enumerate(real):
-        lines.append(f"    w{i} = expm1(tau * {r!r})")
-        factors.append([f"(-w{i})"])
-    for i, (a, b) in enumerate(pairs):
-        lines += [f"    ea{i} = expm1(tau * {a!r})",
-                  f"    cb{i} = cos(tau * {b!r})",
-                  f"    sb{i} = sin(tau * {b!r})",
-                  f"    sh{i} = sin(tau * {b / 2!r})",
-                  f"    re{i} = ea{i} * cb{i} - 2.0 * sh{i} * sh{i}",  # Re expm1, no cancellation
-                  f"    im{i} = (ea{i} + 1.0) * sb{i}"]
-        factors.append([f"(-2.0 * re{i})", f"(re{i} * re{i} + im{i} * im{i})"])
-    coef = ["1.0"]  # coefficients of prod (w - w_i), leading first; "1.0" is the constant one
-    for fi, f in enumerate(factors):
-        full = ["1.0", *f]
-        new = ["1.0"]
-        for j in range(1, len(coef) + len(full) - 1):
-            terms = []
-            for a_ in range(len(full)):
-                if 0 <= j - a_ < len(coef):
-                    x, y_ = full[a_], coef[j - a_]
-                    terms.append(x if y_ == "1.0" else y_ if x == "1.0" else f"{x} * {y_}")
-            if len(terms) == 1 and fi < len(factors) - 1:
-                new.append(terms[0])  # a plain copy: no statement needed
-                continue
-            name = f"c{fi}_{j}"
-            lines.append(f"    {name} = {' + '.join(terms)}")
-            new.append(name)
-        coef = new
-    return _exact_tail(lines, coef, W, Phi, zs, dt, lam, lam_hat, gamma, g)
+    return np.ascontiguousarray(sampled_chain(n, dt)[0]), np.ascontiguousarray(W)
 
 
-def _exact_tail(lines: list[str], coef: list[str], W: Array, Phi: Array, zs: list[str],
-                dt: float, lam: float, lam_hat: float, gamma: float,
-                g: Array | None = None) -> str:
-    """The adaptation and ``z+ = Phi z + (W c) e [+ g w]`` of :func:`_exact_source`."""
-    n = len(zs)
-    lines += _dead_zone_lines("q", lam, lam_hat, gamma)
-    out = [f"k + {dt!r} * q"]
-    for i in range(n):
-        gain = " + ".join(coef[j + 1] if W[i, j] == 1.0 else f"{float(W[i, j])!r} * {coef[j + 1]}"
-                          for j in range(n) if W[i, j] != 0.0)
-        chain = " + ".join(f"{float(Phi[i, j])!r} * {zs[j]}" if j != i else zs[j]
-                           for j in range(i, n))
-        held = "" if g is None or g[i] == 0.0 else f" + {float(g[i])!r} * w"
-        out.append(f"{chain} + ({gain or '0.0'}) * e{held}")
-    lines.append(f"    return ({', '.join(out)},)")
-    return "\n".join(lines) + "\n"
-
-
-def _compile_source(src: str, name: str) -> Callable[..., tuple[float, ...]]:
-    scope: dict[str, Any] = {"expm1": math.expm1, "cos": math.cos, "sin": math.sin}
-    exec(compile(src, f"<{name}>", "exec"), scope)  # noqa: S102 - numbers only
-    return scope["step"]
-
-
+@register
 class AdaptiveGainObserver(Observer):
     """High-gain observer with the dead-zone gain adaptation of paper 000, eq. 2, 4-5.
 
@@ -262,8 +394,8 @@ class AdaptiveGainObserver(Observer):
         Hurwitz coefficients ``p_1..p_n`` (default binomial, ``(s + 1)^n``).
     order : int, optional
         ``n`` when no system is given.
-    output : int
-        Measured channel used.
+    outputs : tuple of int
+        The measured channel, a 1-tuple (default ``(0,)``).
     k_max : float, optional
         Upper bound on ``k`` (``>= k0``). ``k`` is clipped to it after each sample and a
         :class:`RuntimeWarning` is issued the first time (per reset) it is reached. Not in the
@@ -337,14 +469,14 @@ class AdaptiveGainObserver(Observer):
     name = "adaptive_gain"
     summary = "high-gain observer whose k adapts by the dead-zone law dk/dt = gamma d(e1)^2"
     reference = "paper 000 (Bullinger et al. 1998), eq. 2, 4-5, Theorems 2-3"
-    diagnostic_names = ("k",)
+    family_diagnostics = ("k",)
 
     def __init__(self, system: System | None = None, *, lam: float, lam_hat: float,
                  gamma: float, k0: float, p: Any = None, order: int | None = None,
-                 output: int = 0, k_max: float | None = None, model: bool = False,
+                 outputs: Any = (0,), k_max: float | None = None, model: bool = False,
                  method: str = "exact", z_bounds: Any = None, x_hat0: Any = None,
                  z_hat0: Any = None, on_unstable: str = "raise") -> None:
-        super().__init__(system, order, output)
+        super().__init__(system, order=order, outputs=outputs, on_unstable=on_unstable)
         n = self.n
         self.p = binomial_coefficients(n) if p is None else check_hurwitz(p)
         if self.p.size != n:
@@ -363,30 +495,48 @@ class AdaptiveGainObserver(Observer):
             if self.k_max < self.k0:
                 raise DesignError(f"k_max must be >= k0; found k_max={self.k_max:g} < "
                                   f"k0={self.k0:g}")
-        check_options(method, on_unstable, model, system)
+        check_options(method, self.on_unstable, model, system)
         self.model = bool(model)
         self.method = method
-        self.on_unstable = on_unstable
         self.z_bounds = bounds_pair(z_bounds, n)
-        self._bounds_floats = bounds_floats(self.z_bounds)
+        self._lo, self._hi, self._sat = bounds_rows(self.z_bounds, n)
         self._tau_max = _max_stable_kdt(tuple(self.p.tolist()), method)
-        #: ``x_hat`` is ``z_hat`` itself (no system, or a normal form that is the state)
-        self._identity = system is None or _is_identity(system, n)
-        self._plain = self.z_bounds is None and self._identity
-        self._steps: dict[float, tuple[Callable, Callable, Callable, float]] = {}
+        self._roots = root_data(self.p)
+        self._identity = is_identity_map(system, n)
+        self._maps_cache: dict[float, tuple[Any, ...]] = {}
         self._init = (x_hat0, z_hat0)
-        self.reset(x_hat0, z_hat0=z_hat0)
+        self.reset()
 
     # ------------------------------------------------------------------ state
     @property
-    def k_(self) -> float:
-        """The current gain ``k(t)``."""
-        return self._s[0]
+    def k_(self) -> Any:
+        """The current gain ``k(t)`` (a float, or ``(B,)`` for a batched observer)."""
+        return self._public(self._S[:, 0].copy())
+
+    @property
+    def k_max_reached_(self) -> Any:
+        """Whether ``k`` reached ``k_max`` since the last reset (per member)."""
+        return self._public(self._reached.copy())
 
     @property
     def L(self) -> Array:
-        """The current output-injection gains ``p_i k^i`` (eq. 2)."""
-        return self.p * self.k_ ** np.arange(1, self.n + 1)
+        """The current output-injection gains ``p_i k^i`` (eq. 2), ``(n,)`` or ``(B, n)``."""
+        return self._public(self.p * self._S[:, :1] ** np.arange(1, self.n + 1))  # type: ignore[no-any-return]
+
+    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+        z = self._initial_z(*initial_rows(self, x0, z0), u0)
+        self._S = np.ascontiguousarray(np.hstack([np.full((self.batch, 1), self.k0), z]))
+        self._x = physical_rows(self, self._S, 1, u0)
+        self._reached = np.zeros(self.batch, dtype=np.bool_)
+        self._crossed = np.full(self.batch, -1, dtype=np.int64)
+        self._k_cross = np.zeros(self.batch)
+        self._warned_unstable = False
+        self._warned_k_max = False
+
+    def _current(self) -> tuple[Array, Array, Array]:
+        Zc = np.empty((self.batch, 1, self.n))
+        report(self._S, 1, self._lo, self._hi, self._sat, 0, Zc)
+        return self._x.copy(), Zc[:, 0], self._S[:, :1].copy()
 
     # ------------------------------------------------------------------ setup
     def max_stable_gain(self, dt: float) -> float:
@@ -395,14 +545,16 @@ class AdaptiveGainObserver(Observer):
         return self._tau_max / finite_scalar("dt", dt, positive=True)
 
     def max_stable_period(self, k: float | None = None) -> float:
-        """Largest stable sample period at gain ``k`` (default: the current ``k_``)."""
-        k = self.k_ if k is None else finite_scalar("k", k, positive=True)
+        """Largest stable sample period at gain ``k`` (default: the current ``k``, the largest
+        over the members)."""
+        k = float(self._S[:, 0].max()) if k is None else finite_scalar("k", k, positive=True)
         return self._tau_max / k
 
     def check_period(self, dt: float) -> None:
-        """Check the linear part's one-step map at the current ``k`` and at ``k_max`` (if given).
+        """Check the linear part's one-step map at the current ``k`` (the largest over the
+        members) and at ``k_max`` (if given).
 
-        ``k`` only grows, so a period stable now may not stay so: without ``k_max``, ``update``
+        ``k`` only grows, so a period stable now may not stay so: without ``k_max``, the update
         checks ``k dt`` against the limit at every sample where ``k`` changed.
         """
         dt = finite_scalar("dt", dt, positive=True)
@@ -410,7 +562,7 @@ class AdaptiveGainObserver(Observer):
         if self.on_unstable == "ignore" or self.method == "exact":
             return
         limit = self.max_stable_gain(dt)
-        for what, k in (("the current gain", self.k_), ("k_max", self.k_max)):
+        for what, k in (("the current gain", float(self._S[:, 0].max())), ("k_max", self.k_max)):
             if k is not None and k >= limit:
                 self._unstable(
                     f"{self.method} update of the adaptive high-gain observer (n={self.n}) with "
@@ -424,140 +576,93 @@ class AdaptiveGainObserver(Observer):
             raise exc(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=4)
 
-    def _entry(self, dt: float) -> tuple[Callable, Callable, Callable, float]:
-        entry = self._steps.get(dt)
-        if entry is not None:
-            return entry
-        dt = finite_scalar("dt", dt, positive=True)
-        M0, _, g0 = one_step_map(self.p, 1.0, dt, self.method, closed=False)  # dropout
-        # with the model term held over the sample (exact, euler), the step takes its value
-        # as a last argument and adds g0 phi (g0 = S B or dt B) in the same call
-        held = self.model and self.method != "rk4"
+    def _entry(self, dt: float) -> tuple[Any, ...]:
+        return cached(self._maps_cache, dt, self._maps)
+
+    def _maps(self, dt: float) -> tuple[Any, ...]:
+        """What one period needs: ``(Phi, W)`` of the exact map (dummies otherwise), the
+        dropout map ``(M0, g0)`` (``g0`` also the held model term's input matrix: ``S B`` for
+        exact, ``dt B`` for euler) and the gain bounds ``(k_limit, k_max, k_stab)``."""
+        n = self.n
+        M0, _, g0 = one_step_map(self.p, 1.0, dt, self.method, closed=False)
         if self.method == "exact":
-            src = _exact_source(self.p, dt, self.lam, self.lam_hat, self.gamma,
-                                g0 if held else None)
+            Phi, W = exact_matrices(n, dt)
         else:
-            src = _flow_source(self.p, dt, self.method, self.lam, self.lam_hat, self.gamma,
-                               self.model and self.method == "rk4", held)
-        step = _compile_source(src, f"adaptive_gain_{self.method}")
-        # held model term: s + (0, g) phi with g = S B (exact) or dt B (euler), open or closed
-        # loop alike; compiled in plain floats over the whole state s = (k, z)
-        g = affine_step(np.eye(self.n + 1), np.concatenate(([0.0], g0)))
-        limit = math.inf
+            Phi = W = np.zeros((n, n))
+        k_stab = math.inf
         if self.method != "exact" and self.on_unstable != "ignore":
-            limit = self._tau_max / dt
-        if self.k_max is not None:
-            limit = min(limit, self.k_max)
-        entry = (step, affine_step(M0, np.zeros(self.n)), g, limit)
-        self._steps[dt] = entry
-        return entry
+            k_stab = self._tau_max / dt
+        k_max = math.inf if self.k_max is None else self.k_max
+        return (Phi, W, np.ascontiguousarray(M0), np.ascontiguousarray(g0),
+                min(k_stab, k_max), k_max, k_stab)
 
-    # -------------------------------------------------------------- interface
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
-        """Restart from ``x_hat0``/``z_hat0`` (default: those given to the constructor) and
-        ``k = k0``."""
-        if x_hat0 is None and z_hat0 is None:
-            x_hat0, z_hat0 = self._init
-        z = self._initial_z(x_hat0, z_hat0, u0)
-        self._s = (self.k0, *(float(v) for v in z))
-        self._restart_counters()
-        self.k_max_reached_ = False
-        self._warned_unstable = False
+    # ------------------------------------------------------------------ update
+    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        Phi, W, M0, g0, k_limit, k_max, k_stab = self._entry(dt)
+        S, B, T = self._S, Y.shape[0], Y.shape[1]
+        stop = self.on_unstable == "raise"
+        lo, hi, sat = self._lo, self._hi, self._sat
+        lims = (self._reached, self._crossed, self._k_cross)
+        fixed = (dt, self.p, self.lam, self.lam_hat, self.gamma, Phi, W, *self._roots, M0, g0,
+                 k_limit, k_max, k_stab, stop, lo, hi, sat, Z, D)
+        code = _CODES[self.method]
+        if not self.model:  # the whole block in one call
+            adaptive_run(S, Y, np.zeros((B, T)), 0, False, code, *fixed, *lims)
+            self._limits(dt)
+        elif self.method == "rk4":  # the model term at every stage
+            for j in range(T):
+                u = U[:, j]
+                prev = S.copy()
+                model_rk4(S, Y, j, dt, 1, M0, g0, lambda V, u=u: self._phi(V, u),
+                          lambda V, ph, j=j: self._stage(V, Y, j, ph))
+                adaptive_limits(S, prev, Y, j, k_limit, k_max, k_stab, stop, *lims)
+                self._limits(dt)
+                D[:, j, 0] = S[:, 0]
+                report(S, 1, lo, hi, sat, j, Z)
+        else:  # the model term held at its start-of-sample value
+            for j in range(T):
+                ph = self._phi(S, U[:, j])
+                adaptive_run(S, Y, ph.reshape(B, 1), j, True, code, *fixed, *lims)
+                self._limits(dt)
+        to_physical(self, Z, U, X)
 
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``; integrate ``(z, k)`` over ``dt``; return
-        ``x_hat(t_k + dt)``."""
-        try:
-            yi = float(y[self.output])
-        except (IndexError, TypeError):
-            raise self._bad_measurement(y, self.output) from None
-        self._u = u
-        entry = self._steps.get(dt)
-        if entry is None:
-            self.check_period(dt)
-            entry = self._steps[dt]
-        step, open_, g, limit = entry
-        s = self._s
-        if yi - yi != 0.0:  # NaN or inf
-            if yi != yi:  # dropout: predict without correction, k held
-                self.dropouts_ += 1
-                s1 = (s[0], *open_(0.0, *s[1:]))
-                self._s = g(self._phi(s[1:], u), *s1) if self.model else s1
-                return self.x_hat
-            raise DivergenceError(f"measurement y[{self.output}] is {yi}")
-        if not self.model:
-            s = step(yi, *s)
-        elif self.method == "rk4":
-            ph_u = self._phi_u(u)
-            s = step(yi, *s, ph_u)
-        else:  # model term held at its start-of-sample value, added by the step itself
-            s = step(yi, *s, self._phi(s[1:], u))
-        if s[0] > limit:
-            s = self._at_limit(s, dt)
-        self._s = s
-        if self._plain:  # no saturation, no physical map: x_hat is z_hat
-            return np.array(s[1:])
-        return self.x_hat
+    def _phi(self, V: Array, u: Array) -> Array:
+        """The model term ``phi(sat(z), u)`` of every member, ``(B,)``."""
+        A = np.empty((V.shape[0], self.n))
+        saturated(V, 1, self._lo, self._hi, self._sat, A)
+        return np.ascontiguousarray(self.system.phi_batch(A, u), dtype=float)  # type: ignore[union-attr]
 
-    def _at_limit(self, s: tuple[float, ...], dt: float) -> tuple[float, ...]:
-        if self.k_max is not None and s[0] >= self.k_max:
-            if not self.k_max_reached_:
-                self.k_max_reached_ = True
-                warnings.warn(f"adaptive high-gain observer: k reached k_max = {self.k_max:g}; "
-                              f"k is held there (the output error is still outside the "
-                              f"lam = {self.lam:g} strip: noise larger than lam, or lam too "
-                              f"small for this plant)", RuntimeWarning, stacklevel=3)
-            s = (self.k_max, *s[1:])
-        if (self.method != "exact" and self.on_unstable != "ignore"
-                and s[0] >= self._tau_max / dt and not self._warned_unstable):
-            self._warned_unstable = True
-            self._unstable(
-                f"adaptive high-gain observer: k grew to {s[0]:g}, past the largest gain "
-                f"{self._tau_max / dt:.4g} at which the {self.method} update with sample period "
-                f"{dt:g} is stable (k dt < {self._tau_max:.4g}); use method='exact', a shorter "
-                f"period, or k_max below the limit", DivergenceError)
-        return s
+    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
+        Dv = np.empty_like(V)
+        adaptive_rhs(V, Y, j, phi, self.p, self.lam, self.lam_hat, self.gamma, Dv)
+        return Dv
 
-    def _phi(self, z: tuple[float, ...], u: Any) -> float:
-        """The model term in plain floats: the system's unchecked ``phi`` takes the tuple ``z``
-        itself (clipped with min/max when ``z_bounds`` is set)."""
-        if self.z_bounds is not None:
-            z = self._saturate_floats(z)
-        return float(self.system.phi_unchecked(z, u))  # type: ignore[union-attr]
-
-    def _phi_u(self, u: Any) -> Callable[..., float]:
-        phi = self.system.phi_unchecked  # type: ignore[union-attr]
-        if self.z_bounds is None:
-            return lambda *z: float(phi(z, u))
-        return lambda *z: self._phi(z, u)
-
-    def _saturate_floats(self, z: tuple[float, ...]) -> tuple[float, ...]:
-        """:meth:`_saturate` on a tuple of floats, without numpy."""
-        return clip_floats(z, self._bounds_floats)  # type: ignore[arg-type]
-
-    def _saturate(self, z: Array) -> Array:
-        if self.z_bounds is None:
-            return z
-        return np.clip(z, self.z_bounds[0], self.z_bounds[1])
-
-    @property
-    def z_hat(self) -> Array:
-        z = np.array(self._s[1:])
-        return z if self.z_bounds is None else self._saturate(z)
-
-    @property
-    def x_hat(self) -> Array:
-        z = self.z_hat
-        return z if self._identity else self._physical(z)
-
-    def diagnostics(self) -> dict[str, float]:
-        return {"k": self._s[0], "dropouts": float(self.dropouts_)}
+    def _limits(self, dt: float) -> None:
+        """Warn (once per reset) that ``k`` reached ``k_max``; raise or warn (once) when it
+        grew past the largest gain at which euler/rk4 are stable at this period."""
+        if not self._warned_k_max and self._reached.any():
+            self._warned_k_max = True
+            warnings.warn(f"adaptive high-gain observer: k reached k_max = {self.k_max:g}; "
+                          f"k is held there (the output error is still outside the "
+                          f"lam = {self.lam:g} strip: noise larger than lam, or lam too "
+                          f"small for this plant)", RuntimeWarning, stacklevel=5)
+        if self._warned_unstable or not (self._crossed >= 0).any():
+            return
+        self._warned_unstable = True
+        b = int(np.argmax(self._crossed >= 0))
+        who = f" (member {b})" if self._batched else ""
+        self._unstable(
+            f"adaptive high-gain observer: k grew to {self._k_cross[b]:g}{who}, past the largest "
+            f"gain {self._tau_max / dt:.4g} at which the {self.method} update with sample period "
+            f"{dt:g} is stable (k dt < {self._tau_max:.4g}); use method='exact', a shorter "
+            f"period, or k_max below the limit", DivergenceError)
 
     def params(self) -> dict[str, Any]:
         return {"lam": self.lam, "lam_hat": self.lam_hat, "gamma": self.gamma, "k0": self.k0,
                 "k_max": self.k_max, "p": self.p.tolist(), "order": self.n,
-                "output": self.output, "model": self.model, "method": self.method,
+                "outputs": list(self.outputs), "model": self.model, "method": self.method,
                 "z_bounds": None if self.z_bounds is None else [b.tolist() for b in self.z_bounds]}
 
 
-__all__ = ["AdaptiveGainObserver", "dead_zone"]
+__all__ = ["AdaptiveGainObserver", "adaptation_rate", "adaptive_run", "dead_zone",
+           "joint_rhs", "matched_coefficients"]
