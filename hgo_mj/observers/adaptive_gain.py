@@ -125,7 +125,7 @@ def joint_rhs(s, y, phi, p, lam, lam_hat, gamma, ds):  # pragma: no cover - comp
 
 
 @njit(cache=True)
-def matched_coefficients(tau, mode, r, cbin, rre, pa, pb, pb2, c, work):  # pragma: no cover
+def matched_coefficients(tau, mode, r, cbin, rre, pa, pb, c, work):  # pragma: no cover
     """Coefficients ``c`` (leading 1 first) of :math:`\\prod_i (w - w_i)`,
     :math:`w_i = e^{\\tau r_i} - 1`, ``r_i`` the roots of ``s^n + p_1 s^(n-1) + ... + p_n``:
     the pole-matched gain at ``tau = k dt`` is ``W c[1:]`` (see :func:`exact_matrices`).
@@ -153,7 +153,7 @@ def matched_coefficients(tau, mode, r, cbin, rre, pa, pb, pb2, c, work):  # prag
         else:
             i = q - rre.size
             ea = math.expm1(tau * pa[i])
-            sh = math.sin(tau * pb2[i])
+            sh = math.sin(tau * (pb[i] / 2))
             re = ea * math.cos(tau * pb[i]) - 2.0 * sh * sh
             im = (ea + 1.0) * math.sin(tau * pb[i])
             f[0], f[1], f[2] = 1.0, -2.0 * re, re * re + im * im
@@ -170,21 +170,29 @@ def matched_coefficients(tau, mode, r, cbin, rre, pa, pb, pb2, c, work):  # prag
 
 
 @njit(cache=True)
-def adaptive_sample(s, y, phi, model, method, dt, p, lam, lam_hat, gamma, Phi, W, mode, r,
-                    cbin, rre, pa, pb, pb2, M0, g0, t, d1, d2, d3, d4, c, work):  # pragma: no cover
+def adaptive_sample(s, y, phi, model, method, mode, nr, npair, par, mats, vecs, t,
+                    w):  # pragma: no cover - compiled
     """One sample of one member: ``s = (k, z)`` into ``t``.
 
     * ``y`` NaN (a dropout): ``z+ = M0 z + g0 phi`` (the prediction without correction), ``k``
       held (nothing to adapt to).
-    * ``exact``: ``z+ = Phi z + Ld(k) e + g0 phi`` with the pole-matched gain at the
+    * ``exact`` (0): ``z+ = Phi z + Ld(k) e + g0 phi`` with the pole-matched gain at the
       start-of-sample ``k`` (``Ld = W c(k dt)``, :func:`matched_coefficients`) and
       ``k+ = k + dt gamma d^2(e)``, ``e = y - z_1``.
-    * ``euler``: ``s+ = s + dt f(s)`` (:func:`joint_rhs`), plus ``dt phi`` in the last row.
-    * ``rk4``: classical RK4 of :func:`joint_rhs` (``phi`` 0: the model term at every stage
+    * ``euler`` (1): ``s+ = s + dt f(s)`` (:func:`joint_rhs`), plus ``dt phi`` in the last row.
+    * ``rk4`` (2): classical RK4 of :func:`joint_rhs` (``phi`` 0: the model term at every stage
       is driven from Python, :meth:`AdaptiveGainObserver._advance`).
+
+    The constants come packed (few arguments make a kernel call cheap):
+    ``par = (dt, lam, lam_hat, gamma, r, ...)``, ``mats = (Phi, W, M0)``,
+    ``vecs = (p, g0, C(n, j), real roots, Re and Im of the pairs)`` (rows padded to ``n + 1``),
+    ``w`` six work rows.
     """
-    n = p.size
+    n = mats.shape[1]
+    dt, lam, lam_hat, gamma = par[0], par[1], par[2], par[3]
+    p, g0 = vecs[0, :n], vecs[1, :n]
     if y != y:
+        M0 = mats[2]
         t[0] = s[0]
         for i in range(n):
             acc = 0.0
@@ -192,10 +200,14 @@ def adaptive_sample(s, y, phi, model, method, dt, p, lam, lam_hat, gamma, Phi, W
                 acc += M0[i, j] * s[1 + j]
             t[1 + i] = acc + g0[i] * phi if model else acc
         return
+    d1, d2, d3, d4 = w[0], w[1], w[2], w[3]
     if method == 0:
+        Phi, W = mats[0], mats[1]
+        c = w[4]
         k = s[0]
         e = y - s[1]
-        matched_coefficients(k * dt, mode, r, cbin, rre, pa, pb, pb2, c, work)
+        matched_coefficients(k * dt, mode, par[4], vecs[2], vecs[3, :nr], vecs[4, :npair],
+                             vecs[5, :npair], c, w[5])
         for i in range(n):
             gi = 0.0
             for j in range(n):
@@ -231,55 +243,56 @@ def adaptive_sample(s, y, phi, model, method, dt, p, lam, lam_hat, gamma, Phi, W
 
 
 @njit(cache=True)
-def gain_limits(t, j, i, k_limit, k_max, k_stab, reached, crossed, k_cross):  # pragma: no cover
-    """``k`` after a sample against its bounds: clipped to ``k_max`` (``reached[i]`` set), and
-    the first sample at which it passes ``k_stab`` (the largest gain at which euler/rk4 are
-    stable at this period) recorded in ``crossed[i]``, ``k_cross[i]``. Returns whether this
-    sample crossed."""
-    if not t[0] > k_limit:
-        return False
-    if t[0] >= k_max:
-        reached[i] = True
-        t[0] = k_max
-    if t[0] >= k_stab and crossed[i] < 0:
-        crossed[i] = j
-        k_cross[i] = t[0]
-        return True
-    return False
+def gain_limits(t, j, par, lim):  # pragma: no cover - compiled
+    """``k = t[0]`` after a sample against its bounds ``par[5:8] = (k_limit, k_max, k_stab)``
+    (``k_limit`` the smaller of the other two): clipped to ``k_max`` (``lim[0] = 1``), and the
+    first sample at which it passes ``k_stab`` (the largest gain at which euler/rk4 are stable
+    at this period) recorded as ``lim[1] = j``, ``lim[2] = k``. Returns 1 where ``k`` reached
+    ``k_max``, 2 where it crossed ``k_stab`` now (3: both), else 0."""
+    if not t[0] > par[5]:
+        return 0
+    out = 0
+    if t[0] >= par[6]:
+        lim[0] = 1.0
+        t[0] = par[6]
+        out = 1
+    if t[0] >= par[7] and lim[1] < 0:
+        lim[1] = j
+        lim[2] = t[0]
+        out += 2
+    return out
 
 
 @njit(cache=True)
-def adaptive_run(S, Y, PHI, j0, model, method, dt, p, lam, lam_hat, gamma, Phi, W, mode, r,
-                 cbin, rre, pa, pb, pb2, M0, g0, k_limit, k_max, k_stab, stop, lo, hi, sat,
-                 Z, D, reached, crossed, k_cross):  # pragma: no cover - compiled
+def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, mats, vecs,
+                 bounds, Z, D, lim):  # pragma: no cover - compiled
     """Samples ``j0 .. j0 + T'`` (``T' = PHI.shape[1]``, ``PHI`` the model term held over each
     sample) of :func:`adaptive_sample` for each member (``S`` ``(B, n + 1)``, ``k`` first,
-    updated in place), with :func:`gain_limits`; ``sat(z)`` into ``Z[:, j]`` and ``k`` into
-    ``D[:, j, 0]``. With ``stop`` a member stops before the sample at which ``k`` crosses
-    ``k_stab`` (the caller raises)."""
+    updated in place), with :func:`gain_limits` (``lim`` ``(B, 3)``); ``sat(z)`` into
+    ``Z[:, j]`` and ``k`` into ``D[:, j, 0]``. With ``stop`` a member stops before the sample
+    at which ``k`` crosses ``k_stab`` (the caller raises). Returns the or of
+    :func:`gain_limits`' codes."""
     B = S.shape[0]
-    n = p.size
+    n = mats.shape[1]
     Tc = PHI.shape[1]
+    lo, hi = bounds[0], bounds[1]
     s = np.empty(n + 1)
     t = np.empty(n + 1)
-    d1 = np.empty(n + 1)
-    d2 = np.empty(n + 1)
-    d3 = np.empty(n + 1)
-    d4 = np.empty(n + 1)
-    c = np.empty(n + 1)
-    work = np.empty(n + 1)
+    w = np.empty((6, n + 1))
+    status = 0
     for i in range(B):
         for q in range(n + 1):
             s[q] = S[i, q]
         for jj in range(Tc):
             j = j0 + jj
             y = Y[i, j, 0]
-            adaptive_sample(s, y, PHI[i, jj], model, method, dt, p, lam, lam_hat, gamma, Phi,
-                            W, mode, r, cbin, rre, pa, pb, pb2, M0, g0, t, d1, d2, d3, d4, c,
-                            work)
-            if y == y and gain_limits(t, j, i, k_limit, k_max, k_stab, reached, crossed,
-                                      k_cross) and stop:
-                break
+            adaptive_sample(s, y, PHI[i, jj], model, method, mode, nr, npair, par, mats, vecs,
+                            t, w)
+            if y == y:
+                code = gain_limits(t, j, par, lim[i])
+                status |= code
+                if code >= 2 and stop:
+                    break
             for q in range(n + 1):
                 s[q] = t[q]
             D[i, j, 0] = s[0]
@@ -293,20 +306,24 @@ def adaptive_run(S, Y, PHI, j0, model, method, dt, p, lam, lam_hat, gamma, Phi, 
                 Z[i, j, q] = v
         for q in range(n + 1):
             S[i, q] = s[q]
+    return status
 
 
 @njit(cache=True)
-def adaptive_limits(S, Sprev, Y, j, k_limit, k_max, k_stab, stop, reached, crossed,
-                    k_cross):  # pragma: no cover - compiled
+def adaptive_limits(S, Sprev, Y, j, par, stop, lim):  # pragma: no cover - compiled
     """:func:`gain_limits` over the members after an RK4 sample driven from Python (the model
     term at every stage); a member that crosses with ``stop`` gets its state back."""
     B, N = S.shape
+    status = 0
     for i in range(B):
         y = Y[i, j, 0]
-        if y == y and gain_limits(S[i], j, i, k_limit, k_max, k_stab, reached, crossed,
-                                  k_cross) and stop:
-            for q in range(N):
-                S[i, q] = Sprev[i, q]
+        if y == y:
+            code = gain_limits(S[i], j, par, lim[i])
+            status |= code
+            if code >= 2 and stop:
+                for q in range(N):
+                    S[i, q] = Sprev[i, q]
+    return status
 
 
 @njit(cache=True)
@@ -341,19 +358,22 @@ def _root_groups(p: Array) -> tuple[list[float], list[tuple[float, float]]]:
     return real, pairs
 
 
-def root_data(p: Array) -> tuple[Any, ...]:
-    """``(mode, r, cbin, rre, pa, pb, pb2)`` of :func:`matched_coefficients` for ``p``."""
+def root_data(p: Array) -> tuple[int, float, int, int, Array]:
+    """``(mode, r, n_real, n_pairs, rows)`` of :func:`matched_coefficients` for ``p``:
+    ``rows`` = ``(C(n, j))_j``, the real roots, ``Re`` and ``Im > 0`` of the complex pairs
+    (padded to ``n + 1``)."""
     n = p.size
     r = -p[0] / n
-    cbin = np.array([float(comb(n, j)) for j in range(n + 1)])
-    empty = np.zeros(0)
+    rows = np.zeros((4, n + 1))
+    rows[0] = [float(comb(n, j)) for j in range(n + 1)]
     if np.allclose(p, [comb(n, i) * (-r) ** i for i in range(1, n + 1)], rtol=1e-13, atol=0.0):
         # one root of multiplicity n (the default binomial p): one expm1, no split roots
-        return 0, float(r), cbin, empty, empty, empty, empty
+        return 0, float(r), 0, 0, rows
     real, pairs = _root_groups(p)
-    pa = np.array([a for a, _ in pairs])
-    pb = np.array([b for _, b in pairs])
-    return 1, 0.0, cbin, np.array(real), pa, pb, pb / 2
+    rows[1, :len(real)] = real
+    rows[2, :len(pairs)] = [a for a, _ in pairs]
+    rows[3, :len(pairs)] = [b for _, b in pairs]
+    return 1, 0.0, len(real), len(pairs), rows
 
 
 def exact_matrices(n: int, dt: float) -> tuple[Array, Array]:
@@ -499,7 +519,7 @@ class AdaptiveGainObserver(Observer):
         self.model = bool(model)
         self.method = method
         self.z_bounds = bounds_pair(z_bounds, n)
-        self._lo, self._hi, self._sat = bounds_rows(self.z_bounds, n)
+        self._bounds, self._sat = bounds_rows(self.z_bounds, n)
         self._tau_max = _max_stable_kdt(tuple(self.p.tolist()), method)
         self._roots = root_data(self.p)
         self._identity = is_identity_map(system, n)
@@ -516,7 +536,7 @@ class AdaptiveGainObserver(Observer):
     @property
     def k_max_reached_(self) -> Any:
         """Whether ``k`` reached ``k_max`` since the last reset (per member)."""
-        return self._public(self._reached.copy())
+        return self._public(self._lim[:, 0] > 0)
 
     @property
     def L(self) -> Array:
@@ -527,15 +547,16 @@ class AdaptiveGainObserver(Observer):
         z = self._initial_z(*initial_rows(self, x0, z0), u0)
         self._S = np.ascontiguousarray(np.hstack([np.full((self.batch, 1), self.k0), z]))
         self._x = physical_rows(self, self._S, 1, u0)
-        self._reached = np.zeros(self.batch, dtype=np.bool_)
-        self._crossed = np.full(self.batch, -1, dtype=np.int64)
-        self._k_cross = np.zeros(self.batch)
+        #: per member: reached k_max (0/1), sample at which k crossed the stable limit (-1:
+        #: not yet), k there
+        self._lim = np.zeros((self.batch, 3))
+        self._lim[:, 1] = -1.0
         self._warned_unstable = False
         self._warned_k_max = False
 
     def _current(self) -> tuple[Array, Array, Array]:
         Zc = np.empty((self.batch, 1, self.n))
-        report(self._S, 1, self._lo, self._hi, self._sat, 0, Zc)
+        report(self._S, 1, self._bounds, self._sat, 0, Zc)
         return self._x.copy(), Zc[:, 0], self._S[:, :1].copy()
 
     # ------------------------------------------------------------------ setup
@@ -579,10 +600,12 @@ class AdaptiveGainObserver(Observer):
     def _entry(self, dt: float) -> tuple[Any, ...]:
         return cached(self._maps_cache, dt, self._maps)
 
-    def _maps(self, dt: float) -> tuple[Any, ...]:
-        """What one period needs: ``(Phi, W)`` of the exact map (dummies otherwise), the
-        dropout map ``(M0, g0)`` (``g0`` also the held model term's input matrix: ``S B`` for
-        exact, ``dt B`` for euler) and the gain bounds ``(k_limit, k_max, k_stab)``."""
+    def _maps(self, dt: float) -> tuple[Array, Array, Array]:
+        """The packed constants of :func:`adaptive_run` at the period ``dt``:
+        ``par = (dt, lam, lam_hat, gamma, r, k_limit, k_max, k_stab)``, ``mats = (Phi, W, M0)``
+        (``Phi``, ``W`` of the exact map, zero otherwise; ``M0`` the dropout map) and
+        ``vecs = (p, g0, C(n, j), real roots, pairs)``; ``g0`` is also the held model term's
+        input matrix (``S B`` for exact, ``dt B`` for euler)."""
         n = self.n
         M0, _, g0 = one_step_map(self.p, 1.0, dt, self.method, closed=False)
         if self.method == "exact":
@@ -593,43 +616,49 @@ class AdaptiveGainObserver(Observer):
         if self.method != "exact" and self.on_unstable != "ignore":
             k_stab = self._tau_max / dt
         k_max = math.inf if self.k_max is None else self.k_max
-        return (Phi, W, np.ascontiguousarray(M0), np.ascontiguousarray(g0),
-                min(k_stab, k_max), k_max, k_stab)
+        mode, r, _, _, rows = self._roots
+        par = np.array([dt, self.lam, self.lam_hat, self.gamma, r, min(k_stab, k_max), k_max,
+                        k_stab])
+        vecs = np.zeros((6, n + 1))
+        vecs[0, :n], vecs[1, :n], vecs[2:] = self.p, g0, rows
+        return par, np.array([Phi, W, M0]), vecs
 
     # ------------------------------------------------------------------ update
     def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        Phi, W, M0, g0, k_limit, k_max, k_stab = self._entry(dt)
+        par, mats, vecs = self._entry(dt)
         S, B, T = self._S, Y.shape[0], Y.shape[1]
         stop = self.on_unstable == "raise"
-        lo, hi, sat = self._lo, self._hi, self._sat
-        lims = (self._reached, self._crossed, self._k_cross)
-        fixed = (dt, self.p, self.lam, self.lam_hat, self.gamma, Phi, W, *self._roots, M0, g0,
-                 k_limit, k_max, k_stab, stop, lo, hi, sat, Z, D)
+        bounds, sat, lim = self._bounds, self._sat, self._lim
+        mode, _, nr, npair, _ = self._roots
         code = _CODES[self.method]
         if not self.model:  # the whole block in one call
-            adaptive_run(S, Y, np.zeros((B, T)), 0, False, code, *fixed, *lims)
-            self._limits(dt)
+            status = adaptive_run(S, Y, np.zeros((B, T)), 0, False, code, mode, nr, npair, stop,
+                                  sat, par, mats, vecs, bounds, Z, D, lim)
+            if status:
+                self._limits(dt)
         elif self.method == "rk4":  # the model term at every stage
+            M0, g0 = mats[2], vecs[1, :self.n]
             for j in range(T):
                 u = U[:, j]
                 prev = S.copy()
                 model_rk4(S, Y, j, dt, 1, M0, g0, lambda V, u=u: self._phi(V, u),
                           lambda V, ph, j=j: self._stage(V, Y, j, ph))
-                adaptive_limits(S, prev, Y, j, k_limit, k_max, k_stab, stop, *lims)
-                self._limits(dt)
+                if adaptive_limits(S, prev, Y, j, par, stop, lim):
+                    self._limits(dt)
                 D[:, j, 0] = S[:, 0]
-                report(S, 1, lo, hi, sat, j, Z)
+                report(S, 1, bounds, sat, j, Z)
         else:  # the model term held at its start-of-sample value
             for j in range(T):
                 ph = self._phi(S, U[:, j])
-                adaptive_run(S, Y, ph.reshape(B, 1), j, True, code, *fixed, *lims)
-                self._limits(dt)
+                if adaptive_run(S, Y, ph.reshape(B, 1), j, True, code, mode, nr, npair, stop,
+                                sat, par, mats, vecs, bounds, Z, D, lim):
+                    self._limits(dt)
         to_physical(self, Z, U, X)
 
     def _phi(self, V: Array, u: Array) -> Array:
         """The model term ``phi(sat(z), u)`` of every member, ``(B,)``."""
         A = np.empty((V.shape[0], self.n))
-        saturated(V, 1, self._lo, self._hi, self._sat, A)
+        saturated(V, 1, self._bounds, self._sat, A)
         return np.ascontiguousarray(self.system.phi_batch(A, u), dtype=float)  # type: ignore[union-attr]
 
     def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
@@ -640,19 +669,20 @@ class AdaptiveGainObserver(Observer):
     def _limits(self, dt: float) -> None:
         """Warn (once per reset) that ``k`` reached ``k_max``; raise or warn (once) when it
         grew past the largest gain at which euler/rk4 are stable at this period."""
-        if not self._warned_k_max and self._reached.any():
+        if not self._warned_k_max and (self._lim[:, 0] > 0).any():
             self._warned_k_max = True
             warnings.warn(f"adaptive high-gain observer: k reached k_max = {self.k_max:g}; "
                           f"k is held there (the output error is still outside the "
                           f"lam = {self.lam:g} strip: noise larger than lam, or lam too "
                           f"small for this plant)", RuntimeWarning, stacklevel=5)
-        if self._warned_unstable or not (self._crossed >= 0).any():
+        crossed = self._lim[:, 1] >= 0
+        if self._warned_unstable or not crossed.any():
             return
         self._warned_unstable = True
-        b = int(np.argmax(self._crossed >= 0))
+        b = int(np.argmax(crossed))
         who = f" (member {b})" if self._batched else ""
         self._unstable(
-            f"adaptive high-gain observer: k grew to {self._k_cross[b]:g}{who}, past the largest "
+            f"adaptive high-gain observer: k grew to {self._lim[b, 2]:g}{who}, past the largest "
             f"gain {self._tau_max / dt:.4g} at which the {self.method} update with sample period "
             f"{dt:g} is stable (k dt < {self._tau_max:.4g}); use method='exact', a shorter "
             f"period, or k_max below the limit", DivergenceError)

@@ -284,7 +284,7 @@ class QIntegralObserver(AffineObserver):
                           f"q={self.q}, gamma={self.gamma_:g})", dt, self.max_stable_period)
         M0, _, g0 = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method,
                                         closed=False)
-        return tuple(np.ascontiguousarray(a, dtype=float) for a in (M, b, g, M0, g0))
+        return np.array([M, M0]), np.array([b, g, g0])
 
     def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
         Dv = np.empty_like(V)

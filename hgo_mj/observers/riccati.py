@@ -93,20 +93,22 @@ def is_identity_map(system: System | None, n: int) -> bool:
         return False
 
 
-def bounds_rows(z_bounds: tuple[Array, Array] | None, n: int) -> tuple[Array, Array, bool]:
-    """``(lower, upper, saturate)`` for the kernels (infinite bounds when there are none)."""
+def bounds_rows(z_bounds: tuple[Array, Array] | None, n: int) -> tuple[Array, bool]:
+    """``((lower, upper) as a (2, n) array, saturate)`` for the kernels (infinite bounds when
+    there are none)."""
     if z_bounds is None:
-        return np.full(n, -np.inf), np.full(n, np.inf), False
-    return (np.ascontiguousarray(z_bounds[0], dtype=float),
-            np.ascontiguousarray(z_bounds[1], dtype=float), True)
+        return np.array([np.full(n, -np.inf), np.full(n, np.inf)]), False
+    return np.ascontiguousarray(np.vstack(z_bounds), dtype=float), True
 
 
 # ---------------------------------------------------------------------------------- kernels
 @njit(cache=True)
-def saturated(S, off, lo, hi, sat, A):  # pragma: no cover - compiled
+def saturated(S, off, bounds, sat, A):  # pragma: no cover - compiled
     """``A = sat(S[:, off:])``: the reported estimate and the model term's argument, clipped
-    to ``[lo, hi]`` when ``sat`` (Khalil, sec. 14.5); NaN stays NaN as in ``np.clip``."""
+    to ``bounds = (lower, upper)`` when ``sat`` (Khalil, sec. 14.5); NaN stays NaN as in
+    ``np.clip``."""
     B, n = A.shape
+    lo, hi = bounds[0], bounds[1]
     for i in range(B):
         for r in range(n):
             v = S[i, off + r]
@@ -119,10 +121,11 @@ def saturated(S, off, lo, hi, sat, A):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def report(S, off, lo, hi, sat, j, Z):  # pragma: no cover - compiled
+def report(S, off, bounds, sat, j, Z):  # pragma: no cover - compiled
     """Write ``sat(S[:, off:])`` into the rows ``Z[:, j]``."""
     B, N = S.shape
     n = Z.shape[2]
+    lo, hi = bounds[0], bounds[1]
     for i in range(B):
         for r in range(n):
             v = S[i, off + r]
@@ -135,7 +138,7 @@ def report(S, off, lo, hi, sat, j, Z):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def affine_run(S, Y, PHI, j0, M, b, g, M0, g0, off, lo, hi, sat, Z):  # pragma: no cover
+def affine_run(S, Y, PHI, j0, mats, vecs, bounds, off, sat, Z):  # pragma: no cover - compiled
     """Samples ``j0 .. j0 + T'`` (``T' = PHI.shape[1]``) of the affine one-sample map
 
     .. math:: s^+ = M s + b\\, y_j + g\\, \\varphi_j \\quad (y_j \\text{ finite}), \\qquad
@@ -143,12 +146,16 @@ def affine_run(S, Y, PHI, j0, M, b, g, M0, g0, off, lo, hi, sat, Z):  # pragma: 
 
     for each member (``S`` ``(B, N)`` updated in place, ``Y`` ``(B, T, 1)``, ``PHI``
     ``(B, T')`` the model term held over each sample, zero without one), and the estimate
-    ``sat(s[off:])`` after each sample into ``Z[:, j]``. Each row is summed left to right,
-    ``b y`` then ``g phi`` last.
+    ``sat(s[off:])`` after each sample into ``Z[:, j]``. ``mats = (M, M0)``,
+    ``vecs = (b, g, g0)``, ``bounds = (lower, upper)`` (used when ``sat``): few arguments make
+    the call cheap. Each row is summed left to right, ``b y`` then ``g phi`` last.
     """
     B, N = S.shape
     n = Z.shape[2]
     Tc = PHI.shape[1]
+    M, M0 = mats[0], mats[1]
+    b, g, g0 = vecs[0], vecs[1], vecs[2]
+    lo, hi = bounds[0], bounds[1]
     s = np.empty(N)
     t = np.empty(N)
     for i in range(B):
@@ -252,7 +259,8 @@ class AffineObserver(Observer):
     RK4 with the model term at every stage (:func:`model_rk4`); the estimate ``z_hat`` is
     ``sat(S[:, off:])``.
 
-    A family sets ``_off``, ``gamma_`` and implements ``_maps(dt) -> (M, b, g, M0, g0)``, the
+    A family sets ``_off``, ``gamma_`` and implements ``_maps(dt) -> ((M, M0), (b, g, g0))``
+    (the arrays of :func:`affine_run`), the
     stage derivative ``_stage(V, Y, j, phi) -> dV/dt`` (RK4 with the model term) and
     ``_initial_state(z0)``.
     """
@@ -266,7 +274,7 @@ class AffineObserver(Observer):
         self.model = bool(model)
         self.method = method
         self.z_bounds = bounds_pair(z_bounds, self.n)
-        self._lo, self._hi, self._sat = bounds_rows(self.z_bounds, self.n)
+        self._bounds, self._sat = bounds_rows(self.z_bounds, self.n)
         self._identity = is_identity_map(self.system, self.n)
         self._maps_cache: dict[float, tuple[Array, ...]] = {}
         self._init = (x_hat0, z_hat0)
@@ -297,31 +305,32 @@ class AffineObserver(Observer):
     def _phi(self, V: Array, u: Array) -> Array:
         """The model term ``phi(sat(V[:, off:]), u)`` of every member, ``(B,)``."""
         A = np.empty((V.shape[0], self.n))
-        saturated(V, self._off, self._lo, self._hi, self._sat, A)
+        saturated(V, self._off, self._bounds, self._sat, A)
         return np.ascontiguousarray(self.system.phi_batch(A, u), dtype=float)  # type: ignore[union-attr]
 
     def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        M, b, g, M0, g0 = self._entry(dt)
-        S, off, lo, hi, sat = self._S, self._off, self._lo, self._hi, self._sat
+        mats, vecs = self._entry(dt)
+        M0, g0 = mats[1], vecs[2]
+        S, off, bounds, sat = self._S, self._off, self._bounds, self._sat
         B, T = Y.shape[0], Y.shape[1]
         if not self.model:  # the whole block in one call
-            affine_run(S, Y, np.zeros((B, T)), 0, M, b, g, M0, g0, off, lo, hi, sat, Z)
+            affine_run(S, Y, np.zeros((B, T)), 0, mats, vecs, bounds, off, sat, Z)
         elif self.method == "rk4":  # the model term at every stage
             for j in range(T):
                 u = U[:, j]
                 model_rk4(S, Y, j, dt, 0, M0, g0, lambda V, u=u: self._phi(V, u),
                           lambda V, ph, j=j: self._stage(V, Y, j, ph))
-                report(S, off, lo, hi, sat, j, Z)
+                report(S, off, bounds, sat, j, Z)
         else:  # the model term held at its start-of-sample value (eq. 53 for euler)
             for j in range(T):
                 ph = self._phi(S, U[:, j])
-                affine_run(S, Y, ph.reshape(B, 1), j, M, b, g, M0, g0, off, lo, hi, sat, Z)
+                affine_run(S, Y, ph.reshape(B, 1), j, mats, vecs, bounds, off, sat, Z)
         D[:, :, 0] = self.gamma_
         to_physical(self, Z, U, X)
 
     def _current(self) -> tuple[Array, Array, Array]:
         Zc = np.empty((self.batch, 1, self.n))
-        report(self._S, self._off, self._lo, self._hi, self._sat, 0, Zc)
+        report(self._S, self._off, self._bounds, self._sat, 0, Zc)
         return self._x.copy(), Zc[:, 0], np.full((self.batch, 1), self.gamma_)
 
 
@@ -350,7 +359,7 @@ def physical_rows(ob: Any, S: Array, off: int, u0: Array) -> Array:
     """``x_hat`` of the state ``S`` at a reset (failures of the inverse map not counted: the
     run has not started)."""
     Zc = np.empty((S.shape[0], 1, ob.n))
-    report(S, off, ob._lo, ob._hi, ob._sat, 0, Zc)
+    report(S, off, ob._bounds, ob._sat, 0, Zc)
     if ob._identity:
         return Zc[:, 0].copy()
     X = np.empty((S.shape[0], 1, len(ob.state_names)))
@@ -491,7 +500,7 @@ class RiccatiObserver(AffineObserver):
                           f"(n={self.n}, gamma={self.gamma_:g})", dt, self.max_stable_period,
                           digits=6)
         M0, _, g0 = one_step_map(self.alpha, self.gamma_, dt, self.method, closed=False)
-        return tuple(np.ascontiguousarray(a, dtype=float) for a in (M, b, g, M0, g0))
+        return np.array([M, M0]), np.array([b, g, g0])
 
     def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
         Dv = np.empty_like(V)
