@@ -89,7 +89,7 @@ def _max_stable_kdt(p: tuple[float, ...], method: str) -> float:
 
 
 # ------------------------------------------------------------------------- the equations
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def adaptation_rate(e, lam, lam_hat, gamma):  # pragma: no cover - compiled
     """:math:`\\dot k = \\gamma\\, d_{\\lambda, \\hat\\lambda}^2(e)` (paper 000, eq. 4-5)."""
     a = e if e >= 0.0 else -e
@@ -99,8 +99,8 @@ def adaptation_rate(e, lam, lam_hat, gamma):  # pragma: no cover - compiled
     return 0.0
 
 
-@njit(cache=True)
-def joint_rhs(s, y, phi, p, lam, lam_hat, gamma, ds):  # pragma: no cover - compiled
+@njit(cache=True, inline="always")
+def joint_rhs(s, y, phi, vecs, lam, lam_hat, gamma, ds):  # pragma: no cover - compiled
     """The joint ODE of ``s = (k, z_1..z_n)`` with ``y`` held (paper 000, eq. 2 and 4-5):
 
     .. math::
@@ -109,8 +109,8 @@ def joint_rhs(s, y, phi, p, lam, lam_hat, gamma, ds):  # pragma: no cover - comp
         \\dot{\\hat z}_i = \\hat z_{i+1} + p_i k^i (y - \\hat z_1), \\quad
         \\dot{\\hat z}_n = p_n k^n (y - \\hat z_1) + \\varphi
 
-    (``phi`` the model term, 0 without one)."""
-    n = p.size
+    (``phi`` the model term, 0 without one; ``p = vecs[0]``)."""
+    n = s.size - 1
     k = s[0]
     e = y - s[1]
     ds[0] = adaptation_rate(e, lam, lam_hat, gamma)
@@ -119,21 +119,22 @@ def joint_rhs(s, y, phi, p, lam, lam_hat, gamma, ds):  # pragma: no cover - comp
         if i:
             t = t * k
         if i < n - 1:
-            ds[1 + i] = s[2 + i] + p[i] * t
+            ds[1 + i] = s[2 + i] + vecs[0, i] * t
         else:
-            ds[1 + i] = p[i] * t + phi
+            ds[1 + i] = vecs[0, i] * t + phi
 
 
-@njit(cache=True)
-def matched_coefficients(tau, mode, r, cbin, rre, pa, pb, c, work):  # pragma: no cover
+@njit(cache=True, inline="always")
+def matched_coefficients(tau, mode, r, nr, npair, vecs, c, work):  # pragma: no cover
     """Coefficients ``c`` (leading 1 first) of :math:`\\prod_i (w - w_i)`,
     :math:`w_i = e^{\\tau r_i} - 1`, ``r_i`` the roots of ``s^n + p_1 s^(n-1) + ... + p_n``:
     the pole-matched gain at ``tau = k dt`` is ``W c[1:]`` (see :func:`exact_matrices`).
 
     ``mode`` 0: one root ``r`` of multiplicity ``n`` (binomial ``p``), ``c_j = C(n, j) m^j``,
-    ``m = -expm1(tau r)``. ``mode`` 1: the real roots ``rre`` (``w = expm1(tau r)``) and the
-    pairs ``pa +- i pb`` (``Re w = expm1(tau a) cos(tau b) - 2 sin^2(tau b / 2)``, no
-    cancellation; ``Im w = e^(tau a) sin(tau b)``), multiplied out factor by factor."""
+    ``m = -expm1(tau r)`` (``C(n, j)`` in ``vecs[2]``). ``mode`` 1: the ``nr`` real roots
+    ``vecs[3]`` (``w = expm1(tau r)``) and the ``npair`` pairs ``a +- i b`` (``vecs[4]``,
+    ``vecs[5]``: ``Re w = expm1(tau a) cos(tau b) - 2 sin^2(tau b / 2)``, no cancellation;
+    ``Im w = e^(tau a) sin(tau b)``), multiplied out factor by factor."""
     n = c.size - 1
     c[0] = 1.0
     if mode == 0:
@@ -142,107 +143,34 @@ def matched_coefficients(tau, mode, r, cbin, rre, pa, pb, c, work):  # pragma: n
         for j in range(1, n + 1):
             if j > 1:
                 mp = mp * m
-            c[j] = cbin[j] * mp
-        return
+            c[j] = vecs[2, j] * mp
     deg = 0
-    f = np.empty(3)
-    for q in range(rre.size + pa.size):
-        if q < rre.size:
-            f[0], f[1] = 1.0, -math.expm1(tau * rre[q])
+    for q in range(nr + npair if mode == 1 else 0):
+        f2 = 0.0
+        if q < nr:
+            f1 = -math.expm1(tau * vecs[3, q])
             nf = 2
         else:
-            i = q - rre.size
-            ea = math.expm1(tau * pa[i])
-            sh = math.sin(tau * (pb[i] / 2))
-            re = ea * math.cos(tau * pb[i]) - 2.0 * sh * sh
-            im = (ea + 1.0) * math.sin(tau * pb[i])
-            f[0], f[1], f[2] = 1.0, -2.0 * re, re * re + im * im
+            a, b = vecs[4, q - nr], vecs[5, q - nr]
+            ea = math.expm1(tau * a)
+            sh = math.sin(tau * (b / 2))
+            re = ea * math.cos(tau * b) - 2.0 * sh * sh
+            im = (ea + 1.0) * math.sin(tau * b)
+            f1, f2 = -2.0 * re, re * re + im * im
             nf = 3
         for j in range(deg + nf):
             acc = 0.0
-            for a in range(nf):
-                if 0 <= j - a <= deg:
-                    acc += f[a] * c[j - a]
+            for a_ in range(nf):
+                if 0 <= j - a_ <= deg:
+                    fa = 1.0 if a_ == 0 else (f1 if a_ == 1 else f2)
+                    acc += fa * c[j - a_]
             work[j] = acc
         deg += nf - 1
         for j in range(deg + 1):
             c[j] = work[j]
 
 
-@njit(cache=True)
-def adaptive_sample(s, y, phi, model, method, mode, nr, npair, par, mats, vecs, t,
-                    w):  # pragma: no cover - compiled
-    """One sample of one member: ``s = (k, z)`` into ``t``.
-
-    * ``y`` NaN (a dropout): ``z+ = M0 z + g0 phi`` (the prediction without correction), ``k``
-      held (nothing to adapt to).
-    * ``exact`` (0): ``z+ = Phi z + Ld(k) e + g0 phi`` with the pole-matched gain at the
-      start-of-sample ``k`` (``Ld = W c(k dt)``, :func:`matched_coefficients`) and
-      ``k+ = k + dt gamma d^2(e)``, ``e = y - z_1``.
-    * ``euler`` (1): ``s+ = s + dt f(s)`` (:func:`joint_rhs`), plus ``dt phi`` in the last row.
-    * ``rk4`` (2): classical RK4 of :func:`joint_rhs` (``phi`` 0: the model term at every stage
-      is driven from Python, :meth:`AdaptiveGainObserver._advance`).
-
-    The constants come packed (few arguments make a kernel call cheap):
-    ``par = (dt, lam, lam_hat, gamma, r, ...)``, ``mats = (Phi, W, M0)``,
-    ``vecs = (p, g0, C(n, j), real roots, Re and Im of the pairs)`` (rows padded to ``n + 1``),
-    ``w`` six work rows.
-    """
-    n = mats.shape[1]
-    dt, lam, lam_hat, gamma = par[0], par[1], par[2], par[3]
-    p, g0 = vecs[0, :n], vecs[1, :n]
-    if y != y:
-        M0 = mats[2]
-        t[0] = s[0]
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += M0[i, j] * s[1 + j]
-            t[1 + i] = acc + g0[i] * phi if model else acc
-        return
-    d1, d2, d3, d4 = w[0], w[1], w[2], w[3]
-    if method == 0:
-        Phi, W = mats[0], mats[1]
-        c = w[4]
-        k = s[0]
-        e = y - s[1]
-        matched_coefficients(k * dt, mode, par[4], vecs[2], vecs[3, :nr], vecs[4, :npair],
-                             vecs[5, :npair], c, w[5])
-        for i in range(n):
-            gi = 0.0
-            for j in range(n):
-                if W[i, j] != 0.0:
-                    gi += W[i, j] * c[j + 1]
-            acc = 0.0
-            for j in range(i, n):
-                acc += Phi[i, j] * s[1 + j]
-            v = acc + gi * e
-            t[1 + i] = v + g0[i] * phi if model else v
-        t[0] = k + dt * adaptation_rate(e, lam, lam_hat, gamma)
-    elif method == 1:
-        joint_rhs(s, y, 0.0, p, lam, lam_hat, gamma, d1)
-        for i in range(n + 1):
-            t[i] = s[i] + dt * d1[i]
-        if model:
-            t[n] = t[n] + dt * phi
-    else:
-        h = dt / 2
-        joint_rhs(s, y, 0.0, p, lam, lam_hat, gamma, d1)
-        for i in range(n + 1):
-            t[i] = s[i] + h * d1[i]
-        joint_rhs(t, y, 0.0, p, lam, lam_hat, gamma, d2)
-        for i in range(n + 1):
-            t[i] = s[i] + h * d2[i]
-        joint_rhs(t, y, 0.0, p, lam, lam_hat, gamma, d3)
-        for i in range(n + 1):
-            t[i] = s[i] + dt * d3[i]
-        joint_rhs(t, y, 0.0, p, lam, lam_hat, gamma, d4)
-        h6 = dt / 6.0
-        for i in range(n + 1):
-            t[i] = s[i] + h6 * (d1[i] + 2.0 * (d2[i] + d3[i]) + d4[i])
-
-
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gain_limits(t, j, par, lim):  # pragma: no cover - compiled
     """``k = t[0]`` after a sample against its bounds ``par[5:8] = (k_limit, k_max, k_stab)``
     (``k_limit`` the smaller of the other two): clipped to ``k_max`` (``lim[0] = 1``), and the
@@ -267,27 +195,92 @@ def gain_limits(t, j, par, lim):  # pragma: no cover - compiled
 def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, mats, vecs,
                  bounds, Z, D, lim):  # pragma: no cover - compiled
     """Samples ``j0 .. j0 + T'`` (``T' = PHI.shape[1]``, ``PHI`` the model term held over each
-    sample) of :func:`adaptive_sample` for each member (``S`` ``(B, n + 1)``, ``k`` first,
-    updated in place), with :func:`gain_limits` (``lim`` ``(B, 3)``); ``sat(z)`` into
-    ``Z[:, j]`` and ``k`` into ``D[:, j, 0]``. With ``stop`` a member stops before the sample
-    at which ``k`` crosses ``k_stab`` (the caller raises). Returns the or of
-    :func:`gain_limits`' codes."""
+    sample, read when ``model``) for each member, ``s = (k, z)`` (``S`` ``(B, n + 1)``, ``k``
+    first, updated in place):
+
+    * ``y`` NaN (a dropout): ``z+ = M0 z + g0 phi`` (the prediction without correction), ``k``
+      held (nothing to adapt to);
+    * ``exact`` (``method`` 0): ``z+ = Phi z + Ld(k) e + g0 phi`` with the pole-matched gain at
+      the start-of-sample ``k`` (``Ld = W c(k dt)``, :func:`matched_coefficients`; reused
+      while ``k`` does not change) and ``k+ = k + dt gamma d^2(e)``, ``e = y - z_1``;
+    * ``euler`` (1): ``s+ = s + dt f(s)`` (:func:`joint_rhs`), plus ``dt phi`` in the last row;
+    * ``rk4`` (2): classical RK4 of :func:`joint_rhs` (without the model term: with it, the
+      stages are driven from Python, :meth:`AdaptiveGainObserver._advance`);
+
+    then :func:`gain_limits` (``lim`` ``(B, 3)``); ``sat(z)`` into ``Z[:, j]``, ``k`` into
+    ``D[:, j, 0]``. With ``stop`` a member stops before the sample at which ``k`` crosses
+    ``k_stab`` (the caller raises). Returns the or of :func:`gain_limits`' codes.
+
+    The constants come packed (few arguments make the call cheap):
+    ``par = (dt, lam, lam_hat, gamma, r, k_limit, k_max, k_stab)``, ``mats = (Phi, W, M0)``,
+    ``vecs = (p, g0, C(n, j), real roots, Re and Im of the pairs)`` (rows padded to ``n + 1``).
+    The loop is written flat: views and calls with many arrays inside it cost more than the
+    arithmetic.
+    """
     B = S.shape[0]
     n = mats.shape[1]
     Tc = PHI.shape[1]
     lo, hi = bounds[0], bounds[1]
+    dt, lam, lam_hat, gamma = par[0], par[1], par[2], par[3]
+    h, h6 = dt / 2, dt / 6.0
     s = np.empty(n + 1)
     t = np.empty(n + 1)
-    w = np.empty((6, n + 1))
+    d1, d2, d3, d4 = np.empty(n + 1), np.empty(n + 1), np.empty(n + 1), np.empty(n + 1)
+    c, work, gain = np.empty(n + 1), np.empty(n + 1), np.empty(n)
     status = 0
     for i in range(B):
         for q in range(n + 1):
             s[q] = S[i, q]
+        k_gain = np.nan  # the k at which ``gain`` was computed
         for jj in range(Tc):
             j = j0 + jj
             y = Y[i, j, 0]
-            adaptive_sample(s, y, PHI[i, jj], model, method, mode, nr, npair, par, mats, vecs,
-                            t, w)
+            phi = PHI[i, jj] if model else 0.0
+            if y != y:
+                t[0] = s[0]
+                for r in range(n):
+                    acc = 0.0
+                    for q in range(n):
+                        acc += mats[2, r, q] * s[1 + q]
+                    t[1 + r] = acc + vecs[1, r] * phi if model else acc
+            elif method == 0:
+                k = s[0]
+                e = y - s[1]
+                if k != k_gain:
+                    matched_coefficients(k * dt, mode, par[4], nr, npair, vecs, c, work)
+                    for r in range(n):
+                        gi = 0.0
+                        for q in range(n):
+                            if mats[1, r, q] != 0.0:
+                                gi += mats[1, r, q] * c[q + 1]
+                        gain[r] = gi
+                    k_gain = k
+                for r in range(n):
+                    acc = 0.0
+                    for q in range(r, n):
+                        acc += mats[0, r, q] * s[1 + q]
+                    v = acc + gain[r] * e
+                    t[1 + r] = v + vecs[1, r] * phi if model else v
+                t[0] = k + dt * adaptation_rate(e, lam, lam_hat, gamma)
+            elif method == 1:
+                joint_rhs(s, y, 0.0, vecs, lam, lam_hat, gamma, d1)
+                for q in range(n + 1):
+                    t[q] = s[q] + dt * d1[q]
+                if model:
+                    t[n] = t[n] + dt * phi
+            else:
+                joint_rhs(s, y, 0.0, vecs, lam, lam_hat, gamma, d1)
+                for q in range(n + 1):
+                    t[q] = s[q] + h * d1[q]
+                joint_rhs(t, y, 0.0, vecs, lam, lam_hat, gamma, d2)
+                for q in range(n + 1):
+                    t[q] = s[q] + h * d2[q]
+                joint_rhs(t, y, 0.0, vecs, lam, lam_hat, gamma, d3)
+                for q in range(n + 1):
+                    t[q] = s[q] + dt * d3[q]
+                joint_rhs(t, y, 0.0, vecs, lam, lam_hat, gamma, d4)
+                for q in range(n + 1):
+                    t[q] = s[q] + h6 * (d1[q] + 2.0 * (d2[q] + d3[q]) + d4[q])
             if y == y:
                 code = gain_limits(t, j, par, lim[i])
                 status |= code
@@ -327,14 +320,14 @@ def adaptive_limits(S, Sprev, Y, j, par, stop, lim):  # pragma: no cover - compi
 
 
 @njit(cache=True)
-def adaptive_rhs(V, Y, j, PHI, p, lam, lam_hat, gamma, Dv):  # pragma: no cover - compiled
+def adaptive_rhs(V, Y, j, PHI, vecs, lam, lam_hat, gamma, Dv):  # pragma: no cover - compiled
     """:func:`joint_rhs` of every member (an RK4 stage with the model term ``PHI``); over a
     dropout, the prediction without correction (``k`` held)."""
     B, N = V.shape
     for i in range(B):
         y = Y[i, j, 0]
         if y == y:
-            joint_rhs(V[i], y, PHI[i], p, lam, lam_hat, gamma, Dv[i])
+            joint_rhs(V[i], y, PHI[i], vecs, lam, lam_hat, gamma, Dv[i])
         else:
             Dv[i, 0] = 0.0
             for q in range(1, N - 1):
@@ -626,13 +619,14 @@ class AdaptiveGainObserver(Observer):
     # ------------------------------------------------------------------ update
     def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
         par, mats, vecs = self._entry(dt)
+        self._dt = dt
         S, B, T = self._S, Y.shape[0], Y.shape[1]
         stop = self.on_unstable == "raise"
         bounds, sat, lim = self._bounds, self._sat, self._lim
         mode, _, nr, npair, _ = self._roots
         code = _CODES[self.method]
         if not self.model:  # the whole block in one call
-            status = adaptive_run(S, Y, np.zeros((B, T)), 0, False, code, mode, nr, npair, stop,
+            status = adaptive_run(S, Y, np.zeros((1, T)), 0, False, code, mode, nr, npair, stop,
                                   sat, par, mats, vecs, bounds, Z, D, lim)
             if status:
                 self._limits(dt)
@@ -663,7 +657,7 @@ class AdaptiveGainObserver(Observer):
 
     def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
         Dv = np.empty_like(V)
-        adaptive_rhs(V, Y, j, phi, self.p, self.lam, self.lam_hat, self.gamma, Dv)
+        adaptive_rhs(V, Y, j, phi, self._entry(self._dt)[2], self.lam, self.lam_hat, self.gamma, Dv)
         return Dv
 
     def _limits(self, dt: float) -> None:

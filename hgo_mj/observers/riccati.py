@@ -138,14 +138,14 @@ def report(S, off, bounds, sat, j, Z):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def affine_run(S, Y, PHI, j0, mats, vecs, bounds, off, sat, Z):  # pragma: no cover - compiled
+def affine_run(S, Y, PHI, j0, model, mats, vecs, bounds, off, sat, Z):  # pragma: no cover - compiled
     """Samples ``j0 .. j0 + T'`` (``T' = PHI.shape[1]``) of the affine one-sample map
 
     .. math:: s^+ = M s + b\\, y_j + g\\, \\varphi_j \\quad (y_j \\text{ finite}), \\qquad
               s^+ = M_0 s + g_0 \\varphi_j \\quad (y_j = \\text{NaN: no correction})
 
     for each member (``S`` ``(B, N)`` updated in place, ``Y`` ``(B, T, 1)``, ``PHI``
-    ``(B, T')`` the model term held over each sample, zero without one), and the estimate
+    ``(B, T')`` the model term held over each sample, read when ``model``), and the estimate
     ``sat(s[off:])`` after each sample into ``Z[:, j]``. ``mats = (M, M0)``,
     ``vecs = (b, g, g0)``, ``bounds = (lower, upper)`` (used when ``sat``): few arguments make
     the call cheap. Each row is summed left to right, ``b y`` then ``g phi`` last.
@@ -164,7 +164,7 @@ def affine_run(S, Y, PHI, j0, mats, vecs, bounds, off, sat, Z):  # pragma: no co
         for jj in range(Tc):
             j = j0 + jj
             y = Y[i, j, 0]
-            ph = PHI[i, jj]
+            ph = PHI[i, jj] if model else 0.0
             if y == y:
                 for r in range(N):
                     acc = 0.0
@@ -314,7 +314,7 @@ class AffineObserver(Observer):
         S, off, bounds, sat = self._S, self._off, self._bounds, self._sat
         B, T = Y.shape[0], Y.shape[1]
         if not self.model:  # the whole block in one call
-            affine_run(S, Y, np.zeros((B, T)), 0, mats, vecs, bounds, off, sat, Z)
+            affine_run(S, Y, np.zeros((1, T)), 0, False, mats, vecs, bounds, off, sat, Z)
         elif self.method == "rk4":  # the model term at every stage
             for j in range(T):
                 u = U[:, j]
@@ -324,7 +324,7 @@ class AffineObserver(Observer):
         else:  # the model term held at its start-of-sample value (eq. 53 for euler)
             for j in range(T):
                 ph = self._phi(S, U[:, j])
-                affine_run(S, Y, ph.reshape(B, 1), j, mats, vecs, bounds, off, sat, Z)
+                affine_run(S, Y, ph.reshape(B, 1), j, True, mats, vecs, bounds, off, sat, Z)
         D[:, :, 0] = self.gamma_
         to_physical(self, Z, U, X)
 
