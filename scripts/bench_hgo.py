@@ -16,7 +16,11 @@ inverse map) and without (``order=n``, ``x_hat = z_hat``). Targets (issue 3):
   observer is held against the plain one model-free, order only and with the model term;
 * the q-integral observer's ratio to the plain observer with its model term is stated;
 * the LMI bound (63)/(65) for n = 2 (paper 004's pendulum) solves in under a second, timed
-  after ``import cvxpy`` (the import and the first call are stated too).
+  after ``import cvxpy`` (the import and the first call are stated too);
+* batched (issue 10): the cost per observer-step of ``advance`` over B = 1024 members, one
+  sample per call (T = 1) and blocks of T = 100 samples, for every candidate (with the model
+  term, the system's ``phi_batch`` is called once per sample for the whole batch, four times
+  for rk4; its cost is the system's).
 """
 
 from __future__ import annotations
@@ -114,6 +118,30 @@ def bench_updates(number: int, rounds: int) -> tuple[float, dict[int, dict[str, 
     return best["bare"], out
 
 
+def bench_batched(B: int = 1024, rounds: int = 3) -> dict[int, dict[str, tuple[float, float]]]:
+    """Seconds per observer-step of ``advance`` over ``B`` members, ``(T = 1, T = 100)``."""
+    rng = np.random.default_rng(0)
+    out: dict[int, dict[str, tuple[float, float]]] = {2: {}, 4: {}}
+    for n in (2, 4):
+        for name, ob in observers(n).items():
+            m = len(ob.system.input_names) if ob.system is not None else 0  # type: ignore[attr-defined]
+            per = []
+            for T, calls in ((1, 20), (100, 2)):
+                Y = 0.1 * rng.standard_normal((B, T, 1))
+                U = np.zeros((B, T, m))
+                ob.reset(batch=B)  # type: ignore[attr-defined]
+                ob.advance(Y, U, DT)  # type: ignore[attr-defined]
+                best = float("inf")
+                for _ in range(rounds):
+                    t0 = time.perf_counter()
+                    for _ in range(calls):
+                        ob.advance(Y, U, DT)  # type: ignore[attr-defined]
+                    best = min(best, (time.perf_counter() - t0) / (calls * B * T))
+                per.append(best)
+            out[n][name] = (per[0], per[1])
+    return out
+
+
 def bench_lmi(repeat: int) -> dict[str, float]:
     t0 = time.perf_counter()
     import cvxpy  # noqa: F401
@@ -198,6 +226,14 @@ def main() -> int:
         r2, r4 = ratio(a, b, 2), ratio(a, b, 4)
         status = "" if target is None else ("met" if max(r2, r4) <= target else "NOT met")
         lines.append(f"| {label} | {r2:.2f} | {r4:.2f} | {status} |")
+    batched = bench_batched()
+    lines += ["", "Batched `advance` over B = 1024 members (issue 10), ns per observer-step:", "",
+              "| observer | n = 2, T = 1 | n = 2, T = 100 | n = 4, T = 1 | n = 4, T = 100 |",
+              "|---|---:|---:|---:|---:|"]
+    for name in batched[2]:
+        (a1, a100), (b1, b100) = batched[2][name], batched[4][name]
+        lines.append(f"| {name} | {a1 * 1e9:.0f} | {a100 * 1e9:.0f} | {b1 * 1e9:.0f} | "
+                     f"{b100 * 1e9:.0f} |")
     lines += [
         "",
         f"LMI (63)/(65) for n = 2 (paper 004, section 4: alpha = (3, 2), gamma = 6, rho = 1.5), "

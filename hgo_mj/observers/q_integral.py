@@ -52,12 +52,12 @@ References
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numba import njit
 
-from .._validate import finite_scalar, positive_int
+from .._validate import positive_int
 from ..design import (
     binomial_coefficients,
     check_riccati_alpha,
@@ -67,20 +67,17 @@ from ..design import (
     riccati_P,
     riccati_Q,
 )
-from ..exceptions import DimensionError, DivergenceError
+from ..exceptions import DimensionError
 from ..systems.base import System
-from .base import Array, Observer
+from .base import Array, register
 from .high_gain import (
-    _is_identity,
-    affine_step,
-    check_options,
     check_step_stable,
     largest_stable_step,
     matched_gain,
     sampled_chain,
     taylor_step,
 )
-from .riccati import chain_order, design_gamma
+from .riccati import AffineObserver, design_gamma
 
 
 def q_integral_matrices(gain: Array, q: int, closed: bool = True) -> tuple[Array, Array, Array]:
@@ -141,35 +138,35 @@ def q_integral_step_map(alpha: Array, gamma: float, q: int, dt: float, method: s
     return M, Sm @ bc, Sm @ gc
 
 
-def _compile_rk4_model(F: Array, q: int, dt: float) -> Callable[..., tuple[float, ...]]:
-    """Compile RK4 of ``w' = F w + e_q y + e_N f(w_q, ..., w_(N-1))`` (``y`` held, ``f`` the
-    model term, called at every stage) into a plain-float ``step(y, f, *w)``."""
-    N = F.shape[0]
-    ws = [f"w{j}" for j in range(N)]
-    lines = [f"def step(y, f, {', '.join(ws)}):"]
-    stages = [("s1", None, 0.0), ("s2", "s1", dt / 2), ("s3", "s2", dt / 2), ("s4", "s3", dt)]
-    for tag, prev, h in stages:
-        if prev is None:
-            vs = ws
-        else:
-            vs = [f"{w}_{tag}" for w in ws]
-            lines += [f"    {vs[i]} = {ws[i]} + {h!r} * d{i}_{prev}" for i in range(N)]
-        for i in range(N):
-            terms = [f"{float(F[i, j])!r} * {vs[j]}" for j in range(N) if F[i, j] != 0.0]
-            if i == q - 1:
-                terms.append("y")
-            if i == N - 1:
-                terms.append(f"f({', '.join(vs[q:])})")
-            lines.append(f"    d{i}_{tag} = {' + '.join(terms) if terms else '0.0'}")
-    h6 = dt / 6.0
-    out = [f"{ws[i]} + {h6!r} * (d{i}_s1 + 2.0 * (d{i}_s2 + d{i}_s3) + d{i}_s4)" for i in range(N)]
-    lines.append(f"    return ({', '.join(out)},)")
-    scope: dict[str, Any] = {}
-    exec(compile("\n".join(lines) + "\n", "<q_integral_rk4>", "exec"), scope)  # noqa: S102
-    return scope["step"]
+@njit(cache=True)
+def q_integral_rhs(V, Y, j, PHI, l, q, D):  # pragma: no cover - compiled
+    """The continuous q-integral observer (eq. 40) in the bounded state
+    ``w = (eps_1..eps_q, x_hat)`` (module docstring), ``y`` held, for each member:
+
+    .. math::
+
+        \\dot\\varepsilon_i = \\varepsilon_{i+1} - l_i \\varepsilon_1 \\ (i < q), \\quad
+        \\dot\\varepsilon_q = y - \\hat x_1 - l_q \\varepsilon_1, \\quad
+        \\dot{\\hat x}_j = \\hat x_{j+1} + l_{q+j} \\varepsilon_1, \\quad
+        \\dot{\\hat x}_n = \\varphi(\\hat x, u) + l_N \\varepsilon_1
+
+    with ``l = Z(gamma) C'``. Over a dropout (``y`` NaN) no correction, and the integrators
+    of ``y`` fed with the prediction ``x_hat_1`` (``eps`` only shifts)."""
+    B, N = V.shape
+    for i in range(B):
+        y = Y[i, j, 0]
+        closed = y == y
+        e1 = V[i, 0] if closed else 0.0
+        for r in range(q - 1):
+            D[i, r] = V[i, r + 1] - l[r] * e1
+        D[i, q - 1] = (y - V[i, q] - l[q - 1] * e1) if closed else 0.0
+        for r in range(q, N - 1):
+            D[i, r] = V[i, r + 1] + l[r] * e1
+        D[i, N - 1] = PHI[i] + l[N - 1] * e1
 
 
-class QIntegralObserver(Observer):
+@register
+class QIntegralObserver(AffineObserver):
     """q-integral observer of Ibrir (paper 004, eq. 37-48): the Riccati observer of the plant
     augmented with ``q`` integrators of the measured output.
 
@@ -181,8 +178,8 @@ class QIntegralObserver(Observer):
     Parameters
     ----------
     system : System, optional
-        Gives ``n``, the map back to physical coordinates and ``phi`` (model term). Without a
-        system give ``order`` (``n``) and ``model=False``.
+        Gives ``n``, the map back to physical coordinates and ``phi`` (model term, from
+        ``system.phi_batch``). Without a system give ``order`` (``n``) and ``model=False``.
     gamma : float or "min"
         High-gain parameter (> 0); ``"min"``: the smallest meeting condition (44) for ``rho``.
     q : int
@@ -195,21 +192,23 @@ class QIntegralObserver(Observer):
         warning says when condition (44) does not hold.
     order : int, optional
         ``n`` (the plant's order) when no system is given.
-    output : int
-        Measured channel.
+    outputs : tuple of int
+        The measured channel, a 1-tuple (default ``(0,)``).
     model : bool
         Use ``phi(x_hat, u)`` (default ``True``, as eq. 40).
     method : {"exact", "euler", "rk4"}
-        See :func:`q_integral_step_map`. ``euler`` is eq. 53 applied to the augmented system.
+        See :func:`q_integral_step_map`. ``euler`` is eq. 53 applied to the augmented system;
+        ``rk4`` with the model term evaluates it at every stage (:func:`q_integral_rhs`).
     x_hat0, z_hat0 : array_like, optional
-        Initial estimate of the plant's state (the integrator states start at zero error).
+        Initial estimate of the plant's state, ``(n,)`` or ``(B, n)`` (the integrator states
+        start at zero error), used by a plain ``reset()``.
     on_unstable : {"raise", "warn", "ignore"}
         What to do when the one-step error map at the sample period is unstable.
 
     Attributes
     ----------
     gamma_ : float
-        The high-gain parameter.
+        The high-gain parameter, reported by :meth:`diagnostics` as ``"gamma"``.
     Z, Q : ndarray
         ``Z(gamma)`` (the Riccati solution of the augmented chain, eq. 40) and ``Q(gamma)``.
     L : ndarray
@@ -217,25 +216,31 @@ class QIntegralObserver(Observer):
     condition : dict or None
         The two sides of (44) when ``rho`` is given.
     w_ : ndarray
-        The internal state ``(tilde y_i - xi_hat_i)_{i<=q}`` then ``x_hat``.
-    dropouts_ : int
-        NaN samples (prediction without correction, the integrators fed with ``x_hat_1``).
+        The internal state ``(tilde y_i - xi_hat_i)_{i<=q}`` then ``x_hat``, ``(n + q,)`` or
+        ``(B, n + q)``.
 
     References
     ----------
     Paper 004 (Ibrir 2007), section 2.2, eq. 37-48 (Corollary 2); section 3.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import CartPendulum
+    >>> ob = QIntegralObserver(CartPendulum(), q=2, gamma=6.0)
+    >>> ob.L.round(6).tolist()
+    [24.0, 216.0, 864.0, 1296.0]
     """
 
     name = "q_integral"
     summary = "Ibrir's q-integral observer: Riccati observer on y augmented with q integrators"
     reference = "paper 004 (Ibrir 2007), eq. 37-48"
-    diagnostic_names = ("gamma",)
 
     def __init__(self, system: System | None = None, *, gamma: Any, q: int = 1, alpha: Any = None,
-                 rho: float | None = None, order: int | None = None, output: int = 0,
+                 rho: float | None = None, order: int | None = None, outputs: Any = (0,),
                  model: bool = True, method: str = "exact", x_hat0: Any = None,
                  z_hat0: Any = None, on_unstable: str = "raise") -> None:
-        n = chain_order(type(self).__name__, system, order)
+        super().__init__(system, order=order, outputs=outputs, on_unstable=on_unstable)
+        n = self.n
         q = positive_int("q (the number of output integrators)", q)
         N = n + q
         a = binomial_coefficients(N) if alpha is None else check_riccati_alpha(alpha)
@@ -243,31 +248,25 @@ class QIntegralObserver(Observer):
             raise DimensionError(f"alpha must have n + q = {n} + {q} = {N} coefficients; found "
                                  f"{a.size}")
         g, r = design_gamma(gamma, a, rho, type(self).__name__)
-        super().__init__(system, order, output)
-        check_options(method, on_unstable, model, system)
+        self._setup(model, method, None, x_hat0, z_hat0)
         self.q = q
+        self._off = q
         self.N = N
         self.alpha = a
         self.gamma_ = g
         self.rho = r
         self.gamma_spec = gamma if isinstance(gamma, str) else g
-        self.model = bool(model)
-        self.method = method
-        self.on_unstable = on_unstable
         self.Q = riccati_Q(a, g)
         self.Z = riccati_P(a, g)
         self.L = riccati_gains(a, g)  # Z(gamma) C' from the ARE of the augmented chain
+        self._L = np.ascontiguousarray(self.L, dtype=float)
         self.condition = None if r is None else lipschitz_condition(a, g, r)
         if self.condition is not None and not self.condition["satisfied"]:
             warnings.warn(f"QIntegralObserver: gamma = {g:g} does not meet condition (44) for "
                           f"rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
                           f"convergence is not guaranteed; min_gamma gives {min_gamma(a, r):.4g}",
                           RuntimeWarning, stacklevel=2)
-        self._steps: dict[float, tuple[Any, ...]] = {}
-        #: ``x_hat`` is ``z_hat`` itself (no system, or a normal form that is the state)
-        self._identity = system is None or _is_identity(system, n)
-        self._init = (x_hat0, z_hat0)
-        self.reset(x_hat0, z_hat0=z_hat0)
+        self.reset()
 
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
@@ -278,87 +277,33 @@ class QIntegralObserver(Observer):
             lambda dt: q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)[0],
             1e-3 / self.gamma_, 1e6 / self.gamma_)
 
-    def check_period(self, dt: float) -> None:
-        if dt not in self._steps:
-            self._compile(dt)
-
-    def _compile(self, dt: float) -> tuple[Any, ...]:
-        dt = finite_scalar("dt", dt, positive=True)
+    def _maps(self, dt: float) -> tuple[Array, ...]:
         M, b, g = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)
         check_step_stable(M, self.on_unstable,
                           f"{self.method} update of the q-integral observer (n={self.n}, "
                           f"q={self.q}, gamma={self.gamma_:g})", dt, self.max_stable_period)
         M0, _, g0 = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method,
                                         closed=False)
-        # (closed step, open-loop step, open-loop model term w + g0 phi, RK4 with the model
-        # term at every stage or None, closed step fused with the model term), in plain floats
-        rk4 = None
-        if self.model and self.method == "rk4":
-            rk4 = _compile_rk4_model(q_integral_matrices(self.L, self.q)[0], self.q, dt)
-        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.N)),
-                 affine_step(np.eye(self.N), g0), rk4, affine_step(M, b, g))
-        self._steps[dt] = entry
-        return entry
+        return np.array([M, M0]), np.array([b, g, g0])
 
-    # -------------------------------------------------------------- interface
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
-        """Restart from ``x_hat0``/``z_hat0`` (default: those given to the constructor); the
-        integrals of ``y`` restart from zero, with zero error."""
-        if x_hat0 is None and z_hat0 is None:
-            x_hat0, z_hat0 = self._init
-        z0 = self._initial_z(x_hat0, z_hat0, u0)
-        self._w = (0.0,) * self.q + tuple(float(v) for v in z0)
-        self._restart_counters()
+    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
+        Dv = np.empty_like(V)
+        q_integral_rhs(V, Y, j, phi, self._L, self.q, Dv)
+        return Dv
 
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
-        try:
-            yi = float(y[self.output])
-        except (IndexError, TypeError):
-            raise self._bad_measurement(y, self.output) from None
-        self._u = u
-        entry = self._steps.get(dt)
-        if entry is None:
-            entry = self._compile(dt)
-        w = self._w
-        if yi - yi == 0.0:  # finite: the common case
-            if not self.model:
-                self._w = entry[0](yi, *w)
-            elif entry[3] is None:
-                # correction and model term in one compiled call, plain floats throughout (the
-                # system's unchecked phi takes the tuple x_hat itself)
-                self._w = entry[4](yi, float(self.system.phi_unchecked(w[self.q:], u)), *w)  # type: ignore[union-attr]
-            else:  # rk4: model term at every stage, in plain floats
-                phi = self.system.phi_unchecked  # type: ignore[union-attr]
-                self._w = entry[3](yi, lambda *z: float(phi(z, u)), *w)
-            return self.x_hat
-        if yi != yi:  # NaN: sensor dropout, predict without correction
-            self.dropouts_ += 1
-            wnew = entry[1](0.0, *w)
-            if self.model:
-                # entry[2](phi, *w) = w + g0 phi, the system's unchecked phi on the tuple x_hat
-                wnew = entry[2](float(self.system.phi_unchecked(w[self.q:], u)), *wnew)  # type: ignore[union-attr]
-            self._w = wnew
-            return self.x_hat
-        raise DivergenceError(f"measurement y[{self.output}] is {yi}")
+    # ------------------------------------------------------------------ state
+    def _initial_state(self, z0: Array) -> Array:
+        """The integrals of ``y`` restart from zero, with zero error."""
+        return np.ascontiguousarray(np.hstack([np.zeros((z0.shape[0], self.q)), z0]))
 
     @property
     def w_(self) -> Array:
-        return np.array(self._w)
-
-    @property
-    def z_hat(self) -> Array:
-        return np.array(self._w[self.q:])
-
-    @property
-    def x_hat(self) -> Array:
-        z = self.z_hat
-        return z if self._identity else self._physical(z)
-
-    def diagnostics(self) -> dict[str, float]:
-        return {"gamma": self.gamma_, "dropouts": float(self.dropouts_)}
+        return self._public(self._S.copy())  # type: ignore[no-any-return]
 
     def params(self) -> dict[str, Any]:
         return {"gamma": self.gamma_, "gamma_spec": self.gamma_spec, "q": self.q,
                 "alpha": self.alpha.tolist(), "rho": self.rho, "order": self.n,
-                "output": self.output, "model": self.model, "method": self.method}
+                "outputs": list(self.outputs), "model": self.model, "method": self.method}
+
+
+__all__ = ["QIntegralObserver", "q_integral_matrices", "q_integral_rhs", "q_integral_step_map"]

@@ -7,9 +7,14 @@
 
 (eq. 6; the paper prints the innovation as ``gamma - C x_hat``, a typo for ``y - C x_hat``).
 By Lemma 4 the gain ``P(gamma) C'`` equals ``(alpha_i gamma^i)``: the observer is the
-high-gain observer with ``p = alpha``, ``k = gamma`` and the model term of Gauthier et al.,
-and it is implemented as such (:class:`~hgo_mj.observers.high_gain.HighGainObserver`), with
-the gain designed from the Riccati equation (:func:`hgo_mj.design.riccati_gains`).
+high-gain observer with ``p = alpha``, ``k = gamma`` and the model term of Gauthier et al.;
+its one-sample map is that of :func:`~hgo_mj.observers.high_gain.one_step_map`, with the gain
+designed from the Riccati equation (:func:`hgo_mj.design.riccati_gains`).
+
+This module also holds the kernels shared with the q-integral observer (paper 004, eq. 40,
+:mod:`hgo_mj.observers.q_integral`), whose update is an affine map of the same kind:
+``s+ = M s + b y + g phi`` (:func:`affine_run`), or RK4 of the continuous observer with the
+model term at every stage (:func:`rk4_combine`).
 
 References
 ----------
@@ -21,9 +26,11 @@ References
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from .._validate import finite_scalar
 from ..design import (
@@ -37,18 +44,17 @@ from ..design import (
 )
 from ..exceptions import DesignError, DimensionError
 from ..systems.base import System
-from .high_gain import HighGainObserver
+from .base import Array, Observer, batch_rows, register
+from .high_gain import (
+    bounds_pair,
+    check_options,
+    check_step_stable,
+    largest_stable_step,
+    one_step_map,
+)
 
-
-def chain_order(cls: str, system: System | None, order: int | None) -> int:
-    """The order ``n`` an observer of class ``cls`` will have (checks as :class:`Observer` does)."""
-    if order is not None:
-        if isinstance(order, bool) or int(order) != order or order < 1:
-            raise DesignError(f"order must be a positive integer; found {order!r}")
-        return int(order)
-    if system is not None and isinstance(system, System) and system.normal_form_order is not None:
-        return int(system.normal_form_order)
-    raise DesignError(f"{cls} needs a system with a single-output normal form or an explicit order")
+#: per-dt entries kept by an observer (jittered periods must not grow memory)
+CACHE_SIZE = 8
 
 
 def design_gamma(gamma: Any, alpha: np.ndarray, rho: Any, where: str) -> tuple[float, float | None]:
@@ -63,7 +69,307 @@ def design_gamma(gamma: Any, alpha: np.ndarray, rho: Any, where: str) -> tuple[f
     return finite_scalar("gamma", gamma, positive=True), r
 
 
-class RiccatiObserver(HighGainObserver):
+def cached(cache: dict[float, Any], dt: float, build: Callable[[float], Any]) -> Any:
+    """``cache[dt]``, built by ``build(dt)`` when missing; at most :data:`CACHE_SIZE` entries
+    (the oldest goes first)."""
+    entry = cache.get(dt)
+    if entry is None:
+        entry = build(dt)
+        if len(cache) >= CACHE_SIZE:
+            del cache[next(iter(cache))]
+        cache[dt] = entry
+    return entry
+
+
+def is_identity_map(system: System | None, n: int) -> bool:
+    """Whether ``x_hat = z_hat`` (no system, or ``from_normal_unchecked`` hands ``z`` back as
+    it is, as for the one-joint MuJoCo systems): then the inverse map is skipped."""
+    if system is None:
+        return True
+    probe = np.zeros(n)
+    try:
+        return system.from_normal_unchecked(probe, np.zeros(len(system.input_names))) is probe
+    except Exception:  # noqa: BLE001 - a map that cannot take the probe is not the identity
+        return False
+
+
+def bounds_rows(z_bounds: tuple[Array, Array] | None, n: int) -> tuple[Array, bool]:
+    """``((lower, upper) as a (2, n) array, saturate)`` for the kernels (infinite bounds when
+    there are none)."""
+    if z_bounds is None:
+        return np.array([np.full(n, -np.inf), np.full(n, np.inf)]), False
+    return np.ascontiguousarray(np.vstack(z_bounds), dtype=float), True
+
+
+# ---------------------------------------------------------------------------------- kernels
+@njit(cache=True)
+def saturated(S, off, bounds, sat, A):  # pragma: no cover - compiled
+    """``A = sat(S[:, off:])``: the reported estimate and the model term's argument, clipped
+    to ``bounds = (lower, upper)`` when ``sat`` (Khalil, sec. 14.5); NaN stays NaN as in
+    ``np.clip``."""
+    B, n = A.shape
+    lo, hi = bounds[0], bounds[1]
+    for i in range(B):
+        for r in range(n):
+            v = S[i, off + r]
+            if sat:
+                if v < lo[r]:
+                    v = lo[r]
+                elif v > hi[r]:
+                    v = hi[r]
+            A[i, r] = v
+
+
+@njit(cache=True)
+def report(S, off, bounds, sat, j, Z):  # pragma: no cover - compiled
+    """Write ``sat(S[:, off:])`` into the rows ``Z[:, j]``."""
+    B, N = S.shape
+    n = Z.shape[2]
+    lo, hi = bounds[0], bounds[1]
+    for i in range(B):
+        for r in range(n):
+            v = S[i, off + r]
+            if sat:
+                if v < lo[r]:
+                    v = lo[r]
+                elif v > hi[r]:
+                    v = hi[r]
+            Z[i, j, r] = v
+
+
+@njit(cache=True)
+def affine_run(S, Y, PHI, j0, model, mats, vecs, bounds, off, sat, Z):  # pragma: no cover - compiled
+    """Samples ``j0 .. j0 + T'`` (``T' = PHI.shape[1]``) of the affine one-sample map
+
+    .. math:: s^+ = M s + b\\, y_j + g\\, \\varphi_j \\quad (y_j \\text{ finite}), \\qquad
+              s^+ = M_0 s + g_0 \\varphi_j \\quad (y_j = \\text{NaN: no correction})
+
+    for each member (``S`` ``(B, N)`` updated in place, ``Y`` ``(B, T, 1)``, ``PHI``
+    ``(B, T')`` the model term held over each sample, read when ``model``), and the estimate
+    ``sat(s[off:])`` after each sample into ``Z[:, j]``. ``mats = (M, M0)``,
+    ``vecs = (b, g, g0)``, ``bounds = (lower, upper)`` (used when ``sat``): few arguments make
+    the call cheap. Each row is summed left to right, ``b y`` then ``g phi`` last.
+    """
+    B, N = S.shape
+    n = Z.shape[2]
+    Tc = PHI.shape[1]
+    M, M0 = mats[0], mats[1]
+    b, g, g0 = vecs[0], vecs[1], vecs[2]
+    lo, hi = bounds[0], bounds[1]
+    s = np.empty(N)
+    t = np.empty(N)
+    for i in range(B):
+        for r in range(N):
+            s[r] = S[i, r]
+        for jj in range(Tc):
+            j = j0 + jj
+            y = Y[i, j, 0]
+            ph = PHI[i, jj] if model else 0.0
+            if y == y:
+                for r in range(N):
+                    acc = 0.0
+                    for c in range(N):
+                        acc += M[r, c] * s[c]
+                    t[r] = acc + b[r] * y + g[r] * ph
+            else:
+                for r in range(N):
+                    acc = 0.0
+                    for c in range(N):
+                        acc += M0[r, c] * s[c]
+                    t[r] = acc + g0[r] * ph
+            for r in range(N):
+                s[r] = t[r]
+            for r in range(n):
+                v = s[off + r]
+                if sat:
+                    if v < lo[r]:
+                        v = lo[r]
+                    elif v > hi[r]:
+                        v = hi[r]
+                Z[i, j, r] = v
+        for r in range(N):
+            S[i, r] = s[r]
+
+
+@njit(cache=True)
+def chain_rhs(V, Y, j, PHI, L, D):  # pragma: no cover - compiled
+    """The continuous observer of eq. 6 (paper 004) / eq. 2 (paper 000) with the model term,
+    ``y`` held, for each member:
+
+    .. math:: \\dot{\\hat z}_i = \\hat z_{i+1} + L_i (y - \\hat z_1), \\qquad
+              \\dot{\\hat z}_n = \\varphi(\\hat z, u) + L_n (y - \\hat z_1),
+
+    ``L = P(gamma) C' = (alpha_i gamma^i)``. Over a dropout (``y`` NaN) no correction."""
+    B, n = V.shape
+    for i in range(B):
+        y = Y[i, j, 0]
+        e = y - V[i, 0] if y == y else 0.0
+        for r in range(n - 1):
+            D[i, r] = V[i, r + 1] + L[r] * e
+        D[i, n - 1] = PHI[i] + L[n - 1] * e
+
+
+@njit(cache=True)
+def rk4_combine(S, D1, D2, D3, D4, h, Y, j, lead, M0, g0, PHI1):  # pragma: no cover
+    """Classical RK4 ``s+ = s + h/6 (d1 + 2 (d2 + d3) + d4)`` for the members whose ``y_j`` is
+    finite; the others take the prediction without correction ``s[lead:]+ = M0 s[lead:] + g0
+    phi(s)`` (the model term held at its start-of-sample value ``PHI1``; columns before
+    ``lead`` held). ``S`` is updated in place."""
+    B, N = S.shape
+    m = N - lead
+    h6 = h / 6.0
+    t = np.empty(m)
+    for i in range(B):
+        y = Y[i, j, 0]
+        if y == y:
+            for r in range(N):
+                S[i, r] = S[i, r] + h6 * (D1[i, r] + 2.0 * (D2[i, r] + D3[i, r]) + D4[i, r])
+        else:
+            for r in range(m):
+                acc = 0.0
+                for c in range(m):
+                    acc += M0[r, c] * S[i, lead + c]
+                t[r] = acc + g0[r] * PHI1[i]
+            for r in range(m):
+                S[i, lead + r] = t[r]
+
+
+def model_rk4(S: Array, Y: Array, j: int, dt: float, lead: int, M0: Array, g0: Array,
+              phi: Callable[[Array], Array],
+              stage: Callable[[Array, Array], Array]) -> None:
+    """One RK4 sample (``S`` updated in place) of an observer whose model term is evaluated at
+    every stage: ``phi(V)`` is the model term at the stage state ``V`` (from
+    ``system.phi_batch``, hence the stages are driven from here), ``stage(V, phi_V)`` the
+    derivative (a kernel such as :func:`chain_rhs`). Members without a measurement take the
+    prediction without correction (:func:`rk4_combine`)."""
+    p1 = phi(S)
+    D1 = stage(S, p1)
+    V = S + (dt / 2) * D1
+    D2 = stage(V, phi(V))
+    V = S + (dt / 2) * D2
+    D3 = stage(V, phi(V))
+    V = S + dt * D3
+    D4 = stage(V, phi(V))
+    rk4_combine(S, D1, D2, D3, D4, dt, Y, j, lead, M0, g0, p1)
+
+
+class AffineObserver(Observer):
+    """What the Riccati and q-integral observers share: a state ``S`` ``(B, N)`` whose
+    one-sample map is affine (:func:`affine_run`) with the model term held over the sample, or
+    RK4 with the model term at every stage (:func:`model_rk4`); the estimate ``z_hat`` is
+    ``sat(S[:, off:])``.
+
+    A family sets ``_off``, ``gamma_`` and implements ``_maps(dt) -> ((M, M0), (b, g, g0))``
+    (the arrays of :func:`affine_run`), the
+    stage derivative ``_stage(V, Y, j, phi) -> dV/dt`` (RK4 with the model term) and
+    ``_initial_state(z0)``.
+    """
+
+    family_diagnostics = ("gamma",)
+    _off = 0
+    gamma_: float
+
+    def _setup(self, model: bool, method: str, z_bounds: Any, x_hat0: Any, z_hat0: Any) -> None:
+        check_options(method, self.on_unstable, model, self.system)
+        self.model = bool(model)
+        self.method = method
+        self.z_bounds = bounds_pair(z_bounds, self.n)
+        self._bounds, self._sat = bounds_rows(self.z_bounds, self.n)
+        self._identity = is_identity_map(self.system, self.n)
+        self._maps_cache: dict[float, tuple[Array, ...]] = {}
+        self._init = (x_hat0, z_hat0)
+
+    # ------------------------------------------------------------------ setup
+    def _maps(self, dt: float) -> tuple[Array, ...]:
+        raise NotImplementedError
+
+    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
+        raise NotImplementedError
+
+    def _entry(self, dt: float) -> tuple[Array, ...]:
+        return cached(self._maps_cache, dt, self._maps)  # type: ignore[no-any-return]
+
+    def check_period(self, dt: float) -> None:
+        """Check the one-step error map at the sample period ``dt`` (once per period: the
+        first update at a new period does it too) and react as ``on_unstable`` says."""
+        self._entry(finite_scalar("dt", dt, positive=True))
+
+    # ------------------------------------------------------------------ state
+    def _initial_state(self, z0: Array) -> Array:
+        return np.array(z0, dtype=float, order="C")
+
+    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+        self._S = self._initial_state(self._initial_z(*initial_rows(self, x0, z0), u0))
+        self._x = physical_rows(self, self._S, self._off, u0)
+
+    def _phi(self, V: Array, u: Array) -> Array:
+        """The model term ``phi(sat(V[:, off:]), u)`` of every member, ``(B,)``."""
+        A = np.empty((V.shape[0], self.n))
+        saturated(V, self._off, self._bounds, self._sat, A)
+        return np.ascontiguousarray(self.system.phi_batch(A, u), dtype=float)  # type: ignore[union-attr]
+
+    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        mats, vecs = self._entry(dt)
+        M0, g0 = mats[1], vecs[2]
+        S, off, bounds, sat = self._S, self._off, self._bounds, self._sat
+        B, T = Y.shape[0], Y.shape[1]
+        if not self.model:  # the whole block in one call
+            affine_run(S, Y, np.zeros((1, T)), 0, False, mats, vecs, bounds, off, sat, Z)
+        elif self.method == "rk4":  # the model term at every stage
+            for j in range(T):
+                u = U[:, j]
+                model_rk4(S, Y, j, dt, 0, M0, g0, lambda V, u=u: self._phi(V, u),
+                          lambda V, ph, j=j: self._stage(V, Y, j, ph))
+                report(S, off, bounds, sat, j, Z)
+        else:  # the model term held at its start-of-sample value (eq. 53 for euler)
+            for j in range(T):
+                ph = self._phi(S, U[:, j])
+                affine_run(S, Y, ph.reshape(B, 1), j, True, mats, vecs, bounds, off, sat, Z)
+        D[:, :, 0] = self.gamma_
+        to_physical(self, Z, U, X)
+
+    def _current(self) -> tuple[Array, Array, Array]:
+        Zc = np.empty((self.batch, 1, self.n))
+        report(self._S, self._off, self._bounds, self._sat, 0, Zc)
+        return self._x.copy(), Zc[:, 0], np.full((self.batch, 1), self.gamma_)
+
+
+def initial_rows(ob: Observer, x0: Array | None, z0: Array | None) -> tuple[Any, Any]:
+    """The initial estimate of a ``reset``: the one given, else the constructor's
+    (``ob._init = (x_hat0, z_hat0)``) for every member."""
+    if x0 is not None or z0 is not None:
+        return x0, z0
+    ix, iz = ob._init  # type: ignore[attr-defined]
+    return (None if ix is None else batch_rows("x_hat0", ix, len(ob.state_names), ob.batch),
+            None if iz is None else batch_rows("z_hat0", iz, ob.n, ob.batch))
+
+
+def to_physical(ob: Any, Z: Array, U: Array, X: Array) -> None:
+    """``X`` from the rows ``Z`` (the identity, or the inverse normal-form map) and keep the
+    last row as the current ``x_hat``."""
+    if ob._identity:
+        X[...] = Z
+    else:
+        ob._to_physical(Z, U, X)
+    if Z.shape[1]:
+        ob._x = X[:, -1].copy()
+
+
+def physical_rows(ob: Any, S: Array, off: int, u0: Array) -> Array:
+    """``x_hat`` of the state ``S`` at a reset (failures of the inverse map not counted: the
+    run has not started)."""
+    Zc = np.empty((S.shape[0], 1, ob.n))
+    report(S, off, ob._bounds, ob._sat, 0, Zc)
+    if ob._identity:
+        return Zc[:, 0].copy()
+    X = np.empty((S.shape[0], 1, len(ob.state_names)))
+    ob._to_physical(Zc, u0[:, None], X)
+    ob._inverse_failures[:] = 0
+    return X[:, 0]
+
+
+@register
+class RiccatiObserver(AffineObserver):
     """Riccati-based high-gain observer of Ibrir (paper 004, Theorem 1).
 
     .. math::
@@ -80,8 +386,8 @@ class RiccatiObserver(HighGainObserver):
     ----------
     system : System, optional
         Gives the order ``n``, the map back to physical coordinates and ``phi`` (the model term
-        the paper's observer uses, ``f(x_hat, u) = B phi``). Without a system give ``order`` and
-        ``model=False``.
+        the paper's observer uses, ``f(x_hat, u) = B phi``, from ``system.phi_batch``). Without
+        a system give ``order`` and ``model=False``.
     gamma : float or "min"
         High-gain parameter (> 0); ``"min"`` takes :func:`~hgo_mj.design.min_gamma` for ``rho``.
     alpha : array_like, optional
@@ -90,8 +396,10 @@ class RiccatiObserver(HighGainObserver):
     rho : float, optional
         Lipschitz constant of ``phi`` (eq. 4). Needed for ``gamma="min"``; with a numeric
         ``gamma``, a :class:`RuntimeWarning` says when condition (5) does not hold.
-    order, output, z_bounds, x_hat0, z_hat0, on_unstable
-        As in :class:`HighGainObserver`.
+    order : int, optional
+        ``n`` when no system is given.
+    outputs : tuple of int
+        The measured channel, a 1-tuple (default ``(0,)``).
     model : bool
         Use the model term ``phi(x_hat, u)`` (default ``True``, as in the paper).
     method : {"exact", "euler", "rk4"}
@@ -99,22 +407,28 @@ class RiccatiObserver(HighGainObserver):
         ``x_{k+1} = A_delta x_k + delta B phi(x_k, u_k) + delta P C' (y_k - x_{k,1})``,
         ``A_delta = I + delta A``; it is stable only for short periods (Theorem 2 and
         :func:`hgo_mj.design.max_sampling_period` give a sufficient bound with the
-        nonlinearity; :meth:`check_period` checks the linear part). ``exact`` and ``rk4`` as
-        in :class:`HighGainObserver` (exact for the linear part, model term held over the
-        sample for ``exact``).
+        nonlinearity; :meth:`check_period` checks the linear part). ``exact`` is the
+        sampled-data observer of :func:`~hgo_mj.observers.high_gain.one_step_map` (exact for
+        the linear part, model term held over the sample); ``rk4`` integrates the continuous
+        observer with ``y`` held and the model term at every stage.
+    z_bounds : (array_like, array_like), optional
+        Saturation of the reported estimate and of the model term's argument.
+    x_hat0, z_hat0 : array_like, optional
+        Initial estimate ``(n,)`` or ``(B, n)`` (default zero), used by a plain ``reset()``.
+    on_unstable : {"raise", "warn", "ignore"}
+        What :meth:`check_period` (and the first update at a new period) does when the
+        one-step error map at the period has spectral radius >= 1.
 
     Attributes
     ----------
     gamma_ : float
-        The high-gain parameter (constant).
+        The high-gain parameter (constant), reported by :meth:`diagnostics` as ``"gamma"``.
     P, Q : ndarray
         ``P(gamma)`` and ``Q(gamma)`` of the design.
     L : ndarray
         The gain ``P(gamma) C'`` (from the Riccati solution).
     condition : dict or None
         The two sides of (5) when ``rho`` is given (:func:`hgo_mj.design.lipschitz_condition`).
-    dropouts_ : int
-        NaN samples, over which the observer predicted without correction.
 
     Notes
     -----
@@ -123,50 +437,81 @@ class RiccatiObserver(HighGainObserver):
     ``phi(x_k, u_k)`` (the true state) where the error equation (54) needs ``phi(x_hat_k,
     u_k)``, as in eq. 53; eq. 64 omits the ``C'`` of ``delta P C'``.
 
+    The update is one compiled kernel (:func:`affine_run`) over the batch and the samples;
+    with the model term, ``system.phi_batch`` is called once per sample (four times for
+    ``rk4``) for the whole batch.
+
     References
     ----------
     Paper 004 (Ibrir 2007): Theorem 1 (eq. 4-10), Lemma 4 (eq. 15-21), eq. 53, Theorem 2.
     Gauthier, Hammouri, Othman 1992 (``alpha_k = C(n, k)``).
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import CartPendulum
+    >>> ob = RiccatiObserver(CartPendulum(), alpha=[3, 2], gamma=6.0)
+    >>> ob.L.tolist()
+    [18.0, 72.0]
     """
 
     name = "riccati"
     summary = "Ibrir's Riccati-based high-gain observer, gain P(gamma)C' = (alpha_i gamma^i), model term"
     reference = "paper 004 (Ibrir 2007), Theorem 1, Lemma 4, eq. 6-8, 53"
-    diagnostic_names = ("gamma",)
 
     def __init__(self, system: System | None = None, *, gamma: Any, alpha: Any = None,
-                 rho: float | None = None, order: int | None = None, output: int = 0,
+                 rho: float | None = None, order: int | None = None, outputs: Any = (0,),
                  model: bool = True, method: str = "exact", z_bounds: Any = None,
                  x_hat0: Any = None, z_hat0: Any = None, on_unstable: str = "raise") -> None:
-        n = chain_order(type(self).__name__, system, order)
+        super().__init__(system, order=order, outputs=outputs, on_unstable=on_unstable)
+        n = self.n
         a = binomial_coefficients(n) if alpha is None else check_riccati_alpha(alpha)
         if a.size != n:
             raise DimensionError(f"alpha must have n = {n} coefficients; found {a.size}")
         g, r = design_gamma(gamma, a, rho, type(self).__name__)
-        super().__init__(system, k=g, p=a, order=order, output=output, model=model, method=method,
-                         z_bounds=z_bounds, x_hat0=x_hat0, z_hat0=z_hat0, on_unstable=on_unstable)
+        self._setup(model, method, z_bounds, x_hat0, z_hat0)
         self.alpha = a
+        self.p = a
         self.gamma_ = g
         self.rho = r
         self.gamma_spec = gamma if isinstance(gamma, str) else g
         self.Q = riccati_Q(a, g)
         self.P = riccati_P(a, g)
         self.L = riccati_gains(a, g)  # P(gamma) C' from the ARE; equals (alpha_i gamma^i)
+        self._L = np.ascontiguousarray(self.L, dtype=float)
         self.condition = None if r is None else lipschitz_condition(a, g, r)
         if self.condition is not None and not self.condition["satisfied"]:
             warnings.warn(f"RiccatiObserver: gamma = {g:g} does not meet the Lipschitz condition (5) "
                           f"for rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
                           f"convergence is not guaranteed; min_gamma gives "
                           f"{min_gamma(a, r):.4g}", RuntimeWarning, stacklevel=2)
+        self.reset()
 
-    def _label(self) -> str:
-        return f"Riccati observer (n={self.n}, gamma={self.gamma_:g})"
+    def max_stable_period(self) -> float:
+        """Largest sample period for which ``method``'s one-step error map is stable."""
+        if self.method == "exact":
+            return float("inf")
+        return largest_stable_step(
+            lambda dt: one_step_map(self.alpha, self.gamma_, dt, self.method)[0],
+            1e-3 / self.gamma_, 1e6 / self.gamma_)
 
-    def diagnostics(self) -> dict[str, float]:
-        return {"gamma": self.gamma_, "dropouts": float(self.dropouts_)}
+    def _maps(self, dt: float) -> tuple[Array, ...]:
+        M, b, g = one_step_map(self.alpha, self.gamma_, dt, self.method)
+        check_step_stable(M, self.on_unstable, f"{self.method} update of the Riccati observer "
+                          f"(n={self.n}, gamma={self.gamma_:g})", dt, self.max_stable_period,
+                          digits=6)
+        M0, _, g0 = one_step_map(self.alpha, self.gamma_, dt, self.method, closed=False)
+        return np.array([M, M0]), np.array([b, g, g0])
+
+    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
+        Dv = np.empty_like(V)
+        chain_rhs(V, Y, j, phi, self._L, Dv)
+        return Dv
 
     def params(self) -> dict[str, Any]:
         return {"gamma": self.gamma_, "gamma_spec": self.gamma_spec, "alpha": self.alpha.tolist(),
-                "rho": self.rho, "order": self.n, "output": self.output, "model": self.model,
-                "method": self.method,
+                "rho": self.rho, "order": self.n, "outputs": list(self.outputs),
+                "model": self.model, "method": self.method,
                 "z_bounds": None if self.z_bounds is None else [b.tolist() for b in self.z_bounds]}
+
+
+__all__ = ["RiccatiObserver", "affine_run", "chain_rhs", "design_gamma", "rk4_combine"]

@@ -140,11 +140,8 @@ def _simulate(z0s: dict[str, Any], seed: int | None) -> Trajectory:
 def k_final_on(y: Array, z_hat0: Any, method: str = METHOD) -> tuple[float, Array]:
     """Run the observer alone on a measurement sequence; the final ``k`` and ``k(t)``."""
     ob = _observer(z_hat0, method)
-    u = np.zeros(0)
-    ks = np.empty(y.size)
-    for j, yj in enumerate(y.reshape(-1, 1)):
-        ks[j] = ob.k_
-        ob.update(yj, u, SAMPLE_PERIOD)
+    k = ob.advance(y.reshape(1, -1, 1), np.zeros((1, y.size, 0)), SAMPLE_PERIOD).diagnostics
+    ks = np.concatenate(([ob.k0], k[0, :-1, 0]))  # k before each sample
     return ob.k_, ks
 
 

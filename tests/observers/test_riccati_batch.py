@@ -1,0 +1,101 @@
+"""The Riccati (paper 004, Th. 1, eq. 6, 53) and q-integral (eq. 37-48) observers batched: B
+members advanced together equal each member run alone, bit for bit, and a block of T samples
+equals T single steps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hgo_mj.observers import QIntegralObserver, RiccatiObserver
+from hgo_mj.systems import CartPendulum, ElasticJoint
+
+B, T, DT = 64, 240, 0.01
+
+
+def streams(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per member: an initial estimate, a measured sine with noise and NaN dropouts, inputs."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) * DT
+    amp = rng.uniform(0.1, 0.6, (B, 1))
+    phase = rng.uniform(0, 2 * np.pi, (B, 1))
+    y = amp * np.sin(1.5 * t + phase) + rng.normal(0.0, 0.02, (B, T))
+    y[rng.random((B, T)) < 0.05] = np.nan
+    u = np.ascontiguousarray((0.3 * np.cos(2.0 * t + phase))[:, :, None])
+    return rng.normal(0.0, 0.2, (B, n)), y[:, :, None], u
+
+
+SAT = ([-0.5, -1.5], [0.5, 1.5])
+CONFIGS = (
+    [pytest.param(RiccatiObserver, dict(method=m, model=model, z_bounds=zb),
+                  id=f"riccati-{m}-{'model' if model else 'free'}{'-sat' if zb else ''}")
+     for m in ("exact", "euler", "rk4") for model in (False, True) for zb in (None, SAT)]
+    + [pytest.param(QIntegralObserver, dict(method=m, model=model, q=q),
+                    id=f"q{q}-{m}-{'model' if model else 'free'}")
+       for m in ("exact", "euler", "rk4") for model in (False, True) for q in (1, 2)])
+
+
+def _batch_and_single(make, z0, Y, U):
+    ob = make()
+    ob.reset(z_hat0=z0)
+    blk = ob.advance(Y, U, DT)
+    assert blk.x_hat.shape[:2] == (B, T) and np.isfinite(blk.x_hat).all()
+    for b in (0, 3, 31, 50, 63):
+        one = make()
+        one.reset(z_hat0=z0[b:b + 1])
+        blk1 = one.advance(Y[b:b + 1], U[b:b + 1], DT)
+        np.testing.assert_array_equal(blk1.x_hat[0], blk.x_hat[b])
+        np.testing.assert_array_equal(blk1.z_hat[0], blk.z_hat[b])
+        np.testing.assert_array_equal(blk1.diagnostics[0], blk.diagnostics[b])
+    np.testing.assert_array_equal(ob.diagnostics()["dropouts"], np.isnan(Y[:, :, 0]).sum(axis=1))
+    return ob, blk
+
+
+@pytest.mark.parametrize("cls,kw", CONFIGS)
+def test_batch_equals_each_member_alone(cls, kw):
+    z0, Y, U = streams(2)
+    _batch_and_single(lambda: cls(CartPendulum(), gamma=6.0, **kw), z0, Y, U)
+
+
+@pytest.mark.parametrize("cls,kw", CONFIGS)
+def test_block_equals_single_steps(cls, kw):
+    z0, Y, U = streams(2, seed=1)
+    a, b = cls(CartPendulum(), gamma=6.0, **kw), cls(CartPendulum(), gamma=6.0, **kw)
+    a.reset(z_hat0=z0)
+    b.reset(z_hat0=z0)
+    blk = a.advance(Y, U, DT)
+    for j in range(T):
+        b.step(Y[:, j], U[:, j], DT)
+        np.testing.assert_array_equal(b.x_hat, blk.x_hat[:, j])
+        np.testing.assert_array_equal(b.z_hat, blk.z_hat[:, j])
+    np.testing.assert_array_equal(a.z_hat, b.z_hat)
+    if cls is QIntegralObserver:
+        np.testing.assert_array_equal(a.w_, b.w_)
+
+
+@pytest.mark.parametrize("cls", [RiccatiObserver, QIntegralObserver])
+def test_batch_equals_single_elastic_joint(cls):
+    """n = 4 and the inverse normal-form map (not the identity); model-free (the test signal
+    is no elastic joint's)."""
+    z0, Y, U = streams(4, seed=2)
+    _batch_and_single(lambda: cls(ElasticJoint(), gamma=30.0, model=False), z0, Y, U)
+
+
+def test_unbatched_is_one_member():
+    z0, Y, U = streams(2, seed=3)
+    ob = QIntegralObserver(CartPendulum(), gamma=6.0, q=2)
+    ob.reset(z_hat0=z0)
+    blk = ob.advance(Y, U, DT)
+    one = QIntegralObserver(CartPendulum(), gamma=6.0, q=2)
+    one.reset(z_hat0=z0[9])
+    xs = np.array([one.update(Y[9, j], U[9, j], DT) for j in range(T)])
+    np.testing.assert_array_equal(xs, blk.x_hat[9])
+    assert one.w_.shape == (4,) and ob.w_.shape == (B, 4)
+    assert one.diagnostics() == {"gamma": 6.0, "dropouts": float(np.isnan(Y[9]).sum())}
+
+
+def test_period_cache_is_bounded():
+    ob = RiccatiObserver(CartPendulum(), gamma=6.0)
+    for j in range(50):
+        ob.update(np.array([0.1]), np.array([0.0]), 0.01 * (1 + 1e-3 * j))
+    assert len(ob._maps_cache) <= 8
