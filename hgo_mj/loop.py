@@ -186,11 +186,12 @@ class Loop:
         before = self.estimates()
         try:
             X, Yc = self.plant.run(U, self.periods.steps)
-        except DivergenceError as exc:
-            X, Yc = getattr(exc, "partial", (np.empty((self.batch, 0, 0)),) * 2)
-            j = X.shape[1]
-            seg = Segment(t[:j], X, Yc, Yc.copy(), U[:, :j], {}, before)
-            raise LoopFailure(None, self.k + j, self.k * Ts + j * Ts, exc, seg) from exc
+        except DivergenceError as exc:  # the plant's: rows valid for every member, partial rows
+            j = int(getattr(exc, "rows", 0))
+            X, Yc = exc.X[:, :j], exc.Yc[:, :j]  # type: ignore[attr-defined]
+            Ym = self._measure(t[:j], Yc) if j else Yc.copy()
+            seg = Segment(t[:j], X, Yc, Ym, U[:, :j], self._partial(Ym, U, j), before)
+            raise LoopFailure(None, self.k + j - 1, float(t[max(j - 1, 0)]), exc, seg) from exc
         Ym = self._measure(t, Yc)
         blocks: dict[str, Block] = {}
         items = list(self.observers.items())
@@ -208,6 +209,12 @@ class Loop:
                 raise LoopFailure(name, self.k + j, float(t[j]), found.cause, seg) from found.cause
         self.k += T
         return Segment(t, X, Yc, Ym, U, blocks, before)
+
+    def _partial(self, Ym: Array, U: Array, j: int) -> dict[str, Block]:
+        """Every observer over the first ``j - 1`` of ``j`` valid samples (their estimates
+        before the last valid one), after the plant failed."""
+        return {name: self._advance(name, ob, Ym[:, :max(j - 1, 0)], U[:, :max(j - 1, 0)])
+                for name, ob in self.observers.items()}
 
     def _advance(self, name: str, ob: Observer, Ym: Array, U: Array) -> Block:
         """One observer over the segment, timed; on a failure, the failing sample found by a

@@ -1412,6 +1412,13 @@ class SensorChain:
             s.reset()
         self._start_streams(seeds, batched)
 
+    def restart(self) -> None:
+        """Reset every stage's state (held samples, delay lines, drifts, counters) and let the
+        generators continue where they are: Gymnasium's ``reset()`` without a seed."""
+        for s in self._stages:
+            s.reset()
+            s.reset_batch()
+
     def describe(self) -> list[dict[str, Any]]:
         """The chain as JSON-friendly data: ``[{"stage": name, **params}, ...]``.
 
