@@ -13,8 +13,8 @@ from numpy.typing import NDArray
 
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
+from hgo_mj.observers.bank import ObserverBank
 
-from .._observers import ObserverBank
 from ..core import sensor_chain
 from ._common import box_indices, env_dt, reset_chain
 
@@ -40,7 +40,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
         ``measure(env, observation) -> array`` (e.g. reading ``env.unwrapped.data``).
     observer : str, Observer or sequence of Observer
         A registered observer name: one observer per measured channel, built without a system
-        (model-free) as ``make_observer(name, None, output=i, **observer_kwargs)``, e.g.
+        (model-free) as ``make_observer(name, None, outputs=(i,), **observer_kwargs)``, e.g.
         ``"high_gain"`` with ``observer_kwargs={"order": 2, "k": 30}``: a chain of order 2 per
         signal estimates it and its velocity. Or an observer instance (e.g. one designed
         against an hgo_mj system), or several, each reading its own channel; their estimates
@@ -139,9 +139,9 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
                 raise DesignError("a named observer needs measure= as indices (to know how many "
                                   "channels); with measure(env, obs) give observer instances")
             kw = dict(kwargs or {})
-            if "output" in kw:
-                raise DesignError("output is set per channel by the wrapper; do not give it")
-            members = [make_observer(observer, None, output=i, **kw) for i in range(m)]
+            if "outputs" in kw:
+                raise DesignError("outputs is set per channel by the wrapper; do not give it")
+            members = [make_observer(observer, None, outputs=(i,), **kw) for i in range(m)]
             names = [f"y{i + 1}" for i in range(m)]
             return ObserverBank(members, output_names=names)
         members = list(observer)
@@ -181,7 +181,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
         if self._built and self._init == "measurement" and isinstance(ob, ObserverBank):
             z0: list[float] = []
             for o in ob.members:
-                yi = float(y[o.output])
+                yi = float(y[o.outputs[0]])
                 z0 += [yi if yi == yi else 0.0] + [0.0] * (len(o.state_names) - 1)
             ob.reset(z_hat0=z0)
         else:
