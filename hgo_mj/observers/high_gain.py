@@ -66,76 +66,76 @@ METHODS = ("exact", "euler", "rk4")
 MAP_CACHE = 8
 
 
+#: ``flags`` bits of :func:`affine_advance`
+SATURATE, MODEL_TERM = 1, 2
+
+
 @njit(cache=True)
-def affine_advance(Z: Array, Y: Array, W: Array, Mc: Array, bc: Array, gc: Array, Mo: Array,
-                   go: Array, first: Array, size: Array, lo: Array, hi: Array, saturate: bool,
-                   use_w: bool, t0: int, t1: int, Zout: Array) -> None:  # pragma: no cover
-    """Apply the affine one-step maps of chains ``c`` to ``Z`` ``(B, n)`` in place, for the
+def affine_advance(Z: Array, Y: Array, W: Array, P: Array, lay: Array, bounds: Array,
+                   flags: int, t0: int, t1: int, Zout: Array) -> None:  # pragma: no cover
+    r"""Apply the affine one-step maps of the chains to ``Z`` ``(B, n)`` in place, for the
     samples ``t0 <= t < t1`` of ``Y`` ``(B, T, nc)`` (chain ``c`` reads ``Y[:, t, c]``).
 
-    Chain ``c`` occupies ``z[first[c] : first[c] + size[c]]``; its maps are ``Mc[c]``,
-    ``bc[c]``, ``gc[c]`` (closed loop) and ``Mo[c]``, ``go[c]`` (open loop, taken where
-    ``Y[b, t, c]`` is NaN: predict without correction), zero-padded to the largest chain:
+    Chain ``c`` occupies ``z[f : f + m]`` with ``f, m = lay[c]``. Its maps are packed in
+    ``P[c]`` (:func:`packed_maps`, zero-padded to the largest chain ``nm``): ``M = P[c, :, :nm]``,
+    ``M0 = P[c, :, nm:2nm]``, ``b, g, g0 = P[c, :, 2nm], P[c, :, 2nm+1], P[c, :, 2nm+2]``:
 
-    .. math:: z_c^+ = M_c z_c + b_c y_c\\, [+ g_c w_c] \\quad\\text{or}\\quad
-              z_c^+ = M_{0,c} z_c\\, [+ g_{0,c} w_c]
+    .. math:: z_c^+ = M z_c + b\, y_c\, [+ g\, w_c] \quad\text{or, where } y_c
+              \text{ is NaN,}\quad z_c^+ = M_0 z_c\, [+ g_0 w_c]
 
-    with ``w = W[b, t, c]`` the held model term when ``use_w``. Each row is summed left to
-    right (``M z``, then ``b y``, then ``g w``). ``Zout[b, t]`` receives the new state,
-    clipped to ``[lo, hi]`` when ``saturate`` (the reported estimate; the state is not).
+    with ``w = W[b, t, c]`` the held model term when ``flags & MODEL_TERM``. Each row is summed
+    left to right (``M z``, then ``b y``, then ``g w``). ``Zout[b, t]`` receives the new state,
+    clipped to ``[bounds[0], bounds[1]]`` when ``flags & SATURATE`` (the reported estimate; the
+    state is not clipped).
     """
     B, n = Z.shape
-    nb = first.shape[0]
+    nb = lay.shape[0]
+    nm = P.shape[1]
+    saturate = (flags & 1) != 0
+    use_w = (flags & 2) != 0
     zn = np.empty(n)
     for b in range(B):
         for t in range(t0, t1):
             for c in range(nb):
-                f = first[c]
-                m = size[c]
+                f = lay[c, 0]
+                m = lay[c, 1]
                 y = Y[b, t, c]
                 lost = y != y
+                off = nm if lost else 0
                 for i in range(m):
                     acc = 0.0
-                    if lost:
-                        for j in range(m):
-                            acc += Mo[c, i, j] * Z[b, f + j]
-                        if use_w:
-                            acc += go[c, i] * W[b, t, c]
-                    else:
-                        for j in range(m):
-                            acc += Mc[c, i, j] * Z[b, f + j]
-                        acc += bc[c, i] * y
-                        if use_w:
-                            acc += gc[c, i] * W[b, t, c]
+                    for j in range(m):
+                        acc += P[c, i, off + j] * Z[b, f + j]
+                    if not lost:
+                        acc += P[c, i, 2 * nm] * y
+                    if use_w:
+                        acc += P[c, i, 2 * nm + (2 if lost else 1)] * W[b, t, c]
                     zn[f + i] = acc
             for i in range(n):
                 v = zn[i]
                 Z[b, i] = v
                 if saturate:
-                    if v < lo[i]:
-                        v = lo[i]
-                    elif v > hi[i]:
-                        v = hi[i]
+                    if v < bounds[0, i]:
+                        v = bounds[0, i]
+                    elif v > bounds[1, i]:
+                        v = bounds[1, i]
                 Zout[b, t, i] = v
 
 
 #: the model-term argument of :func:`affine_advance` when there is none (never read)
 _NO_W = np.zeros((1, 1, 1))
-_NO_BOUND = np.zeros(1)
 
 
-def stacked_maps(chains: list[tuple[Array, Array, Array, Array, Array]]
-                 ) -> tuple[Array, Array, Array, Array, Array]:
-    """The per-chain maps ``(M, b, g, M0, g0)`` stacked and zero-padded to the largest chain,
-    as :func:`affine_advance` reads them (C-contiguous float64)."""
-    nb = len(chains)
+def packed_maps(chains: list[tuple[Array, Array, Array, Array, Array]]) -> Array:
+    """The per-chain maps ``(M, b, g, M0, g0)`` packed as :func:`affine_advance` reads them:
+    ``(len(chains), nm, 2 nm + 3)``, zero-padded to the largest chain ``nm``."""
     nm = max(c[0].shape[0] for c in chains)
-    Mc, Mo = np.zeros((nb, nm, nm)), np.zeros((nb, nm, nm))
-    bc, gc, go = np.zeros((nb, nm)), np.zeros((nb, nm)), np.zeros((nb, nm))
+    P = np.zeros((len(chains), nm, 2 * nm + 3))
     for c, (M, b, g, M0, g0) in enumerate(chains):
         m = M.shape[0]
-        Mc[c, :m, :m], bc[c, :m], gc[c, :m], Mo[c, :m, :m], go[c, :m] = M, b, g, M0, g0
-    return Mc, bc, gc, Mo, go
+        P[c, :m, :m], P[c, :m, nm:nm + m] = M, M0
+        P[c, :m, 2 * nm], P[c, :m, 2 * nm + 1], P[c, :m, 2 * nm + 2] = b, g, g0
+    return P
 
 
 def affine_step(M: Array, b: Array, g: Array | None = None) -> Callable[..., tuple[float, ...]]:
@@ -336,39 +336,38 @@ def clip_floats(z: Any, bounds: tuple[list[float], list[float]]) -> tuple[float,
 class _Chains:
     """The chain layout and the bounded per-period map cache shared by the two observers."""
 
-    _first: Array
-    _size: Array
-    _lo: Array
-    _hi: Array
-    _saturate: bool
-    _maps: dict[float, tuple[Array, Array, Array, Array, Array]]
+    _lay: Array
+    _bounds: Array
+    _flags: int
+    _maps: dict[float, Array]
 
     def _layout(self, orders: tuple[int, ...], bounds: tuple[Array, Array] | None) -> None:
-        self._first = np.array(np.cumsum((0,) + orders[:-1]), dtype=np.int64)
-        self._size = np.array(orders, dtype=np.int64)
-        self._saturate = bounds is not None
-        self._lo, self._hi = (_NO_BOUND, _NO_BOUND) if bounds is None else (
-            np.ascontiguousarray(bounds[0], dtype=float),
-            np.ascontiguousarray(bounds[1], dtype=float))
+        first = np.cumsum((0,) + orders[:-1])
+        self._lay = np.ascontiguousarray(np.stack([first, orders], axis=1), dtype=np.int64)
+        self._bounds = np.zeros((2, 1)) if bounds is None else np.array(bounds, dtype=float)
+        self._flags = 0 if bounds is None else SATURATE
         self._maps = {}
 
     def _chain_maps(self, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
         raise NotImplementedError
 
-    def _maps_at(self, dt: float) -> tuple[Array, Array, Array, Array, Array]:
-        """The stacked maps at the period ``dt`` (built and checked on first use)."""
+    def _maps_at(self, dt: float) -> Array:
+        """The packed maps at the period ``dt`` (built and checked on first use)."""
         maps = self._maps.get(dt)
         if maps is None:
-            maps = stacked_maps(self._chain_maps(finite_scalar("dt", dt, positive=True)))
+            maps = packed_maps(self._chain_maps(finite_scalar("dt", dt, positive=True)))
             if len(self._maps) >= MAP_CACHE:
                 del self._maps[next(iter(self._maps))]
             self._maps[dt] = maps
         return maps
 
-    def _kernel(self, Z: Array, Y: Array, W: Array | None, maps: tuple[Array, ...], t0: int,
-                t1: int, Zout: Array) -> None:
-        affine_advance(Z, Y, _NO_W if W is None else W, *maps, self._first, self._size,
-                       self._lo, self._hi, self._saturate, W is not None, t0, t1, Zout)
+    def _kernel(self, Z: Array, Y: Array, W: Array | None, maps: Array, t0: int, t1: int,
+                Zout: Array) -> None:
+        if W is None:
+            affine_advance(Z, Y, _NO_W, maps, self._lay, self._bounds, self._flags, t0, t1, Zout)
+        else:
+            affine_advance(Z, Y, W, maps, self._lay, self._bounds, self._flags | MODEL_TERM,
+                           t0, t1, Zout)
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle without the map cache (rebuilt on first use)."""
@@ -526,7 +525,7 @@ class HighGainObserver(_Chains, Observer):
         if T:
             self._estimate(Z, U, X)
 
-    def _rk4_model(self, Y: Array, U: Array, dt: float, maps: tuple[Array, ...], j: int,
+    def _rk4_model(self, Y: Array, U: Array, dt: float, maps: Array, j: int,
                    Zout: Array) -> None:
         """Sample ``j`` by RK4 of the continuous observer with ``phi`` at every stage; members
         whose measurement is NaN take the open-loop map with ``phi`` held (the kernel)."""
@@ -865,7 +864,7 @@ class MultiOutputHighGainObserver(_Chains, Observer):
         """One sample by RK4 of the coupled observer, ``phi`` at every stage; a chain whose
         channel is NaN runs open loop (no correction) over it."""
         n = self.n
-        first, size = self._first, self._size
+        first, size = self._lay[:, 0], self._lay[:, 1]
         top = first + size - 1
         inner = np.setdiff1d(np.arange(n), top)  # z_i' = z_{i+1} inside a chain
         chain_of = np.repeat(np.arange(len(self.orders)), self.orders)
