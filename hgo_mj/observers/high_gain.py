@@ -504,11 +504,14 @@ class HighGainObserver(_Chains, Observer):
             x0 = None if ix is None else batch_rows("x_hat0", ix, ix.size, self.batch)
             z0 = None if iz is None else batch_rows("z_hat0", iz, iz.size, self.batch)
         self._Z = np.array(self._initial_z(x0, z0, u0), dtype=float, order="C")
-        X = np.empty((self.batch, 1, len(self.state_names)))
-        self._estimate(self._sat(self._Z)[:, None], u0[:, None], X)
+        if not self._identity:
+            X = np.empty((self.batch, 1, len(self.state_names)))
+            self._estimate(self._sat(self._Z)[:, None], u0[:, None], X)
 
     def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        maps = self._maps_at(dt)
+        maps = self._maps.get(dt)
+        if maps is None:
+            maps = self._maps_at(dt)
         T = Y.shape[1]
         if not self.model:
             self._kernel(self._Z, Y, None, maps, 0, T, Z)
@@ -521,8 +524,10 @@ class HighGainObserver(_Chains, Observer):
         else:
             for j in range(T):
                 self._rk4_model(Y, U, dt, maps, j, Z)
-        D[:, :, 0] = self.k_
-        if T:
+        D[...] = self.k_
+        if self._identity:
+            np.copyto(X, Z)
+        elif T:
             self._estimate(Z, U, X)
 
     def _rk4_model(self, Y: Array, U: Array, dt: float, maps: Array, j: int,
@@ -565,16 +570,15 @@ class HighGainObserver(_Chains, Observer):
         return np.clip(z, self.z_bounds[0], self.z_bounds[1])
 
     def _estimate(self, Z: Array, U: Array, X: Array) -> None:
-        """``X`` from the reported rows ``Z`` ``(B, T, n)``; keep the last as the current one."""
-        if self._identity:
-            X[...] = Z
-        else:
-            self._to_physical(Z, U, X)
+        """``X`` from the reported rows ``Z`` ``(B, T, n)`` through the inverse map; keep the
+        last as the current one."""
+        self._to_physical(Z, U, X)
         self._X = X[:, -1].copy()
 
     def _current(self) -> tuple[Array, Array, Array]:
         z = self._sat(self._Z)
-        return (self._X.copy(), z.copy() if z is self._Z else z,
+        z = z.copy() if z is self._Z else z
+        return (z.copy() if self._identity else self._X.copy(), z,
                 np.full((self.batch, 1), self.k_))
 
     def params(self) -> dict[str, Any]:
