@@ -632,6 +632,26 @@ def _per_chain(name: str, value: Any, m: int) -> list[Any]:
     return seq
 
 
+def _chain_orders(cls: str, system: Any, orders: Any) -> tuple[int, ...]:
+    """The chain orders of a multi-output observer: given, or the system's
+    ``normal_form_orders``, or its single-output normal form (one chain)."""
+    if system is not None and not isinstance(system, System):
+        raise DesignError(f"system must be a System instance or None; found "
+                          f"{type(system).__name__}")
+    if orders is None and system is not None:
+        orders = getattr(system, "normal_form_orders", None)
+        if orders is None and system.normal_form_order is not None:
+            orders = (system.normal_form_order,)
+    if orders is None:
+        where = "" if system is None else f" for {type(system).__name__}"
+        raise DesignError(f"{cls} needs orders=[n_1, n_2, ...]{where} (one chain order per "
+                          f"output)")
+    orders = [orders] if np.ndim(orders) == 0 else list(orders)
+    if not orders or any(isinstance(o, bool) or int(o) != o or o < 1 for o in orders):
+        raise DesignError(f"orders must be positive integers, one per chain; found {orders!r}")
+    return tuple(int(o) for o in orders)
+
+
 @register
 class MultiOutputHighGainObserver(_Chains, Observer):
     """One high-gain chain per measured output (paper 001, eq. 5), model-free by default.
@@ -724,21 +744,7 @@ class MultiOutputHighGainObserver(_Chains, Observer):
                  p: Any = None, outputs: Any = None,
                  phi: Callable[[Array, Array], Any] | None = None, method: str = "exact",
                  z_hat0: Any = None, x_hat0: Any = None, on_unstable: str = "raise") -> None:
-        if system is not None and not isinstance(system, System):
-            raise DesignError(f"system must be a System instance or None; found "
-                              f"{type(system).__name__}")
-        if orders is None and system is not None:
-            orders = getattr(system, "normal_form_orders", None)
-            if orders is None and system.normal_form_order is not None:
-                orders = (system.normal_form_order,)
-        if orders is None:
-            where = "" if system is None else f" for {type(system).__name__}"
-            raise DesignError(f"{type(self).__name__} needs orders=[n_1, n_2, ...]{where} "
-                              f"(one chain order per output)")
-        orders = [orders] if np.ndim(orders) == 0 else list(orders)
-        if not orders or any(isinstance(o, bool) or int(o) != o or o < 1 for o in orders):
-            raise DesignError(f"orders must be positive integers, one per chain; found {orders!r}")
-        self.orders = tuple(int(o) for o in orders)
+        self.orders = _chain_orders(type(self).__name__, system, orders)
         m = len(self.orders)
         super().__init__(system, order=sum(self.orders),
                          outputs=tuple(range(m)) if outputs is None else outputs,
@@ -857,7 +863,7 @@ class MultiOutputHighGainObserver(_Chains, Observer):
         """``phi(z_hat, u)`` of every member ``(B, len(orders))`` (one Python call per row)."""
         out = np.empty((Z.shape[0], len(self.orders)))
         for b in range(Z.shape[0]):
-            ph = np.asarray(self.phi(Z[b].copy(), U[b]), dtype=float).reshape(-1)  # type: ignore[misc]
+            ph = np.asarray(self.phi(Z[b].copy(), U[b]), dtype=float).reshape(-1)  # type: ignore[misc,type-var]
             if ph.shape != (len(self.orders),):
                 raise DimensionError(f"phi(z_hat, u) must return one top derivative per chain "
                                      f"({len(self.orders)}); found shape {ph.shape}")
