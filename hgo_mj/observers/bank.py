@@ -26,7 +26,8 @@ class ObserverBank(Observer):
     ----------
     observers : sequence of Observer
         The members, each reading its own channels (its ``outputs``) of ``y``. They are
-        advanced with the bank's batch (``reset(batch=B)`` resets every member with ``B``).
+        advanced with the bank's batch (``reset(batch=B)`` resets every member with ``B``);
+        the bank resets them when it is built.
     names : sequence of str, optional
         Names of the concatenated estimate; default: each member's ``state_names`` (for a
         single-output member without a system, the derivatives of
@@ -97,8 +98,9 @@ class ObserverBank(Observer):
         self._names = names
         self.family_diagnostics = tuple(f"{key}_{i}" for i, o in enumerate(members)  # type: ignore[misc]
                                         for key in o.family_diagnostics)
-        #: where each of the bank's channels sits in a full-width measurement
+        #: width of the full measurement the members index into
         self._width = max(outputs) + 1
+        self.reset()  # every member from its own initial estimate, unbatched
 
     @property
     def n_inputs(self) -> int | None:
