@@ -15,8 +15,8 @@ import numpy as np
 from hgo_mj._validate import finite_scalar
 from hgo_mj.exceptions import DesignError
 from hgo_mj.observers import HighGainObserver, Observer
+from hgo_mj.observers.bank import ObserverBank
 
-from ._observers import ObserverBank
 from .core import Task
 
 _TWO_PI = 2.0 * math.pi
@@ -236,7 +236,7 @@ class Reach2LinkTask(Task):
     def fallback_observer(self, system: Any, sample_period: float) -> Observer | None:
         """Model-free high-gain chains of order 4, one per link angle (paper 000's point: only
         the relative degree is known), when ``high_gain_multi`` is not registered."""
-        chains = [HighGainObserver(order=4, k=self.fallback_k, output=i) for i in range(2)]
+        chains = [HighGainObserver(order=4, k=self.fallback_k, outputs=(i,)) for i in range(2)]
         return ObserverBank(chains, output_names=system.output_names)
 
     def initial_state(self, rng: np.random.Generator) -> list[float]:

@@ -83,7 +83,7 @@ def test_observer_in_the_loop_is_seeded_and_returns_fresh_arrays():
 
 
 def test_observer_in_the_loop_takes_instances_and_a_measure_function():
-    obs = [HighGainObserver(order=2, k=30.0, output=i) for i in range(2)]
+    obs = [HighGainObserver(order=2, k=30.0, outputs=(i,)) for i in range(2)]
     env = ObserverInTheLoop(_ip(), measure=lambda e, o: e.unwrapped.data.qpos[:2].copy(),
                             observer=obs)
     first, _ = env.reset(seed=0)
@@ -95,7 +95,7 @@ def test_observer_in_the_loop_takes_instances_and_a_measure_function():
 def test_observer_in_the_loop_copies_an_observer_instance():
     """Two wrappers built from one observer instance (as a vector environment's copies are)
     run observers of their own: stepping one leaves the other's estimate alone."""
-    shared = HighGainObserver(order=2, k=30.0, output=0)
+    shared = HighGainObserver(order=2, k=30.0, outputs=(0,))
     a = ObserverInTheLoop(_ip(), measure=(0,), observer=shared)
     b = ObserverInTheLoop(_ip(), measure=(0,), observer=shared)
     assert a.observer is not shared and b.observer is not a.observer
@@ -116,8 +116,9 @@ def test_observer_in_the_loop_bad_input():
         ObserverInTheLoop(_ip(), measure=(0, 9), observer_kwargs={"order": 2, "k": 5.0})
     with pytest.raises(DimensionError, match="layout must index the 4-entry estimate"):
         _estimated_ip(layout=(0, 4))
-    with pytest.raises(DesignError, match="output is set per channel"):
-        ObserverInTheLoop(_ip(), measure=(0,), observer_kwargs={"order": 2, "k": 5.0, "output": 1})
+    with pytest.raises(DesignError, match="outputs is set per channel"):
+        ObserverInTheLoop(_ip(), measure=(0,), observer_kwargs={"order": 2, "k": 5.0,
+                                                                "outputs": (1,)})
     with pytest.raises(DesignError, match=r"unknown sensor stage 'sonar'"):
         _estimated_ip(sensor=[{"stage": "sonar"}])
 

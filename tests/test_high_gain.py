@@ -186,7 +186,7 @@ def test_dropout_holds_prediction_and_counts():
 def test_saturation_clips_reported_estimate_only():
     ob = HighGainObserver(order=2, k=100.0, z_bounds=([-1, -5], [1, 5]))
     ob.update(np.array([0.9]), np.zeros(0), 0.01)
-    assert ob.z_hat[1] == 5.0 and ob._z[1] > 5.0
+    assert ob.z_hat[1] == 5.0 and ob._Z[0, 1] > 5.0
 
 
 def test_update_returns_fresh_arrays():
@@ -204,49 +204,78 @@ def _pendulum():
 
 @pytest.mark.parametrize("z_bounds", [None, ([-1.0, -3.0], [1.0, 3.0])])
 @pytest.mark.parametrize("method", ["exact", "euler"])
-def test_fused_model_update_equals_correction_then_model_term(method, z_bounds):
-    """The one-call update with the model term gives, bit for bit, the correction followed by
-    ``z + g phi`` (the two compiled steps), and update_list the same values as update."""
+def test_model_update_is_correction_then_held_model_term(method, z_bounds):
+    """With the model term, one sample is ``M z + b y + g phi(sat(z), u)`` with ``phi`` held at
+    its start-of-sample value (rows summed left to right, ``g phi`` last): bit for bit, the
+    correction followed by ``z + g phi``; a dropout takes the open-loop map plus ``g0 phi``."""
+    from hgo_mj.observers.high_gain import one_step_map
+
     sys_ = _pendulum()
     a = HighGainObserver(sys_, k=10.0, model=True, method=method, z_bounds=z_bounds)
-    b = HighGainObserver(sys_, k=10.0, model=True, method=method, z_bounds=z_bounds)
     rng = np.random.default_rng(3)
     dt = 0.04
-    closed, _, gphi, *_ = a._compile(dt)
-    for y, u in zip(rng.uniform(-2, 2, 200).tolist(), rng.uniform(-0.5, 0.5, 200).tolist()):
-        z = a._z
-        zs = z if z_bounds is None else a._saturate_floats(z)
-        expected = gphi(float(sys_.phi_unchecked(zs, [u])), *closed(y, *z))
-        xa = a.update(np.array([y]), np.array([u]), dt)
-        xb = b.update_list([y], [u], dt)
-        assert a._z == expected
-        assert xa.tolist() == xb
-    x = a.update(np.array([np.nan]), np.array([0.0]), dt)  # dropout: open loop, counted
+    M, b, g = one_step_map(a.p, a.k_, dt, method)
+    M0, _, g0 = one_step_map(a.p, a.k_, dt, method, closed=False)
+
+    def row_sum(A, z, *extra):
+        out = []
+        for i in range(A.shape[0]):
+            acc = 0.0
+            for j in range(A.shape[1]):
+                acc += A[i, j] * z[j]
+            for c, v in extra:
+                acc += c[i] * v
+            out.append(acc)
+        return np.array(out)
+
+    ys = rng.uniform(-2, 2, 200).tolist() + [np.nan]
+    for y, u in zip(ys, rng.uniform(-0.5, 0.5, 201).tolist()):
+        z = a._Z[0].copy()
+        zs = z if z_bounds is None else np.clip(z, *z_bounds)
+        ph = float(sys_.phi(zs, [u]))
+        if y == y:
+            expected = row_sum(M, z, (b, y), (g, ph))
+        else:
+            expected = row_sum(M0, z, (g0, ph))
+        x = a.update(np.array([y]), np.array([u]), dt)
+        np.testing.assert_array_equal(a._Z[0], expected)
+        np.testing.assert_array_equal(x, expected if z_bounds is None else np.clip(expected,
+                                                                                    *z_bounds))
     assert a.dropouts_ == 1 and np.all(np.isfinite(x))
 
 
-def test_model_free_update_list_matches_update():
+def test_model_free_measurement_checks():
     a = HighGainObserver(order=3, k=20.0)
-    b = HighGainObserver(order=3, k=20.0)
-    for j in range(50):
-        y = float(np.sin(0.1 * j))
-        assert a.update(np.array([y]), np.zeros(0), 0.01).tolist() == \
-            b.update_list([y], [], 0.01)
     with pytest.raises(Exception, match="is inf"):
         a.update(np.array([np.inf]), np.zeros(0), 0.01)
+    with pytest.raises(DesignError, match=r"outputs must be a 1-tuple such as \(0,\)"):
+        HighGainObserver(order=2, k=1.0, outputs=(0, 1))
+    with pytest.raises(DesignError, match="a 1-tuple"):
+        HighGainObserver(order=2, k=1.0, outputs=1)
 
 
 @pytest.mark.parametrize("model", [False, True])
-def test_pickles_without_the_compiled_updates(model):
+def test_pickles_without_the_map_cache(model):
     import pickle
 
     ob = HighGainObserver(_pendulum(), k=10.0, model=model)
     ob.update(np.array([0.3]), np.array([0.1]), 0.04)
-    assert ob._steps
+    assert ob._maps
     copy = pickle.loads(pickle.dumps(ob))
-    assert copy._steps == {} and ob._steps  # the original keeps its cache
+    assert copy._maps == {} and ob._maps  # the original keeps its cache
     np.testing.assert_array_equal(copy.update(np.array([0.2]), np.array([0.0]), 0.04),
                                   ob.update(np.array([0.2]), np.array([0.0]), 0.04))
+
+
+def test_the_map_cache_is_bounded():
+    """20,000 jittered periods keep at most MAP_CACHE sets of one-step maps."""
+    from hgo_mj.observers.high_gain import MAP_CACHE
+
+    ob = HighGainObserver(order=2, k=10.0)
+    rng = np.random.default_rng(0)
+    for dt in (1e-3 * (1 + 0.01 * rng.standard_normal(20000))).tolist():
+        ob.update(np.array([0.1]), np.zeros(0), dt)
+    assert len(ob._maps) <= MAP_CACHE
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [
@@ -281,9 +310,9 @@ def test_multi_on_independent_chains_equals_two_single_observers(method):
     dt = 2e-3
     multi = MultiOutputHighGainObserver(orders=(2, 3), k=(5.0, 8.0), p=[None, [3.0, 3.5, 1.2]],
                                         method=method, z_hat0=[0.1, -0.2, 0.3, 0.0, 1.0])
-    one = HighGainObserver(order=2, k=5.0, method=method, z_hat0=[0.1, -0.2], output=0)
+    one = HighGainObserver(order=2, k=5.0, method=method, z_hat0=[0.1, -0.2], outputs=(0,))
     two = HighGainObserver(order=3, k=8.0, p=[3.0, 3.5, 1.2], method=method,
-                           z_hat0=[0.3, 0.0, 1.0], output=1)
+                           z_hat0=[0.3, 0.0, 1.0], outputs=(1,))
     rng = np.random.default_rng(1)
     for j in range(400):
         y = np.array([np.sin(0.01 * j), np.cos(0.02 * j)]) + 0.01 * rng.standard_normal(2)
@@ -303,13 +332,13 @@ def test_multi_model_term_matches_single_observers_with_model(chain, method):
     multi = MultiOutputHighGainObserver(orders=(2, 3), k=(5.0, 8.0), method=method,
                                         phi=lambda z, u: u[:2])
     one = HighGainObserver(chain(2)(), k=5.0, model=True, method=method)
-    two = HighGainObserver(chain(3)(), k=8.0, model=True, method=method, output=1)
+    two = HighGainObserver(chain(3)(), k=8.0, model=True, method=method)  # reads y[1:]
     for j in range(300):
         t = j * dt
         y = np.array([np.sin(3 * t), t * t])
         u = np.array([-9 * np.sin(3 * t), 0.0 if t < 0.1 else 1.0])
         x = multi.update(y, u, dt)
-        ref = np.concatenate([one.update(y, u[:1], dt), two.update(y, u[1:], dt)])
+        ref = np.concatenate([one.update(y[:1], u[:1], dt), two.update(y[1:], u[1:], dt)])
         if method == "exact":
             np.testing.assert_array_equal(x, ref)
         else:  # the same RK4, summed in another order

@@ -47,8 +47,8 @@ def test_two_chains_are_two_observers_on_their_channels(method):
     multi = MultiOutputHighGainObserver(k=[5.0, 8.0], orders=[2, 3], outputs=[2, 0],
                                         p=[None, [2.0, 2.5, 1.0]], method=method,
                                         z_hat0=[0.5, 0.0, -0.1, 0.2, 0.0])
-    first = HighGainObserver(order=2, k=5.0, output=2, method=method, z_hat0=[0.5, 0.0])
-    second = HighGainObserver(order=3, k=8.0, p=[2.0, 2.5, 1.0], output=0, method=method,
+    first = HighGainObserver(order=2, k=5.0, outputs=(2,), method=method, z_hat0=[0.5, 0.0])
+    second = HighGainObserver(order=3, k=8.0, p=[2.0, 2.5, 1.0], outputs=(0,), method=method,
                               z_hat0=[-0.1, 0.2, 0.0])
     u = np.zeros(0)
     for y in _stream(3, seed=1):

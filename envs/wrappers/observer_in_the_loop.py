@@ -14,9 +14,9 @@ from numpy.typing import NDArray
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
+from hgo_mj.observers.bank import ObserverBank
 from hgo_mj.plants.base import Plant
 
-from .._observers import ObserverBank
 from ..core import env_seed, sensor_chain
 from ._common import box_indices, env_dt
 

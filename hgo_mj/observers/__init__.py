@@ -6,7 +6,8 @@ from typing import Any
 
 from ..exceptions import DesignError
 from .adaptive_gain import AdaptiveGainObserver
-from .base import Observer
+from .bank import ObserverBank
+from .base import Observer, register
 from .bastin_gevers import AOCF, BastinGeversObserver
 from .besancon import AffineForm, BesanconObserver
 from .high_gain import HighGainObserver, MultiOutputHighGainObserver
@@ -50,5 +51,5 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "MujocoExtendedKalmanFilter", "MujocoUnscentedKalmanFilter", "UnscentedKalmanFilter",
            "OBSERVERS", "AdaptiveGainObserver", "BastinGeversObserver", "JoSonForm",
            "JoSonObserver", "HighGainObserver",
-           "MultiOutputHighGainObserver", "Observer", "QIntegralObserver", "RiccatiObserver",
-           "make_observer"]
+           "MultiOutputHighGainObserver", "Observer", "ObserverBank", "QIntegralObserver", "RiccatiObserver",
+           "make_observer", "register"]

@@ -1,4 +1,5 @@
-"""The high-gain observer of Tornambè (paper 000, eq. 2), optionally with a model term.
+"""The high-gain observer of Tornambè (paper 000, eq. 2), optionally with a model term, and the
+multi-output observer of paper 001 (eq. 4-5): one chain of integrators per measured output.
 
 .. math::
 
@@ -10,10 +11,31 @@ integrators); ``model=True`` adds the system's ``phi`` as in Gauthier, Hammouri 
 (1992). The error ``e = z - z_hat`` of the model-free observer obeys the linear dynamics of
 paper 000, eq. 6, ``e' = A_k e + B phi(z, u)`` with ``A_k = A - L C``.
 
+**One kernel.** With the measurement ``y`` and the model term ``w = phi`` held over a sample,
+every method's one-step map is affine (:func:`one_step_map`):
+
+.. math:: z^+ = M z + b\\, y + g\\, w, \\qquad z^+ = M_0 z + g_0 w \\ \\text{(a dropout)}
+
+``M, b, g`` (closed loop) and ``M_0, g_0`` (open loop, no correction) are built once per sample
+period and cached (at most :data:`MAP_CACHE` periods). :func:`affine_advance` applies them over
+B members and T samples in one compiled call (numba), choosing per member and per chain the
+open-loop map where that member's measurement is NaN, and saturating the reported estimate.
+
+* Model-free (the default), and every multi-output observer without ``phi``: one kernel call
+  per block of T samples.
+* With the model term and ``exact``/``euler``: ``w = phi(sat(z_hat), u)`` is evaluated by the
+  system (``System.phi_batch`` on the B rows, plain numpy or Python) before each sample, so the
+  samples loop in Python and the kernel is called once per sample for all B members.
+* With the model term and ``rk4``: RK4 of the continuous observer, ``phi`` evaluated at every
+  stage (vectorized numpy over B); a member whose measurement is NaN takes the open-loop map
+  with ``phi`` held, as before.
+
 References
 ----------
 .. [000] E. Bullinger, A. Ilchmann, F. Allgöwer, "A simple adaptive observer for nonlinear
    systems", NOLCOS 1998, eq. 2 (observer), eq. 3 (noise/disturbance transfer), eq. 6 (error).
+.. [001] G. Besançon, Q. Zhang, H. Hammouri, "High-gain observer based state and parameter
+   estimation in nonlinear systems", IFAC NOLCOS 2004, eq. 4 (observer), eq. 5 (block form).
 .. [T92] A. Tornambè, "High-gain observers for non-linear systems", Int. J. Systems Science
    23(9), 1992.
 .. [GHO92] J.P. Gauthier, H. Hammouri, S. Othman, "A simple observer for nonlinear systems:
@@ -31,40 +53,122 @@ from math import factorial
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from .._validate import finite_scalar, one_of, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
-from ..exceptions import DesignError, DimensionError, DivergenceError
+from ..exceptions import DesignError, DimensionError
 from ..systems.base import System
-from .base import Array, Observer
+from .base import Array, Observer, batch_rows, register
 
 METHODS = ("exact", "euler", "rk4")
+#: at most this many sample periods keep their one-step maps (jittered periods do not grow memory)
+MAP_CACHE = 8
+
+
+#: ``flags`` bits of :func:`affine_advance`
+SATURATE, MODEL_TERM = 1, 2
+
+
+@njit(cache=True)
+def affine_advance(Z: Array, Y: Array, W: Array, P: Array, lay: Array, bounds: Array,
+                   flags: int, t0: int, t1: int, Zout: Array) -> None:  # pragma: no cover
+    r"""Apply the affine one-step maps of the chains to ``Z`` ``(B, n)`` in place, for the
+    samples ``t0 <= t < t1`` of ``Y`` ``(B, T, nc)`` (chain ``c`` reads ``Y[:, t, c]``).
+
+    Chain ``c`` occupies ``z[f : f + m]`` with ``f, m = lay[c]``. Its maps are packed in
+    ``P[c]`` (:func:`packed_maps`, zero-padded to the largest chain ``nm``): ``M = P[c, :, :nm]``,
+    ``M0 = P[c, :, nm:2nm]``, ``b, g, g0 = P[c, :, 2nm], P[c, :, 2nm+1], P[c, :, 2nm+2]``:
+
+    .. math:: z_c^+ = M z_c + b\, y_c\, [+ g\, w_c] \quad\text{or, where } y_c
+              \text{ is NaN,}\quad z_c^+ = M_0 z_c\, [+ g_0 w_c]
+
+    with ``w = W[b, t, c]`` the held model term when ``flags & MODEL_TERM``. Each row is summed
+    left to right (``M z``, then ``b y``, then ``g w``). ``Zout[b, t]`` receives the new state,
+    clipped to ``[bounds[0], bounds[1]]`` when ``flags & SATURATE`` (the reported estimate; the
+    state is not clipped).
+    """
+    B, n = Z.shape
+    nb = lay.shape[0]
+    nm = P.shape[1]
+    saturate = (flags & 1) != 0
+    use_w = (flags & 2) != 0
+    zn = np.empty(n)
+    for b in range(B):
+        for t in range(t0, t1):
+            for c in range(nb):
+                f = lay[c, 0]
+                m = lay[c, 1]
+                y = Y[b, t, c]
+                lost = y != y
+                off = nm if lost else 0
+                for i in range(m):
+                    acc = 0.0
+                    for j in range(m):
+                        acc += P[c, i, off + j] * Z[b, f + j]
+                    if not lost:
+                        acc += P[c, i, 2 * nm] * y
+                    if use_w:
+                        acc += P[c, i, 2 * nm + (2 if lost else 1)] * W[b, t, c]
+                    zn[f + i] = acc
+            for i in range(n):
+                v = zn[i]
+                Z[b, i] = v
+                if saturate:
+                    if v < bounds[0, i]:
+                        v = bounds[0, i]
+                    elif v > bounds[1, i]:
+                        v = bounds[1, i]
+                Zout[b, t, i] = v
+
+
+#: the model-term argument of :func:`affine_advance` when there is none (never read)
+_NO_W = np.zeros((1, 1, 1))
+
+
+def packed_maps(chains: list[tuple[Array, Array, Array, Array, Array]]) -> Array:
+    """The per-chain maps ``(M, b, g, M0, g0)`` packed as :func:`affine_advance` reads them:
+    ``(len(chains), nm, 2 nm + 3)``, zero-padded to the largest chain ``nm``."""
+    nm = max(c[0].shape[0] for c in chains)
+    P = np.zeros((len(chains), nm, 2 * nm + 3))
+    for c, (M, b, g, M0, g0) in enumerate(chains):
+        m = M.shape[0]
+        P[c, :m, :m], P[c, :m, nm:nm + m] = M, M0
+        P[c, :m, 2 * nm], P[c, :m, 2 * nm + 1], P[c, :m, 2 * nm + 2] = b, g, g0
+    return P
 
 
 def affine_step(M: Array, b: Array, g: Array | None = None) -> Callable[..., tuple[float, ...]]:
-    """Compile ``z -> M z + b y`` into a plain-float function ``step(y, *z)``; with ``g``,
-    ``z -> M z + b y + g w`` into ``step(y, w, *z)`` (``w`` the model term).
+    """``z -> M z + b y`` as a plain-float function ``step(y, *z)``; with ``g``,
+    ``z -> M z + b y + g w`` as ``step(y, w, *z)`` (``w`` the model term). Zero coefficients
+    are skipped and each row summed left to right, ``g w`` last.
 
-    Observer updates run once per sample; for ``n <= 6`` a generated expression in Python
-    floats costs a fraction of a microsecond, against several microseconds for small numpy
-    arrays (measured in ``scripts/bench.py``). Each row is summed left to right, ``g w``
-    last, as ``affine_step(I, g)`` applied after ``affine_step(M, b)`` would.
+    Kept (without code generation) only for the adaptive-gain and q-integral observers until
+    their ports onto :func:`affine_advance`; the high-gain family does not use it.
     """
     n = len(b)
-    zs = [f"z{j}" for j in range(n)]
-    rows = []
-    for i in range(n):
-        terms = [f"{float(M[i, j])!r}*z{j}" for j in range(n) if M[i, j] != 0.0]
-        if b[i] != 0.0:
-            terms.append(f"{float(b[i])!r}*y")
-        if g is not None and g[i] != 0.0:
-            terms.append(f"{float(g[i])!r}*w")
-        rows.append(" + ".join(terms) if terms else "0.0")
-    args = ", ".join((["y"] if g is None else ["y", "w"]) + zs)
-    src = f"def step({args}):\n    return ({', '.join(rows)},)\n"
-    scope: dict[str, Any] = {}
-    exec(compile(src, "<affine_step>", "exec"), scope)  # noqa: S102 - numbers only
-    return scope["step"]
+    rows = [([(float(M[i, j]), j) for j in range(n) if M[i, j] != 0.0],
+             float(b[i]) if b[i] != 0.0 else None,
+             float(g[i]) if g is not None and g[i] != 0.0 else None) for i in range(n)]
+
+    def row(terms: list[tuple[float, int]], bi: float | None, gi: float | None,
+            y: float, w: float, z: tuple[float, ...]) -> float:
+        acc: float | None = None
+        for c, j in terms:
+            acc = c * z[j] if acc is None else acc + c * z[j]
+        if bi is not None:
+            acc = bi * y if acc is None else acc + bi * y
+        if gi is not None:
+            acc = gi * w if acc is None else acc + gi * w
+        return 0.0 if acc is None else acc
+
+    if g is None:
+        def step(y: float, *z: float) -> tuple[float, ...]:
+            return tuple([row(t, bi, None, y, 0.0, z) for t, bi, _ in rows])
+    else:
+        def step(y: float, w: float, *z: float) -> tuple[float, ...]:  # type: ignore[misc]
+            return tuple([row(t, bi, gi, y, w, z) for t, bi, gi in rows])
+    return step
 
 
 def sampled_chain(n: int, dt: float) -> tuple[Array, Array]:
@@ -229,36 +333,82 @@ def clip_floats(z: Any, bounds: tuple[list[float], list[float]]) -> tuple[float,
     return tuple([min(max(v, a), b) for v, a, b in zip(z, lo, hi)])
 
 
-class HighGainObserver(Observer):
+class _Chains:
+    """The chain layout and the bounded per-period map cache shared by the two observers."""
+
+    _lay: Array
+    _bounds: Array
+    _flags: int
+    _maps: dict[float, Array]
+
+    def _layout(self, orders: tuple[int, ...], bounds: tuple[Array, Array] | None) -> None:
+        first = np.cumsum((0,) + orders[:-1])
+        self._lay = np.ascontiguousarray(np.stack([first, orders], axis=1), dtype=np.int64)
+        self._bounds = np.zeros((2, 1)) if bounds is None else np.array(bounds, dtype=float)
+        self._flags = 0 if bounds is None else SATURATE
+        self._maps = {}
+
+    def _chain_maps(self, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
+        raise NotImplementedError
+
+    def _maps_at(self, dt: float) -> Array:
+        """The packed maps at the period ``dt`` (built and checked on first use)."""
+        maps = self._maps.get(dt)
+        if maps is None:
+            maps = packed_maps(self._chain_maps(finite_scalar("dt", dt, positive=True)))
+            if len(self._maps) >= MAP_CACHE:
+                del self._maps[next(iter(self._maps))]
+            self._maps[dt] = maps
+        return maps
+
+    def _kernel(self, Z: Array, Y: Array, W: Array | None, maps: Array, t0: int, t1: int,
+                Zout: Array) -> None:
+        if W is None:
+            affine_advance(Z, Y, _NO_W, maps, self._lay, self._bounds, self._flags, t0, t1, Zout)
+        else:
+            affine_advance(Z, Y, W, maps, self._lay, self._bounds, self._flags | MODEL_TERM,
+                           t0, t1, Zout)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the map cache (rebuilt on first use)."""
+        state = self.__dict__.copy()
+        state["_maps"] = {}
+        return state
+
+
+@register
+class HighGainObserver(_Chains, Observer):
     """High-gain observer of Tornambè (paper 000, eq. 2) on a chain of ``n`` integrators.
 
     Parameters
     ----------
     system : System, optional
         Gives the order ``n`` (its normal form), the map back to physical coordinates and, with
-        ``model=True``, the model term ``phi``. Without a system, give ``order``: the estimate
-        is then ``z_hat`` itself.
+        ``model=True``, the model term ``phi`` (``System.phi_batch``). Without a system, give
+        ``order``: the estimate is then ``z_hat`` itself.
     k : float
         High-gain parameter (> 0); the observer poles are ``k`` times the roots of ``p``.
     p : array_like, optional
         Hurwitz coefficients ``p_1..p_n``; default binomial, ``(s + 1)^n`` (paper 000, eq. 3).
     order : int, optional
         ``n`` when no system is given (must match the system's if both are).
-    output : int
-        Index of the measured channel this observer uses.
+    outputs : tuple of int
+        The measured channel this observer uses, as a 1-tuple (default ``(0,)``).
     model : bool
         Add the model term ``phi(sat(z_hat), u)`` of Gauthier et al. (needs a system).
     method : {"exact", "euler", "rk4"}
-        How ``update`` advances one sample (see :func:`one_step_map`): ``exact`` is the
-        sampled-data observer (chain propagated exactly, pole-matched correction, stable for
-        every period; the model term, if any, held at its start-of-sample value); ``euler`` and
-        ``rk4`` integrate the continuous observer with the measurement held.
+        How one sample is advanced (see :func:`one_step_map`): ``exact`` is the sampled-data
+        observer (chain propagated exactly, pole-matched correction, stable for every period;
+        the model term, if any, held at its start-of-sample value); ``euler`` and ``rk4``
+        integrate the continuous observer with the measurement held (``rk4`` with the model
+        term evaluates ``phi`` at every stage).
     z_bounds : (array_like, array_like), optional
         Saturation of the estimate against peaking (Khalil, sec. 14.5): the reported
         ``z_hat``/``x_hat`` and the argument of the model term are clipped to these bounds;
         the observer's own state is not.
     x_hat0, z_hat0 : array_like, optional
-        Initial estimate in physical or observer coordinates (default zero).
+        Initial estimate in physical or observer coordinates, ``(n_x,)`` / ``(n,)`` (default
+        zero): what :meth:`reset` starts from when given nothing.
     on_unstable : {"raise", "warn", "ignore"}
         What to do when the chosen ``method`` and sample period give a one-step error map of
         spectral radius >= 1 (a high gain with a too-long period): the message states the
@@ -267,15 +417,25 @@ class HighGainObserver(Observer):
     Attributes
     ----------
     k_ : float
-        The gain (constant here; the adaptive observer changes it).
-    dropouts_ : int
-        Samples that were NaN and over which the observer ran open loop.
+        The gain (constant here; the adaptive observer changes it), the diagnostic ``k``.
 
     Notes
     -----
     Sensitivity (paper 000, eq. 3, binomial ``p``): ``e_1(s) = w(s)/(s+k)^n +
     s^n/(s+k)^n nu(s)``: a larger ``k`` rejects the unmodelled ``phi`` better and passes the
     measurement noise ``nu`` with gain ``k^(i-1)`` into the ``i``-th estimate.
+
+    Cost: model-free, a block of T samples of B members is one compiled call
+    (:func:`affine_advance`); with the model term the samples loop in Python (the system
+    evaluates ``phi`` on the B rows before each sample, or at every RK4 stage).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> ob = HighGainObserver(order=2, k=10.0, z_hat0=[1.0, 2.0])
+    >>> ob.update(np.array([np.nan]), np.zeros(0), 0.1)  # a dropout: open-loop prediction
+    array([1.2, 2. ])
 
     References
     ----------
@@ -286,13 +446,16 @@ class HighGainObserver(Observer):
     name = "high_gain"
     summary = "Tornambè high-gain observer, gains p_i k^i, optional model term and saturation"
     reference = "paper 000 (Bullinger et al. 1998), eq. 2, 3, 6"
-    diagnostic_names = ("k",)
+    family_diagnostics = ("k",)
 
     def __init__(self, system: System | None = None, *, k: float, p: Any = None,
-                 order: int | None = None, output: int = 0, model: bool = False,
+                 order: int | None = None, outputs: Any = (0,), model: bool = False,
                  method: str = "exact", z_bounds: Any = None, x_hat0: Any = None,
                  z_hat0: Any = None, on_unstable: str = "raise") -> None:
-        super().__init__(system, order, output)
+        super().__init__(system, order=order, outputs=outputs, on_unstable=on_unstable)
+        if len(self.outputs) != 1:
+            raise DesignError(f"{type(self).__name__} reads one output: outputs must be a "
+                              f"1-tuple such as (0,); found {list(self.outputs)}")
         n = self.n
         self.p = binomial_coefficients(n) if p is None else check_hurwitz(p)
         if self.p.size != n:
@@ -301,17 +464,16 @@ class HighGainObserver(Observer):
         check_options(method, on_unstable, model, system)
         self.model = bool(model)
         self.method = method
-        self.on_unstable = on_unstable
         self.z_bounds = bounds_pair(z_bounds, n)
-        self._bounds_floats = bounds_floats(self.z_bounds)
         self.L = hgo_gains(self.p, self.k_)
-        self._steps: dict[float, tuple[Callable, ...]] = {}
-        self._init = (x_hat0, z_hat0)
-        #: the model term in one compiled call per sample (``exact``/``euler``): see update
-        self._fused = self.model and method != "rk4"
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0, not both")
+        self._init = (None if x_hat0 is None else vector("x_hat0", x_hat0, len(self.state_names)),
+                      None if z_hat0 is None else vector("z_hat0", z_hat0, n))
         #: ``x_hat`` is ``z_hat`` itself (no system, or a system whose normal form is its state)
         self._identity = system is None or _is_identity(system, n)
-        self.reset(x_hat0, z_hat0=z_hat0)
+        self._layout((n,), self.z_bounds)
+        self.reset()
 
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
@@ -322,139 +484,106 @@ class HighGainObserver(Observer):
                                    1e-3 / self.k_, 1e6 / self.k_)
 
     def check_period(self, dt: float) -> None:
-        if dt not in self._steps:
-            self._compile(dt)
+        self._maps_at(dt)
 
-    def _compile(self, dt: float) -> tuple[Callable, ...]:
-        dt = finite_scalar("dt", dt, positive=True)
+    def _chain_maps(self, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
         M, b, g = one_step_map(self.p, self.k_, dt, self.method)
         check_step_stable(M, self.on_unstable, f"{self.method} update of the {self._label()}",
                           dt, self.max_stable_period, digits=6)
         M0, _, g0 = one_step_map(self.p, self.k_, dt, self.method, closed=False)  # dropout
-        # (closed step, open-loop step, open-loop model term z + g0 phi, closed step fused with
-        # the model term z+ = M z + b y + g phi), all compiled in plain floats
-        entry = (affine_step(M, b), affine_step(M0, np.zeros(self.n)),
-                 affine_step(np.eye(self.n), g0), affine_step(M, b, g))
-        self._steps[dt] = entry
-        return entry
+        return [(M, b, g, M0, g0)]
 
     def _label(self) -> str:
         """The observer and its gain, as error messages name it."""
         return f"high-gain observer (n={self.n}, k={self.k_:g})"
 
-    # -------------------------------------------------------------- interface
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
-        """Restart from ``x_hat0``/``z_hat0`` (default: those given to the constructor)."""
-        if x_hat0 is None and z_hat0 is None:
-            x_hat0, z_hat0 = self._init
-        self._z = tuple(float(v) for v in self._initial_z(x_hat0, z_hat0, u0))
-        self._restart_counters()
+    # ------------------------------------------------------------- the family
+    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+        if x0 is None and z0 is None:
+            ix, iz = self._init
+            x0 = None if ix is None else batch_rows("x_hat0", ix, ix.size, self.batch)
+            z0 = None if iz is None else batch_rows("z_hat0", iz, iz.size, self.batch)
+        self._Z = np.array(self._initial_z(x0, z0, u0), dtype=float, order="C")
+        if not self._identity:
+            X = np.empty((self.batch, 1, len(self.state_names)))
+            self._estimate(self._sat(self._Z)[:, None], u0[:, None], X)
 
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
-        try:
-            yi = float(y[self.output])
-        except (IndexError, TypeError):
-            raise self._bad_measurement(y, self.output) from None
-        self._advance(yi, u, dt)
-        return self.x_hat
-
-    def update_list(self, y: Any, u: Any, dt: float) -> list[float]:
-        """:meth:`update` for per-sample loops: ``y`` and ``u`` sequences of Python floats
-        (lists), the estimate returned as a list of floats (the same values as ``update``'s
-        array). ``u`` becomes an array where the model term or the inverse map reads it; an
-        observer without either keeps the list (it reads ``u`` nowhere)."""
-        if self.model or not self._identity:
-            u = np.array(u, dtype=float)
-        self._advance(y[self.output], u, dt)
-        return self.x_hat_list()
-
-    def x_hat_list(self) -> list[float]:
-        """:attr:`x_hat` as a list of Python floats."""
+    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        maps = self._maps.get(dt)
+        if maps is None:
+            maps = self._maps_at(dt)
+        T = Y.shape[1]
+        if not self.model:
+            self._kernel(self._Z, Y, None, maps, 0, T, Z)
+        elif self.method != "rk4":
+            W = np.empty((Y.shape[0], T, 1))
+            phi = self.system.phi_batch  # type: ignore[union-attr]
+            for j in range(T):  # phi at the start of the sample, held over it
+                W[:, j, 0] = phi(self._sat(self._Z), U[:, j])
+                self._kernel(self._Z, Y, W, maps, j, j + 1, Z)
+        else:
+            for j in range(T):
+                self._rk4_model(Y, U, dt, maps, j, Z)
+        D[...] = self.k_
         if self._identity:
-            z = self._z
-            return list(z) if self.z_bounds is None else list(self._saturate_floats(z))
-        return self.x_hat.tolist()
+            np.copyto(X, Z)
+        elif T:
+            self._estimate(Z, U, X)
 
-    def z_hat_list(self) -> list[float]:
-        """:attr:`z_hat` as a list of Python floats (the same values)."""
-        z = self._z
-        return list(z) if self.z_bounds is None else list(self._saturate_floats(z))
+    def _rk4_model(self, Y: Array, U: Array, dt: float, maps: Array, j: int,
+                   Zout: Array) -> None:
+        """Sample ``j`` by RK4 of the continuous observer with ``phi`` at every stage; members
+        whose measurement is NaN take the open-loop map with ``phi`` held (the kernel)."""
+        phi = self.system.phi_batch  # type: ignore[union-attr]
+        y = Y[:, j, 0]
+        lost = np.isnan(y)
+        Z = self._Z
+        if lost.any():
+            rows = np.flatnonzero(lost)
+            Zl = Z[rows]
+            W = phi(self._sat(Zl), U[rows, j]).reshape(-1, 1, 1)
+            Zo = np.empty((rows.size, 1, self.n))
+            self._kernel(Zl, np.ascontiguousarray(Y[rows, j:j + 1]), W, maps, 0, 1, Zo)
+            Z[rows] = Zl
+        ok = np.flatnonzero(~lost)
+        if ok.size:
+            L, Uo, yo = self.L, U[ok, j], y[ok, None]
 
-    def diagnostic_values(self) -> tuple[float, ...]:
-        """The values of :meth:`diagnostics`, in its key order, without building the dict: for
-        per-sample loops that record them as columns."""
-        return (self.k_, float(self.dropouts_))
+            def rhs(z: Array) -> Array:
+                dz = np.empty_like(z)
+                dz[:, :-1] = z[:, 1:]
+                dz[:, -1] = phi(self._sat(z), Uo)
+                return dz + L * (yo - z[:, :1])
 
-    def _advance(self, yi: float, u: Any, dt: float) -> None:
-        """One sample: the new observer state from the measurement ``yi`` (a float)."""
-        self._u = u
-        entry = self._steps.get(dt)
-        if entry is None:
-            entry = self._compile(dt)
-        z = self._z
-        if yi - yi == 0.0:  # finite (NaN and +-inf give NaN): the common case, one call
-            if self._fused:  # correction and model term together
-                zs = z if self._bounds_floats is None else self._saturate_floats(z)
-                self._z = entry[3](yi, float(self.system.phi_unchecked(zs, u)), *z)  # type: ignore[union-attr]
-            elif not self.model:
-                self._z = entry[0](yi, *z)
-            else:  # rk4 with the model term at every stage
-                self._z = self._rk4_model(yi, u, dt)
-            return
-        if yi != yi:  # NaN: sensor dropout, predict without correction
-            self.dropouts_ += 1
-            znew = entry[1](0.0, *z)
-            if self.model:
-                # plain floats throughout: the system's unchecked phi takes the tuple z itself
-                # (saturated when z_bounds is set); entry[2](phi, *z) = z + g0 phi
-                zs = z if self._bounds_floats is None else self._saturate_floats(z)
-                znew = entry[2](float(self.system.phi_unchecked(zs, u)), *znew)  # type: ignore[union-attr]
-            self._z = znew
-            return
-        raise DivergenceError(f"measurement y[{self.output}] is {yi}")
+            z = Z[ok]
+            k1 = rhs(z)
+            k2 = rhs(z + dt / 2 * k1)
+            k3 = rhs(z + dt / 2 * k2)
+            k4 = rhs(z + dt * k3)
+            Z[ok] = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        Zout[:, j] = self._sat(Z)
 
-    def _saturate_floats(self, z: tuple[float, ...]) -> tuple[float, ...]:
-        """:meth:`_saturate` on a tuple of floats (the model term's argument), without numpy."""
-        return clip_floats(z, self._bounds_floats)  # type: ignore[arg-type]
-
-    def _rk4_model(self, y: float, u: Any, dt: float) -> tuple[float, ...]:
-        L = self.L
-
-        def rhs(z: Array) -> Array:
-            dz = np.empty_like(z)
-            dz[:-1] = z[1:]
-            dz[-1] = float(self.system.phi_unchecked(self._saturate(z), u))  # type: ignore[union-attr]
-            return dz + L * (y - z[0])
-
-        z = np.array(self._z)
-        k1 = rhs(z)
-        k2 = rhs(z + dt / 2 * k1)
-        k3 = rhs(z + dt / 2 * k2)
-        k4 = rhs(z + dt * k3)
-        return tuple((z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)).tolist())
-
-    def _saturate(self, z: Array) -> Array:
+    def _sat(self, z: Array) -> Array:
+        """``z`` clipped to ``z_bounds`` (a new array), or ``z`` itself without bounds."""
         if self.z_bounds is None:
             return z
         return np.clip(z, self.z_bounds[0], self.z_bounds[1])
 
-    @property
-    def z_hat(self) -> Array:
-        z = np.array(self._z)
-        return z if self.z_bounds is None else self._saturate(z)
+    def _estimate(self, Z: Array, U: Array, X: Array) -> None:
+        """``X`` from the reported rows ``Z`` ``(B, T, n)`` through the inverse map; keep the
+        last as the current one."""
+        self._to_physical(Z, U, X)
+        self._X = X[:, -1].copy()
 
-    @property
-    def x_hat(self) -> Array:
-        z = self.z_hat
-        return z if self._identity else self._physical(z)
-
-    def diagnostics(self) -> dict[str, float]:
-        return {"k": self.k_, "dropouts": float(self.dropouts_)}
+    def _current(self) -> tuple[Array, Array, Array]:
+        z = self._sat(self._Z)
+        z = z.copy() if z is self._Z else z
+        return (z.copy() if self._identity else self._X.copy(), z,
+                np.full((self.batch, 1), self.k_))
 
     def params(self) -> dict[str, Any]:
-        return {"k": self.k_, "p": self.p.tolist(), "order": self.n, "output": self.output,
-                "model": self.model, "method": self.method,
+        return {"k": self.k_, "p": self.p.tolist(), "order": self.n,
+                "outputs": list(self.outputs), "model": self.model, "method": self.method,
                 "z_bounds": None if self.z_bounds is None else [b.tolist() for b in self.z_bounds]}
 
 
@@ -503,7 +632,28 @@ def _per_chain(name: str, value: Any, m: int) -> list[Any]:
     return seq
 
 
-class MultiOutputHighGainObserver(Observer):
+def _chain_orders(cls: str, system: Any, orders: Any) -> tuple[int, ...]:
+    """The chain orders of a multi-output observer: given, or the system's
+    ``normal_form_orders``, or its single-output normal form (one chain)."""
+    if system is not None and not isinstance(system, System):
+        raise DesignError(f"system must be a System instance or None; found "
+                          f"{type(system).__name__}")
+    if orders is None and system is not None:
+        orders = getattr(system, "normal_form_orders", None)
+        if orders is None and system.normal_form_order is not None:
+            orders = (system.normal_form_order,)
+    if orders is None:
+        where = "" if system is None else f" for {type(system).__name__}"
+        raise DesignError(f"{cls} needs orders=[n_1, n_2, ...]{where} (one chain order per "
+                          f"output)")
+    orders = [orders] if np.ndim(orders) == 0 else list(orders)
+    if not orders or any(isinstance(o, bool) or int(o) != o or o < 1 for o in orders):
+        raise DesignError(f"orders must be positive integers, one per chain; found {orders!r}")
+    return tuple(int(o) for o in orders)
+
+
+@register
+class MultiOutputHighGainObserver(_Chains, Observer):
     """One high-gain chain per measured output (paper 001, eq. 5), model-free by default.
 
     Chain ``c`` of order ``n_c`` estimates ``z[c] = (y_c, y_c', ..., y_c^(n_c - 1))`` from the
@@ -548,8 +698,8 @@ class MultiOutputHighGainObserver(Observer):
     p : array_like or sequence of array_like, optional
         Hurwitz coefficients: ``None`` (binomial, ``(s + 1)^n_c``), one array used for every
         chain (all of that order), or one array (or ``None``) per chain.
-    outputs : sequence of int, optional
-        Measured channel of each chain (default ``0, 1, ...``), distinct.
+    outputs : tuple of int, optional
+        Measured channel of each chain (default ``(0, 1, ...)``), distinct.
     phi : callable ``phi(z_hat, u) -> array`` of length ``len(orders)``, optional
         Model term: the chains' top derivatives, evaluated at the full ``z_hat`` (chains
         concatenated in order). With ``exact`` and ``euler`` it is held at its start-of-sample
@@ -564,11 +714,18 @@ class MultiOutputHighGainObserver(Observer):
 
     Attributes
     ----------
-    dropouts_ : int
+    dropouts_ : int or (B,) int array
         Samples at which at least one channel was NaN.
-    channel_dropouts_ : list of int
+    channel_dropouts_ : list of int, or (B, len(orders)) int array when batched
         NaN samples per chain; a chain whose channel is NaN runs open loop over that sample
         while the others correct as usual.
+
+    Notes
+    -----
+    Without ``phi`` (and with ``phi`` under ``exact``/``euler``, ``phi`` then evaluated in
+    Python per member before each sample), the chains advance in :func:`affine_advance`,
+    each with its own maps and its own dropout choice. With ``phi`` and ``rk4``, RK4 of the
+    coupled observer runs in numpy over the B members (``phi`` called per member and stage).
 
     References
     ----------
@@ -580,42 +737,21 @@ class MultiOutputHighGainObserver(Observer):
     name = "high_gain_multi"
     summary = "one Tornambè chain per output (paper 001 eq. 5), per-chain order/k/p, optional coupling"
     reference = "paper 001 (Besançon et al. 2004), eq. 4-5; paper 000, eq. 2"
-    diagnostic_names = ()
+    family_diagnostics = ()
+    needs_normal_form = False
 
     def __init__(self, system: System | None = None, *, k: Any, orders: Any = None,
                  p: Any = None, outputs: Any = None,
                  phi: Callable[[Array, Array], Any] | None = None, method: str = "exact",
                  z_hat0: Any = None, x_hat0: Any = None, on_unstable: str = "raise") -> None:
-        if system is not None and not isinstance(system, System):
-            raise DesignError(f"system must be a System instance or None; found "
-                              f"{type(system).__name__}")
-        if orders is None:
-            orders = getattr(system, "normal_form_orders", None)
-            if orders is None and system is not None and system.normal_form_order is not None:
-                orders = (system.normal_form_order,)
-            if orders is None:
-                where = "" if system is None else f" for {type(system).__name__}"
-                raise DesignError(f"{type(self).__name__} needs orders=[n_1, n_2, ...]{where} "
-                                  f"(one chain order per output)")
-        orders = [orders] if np.ndim(orders) == 0 else list(orders)
-        if not orders or any(isinstance(o, bool) or int(o) != o or o < 1 for o in orders):
-            raise DesignError(f"orders must be positive integers, one per chain; found {orders!r}")
-        self.orders = tuple(int(o) for o in orders)
+        self.orders = _chain_orders(type(self).__name__, system, orders)
         m = len(self.orders)
-        outputs = list(range(m)) if outputs is None else (
-            [outputs] if np.ndim(outputs) == 0 else list(outputs))
-        if len(outputs) != m:
+        super().__init__(system, order=sum(self.orders),
+                         outputs=tuple(range(m)) if outputs is None else outputs,
+                         on_unstable=on_unstable)
+        if len(self.outputs) != m:
             raise DimensionError(f"outputs must name one channel per chain ({m}); found "
-                                 f"{len(outputs)}")
-        if any(isinstance(o, bool) or int(o) != o or o < 0 for o in outputs) or \
-                len(set(outputs)) != m:
-            raise DesignError(f"outputs must be distinct non-negative channel indices; found "
-                              f"{outputs!r}")
-        self.outputs = tuple(int(o) for o in outputs)
-        if system is not None and max(self.outputs) >= len(system.output_names):
-            raise DimensionError(f"{type(system).__name__} has {len(system.output_names)} "
-                                 f"output(s) {list(system.output_names)}; found channel "
-                                 f"{max(self.outputs)}")
+                                 f"{len(self.outputs)}")
         ks = _per_chain("k", k, m)
         self.ks = tuple(finite_scalar(f"k[{c}]" if m > 1 else "k", kc, positive=True)
                         for c, kc in enumerate(ks))
@@ -626,17 +762,12 @@ class MultiOutputHighGainObserver(Observer):
                               f"{type(phi).__name__}")
         self.phi = phi
         self.method = method
-        self.on_unstable = on_unstable
-        self.system = system
-        self.n = sum(self.orders)
-        self.output = self.outputs[0]
-        self._first = tuple(int(v) for v in np.cumsum((0,) + self.orders[:-1]))
         self.L = [hgo_gains(pc, kc) for pc, kc in zip(self.ps, self.ks)]
-        self._u: Array = np.zeros(len(system.input_names)) if system is not None else np.zeros(0)
-        self._steps: dict[float, list[tuple[Callable, Callable, Array, Array]]] = {}
         if x_hat0 is not None and z_hat0 is not None:
             raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
-        self._init = z_hat0 if z_hat0 is not None else x_hat0
+        z0 = z_hat0 if z_hat0 is not None else x_hat0
+        self._init = None if z0 is None else vector("z_hat0", z0, self.n)
+        self._layout(self.orders, None)
         self.reset()
 
     def _chain_p(self, p: Any) -> tuple[Array, ...]:
@@ -681,11 +812,9 @@ class MultiOutputHighGainObserver(Observer):
                    for n, kc, pc in zip(self.orders, self.ks, self.ps))
 
     def check_period(self, dt: float) -> None:
-        if dt not in self._steps:
-            self._compile(dt)
+        self._maps_at(dt)
 
-    def _compile(self, dt: float) -> list[tuple[Callable, Callable, Array, Array]]:
-        dt = finite_scalar("dt", dt, positive=True)
+    def _chain_maps(self, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
         entries = []
         for c, (n, kc, pc) in enumerate(zip(self.orders, self.ks, self.ps)):
             M, b, g = one_step_map(pc, kc, dt, self.method)
@@ -694,99 +823,83 @@ class MultiOutputHighGainObserver(Observer):
                               f"k={kc:g}) of the multi-output high-gain observer", dt,
                               self.max_stable_period)
             M0, _, g0 = one_step_map(pc, kc, dt, self.method, closed=False)
-            entries.append((affine_step(M, b), affine_step(M0, np.zeros(n)), g, g0))
-        self._steps[dt] = entries
+            entries.append((M, b, g, M0, g0))
         return entries
 
-    # -------------------------------------------------------------- interface
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None) -> None:
-        """Restart from ``z_hat0`` (or ``x_hat0``, the same here; default: the constructor's)."""
-        if x_hat0 is not None and z_hat0 is not None:
-            raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
-        z0 = z_hat0 if z_hat0 is not None else x_hat0
-        if z0 is None:
-            z0 = self._init
-        z = np.zeros(self.n) if z0 is None else vector("z_hat0", z0, self.n)
-        self._z = [tuple(float(v) for v in z[f:f + n]) for f, n in zip(self._first, self.orders)]
-        self._restart_counters()
-        self.channel_dropouts_ = [0] * len(self.orders)
+    # ------------------------------------------------------------- the family
+    @property
+    def channel_dropouts_(self) -> Any:
+        """NaN samples per chain: a list of ints (unbatched) or a ``(B, len(orders))`` array."""
+        if self._batched:
+            return self._channel_dropouts.copy()
+        return [int(v) for v in self._channel_dropouts[0]]
 
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``; integrate over ``dt``; return ``x_hat(t_k + dt)``."""
-        self._u = u
-        entries = self._steps.get(dt)
-        if entries is None:
-            entries = self._compile(dt)
-        try:
-            ys = [float(y[o]) for o in self.outputs]
-        except (IndexError, TypeError):
-            raise self._bad_measurement(y, list(self.outputs)) from None
-        lost = False
-        for c, yc in enumerate(ys):
-            if yc != yc:
-                lost = True
-                self.channel_dropouts_[c] += 1
-            elif yc in (np.inf, -np.inf):
-                raise DivergenceError(f"measurement y[{self.outputs[c]}] is {yc}")
-        self.dropouts_ += lost
-        if self.phi is not None and self.method == "rk4":
-            self._rk4_model(ys, u, dt)
-            return self.x_hat
-        ph = None if self.phi is None else self._phi(self.z_hat, u)
-        new = []
-        for c, (yc, z, (closed, open_, g, g0)) in enumerate(zip(ys, self._z, entries)):
-            if yc != yc:
-                zc, gc = open_(0.0, *z), g0
-            else:
-                zc, gc = closed(yc, *z), g
-            if ph is not None:
-                zc = tuple(a + b * ph[c] for a, b in zip(zc, gc))
-            new.append(zc)
-        self._z = new
-        return self.x_hat
+    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+        z = x0 if x0 is not None else z0
+        if z is None:
+            z = np.zeros((self.batch, self.n)) if self._init is None else np.tile(
+                self._init, (self.batch, 1))
+        self._Z = np.array(z, dtype=float, order="C")
+        self._channel_dropouts = np.zeros((self.batch, len(self.orders)), dtype=np.int64)
 
-    def _phi(self, z: Array, u: Any) -> Array:
-        ph = np.asarray(self.phi(z, u), dtype=float).reshape(-1)  # type: ignore[misc]
-        if ph.shape != (len(self.orders),):
-            raise DimensionError(f"phi(z_hat, u) must return one top derivative per chain "
-                                 f"({len(self.orders)}); found shape {ph.shape}")
-        return ph
+    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        maps = self._maps_at(dt)
+        B, T = Y.shape[0], Y.shape[1]
+        self._channel_dropouts += np.isnan(Y).sum(axis=1)
+        if self.phi is None:
+            self._kernel(self._Z, Y, None, maps, 0, T, Z)
+        elif self.method != "rk4":
+            W = np.empty((B, T, len(self.orders)))
+            for j in range(T):  # phi at the start of the sample, held over it
+                W[:, j] = self._phi_rows(self._Z, U[:, j])
+                self._kernel(self._Z, Y, W, maps, j, j + 1, Z)
+        else:
+            for j in range(T):
+                self._rk4_model(Y[:, j], U[:, j], dt)
+                Z[:, j] = self._Z
+        X[...] = Z
 
-    def _rk4_model(self, ys: list[float], u: Any, dt: float) -> None:
+    def _phi_rows(self, Z: Array, U: Array) -> Array:
+        """``phi(z_hat, u)`` of every member ``(B, len(orders))`` (one Python call per row)."""
+        out = np.empty((Z.shape[0], len(self.orders)))
+        for b in range(Z.shape[0]):
+            ph = np.asarray(self.phi(Z[b].copy(), U[b]), dtype=float).reshape(-1)  # type: ignore[misc,type-var]
+            if ph.shape != (len(self.orders),):
+                raise DimensionError(f"phi(z_hat, u) must return one top derivative per chain "
+                                     f"({len(self.orders)}); found shape {ph.shape}")
+            out[b] = ph
+        return out
+
+    def _rk4_model(self, y: Array, u: Array, dt: float) -> None:
+        """One sample by RK4 of the coupled observer, ``phi`` at every stage; a chain whose
+        channel is NaN runs open loop (no correction) over it."""
         n = self.n
-        top = [f + nc - 1 for f, nc in zip(self._first, self.orders)]
+        first, size = self._lay[:, 0], self._lay[:, 1]
+        top = first + size - 1
         inner = np.setdiff1d(np.arange(n), top)  # z_i' = z_{i+1} inside a chain
-        Lfull = np.zeros(n)
-        first = np.array(self._first)
-        yv = np.zeros(len(self.orders))
-        for c, (f, nc) in enumerate(zip(self._first, self.orders)):
-            if ys[c] == ys[c]:  # a dropped channel runs open loop
-                Lfull[f:f + nc] = self.L[c]
-                yv[c] = ys[c]
         chain_of = np.repeat(np.arange(len(self.orders)), self.orders)
+        lost = np.isnan(y)
+        Lfull = np.zeros((y.shape[0], n))
+        for c, (f, nc) in enumerate(zip(first, size)):
+            Lfull[:, f:f + nc] = np.where(lost[:, c:c + 1], 0.0, self.L[c])
+        yv = np.where(lost, 0.0, y)
 
         def rhs(z: Array) -> Array:
-            dz = np.zeros(n)
-            dz[inner] = z[inner + 1]
-            dz[top] += self._phi(z, u)
-            return dz + Lfull * (yv - z[first])[chain_of]
+            dz = np.zeros_like(z)
+            dz[:, inner] = z[:, inner + 1]
+            dz[:, top] += self._phi_rows(z, u)
+            return dz + Lfull * (yv - z[:, first])[:, chain_of]
 
-        z = np.concatenate([np.array(zc) for zc in self._z])
+        z = self._Z
         k1 = rhs(z)
         k2 = rhs(z + dt / 2 * k1)
         k3 = rhs(z + dt / 2 * k2)
         k4 = rhs(z + dt * k3)
-        z = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self._z = [tuple(z[f:f + nc].tolist()) for f, nc in zip(self._first, self.orders)]
+        self._Z = np.ascontiguousarray(z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
 
-    @property
-    def z_hat(self) -> Array:
-        return np.array([v for zc in self._z for v in zc])
-
-    @property
-    def x_hat(self) -> Array:
-        """``z_hat`` itself (model-free: outputs and derivatives, see the class docstring)."""
-        return self.z_hat
+    def _current(self) -> tuple[Array, Array, Array]:
+        """``x_hat = z_hat`` (model-free: outputs and derivatives, see the class docstring)."""
+        return self._Z.copy(), self._Z.copy(), np.zeros((self.batch, 0))
 
     def params(self) -> dict[str, Any]:
         return {"k": list(self.ks), "orders": list(self.orders),
