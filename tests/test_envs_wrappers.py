@@ -116,7 +116,7 @@ def test_observer_in_the_loop_bad_input():
         ObserverInTheLoop(_ip(), measure=(0, 9), observer_kwargs={"order": 2, "k": 5.0})
     with pytest.raises(DimensionError, match="layout must index the 4-entry estimate"):
         _estimated_ip(layout=(0, 4))
-    with pytest.raises(DesignError, match="outputs is set per channel"):
+    with pytest.raises(DesignError, match="outputs are set per channel"):
         ObserverInTheLoop(_ip(), measure=(0,), observer_kwargs={"order": 2, "k": 5.0,
                                                                 "outputs": (1,)})
     with pytest.raises(DesignError, match=r"unknown sensor stage 'sonar'"):
