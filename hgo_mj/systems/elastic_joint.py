@@ -76,6 +76,17 @@ class ElasticJoint(_MujocoSystem):
     model_file = "elastic_joint.xml"
     joints = ("link", "motor")
     actuators = ("torque",)
+    forms = ("kalman_fields",)
+
+    def _form_kalman_fields(self) -> dict[str, str]:
+        """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
+        may estimate under this system's parameter names (the spring, gear, the two dampings
+        and g, which carries :math:`M g L`), ``{name: "field[element]" or "opt.gravity"}``."""
+        return {"stiffness": "tendon_stiffness[spring]",
+                "gear": "actuator_gear[torque]",
+                "link_damping": "dof_damping[link]",
+                "motor_damping": "dof_damping[motor]",
+                "g": "opt.gravity"}
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
