@@ -369,6 +369,56 @@ def _moments(S: Array, Wm: Array, Wc: Array, Qh: Array, X: Array,
                 P[b, j, i] = s
 
 
+@njit(cache=True)
+def _ekf_covariance(P: Array, F: Array, h: float, rk4: bool, Qh: Array) -> None:  # pragma: no cover
+    """In place ``P[b] = Phi P[b] Phi^T + Q h`` with ``Phi = T_4(h F[b])`` (RK4) or
+    ``I + h F[b]`` (Euler): :func:`_transition` then :func:`_propagate`, member by member."""
+    B, N = F.shape[0], F.shape[1]
+    Phi = np.empty((1, N, N))
+    for b in range(B):
+        _transition(F[b:b + 1], h, rk4, Phi)
+        _propagate(P[b:b + 1], Phi, Qh)
+
+
+@njit(cache=True)
+def _axpy(x: Array, a: float, k: Array) -> Array:  # pragma: no cover - numba
+    """``x + a k`` (an RK4 stage of one row)."""
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = x[i] + a * k[i]
+    return out
+
+
+@njit(cache=True)
+def _rk4_final(x: Array, k1: Array, k2: Array, k3: Array, k4: Array, h6: float,
+               out: Array) -> None:  # pragma: no cover - numba
+    """``out = x + h/6 (k1 + 2 (k2 + k3) + k4)`` (RK4's combination of one row)."""
+    for i in range(x.shape[0]):
+        out[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+
+
+@njit(cache=True)
+def _first_nonfinite(X: Array) -> int:  # pragma: no cover - numba
+    """The first row of ``X`` with a non-finite entry, or -1."""
+    for b in range(X.shape[0]):
+        for i in range(X.shape[1]):
+            if not math.isfinite(X[b, i]):
+                return b
+    return -1
+
+
+@njit(cache=True)
+def _emit(x: Array, n: int, j: int, X: Array, Z: Array, D: Array) -> None:  # pragma: no cover
+    """Write the estimate after sample ``j``: ``X[:, j] = Z[:, j] = x[:, :n]``,
+    ``D[:, j] = x[:, n:]`` (the parameter estimates)."""
+    for b in range(x.shape[0]):
+        for i in range(n):
+            X[b, j, i] = x[b, i]
+            Z[b, j, i] = x[b, i]
+        for i in range(x.shape[1] - n):
+            D[b, j, i] = x[b, n + i]
+
+
 def _taylor4(A: Array) -> Array:
     """``I + A + A^2/2 + A^3/6 + A^4/24`` of one matrix (the kernel :func:`_transition`)."""
     Phi = np.empty((1, *A.shape))
@@ -496,19 +546,27 @@ class SystemModel:
             return False
         return bool(cols.shape == rows.shape and np.allclose(cols, rows, rtol=1e-12, atol=1e-14))
 
-    def _f_columns(self, X: Array, U: Array) -> Array:
-        """``f`` of the rows ``X`` from one call on the columns (``(n, K)`` state)."""
+    def _columns(self, X: Array, U: Array) -> tuple[Array, Array, Mapping[str, Any]]:
+        """The rows ``X``, ``U`` as contiguous columns ``(n, K)``, ``(m, K)`` and the parameters
+        (estimated ones as ``(K,)`` arrays)."""
         n = self.n
         p: Mapping[str, Any] = self.base
         if self.q:
             p = dict(self.base)
             for j, nm in enumerate(self.names):
                 p[nm] = np.ascontiguousarray(X[:, n + j])
-        out = np.asarray(self.system.dynamics(0.0, np.ascontiguousarray(X[:, :n].T),
-                                              np.ascontiguousarray(U.T), p), dtype=float)
-        if out.shape != (n, X.shape[0]):
-            raise DesignError(f"dynamics on columns returned shape {out.shape}")
-        return out.T
+        return np.ascontiguousarray(X[:, :n].T), np.ascontiguousarray(U.T), p
+
+    def _fc(self, Xc: Array, Uc: Array, p: Mapping[str, Any]) -> Array:
+        """``f`` on columns, ``(n, K)``."""
+        out = np.asarray(self.system.dynamics(0.0, Xc, Uc, p), dtype=float)
+        if out.shape != Xc.shape:
+            raise DesignError(f"dynamics on columns {Xc.shape} returned shape {out.shape}")
+        return out
+
+    def _f_columns(self, X: Array, U: Array) -> Array:
+        """``f`` of the rows ``X`` from one call on the columns, ``(K, n)``."""
+        return self._fc(*self._columns(X, U)).T
 
     # --------------------------------------------------------------------- dynamics
     def deriv(self, X: Array, U: Array) -> Array:
@@ -526,9 +584,28 @@ class SystemModel:
     def jac(self, X: Array, U: Array) -> Array:
         """:math:`F = \\partial (f, 0) / \\partial (x, \\theta)` of the rows, shape (K, N, N)."""
         n, N, K = self.n, self.N, X.shape[0]
-        if not self.analytic:
-            return _central_differences(lambda Z: self.deriv(Z, U), X, N)
         A = np.zeros((K, N, N))
+        if not self.analytic:
+            if not self.vectorized:
+                A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
+                return A
+            # central differences on columns: the 2N perturbed evaluations of the whole batch
+            Xc, Uc, p = self._columns(X, U)
+            for j in range(N):
+                e = 1e-6 * np.maximum(1.0, np.abs(X[:, j]))
+                if j < n:
+                    Xp, Xm = Xc.copy(), Xc.copy()
+                    Xp[j] += e
+                    Xm[j] -= e
+                    fp, fm = self._fc(Xp, Uc, p), self._fc(Xm, Uc, p)
+                else:
+                    nm = self.names[j - n]
+                    pp, pm = dict(p), dict(p)
+                    pp[nm] = p[nm] + e
+                    pm[nm] = p[nm] - e
+                    fp, fm = self._fc(Xc, Uc, pp), self._fc(Xc, Uc, pm)
+                A[:, :n, j] = ((fp - fm) / (2.0 * e)).T
+            return A
         jx = self.system.jacobian  # type: ignore[attr-defined]
         jp = getattr(self.system, "param_jacobian", None)
         for k in range(K):
@@ -540,15 +617,36 @@ class SystemModel:
 
     def step(self, X: Array, U: Array, h: float, method: str,
              members: Array | None = None) -> Array:
-        """One RK4 (or Euler) step of ``h`` of the rows with ``u`` held (``members`` unused)."""
-        d = self.deriv
-        if method == "euler":
-            return X + h * d(X, U)
-        k1 = d(X, U)
-        k2 = d(X + 0.5 * h * k1, U)
-        k3 = d(X + 0.5 * h * k2, U)
-        k4 = d(X + h * k3, U)
-        return X + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+        """One RK4 (or Euler) step of ``h`` of the rows with ``u`` held (``members`` unused):
+        on columns (vectorized) or row by row, the same arithmetic
+        :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`, :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`..."""
+        n = self.n
+        out = X.copy()
+        hh, h6 = 0.5 * h, h / 6.0
+        if self.vectorized:
+            Xc, Uc, p = self._columns(X, U)
+            f = self._fc
+            k1 = f(Xc, Uc, p)
+            if method == "euler":
+                out[:, :n] = (Xc + h * k1).T
+                return out
+            k2 = f(Xc + hh * k1, Uc, p)
+            k3 = f(Xc + hh * k2, Uc, p)
+            k4 = f(Xc + h * k3, Uc, p)
+            out[:, :n] = (Xc + h6 * (k1 + 2.0 * (k2 + k3) + k4)).T
+            return out
+        dyn = self.system.dynamics
+        for r in range(X.shape[0]):
+            x, u, p = X[r, :n], U[r], self.params(X[r])
+            k1 = np.asarray(dyn(0.0, x, u, p), dtype=float)
+            if method == "euler":
+                out[r, :n] = _axpy(x, h, k1)
+                continue
+            k2 = np.asarray(dyn(0.0, _axpy(x, hh, k1), u, p), dtype=float)
+            k3 = np.asarray(dyn(0.0, _axpy(x, hh, k2), u, p), dtype=float)
+            k4 = np.asarray(dyn(0.0, _axpy(x, h, k3), u, p), dtype=float)
+            _rk4_final(x, k1, k2, k3, k4, h6, out[r, :n])
+        return out
 
     def output(self, xa: Array) -> Array:
         """``h`` of one augmented row (the estimated parameters read from it)."""
@@ -1003,14 +1101,11 @@ class _KalmanFilter(Observer):
             u = np.ascontiguousarray(U[:, j])
             for _ in range(self.substeps):
                 self._predict(u, h, Qh)
-            x = self._x
-            if not np.isfinite(x).all():
-                b = int(np.nonzero(~np.isfinite(x).all(axis=1))[0][0])
+            b = _first_nonfinite(self._x)
+            if b >= 0:
                 raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: "
-                                      f"{x[b].tolist()} (member {b}, sample {j})")
-            X[:, j] = x[:, :n]
-            Z[:, j] = x[:, :n]
-            D[:, j] = x[:, n:]
+                                      f"{self._x[b].tolist()} (member {b}, sample {j})")
+            _emit(self._x, n, j, X, Z, D)
 
     def _condition_on(self, Y: Array) -> None:
         """The measurement update of every member with ``Y`` ``(B, p)`` (NaN: lost channel)."""
@@ -1136,9 +1231,9 @@ class ExtendedKalmanFilter(_KalmanFilter):
             self._x, Phi = mdl.transition(self._x, U, h)
         else:
             F = mdl.jac(self._x, U)
-            Phi = np.empty_like(F)
-            _transition(F, h, self.method == "rk4", Phi)
             self._x = mdl.step(self._x, U, h, self.method)
+            _ekf_covariance(self._P, F, h, self.method == "rk4", Qh)
+            return
         _propagate(self._P, Phi, Qh)
 
     def _condition_general(self, Y: Array) -> None:

@@ -68,13 +68,13 @@ CASES: list[tuple[Any, ...]] = [
      lambda: make_observer("ukf", MixedOutput(), R=1e-3), 0.05, [0.1, 0.0], 0.1, None, (0.0, 1.0)),
     ("ekf_mujoco-pendulum-estimate-damping",
      lambda: make_observer("ekf_mujoco", Pendulum(), estimate=("damping",), theta_hat0=[0.05],
-                           R=1e-4), 0.01, [0.3, 0.0], 0.1, [0.05], (0.0, 0.5)),
+                           R=1e-4), 0.002, [0.3, 0.0], 0.1, [0.05], (0.0, 0.5)),
     ("ekf_mujoco-elastic-joint-fd",
-     lambda: make_observer("ekf_mujoco", ElasticJoint(), jacobian="fd", R=1e-4), 0.002,
+     lambda: make_observer("ekf_mujoco", ElasticJoint(), jacobian="fd", R=1e-4), 0.001,
      [0.3, 0.25, 0.0, 0.0], 0.05, None, (0.0, 0.5)),
     ("ukf_mujoco-pendulum-estimate-g",
      lambda: make_observer("ukf_mujoco", Pendulum(), estimate=("g",), theta_hat0=[9.0],
-                           R=1e-4), 0.01, [0.3, 0.0], 0.1, [9.0], (0.0, 0.5)),
+                           R=1e-4), 0.001, [0.3, 0.0], 0.1, [9.0], (0.0, 0.5)),
 ]
 PARAMS = [pytest.param(*c[1:], id=c[0]) for c in CASES]
 ARGS = "make,dt,x0,spread,th0,u_level"
