@@ -372,12 +372,47 @@ def _moments(S: Array, Wm: Array, Wc: Array, Qh: Array, X: Array,
 @njit(cache=True)
 def _ekf_covariance(P: Array, F: Array, h: float, rk4: bool, Qh: Array) -> None:  # pragma: no cover
     """In place ``P[b] = Phi P[b] Phi^T + Q h`` with ``Phi = T_4(h F[b])`` (RK4) or
-    ``I + h F[b]`` (Euler): :func:`_transition` then :func:`_propagate`, member by member."""
+    ``I + h F[b]`` (Euler): :func:`_transition` then :func:`_propagate` of each member, written
+    out with one set of scratch matrices."""
     B, N = F.shape[0], F.shape[1]
-    Phi = np.empty((1, N, N))
+    A = np.empty((N, N))
+    T = np.empty((N, N))
+    W = np.empty((N, N))
     for b in range(B):
-        _transition(F[b:b + 1], h, rk4, Phi)
-        _propagate(P[b:b + 1], Phi, Qh)
+        for i in range(N):
+            for j in range(N):
+                A[i, j] = h * F[b, i, j]
+        if rk4:
+            for i in range(N):
+                for j in range(N):
+                    T[i, j] = (1.0 if i == j else 0.0) + 0.25 * A[i, j]
+            for div in (3.0, 2.0, 1.0):
+                for i in range(N):
+                    for j in range(N):
+                        s = 0.0
+                        for k in range(N):
+                            s += A[i, k] * T[k, j]
+                        W[i, j] = (1.0 if i == j else 0.0) + s / div
+                T[:, :] = W
+        else:
+            for i in range(N):
+                for j in range(N):
+                    T[i, j] = A[i, j] + (1.0 if i == j else 0.0)
+        # T is Phi; W = Phi P
+        for i in range(N):
+            for j in range(N):
+                s = 0.0
+                for k in range(N):
+                    s += T[i, k] * P[b, k, j]
+                W[i, j] = s
+        for i in range(N):
+            for j in range(i, N):
+                s = 0.0
+                for k in range(N):
+                    s += W[i, k] * T[j, k]
+                s += Qh[i, j]
+                P[b, i, j] = s
+                P[b, j, i] = s
 
 
 @njit(cache=True)
@@ -405,18 +440,6 @@ def _first_nonfinite(X: Array) -> int:  # pragma: no cover - numba
             if not math.isfinite(X[b, i]):
                 return b
     return -1
-
-
-@njit(cache=True)
-def _emit(x: Array, n: int, j: int, X: Array, Z: Array, D: Array) -> None:  # pragma: no cover
-    """Write the estimate after sample ``j``: ``X[:, j] = Z[:, j] = x[:, :n]``,
-    ``D[:, j] = x[:, n:]`` (the parameter estimates)."""
-    for b in range(x.shape[0]):
-        for i in range(n):
-            X[b, j, i] = x[b, i]
-            Z[b, j, i] = x[b, i]
-        for i in range(x.shape[1] - n):
-            D[b, j, i] = x[b, n + i]
 
 
 def _taylor4(A: Array) -> Array:
@@ -1096,7 +1119,9 @@ class _KalmanFilter(Observer):
         n = self.n
         h = dt / self.substeps
         Qh = self._Qh(h)
-        for j in range(Y.shape[1]):
+        T = Y.shape[1]
+        hist = np.empty((T, self.batch, self.N))  # the estimates, sample-major (contiguous rows)
+        for j in range(T):
             self._condition_on(np.ascontiguousarray(Y[:, j]))
             u = np.ascontiguousarray(U[:, j])
             for _ in range(self.substeps):
@@ -1105,7 +1130,10 @@ class _KalmanFilter(Observer):
             if b >= 0:
                 raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: "
                                       f"{self._x[b].tolist()} (member {b}, sample {j})")
-            _emit(self._x, n, j, X, Z, D)
+            hist[j] = self._x
+        X[...] = hist[:, :, :n].transpose(1, 0, 2)
+        Z[...] = X
+        D[...] = hist[:, :, n:].transpose(1, 0, 2)
 
     def _condition_on(self, Y: Array) -> None:
         """The measurement update of every member with ``Y`` ``(B, p)`` (NaN: lost channel)."""
