@@ -101,7 +101,8 @@ def reference_kf(A, B, C, Q, R, x0, P0, ys, us, dt, substeps, method):
 def test_linear_system_equals_exact_kalman_filter(cls, case, method, substeps):
     """On a linear system both filters *are* the Kalman filter of the RK4 (Euler)
     discretization: diagonal R (osc, chain6, chain8: sequential scalar updates), 2 outputs with
-    a full R (the joint Joseph-form update), general output map (osc_mix: finite-difference H for the EKF, sigma points for the UKF)."""
+    a full R (the joint Joseph-form update), general output map (osc_mix: finite-difference H
+    for the EKF, sigma points for the UKF)."""
     A, B, C = {"osc": OSC, "chain6": CHAIN6, "chain8": CHAIN8, "osc2out": OSC2OUT,
                "osc_mix": OSC_MIX}[case]
     s, A, B, C = linear_system(A, B, C)

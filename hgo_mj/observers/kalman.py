@@ -69,6 +69,7 @@ References
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -77,6 +78,7 @@ from typing import Any
 import mujoco
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
 from .._validate import (
     finite_scalar,
@@ -89,6 +91,9 @@ from .._validate import (
 from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
 from .base import Array, Observer, batch_rows, register
+
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 __all__ = ["ExtendedKalmanFilter", "MujocoExtendedKalmanFilter", "MujocoModel",
            "MujocoUnscentedKalmanFilter", "SystemModel", "UnscentedKalmanFilter"]
@@ -257,7 +262,7 @@ def _joint_update(x: Array, P: Array, v: Array, H: Array, R: Array) -> None:  # 
 
 
 @njit(cache=True)
-def _condition_selection(X: Array, P: Array, Y: Array, sel: Array, R: Array,
+def _condition_selection(X: Array, P: Array, Y: Array, sel: IntArray, R: Array,
                          diagonal: bool) -> None:  # pragma: no cover - numba
     """The measurement update of every member with a selection output ``y_c = x[sel[c]]``; a NaN
     channel (a dropout) is left out, so a member with every channel lost only predicts.
@@ -310,7 +315,7 @@ def _condition_selection(X: Array, P: Array, Y: Array, sel: Array, R: Array,
 
 
 @njit(cache=True)
-def _sigma_points(X: Array, P: Array, c: float, S: Array, ok: Array) -> None:  # pragma: no cover
+def _sigma_points(X: Array, P: Array, c: float, S: Array, ok: BoolArray) -> None:  # pragma: no cover
     """The ``2N + 1`` scaled sigma points of every member [WM00]: ``S[b, 0] = x``,
     ``S[b, 1 + i] = x + c L_i``, ``S[b, 1 + N + i] = x - c L_i`` with ``L L^T = P[b]``
     (Cholesky, column ``L_i``). ``ok[b]`` is False (and ``S[b]`` unset) where ``P[b]`` is not
@@ -460,6 +465,11 @@ def _central_differences(f: Callable[[Array], Array], X: Array, cols: int) -> Ar
         Xm[:, j] -= e
         columns.append((f(Xp) - f(Xm)) / (2.0 * e)[:, None])
     return np.stack(columns, axis=2)
+
+
+def _rows_output(out: Callable[[Array], Array], chans: list[int], Z: Array) -> Array:
+    """The channels ``chans`` of ``out`` at each row of ``Z``, ``(K, len(chans))``."""
+    return np.array([out(z)[chans] for z in Z])
 
 
 def _probe_selection(output: Callable[[Array, Any], Array], params: Any, n: int,
@@ -1053,7 +1063,7 @@ class _KalmanFilter(Observer):
         self.sel = mdl.selection(self.outputs)
         self._sel = np.array(self.sel if self.sel is not None else [], dtype=np.int64)
         self._diag_R = bool(np.all(self.R == np.diag(np.diag(self.R))))
-        self.family_diagnostics = tuple(f"theta_{nm}" for nm in self.estimate)
+        self.family_diagnostics = tuple(f"theta_{nm}" for nm in self.estimate)  # type: ignore[misc]
         self._x_hat0 = None if x_hat0 is None else (
             vector("x_hat0", x_hat0, self.n) if np.ndim(x_hat0) <= 1
             else batch_rows("x_hat0", x_hat0, self.n, None))
@@ -1273,7 +1283,7 @@ class ExtendedKalmanFilter(_KalmanFilter):
                 continue
             chans = [self.outputs[c] for c in idx]
             x = self._x[b]
-            H = _central_differences(lambda Z: np.array([out(z)[chans] for z in Z]), x[None],
+            H = _central_differences(functools.partial(_rows_output, out, chans), x[None],
                                      self.N)[0]
             v = np.ascontiguousarray(Y[b, idx] - out(x)[chans])
             _joint_update(x, self._P[b], v, np.ascontiguousarray(H),
@@ -1418,11 +1428,11 @@ def _full_signature(cls: type) -> None:
     """Show the shared keyword arguments in ``cls.__init__``'s signature (``hgo-mj list``)."""
     import inspect
 
-    own = inspect.signature(cls.__init__)
+    own = inspect.signature(cls.__init__)  # type: ignore[misc]
     base = inspect.signature(_KalmanFilter.__init__)
     params = [p for p in own.parameters.values() if p.kind is not p.VAR_KEYWORD]
     params += [p for n, p in base.parameters.items() if n not in own.parameters]
-    cls.__init__.__signature__ = own.replace(parameters=params)  # type: ignore[attr-defined]
+    cls.__init__.__signature__ = own.replace(parameters=params)  # type: ignore[attr-defined,misc]
 
 
 _full_signature(UnscentedKalmanFilter)
