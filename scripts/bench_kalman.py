@@ -12,6 +12,11 @@ several rounds (the machine is shared: compare the ratios):
 * one ``UnscentedKalmanFilter.update`` at most 1/3 of filterpy's ``UnscentedKalmanFilter``
   ``predict`` + ``update`` with the same RK4 ``fx`` and Merwe sigma points (alpha 1, beta 2,
   kappa 0, the same 5 points);
+* a batched EKF over ``B = 1024`` members at most 200 ns per observer-step (issue 10), measured
+  with ``advance`` over ``T = 1`` and ``T = 100`` samples on the bioreactor of paper 000
+  (``dynamics`` an array expression: the vectorized model path) and on the pendulum (``dynamics``
+  reads floats: one Python call per member); the UKF alongside; and the first-call numba compile
+  time of the filters' kernels (a fresh cache directory) and their load from the cache;
 * one ``BesanconObserver.update`` (pendulum form, unknown ``g_over_l`` and ``b_over_J``,
   default settings: Heun's method, excitation diagnostic on) within 3x of the plain
   high-gain observer
@@ -23,7 +28,10 @@ several rounds (the machine is shared: compare the ratios):
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -32,6 +40,7 @@ from hgo_mj._bench import header, write_section
 from hgo_mj.observers import HighGainObserver
 from hgo_mj.observers.besancon import BesanconObserver
 from hgo_mj.observers.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter, _taylor4
+from hgo_mj.systems import BioreactorBullinger
 from hgo_mj.systems.pendulum import Pendulum
 
 DT = 1e-3
@@ -91,11 +100,6 @@ def candidates() -> dict[str, object]:
 
     me = ExtendedKalmanFilter(s, Q=1e-4, R=1e-6, x_hat0=[0.1, 0.0])
     mu = UnscentedKalmanFilter(s, Q=1e-4, R=1e-6, x_hat0=[0.1, 0.0])
-    hg = HighGainObserver(s, k=20.0)
-    hgm = HighGainObserver(s, k=20.0, model=True)
-    bo = BesanconObserver(s, lam=20.0, gain=100.0)
-    bo2 = BesanconObserver(s, lam=20.0, gain=100.0, method="rk4")
-    boe = BesanconObserver(s, lam=20.0, gain=100.0, method="euler")
 
     def loop(ob):
         def run(n):
@@ -103,15 +107,86 @@ def candidates() -> dict[str, object]:
                 ob.update(y, u, DT)
         return run
 
-    return {"filterpy ExtendedKalmanFilter predict+update": filterpy_ekf,
-            "hgo_mj ExtendedKalmanFilter.update (ekf)": loop(me),
-            "filterpy UnscentedKalmanFilter predict+update": filterpy_ukf,
-            "hgo_mj UnscentedKalmanFilter.update (ukf)": loop(mu),
-            "HighGainObserver.update, n=2 (plain, model-free)": loop(hg),
-            "HighGainObserver.update, n=2, model=True (eq. 4)": loop(hgm),
-            "BesanconObserver.update (besancon, pendulum form, default method='rk2')": loop(bo),
-            "BesanconObserver.update, method='rk4'": loop(bo2),
-            "BesanconObserver.update, method='euler'": loop(boe)}
+    def own(ob):
+        """The family's step alone (``_advance`` on prepared rows), without the base class's
+        validation and bookkeeping in ``update`` / ``advance``."""
+        Y, U = np.full((1, 1, 1), 0.1), np.full((1, 1, 1), 0.2)
+        X, Z, D = np.empty((1, 1, 2)), np.empty((1, 1, 2)), np.empty((1, 1, 0))
+
+        def run(n):
+            for _ in range(n):
+                ob._advance(Y, U, DT, X, Z, D)
+        return run
+
+    out = {"filterpy ExtendedKalmanFilter predict+update": filterpy_ekf,
+           "hgo_mj ExtendedKalmanFilter.update (ekf)": loop(me),
+           "filterpy UnscentedKalmanFilter predict+update": filterpy_ukf,
+           "hgo_mj UnscentedKalmanFilter.update (ukf)": loop(mu),
+           "ekf: the family's step alone (_advance, B = 1)": own(me),
+           "ukf: the family's step alone (_advance, B = 1)": own(mu)}
+    others = {"HighGainObserver.update, n=2 (plain, model-free)": lambda: HighGainObserver(s, k=20.0),
+              "HighGainObserver.update, n=2, model=True (eq. 4)":
+                  lambda: HighGainObserver(s, k=20.0, model=True),
+              "BesanconObserver.update (besancon, pendulum form, default method='rk2')":
+                  lambda: BesanconObserver(s, lam=20.0, gain=100.0),
+              "BesanconObserver.update, method='rk4'":
+                  lambda: BesanconObserver(s, lam=20.0, gain=100.0, method="rk4"),
+              "BesanconObserver.update, method='euler'":
+                  lambda: BesanconObserver(s, lam=20.0, gain=100.0, method="euler")}
+    for k, make in others.items():
+        try:
+            out[k] = loop(make())
+        except TypeError:  # a family not yet on the batched contract (a port branch)
+            continue
+    return out
+
+
+def batched(B: int = 1024, rounds: int = 3) -> dict[str, float]:
+    """Seconds per observer-step of ``advance`` over ``B`` members, ``T = 1`` and ``T = 100``."""
+    cases = {"bioreactor (vectorized model)": (BioreactorBullinger(), [0.075, 0.03], 0.075, 0.08, 0.5),
+             "pendulum (one dynamics call per member)": (Pendulum(), [0.1, 0.0], 0.1, 0.2, DT)}
+    out = {}
+    for label, (s, x0, y0, u0, dt) in cases.items():
+        for cls in (ExtendedKalmanFilter, UnscentedKalmanFilter):
+            f = cls(s, Q=1e-4, R=1e-6, P0=1e-4, x_hat0=x0)
+            f.reset(batch=B)
+            for T in (1, 100):
+                Y, U = np.full((B, T, 1), y0), np.full((B, T, 1), u0)
+                reps = max(1, 100 // T) if "vectorized" in label else 1
+                f.advance(Y, U, dt)
+                best = float("inf")
+                for _ in range(rounds):
+                    t0 = time.perf_counter()
+                    for _ in range(reps):
+                        f.advance(Y, U, dt)
+                    best = min(best, (time.perf_counter() - t0) / (reps * B * T))
+                out[f"{cls.name}, {label}, B = {B}, T = {T}"] = best
+    return out
+
+
+_COMPILE = """
+import time
+t0 = time.perf_counter()
+from hgo_mj.observers.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from hgo_mj.systems import Pendulum
+t1 = time.perf_counter()
+for cls in (ExtendedKalmanFilter, UnscentedKalmanFilter):
+    cls(Pendulum(), R=1e-4).update([0.1], [0.0], 0.01)
+print(time.perf_counter() - t1)
+"""
+
+
+def compile_times() -> tuple[float, float]:
+    """First EKF + UKF update in a fresh process: with an empty numba cache (compile) and
+    again with that cache filled (load)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "NUMBA_CACHE_DIR": tmp}
+        run = [sys.executable, "-c", _COMPILE]
+        first = float(subprocess.run(run, env=env, capture_output=True, text=True,
+                                     check=True).stdout.split()[-1])
+        cached = float(subprocess.run(run, env=env, capture_output=True, text=True,
+                                      check=True).stdout.split()[-1])
+    return first, cached
 
 
 def measure(steps: int, rounds: int = 7) -> dict[str, float]:
@@ -127,19 +202,26 @@ def measure(steps: int, rounds: int = 7) -> dict[str, float]:
     return best
 
 
-def table(best: dict[str, float], steps: int) -> str:
+def table(best: dict[str, float], batch: dict[str, float], compiled: tuple[float, float],
+          steps: int) -> str:
     ks = list(best)
-    fe, me, fu, mu, hg, hgm, bo, bo2, boe = (best[k] for k in ks)
+    fe, me, fu, mu, oe, ou = (best[k] for k in ks[:6])
     rows = [
         (ks[0], fe, "", ""), (ks[1], me, f"{me / fe:.3f} of filterpy EKF", "<= 0.333"),
         (ks[2], fu, "", ""), (ks[3], mu, f"{mu / fu:.3f} of filterpy UKF", "<= 0.333"),
-        (ks[4], hg, "", ""), (ks[5], hgm, f"{hgm / hg:.2f}x plain HGO", ""),
-        (ks[6], bo, f"{bo / hg:.2f}x plain HGO, {bo / hgm:.2f}x HGO with model", "<= 3x"),
-        (ks[7], bo2, f"{bo2 / hg:.2f}x plain HGO, {bo2 / hgm:.2f}x HGO with model", "<= 3x"),
-        (ks[8], boe, f"{boe / hg:.2f}x plain HGO, {boe / hgm:.2f}x HGO with model", "<= 3x"),
+        (ks[4], oe, f"{oe / fe:.3f} of filterpy EKF", ""),
+        (ks[5], ou, f"{ou / fu:.3f} of filterpy UKF", ""),
     ]
-    ok = {"ekf": me / fe <= 1 / 3, "ukf": mu / fu <= 1 / 3, "besancon": bo / hg <= 3.0,
-          "besancon_vs_model": bo / hgm <= 3.0, "rk4": bo2 / hg <= 3.0}
+    ok = {"ekf": me / fe <= 1 / 3, "ukf": mu / fu <= 1 / 3}
+    hg = best.get("HighGainObserver.update, n=2 (plain, model-free)")
+    hgm = best.get("HighGainObserver.update, n=2, model=True (eq. 4)")
+    for k in ks[6:]:
+        t = best[k]
+        if hg is None or k.startswith("HighGain"):
+            rows.append((k, t, f"{t / hg:.2f}x plain HGO" if hg and k != ks[6] else "", ""))
+        else:
+            rows.append((k, t, f"{t / hg:.2f}x plain HGO" + (f", {t / hgm:.2f}x HGO with model"
+                                                              if hgm else ""), "<= 3x"))
     lines = [
         "## Issue 4: EKF, UKF and the Besançon observer (`scripts/bench_kalman.py`)",
         "",
@@ -156,22 +238,27 @@ def table(best: dict[str, float], steps: int) -> str:
         lines.append(f"| {name} | {t * 1e6:.2f} | {r} | {tgt} |")
     lines += [
         "",
-        f"EKF target {'met' if ok['ekf'] else 'NOT met'}; UKF target {'met' if ok['ukf'] else 'NOT met'}; "
-        f"Besançon (default, Heun's method) within 3x of the plain (model-free) HGO: "
-        f"{'met' if ok['besancon'] else 'NOT met'}, within 3x of the HGO with the same model "
-        f"term: {'met' if ok['besancon_vs_model'] else 'NOT met'}; with RK4 (`method='rk4'`, "
-        f"two more model evaluations) within 3x of the plain HGO: "
-        f"{'met' if ok['rk4'] else 'NOT met'}.",
+        f"EKF target {'met' if ok['ekf'] else 'NOT met'}; UKF target "
+        f"{'met' if ok['ukf'] else 'NOT met'}.",
         "",
-        "How: the filters up to 6 augmented states with a selection output and diagonal R run in "
-        "generated straight-line float code (the RK4 step, Cholesky factor, sigma points, "
-        "moments, `Phi P Phi^T` and the scalar updates), calling the system's `dynamics` and "
-        "`jacobian` once per stage; the Besançon observer's whole step (state, parameters "
-        "and the filter Gamma, with the form's `terms` once per stage) is one generated function. "
-        "The Besançon update integrates 8 states with two (Heun) or four (RK4) evaluations of "
-        "the model per sample, "
-        "against the exact two-state linear map of the model-free HGO: most of the ratio to the "
-        "plain HGO is the model, not the adaptation (compare the HGO with the model term).",
+        "Batched (`advance` over B members, one call per block of T samples):",
+        "",
+        "| what | per observer-step [ns] | target |",
+        "|---|---:|---|",
+    ]
+    for name, t in batch.items():
+        lines.append(f"| {name} | {t * 1e9:.0f} | {'<= 200' if name.startswith('ekf') else ''} |")
+    lines += [
+        "",
+        f"First EKF + UKF update in a fresh process: {compiled[0]:.2f} s with an empty numba "
+        f"cache (compiling the kernels), {compiled[1]:.2f} s loading them from the cache.",
+        "",
+        "How: the covariance arithmetic (transition `T4(hF)`, `Phi P Phi^T + Q h`, the scalar and "
+        "Joseph-form updates, Cholesky factors, sigma points, moments) is one numba kernel each, "
+        "looping over the batch; the model is the system's own `dynamics` and `jacobian`, "
+        "evaluated once on the columns of the whole batch where `dynamics` is an array "
+        "expression (the bioreactor), else once per member (the pendulum, whose `dynamics` "
+        "reads floats).",
     ]
     return "\n".join(lines) + "\n"
 
@@ -182,7 +269,7 @@ def main() -> int:
     ap.add_argument("--steps", type=int, default=3000)
     args = ap.parse_args()
     best = measure(args.steps)
-    text = table(best, args.steps)
+    text = table(best, batched(), compile_times(), args.steps)
     print(text)
     if args.write:
         write_section(args.write, "bench_kalman", text)

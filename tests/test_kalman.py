@@ -1,6 +1,6 @@
 """Extended and unscented Kalman filters (hgo_mj/observers/kalman.py): against the exact Kalman
-filter on linear systems, the float path against the numpy path, the MuJoCo variants, and
-every validation."""
+filter on linear systems, the vectorized model path against the row-by-row one, the MuJoCo
+variants, and every validation. (Batch against single runs: tests/observers/test_kalman_batch.py.)"""
 
 from __future__ import annotations
 
@@ -13,7 +13,6 @@ import pytest
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.inputs import Multisine
 from hgo_mj.observers import OBSERVERS, make_observer
-from hgo_mj.observers import kalman as km
 from hgo_mj.observers.kalman import (
     ExtendedKalmanFilter,
     MujocoExtendedKalmanFilter,
@@ -25,7 +24,7 @@ from hgo_mj.observers.kalman import (
 from hgo_mj.plants import make_plant
 from hgo_mj.sensors import Dropout, GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
-from hgo_mj.systems import ElasticJoint, Pendulum
+from hgo_mj.systems import BioreactorBullinger, ElasticJoint, Pendulum
 from hgo_mj.systems.base import System
 
 RNG = np.random.default_rng(7)
@@ -101,8 +100,9 @@ def reference_kf(A, B, C, Q, R, x0, P0, ys, us, dt, substeps, method):
 @pytest.mark.parametrize("method,substeps", [("rk4", 1), ("rk4", 3), ("euler", 2)])
 def test_linear_system_equals_exact_kalman_filter(cls, case, method, substeps):
     """On a linear system both filters *are* the Kalman filter of the RK4 (Euler)
-    discretization: float path (osc, chain6), numpy path (chain8, 2 outputs with a full R),
-    general output map (osc_mix: finite-difference H for the EKF, sigma points for the UKF)."""
+    discretization: diagonal R (osc, chain6, chain8: sequential scalar updates), 2 outputs with
+    a full R (the joint Joseph-form update), general output map (osc_mix: finite-difference H
+    for the EKF, sigma points for the UKF)."""
     A, B, C = {"osc": OSC, "chain6": CHAIN6, "chain8": CHAIN8, "osc2out": OSC2OUT,
                "osc_mix": OSC_MIX}[case]
     s, A, B, C = linear_system(A, B, C)
@@ -114,7 +114,7 @@ def test_linear_system_equals_exact_kalman_filter(cls, case, method, substeps):
     P0 = np.eye(n) * 0.5
     x0 = RNG.normal(size=n) * 0.1
     f = cls(s, Q=Q, R=R, P0=P0, x_hat0=x0, method=method, substeps=substeps)
-    assert f._fast == (case in ("osc", "chain6"))
+    assert f.model.vectorized  # A @ x + B @ u is an array expression
     dt = 0.05
     xs = np.zeros(n)
     ys, us, est = [], [], []
@@ -180,8 +180,11 @@ def test_validation_messages():
         ExtendedKalmanFilter(s, sensor=SensorChain([Dropout(0.1)]))
     with pytest.raises(DesignError, match="method must be one of"):
         UnscentedKalmanFilter(s, method="exact")
-    with pytest.raises(DesignError, match="outputs must be distinct channel indices"):
-        ExtendedKalmanFilter(s, outputs=[3])
+    with pytest.raises(DimensionError, match=r"Pendulum has 1 output\(s\) \['angle'\]; found "
+                                              r"channel 3"):
+        ExtendedKalmanFilter(s, outputs=(3,))
+    with pytest.raises(DesignError, match="outputs must be a non-empty sequence"):
+        ExtendedKalmanFilter(s, outputs=0)
     with pytest.raises(DesignError, match=r"alpha\^2 \(N \+ kappa\) must be > 0"):
         UnscentedKalmanFilter(s, kappa=-5.0)
 
@@ -234,7 +237,8 @@ def test_analytic_jacobians_match_finite_differences(system, names):
     for _ in range(5):
         x = np.concatenate((RNG.normal(size=a.n), [system.params[k] for k in names]))
         u = RNG.normal(size=1)
-        np.testing.assert_allclose(a.jac(x, u), fd.jac(x, u), rtol=1e-6, atol=1e-5)
+        np.testing.assert_allclose(a.jac(x[None], u[None])[0], fd.jac(x[None], u[None])[0],
+                                   rtol=1e-6, atol=1e-5)
 
 
 def _run(f, ys, us, dt):
@@ -242,19 +246,24 @@ def _run(f, ys, us, dt):
 
 
 @pytest.mark.parametrize("cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
-def test_float_path_equals_numpy_path(cls, monkeypatch):
-    s = Pendulum()
-    kw = dict(estimate=("mass", "gear"), theta_hat0=[0.2, 0.8], Q=[1e-6, 1e-3], Q_theta=1e-5,
-              R=1e-6, x_hat0=[0.3, 0.0])
+def test_vectorized_model_equals_rows(cls):
+    """The bioreactor's dynamics is an array expression: evaluated once on the columns of the
+    batch (the vectorized path) it gives the filter of the row-by-row path, with an augmented
+    parameter and a dropout; the Pendulum's (floats) is used row by row."""
+    s = BioreactorBullinger()
+    kw = dict(estimate=("a1",), theta_hat0=[0.8 * s.params["a1"]], Q=[1e-6, 1e-4],
+              Q_theta=1e-5, R=1e-4, x_hat0=[0.9, 0.4])
     fast = cls(s, **kw)
-    monkeypatch.setattr(km, "FAST_MAX", 0)
     slow = cls(s, **kw)
-    assert fast._fast and not slow._fast
-    dt = 1e-3
-    us = [np.array([0.3 * math.sin(3 * k * dt)]) for k in range(500)]
-    ys = [np.array([0.3 + 0.01 * math.sin(5 * k * dt)]) for k in range(500)]
+    slow.model.vectorized = False
+    assert fast.model.vectorized and fast.params()["vectorized"]
+    assert not cls(Pendulum()).model.vectorized
+    dt = 0.05
+    us = [np.array([0.1 + 0.05 * math.sin(0.3 * k * dt)]) for k in range(300)]
+    ys = [np.array([1.0 + 0.1 * math.sin(0.2 * k * dt)]) for k in range(300)]
     ys[100] = np.array([np.nan])
-    np.testing.assert_allclose(_run(fast, ys, us, dt), _run(slow, ys, us, dt), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(_run(fast, ys, us, dt), _run(slow, ys, us, dt), rtol=1e-9,
+                               atol=1e-12)
     np.testing.assert_allclose(fast.theta_hat_, slow.theta_hat_, rtol=1e-9)
     np.testing.assert_allclose(fast.P_, slow.P_, rtol=1e-7, atol=1e-14)
     assert fast.dropouts_ == slow.dropouts_ == 1
@@ -271,7 +280,7 @@ def test_nan_is_a_prediction_and_counted(cls):
     assert a.dropouts_ == 1 and a.diagnostics()["dropouts"] == 1.0
     # no correction: the estimate is the model's prediction from x_hat0 (for the UKF the
     # sigma-point mean, equal to it up to the curvature over the spread of P0 = 1e-8)
-    np.testing.assert_allclose(xa, a.model.step(np.array([0.3, 0.0]), u, 0.002, "rk4"),
+    np.testing.assert_allclose(xa, a.model.step(np.array([[0.3, 0.0]]), u[None], 0.002, "rk4")[0],
                                rtol=1e-12, atol=1e-12 if "Unscented" not in cls.__name__ else 1e-9)
     b.update(np.array([0.3]), u, 0.002)
     assert b.dropouts_ == 0
@@ -311,8 +320,8 @@ def test_mujoco_transition_matches_finite_differences_of_the_step():
     b = MujocoModel(s, estimate=("stiffness",), jacobian="fd")
     x = np.array([0.3, 0.25, 0.5, -0.4, 10.0])
     u = np.array([0.2])
-    xa, Pa = a.transition(x, u, 0.001)
-    xb, Pb = b.transition(x, u, 0.001)
+    xa, Pa = (v[0] for v in a.transition(x[None], u[None], 0.001))
+    xb, Pb = (v[0] for v in b.transition(x[None], u[None], 0.001))
     np.testing.assert_array_equal(xa, xb)
     np.testing.assert_allclose(Pa, Pb, rtol=0, atol=1e-5)
     a._load(a.dt_, x[:4], u)
@@ -327,7 +336,7 @@ def test_mujoco_transition_matches_finite_differences_of_the_step():
     plant.step(u)
     np.testing.assert_allclose(xa[:4], plant.state, rtol=0, atol=1e-15)
     with pytest.raises(DesignError, match="must be a multiple of the model timestep"):
-        a.step(x, u, 0.0015)
+        a.step(x[None], u[None], 0.0015)
     f = MujocoExtendedKalmanFilter(s, substeps=2)
     f.check_period(0.002)
     with pytest.raises(DesignError, match=r"step 0.00075 must be a multiple of the model timestep 0.001"):

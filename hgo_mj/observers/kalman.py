@@ -10,36 +10,49 @@ parameters named in ``estimate`` (constant, driven by a small random walk):
     y_k = h(x(t_k)) + v_k, \\qquad
     E[w w^T] = Q\\,\\delta(t - s), \\quad E[v_k v_k^T] = R.
 
-``update(y, u, dt)`` first corrects the prediction with ``y(t_k)`` (the measurement update),
-then predicts to ``t_k + dt`` with ``u`` held (the time update), so that, as every observer of
-the package, it returns the estimate of ``x(t_k + dt)`` and row ``k`` of a trajectory is the
-prediction made before ``y(t_k)`` was seen.
+Each sample first corrects the prediction with ``y(t_k)`` (the measurement update), then
+predicts to ``t_k + dt`` with ``u`` held (the time update), so that, as every observer of the
+package, the filter reports the estimate of ``x(t_k + dt)`` and row ``k`` of a trajectory is
+the prediction made before ``y(t_k)`` was seen.
 
-**Time update** over ``substeps`` steps ``h``: the mean by RK4 (or Euler) of
-:math:`f` with :math:`u` held; the covariance by
-:math:`P \\leftarrow \\Phi P \\Phi^T + Q h` with :math:`\\Phi = T_4(hF)` (RK4: the degree-4
-Taylor polynomial of :math:`e^{hF}`, which is exactly RK4's transition on a linear system) or
-:math:`I + hF` (Euler), :math:`F = \\partial f/\\partial x` at the start of the step. On a
-linear system the filter *is* the discrete Kalman filter of the RK4 (or Euler) discretization
-(tested against a textbook Kalman filter, and against the exact discretization as
-:math:`h \\to 0`).
+**State as data.** ``B`` filters advance together: the augmented estimate ``x`` ``(B, N)`` and
+its covariance ``P`` ``(B, N, N)`` (``N = n + q``). The step is written once, in the shape of
+dynamax's ``_predict`` / ``_condition_on``: :meth:`_KalmanFilter._condition_on` (the
+measurement update) and ``_predict`` (the time update) act on the whole batch; the covariance
+arithmetic (transition, :math:`\\Phi P \\Phi^T + Q h`, the updates, Cholesky factors, sigma
+points and moments) runs in the module-level numba kernels below, one loop over ``B`` each, so a
+member's numbers do not depend on the batch it runs in.
 
-**Jacobians**: analytic where the system provides ``jacobian(t, x, u, p)`` (and
-``param_jacobian(t, x, u, p, names)`` for augmented parameters), else central finite
-differences. The MuJoCo variants (:class:`MujocoExtendedKalmanFilter`,
-:class:`MujocoUnscentedKalmanFilter`) use the MJCF itself as the model: the mean by stepping a
-private ``MjData`` of a copy of the ``MjModel``, the EKF's transition matrix from
-``mujoco.mjd_transitionFD``.
+**Time update** over ``substeps`` steps ``h``: the mean by RK4 (or Euler) of :math:`f` with
+:math:`u` held; the covariance by :math:`P \\leftarrow \\Phi P \\Phi^T + Q h` with
+:math:`\\Phi = T_4(hF)` (RK4: the degree-4 Taylor polynomial of :math:`e^{hF}`, which is
+exactly RK4's transition on a linear system) or :math:`I + hF` (Euler),
+:math:`F = \\partial f/\\partial x` at the start of the step [J70, sec. 8.3]. On a linear
+system the filter *is* the discrete Kalman filter of the RK4 (or Euler) discretization (tested
+against a textbook Kalman filter, and against the exact discretization as :math:`h \\to 0`).
+
+**The model** comes from the system (:class:`SystemModel`): ``dynamics`` and, where given,
+the analytic ``jacobian(t, x, u, p)`` and ``param_jacobian(t, x, u, p, names)``, else central
+finite differences. Two ways to evaluate it over a batch, chosen once at construction:
+
+* *columns* (vectorized): a ``dynamics`` written as an array expression of the components
+  ``x[i]``, ``u[j]`` and the parameters (numpy ufuncs, no ``float()`` or ``math.*``; the
+  bioreactors of :mod:`hgo_mj.systems.papers` are) is called once on the columns of the whole
+  batch, ``x`` of shape ``(n, K)``; detected by evaluating it on three rows at once and
+  comparing with the rows one by one;
+* *rows*: one Python call per member (the MuJoCo systems' ``dynamics`` read floats).
+
+The MuJoCo variants (:class:`MujocoExtendedKalmanFilter`, :class:`MujocoUnscentedKalmanFilter`,
+model :class:`MujocoModel`) use the MJCF itself: the mean by stepping an ``MjData`` of a copy of
+the ``MjModel``, the EKF's transition matrix from ``mujoco.mjd_transitionFD``; MuJoCo is called
+per model and data, so these loop over the members.
 
 **Measurement update**: where the measured outputs are state components (all systems of the
 package: ``y = x[j]``), :math:`H` is a selection, the EKF update is exact and the UKF's
 unscented update reduces to the same formula (the unscented transform is exact for a linear
-map), so both use it. Otherwise (a general :math:`h`) the EKF linearizes by finite
-differences and the UKF uses sigma points.
-
-**Speed.** Per-sample cost matters (``BENCHMARKS.md``): up to ``FAST_MAX`` augmented states
-with a selection output and a diagonal :math:`R` the filters run in generated straight-line
-float code (no small-array numpy); larger ones in numpy.
+map), so both use it (:func:`_condition_selection`: sequential scalar updates for a diagonal
+:math:`R`, the joint Joseph-form update otherwise). For a general :math:`h` the EKF linearizes
+by finite differences and the UKF uses sigma points (one member at a time).
 
 References
 ----------
@@ -49,7 +62,7 @@ References
    systems", Proc. AeroSense 1997; [WM00] E. A. Wan, R. van der Merwe, "The unscented Kalman
    filter for nonlinear estimation", IEEE AS-SPCC 2000 (scaled sigma points, weights).
 .. [S06] D. Simon, *Optimal State Estimation*, Wiley 2006, sec. 13.2 (parameter estimation by
-   state augmentation).
+   state augmentation), sec. 10.1 (Joseph form), sec. 14.3 (UKF).
 .. [MJ] MuJoCo documentation, ``mjd_transitionFD`` (finite-differenced transition matrices).
 """
 
@@ -59,11 +72,13 @@ import copy
 import functools
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import mujoco
 import numpy as np
+from numba import njit
+from numpy.typing import NDArray
 
 from .._validate import (
     finite_scalar,
@@ -75,44 +90,386 @@ from .._validate import (
 )
 from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
-from ._adaptive import measured_channels
-from .base import Array, Observer
+from .base import Array, Observer, batch_rows, register
 
-__all__ = ["ExtendedKalmanFilter", "FAST_MAX", "MujocoExtendedKalmanFilter",
-           "MujocoUnscentedKalmanFilter", "UnscentedKalmanFilter"]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+__all__ = ["ExtendedKalmanFilter", "MujocoExtendedKalmanFilter", "MujocoModel",
+           "MujocoUnscentedKalmanFilter", "SystemModel", "UnscentedKalmanFilter"]
 
 METHODS = ("rk4", "euler")
 JACOBIANS = ("auto", "analytic", "fd")
-#: augmented dimension up to which the float code path is used
-FAST_MAX = 6
+#: at most this many per-period matrices (``Q h``) are kept
+_CACHE_MAX = 8
 
 
-def _as_array(f: Callable[..., Any], t: float, x: Any, u: Any, p: Any) -> Array:
-    """``f(t, x, u, p)`` as a float array (for dynamics that return lists)."""
-    return np.asarray(f(t, x, u, p), dtype=float)
+# ======================================================================================
+# kernels: the covariance arithmetic, one loop over the batch each (float64, C-contiguous)
+# ======================================================================================
 
 
-def _central_differences(f: Callable[[Array], Array], x: Array, rows: int, cols: int) -> Array:
-    """Central-difference Jacobian ``(rows, cols)`` of ``f`` at ``x`` in its first ``cols``
-    components (relative step ``1e-6``)."""
-    J = np.zeros((rows, cols))
-    for j in range(cols):
-        e = 1e-6 * max(1.0, abs(float(x[j])))
-        xp, xm = x.copy(), x.copy()
-        xp[j] += e
-        xm[j] -= e
-        J[:, j] = (f(xp) - f(xm)) / (2.0 * e)
-    return J
+@njit(cache=True)
+def _transition(F: Array, h: float, rk4: bool, Phi: Array) -> None:  # pragma: no cover - numba
+    """``Phi[b] = T_4(h F[b])`` (RK4) or ``I + h F[b]`` (Euler) [J70, sec. 8.3].
+
+    :math:`T_4(A) = I + A + A^2/2 + A^3/6 + A^4/24` by Horner:
+    :math:`T = I + A/4,\\ T \\leftarrow I + A T/3,\\ T \\leftarrow I + A T/2,\\ \\Phi = I + A T`,
+    exactly RK4's one-step map of :math:`\\dot x = F x`."""
+    B, N = F.shape[0], F.shape[1]
+    A = np.empty((N, N))
+    T = np.empty((N, N))
+    W = np.empty((N, N))
+    for b in range(B):
+        for i in range(N):
+            for j in range(N):
+                A[i, j] = h * F[b, i, j]
+        if not rk4:
+            for i in range(N):
+                for j in range(N):
+                    Phi[b, i, j] = A[i, j] + (1.0 if i == j else 0.0)
+            continue
+        for i in range(N):
+            for j in range(N):
+                T[i, j] = (1.0 if i == j else 0.0) + 0.25 * A[i, j]
+        for div in (3.0, 2.0, 1.0):
+            for i in range(N):
+                for j in range(N):
+                    s = 0.0
+                    for k in range(N):
+                        s += A[i, k] * T[k, j]
+                    W[i, j] = (1.0 if i == j else 0.0) + s / div
+            T[:, :] = W
+        Phi[b] = T
+
+
+@njit(cache=True)
+def _propagate(P: Array, Phi: Array, Qh: Array) -> None:  # pragma: no cover - numba
+    """In place ``P[b] = Phi[b] P[b] Phi[b]^T + Q h`` (the upper triangle, mirrored)."""
+    B, N = P.shape[0], P.shape[1]
+    M = np.empty((N, N))
+    for b in range(B):
+        for i in range(N):
+            for j in range(N):
+                s = 0.0
+                for k in range(N):
+                    s += Phi[b, i, k] * P[b, k, j]
+                M[i, j] = s
+        for i in range(N):
+            for j in range(i, N):
+                s = 0.0
+                for k in range(N):
+                    s += M[i, k] * Phi[b, j, k]
+                s += Qh[i, j]
+                P[b, i, j] = s
+                P[b, j, i] = s
+
+
+@njit(cache=True)
+def _spd_solve(S: Array, Rhs: Array) -> Array:  # pragma: no cover - numba
+    """``S^{-1} Rhs`` for a symmetric positive definite ``S`` (Cholesky)."""
+    m = S.shape[0]
+    L = np.zeros((m, m))
+    for j in range(m):
+        d = S[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        L[j, j] = math.sqrt(d)
+        for i in range(j + 1, m):
+            s = S[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / L[j, j]
+    X = Rhs.copy()
+    for c in range(X.shape[1]):
+        for i in range(m):
+            s = X[i, c]
+            for k in range(i):
+                s -= L[i, k] * X[k, c]
+            X[i, c] = s / L[i, i]
+        for i in range(m - 1, -1, -1):
+            s = X[i, c]
+            for k in range(i + 1, m):
+                s -= L[k, i] * X[k, c]
+            X[i, c] = s / L[i, i]
+    return X
+
+
+@njit(cache=True)
+def _joint_update(x: Array, P: Array, v: Array, H: Array, R: Array) -> None:  # pragma: no cover
+    """In place, the Kalman update of one member with innovation ``v`` [S06, sec. 10.1]:
+
+    .. math::
+
+        S = H P H^T + R, \\quad K = P H^T S^{-1}, \\quad x \\leftarrow x + K v, \\quad
+        P \\leftarrow (I - K H) P (I - K H)^T + K R K^T \\ \\text{(Joseph form, symmetrized)}.
+    """
+    N, m = P.shape[0], H.shape[0]
+    PHt = np.zeros((N, m))
+    for i in range(N):
+        for a in range(m):
+            s = 0.0
+            for k in range(N):
+                s += P[i, k] * H[a, k]
+            PHt[i, a] = s
+    S = R.copy()
+    for a in range(m):
+        for c in range(m):
+            s = 0.0
+            for k in range(N):
+                s += H[a, k] * PHt[k, c]
+            S[a, c] += s
+    K = _spd_solve(S, PHt.T.copy()).T.copy()  # (N, m)
+    for i in range(N):
+        s = 0.0
+        for a in range(m):
+            s += K[i, a] * v[a]
+        x[i] += s
+    IKH = np.eye(N)
+    for i in range(N):
+        for j in range(N):
+            s = 0.0
+            for a in range(m):
+                s += K[i, a] * H[a, j]
+            IKH[i, j] -= s
+    M = np.zeros((N, N))
+    for i in range(N):
+        for j in range(N):
+            s = 0.0
+            for k in range(N):
+                s += IKH[i, k] * P[k, j]
+            M[i, j] = s
+    KR = np.zeros((N, m))
+    for i in range(N):
+        for c in range(m):
+            s = 0.0
+            for a in range(m):
+                s += K[i, a] * R[a, c]
+            KR[i, c] = s
+    out = np.zeros((N, N))
+    for i in range(N):
+        for j in range(N):
+            s = 0.0
+            for k in range(N):
+                s += M[i, k] * IKH[j, k]
+            t = 0.0
+            for c in range(m):
+                t += KR[i, c] * K[j, c]
+            out[i, j] = s + t
+    for i in range(N):
+        for j in range(N):
+            P[i, j] = 0.5 * (out[i, j] + out[j, i])
+
+
+@njit(cache=True)
+def _condition_selection(X: Array, P: Array, Y: Array, sel: IntArray, R: Array,
+                         diagonal: bool) -> None:  # pragma: no cover - numba
+    """The measurement update of every member with a selection output ``y_c = x[sel[c]]``; a NaN
+    channel (a dropout) is left out, so a member with every channel lost only predicts.
+
+    Diagonal :math:`R`: one scalar update per present channel (exact, :math:`R` diagonal),
+    :math:`s = P_{jj} + r_c,\\ k = P_{:,j},\\ x \\leftarrow x + k (y_c - x_j)/s,\\
+    P \\leftarrow P - k k^T / s`. Otherwise the joint update (:func:`_joint_update`) of the
+    present channels."""
+    B, N = X.shape
+    p = Y.shape[1]
+    idx = np.empty(p, dtype=np.int64)
+    k = np.empty(N)
+    for b in range(B):
+        if diagonal:
+            for c in range(p):
+                y = Y[b, c]
+                if y != y:
+                    continue
+                j = sel[c]
+                s = P[b, j, j] + R[c, c]
+                e = (y - X[b, j]) / s
+                for i in range(N):
+                    k[i] = P[b, i, j]
+                for i in range(N):
+                    X[b, i] += k[i] * e
+                w = 1.0 / s
+                for i in range(N):
+                    for m in range(i, N):
+                        q = P[b, i, m] - k[i] * k[m] * w
+                        P[b, i, m] = q
+                        P[b, m, i] = q
+            continue
+        m = 0
+        for c in range(p):
+            if Y[b, c] == Y[b, c]:
+                idx[m] = c
+                m += 1
+        if m == 0:
+            continue
+        H = np.zeros((m, N))
+        v = np.empty(m)
+        Rm = np.empty((m, m))
+        for a in range(m):
+            j = sel[idx[a]]
+            H[a, j] = 1.0
+            v[a] = Y[b, idx[a]] - X[b, j]
+            for c in range(m):
+                Rm[a, c] = R[idx[a], idx[c]]
+        _joint_update(X[b], P[b], v, H, Rm)
+
+
+@njit(cache=True)
+def _sigma_points(X: Array, P: Array, c: float, S: Array, ok: BoolArray) -> None:  # pragma: no cover
+    """The ``2N + 1`` scaled sigma points of every member [WM00]: ``S[b, 0] = x``,
+    ``S[b, 1 + i] = x + c L_i``, ``S[b, 1 + N + i] = x - c L_i`` with ``L L^T = P[b]``
+    (Cholesky, column ``L_i``). ``ok[b]`` is False (and ``S[b]`` unset) where ``P[b]`` is not
+    numerically positive definite."""
+    B, N = X.shape
+    L = np.empty((N, N))
+    for b in range(B):
+        good = True
+        L[:, :] = 0.0
+        for j in range(N):
+            d = P[b, j, j]
+            for k in range(j):
+                d -= L[j, k] * L[j, k]
+            if not d > 0.0:
+                good = False
+                break
+            L[j, j] = math.sqrt(d)
+            for i in range(j + 1, N):
+                s = P[b, i, j]
+                for k in range(j):
+                    s -= L[i, k] * L[j, k]
+                L[i, j] = s / L[j, j]
+        ok[b] = good
+        if not good:
+            continue
+        for i in range(N):
+            S[b, 0, i] = X[b, i]
+        for j in range(N):
+            for i in range(N):
+                S[b, 1 + j, i] = X[b, i] + c * L[i, j]
+                S[b, 1 + N + j, i] = X[b, i] - c * L[i, j]
+
+
+@njit(cache=True)
+def _moments(S: Array, Wm: Array, Wc: Array, Qh: Array, X: Array,
+             P: Array) -> None:  # pragma: no cover - numba
+    """The unscented moments of the propagated points ``S`` ``(B, 2N + 1, N)`` [WM00]:
+    :math:`\\hat x = \\sum_i W^m_i \\chi_i`,
+    :math:`P = \\sum_i W^c_i (\\chi_i - \\hat x)(\\chi_i - \\hat x)^T + Q h`."""
+    B, M, N = S.shape
+    mu = np.empty(N)
+    for b in range(B):
+        for i in range(N):
+            s = 0.0
+            for k in range(M):
+                s += Wm[k] * S[b, k, i]
+            mu[i] = s
+            X[b, i] = s
+        for i in range(N):
+            for j in range(i, N):
+                s = 0.0
+                for k in range(M):
+                    s += Wc[k] * (S[b, k, i] - mu[i]) * (S[b, k, j] - mu[j])
+                s += Qh[i, j]
+                P[b, i, j] = s
+                P[b, j, i] = s
+
+
+@njit(cache=True)
+def _ekf_covariance(P: Array, F: Array, h: float, rk4: bool, Qh: Array) -> None:  # pragma: no cover
+    """In place ``P[b] = Phi P[b] Phi^T + Q h`` with ``Phi = T_4(h F[b])`` (RK4) or
+    ``I + h F[b]`` (Euler): :func:`_transition` then :func:`_propagate` of each member, written
+    out with one set of scratch matrices."""
+    B, N = F.shape[0], F.shape[1]
+    A = np.empty((N, N))
+    T = np.empty((N, N))
+    W = np.empty((N, N))
+    for b in range(B):
+        for i in range(N):
+            for j in range(N):
+                A[i, j] = h * F[b, i, j]
+        if rk4:
+            for i in range(N):
+                for j in range(N):
+                    T[i, j] = (1.0 if i == j else 0.0) + 0.25 * A[i, j]
+            for div in (3.0, 2.0, 1.0):
+                for i in range(N):
+                    for j in range(N):
+                        s = 0.0
+                        for k in range(N):
+                            s += A[i, k] * T[k, j]
+                        W[i, j] = (1.0 if i == j else 0.0) + s / div
+                T[:, :] = W
+        else:
+            for i in range(N):
+                for j in range(N):
+                    T[i, j] = A[i, j] + (1.0 if i == j else 0.0)
+        # T is Phi; W = Phi P
+        for i in range(N):
+            for j in range(N):
+                s = 0.0
+                for k in range(N):
+                    s += T[i, k] * P[b, k, j]
+                W[i, j] = s
+        for i in range(N):
+            for j in range(i, N):
+                s = 0.0
+                for k in range(N):
+                    s += W[i, k] * T[j, k]
+                s += Qh[i, j]
+                P[b, i, j] = s
+                P[b, j, i] = s
+
+
+@njit(cache=True)
+def _axpy(x: Array, a: float, k: Array) -> Array:  # pragma: no cover - numba
+    """``x + a k`` (an RK4 stage of one row)."""
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = x[i] + a * k[i]
+    return out
+
+
+@njit(cache=True)
+def _rk4_final(x: Array, k1: Array, k2: Array, k3: Array, k4: Array, h6: float,
+               out: Array) -> None:  # pragma: no cover - numba
+    """``out = x + h/6 (k1 + 2 (k2 + k3) + k4)`` (RK4's combination of one row)."""
+    for i in range(x.shape[0]):
+        out[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+
+
+@njit(cache=True)
+def _first_nonfinite(X: Array) -> int:  # pragma: no cover - numba
+    """The first row of ``X`` with a non-finite entry, or -1."""
+    for b in range(X.shape[0]):
+        for i in range(X.shape[1]):
+            if not math.isfinite(X[b, i]):
+                return b
+    return -1
 
 
 def _taylor4(A: Array) -> Array:
-    """``I + A + A^2/2 + A^3/6 + A^4/24`` (Horner)."""
-    n = A.shape[0]
-    eye = np.eye(n)
-    B = eye + A / 4.0
-    B = eye + (A @ B) / 3.0
-    B = eye + (A @ B) / 2.0
-    return eye + A @ B
+    """``I + A + A^2/2 + A^3/6 + A^4/24`` of one matrix (the kernel :func:`_transition`)."""
+    Phi = np.empty((1, *A.shape))
+    _transition(np.ascontiguousarray(A, dtype=float)[None], 1.0, True, Phi)
+    return Phi[0]
+
+
+def _central_differences(f: Callable[[Array], Array], X: Array, cols: int) -> Array:
+    """Central-difference Jacobians ``(K, rows, cols)`` of the row map ``f`` ``(K, N) -> (K,
+    rows)`` at the rows ``X`` in their first ``cols`` components (relative step ``1e-6``)."""
+    columns = []
+    for j in range(cols):
+        e = 1e-6 * np.maximum(1.0, np.abs(X[:, j]))
+        Xp, Xm = X.copy(), X.copy()
+        Xp[:, j] += e
+        Xm[:, j] -= e
+        columns.append((f(Xp) - f(Xm)) / (2.0 * e)[:, None])
+    return np.stack(columns, axis=2)
+
+
+def _rows_output(out: Callable[[Array], Array], chans: list[int], Z: Array) -> Array:
+    """The channels ``chans`` of ``out`` at each row of ``Z``, ``(K, len(chans))``."""
+    return np.array([out(z)[chans] for z in Z])
 
 
 def _probe_selection(output: Callable[[Array, Any], Array], params: Any, n: int,
@@ -132,12 +489,15 @@ def _probe_selection(output: Callable[[Array, Any], Array], params: Any, n: int,
 
 
 # ======================================================================================
-# models: the system's ODE, or the MJCF stepped by MuJoCo
+# models: the system's ODE, or the MJCF stepped by MuJoCo (rows: (K, N) augmented states)
 # ======================================================================================
 
 
 class SystemModel:
-    """A :class:`System`'s ODE with the parameters ``estimate`` appended to the state.
+    """A :class:`System`'s ODE with the parameters ``estimate`` appended to the state, on rows.
+
+    Every method takes rows ``X`` ``(K, N)`` of augmented states (``N = n + q``) and inputs
+    ``U`` ``(K, m)``; the parameters ``X[:, n:]`` are constant (:math:`\\dot\\theta = 0`).
 
     Parameters
     ----------
@@ -148,6 +508,12 @@ class SystemModel:
         Names of ``system.param_names`` to estimate by augmentation.
     jacobian : {"auto", "analytic", "fd"}
         ``auto``: analytic where the system provides it, else central finite differences.
+
+    Attributes
+    ----------
+    vectorized : bool
+        Whether ``dynamics`` is evaluated once on the columns of all rows (an array
+        expression, see the module docstring) rather than once per row.
     """
 
     kind = "system"
@@ -171,18 +537,19 @@ class SystemModel:
                               f"(t, x, u, p{', names' if self.names else ''}); it has "
                               f"{[m for m in need if callable(getattr(system, m, None))] or 'none'}")
         self.analytic = jacobian != "fd" and has_x and (has_p or not self.names)
+        self.jacobian_kind = "analytic" if self.analytic else "fd"
         self.n = len(system.state_names)
         self.q = len(self.names)
         self.N = self.n + self.q
         self.base = dict(system.params)
-        self._dyn = system.dynamics
-        self._out = system.output
         self.state_names = tuple(system.state_names)
         self.output_names = tuple(system.output_names)
         self.n_inputs = len(system.input_names)
+        self.vectorized = self._columns_work()
 
     # --------------------------------------------------------------------- parameters
-    def params(self, xa: Any) -> dict[str, float]:
+    def params(self, xa: Array) -> dict[str, float]:
+        """The system's parameters with the estimated ones read from the row ``xa``."""
         if not self.q:
             return self.base
         p = dict(self.base)
@@ -191,60 +558,139 @@ class SystemModel:
             p[nm] = float(xa[n + j])
         return p
 
-    # --------------------------------------------------------------------- dynamics
-    def deriv(self, xa: Array, u: Array) -> Array:
-        """:math:`(f(x, u, \\theta), 0)`, shape (N,)."""
-        fx = np.asarray(self._dyn(0.0, xa[:self.n], u, self.params(xa)), dtype=float)
+    def _columns_work(self) -> bool:
+        """Whether ``dynamics`` evaluated on columns ``(n, K)`` (parameters ``(K,)``) gives the
+        rows' values: probed once at three random rows."""
+        rng = np.random.default_rng(2024)
+        X = np.empty((3, self.N))
+        X[:, :self.n] = rng.uniform(-1.0, 1.0, (3, self.n))
+        for j, nm in enumerate(self.names):
+            X[:, self.n + j] = self.base[nm] * rng.uniform(0.8, 1.2, 3)
+        U = rng.uniform(-1.0, 1.0, (3, self.n_inputs))
+        try:
+            rows = np.array([np.asarray(self.system.dynamics(0.0, x[:self.n], u, self.params(x)),
+                                        dtype=float) for x, u in zip(X, U)])
+        except Exception:  # noqa: BLE001 - a model that fails here is used row by row
+            return False
+        try:
+            with np.errstate(all="ignore"):
+                cols = self._f_columns(X, U)
+        except Exception:  # noqa: BLE001 - not an array expression: row by row
+            return False
+        return bool(cols.shape == rows.shape and np.allclose(cols, rows, rtol=1e-12, atol=1e-14))
+
+    def _columns(self, X: Array, U: Array) -> tuple[Array, Array, Mapping[str, Any]]:
+        """The rows ``X``, ``U`` as contiguous columns ``(n, K)``, ``(m, K)`` and the parameters
+        (estimated ones as ``(K,)`` arrays)."""
+        n = self.n
+        p: Mapping[str, Any] = self.base
         if self.q:
-            return np.concatenate((fx, np.zeros(self.q)))
-        return fx
+            p = dict(self.base)
+            for j, nm in enumerate(self.names):
+                p[nm] = np.ascontiguousarray(X[:, n + j])
+        return np.ascontiguousarray(X[:, :n].T), np.ascontiguousarray(U.T), p
 
-    def jac(self, xa: Array, u: Array) -> Array:
-        """:math:`\\partial (f, 0) / \\partial (x, \\theta)`, shape (N, N)."""
-        n, N = self.n, self.N
-        if self.analytic:
-            p = self.params(xa)
-            A = np.zeros((N, N))
-            A[:n, :n] = self.system.jacobian(0.0, xa[:n], u, p)  # type: ignore[attr-defined]
-            if self.q:
-                A[:n, n:] = self.system.param_jacobian(0.0, xa[:n], u, p, self.names)  # type: ignore[attr-defined]
+    def _fc(self, Xc: Array, Uc: Array, p: Mapping[str, Any]) -> Array:
+        """``f`` on columns, ``(n, K)``."""
+        out = np.asarray(self.system.dynamics(0.0, Xc, Uc, p), dtype=float)
+        if out.shape != Xc.shape:
+            raise DesignError(f"dynamics on columns {Xc.shape} returned shape {out.shape}")
+        return out
+
+    def _f_columns(self, X: Array, U: Array) -> Array:
+        """``f`` of the rows ``X`` from one call on the columns, ``(K, n)``."""
+        return self._fc(*self._columns(X, U)).T
+
+    # --------------------------------------------------------------------- dynamics
+    def deriv(self, X: Array, U: Array) -> Array:
+        """:math:`(f(x, u, \\theta), 0)` of the rows, shape (K, N)."""
+        out = np.zeros(X.shape)
+        n = self.n
+        if self.vectorized:
+            out[:, :n] = self._f_columns(X, U)
+            return out
+        dyn = self.system.dynamics
+        for k in range(X.shape[0]):
+            out[k, :n] = dyn(0.0, X[k, :n], U[k], self.params(X[k]))
+        return out
+
+    def jac(self, X: Array, U: Array) -> Array:
+        """:math:`F = \\partial (f, 0) / \\partial (x, \\theta)` of the rows, shape (K, N, N)."""
+        n, N, K = self.n, self.N, X.shape[0]
+        A = np.zeros((K, N, N))
+        if not self.analytic:
+            if not self.vectorized:
+                A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
+                return A
+            # central differences on columns: the 2N perturbed evaluations of the whole batch
+            Xc, Uc, p = self._columns(X, U)
+            for j in range(N):
+                e = 1e-6 * np.maximum(1.0, np.abs(X[:, j]))
+                if j < n:
+                    Xp, Xm = Xc.copy(), Xc.copy()
+                    Xp[j] += e
+                    Xm[j] -= e
+                    fp, fm = self._fc(Xp, Uc, p), self._fc(Xm, Uc, p)
+                else:
+                    nm = self.names[j - n]
+                    pp, pm = dict(p), dict(p)
+                    pp[nm] = p[nm] + e
+                    pm[nm] = p[nm] - e
+                    fp, fm = self._fc(Xc, Uc, pp), self._fc(Xc, Uc, pm)
+                A[:, :n, j] = ((fp - fm) / (2.0 * e)).T
             return A
-        return _central_differences(lambda z: self.deriv(z, u), xa, N, N)
+        jx = self.system.jacobian  # type: ignore[attr-defined]
+        jp = getattr(self.system, "param_jacobian", None)
+        for k in range(K):
+            p = self.params(X[k])
+            A[k, :n, :n] = jx(0.0, X[k, :n], U[k], p)
+            if self.q:
+                A[k, :n, n:] = jp(0.0, X[k, :n], U[k], p, self.names)  # type: ignore[misc]
+        return A
 
-    def step(self, xa: Array, u: Array, h: float, method: str) -> Array:
-        """One RK4 (or Euler) step of ``h`` with ``u`` held."""
-        d = self.deriv
-        if method == "euler":
-            return xa + h * d(xa, u)
-        k1 = d(xa, u)
-        k2 = d(xa + 0.5 * h * k1, u)
-        k3 = d(xa + 0.5 * h * k2, u)
-        k4 = d(xa + h * k3, u)
-        return xa + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-
-    def transition(self, xa: Array, u: Array, h: float, method: str) -> tuple[Array, Array]:
-        """``(x(t + h), Phi)`` with ``Phi = T4(h F)`` (rk4) or ``I + h F`` (euler)."""
-        hF = h * self.jac(xa, u)
-        Phi = _taylor4(hF) if method == "rk4" else np.eye(self.N) + hF
-        return self.step(xa, u, h, method), Phi
+    def step(self, X: Array, U: Array, h: float, method: str,
+             members: Array | None = None) -> Array:
+        """One RK4 (or Euler) step of ``h`` of the rows with ``u`` held (``members`` unused):
+        on columns (vectorized) or row by row, the same arithmetic
+        :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`, :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`..."""
+        n = self.n
+        out = X.copy()
+        hh, h6 = 0.5 * h, h / 6.0
+        if self.vectorized:
+            Xc, Uc, p = self._columns(X, U)
+            f = self._fc
+            k1 = f(Xc, Uc, p)
+            if method == "euler":
+                out[:, :n] = (Xc + h * k1).T
+                return out
+            k2 = f(Xc + hh * k1, Uc, p)
+            k3 = f(Xc + hh * k2, Uc, p)
+            k4 = f(Xc + h * k3, Uc, p)
+            out[:, :n] = (Xc + h6 * (k1 + 2.0 * (k2 + k3) + k4)).T
+            return out
+        dyn = self.system.dynamics
+        for r in range(X.shape[0]):
+            x, u, p = X[r, :n], U[r], self.params(X[r])
+            k1 = np.asarray(dyn(0.0, x, u, p), dtype=float)
+            if method == "euler":
+                out[r, :n] = _axpy(x, h, k1)
+                continue
+            k2 = np.asarray(dyn(0.0, _axpy(x, hh, k1), u, p), dtype=float)
+            k3 = np.asarray(dyn(0.0, _axpy(x, hh, k2), u, p), dtype=float)
+            k4 = np.asarray(dyn(0.0, _axpy(x, h, k3), u, p), dtype=float)
+            _rk4_final(x, k1, k2, k3, k4, h6, out[r, :n])
+        return out
 
     def output(self, xa: Array) -> Array:
-        return np.asarray(self._out(xa[:self.n], self.params(xa)), dtype=float).reshape(-1)
+        """``h`` of one augmented row (the estimated parameters read from it)."""
+        return np.asarray(self.system.output(xa[:self.n], self.params(xa)),
+                          dtype=float).reshape(-1)
 
     def selection(self, channels: Sequence[int]) -> list[int] | None:
-        return _probe_selection(self._out, self.base, self.n, channels)
+        return _probe_selection(self.system.output, self.base, self.n, channels)
 
 
-_ALIASES: dict[str, dict[str, str]] = {
-    "Pendulum": {"gear": "actuator_gear[torque]", "damping": "dof_damping[hinge]",
-                 "g": "opt.gravity"},
-    "ElasticJoint": {"stiffness": "tendon_stiffness[spring]", "gear": "actuator_gear[torque]",
-                     "link_damping": "dof_damping[link]", "motor_damping": "dof_damping[motor]",
-                     "g": "opt.gravity"},
-    "ElasticJoint2Link": {"stiffness1": "tendon_stiffness[spring1]",
-                          "stiffness2": "tendon_stiffness[spring2]", "g": "opt.gravity"},
-    "CartPendulum": {"g": "opt.gravity"},
-}
+#: MJCF fields an augmented MuJoCo filter may estimate, by the object kind naming the element
 _FIELDS = {"tendon_stiffness": mujoco.mjtObj.mjOBJ_TENDON,
            "actuator_gear": mujoco.mjtObj.mjOBJ_ACTUATOR,
            "dof_damping": mujoco.mjtObj.mjOBJ_JOINT,
@@ -252,9 +698,29 @@ _FIELDS = {"tendon_stiffness": mujoco.mjtObj.mjOBJ_TENDON,
            "body_mass": mujoco.mjtObj.mjOBJ_BODY}
 
 
+def _kalman_fields(system: System) -> dict[str, str]:
+    """The system's aliases ``{parameter name: "field[element]" or "opt.gravity"}`` (its
+    ``"kalman_fields"`` form), or none if it declares no such form."""
+    if "kalman_fields" not in system.forms:
+        return {}
+    fields = system.form("kalman_fields")
+    if not isinstance(fields, Mapping) or not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in fields.items()):
+        raise DesignError(f"{type(system).__name__}'s kalman_fields form must map parameter "
+                          f"names to model fields (str -> str); found {fields!r}")
+    return dict(fields)
+
+
 class MujocoModel:
     """The MJCF as the filter's model: ``MjData`` stepping for the mean,
     ``mujoco.mjd_transitionFD`` for the transition matrix.
+
+    MuJoCo is called per model and data, so the rows are stepped one after another through one
+    ``MjData`` (and one of the Jacobian twin): each call loads ``qpos``, ``qvel``, ``ctrl``, the
+    time and clears the solver's warm start, so a step is a function of the row alone and a
+    member's numbers do not depend on its batch. (One ``MjData`` per member is not kept: the
+    pendulum's arena alone is 13 MB.) The estimated parameters are written into the model
+    copy before a row whose values differ from the last written.
 
     Parameters
     ----------
@@ -269,8 +735,9 @@ class MujocoModel:
         ``"actuator_gear[torque]"``, ``"dof_damping[joint]"``, ``"dof_armature[joint]"``,
         ``"body_mass[body]"`` or ``"opt.gravity"`` (the magnitude :math:`g`; all gravity
         torques scale with it, so on the pendulum and the elastic joint it carries
-        :math:`m g l` and :math:`MgL`), or a system parameter name with an alias (elastic joint:
-        ``stiffness``, ``gear``, ``link_damping``, ``motor_damping``, ``g``).
+        :math:`m g l` and :math:`MgL`), or a parameter name the system aliases to one in its
+        ``"kalman_fields"`` form (elastic joint: ``stiffness``, ``gear``, ``link_damping``,
+        ``motor_damping``, ``g``).
     jacobian : {"transition_fd", "fd"}
         ``transition_fd``: ``mujoco.mjd_transitionFD`` (forward differences of one physics
         step). It refuses the RK4 integrator (``mjd_transitionFD: RK4 integrator is not
@@ -284,6 +751,7 @@ class MujocoModel:
     """
 
     kind = "mujoco"
+    vectorized = False
 
     def __init__(self, system: System, model: Any = None, estimate: Sequence[str] = (),
                  jacobian: str = "transition_fd") -> None:
@@ -336,8 +804,8 @@ class MujocoModel:
         self.state_names = tuple(system.state_names)
         self.output_names = tuple(system.output_names)
         self.n_inputs = len(system.actuators)
-        # parameters
-        aliases = _ALIASES.get(type(system).__name__, {})
+        # parameters: model fields, or the system's aliases of them
+        aliases = _kalman_fields(system)
         self.names = tuple(str(e) for e in estimate)
         if len(set(self.names)) != len(self.names):
             raise DesignError(f"estimate must be distinct; found {list(self.names)}")
@@ -398,10 +866,10 @@ class MujocoModel:
                 out[j] = float(getattr(self.m, field)[i])
         return out
 
-    def _set_params(self, th: Sequence[float], twin: bool = False) -> None:
+    def _set_params(self, th: Array, twin: bool = False) -> None:
         """Write the parameter values into the stepping model (and the Jacobian twin); each
         model remembers what it holds, so an unchanged value costs a tuple comparison."""
-        key = tuple(th.tolist()) if isinstance(th, np.ndarray) else tuple(map(float, th))
+        key = tuple(th.tolist())
         targets = ((self.m, 0), (self.twin, 1)) if twin and self.twin is not None else ((self.m, 0),)
         for mm, slot in targets:
             if self._last[slot] == key:
@@ -409,7 +877,7 @@ class MujocoModel:
             self._last[slot] = key
             for (field, i), v in zip(self._specs, key):
                 if field == "gravity":
-                    g = self._down * v
+                    g = self._down * v  # type: ignore[operator]
                     mm.opt.gravity[0], mm.opt.gravity[1], mm.opt.gravity[2] = g[0], g[1], g[2]
                 elif field == "actuator_gear":
                     mm.actuator_gear[i, 0] = v
@@ -417,6 +885,7 @@ class MujocoModel:
                     getattr(mm, field)[i] = v
 
     def _load(self, d: Any, x: Array, u: Array) -> None:
+        """Put the row ``x`` and input ``u`` into ``d`` (time 0, no warm start)."""
         nj = self.n // 2
         d.time = 0.0
         if self._sorted:
@@ -425,6 +894,7 @@ class MujocoModel:
         else:
             d.qpos[:] = x[self._inv_q]
             d.qvel[:] = x[self._inv_v]
+        d.qacc_warmstart[:] = 0.0
         ctrl = d.ctrl
         for k, a in enumerate(self.aid):
             ctrl[a] = u[k]
@@ -436,8 +906,8 @@ class MujocoModel:
                               f"timestep {self.ts:g}")
         return int(k)
 
-    def step(self, xa: Array, u: Array, h: float, method: str = "") -> Array:
-        """MuJoCo's own step(s) over ``h`` from ``xa`` with ``u`` held."""
+    def _step_row(self, xa: Array, u: Array, h: float) -> Array:
+        """MuJoCo's own step(s) over ``h`` from one augmented row with ``u`` held."""
         if self.q:
             self._set_params(xa[self.n:])
         d = self.d
@@ -450,7 +920,24 @@ class MujocoModel:
         out[nj:self.n] = d.qvel[self.vadr]
         return out
 
-    def transition(self, xa: Array, u: Array, h: float, method: str = "") -> tuple[Array, Array]:
+    def step(self, X: Array, U: Array, h: float, method: str = "",
+             members: Array | None = None) -> Array:
+        """MuJoCo's own step(s) over ``h`` of every row ``X`` ``(K, N)`` with ``U`` held (the
+        model's integrator; ``method`` is not used)."""
+        out = np.empty_like(X)
+        for k in range(X.shape[0]):
+            out[k] = self._step_row(X[k], U[k], h)
+        return out
+
+    def transition(self, X: Array, U: Array, h: float) -> tuple[Array, Array]:
+        """``(x(t + h), Phi)`` of every row: ``(K, N)`` and ``(K, N, N)``."""
+        Xn = np.empty_like(X)
+        Phi = np.empty((X.shape[0], self.N, self.N))
+        for k in range(X.shape[0]):
+            Xn[k], Phi[k] = self._transition_row(X[k], U[k], h)
+        return Xn, Phi
+
+    def _transition_row(self, xa: Array, u: Array, h: float) -> tuple[Array, Array]:
         n = self.n
         k = self._steps(h)
         Phi = self._eyeN
@@ -468,15 +955,16 @@ class MujocoModel:
                 if self._rk4:
                     Ax = self._rk4_transition(Ax, ts)[self._pix]
             else:
-                Ax = _central_differences(lambda z: self.step(z, u, ts)[:n], x, n, n)
-            x1 = self.step(x, u, ts)
+                Ax = _central_differences(lambda Z: np.array([self._step_row(z, u, ts)[:n]
+                                                              for z in Z]), x[None], n)[0]
+            x1 = self._step_row(x, u, ts)
             A = self._eyeN.copy()
             A[:n, :n] = Ax
             for j in range(self.q):
                 e = 1e-6 * max(1.0, abs(float(x[n + j])))
                 xp = x.copy()
                 xp[n + j] += e
-                A[:n, n + j] = (self.step(xp, u, ts)[:n] - x1[:n]) / e
+                A[:n, n + j] = (self._step_row(xp, u, ts)[:n] - x1[:n]) / e
             if self.q:
                 self._set_params(x[n:])  # undo the perturbation
             Phi = A @ Phi
@@ -499,7 +987,7 @@ class MujocoModel:
         mujoco.mj_fullM(self.twin, d, M)  # MuJoCo 4: mj_fullM(m, d, dst), after mj_forward
         G = AE[k:].copy()
         G[:, k:] -= np.eye(k)
-        ax = (np.eye(k) + h * np.linalg.solve(M, np.diag(self.twin.dof_damping))) @ G / h
+        ax = (np.eye(k) + h * np.linalg.solve(M, np.diag(self.twin.dof_damping))) @ G / h  # type: ignore[union-attr]
         F = np.zeros_like(AE)
         F[:k, k:] = np.eye(k)
         F[k:] = ax
@@ -513,153 +1001,6 @@ class MujocoModel:
 
 
 # ======================================================================================
-# generated float code for small filters
-# ======================================================================================
-
-
-def _gen(src: list[str], name: str) -> Callable[..., Any]:
-    scope: dict[str, Any] = {}
-    exec(compile("\n".join(src) + "\n", f"<kalman_{name}>", "exec"), scope)  # noqa: S102
-    return scope[name]
-
-
-def _gen_phi(N: int, method: str) -> Callable[[list[float], float], list[float]]:
-    """``phi(A, h)``: the flat ``N x N`` transition ``T4(hA)`` or ``I + hA`` from flat ``A``."""
-    src = ["def phi(A, h):", f"    ({', '.join(f'a{i}_{j}' for i in range(N) for j in range(N))},) = A"]
-    for i in range(N):
-        for j in range(N):
-            src.append(f"    a{i}_{j} *= h")
-    if method == "euler":
-        out = [f"{'1.0 + ' if i == j else ''}a{i}_{j}" for i in range(N) for j in range(N)]
-        src.append(f"    return [{', '.join(out)}]")
-        return _gen(src, "phi")
-    # Horner: B = I + A/4; B = I + A B/3; B = I + A B/2; Phi = I + A B
-    for i in range(N):
-        for j in range(N):
-            src.append(f"    b{i}_{j} = {'1.0 + ' if i == j else ''}0.25*a{i}_{j}")
-    for div, tgt in ((3.0, "c"), (2.0, "b"), (1.0, "c")):
-        src_b = "b" if tgt == "c" else "c"
-        for i in range(N):
-            for j in range(N):
-                prod = " + ".join(f"a{i}_{k}*{src_b}{k}_{j}" for k in range(N))
-                lead = "1.0 + " if i == j else ""
-                src.append(f"    {tgt}{i}_{j} = {lead}({prod})" + (f"*{1.0 / div!r}" if div != 1.0 else ""))
-    src.append(f"    return [{', '.join(f'c{i}_{j}' for i in range(N) for j in range(N))}]")
-    return _gen(src, "phi")
-
-
-def _gen_propagate(N: int) -> Callable[[list[float], list[float], list[float]], list[float]]:
-    """``prop(P, F, Q)``: flat symmetric ``F P F^T + Q``."""
-    src = ["def prop(P, F, Q):",
-           f"    ({', '.join(f'p{i}_{j}' for i in range(N) for j in range(N))},) = P",
-           f"    ({', '.join(f'f{i}_{j}' for i in range(N) for j in range(N))},) = F"]
-    for i in range(N):
-        for j in range(N):
-            src.append(f"    m{i}_{j} = " + " + ".join(f"f{i}_{k}*p{k}_{j}" for k in range(N)))
-    for i in range(N):
-        for j in range(i, N):
-            src.append(f"    r{i}_{j} = " + " + ".join(f"m{i}_{k}*f{j}_{k}" for k in range(N))
-                       + f" + Q[{i * N + j}]")
-    src.append(f"    return [{', '.join(f'r{min(i, j)}_{max(i, j)}' for i in range(N) for j in range(N))}]")
-    return _gen(src, "prop")
-
-
-def _gen_correct(N: int, j: int) -> Callable[[list[float], list[float], float, float], None]:
-    """``corr(x, P, y, r)``: in place, the scalar update with ``y = x[j] + v``, ``var v = r``."""
-    src = ["def corr(x, P, y, r):",
-           f"    s = P[{j * N + j}] + r",
-           f"    e = (y - x[{j}]) / s"]
-    for i in range(N):
-        src.append(f"    k{i} = P[{i * N + j}]")
-    for i in range(N):
-        src.append(f"    x[{i}] += k{i}*e")
-    src.append("    w = 1.0 / s")
-    for i in range(N):
-        for k in range(i, N):
-            src.append(f"    P[{i * N + k}] -= k{i}*k{k}*w")
-            if k != i:
-                src.append(f"    P[{k * N + i}] = P[{i * N + k}]")
-    return _gen(src, "corr")
-
-
-def _gen_step(n: int, N: int, method: str, as_list: bool) -> Callable[..., list[float]]:
-    """``step(x, u, h, dyn, p)``: one RK4 (or Euler) step of ``h`` of the augmented state
-    (flat list; the parameters ``x[n:]`` are constant), calling ``dyn(0, x[:n], u, p)``."""
-    xs = [f"x{i}" for i in range(N)]
-    wrap = (lambda e: f"[{e}]") if as_list else (lambda e: f"array(({e},))")
-
-    def call(args: list[str], out: str) -> str:
-        lhs = ", ".join(f"{out}{i}" for i in range(n))
-        return f"    ({lhs},) = dyn(0.0, {wrap(', '.join(args))}, u, p).tolist()"
-
-    src = ["def step(x, u, h, dyn, p):", f"    ({', '.join(xs)},) = x", call(xs[:n], "a")]
-    tail = xs[n:]
-    if method == "euler":
-        src.append(f"    return [{', '.join([f'x{i} + h*a{i}' for i in range(n)] + tail)}]")
-    else:
-        src.append("    hh = 0.5*h")
-        src.append(call([f"x{i} + hh*a{i}" for i in range(n)], "b"))
-        src.append(call([f"x{i} + hh*b{i}" for i in range(n)], "c"))
-        src.append(call([f"x{i} + h*c{i}" for i in range(n)], "d"))
-        src.append("    h6 = h/6.0")
-        final = [f"x{i} + h6*(a{i} + 2.0*(b{i} + c{i}) + d{i})" for i in range(n)]
-        src.append(f"    return [{', '.join(final + tail)}]")
-    scope: dict[str, Any] = {"array": np.array}
-    exec(compile("\n".join(src) + "\n", "<kalman_step>", "exec"), scope)  # noqa: S102
-    return scope["step"]
-
-
-def _gen_sigma(N: int) -> Callable[[list[float], list[float], float], list[list[float]] | None]:
-    """``sigma(x, P, c)``: the ``2N + 1`` points ``x, x + c L_i, x - c L_i`` with ``L`` the
-    Cholesky factor of flat ``P`` (straight-line); ``None`` if ``P`` is not positive definite."""
-    src = ["def sigma(x, P, c):",
-           f"    ({', '.join(f'p{i}_{j}' for i in range(N) for j in range(N))},) = P"]
-    for j in range(N):
-        acc = " - ".join([f"p{j}_{j}"] + [f"l{j}_{k}*l{j}_{k}" for k in range(j)])
-        src.append(f"    d = {acc}")
-        src.append("    if not d > 0.0:")
-        src.append("        return None")
-        src.append(f"    l{j}_{j} = sqrt(d)")
-        for i in range(j + 1, N):
-            acc = " - ".join([f"p{i}_{j}"] + [f"l{i}_{k}*l{j}_{k}" for k in range(j)])
-            src.append(f"    l{i}_{j} = ({acc}) / l{j}_{j}")
-    for i in range(N):
-        for j in range(N):
-            src.append(f"    s{i}_{j} = c*l{i}_{j}" if i >= j else f"    s{i}_{j} = 0.0")
-    src.append(f"    ({', '.join(f'x{i}' for i in range(N))},) = x")
-    pts = [f"[{', '.join(f'x{i}' for i in range(N))}]"]
-    for sign in ("+", "-"):
-        for j in range(N):
-            pts.append(f"[{', '.join(f'x{i} {sign} s{i}_{j}' for i in range(N))}]")
-    src.append(f"    return [{', '.join(pts)}]")
-    scope: dict[str, Any] = {"sqrt": math.sqrt}
-    exec(compile("\n".join(src) + "\n", "<kalman_sigma>", "exec"), scope)  # noqa: S102
-    return scope["sigma"]
-
-
-def _gen_moments(N: int, Wm: Array, Wc: Array) -> Callable[..., tuple[list[float], list[float]]]:
-    """``mom(X, Q)``: weighted mean and flat covariance (plus flat ``Q``) of the points ``X``."""
-    M = 2 * N + 1
-    src = ["def mom(X, Q):"]
-    for k in range(M):
-        src.append(f"    ({', '.join(f'x{k}_{i}' for i in range(N))},) = X[{k}]")
-    for i in range(N):
-        terms = " + ".join(f"{float(Wm[k])!r}*x{k}_{i}" for k in range(M) if Wm[k] != 0.0)
-        src.append(f"    m{i} = {terms}")
-    for k in range(M):
-        if Wc[k] != 0.0:
-            for i in range(N):
-                src.append(f"    e{k}_{i} = x{k}_{i} - m{i}")
-    for i in range(N):
-        for j in range(i, N):
-            src.append(f"    c{i}_{j} = " + " + ".join(f"{float(Wc[k])!r}*e{k}_{i}*e{k}_{j}" for k in range(M)
-                                                      if Wc[k] != 0.0) + f" + Q[{i * N + j}]")
-    src.append(f"    return [{', '.join(f'm{i}' for i in range(N))}], "
-               f"[{', '.join(f'c{min(i, j)}_{max(i, j)}' for i in range(N) for j in range(N))}]")
-    return _gen(src, "mom")
-
-
-# ======================================================================================
 # the filters
 # ======================================================================================
 
@@ -668,17 +1009,19 @@ class _KalmanFilter(Observer):
     """Shared construction, validation, measurement update and bookkeeping (see module)."""
 
     backend = "system"
+    needs_normal_form = False
 
     def __init__(self, system: System | None = None, *, estimate: Sequence[str] = (),
                  Q: Any = 1e-4, Q_theta: Any = 1e-6, R: Any = None, sensor: Any = None,
                  P0: Any = 1.0, P0_theta: Any = 1.0, x_hat0: Any = None, theta_hat0: Any = None,
                  outputs: Any = None, method: str = "rk4", substeps: int = 1,
-                 jacobian: str = "auto", model: Any = None) -> None:
+                 jacobian: str = "auto", model: Any = None, on_unstable: str = "raise") -> None:
         if system is None or not isinstance(system, System):
             raise DesignError(f"{type(self).__name__} needs a System; found "
                               f"{type(system).__name__}")
         if isinstance(estimate, str):
             estimate = (estimate,)
+        self.model: SystemModel | MujocoModel
         if self.backend == "mujoco":
             jac = "transition_fd" if jacobian == "auto" else jacobian
             self.model = MujocoModel(system, model, estimate, jac)
@@ -687,22 +1030,15 @@ class _KalmanFilter(Observer):
                 raise DesignError("model= is for the MuJoCo filters (ekf_mujoco, ukf_mujoco)")
             self.model = SystemModel(system, estimate, jacobian)
         mdl = self.model
-        self.system = system
-        self.n = mdl.n
+        n_out = len(system.output_names)
+        super().__init__(system, order=mdl.n,
+                         outputs=tuple(range(n_out)) if outputs is None else outputs,
+                         on_unstable=on_unstable)
         self.q = mdl.q
         self.N = mdl.N
         self.estimate = mdl.names
         self.method = one_of("method", method, METHODS)
         self.substeps = positive_int("substeps", substeps)
-        n_out = len(system.output_names)
-        chans = list(range(n_out)) if outputs is None else (
-            [outputs] if np.ndim(outputs) == 0 else list(outputs))
-        if (not chans or any(isinstance(c, bool) or int(c) != c or not 0 <= c < n_out for c in chans)
-                or len(set(chans)) != len(chans)):
-            raise DesignError(f"outputs must be distinct channel indices of "
-                              f"{list(system.output_names)}; found {chans!r}")
-        self.outputs = tuple(int(c) for c in chans)
-        self.output = self.outputs[0]
         p = len(self.outputs)
         # covariances
         none = np.zeros((0, 0))
@@ -725,14 +1061,19 @@ class _KalmanFilter(Observer):
             raise DesignError(f"theta_hat0 is required with estimate={list(self.estimate)} (the "
                               f"initial guess of the estimated parameters)")
         self.sel = mdl.selection(self.outputs)
-        self._fast = False
+        self._sel = np.array(self.sel if self.sel is not None else [], dtype=np.int64)
         self._diag_R = bool(np.all(self.R == np.diag(np.diag(self.R))))
-        self._r = np.diag(self.R).tolist()
-        self.diagnostic_names = tuple(f"theta_{nm}" for nm in self.estimate)
+        self.family_diagnostics = tuple(f"theta_{nm}" for nm in self.estimate)  # type: ignore[misc]
+        self._x_hat0 = None if x_hat0 is None else (
+            vector("x_hat0", x_hat0, self.n) if np.ndim(x_hat0) <= 1
+            else batch_rows("x_hat0", x_hat0, self.n, None))
+        self._theta_hat0 = None if not self.q else (
+            vector("theta_hat0", theta_hat0, self.q) if np.ndim(theta_hat0) <= 1
+            else batch_rows("theta_hat0", theta_hat0, self.q, None))
+        self._theta_arg: Any = None
+        self._qh: dict[float, Array] = {}
         self._weights()
-        self._u = np.zeros(mdl.n_inputs)
-        self._init = (x_hat0, theta_hat0)
-        self.reset(x_hat0, theta_hat0=theta_hat0)
+        self.reset()
 
     def _augmented(self, state: Array, params: Array) -> Array:
         """The block-diagonal ``N x N`` matrix of a state block and a parameter block."""
@@ -741,243 +1082,119 @@ class _KalmanFilter(Observer):
         out[self.n:, self.n:] = params
         return out
 
-    # ------------------------------------------------------------------ reset
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
-              theta_hat0: Any = None) -> None:
-        """Restart from ``x_hat0`` (physical state, default zero) and ``theta_hat0`` with the
-        covariance ``P0`` (default: the constructor's values)."""
-        if z_hat0 is not None:
-            if x_hat0 is not None:
-                raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
-            x_hat0 = z_hat0
-        if x_hat0 is None and theta_hat0 is None:
-            x_hat0, theta_hat0 = self._init
-        x = np.zeros(self.n) if x_hat0 is None else vector("x_hat0", x_hat0, self.n)
-        th = np.zeros(0) if not self.q else vector("theta_hat0", theta_hat0, self.q)
-        self._x = np.concatenate((x, th))
-        self._P = self.P0.copy()
-        self._restart_counters()
-        self._sync_fast()
-
-    def _sync_fast(self) -> None:
-        """Choose the float path (small system-model filters with a selection output and a
-        diagonal R: state and covariance kept as flat lists, generated code) or numpy."""
-        mdl = self.model
-        self._fast = (isinstance(mdl, SystemModel) and self.N <= FAST_MAX and self.sel is not None
-                      and self._diag_R)
-        if not self._fast:
-            return
-        if not hasattr(self, "_corr_f"):
-            self._as_list = self._list_ok()
-            self._hmemo: dict[float, list[float]] = {}
-            self._generate()
-        self._xl = self._x.tolist()
-        self._Pl = self._P.reshape(-1).tolist()
-
-    #: the generated functions of the float path (made with ``exec``: pickle cannot store them)
-    _GENERATED = ("_corr_f", "_step_f", "_phi_f", "_prop_f", "_sigma_f", "_mom_f")
-
-    def _generate(self) -> None:
-        """Generate the float path's code (on the first reset, and again on unpickling)."""
-        N = self.N
-        self._corr_f = {j: _gen_correct(N, j) for j in set(self.sel)}  # type: ignore[arg-type]
-        self._step_f = _gen_step(self.model.n, N, self.method, self._as_list)
-        self._compile_fast()
-
-    def __getstate__(self) -> dict[str, Any]:
-        """Pickle without the generated code; :meth:`__setstate__` generates it again (the
-        same code from the same design, so the copy continues identically)."""
-        return {k: v for k, v in self.__dict__.items() if k not in self._GENERATED}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        if "_as_list" in state:
-            self._generate()
-
-    def _compile_fast(self) -> None:
-        """Filter-specific generated code (EKF: Phi and F P F^T; UKF: sigma points, moments)."""
-
     def _weights(self) -> None:
         """UKF: sigma-point weights (before the first reset)."""
 
-    def _list_ok(self) -> bool:
-        """Whether the system's ``dynamics`` accepts a list for ``x`` and returns an array
-        (checked once; the float path then skips building an array per call)."""
-        mdl = self.model
-        rng = np.random.default_rng(7)
-        x = rng.uniform(-1.0, 1.0, mdl.n)
-        u = rng.uniform(-1.0, 1.0, mdl.n_inputs)
-        ref = mdl._dyn(0.0, x, u, mdl.base)
-        if not isinstance(ref, np.ndarray):
-            mdl._dyn = functools.partial(_as_array, mdl._dyn)
-            ref = np.asarray(ref, dtype=float)
-        try:
-            got = mdl._dyn(0.0, x.tolist(), u, mdl.base)
-        except Exception:  # noqa: BLE001 - any failure means: pass arrays
-            return False
-        return isinstance(got, np.ndarray) and got.shape == ref.shape and bool(np.all(got == ref))
+    # ------------------------------------------------------------------ reset
+    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+              batch: int | None = None, theta_hat0: Any = None) -> None:
+        """Restart ``batch`` filters from ``x_hat0`` (physical state; ``z_hat0`` is the same
+        thing here) and ``theta_hat0`` (``(q,)`` for every member or ``(B, q)``) with the
+        covariance ``P0``; what is not given is the constructor's (``x_hat0`` default zero)."""
+        if (batch is None and x_hat0 is None and z_hat0 is None and theta_hat0 is not None
+                and np.ndim(theta_hat0) == 2):
+            batch = int(np.shape(theta_hat0)[0])
+        if batch is None and x_hat0 is None and z_hat0 is None and self._x_hat0 is not None \
+                and self._x_hat0.ndim == 2:
+            x_hat0 = self._x_hat0
+        self._theta_arg = theta_hat0
+        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch)
 
-    def _correct_fast(self, y: Any) -> None:
-        x, P = self._xl, self._Pl
-        sel = self.sel
-        r = self._r
-        corr = self._corr_f
-        for c, v in enumerate(measured_channels(self, y, self.outputs)):
-            if v == v:
-                corr[sel[c]](x, P, v, r[c])  # type: ignore[index]
+    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+        B = self.batch
+        x = x0 if x0 is not None else z0
+        if x is None:
+            x = (np.zeros((B, self.n)) if self._x_hat0 is None
+                 else batch_rows("x_hat0", self._x_hat0, self.n, B))
+        th = self._theta_arg if self._theta_arg is not None else self._theta_hat0
+        self._theta_arg = None
+        rows = [x]
+        if self.q:
+            rows.append(batch_rows("theta_hat0", th, self.q, B))
+        self._x = np.ascontiguousarray(np.concatenate(rows, axis=1), dtype=float)
+        self._P = np.ascontiguousarray(np.tile(self.P0, (B, 1, 1)))
 
-    def _Qh(self, h: float) -> list[float]:
-        Qh = self._hmemo.get(h)
+    # ------------------------------------------------------------------ the step
+    def _Qh(self, h: float) -> Array:
+        """``Q h`` for the substep ``h`` (at most ``_CACHE_MAX`` periods kept)."""
+        Qh = self._qh.get(h)
         if Qh is None:
-            Qh = (self.Qc * h).reshape(-1).tolist()
-            self._hmemo[h] = Qh
+            if len(self._qh) >= _CACHE_MAX:
+                self._qh.clear()
+            Qh = np.ascontiguousarray(self.Qc * h)
+            self._qh[h] = Qh
         return Qh
 
-    def _check_fast(self) -> None:
-        x = self._xl
-        for v in x:
-            if not v - v == 0.0:
-                raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: {x}")
-
-    def _xvals(self) -> Any:
-        """The augmented estimate (an array, or the float path's list)."""
-        return self._xl if self._fast else self._x
-
-    def _Parr(self) -> Array:
-        return np.array(self._Pl).reshape(self.N, self.N) if self._fast else self._P
-
-    # ------------------------------------------------------------------ update
-    def update(self, y: Any, u: Any, dt: float) -> Array:
-        """Consume ``y(t_k)``, ``u(t_k)``: correct, then predict over ``dt``; return the
-        prediction of ``x(t_k + dt)``."""
-        if not isinstance(u, np.ndarray):
-            u = np.atleast_1d(np.asarray(u, dtype=float))
-        self._u = u
-        if self._fast:
-            return self._update_fast(y, u, dt)
-        idx, vals = self._channels(y)
-        if idx:
-            self._correct(idx, vals)
+    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+        n = self.n
         h = dt / self.substeps
-        x, P = self._x, self._P
-        Qh = self.Qc * h
-        for _ in range(self.substeps):
-            x, P = self._predict(x, P, u, h, Qh)
-        self._x, self._P = x, P
-        self._finite()
-        return x[:self.n].copy()
+        Qh = self._Qh(h)
+        T = Y.shape[1]
+        hist = np.empty((T, self.batch, self.N))  # the estimates, sample-major (contiguous rows)
+        for j in range(T):
+            self._condition_on(np.ascontiguousarray(Y[:, j]))
+            u = np.ascontiguousarray(U[:, j])
+            for _ in range(self.substeps):
+                self._predict(u, h, Qh)
+            b = _first_nonfinite(self._x)
+            if b >= 0:
+                raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: "
+                                      f"{self._x[b].tolist()} (member {b}, sample {j})")
+            hist[j] = self._x
+        X[...] = hist[:, :, :n].transpose(1, 0, 2)
+        Z[...] = X
+        D[...] = hist[:, :, n:].transpose(1, 0, 2)
 
-    def _update_fast(self, y: Any, u: Array, dt: float) -> Array:
-        """The float path of :meth:`update` (filter-specific)."""
-        raise NotImplementedError
-
-    def _correct(self, idx: list[int], vals: list[float]) -> None:
-        """Measurement update with the present channels ``idx`` (numpy path)."""
-        self._correct_numpy(idx, vals)
-
-    def _predict(self, x: Array, P: Array, u: Array, h: float, Qh: Array) -> tuple[Array, Array]:
-        """Time update of the mean and covariance over one substep ``h`` (numpy path)."""
-        raise NotImplementedError
-
-    # ------------------------------------------------------------------ measurement
-    def _channels(self, y: Any) -> tuple[list[int], list[float]]:
-        """Indices (into ``outputs``) and values of the channels present in ``y``."""
-        idx, vals = [], []
-        for c, v in enumerate(measured_channels(self, y, self.outputs)):
-            if v == v:
-                idx.append(c)
-                vals.append(v)
-        return idx, vals
-
-    def _correct_numpy(self, idx: list[int], vals: list[float]) -> None:
-        """Kalman update (Joseph form) with the channels ``idx``."""
-        if not idx:
-            return
-        x, P = self._x, self._P
-        if len(idx) == 1 and self.sel is not None:  # one scalar channel y = x[j]: no matrices
-            c = idx[0]
-            j = self.sel[c]
-            Pj = P[:, j].copy()
-            K = Pj / (Pj[j] + self.R[c, c])
-            self._x = x + K * (vals[0] - x[j])
-            self._P = P - np.outer(K, Pj)
-            return
-        R = self.R[np.ix_(idx, idx)]
-        yv = np.array(vals)
+    def _condition_on(self, Y: Array) -> None:
+        """The measurement update of every member with ``Y`` ``(B, p)`` (NaN: lost channel)."""
         if self.sel is not None:
-            js = [self.sel[c] for c in idx]
-            H = np.zeros((len(idx), self.N))
-            H[np.arange(len(idx)), js] = 1.0
-            yhat = x[js]
+            _condition_selection(self._x, self._P, Y, self._sel, self.R, self._diag_R)
         else:
-            H, yhat = self._h_linear(x, idx)
-        PHt = P @ H.T
-        S = H @ PHt + R
-        K = np.linalg.solve(S, PHt.T).T
-        x = x + K @ (yv - yhat)
-        IKH = np.eye(self.N) - K @ H
-        P = IKH @ P @ IKH.T + K @ R @ K.T
-        self._x, self._P = x, 0.5 * (P + P.T)
+            self._condition_general(Y)
 
-    def _h_linear(self, x: Array, idx: list[int]) -> tuple[Array, Array]:
-        """Finite-difference Jacobian of ``h`` (channels ``idx``) and ``h(x)``."""
-        chans = [self.outputs[c] for c in idx]
-        out = self.model.output
-        H = _central_differences(lambda z: out(z)[chans], x, len(idx), self.N)
-        return H, out(x)[chans]
+    def _condition_general(self, Y: Array) -> None:
+        """The measurement update for a general output map ``h`` (filter-specific)."""
+        raise NotImplementedError
+
+    def _present(self, y: Array) -> list[int]:
+        return [c for c in range(y.shape[0]) if y[c] == y[c]]
+
+    def _predict(self, U: Array, h: float, Qh: Array) -> None:
+        """The time update of every member over one substep ``h`` (filter-specific)."""
+        raise NotImplementedError
+
+    def _current(self) -> tuple[Array, Array, Array]:
+        x = self._x
+        return x[:, :self.n].copy(), x[:, :self.n].copy(), x[:, self.n:].copy()
 
     # ------------------------------------------------------------------ interface
     def check_period(self, dt: float) -> None:
         """Refuse a sample period the MuJoCo model cannot step (not a multiple of its
-        timestep times ``substeps``); the system-model filters take any period."""
+        timestep times ``substeps``); the system-model filters take any period (the filter
+        is a discrete recursion: no period makes it unstable)."""
         dt = finite_scalar("dt", dt, positive=True)
         if isinstance(self.model, MujocoModel):
             self.model._steps(dt / self.substeps)
 
     @property
-    def state_names(self) -> tuple[str, ...]:
-        return self.model.state_names
+    def theta_hat_(self) -> Any:
+        """Parameter estimates, ``(q,)`` or ``(B, q)`` (also the diagnostics ``theta_<name>``)."""
+        return self._public(self._x[:, self.n:].copy())
 
     @property
-    def z_hat(self) -> Array:
-        """The physical state estimate (the filter's own coordinates)."""
-        return self.x_hat
-
-    @property
-    def x_hat(self) -> Array:
-        return np.array(self._xvals()[:self.n], dtype=float)
-
-    @property
-    def theta_hat_(self) -> Array:
-        return np.array(self._xvals()[self.n:], dtype=float)
-
-    @property
-    def P_(self) -> Array:
-        """Covariance of the augmented estimate, shape (N, N)."""
-        return np.array(self._Parr(), dtype=float).reshape(self.N, self.N)
-
-    def diagnostics(self) -> dict[str, float]:
-        n = self.n
-        x = self._xvals()
-        out = {f"theta_{nm}": float(x[n + j]) for j, nm in enumerate(self.estimate)}
-        out["dropouts"] = float(self.dropouts_)
-        return out
+    def P_(self) -> Any:
+        """Covariance of the augmented estimate, ``(N, N)`` or ``(B, N, N)``."""
+        return self._public(self._P.copy())
 
     def params(self) -> dict[str, Any]:
         return {"model": self.model.kind, "estimate": list(self.estimate),
                 "Q": self.Qc.tolist(), "R": self.R.tolist(), "P0": self.P0.tolist(),
                 "outputs": list(self.outputs), "method": self.method, "substeps": self.substeps,
-                "jacobian": getattr(self.model, "jacobian_kind",
-                                    "analytic" if getattr(self.model, "analytic", False) else "fd"),
-                "fast_path": bool(getattr(self, "_fast", False))}
-
-    def _finite(self) -> None:
-        x = self._x
-        if not np.all(np.isfinite(x)):
-            raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: "
-                                  f"{list(x)}")
+                "jacobian": self.model.jacobian_kind, "vectorized": bool(self.model.vectorized),
+                "on_unstable": self.on_unstable}
 
 
+@register
 class ExtendedKalmanFilter(_KalmanFilter):
     """Continuous-discrete extended Kalman filter with parameter augmentation.
 
@@ -989,7 +1206,7 @@ class ExtendedKalmanFilter(_KalmanFilter):
         \\hat x^-_{k+1} &= \\mathrm{RK4}_h(\\hat x^+_k), \\quad
         P^-_{k+1} = \\Phi P^+_k \\Phi^T + Q h, \\quad \\Phi = T_4(h F(\\hat x^+_k))
 
-    (per substep ``h``; see the module docstring).
+    (per substep ``h``; see the module docstring; Jazwinski 1970, sec. 8.3).
 
     Parameters
     ----------
@@ -1009,8 +1226,8 @@ class ExtendedKalmanFilter(_KalmanFilter):
         Initial covariance of the state and of the parameters (positive definite).
     x_hat0, theta_hat0 : array_like, optional
         Initial estimates (physical state, default zero; parameters, required with
-        ``estimate``).
-    outputs : sequence of int, optional
+        ``estimate``), ``(n,)`` / ``(q,)`` for every member, or ``(B, n)`` / ``(B, q)``.
+    outputs : tuple of int, optional
         Measured channels used (default all of the system's outputs).
     method : {"rk4", "euler"}
         Mean propagation and the matching :math:`\\Phi`.
@@ -1018,15 +1235,24 @@ class ExtendedKalmanFilter(_KalmanFilter):
         Time-update steps per sample.
     jacobian : {"auto", "analytic", "fd"}
         How :math:`F` is obtained (see :class:`SystemModel`).
+    on_unstable : {"raise", "warn", "ignore"}
+        Kept for the contract: the filter is stable at every period.
 
     Attributes
     ----------
-    theta_hat_ : ndarray (q,)
+    theta_hat_ : ndarray (q,) or (B, q)
         Parameter estimates (also the diagnostics ``theta_<name>``).
-    P_ : ndarray (N, N)
+    P_ : ndarray (N, N) or (B, N, N)
         Covariance of the augmented estimate.
-    dropouts_ : int
+    dropouts_ : int or (B,) int array
         Samples with at least one NaN channel (only the present ones correct).
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> f = ExtendedKalmanFilter(Pendulum(), R=1e-4, x_hat0=[0.1, 0.0])
+    >>> f.update([0.1], [0.0], 0.01).shape
+    (2,)
 
     References
     ----------
@@ -1037,44 +1263,46 @@ class ExtendedKalmanFilter(_KalmanFilter):
     summary = "continuous-discrete extended Kalman filter, parameters by state augmentation"
     reference = "Jazwinski 1970 sec. 8.3; Simon 2006 sec. 13.2"
 
-    def _compile_fast(self) -> None:
-        self._phi_f = _gen_phi(self.N, self.method)
-        self._prop_f = _gen_propagate(self.N)
-
-    def _predict(self, x: Array, P: Array, u: Array, h: float, Qh: Array) -> tuple[Array, Array]:
-        x, Phi = self.model.transition(x, u, h, self.method)
-        return x, Phi @ P @ Phi.T + Qh
-
-    def _update_fast(self, y: Any, u: Array, dt: float) -> Array:
-        self._correct_fast(y)
-        x, P = self._xl, self._Pl
-        h = dt / self.substeps
-        Qh = self._Qh(h)
+    def _predict(self, U: Array, h: float, Qh: Array) -> None:
         mdl = self.model
-        dyn, prm, step, jac = mdl._dyn, mdl.params, self._step_f, mdl.jac
-        q = self.q
-        for _ in range(self.substeps):
-            xa = np.array(x)
-            p = prm(x) if q else mdl.base
-            P = self._prop_f(P, self._phi_f(jac(xa, u).reshape(-1).tolist(), h), Qh)
-            x = step(x, u, h, dyn, p)
-        self._xl, self._Pl = x, P
-        self._check_fast()
-        return np.array(x[:self.n])
+        if isinstance(mdl, MujocoModel):
+            self._x, Phi = mdl.transition(self._x, U, h)
+        else:
+            F = mdl.jac(self._x, U)
+            self._x = mdl.step(self._x, U, h, self.method)
+            _ekf_covariance(self._P, F, h, self.method == "rk4", Qh)
+            return
+        _propagate(self._P, Phi, Qh)
+
+    def _condition_general(self, Y: Array) -> None:
+        """Linearize ``h`` by central differences at each member's prediction, then update."""
+        out = self.model.output
+        for b in range(self.batch):
+            idx = self._present(Y[b])
+            if not idx:
+                continue
+            chans = [self.outputs[c] for c in idx]
+            x = self._x[b]
+            H = _central_differences(functools.partial(_rows_output, out, chans), x[None],
+                                     self.N)[0]
+            v = np.ascontiguousarray(Y[b, idx] - out(x)[chans])
+            _joint_update(x, self._P[b], v, np.ascontiguousarray(H),
+                          np.ascontiguousarray(self.R[np.ix_(idx, idx)]))
 
 
+@register
 class UnscentedKalmanFilter(_KalmanFilter):
     """Continuous-discrete unscented Kalman filter with parameter augmentation.
 
     Time update: the :math:`2N + 1` scaled sigma points of Wan and van der Merwe,
     :math:`\\chi_0 = \\hat x`, :math:`\\chi_{\\pm i} = \\hat x \\pm \\sqrt{N + \\kappa'}\\,
     L_i` (:math:`L L^T = P`, :math:`\\kappa' = \\alpha^2 (N + \\kappa) - N`), each propagated by
-    the model over the sample (RK4 or Euler substeps; MuJoCo steps for the MuJoCo variant),
+    the model over the substep (RK4 or Euler; MuJoCo steps for the MuJoCo variant),
 
     .. math::
 
         \\hat x^- = \\sum_i W^m_i \\chi_i^+, \\qquad
-        P^- = \\sum_i W^c_i (\\chi_i^+ - \\hat x^-)(\\chi_i^+ - \\hat x^-)^T + Q\\, dt,
+        P^- = \\sum_i W^c_i (\\chi_i^+ - \\hat x^-)(\\chi_i^+ - \\hat x^-)^T + Q\\, h,
 
     :math:`W^m_0 = \\kappa'/(N+\\kappa')`, :math:`W^c_0 = W^m_0 + 1 - \\alpha^2 + \\beta`,
     :math:`W_i = 1/(2(N+\\kappa'))`. Measurement update: for a selection output the exact
@@ -1117,86 +1345,66 @@ class UnscentedKalmanFilter(_KalmanFilter):
         self.Wm[0] = lam / (N + lam)
         self.Wc[0] = lam / (N + lam) + 1.0 - self.alpha ** 2 + self.beta
 
-    def _sigma(self, x: Array, P: Array) -> Array:
-        try:
-            L = np.linalg.cholesky(P)
-        except np.linalg.LinAlgError:
+    def _sigma(self) -> Array:
+        """The sigma points of every member, ``(B, 2N + 1, N)``; where ``P`` is not numerically
+        positive definite, from its eigen-decomposition (refused if indefinite)."""
+        B, N = self._x.shape
+        S = np.empty((B, 2 * N + 1, N))
+        ok = np.empty(B, dtype=np.bool_)
+        _sigma_points(self._x, self._P, self._c, S, ok)
+        for b in np.nonzero(~ok)[0]:
+            P = self._P[b]
             w, V = np.linalg.eigh(0.5 * (P + P.T))
             if w[0] < -1e-9 * max(1.0, w[-1]):
                 raise DivergenceError(f"UKF covariance is not positive semi-definite (eigenvalues "
-                                      f"{w.tolist()})") from None
-            L = V * np.sqrt(np.clip(w, 0.0, None))
-        cL = self._c * L
-        return np.vstack((x, x + cL.T, x - cL.T))
+                                      f"{w.tolist()}, member {int(b)})")
+            cL = self._c * (V * np.sqrt(np.clip(w, 0.0, None)))
+            x = self._x[b]
+            S[b] = np.vstack((x, x + cL.T, x - cL.T))
+        return S
 
-    def _correct_unscented(self, idx: list[int], vals: list[float]) -> None:
-        x, P = self._x, self._P
-        chans = [self.outputs[c] for c in idx]
-        X = self._sigma(x, P)
-        Y = np.array([self.model.output(s)[chans] for s in X])
-        yhat = self.Wm @ Y
-        dY = Y - yhat
-        dX = X - x
-        Pyy = (dY.T * self.Wc) @ dY + self.R[np.ix_(idx, idx)]
-        Pxy = (dX.T * self.Wc) @ dY
-        K = np.linalg.solve(Pyy, Pxy.T).T
-        self._x = x + K @ (np.array(vals) - yhat)
-        P = P - K @ Pyy @ K.T
-        self._P = 0.5 * (P + P.T)
-
-    def _correct(self, idx: list[int], vals: list[float]) -> None:
-        if self.sel is not None:  # a selection output: the exact linear update
-            self._correct_numpy(idx, vals)
-        else:
-            self._correct_unscented(idx, vals)
-
-    def _predict(self, x: Array, P: Array, u: Array, h: float, Qh: Array) -> tuple[Array, Array]:
+    def _predict(self, U: Array, h: float, Qh: Array) -> None:
         # sigma points redrawn and Q h added per substep
-        step = self.model.step
-        method = self.method
-        X = self._sigma(x, P)
-        out = np.empty_like(X)
-        for i in range(X.shape[0]):
-            out[i] = step(X[i], u, h, method)
-        x = self.Wm @ out
-        d = out - x
-        P = (d.T * self.Wc) @ d + Qh
-        return x, 0.5 * (P + P.T)
+        S = self._sigma()
+        B, M, N = S.shape
+        rows = self.model.step(S.reshape(B * M, N), np.repeat(U, M, axis=0), h, self.method,
+                               members=np.repeat(np.arange(B), M))
+        _moments(np.ascontiguousarray(rows.reshape(B, M, N)), self.Wm, self.Wc, Qh,
+                 self._x, self._P)
 
-    def _compile_fast(self) -> None:
-        self._sigma_f = _gen_sigma(self.N)
-        self._mom_f = _gen_moments(self.N, self.Wm, self.Wc)
-
-    def _update_fast(self, y: Any, u: Array, dt: float) -> Array:
-        self._correct_fast(y)
-        h = dt / self.substeps
-        mdl = self.model
-        dyn, prm, step = mdl._dyn, mdl.params, self._step_f
-        q = self.q
-        base = mdl.base
-        Qh = self._Qh(h)
-        x, P = self._xl, self._Pl
-        for _ in range(self.substeps):  # sigma points redrawn and Q h added per substep
-            X = self._sigma_f(x, P, self._c)
-            if X is None:  # not numerically positive definite: the eigen-decomposition fallback
-                X = self._sigma(np.array(x), np.array(P).reshape(self.N, self.N)).tolist()
-            out = []
-            for pt in X:
-                out.append(step(pt, u, h, dyn, prm(pt) if q else base))
-            x, P = self._mom_f(out, Qh)
-        self._xl, self._Pl = x, P
-        self._check_fast()
-        return np.array(self._xl[:self.n])
+    def _condition_general(self, Y: Array) -> None:
+        """The unscented measurement update, one member at a time."""
+        S = self._sigma()
+        out = self.model.output
+        for b in range(self.batch):
+            idx = self._present(Y[b])
+            if not idx:
+                continue
+            chans = [self.outputs[c] for c in idx]
+            x, P = self._x[b], self._P[b]
+            Xs = S[b]
+            Ys = np.array([out(s)[chans] for s in Xs])
+            yhat = self.Wm @ Ys
+            dY = Ys - yhat
+            dX = Xs - x
+            Pyy = (dY.T * self.Wc) @ dY + self.R[np.ix_(idx, idx)]
+            Pxy = (dX.T * self.Wc) @ dY
+            K = np.linalg.solve(Pyy, Pxy.T).T
+            self._x[b] = x + K @ (Y[b, idx] - yhat)
+            P = P - K @ Pyy @ K.T
+            self._P[b] = 0.5 * (P + P.T)
 
 
+@register
 class MujocoExtendedKalmanFilter(ExtendedKalmanFilter):
     """:class:`ExtendedKalmanFilter` whose model is the MJCF (see :class:`MujocoModel`).
 
-    The mean is predicted by stepping a private ``MjData`` of a copy of the ``MjModel``
+    The mean is predicted by stepping an ``MjData`` of a copy of the ``MjModel``
     (``model=``: the plant's, a modified copy, or default the system's shipped MJCF), the
     transition matrix comes from ``mujoco.mjd_transitionFD`` (``jacobian="transition_fd"``,
     default) or central differences of the step (``"fd"``); ``estimate`` names model fields or
-    aliases (``MujocoModel``). The update period must be a multiple of the model timestep.
+    the system's aliases (its ``"kalman_fields"`` form). The update period must be a multiple
+    of the model timestep. MuJoCo is called once per member (a loop over the batch).
     """
 
     name = "ekf_mujoco"
@@ -1205,9 +1413,10 @@ class MujocoExtendedKalmanFilter(ExtendedKalmanFilter):
     backend = "mujoco"
 
 
+@register
 class MujocoUnscentedKalmanFilter(UnscentedKalmanFilter):
     """:class:`UnscentedKalmanFilter` whose sigma points are stepped by MuJoCo (see
-    :class:`MujocoModel`)."""
+    :class:`MujocoModel`; one call per sigma point and member)."""
 
     name = "ukf_mujoco"
     summary = "UKF whose sigma points are stepped by the MuJoCo plant"
@@ -1219,11 +1428,11 @@ def _full_signature(cls: type) -> None:
     """Show the shared keyword arguments in ``cls.__init__``'s signature (``hgo-mj list``)."""
     import inspect
 
-    own = inspect.signature(cls.__init__)
+    own = inspect.signature(cls.__init__)  # type: ignore[misc]
     base = inspect.signature(_KalmanFilter.__init__)
     params = [p for p in own.parameters.values() if p.kind is not p.VAR_KEYWORD]
     params += [p for n, p in base.parameters.items() if n not in own.parameters]
-    cls.__init__.__signature__ = own.replace(parameters=params)  # type: ignore[attr-defined]
+    cls.__init__.__signature__ = own.replace(parameters=params)  # type: ignore[attr-defined,misc]
 
 
 _full_signature(UnscentedKalmanFilter)

@@ -62,6 +62,13 @@ class CartPendulum(_SecondOrderMujocoSystem):
     model_file = "cart_pendulum.xml"
     joints = ("hinge",)
     actuators = ("acceleration",)
+    forms = ("kalman_fields",)
+
+    def _form_kalman_fields(self) -> dict[str, str]:
+        """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
+        may estimate under this system's parameter names (g),
+        ``{name: "field[element]" or "opt.gravity"}``."""
+        return {"g": "opt.gravity"}
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:

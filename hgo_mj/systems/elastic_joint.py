@@ -143,7 +143,7 @@ class ElasticJoint(_MujocoSystem):
     joints = ("link", "motor")
     actuators = ("torque",)
     #: the Jo-Son form of the motor side (:meth:`_form_jo_son`, ``sensors="motor_side"``)
-    forms = ("affine", "jo_son")
+    forms = ("affine", "jo_son", "kalman_fields")
 
     def _form_jo_son(self, sensors: str = "link_angle", aux_outputs: Sequence[int] = (1, 2),
                      unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> Any:
@@ -166,6 +166,16 @@ class ElasticJoint(_MujocoSystem):
                 f"and the spring deflection and use form('jo_son', sensors='motor_side') "
                 f"(JoSonForm.elastic_joint_motor_side()); see docs/adaptive_canonical_forms.md")
         return jo_son_motor_side(aux_outputs, unknown)
+
+    def _form_kalman_fields(self) -> dict[str, str]:
+        """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
+        may estimate under this system's parameter names (the spring, gear, the two dampings
+        and g, which carries :math:`M g L`), ``{name: "field[element]" or "opt.gravity"}``."""
+        return {"stiffness": "tendon_stiffness[spring]",
+                "gear": "actuator_gear[torque]",
+                "link_damping": "dof_damping[link]",
+                "motor_damping": "dof_damping[motor]",
+                "g": "opt.gravity"}
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:

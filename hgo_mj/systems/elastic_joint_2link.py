@@ -194,7 +194,15 @@ class ElasticJoint2Link(_MujocoSystem):
     model_file = "elastic_joint_2link.xml"
     joints = ("link1", "link2", "motor1", "motor2")
     actuators = ("torque1", "torque2")
-    forms = ("affine",)
+    forms = ("affine", "kalman_fields")
+
+    def _form_kalman_fields(self) -> dict[str, str]:
+        """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
+        may estimate under this system's parameter names (the two springs and g),
+        ``{name: "field[element]" or "opt.gravity"}``."""
+        return {"stiffness1": "tendon_stiffness[spring1]",
+                "stiffness2": "tendon_stiffness[spring2]",
+                "g": "opt.gravity"}
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:

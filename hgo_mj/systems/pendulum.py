@@ -78,7 +78,15 @@ class Pendulum(_SecondOrderMujocoSystem):
     model_file = "pendulum.xml"
     joints = ("hinge",)
     actuators = ("torque",)
-    forms = ("affine",)
+    forms = ("affine", "kalman_fields")
+
+    def _form_kalman_fields(self) -> dict[str, str]:
+        """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
+        may estimate under this system's parameter names (the gear, damping and g, which
+        carries :math:`m g l_c`), ``{name: "field[element]" or "opt.gravity"}``."""
+        return {"gear": "actuator_gear[torque]",
+                "damping": "dof_damping[hinge]",
+                "g": "opt.gravity"}
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
