@@ -292,71 +292,6 @@ class ElasticJoint(_MujocoSystem):
     def phi_unchecked(self, z: Array, u: Array) -> float:
         return self._phi(z, u, self.params)
 
-
-# ----------------------------------------------------------------------------------------
-# Jo-Son form of the motor side (paper 003, eq. 10), rows component first: y (N,), u (3, N)
-# ----------------------------------------------------------------------------------------
-
-
-def _motor_gamma_o(y: Any, u: Any) -> tuple[float]:
-    """:math:`\\gamma_o = 0`."""
-    return (0.0,)
-
-
-def _motor_beta(y: Any, u: Any) -> tuple[Any, Any, Any]:
-    """:math:`\\beta = (u, -y, \\delta)` with ``u = (torque, link_angle, motor_angle)`` and
-    the deflection :math:`\\delta = q - \\theta_m`."""
-    return (u[0], -y, u[1] - u[2])
-
-
-def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
-                      unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> Any:
-    """The motor side of the elastic joint in the form eq. 10 of paper 003, measured by a motor
-    tachometer, with the spring deflection measured as a known signal.
-
-    With :math:`y = \\dot\\theta_m` (MJCF sensor ``motor_velocity``) and the deflection
-    :math:`\\delta = q - \\theta_m` from the link and motor encoders
-    (``link_angle - motor_angle``, channels ``aux_outputs``), the motor equation is
-
-    .. math::
-
-        \\dot y = \\frac{b}{J} u - \\frac{d_m}{J} y + \\frac{K}{J} \\delta,
-
-    i.e. eq. 10 with :math:`r = 1`, :math:`b = (1)`, :math:`\\gamma_o = 0`,
-    :math:`\\beta = (u, -y, \\delta)` and :math:`\\theta = (b/J, d_m/J, K/J)`: every
-    parameter reaches the output with relative degree one, :math:`b_r = 1 > 0`, and
-    :math:`W(s) = 1/(s + \\lambda)` is SPR. The link side is not part of the observer's
-    model (it enters only through the measured :math:`\\delta`), so :math:`n = r = 1`.
-    This form estimates all three parameters.
-
-    Parameters
-    ----------
-    aux_outputs : (int, int)
-        Channels of ``link_angle`` and ``motor_angle`` in the measurement vector (the plant
-        built with ``outputs=("motor_velocity", "link_angle", "motor_angle")`` has them at
-        1 and 2).
-    unknown : sequence of str
-        Must be ``("b_over_J", "dm_over_J", "K_over_J")``.
-
-    References
-    ----------
-    Paper 003, eq. 10, Corollary 3.3; docs/adaptive_canonical_forms.md (why the link-angle
-    sensor does not qualify).
-    """
-    from ..exceptions import DimensionError
-    from .jo_son_form import JoSonForm
-
-    aux = tuple(int(i) for i in aux_outputs)
-    if len(aux) != 2:
-        raise DimensionError(f"aux_outputs must name 2 channels (link_angle, motor_angle); "
-                             f"found {list(aux)}")
-    if tuple(unknown) != ("b_over_J", "dm_over_J", "K_over_J"):
-        raise DesignError(f"the motor-side form estimates ('b_over_J', 'dm_over_J', "
-                          f"'K_over_J'); found {list(unknown)}")
-    return JoSonForm([1.0], _motor_gamma_o, _motor_beta, theta_names=tuple(unknown),
-                     state_names=("motor_velocity",), aux_outputs=aux,
-                     label="elastic joint motor side: y = motor velocity, deflection measured")
-
     # ------------------------------------------------------------------ forms
     def _form_affine(self, unknown: Any = None) -> Any:
         """The elastic joint seen from the link angle, in the form eq. 9 of paper 001, affine
@@ -461,3 +396,68 @@ def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
                           physical_state_names=self.state_names, physical_params=physical,
                           true_physical={"stiffness": k_true, "MgL": mgl_true}
                           )._made_by(ElasticJoint._form_affine, self, unknown)
+
+
+# ----------------------------------------------------------------------------------------
+# Jo-Son form of the motor side (paper 003, eq. 10), rows component first: y (N,), u (3, N)
+# ----------------------------------------------------------------------------------------
+
+
+def _motor_gamma_o(y: Any, u: Any) -> tuple[float]:
+    """:math:`\\gamma_o = 0`."""
+    return (0.0,)
+
+
+def _motor_beta(y: Any, u: Any) -> tuple[Any, Any, Any]:
+    """:math:`\\beta = (u, -y, \\delta)` with ``u = (torque, link_angle, motor_angle)`` and
+    the deflection :math:`\\delta = q - \\theta_m`."""
+    return (u[0], -y, u[1] - u[2])
+
+
+def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
+                      unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> Any:
+    """The motor side of the elastic joint in the form eq. 10 of paper 003, measured by a motor
+    tachometer, with the spring deflection measured as a known signal.
+
+    With :math:`y = \\dot\\theta_m` (MJCF sensor ``motor_velocity``) and the deflection
+    :math:`\\delta = q - \\theta_m` from the link and motor encoders
+    (``link_angle - motor_angle``, channels ``aux_outputs``), the motor equation is
+
+    .. math::
+
+        \\dot y = \\frac{b}{J} u - \\frac{d_m}{J} y + \\frac{K}{J} \\delta,
+
+    i.e. eq. 10 with :math:`r = 1`, :math:`b = (1)`, :math:`\\gamma_o = 0`,
+    :math:`\\beta = (u, -y, \\delta)` and :math:`\\theta = (b/J, d_m/J, K/J)`: every
+    parameter reaches the output with relative degree one, :math:`b_r = 1 > 0`, and
+    :math:`W(s) = 1/(s + \\lambda)` is SPR. The link side is not part of the observer's
+    model (it enters only through the measured :math:`\\delta`), so :math:`n = r = 1`.
+    This form estimates all three parameters.
+
+    Parameters
+    ----------
+    aux_outputs : (int, int)
+        Channels of ``link_angle`` and ``motor_angle`` in the measurement vector (the plant
+        built with ``outputs=("motor_velocity", "link_angle", "motor_angle")`` has them at
+        1 and 2).
+    unknown : sequence of str
+        Must be ``("b_over_J", "dm_over_J", "K_over_J")``.
+
+    References
+    ----------
+    Paper 003, eq. 10, Corollary 3.3; docs/adaptive_canonical_forms.md (why the link-angle
+    sensor does not qualify).
+    """
+    from ..exceptions import DimensionError
+    from .jo_son_form import JoSonForm
+
+    aux = tuple(int(i) for i in aux_outputs)
+    if len(aux) != 2:
+        raise DimensionError(f"aux_outputs must name 2 channels (link_angle, motor_angle); "
+                             f"found {list(aux)}")
+    if tuple(unknown) != ("b_over_J", "dm_over_J", "K_over_J"):
+        raise DesignError(f"the motor-side form estimates ('b_over_J', 'dm_over_J', "
+                          f"'K_over_J'); found {list(unknown)}")
+    return JoSonForm([1.0], _motor_gamma_o, _motor_beta, theta_names=tuple(unknown),
+                     state_names=("motor_velocity",), aux_outputs=aux,
+                     label="elastic joint motor side: y = motor velocity, deflection measured")
