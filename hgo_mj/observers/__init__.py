@@ -1,13 +1,15 @@
-"""Observers, one module per family. ``OBSERVERS`` maps registry names to classes."""
+"""Observers, one module per family. ``OBSERVERS`` maps registry names to classes (filled by
+:func:`~hgo_mj.observers.base.register`)."""
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 from ..exceptions import DesignError
 from .adaptive_gain import AdaptiveGainObserver
 from .bank import ObserverBank
-from .base import Observer, register
+from .base import Observer, register, registered
 from .bastin_gevers import AOCF, BastinGeversObserver
 from .besancon import AffineForm, BesanconObserver
 from .high_gain import HighGainObserver, MultiOutputHighGainObserver
@@ -21,30 +23,35 @@ from .kalman import (
 from .q_integral import QIntegralObserver
 from .riccati import RiccatiObserver
 
-OBSERVERS: dict[str, type[Observer]] = {
-    HighGainObserver.name: HighGainObserver,
-    "adaptive_gain": AdaptiveGainObserver,
-    "high_gain_multi": MultiOutputHighGainObserver,
-    "riccati": RiccatiObserver,
-    "q_integral": QIntegralObserver,
-    "bastin_gevers": BastinGeversObserver,
-    "jo_son": JoSonObserver,
-    "besancon": BesanconObserver,
-    "ekf": ExtendedKalmanFilter,
-    "ukf": UnscentedKalmanFilter,
-    "ekf_mujoco": MujocoExtendedKalmanFilter,
-    "ukf_mujoco": MujocoUnscentedKalmanFilter,
-}
+#: registry name -> observer class: every family module registers its class with
+#: :func:`register` when it is imported; observers of other packages register through the
+#: entry-point group ``hgo_mj.observers`` (loaded by :func:`registered`, which
+#: :func:`make_observer` calls)
+OBSERVERS = registered()
 
 
 def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
-    """Build a registered observer by name; unknown names list the valid ones."""
-    if kind not in OBSERVERS:
-        raise DesignError(f"unknown observer {kind!r}; valid: {sorted(OBSERVERS)}")
-    try:
-        return OBSERVERS[kind](system, **params)
-    except TypeError as exc:  # unknown keyword
-        raise DesignError(f"observer {kind!r}: {exc}") from None
+    """Build a registered observer by name (a family of this package, or one registered by
+    another package through the entry-point group ``hgo_mj.observers``).
+
+    Raises
+    ------
+    DesignError
+        An unknown name (the valid ones are listed), or a keyword the observer's constructor
+        does not take (its valid keywords are listed).
+    """
+    known = registered()
+    if kind not in known:
+        raise DesignError(f"unknown observer {kind!r}; valid: {sorted(known)}")
+    cls = known[kind]
+    sig = inspect.signature(cls.__init__)
+    if not any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+        valid = [p for p in sig.parameters if p not in ("self", "system")]
+        bad = [k for k in params if k not in valid]
+        if bad:
+            raise DesignError(f"observer {kind!r}: unknown parameter(s) {bad}; valid: "
+                              f"{sorted(valid)}")
+    return cls(system, **params)
 
 
 __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
@@ -52,4 +59,4 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "OBSERVERS", "AdaptiveGainObserver", "BastinGeversObserver", "JoSonForm",
            "JoSonObserver", "HighGainObserver",
            "MultiOutputHighGainObserver", "Observer", "ObserverBank", "QIntegralObserver", "RiccatiObserver",
-           "make_observer", "register"]
+           "make_observer", "register", "registered"]
