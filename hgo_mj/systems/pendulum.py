@@ -9,7 +9,13 @@ from typing import Any
 import numpy as np
 
 from ._mujoco import _MjReader, _SecondOrderMujocoSystem
+from .aocf import AOCF, joint_aocf
 from .base import Array
+
+
+def _aocf_features(Y: Array, U: Array) -> Array:
+    """The pendulum's :math:`\\psi(y, u) = (-\\sin y, u)` on rows (its AOCF)."""
+    return np.column_stack((-np.sin(Y), U[:, 0]))
 
 
 class Pendulum(_SecondOrderMujocoSystem):
@@ -52,6 +58,20 @@ class Pendulum(_SecondOrderMujocoSystem):
     model_file = "pendulum.xml"
     joints = ("hinge",)
     actuators = ("torque",)
+    forms = ("aocf",)
+
+    def _form_aocf(self, c2: float = 2.0, unknown: Any = None,
+                   damping_known: str = "ratio") -> AOCF:
+        """The AOCF (paper 002, eq. 2.2) of :math:`\\ddot y = -\\delta \\dot y - a \\sin y
+        + \\beta u` with :math:`a = m g l_c / J` (``g_over_l``), :math:`\\beta = b/J`
+        (``b_over_J``), :math:`\\delta = d/J` (``d_over_J``): :func:`~hgo_mj.systems.aocf.joint_aocf`
+        (``unknown``, ``damping_known``, derived in ``docs/adaptive_canonical_forms.md``)."""
+        p = self.params
+        J = p["inertia"]
+        return joint_aocf(self, _aocf_features, ("-sin y", "u"),
+                          "pendulum: y'' = -d/J y' - a sin y + b u",
+                          (p["mass"] * p["g"] * p["com_distance"] / J, p["gear"] / J),
+                          c2=c2, unknown=unknown, damping_known=damping_known)
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
