@@ -682,8 +682,12 @@ class BastinGeversObserver(Observer):
     def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
         f = self.form
         B, n, m = self.batch, f.n, f.m
-        th = (np.zeros((B, m)) if self._theta0 is None
-              else batch_rows("theta_hat0", self._theta0, m, B))
+        if self._theta0 is None:
+            th = np.zeros((B, m))
+        elif np.ndim(self._theta0) == 1:  # one estimate for every member
+            th = np.tile(batch_rows("theta_hat0", self._theta0, m, None), (B, 1))
+        else:
+            th = batch_rows("theta_hat0", self._theta0, m, B)
         if x0 is not None:
             if not f.has_forward:
                 raise DesignError(f"x_hat0 in physical coordinates needs the form's from_physical "
