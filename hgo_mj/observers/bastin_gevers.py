@@ -711,9 +711,9 @@ class BastinGeversObserver(Observer):
                                           f"{list(state)}")
                 except (DesignError, ZeroDivisionError, FloatingPointError) as exc:
                     raise DesignError(f"the initial estimate (x = {z[b].tolist()}, theta = "
-                                      f"{th[b].tolist()}) lies where the inverse map of "
-                                      f"{f.label} is undefined: {exc}; give theta_hat0 / z_hat0 "
-                                      f"inside its domain") from None
+                                      f"{th[b].tolist()}) lies where the inverse map is "
+                                      f"undefined: {exc}; give theta_hat0 / z_hat0 inside its "
+                                      f"domain") from None
                 self._xp[b] = state
                 if params:
                     self._params[b] = [params[nm] for nm in f.physical_param_names]
@@ -861,8 +861,11 @@ class BastinGeversObserver(Observer):
         ``s = (x_hat, theta_hat, vec V)`` with ``omega`` and ``g`` given (public for
         continuous-time checks). ``correct=False`` drops the output injection (a dropout)."""
         f = self.form
-        return rhs_one(np.ascontiguousarray(s, dtype=float), float(y), 1.0 if correct else 0.0,
-                       vector("omega", omega, f.s), vector("g", g, f.n), self._alpha, self._R,
+        sa, w, ga = (np.ascontiguousarray(v, dtype=float) for v in (s, omega, g))
+        for name, v, k in (("s", sa, self._S.shape[1]), ("omega", w, f.s), ("g", ga, f.n)):
+            if v.shape != (k,):
+                raise DimensionError(f"{name} must have shape ({k},); found shape {v.shape}")
+        return rhs_one(sa, float(y), 1.0 if correct else 0.0, w, ga, self._alpha, self._R,
                        self.gamma, self.c1)
 
     def omega_g(self, y: float, u: Any) -> tuple[Array, Array]:

@@ -273,9 +273,8 @@ class AOCF(Rebuildable):
         state = np.asarray(S, dtype=float)[0]
         if not np.all(np.isfinite(state)):
             where = f" (it needs {self.inverse_domain})" if self.inverse_domain else ""
-            raise DesignError(f"the inverse map of {self.label} is undefined at x = "
-                              f"{np.asarray(x, dtype=float).tolist()}, theta = "
-                              f"{np.asarray(theta, dtype=float).tolist()}{where}")
+            raise DesignError(f"to_physical of {self.label} gives a non-finite state "
+                              f"{state.tolist()}{where}")
         return state, {nm: float(v) for nm, v in zip(self.physical_param_names, P[0])}
 
     def from_physical(self, state: Any, theta: Any, u: Any) -> Array:

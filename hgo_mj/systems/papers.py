@@ -541,9 +541,10 @@ class BioreactorBastinGevers(System):
                 z2 = (X[:, 1] - (1.0 - c2v) * y) / th3
                 p1 = (d * (1.0 - c2v) + th2) / (th3 * z2)
                 p2 = p1 * z2 / d
+                p0 = p1 * y
             ok = ((th3 != 0.0) & (z2 != 0.0) & (d != 0.0))[:, None]
             return (np.where(ok, np.column_stack((y, z2)), np.nan),
-                    np.where(ok, np.column_stack((p1, p2, -th3, p1 * y)), np.nan))
+                    np.where(ok, np.column_stack((p1, p2, -th3, p0)), np.nan))
 
         def from_physical(Z: Array, TH: Array, U: Array) -> Array:
             # eq. 6.4b with p3 = -theta3
