@@ -87,8 +87,8 @@ from ..systems.base import System
 from .base import Array, Observer, batch_rows, register
 
 __all__ = ["AOCF", "BastinGeversObserver", "Rebuildable", "SlidingGram", "advance_3_1",
-           "check_rk_period", "excitation_4_5", "reachability_rank_4_11", "rhs_3_1",
-           "rk_stable_period", "sym_eigvals"]
+           "check_rk_period", "diagnostics_4_5_4_11", "excitation_4_5", "reachability_rank_4_11",
+           "rhs_3_1", "rk_stable_period", "sym_eigvals"]
 
 # re-exported for the other adaptive families (Jo-Son, Besancon): the form base and checks
 _REEXPORTED = (Rebuildable, _callable, _names)
@@ -333,20 +333,22 @@ def _step(s: Array, y: float, c: float, Om: Array, g: Array, R: Array, gamma: Ar
 
 
 @njit(cache=True)
-def advance_3_1(S: Array, j0: int, j1: int, Yw: Array, C: Array, W: Array, G: Array,
+def advance_3_1(S: Array, j0: int, j1: int, Y: Array, W: Array, G: Array,
                 alpha: Array, R: Array, gamma: Array, c1: float, h: float, substeps: int,
                 euler: bool, Sout: Array, PHI: Array) -> int:
-    """Samples ``j0 <= j < j1`` of every member ``b``: with :math:`\\omega` ``W[b, j]`` and
-    ``g`` ``G[b, j]`` held, record the regressor :math:`\\varphi` (3.1e) at the sample in
-    ``PHI[b, j]``, integrate eq. 3.1 over the period (``substeps`` steps of ``h``) and write
-    the state after it into ``S[b]`` and ``Sout[b, j]``. ``C[b, j]`` is 0.0 for a dropout.
+    """Samples ``j0 <= j < j1`` of every member ``b``: with the measurement ``Y[b, j]``,
+    :math:`\\omega` ``W[b, j]`` and ``g`` ``G[b, j]`` held, record the regressor
+    :math:`\\varphi` (3.1e) at the sample in ``PHI[b, j]``, integrate eq. 3.1 over the period
+    (``substeps`` steps of ``h``) and write the state after it into ``S[b]`` and
+    ``Sout[b, j]``. A NaN measurement is a dropout: no output injection (``c = 0``, the
+    output taken at the prediction :math:`\\hat x_1`).
 
     Returns ``-1``, or ``b * T + j`` of the first member and sample whose state left the
     finite numbers (that member's ``S[b]`` keeps its last finite state; ``Sout[b, j]`` holds
     the non-finite one).
     """
     B, ns = S.shape
-    T = Yw.shape[1]
+    T = Y.shape[1]
     n, m, _ = alpha.shape
     Om = np.empty((n, m))
     phi, sv = np.empty(m), np.empty(ns)
@@ -360,7 +362,10 @@ def advance_3_1(S: Array, j0: int, j1: int, Yw: Array, C: Array, W: Array, G: Ar
             regressor_3_1e(sv, Om, R, phi)
             for i in range(m):
                 PHI[b, j, i] = phi[i]
-            _step(sv, Yw[b, j], C[b, j], Om, G[b, j], R, gamma, c1, h, substeps, euler, phi,
+            y, c = Y[b, j], 1.0
+            if np.isnan(y):  # a dropout: predict without correction
+                y, c = sv[0], 0.0
+            _step(sv, y, c, Om, G[b, j], R, gamma, c1, h, substeps, euler, phi,
                   k1, k2, k3, k4, tmp)
             finite = True
             for i in range(ns):
@@ -431,86 +436,97 @@ def sym_eigvals(A: Array, a: Array, out: Array) -> None:
 
 
 @njit(cache=True)
-def excitation_4_5(PHI: Array, dt: float, ring: Array, pos: Array, full: Array, gram: Array,
-                   out: Array) -> None:
-    """Condition 4.5: after each sample ``j``, the smallest eigenvalue of
-    :math:`\\sum \\varphi \\varphi^T dt` over the last ``L`` samples (``ring`` ``(B, L, m)``
-    of the last regressors, ``pos``/``full`` its write position and whether it wrapped,
-    ``gram`` ``(B, m, m)`` the running sum, rebuilt from the ring at each wrap so that
-    rounding cannot accumulate) into ``out[b, j]`` (NaN where the matrix is not finite)."""
+def excitation_4_5(phi: Array, dt: float, ring: Array, i: int, full: bool, gram: Array,
+                   a: Array, ev: Array, G: Array) -> float:
+    """Condition 4.5 after one sample: put the regressor ``phi`` into the ring ``(L, m)`` of
+    the last ``L`` at position ``i`` (``full``: it has wrapped), update the running
+    :math:`\\sum \\varphi \\varphi^T` ``gram`` ``(m, m)`` (rebuilt from the ring at each wrap so
+    that rounding cannot accumulate) and return the smallest eigenvalue of ``gram * dt``
+    (NaN where it is not finite). ``a``, ``ev``, ``G`` are work space."""
+    m = phi.shape[0]
+    L = ring.shape[0]
+    if full:
+        for p in range(m):
+            for q in range(m):
+                gram[p, q] -= ring[i, p] * ring[i, q]
+    for p in range(m):
+        ring[i, p] = phi[p]
+    for p in range(m):
+        for q in range(m):
+            gram[p, q] += ring[i, p] * ring[i, q]
+    if i == L - 1:
+        for p in range(m):
+            for q in range(m):
+                acc = 0.0
+                for r in range(L):
+                    acc += ring[r, p] * ring[r, q]
+                gram[p, q] = acc
+    for p in range(m):
+        for q in range(m):
+            G[p, q] = gram[p, q] * dt
+            if not np.isfinite(G[p, q]):
+                return np.nan
+    sym_eigvals(G, a, ev)
+    return ev.min()
+
+
+@njit(cache=True)
+def reachability_rank_4_11(w: Array, P: Array, Wsum: Array, a: Array, ev: Array,
+                           G: Array) -> int:
+    """Theorem 4.2 along a run, after one sample with signals ``w`` ``(s,)``: the column rank
+    of the stacked :math:`S(\\omega_k)` of eq. 4.11 over every sample so far, as the number of
+    eigenvalues of :math:`\\sum_k S(\\omega_k)^T S(\\omega_k) = \\sum_{l,l'} (\\sum_k
+    \\omega_{k,l} \\omega_{k,l'}) S_l^T S_{l'}` above ``1e-12`` of the largest. ``P[l, l']``
+    ``(s, s, m, m)`` holds :math:`S_l^T S_{l'}`, ``Wsum`` ``(s, s)`` the running
+    :math:`\\sum_k \\omega_k \\omega_k^T` (updated here). ``a``, ``ev``, ``G`` are work space."""
+    s = w.shape[0]
+    m = P.shape[2]
+    for l in range(s):
+        for k in range(s):
+            Wsum[l, k] += w[l] * w[k]
+    for p in range(m):
+        for q in range(m):
+            acc = 0.0
+            for l in range(s):
+                for k in range(s):
+                    acc += Wsum[l, k] * P[l, k, p, q]
+            G[p, q] = acc
+    for p in range(m):
+        for q in range(p + 1, m):
+            G[p, q] = G[q, p] = 0.5 * (G[p, q] + G[q, p])
+    sym_eigvals(G, a, ev)
+    top = ev.max()
+    rank = 0
+    if top > 0.0:
+        for p in range(m):
+            if ev[p] > 1e-12 * top:
+                rank += 1
+    return rank
+
+
+@njit(cache=True)
+def diagnostics_4_5_4_11(PHI: Array, W: Array, dt: float, ring: Array, pos: Array,
+                         full: Array, gram: Array, P: Array, Wsum: Array, out: Array) -> None:
+    """After each sample ``j`` of every member ``b``: ``out[b, j, 0]`` the excitation of
+    condition 4.5 (:func:`excitation_4_5`; skipped for a ring ``(B, 0, m)``: the diagnostic
+    off) and ``out[b, j, 1]`` the rank of Theorem 4.2 (:func:`reachability_rank_4_11`), from
+    the regressors ``PHI`` ``(B, T, m)`` and the signals ``W`` ``(B, T, s)``. ``ring``,
+    ``pos``, ``full``, ``gram`` and ``Wsum`` are the members' running state."""
     B, T, m = PHI.shape
     L = ring.shape[1]
     a, ev, G = np.empty((m, m)), np.empty(m), np.empty((m, m))
     for b in range(B):
         for j in range(T):
-            i = pos[b]
-            if full[b]:
-                for p in range(m):
-                    for q in range(m):
-                        gram[b, p, q] -= ring[b, i, p] * ring[b, i, q]
-            for p in range(m):
-                ring[b, i, p] = PHI[b, j, p]
-            for p in range(m):
-                for q in range(m):
-                    gram[b, p, q] += ring[b, i, p] * ring[b, i, q]
-            i += 1
-            if i == L:
-                i = 0
-                full[b] = True
-                for p in range(m):
-                    for q in range(m):
-                        acc = 0.0
-                        for r in range(L):
-                            acc += ring[b, r, p] * ring[b, r, q]
-                        gram[b, p, q] = acc
-            pos[b] = i
-            finite = True
-            for p in range(m):
-                for q in range(m):
-                    G[p, q] = gram[b, p, q] * dt
-                    if not np.isfinite(G[p, q]):
-                        finite = False
-            if not finite:
-                out[b, j] = np.nan
-                continue
-            sym_eigvals(G, a, ev)
-            out[b, j] = ev.min()
-
-
-@njit(cache=True)
-def reachability_rank_4_11(W: Array, P: Array, Wsum: Array, out: Array) -> None:
-    """Theorem 4.2 along a run: after each sample ``j`` the column rank of the stacked
-    :math:`S(\\omega_k)` of eq. 4.11 over every sample so far, as the number of eigenvalues
-    of :math:`\\sum_k S(\\omega_k)^T S(\\omega_k) = \\sum_{l,l'} (\\sum_k \\omega_{k,l}
-    \\omega_{k,l'}) S_l^T S_{l'}` above ``1e-12`` of the largest, into ``out[b, j]``.
-    ``P[l, l']`` ``(s, s, m, m)`` holds :math:`S_l^T S_{l'}`, ``Wsum`` ``(B, s, s)`` the
-    running :math:`\\sum_k \\omega_k \\omega_k^T`."""
-    B, T, s = W.shape
-    m = P.shape[2]
-    a, ev, G = np.empty((m, m)), np.empty(m), np.empty((m, m))
-    for b in range(B):
-        for j in range(T):
-            for l in range(s):
-                for k in range(s):
-                    Wsum[b, l, k] += W[b, j, l] * W[b, j, k]
-            for p in range(m):
-                for q in range(m):
-                    acc = 0.0
-                    for l in range(s):
-                        for k in range(s):
-                            acc += Wsum[b, l, k] * P[l, k, p, q]
-                    G[p, q] = acc
-            for p in range(m):
-                for q in range(p + 1, m):
-                    G[p, q] = G[q, p] = 0.5 * (G[p, q] + G[q, p])
-            sym_eigvals(G, a, ev)
-            top = ev.max()
-            rank = 0
-            if top > 0.0:
-                for p in range(m):
-                    if ev[p] > 1e-12 * top:
-                        rank += 1
-            out[b, j] = rank
+            if L > 0:
+                i = pos[b]
+                out[b, j, 0] = excitation_4_5(PHI[b, j], dt, ring[b], i, full[b], gram[b],
+                                              a, ev, G)
+                i += 1
+                if i == L:
+                    i = 0
+                    full[b] = True
+                pos[b] = i
+            out[b, j, 1] = reachability_rank_4_11(W[b, j], P, Wsum[b], a, ev, G)
 
 
 # ======================================================================================
@@ -753,58 +769,55 @@ class BastinGeversObserver(Observer):
         B, T = Y.shape[0], Y.shape[1]
         y = Y[:, :, 0]
         lost = np.isnan(y)
-        C = np.ascontiguousarray((~lost).astype(float))  # 0.0: a dropout, no injection
-        Yw = np.where(lost, 0.0, y)  # at a dropout: the member's prediction, filled below
-        W = np.empty((B, T, f.s))
-        G = np.empty((B, T, n))
         if lost.any():
             ok = ~lost
+            W = np.empty((B, T, f.s))
+            G = np.empty((B, T, n))
             if ok.any():
                 W[ok], G[ok] = self._signals(y[ok], U[ok])
         else:
             Wf, Gf = self._signals(y.reshape(-1), U.reshape(B * T, -1))
-            W[...] = Wf.reshape(B, T, f.s)
-            G[...] = Gf.reshape(B, T, n)
+            W = np.ascontiguousarray(Wf).reshape(B, T, f.s)
+            G = np.ascontiguousarray(Gf).reshape(B, T, n)
         Sout = np.empty((B, T, self._S.shape[1]))
         PHI = np.empty((B, T, m))
-        args = (Yw, C, W, G, self._alpha, self._R, self.gamma, self.c1, dt / self.substeps,
+        y = np.ascontiguousarray(y)
+        args = (y, W, G, self._alpha, self._R, self.gamma, self.c1, dt / self.substeps,
                 self.substeps, self.method == "euler", Sout, PHI)
         # runs of samples without a dropout go to the kernel whole; at a sample with one,
         # omega and g of the members that lost it are taken at their prediction x_hat_1
         j = 0
-        for jl in [*np.flatnonzero(lost.any(axis=0)).tolist(), T]:
+        for jl in [*np.flatnonzero(lost.any(axis=0)).tolist(), T] if lost.any() else [T]:
             if jl > j:
                 self._integrate(j, jl, args)
             if jl == T:
                 break
             bs = np.flatnonzero(lost[:, jl])
-            Yw[bs, jl] = self._S[bs, 0]
-            W[bs, jl], G[bs, jl] = self._signals(Yw[bs, jl], U[bs, jl])
+            W[bs, jl], G[bs, jl] = self._signals(self._S[bs, 0], U[bs, jl])
             self._integrate(jl, jl + 1, args)
             j = jl + 1
         Z[...] = Sout[:, :, :n]
         D[:, :, :m] = Sout[:, :, n:n + m]
-        self._physical(Sout, U, X, D[:, :, m:m + len(f.physical_param_names)])
         col = m + len(f.physical_param_names)
+        self._physical(Sout, U, X, D[:, :, m:col])
+        if self.excitation_window is not None and dt != self._ring_dt:
+            # a new period: a new window of round(T / dt) samples
+            L = max(1, int(round(self.excitation_window / dt)))
+            self._ring = np.zeros((B, L, m))
+            self._ring_dt = dt
+            self._ring_pos[:] = 0
+            self._ring_full[:] = False
+            self._gram[...] = 0.0
+        out = np.empty((B, T, 2))
+        diagnostics_4_5_4_11(PHI, W, dt, self._ring, self._ring_pos, self._ring_full,
+                             self._gram, self._P, self._Wsum, out)
         if self.excitation_window is not None:
-            if dt != self._ring_dt:  # a new period: a new window of round(T / dt) samples
-                L = max(1, int(round(self.excitation_window / dt)))
-                self._ring = np.zeros((B, L, m))
-                self._ring_dt = dt
-                self._ring_pos[:] = 0
-                self._ring_full[:] = False
-                self._gram[...] = 0.0
-            exc = np.empty((B, T))
-            excitation_4_5(PHI, dt, self._ring, self._ring_pos, self._ring_full, self._gram,
-                           exc)
-            D[:, :, col] = exc
-            self._excitation = exc[:, -1].copy()
+            D[:, :, col] = out[:, :, 0]
             col += 1
-        rank = np.empty((B, T))
-        reachability_rank_4_11(W, self._P, self._Wsum, rank)
-        D[:, :, col] = rank
-        self._rank = rank[:, -1].copy()
-        self._phi = PHI[:, -1].copy()
+            self._excitation = out[:, -1, 0]
+        D[:, :, col] = out[:, :, 1]
+        self._rank = out[:, -1, 1]
+        self._phi = PHI[:, -1]
 
     def _integrate(self, j0: int, j1: int, args: tuple[Any, ...]) -> None:
         """:func:`advance_3_1` over the samples ``j0 <= j < j1``; a divergence is raised."""
