@@ -529,6 +529,33 @@ def diagnostics_4_5_4_11(PHI: Array, W: Array, dt: float, ring: Array, pos: Arra
             out[b, j, 1] = reachability_rank_4_11(W[b, j], P, Wsum[b], a, ev, G)
 
 
+@njit(cache=True)
+def hold_valid(states: Array, params: Array, x_held: Array, p_held: Array, failures: Array,
+               X: Array, Dp: Array) -> None:
+    """The physical estimate after each sample: ``states[b, j]`` ``(B, T, n_x)`` (and its
+    ``params``) where it is finite, else the member's last valid value (``x_held[b]``,
+    ``p_held[b]`` before the block, updated here), counted in ``failures[b]``."""
+    B, T, nx = states.shape
+    npar = params.shape[2]
+    for b in range(B):
+        for j in range(T):
+            valid = True
+            for i in range(nx):
+                if not np.isfinite(states[b, j, i]):
+                    valid = False
+            if valid:
+                for i in range(nx):
+                    x_held[b, i] = states[b, j, i]
+                for i in range(npar):
+                    p_held[b, i] = params[b, j, i]
+            else:
+                failures[b] += 1
+            for i in range(nx):
+                X[b, j, i] = x_held[b, i]
+            for i in range(npar):
+                Dp[b, j, i] = p_held[b, i]
+
+
 # ======================================================================================
 # the observer
 # ======================================================================================
@@ -751,13 +778,13 @@ class BastinGeversObserver(Observer):
         f = self.form
         try:
             W = f.omega_rows(Y, U)
+            G = f.g_rows(Y, U)
         except (IndexError, TypeError, ValueError) as exc:
-            raise DimensionError(f"omega(y, u) of {f.label} failed on y = {float(Y[0])!r}, u of "
-                                 f"shape {U.shape[1:]}: {exc}") from None
+            raise DimensionError(f"omega(y, u) or g(y, u) of {f.label} failed on y = "
+                                 f"{float(Y[0])!r}, u of shape {U.shape[1:]}: {exc}") from None
         if W.shape != (len(Y), f.s):
             raise DimensionError(f"omega(y, u) of {f.label} must return {f.s} values; found "
                                  f"shape {W.shape[1:]}")
-        G = f.g_rows(Y, U)
         if G.shape != (len(Y), f.n):
             raise DimensionError(f"g(y, u) of {f.label} must return n = {f.n} values; found "
                                  f"shape {G.shape[1:]}")
@@ -769,11 +796,12 @@ class BastinGeversObserver(Observer):
         B, T = Y.shape[0], Y.shape[1]
         y = Y[:, :, 0]
         lost = np.isnan(y)
-        if lost.any():
+        n_lost = np.count_nonzero(lost)
+        if n_lost:
             ok = ~lost
             W = np.empty((B, T, f.s))
             G = np.empty((B, T, n))
-            if ok.any():
+            if n_lost < B * T:
                 W[ok], G[ok] = self._signals(y[ok], U[ok])
         else:
             Wf, Gf = self._signals(y.reshape(-1), U.reshape(B * T, -1))
@@ -787,7 +815,7 @@ class BastinGeversObserver(Observer):
         # runs of samples without a dropout go to the kernel whole; at a sample with one,
         # omega and g of the members that lost it are taken at their prediction x_hat_1
         j = 0
-        for jl in [*np.flatnonzero(lost.any(axis=0)).tolist(), T] if lost.any() else [T]:
+        for jl in [*np.flatnonzero(lost.any(axis=0)).tolist(), T] if n_lost else [T]:
             if jl > j:
                 self._integrate(j, jl, args)
             if jl == T:
@@ -832,7 +860,7 @@ class BastinGeversObserver(Observer):
     def _physical(self, Sout: Array, U: Array, X: Array, Dp: Array) -> None:
         """The physical estimate (the inverse map 2.4-2.5) after each sample into ``X`` and
         ``Dp``; where the inverse is undefined the member's last value is held and counted in
-        ``inverse_failures_``."""
+        ``inverse_failures_`` (:func:`hold_valid`)."""
         f = self.form
         n, m = f.n, f.m
         B, T = Sout.shape[0], Sout.shape[1]
@@ -843,21 +871,11 @@ class BastinGeversObserver(Observer):
         states, params = f.to_physical_rows(Sout[:, :, :n].reshape(B * T, n),
                                             Sout[:, :, n:n + m].reshape(B * T, m),
                                             U.reshape(B * T, -1))
-        states = states.reshape(B, T, -1)
-        params = params.reshape(B, T, -1)
-        ok = np.all(np.isfinite(states), axis=2)
-        if ok.all():
-            X[...] = states
-            Dp[...] = params
-        else:  # hold the last valid value: index of the latest valid sample, -1 for none
-            last = np.maximum.accumulate(np.where(ok, np.arange(T), -1), axis=1)
-            take = np.maximum(last, 0)[:, :, None]
-            held = (last < 0)[:, :, None]
-            X[...] = np.where(held, self._xp[:, None], np.take_along_axis(states, take, 1))
-            Dp[...] = np.where(held, self._params[:, None], np.take_along_axis(params, take, 1))
-            self._inverse_failures += (~ok).sum(axis=1)
-        self._xp = X[:, -1].copy()
-        self._params = Dp[:, -1].copy()
+        P = np.empty((B, T, Dp.shape[2]))
+        hold_valid(np.ascontiguousarray(states).reshape(B, T, -1),
+                   np.ascontiguousarray(params).reshape(B, T, -1), self._xp, self._params,
+                   self._inverse_failures, X, P)
+        Dp[...] = P
 
     def _current(self) -> tuple[Array, Array, Array]:
         f = self.form

@@ -517,7 +517,10 @@ class AOCF(Rebuildable):
             return W
 
         def g_fun(Y: Array, U: Array) -> Array:
-            return np.column_stack((gy0 * Y, gy1 * Y))
+            G = np.empty((len(Y), 2))
+            G[:, 0] = gy0 * Y
+            G[:, 1] = gy1 * Y
+            return G
 
         def dlt(TH: Array) -> Any:  # delta on rows
             if damping_from is not None:
@@ -525,13 +528,16 @@ class AOCF(Rebuildable):
             return TH[:, 0] if ed else delta
 
         def to_physical(X: Array, TH: Array, U: Array) -> tuple[Array, Array]:
-            # y_dot = x2 - (delta - c2) y
-            return (np.column_stack((X[:, 0], X[:, 1] - (dlt(TH) - c2) * X[:, 0])),
-                    np.zeros((len(X), 0)))
+            S = np.empty((len(X), 2))
+            S[:, 0] = X[:, 0]
+            S[:, 1] = X[:, 1] - (dlt(TH) - c2) * X[:, 0]  # y_dot = x2 - (delta - c2) y
+            return S, np.empty((len(X), 0))
 
         def from_physical(S: Array, TH: Array, U: Array) -> Array:
-            # x2 = y_dot + (delta - c2) y
-            return np.column_stack((S[:, 0], S[:, 1] + (dlt(TH) - c2) * S[:, 0]))
+            X = np.empty((len(S), 2))
+            X[:, 0] = S[:, 0]
+            X[:, 1] = S[:, 1] + (dlt(TH) - c2) * S[:, 0]  # x2 = y_dot + (delta - c2) y
+            return X
 
         R = np.array([[0.0, 1.0], [0.0, -c2]])
         names = ((damping_name,) if ed else ()) + tn

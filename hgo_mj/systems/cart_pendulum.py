@@ -16,7 +16,10 @@ from .base import Array
 
 def _aocf_features(Y: Array, U: Array) -> Array:
     """The cart pendulum's :math:`\\psi(y, u) = (\\sin y, u \\cos y)` on rows (its AOCF)."""
-    return np.column_stack((np.sin(Y), U[:, 0] * np.cos(Y)))
+    F = np.empty((len(Y), 2))
+    F[:, 0] = np.sin(Y)
+    F[:, 1] = U[:, 0] * np.cos(Y)
+    return F
 
 
 class CartPendulum(_SecondOrderMujocoSystem):

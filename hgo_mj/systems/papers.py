@@ -527,28 +527,41 @@ class BioreactorBastinGevers(System):
         ga, gb = tuple(float(v) for v in G[0]), tuple(float(v) for v in G[1])
 
         def omega(Y: Array, U: Array) -> Array:  # omega = (y, u1, u2)
-            return np.column_stack((Y, U[:, 0], U[:, 1]))
+            W = np.empty((len(Y), 3))
+            W[:, 0] = Y
+            W[:, 1] = U[:, 0]
+            W[:, 2] = U[:, 1]
+            return W
 
         def g_fun(Y: Array, U: Array) -> Array:
-            return np.column_stack((ga[0] * Y + ga[1] * U[:, 0] + ga[2] * U[:, 1],
-                                    gb[0] * Y + gb[1] * U[:, 0] + gb[2] * U[:, 1]))
+            G = np.empty((len(Y), 2))
+            G[:, 0] = ga[0] * Y + ga[1] * U[:, 0] + ga[2] * U[:, 1]
+            G[:, 1] = gb[0] * Y + gb[1] * U[:, 0] + gb[2] * U[:, 1]
+            return G
 
         def to_physical(X: Array, TH: Array, U: Array) -> tuple[Array, Array]:
             # eq. 6.6 (6.6b sign corrected) as from_aocf, NaN where it does not exist
             y, th1, th2, th3 = X[:, 0], TH[:, 0], TH[:, 1], TH[:, 2]
             d = (c2v - 2.0) - th1
+            states, params = np.empty((len(X), 2)), np.empty((len(X), 4))
+            states[:, 0] = y
             with np.errstate(divide="ignore", invalid="ignore"):
-                z2 = (X[:, 1] - (1.0 - c2v) * y) / th3
-                p1 = (d * (1.0 - c2v) + th2) / (th3 * z2)
-                p2 = p1 * z2 / d
-                p0 = p1 * y
-            ok = ((th3 != 0.0) & (z2 != 0.0) & (d != 0.0))[:, None]
-            return (np.where(ok, np.column_stack((y, z2)), np.nan),
-                    np.where(ok, np.column_stack((p1, p2, -th3, p0)), np.nan))
+                z2 = states[:, 1] = (X[:, 1] - (1.0 - c2v) * y) / th3
+                p1 = params[:, 0] = (d * (1.0 - c2v) + th2) / (th3 * z2)
+                params[:, 1] = p1 * z2 / d
+                params[:, 2] = -th3
+                params[:, 3] = p1 * y
+            bad = (th3 == 0.0) | (z2 == 0.0) | (d == 0.0)
+            if np.count_nonzero(bad):
+                states[bad] = params[bad] = np.nan
+            return states, params
 
         def from_physical(Z: Array, TH: Array, U: Array) -> Array:
             # eq. 6.4b with p3 = -theta3
-            return np.column_stack((Z[:, 0], (1.0 - c2v) * Z[:, 0] + TH[:, 2] * Z[:, 1]))
+            X = np.empty((len(Z), 2))
+            X[:, 0] = Z[:, 0]
+            X[:, 1] = (1.0 - c2v) * Z[:, 0] + TH[:, 2] * Z[:, 1]
+            return X
 
         return AOCF(R, alpha, omega, g=g_fun, theta_names=("1", "2", "3"),
                     omega_names=("y", "u1", "u2"), to_physical=to_physical,

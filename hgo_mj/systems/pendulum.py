@@ -15,7 +15,10 @@ from .base import Array
 
 def _aocf_features(Y: Array, U: Array) -> Array:
     """The pendulum's :math:`\\psi(y, u) = (-\\sin y, u)` on rows (its AOCF)."""
-    return np.column_stack((-np.sin(Y), U[:, 0]))
+    F = np.empty((len(Y), 2))
+    F[:, 0] = -np.sin(Y)
+    F[:, 1] = U[:, 0]
+    return F
 
 
 class Pendulum(_SecondOrderMujocoSystem):
