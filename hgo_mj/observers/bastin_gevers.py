@@ -395,26 +395,24 @@ def rhs_one(s: Array, y: float, c: float, w: Array, g: Array, alpha: Array, R: A
 @njit(cache=True)
 def sym_eigvals(A: Array, a: Array, out: Array) -> None:
     """Eigenvalues of the symmetric ``A`` ``(m, m)`` into ``out`` (unsorted), by cyclic
-    Jacobi rotations on the work matrix ``a`` (accurate to a few ulps of ``|A|``; a fixed
-    sequence of operations per matrix)."""
+    Jacobi rotations on the work matrix ``a`` until every off-diagonal entry is below
+    ``1e-17`` of its diagonal (accurate to a few ulps of ``|A|``; the same operations for the
+    same matrix, alone or in a batch)."""
     m = A.shape[0]
-    scale = 0.0
     for p in range(m):
         for q in range(m):
             a[p, q] = A[p, q]
-            scale += A[p, q] * A[p, q]
     for _ in range(64):
-        off = 0.0
-        for p in range(m - 1):
-            for q in range(p + 1, m):
-                off += a[p, q] * a[p, q]
-        if off <= 1e-36 * scale or off == 0.0:
-            break
+        rotated = False
         for p in range(m - 1):
             for q in range(p + 1, m):
                 apq = a[p, q]
-                if apq == 0.0:
+                # an entry below 1e-17 of its diagonal moves no eigenvalue by an ulp: drop it
+                if abs(apq) <= 1e-17 * (abs(a[p, p]) + abs(a[q, q])):
+                    a[p, q] = 0.0
+                    a[q, p] = 0.0
                     continue
+                rotated = True
                 theta = (a[q, q] - a[p, p]) / (2.0 * apq)
                 t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
                 if theta < 0.0:
@@ -431,6 +429,8 @@ def sym_eigvals(A: Array, a: Array, out: Array) -> None:
                     a[q, r] = sn * apr + cs * aqr
                 a[p, q] = 0.0
                 a[q, p] = 0.0
+        if not rotated:
+            break
     for p in range(m):
         out[p] = a[p, p]
 
