@@ -79,6 +79,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
 from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, vector
 from ..exceptions import DesignError, DimensionError, DivergenceError
@@ -94,6 +95,8 @@ __all__ = ["AOCF", "BastinGeversObserver", "Rebuildable", "SlidingGram", "advanc
 _REEXPORTED = (Rebuildable, _callable, _names)
 
 METHODS = ("rk4", "euler")
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 # ======================================================================================
@@ -505,8 +508,9 @@ def reachability_rank_4_11(w: Array, P: Array, Wsum: Array, a: Array, ev: Array,
 
 
 @njit(cache=True)
-def diagnostics_4_5_4_11(PHI: Array, W: Array, dt: float, ring: Array, pos: Array,
-                         full: Array, gram: Array, P: Array, Wsum: Array, out: Array) -> None:
+def diagnostics_4_5_4_11(PHI: Array, W: Array, dt: float, ring: Array, pos: IntArray,
+                         full: BoolArray, gram: Array, P: Array, Wsum: Array,
+                         out: Array) -> None:
     """After each sample ``j`` of every member ``b``: ``out[b, j, 0]`` the excitation of
     condition 4.5 (:func:`excitation_4_5`; skipped for a ring ``(B, 0, m)``: the diagnostic
     off) and ``out[b, j, 1]`` the rank of Theorem 4.2 (:func:`reachability_rank_4_11`), from
@@ -530,8 +534,8 @@ def diagnostics_4_5_4_11(PHI: Array, W: Array, dt: float, ring: Array, pos: Arra
 
 
 @njit(cache=True)
-def hold_valid(states: Array, params: Array, x_held: Array, p_held: Array, failures: Array,
-               X: Array, Dp: Array) -> None:
+def hold_valid(states: Array, params: Array, x_held: Array, p_held: Array,
+               failures: IntArray, X: Array, Dp: Array) -> None:
     """The physical estimate after each sample: ``states[b, j]`` ``(B, T, n_x)`` (and its
     ``params``) where it is finite, else the member's last valid value (``x_held[b]``,
     ``p_held[b]`` before the block, updated here), counted in ``failures[b]``."""

@@ -216,7 +216,9 @@ class AOCF(Rebuildable):
                                   f"part")
         self.alpha = alpha
         self.rows = bool(rows)
-        self._omega = _callable("omega", omega)
+        if not callable(omega):
+            raise DesignError(f"omega must be a callable; found {type(omega).__name__}")
+        self._omega: Callable[..., Any] = omega
         self._g = _callable("g", g, optional=True)
         self.theta_names = _names("theta_names", theta_names, m, [str(i + 1) for i in range(m)])
         self.omega_names = _names("omega_names", omega_names, s, [f"w{i + 1}" for i in range(s)])
