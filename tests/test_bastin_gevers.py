@@ -15,8 +15,8 @@ from hgo_mj.inputs import Multisine
 from hgo_mj.observers import AOCF, BastinGeversObserver, make_observer
 from hgo_mj.observers.bastin_gevers import (
     SlidingGram,
-    compile_rhs,
     rk_stable_period,
+    sym_eigvals,
 )
 from hgo_mj.plants import make_plant
 from hgo_mj.plants.ode import OdePlant
@@ -132,17 +132,33 @@ def test_reachability_finds_the_unexcitable_direction():
 
 
 # ------------------------------------------------------------------ the observer equations
-def test_compiled_rhs_equals_the_numpy_rhs():
+def _rhs_numpy(ob, s, y, w, g, correct=True):
+    """Eq. 3.1 (3.1a and 3.1e corrected) transcribed in numpy matrices: the reference of the
+    kernel rhs_3_1."""
+    f = ob.form
+    n, m = f.n, f.m
+    x, th, V = s[:n], s[n:n + m], s[n + m:].reshape(n - 1, m)
+    Om = f.Omega(w)
+    phi = V.T @ f.k + Om[0]
+    e = (y - x[0]) if correct else 0.0
+    thd = ob.gamma @ phi * e
+    xd = f.R @ x + Om @ th + g
+    xd[0] += ob.c1 * e
+    xd[1:] += V @ thd
+    Vd = f.F @ V + Om[1:]
+    return np.concatenate((xd, thd, Vd.reshape(-1)))
+
+
+def test_kernel_rhs_equals_the_matrix_form_of_3_1():
     rng = np.random.default_rng(3)
     for c2 in (1.0, 2.0):
         _, ob = _bio_observer(c2=c2, gamma=[[2.0, 0.3, 0.0], [0.3, 1.0, 0.1], [0.0, 0.1, 4.0]])
-        f = ob.form
-        for correct in (1.0, 0.0):
+        for correct in (True, False):
             s = rng.normal(size=8)
             y, u = rng.uniform(0.1, 2), rng.uniform(0, 5, 2)
             w, g = ob.omega_g(y, u)
-            fast = ob._rhs_fast(s.tolist(), y, correct, (f.alpha.reshape(6, 3) @ w).tolist(), g.tolist())
-            np.testing.assert_allclose(fast, ob.rhs(s, y, w, g, bool(correct)), rtol=1e-13, atol=1e-13)
+            np.testing.assert_allclose(ob.rhs(s, y, w, g, correct), _rhs_numpy(ob, s, y, w, g, correct),
+                                       rtol=1e-13, atol=1e-13)
     # a general form (n = 4, full F) too
     R = np.zeros((4, 4))
     R[0, 1:] = [1.0, -0.5, 2.0]
@@ -151,15 +167,31 @@ def test_compiled_rhs_equals_the_numpy_rhs():
     alpha[2, 1] = 0.0
     form = AOCF(R, alpha, lambda y, u: np.array([y, u[0], math.sin(y)]))
     ob = BastinGeversObserver(aocf=form, c1=3.0, gamma=[1.0, 2.0], excitation_window=None)
-    rhs = compile_rhs(R, np.any(alpha != 0, axis=2), ob.gamma, 3.0)
     s = rng.normal(size=4 + 2 + 6)
     w, g = ob.omega_g(0.3, np.array([1.5]))
-    np.testing.assert_allclose(rhs(s.tolist(), 0.3, 1.0, (alpha.reshape(8, 3) @ w).tolist(), g.tolist()),
-                               ob.rhs(s, 0.3, w, g), rtol=1e-13, atol=1e-13)
-    # the generated regressor phi = V^T k + Omega_1^T (eq. 3.1e)
-    Om = alpha @ w
-    np.testing.assert_allclose(rhs.phi(s.tolist(), Om.reshape(-1).tolist()),
-                               s[6:].reshape(3, 2).T @ R[0, 1:] + Om[0], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(ob.rhs(s, 0.3, w, g), _rhs_numpy(ob, s, 0.3, w, g),
+                               rtol=1e-13, atol=1e-13)
+    # the regressor phi = V^T k + Omega_1^T (eq. 3.1e) after a sample is the one recorded
+    ob.reset(z_hat0=s[:4], theta_hat0=s[4:6])
+    ob.update(np.array([0.3]), np.array([1.5]), 0.01)
+    np.testing.assert_array_equal(ob.phi_, (alpha @ w)[0])  # V(0) = 0: phi = Omega_1^T
+
+
+def test_symmetric_eigenvalues_by_jacobi():
+    rng = np.random.default_rng(7)
+    for m in (1, 2, 3, 5):
+        for _ in range(20):
+            A = rng.normal(size=(m, m))
+            A = A @ A.T if m > 1 else A * A
+            ev = np.empty(m)
+            sym_eigvals(A, np.empty((m, m)), ev)
+            np.testing.assert_allclose(np.sort(ev), np.linalg.eigvalsh(A), rtol=1e-12,
+                                       atol=1e-14 * np.abs(A).max())
+    # a rank-deficient Gram: the null eigenvalue within a few ulps of the largest
+    v = rng.normal(size=(10, 2)) @ rng.normal(size=(2, 3))
+    ev = np.empty(3)
+    sym_eigvals(v.T @ v, np.empty((3, 3)), ev)
+    assert np.sort(ev)[0] < 1e-13 * ev.max()
 
 
 def test_error_system_4_2():
@@ -298,7 +330,7 @@ def test_registry_and_physical_start():
 def test_system_without_a_canonical_form_is_named():
     sys_ = ElasticJoint.from_mjmodel(make_plant("elastic_joint").model)
     with pytest.raises(DesignError, match=r"canonical form of paper 002, eq. 2.2.*ElasticJoint "
-                                          r"provides none"):
+                                          r"provides none \(it declares the forms \[.*\], no 'aocf'\)"):
         BastinGeversObserver(sys_)
     with pytest.raises(DesignError, match="needs a system with a derived AOCF or aocf="):
         BastinGeversObserver()
@@ -347,26 +379,36 @@ def test_bad_forms_and_settings():
                                              r"shape \(1,\)"):
         ob.update(np.array([1.0]), np.array([0.0]), 0.01)
     _, ob = _bio_observer()
-    with pytest.raises(DimensionError, match=r"omega\(y, u\) of .* failed on y = 1.0, u of shape \(1,\)"):
+    with pytest.raises(DimensionError, match=r"u must have shape \(2,\); found shape \(1,\)"):
         ob.update(np.array([1.0]), np.array([1.0]), 0.01)
-    with pytest.raises(DimensionError, match="y must be a vector with channel 0"):
+    ob = BastinGeversObserver(aocf=AOCF.bioreactor(BioreactorBastinGevers(), 1.0),
+                              theta_hat0=[-3.0, -0.1, -0.1], z_hat0=[1.0, 1.0])  # u of any width
+    with pytest.raises(DimensionError, match=r"omega\(y, u\) or g\(y, u\) of .* failed on y = 1.0, u of shape \(1,\)"):
+        ob.update(np.array([1.0]), np.array([1.0]), 0.01)
+    with pytest.raises(DimensionError, match=r"y must be a vector with channel\(s\) \[0\]"):
         ob.update(1.0, np.array([1.0, 1.0]), 0.01)
     for kw, match in [({"c1": 0.0}, "c1 must be > 0; found 0"),
                       ({"method": "rk45"}, r"method must be one of \['rk4', 'euler'\]"),
                       ({"substeps": 0}, "substeps must be a positive integer"),
                       ({"on_unreachable": "maybe"}, "on_unreachable must be"),
                       ({"excitation_window": -1.0}, "excitation_window must be > 0"),
-                      ({"theta_hat0": [1.0, 2.0]}, "theta_hat0 must have length 3; found length 2"),
-                      ({"z_hat0": [1.0]}, "z_hat0 must have length 2; found length 1")]:
-        exc = DimensionError if "length" in match else DesignError
+                      ({"theta_hat0": [1.0, 2.0]},
+                       r"theta_hat0 must have shape \(3,\) or \(B, 3\); found shape \(2,\)"),
+                      ({"z_hat0": [1.0]}, r"z_hat0 must have shape \(2,\) or \(B, 2\); found shape \(1,\)"),
+                      ({"outputs": 0}, "outputs must be a non-empty sequence"),
+                      ({"outputs": (1,)}, r"BioreactorBastinGevers has 1 output\(s\) \['z1'\]; "
+                                          r"found channel 1")]:
+        exc = DimensionError if "shape" in match or "channel" in match else DesignError
         with pytest.raises(exc, match=match):
             _bio_observer(**kw)
-    with pytest.raises(DesignError, match=r"initial estimate .* lies where the inverse map .* is "
-                                          r"undefined: .*theta3 = -p3 != 0"):
+    with pytest.raises(DesignError, match=r"initial estimate .* lies where the inverse map is "
+                                          r"undefined: .*it needs theta3 = -p3 != 0"):
         BastinGeversObserver(BioreactorBastinGevers(), c2=1.0)  # theta_hat0 = 0: theta3 = 0
     with pytest.raises(DesignError, match="x_hat0 in physical coordinates needs the form's "
                                           "from_physical map"):
         BastinGeversObserver(aocf=form, x_hat0=[1.0, 2.0])
+    with pytest.raises(DesignError, match=r"reads one output \(y = x1\); found outputs \[0, 1\]"):
+        BastinGeversObserver(aocf=form, outputs=(0, 1))
     sys_ = Pendulum.from_mjmodel(make_plant("pendulum").model)
     with pytest.raises(DesignError, match=r"unknown must be \['g_over_l', 'b_over_J'\]"):
         BastinGeversObserver(sys_, unknown=("g_over_l",))

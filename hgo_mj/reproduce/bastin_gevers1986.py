@@ -32,7 +32,7 @@ no parameter values and no input; every number below is chosen here and stated.
    where ``p1 z2 = mu* z2 / (K_c z2 + z1)`` and hence ``theta`` is nearly constant, and the AOCF
    with ``theta`` frozen at the run's mean under the same positive input (excitation alone).
 3. **(c) MuJoCo pendulum.** The AOCF of the pendulum derived in
-   ``docs/adaptive_canonical_forms.md`` (:meth:`~hgo_mj.observers.bastin_gevers.AOCF.pendulum`):
+   ``docs/adaptive_canonical_forms.md`` (``Pendulum().form("aocf")``, :func:`~hgo_mj.systems.aocf.joint_aocf`):
    unknown gravity-to-length ratio ``a = m g l_c / J`` and input gain ``b / J`` with the
    damping known (as the ratio ``d / J``; or as the coefficient ``d`` with the inertia unknown,
    ``d / J = (d / b) (b / J)``), and a third run estimating the damping too;
@@ -56,10 +56,11 @@ from scipy.integrate import solve_ivp
 
 from ..inputs import Multisine
 from ..metrics import settling_time
-from ..observers.bastin_gevers import AOCF, BastinGeversObserver
+from ..observers.bastin_gevers import BastinGeversObserver
 from ..plants import make_plant
 from ..plants.ode import OdePlant
 from ..simulate import Trajectory, simulate
+from ..systems.aocf import AOCF
 from ..systems.base import Array, System
 from ..systems.papers import BioreactorBastinGevers, bastin_gevers_input
 from . import finish, fmt_num, record_runs
@@ -154,7 +155,7 @@ def check_transformations(samples: int = 200, seed: int = 0) -> dict[str, float]
 
 def _frozen_setup() -> tuple[AOCF, Array, Array, BastinGeversObserver]:
     sys_ = BioreactorBastinGevers()
-    form = AOCF.bioreactor(sys_, C2)
+    form = sys_.form("aocf", c2=C2)
     x0, theta = sys_.to_aocf(sys_.default_x0, C2)
     ob = BastinGeversObserver(aocf=form, c1=FROZEN["c1"], gamma=FROZEN["gamma"],
                               theta_hat0=theta + np.array([1.0, -1.0, -0.05]),
@@ -314,7 +315,7 @@ def part_pendulum() -> tuple[dict[str, Any], dict]:
                                   damping_known=dk, x_hat0=(0.0, 0.0))
         tr = simulate(plant, None, {"bastin_gevers": ob}, u, P["T"], x0=P["x0"])
         names = ob.form.theta_names
-        truth = AOCF.pendulum_theta(sys_, unknown)
+        truth = sys_.form("aocf", unknown=unknown).theta_true
         d = tr.observers["bastin_gevers"].diagnostics
         est = np.column_stack([d[f"theta_{nm}"] for nm in names])
         rel = (est - truth) / truth

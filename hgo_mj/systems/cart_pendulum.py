@@ -10,7 +10,16 @@ import numpy as np
 
 from ..exceptions import DesignError
 from ._mujoco import _TOL, _MjReader, _SecondOrderMujocoSystem
+from .aocf import AOCF, joint_aocf
 from .base import Array
+
+
+def _aocf_features(Y: Array, U: Array) -> Array:
+    """The cart pendulum's :math:`\\psi(y, u) = (\\sin y, u \\cos y)` on rows (its AOCF)."""
+    F = np.empty((len(Y), 2))
+    F[:, 0] = np.sin(Y)
+    F[:, 1] = U[:, 0] * np.cos(Y)
+    return F
 
 
 class CartPendulum(_SecondOrderMujocoSystem):
@@ -62,13 +71,26 @@ class CartPendulum(_SecondOrderMujocoSystem):
     model_file = "cart_pendulum.xml"
     joints = ("hinge",)
     actuators = ("acceleration",)
-    forms = ("kalman_fields",)
+    forms = ("kalman_fields", "aocf")
 
     def _form_kalman_fields(self) -> dict[str, str]:
         """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
         may estimate under this system's parameter names (g),
         ``{name: "field[element]" or "opt.gravity"}``."""
         return {"g": "opt.gravity"}
+
+    def _form_aocf(self, c2: float = 2.0, unknown: Any = None,
+                   damping_known: str = "ratio") -> AOCF:
+        """The AOCF (paper 002, eq. 2.2) of :math:`\\ddot y = -\\delta \\dot y + a \\sin y
+        + \\beta u \\cos y` with :math:`a = m l g / J` (``g_over_l``), :math:`\\beta = m l a_u / J`
+        (``b_over_J``), :math:`\\delta = d/J` (``d_over_J``): :func:`~hgo_mj.systems.aocf.joint_aocf`
+        (``damping_known="coefficient"`` is derived for the pendulum only)."""
+        p = self.params
+        J, ml = p["inertia"], p["mass"] * p["length"]
+        return joint_aocf(self, _aocf_features, ("sin y", "u cos y"),
+                          "cart pendulum: y'' = -d/J y' + a sin y + b u cos y",
+                          (ml * p["g"] / J, ml * p["accel_gain"] / J),
+                          c2=c2, unknown=unknown, damping_known=damping_known, coefficient=False)
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:

@@ -40,6 +40,7 @@ from numba import njit
 
 from .._validate import finite_scalar, vector
 from ..exceptions import DesignError
+from .aocf import AOCF, system_form
 from .base import Array, System
 
 __all__ = [
@@ -378,6 +379,7 @@ class BioreactorBastinGevers(System):
     default_x0: ClassVar[tuple[float, ...]] = (1.0, 1.0)
     #: default design constant ``c2 > 0`` of the AOCF (the pole ``-c2`` of ``F``)
     default_c2: ClassVar[float] = 2.0
+    forms: ClassVar[tuple[str, ...]] = ("aocf",)
 
     @staticmethod
     def _p1(z1: float, z2: float, p: Mapping[str, float]) -> float:
@@ -493,6 +495,83 @@ class BioreactorBastinGevers(System):
         th = vector("theta", theta, 3)
         R, Omega, g = self.aocf_structure(x[0], u, c2)
         return R @ x + Omega @ th + g
+
+    def _form_aocf(self, c2: float | None = None) -> AOCF:
+        """The AOCF eq. 6.5 (paper 002) as an :class:`~hgo_mj.systems.aocf.AOCF` on rows,
+        built on :meth:`aocf_structure`.
+
+        :math:`\\omega = (y, u_1, u_2)`, :math:`k = 1`, :math:`F = -c_2`,
+        :math:`\\Omega = [[y, 0, 0], [0, y, u_2]]`,
+        :math:`g = (u_1, (1 - c_2) u_1 - (1 - c_2)^2 y)`. The inverse 6.6 (sign of 6.6b
+        corrected, as :meth:`from_aocf`) gives the physical state ``(z1, z2)`` and the
+        parameters ``p1``, ``p2``, ``p3`` and the specific growth rate ``p0 = p1 z1``; it is NaN
+        where it does not exist. The forward map is 6.4b with :math:`p_3 = -\\theta_3`.
+
+        References
+        ----------
+        Paper 002, eq. 6.4 (map), 6.5 (AOCF), 6.6 (inverse).
+        """
+        c2v = self._c2(c2)
+        # alpha and the matrix of g by probing the paper's structure at unit omega
+        basis = [(1.0, (0.0, 0.0)), (0.0, (1.0, 0.0)), (0.0, (0.0, 1.0))]
+        alpha = np.zeros((2, 3, 3))
+        G = np.zeros((2, 3))
+        for l, (y, u) in enumerate(basis):
+            R, Om, g = self.aocf_structure(y, u, c2v)
+            alpha[:, :, l] = Om
+            G[:, l] = g
+        w = np.array([0.7, 1.3, -0.4])
+        R, Om, g = self.aocf_structure(w[0], w[1:], c2v)
+        if not (np.allclose(alpha @ w, Om, atol=1e-12) and np.allclose(G @ w, g, atol=1e-12)):
+            raise DesignError("the bioreactor AOCF is expected linear in omega = (y, u1, u2); "
+                              "aocf_structure is not")
+        ga, gb = tuple(float(v) for v in G[0]), tuple(float(v) for v in G[1])
+
+        def omega(Y: Array, U: Array) -> Array:  # omega = (y, u1, u2)
+            W = np.empty((len(Y), 3))
+            W[:, 0] = Y
+            W[:, 1] = U[:, 0]
+            W[:, 2] = U[:, 1]
+            return W
+
+        def g_fun(Y: Array, U: Array) -> Array:
+            G = np.empty((len(Y), 2))
+            G[:, 0] = ga[0] * Y + ga[1] * U[:, 0] + ga[2] * U[:, 1]
+            G[:, 1] = gb[0] * Y + gb[1] * U[:, 0] + gb[2] * U[:, 1]
+            return G
+
+        def to_physical(X: Array, TH: Array, U: Array) -> tuple[Array, Array]:
+            # eq. 6.6 (6.6b sign corrected) as from_aocf, NaN where it does not exist
+            y, th1, th2, th3 = X[:, 0], TH[:, 0], TH[:, 1], TH[:, 2]
+            d = (c2v - 2.0) - th1
+            states, params = np.empty((len(X), 2)), np.empty((len(X), 4))
+            states[:, 0] = y
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z2 = states[:, 1] = (X[:, 1] - (1.0 - c2v) * y) / th3
+                p1 = params[:, 0] = (d * (1.0 - c2v) + th2) / (th3 * z2)
+                params[:, 1] = p1 * z2 / d
+                params[:, 2] = -th3
+                params[:, 3] = p1 * y
+            bad = (th3 == 0.0) | (z2 == 0.0) | (d == 0.0)
+            if np.count_nonzero(bad):
+                states[bad] = params[bad] = np.nan
+            return states, params
+
+        def from_physical(Z: Array, TH: Array, U: Array) -> Array:
+            # eq. 6.4b with p3 = -theta3
+            X = np.empty((len(Z), 2))
+            X[:, 0] = Z[:, 0]
+            X[:, 1] = (1.0 - c2v) * Z[:, 0] + TH[:, 2] * Z[:, 1]
+            return X
+
+        return AOCF(R, alpha, omega, g=g_fun, theta_names=("1", "2", "3"),
+                    omega_names=("y", "u1", "u2"), to_physical=to_physical,
+                    from_physical=from_physical, state_names=self.state_names,
+                    physical_param_names=("p1", "p2", "p3", "p0"), rows=True,
+                    label=f"{type(self).__name__} eq. 6.5, c2={c2v:g}",
+                    inverse_domain="theta3 = -p3 != 0, z2 != 0 and (c2 - 2) - theta1 != 0, "
+                                   "eq. 6.6"
+                    )._made_by(system_form, self, "aocf", c2=c2)
 
 
 # =====================================================================================

@@ -11,6 +11,7 @@ from numba import njit
 
 from ..exceptions import DesignError
 from ._mujoco import _MjReader, _SecondOrderMujocoSystem
+from .aocf import AOCF, joint_aocf
 from .base import Array
 
 #: the parameters of the pendulum's affine form (paper 001, eq. 9), in the order of
@@ -36,6 +37,14 @@ def _affine_terms(Z: Array, U: Array, unknown: Any, known: Array) -> tuple[Array
         for j in range(unknown.shape[0]):
             psi[b, 0, j] = r[unknown[j]]
     return phi, psi
+
+
+def _aocf_features(Y: Array, U: Array) -> Array:
+    """The pendulum's :math:`\\psi(y, u) = (-\\sin y, u)` on rows (its AOCF)."""
+    F = np.empty((len(Y), 2))
+    F[:, 0] = -np.sin(Y)
+    F[:, 1] = U[:, 0]
+    return F
 
 
 class Pendulum(_SecondOrderMujocoSystem):
@@ -78,7 +87,7 @@ class Pendulum(_SecondOrderMujocoSystem):
     model_file = "pendulum.xml"
     joints = ("hinge",)
     actuators = ("torque",)
-    forms = ("affine", "kalman_fields")
+    forms = ("affine", "kalman_fields", "aocf")
 
     def _form_kalman_fields(self) -> dict[str, str]:
         """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
@@ -87,6 +96,19 @@ class Pendulum(_SecondOrderMujocoSystem):
         return {"gear": "actuator_gear[torque]",
                 "damping": "dof_damping[hinge]",
                 "g": "opt.gravity"}
+
+    def _form_aocf(self, c2: float = 2.0, unknown: Any = None,
+                   damping_known: str = "ratio") -> AOCF:
+        """The AOCF (paper 002, eq. 2.2) of :math:`\\ddot y = -\\delta \\dot y - a \\sin y
+        + \\beta u` with :math:`a = m g l_c / J` (``g_over_l``), :math:`\\beta = b/J`
+        (``b_over_J``), :math:`\\delta = d/J` (``d_over_J``): :func:`~hgo_mj.systems.aocf.joint_aocf`
+        (``unknown``, ``damping_known``, derived in ``docs/adaptive_canonical_forms.md``)."""
+        p = self.params
+        J = p["inertia"]
+        return joint_aocf(self, _aocf_features, ("-sin y", "u"),
+                          "pendulum: y'' = -d/J y' - a sin y + b u",
+                          (p["mass"] * p["g"] * p["com_distance"] / J, p["gear"] / J),
+                          c2=c2, unknown=unknown, damping_known=damping_known)
 
     @classmethod
     def params_from_mjmodel(cls, model: Any) -> dict[str, float]:
