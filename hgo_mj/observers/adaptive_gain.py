@@ -54,7 +54,6 @@ from .riccati import (
     model_rk4,
     physical_rows,
     report,
-    rk4_combine,
     saturated,
     to_physical,
 )

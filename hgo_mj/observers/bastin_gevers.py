@@ -674,7 +674,7 @@ class BastinGeversObserver(Observer):
             raise DesignError(f"the Bastin-Gevers observer reads one output (y = x1); found "
                               f"outputs {list(self.outputs)}")
         self.form = aocf
-        n, m = aocf.n, aocf.m
+        m = aocf.m
         self.c1 = finite_scalar("c1", c1, positive=True)
         self.gamma = symmetric_matrix("gamma", gamma, m, dim="m")
         self.method = one_of("method", method, METHODS)

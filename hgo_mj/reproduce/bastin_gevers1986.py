@@ -32,7 +32,8 @@ no parameter values and no input; every number below is chosen here and stated.
    where ``p1 z2 = mu* z2 / (K_c z2 + z1)`` and hence ``theta`` is nearly constant, and the AOCF
    with ``theta`` frozen at the run's mean under the same positive input (excitation alone).
 3. **(c) MuJoCo pendulum.** The AOCF of the pendulum derived in
-   ``docs/adaptive_canonical_forms.md`` (``Pendulum().form("aocf")``, :func:`~hgo_mj.systems.aocf.joint_aocf`):
+   ``docs/adaptive_canonical_forms.md`` (``Pendulum().form("aocf")``,
+   :func:`~hgo_mj.systems.aocf.joint_aocf`):
    unknown gravity-to-length ratio ``a = m g l_c / J`` and input gain ``b / J`` with the
    damping known (as the ratio ``d / J``; or as the coefficient ``d`` with the inertia unknown,
    ``d / J = (d / b) (b / J)``), and a third run estimating the damping too;
