@@ -383,7 +383,8 @@ def test_bad_forms_and_settings():
         ob.update(np.array([1.0]), np.array([1.0]), 0.01)
     ob = BastinGeversObserver(aocf=AOCF.bioreactor(BioreactorBastinGevers(), 1.0),
                               theta_hat0=[-3.0, -0.1, -0.1], z_hat0=[1.0, 1.0])  # u of any width
-    with pytest.raises(DimensionError, match=r"omega\(y, u\) or g\(y, u\) of .* failed on y = 1.0, u of shape \(1,\)"):
+    with pytest.raises(DimensionError, match=r"omega\(y, u\) or g\(y, u\) of .* failed on "
+                                             r"y = 1.0, u of shape \(1,\)"):
         ob.update(np.array([1.0]), np.array([1.0]), 0.01)
     with pytest.raises(DimensionError, match=r"y must be a vector with channel\(s\) \[0\]"):
         ob.update(1.0, np.array([1.0, 1.0]), 0.01)
