@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 import hgo_mj.simulate as sim
-from hgo_mj.exceptions import DesignError, DimensionError
-from hgo_mj.inputs import Controller, Multisine
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
+from hgo_mj.inputs import Constant, Controller, Multisine
 from hgo_mj.observers import AdaptiveGainObserver, HighGainObserver
 from hgo_mj.plants import make_plant
-from hgo_mj.sensors import GaussianNoise, Quantization, SensorChain
+from hgo_mj.sensors import Dropout, GaussianNoise, Quantization, SensorChain
 from hgo_mj.simulate import simulate, simulate_batch
 
 
@@ -105,3 +105,35 @@ def test_batch_needs_one_seed_per_member():
     with pytest.raises(DimensionError):
         simulate_batch(plant, sensor, obs, Multisine([0.2], [0.5]), 0.1, seeds=[1, 2],
                        x0=np.zeros((3, 2)))
+
+
+@pytest.mark.parametrize("amplitude", [1e9, 1.0], ids=["first-step", "later"])
+def test_plant_divergence_stops_the_run_with_the_partial_trajectory(amplitude):
+    """A plant driven to blow up (MuJoCo's bad-acceleration reset) stops the run with a
+    DivergenceError at a non-negative time (also when it fails on the very first step)
+    carrying the valid rows, which the chunks handed out cover."""
+    plant = make_plant("pendulum")
+    sensor = SensorChain([GaussianNoise(std=2e-3), Dropout(0.15)], seed=11)
+    obs = {"free": HighGainObserver(plant.system, k=40.0)}
+    ctrl = Controller(lambda t, x: [amplitude * np.exp(40.0 * t)], source="true")
+    chunks = []
+    with pytest.raises(DivergenceError, match=r"^simulation stopped at t=") as info:
+        simulate(plant, sensor, obs, ctrl, 1.0, seed=1,
+                 on_chunk=(0.05, lambda k0, c: chunks.append((k0, c))))
+    msg, traj = str(info.value), info.value.trajectory
+    assert "t=-" not in msg
+    assert len(traj) >= 1 and msg.startswith(f"simulation stopped at t={traj.t[-1]:g}:")
+    if amplitude == 1e9:
+        assert len(traj) == 1 and traj.t[-1] == 0.0
+    else:
+        assert len(traj) > 100
+    assert np.all(np.isfinite(traj.x)) and np.all(np.isfinite(traj.observers["free"].z_hat))
+    assert sum(len(c) for _, c in chunks) == len(traj)
+    np.testing.assert_array_equal(np.concatenate([c.x for _, c in chunks]), traj.x)
+
+
+def test_open_loop_signal_of_wrong_width_names_channels_shape_and_time():
+    plant, sensor, obs = _parts()
+    with pytest.raises(DimensionError, match=r"input must have 1 channel\(s\) \('torque',\); "
+                                             r"found shape \(2,\) at t=0"):
+        simulate(plant, sensor, obs, Constant([0.0, 1.0]), 0.1)
