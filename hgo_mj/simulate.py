@@ -466,7 +466,8 @@ class Store:
         steps = max(self.done * self.every - self.every, 1)
         update_time = {name: lp.wall[name] / (steps * lp.batch) for name in lp.observers}
         out = []
-        x0s = np.reshape(plant_x0_rows(lp.plant, x0), (lp.batch, -1))
+        n = len(lp.plant.state_names)
+        x0s = np.broadcast_to(np.reshape(plant_x0_rows(lp.plant, x0), (-1, n)), (lp.batch, n))
         for b in range(lp.batch):
             seed = seeds[b] if isinstance(seeds, list) else seeds
             inv = {name: int(np.reshape(ob._inverse_failures, -1)[b])
