@@ -84,7 +84,10 @@ def env_seed(seed: int | None) -> Any:
 
 def reset_chain(chain: SensorChain, seed: int | None) -> None:
     """Reset a sensor chain as an environment's ``reset(seed=...)`` does (:func:`env_seed`)."""
-    chain.reset(env_seed(seed))
+    if seed is None:
+        chain.restart()
+    else:
+        chain.reset(chain_seed(seed))
 
 
 def sensor_chain(spec: Any, seed: int | None = None) -> SensorChain:

@@ -1271,8 +1271,9 @@ class SensorChain:
 
     @property
     def dropouts(self) -> int:
-        """Total number of samples dropped by the :class:`Dropout` stages since the reset."""
-        return sum(s.count for s in self._dropout_stages)
+        """Total number of channel samples dropped by the :class:`Dropout` stages since the
+        reset, over every stream (:meth:`dropout_counts` per stream)."""
+        return int(self.dropout_counts().sum())
 
     @property
     def batch(self) -> int:

@@ -154,16 +154,17 @@ def test_record_validates_names():
     assert np.isnan(e[:, 0]).all() and np.all(e[:, 1] == -1.0)
 
 
-def test_simulate_refuses_an_observer_whose_names_do_not_fit(chain):
+def test_an_observer_whose_names_do_not_fit_is_refused(chain):
     class Misnamed(HighGainObserver):
         @property
         def state_names(self):
             return ("only_one",)
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
-    with pytest.raises(DimensionError, match=r"observer 'm' \(Misnamed\): state_names must name "
-                                             r"the 2 entries of x_hat; found 1 \['only_one'\]"):
-        simulate(plant, None, {"m": Misnamed(plant.system, k=5.0)}, Multisine([1.0], [1.0]), 0.01)
+    # refused as soon as the observer is made (its reset maps an estimate), before any run
+    with pytest.raises(DimensionError, match=r"Misnamed: state_names must name the 2 entries of "
+                                             r"x_hat; found 1 \['only_one'\]"):
+        Misnamed(plant.system, k=5.0)
 
 
 def test_an_estimate_that_is_never_defined(tmp_path):

@@ -14,6 +14,7 @@ from hgo_mj.inputs import Multisine
 from hgo_mj.observers import HighGainObserver, MultiOutputHighGainObserver, make_observer
 from hgo_mj.observers.high_gain import derivative_names, matched_gain
 from hgo_mj.plants.ode import OdePlant
+from hgo_mj.sensors import SensorChain, Stage
 from hgo_mj.simulate import simulate
 from hgo_mj.systems.pendulum import Pendulum
 
@@ -117,7 +118,14 @@ def test_noise_transfer_matches_eq3(chain, n):
     k, f = 5.0, 1.5
     plant = OdePlant(chain(n)(), dt=1e-3, physics_dt=1e-3)
     ob = HighGainObserver(plant.system, k=k)
-    nu = lambda t, y: y + np.sin(2 * np.pi * f * t)  # noqa: E731 - a sensor as a plain callable
+
+    class SineNoise(Stage):  # a sensor stage of one's own: nu(t) = sin(2 pi f t)
+        name = "sine"
+
+        def apply(self, t, Y, draws):
+            return Y + np.sin(2 * np.pi * f * np.asarray(t))[None, :, None]
+
+    nu = SensorChain([SineNoise()])
     traj = simulate(plant, nu, {"hgo": ob}, Multisine([0.0], [0.0]), duration=20.0)
     out_err = traj.y_meas[:, 0] - traj.observers["hgo"].x_hat[:, 0]
     omega = 2 * np.pi * f

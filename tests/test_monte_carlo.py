@@ -212,12 +212,16 @@ class _Fragile(HighGainObserver):
         super().__init__(system, **kw)
         self.jump, self._last = jump, None
 
-    def update(self, y, u, dt):
-        if self._last is not None and abs(float(y[0]) - self._last) > self.jump:
-            from hgo_mj.exceptions import DivergenceError
-            raise DivergenceError(f"jump of {abs(float(y[0]) - self._last):.3g}")
-        self._last = float(y[0])
-        return super().update(y, u, dt)
+    def _advance(self, Y, U, dt, X, Z, D):
+        from hgo_mj.exceptions import DivergenceError
+
+        for j in range(Y.shape[1]):
+            y = float(Y[0, j, 0])
+            if self._last is not None and abs(y - self._last) > self.jump:
+                raise DivergenceError(f"jump of {abs(y - self._last):.3g}")
+            self._last = y
+            one = slice(j, j + 1)
+            super()._advance(Y[:, one], U[:, one], dt, X[:, one], Z[:, one], D[:, one])
 
 
 def make_fragile_run() -> dict:

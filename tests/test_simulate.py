@@ -206,18 +206,20 @@ def test_physical_holds_the_last_valid_value(chain):
         return X[0, 0]
 
     ob = HighGainObserver(BioreactorBullinger(), k=5.0)
-    assert np.isnan(physical(ob, [0.0, 0.0])).all() and ob.inverse_failures_ == 1
+    # the reset mapped the initial estimate z_hat = 0, outside Phi^-1's domain: counted
+    assert ob.inverse_failures_ == 1 and np.isnan(ob.x_hat).all()
+    assert np.isnan(physical(ob, [0.0, 0.0])).all() and ob.inverse_failures_ == 2
     good = physical(ob, [0.08, 0.001])
-    assert np.isfinite(good).all() and ob.inverse_failures_ == 1
+    assert np.isfinite(good).all() and ob.inverse_failures_ == 2
     np.testing.assert_array_equal(physical(ob, [-1.0, 0.0]), good)
-    assert ob.inverse_failures_ == 2
+    assert ob.inverse_failures_ == 3
 
     class NanInverse(chain(2)):  # a fast path that returns NaN instead of raising
         def from_normal_unchecked(self, z, u):
             return np.array([np.nan, z[1]]) if z[0] < 0 else np.array(z, dtype=float)
 
     ob.reset()  # a restart holds nothing from the run before, and counts from zero
-    assert ob.inverse_failures_ == 0 and ob.dropouts_ == 0
+    assert ob.inverse_failures_ == 1 and ob.dropouts_ == 0  # (its initial estimate again)
     assert np.isnan(physical(ob, [0.0, 0.0])).all()
 
     ob = HighGainObserver(NanInverse(), k=1.0)  # NaN passes through: also "undefined"

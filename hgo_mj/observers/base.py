@@ -304,8 +304,8 @@ class Observer(ABC):
 
     def _advance_checked(self, Y: Array, U: Array, dt: float) -> Block:
         """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float)."""
-        cols = self._cols_index
-        Yo = np.ascontiguousarray(Y[:, :, cols])
+        # a copy of the observer's channels: a family may write into its measurement block
+        Yo = np.array(Y[:, :, self._cols_index], dtype=np.float64, order="C")
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
         X = np.empty((B, T, len(self.state_names)))
@@ -428,6 +428,7 @@ class Observer(ABC):
         B, T = Z.shape[0], Z.shape[1]
         if batch_map is not None:
             flat = batch_map(Z.reshape(B * T, -1), U.reshape(B * T, -1)).reshape(B, T, -1)
+            self._check_width(flat.shape[2], X.shape[2])
             ok = np.all(np.isfinite(flat), axis=2) | ~np.all(np.isfinite(Z), axis=2)
             if ok.all():
                 X[...] = flat
@@ -442,8 +443,14 @@ class Observer(ABC):
                     X[b, j] = held
                     continue
                 held = np.asarray(x, dtype=float)
+                self._check_width(held.size, X.shape[2])
                 X[b, j] = held
             self._x_held[b] = held
+
+    def _check_width(self, width: int, named: int) -> None:
+        if width != named:
+            raise DimensionError(f"{type(self).__name__}: state_names must name the {width} "
+                                 f"entries of x_hat; found {named} {list(self.state_names)}")
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(outputs={list(self.outputs)}, batch={self.batch})"
