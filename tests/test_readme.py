@@ -12,12 +12,19 @@ README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
 
 
 def test_python_example_runs(tmp_path, monkeypatch, capsys):
-    (code,) = re.findall(r"```python\n(.*?)```", README, re.S)
+    code, batch = re.findall(r"```python\n(.*?)```", README, re.S)
     assert len(code.strip().splitlines()) <= 22
     monkeypatch.chdir(tmp_path)
-    exec(compile(code, "README.md", "exec"), {})
+    scope: dict = {}
+    exec(compile(code, "README.md", "exec"), scope)
     assert "k=80" in capsys.readouterr().out
-    assert len(Trajectory.load(tmp_path / "runs" / "pendulum.npz")) == 10001
+    alone = Trajectory.load(tmp_path / "runs" / "pendulum.npz")
+    assert len(alone) == 10001
+    exec(compile(batch, "README.md", "exec"), scope)  # the batch of 64, on the same parts
+    runs = scope["runs"]
+    assert len(runs) == 64 and [r.metadata["seed"] for r in runs] == list(range(64))
+    assert all(len(r) == 10001 for r in runs)
+    assert runs[5].x[0].tolist() == scope["x0"][5].tolist()
 
 
 def test_scenario_file_runs(tmp_path, monkeypatch):

@@ -57,10 +57,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from ..inputs import FunctionSignal, TimeShift
 from ..metrics import settling_time
 from ..observers.besancon import BesanconObserver
 from ..plants.ode import OdePlant
-from ..simulate import package_versions
+from ..simulate import package_versions, simulate
 from ..systems.papers import (
     BesanconExample1,
     BesanconExample2,
@@ -87,32 +88,20 @@ def _observer(system: Any, cfg: dict[str, Any], hold: str = "innovation") -> Bes
 
 def run_sampled(system: Any, cfg: dict[str, Any], inp: Any, dt: float = DT,
                 every: float = 0.01) -> dict[str, Array]:
-    """Plant (RK4 at ``dt``, input mid-sample) and the sampled observer; rows every ``every`` s."""
-    plant = OdePlant(system, dt, physics_dt=dt)
-    plant.reset(cfg["x0"])
+    """Plant (RK4 at ``dt``, the input taken at the middle of each sample) and the sampled
+    observer, through the common loop (:func:`~hgo_mj.simulate.simulate`); rows every
+    ``every`` s."""
     ob = _observer(system, cfg)
-    N = int(round(cfg["horizon"] / dt))
     stride = int(round(every / dt))
-    t, x, xh, th, ex, ys, us = [], [], [], [], [], [], []
-    for k in range(N + 1):
-        u = inp(k * dt + 0.5 * dt) if k < N else inp(k * dt)
-        y = plant.outputs()
-        if k % stride == 0:
-            t.append(k * dt)
-            x.append(plant.state)
-            xh.append(ob.z_hat)
-            th.append(ob.theta_hat_)
-            ex.append(ob.excitation_)
-            ys.append(np.array(y, dtype=float))
-            us.append(np.atleast_1d(np.asarray(u, dtype=float)))
-        if k == N:
-            break
-        ob.update(y, u, dt)
-        plant.step(u)
-    gram = ob.excitation_matrix()
-    return {"t": np.array(t), "x": np.array(x), "x_hat": np.array(xh), "theta": np.array(th),
-            "excitation": np.array(ex), "gram": gram, "y": np.array(ys), "u": np.array(us),
-            "theta_names": tuple(ob.form.theta_names)}
+    traj = simulate(OdePlant(system, dt, physics_dt=dt), None, {"besancon": ob},
+                    TimeShift(FunctionSignal(inp), 0.5 * dt), cfg["horizon"], x0=cfg["x0"],
+                    store_every=stride)
+    rec = traj.observers["besancon"]
+    names = tuple(ob.form.theta_names)
+    theta = np.column_stack([rec.diagnostics[f"theta_{nm}"] for nm in names])
+    return {"t": traj.t, "x": traj.x, "x_hat": rec.z_hat, "theta": theta,
+            "excitation": rec.diagnostics["excitation"], "gram": ob.excitation_matrix(),
+            "y": traj.y_meas, "u": traj.u, "theta_names": names}
 
 
 def record_sampled(run: dict[str, Any], system: Any, path: Path, name: str,
