@@ -82,3 +82,55 @@ def test_wrong_measurement_size_is_refused(kind, make, p, m):
 def test_unknown_keyword_is_refused(kind):
     with pytest.raises(DesignError, match=rf"observer '{kind}'.*no_such_option"):
         make_observer(kind, Pendulum(), no_such_option=1.0)
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_diagnostic_names_are_exactly_what_diagnostics_returns(kind, make, p, m):
+    ob = make()
+    assert tuple(ob.diagnostics()) == ob.diagnostic_names
+    assert ob.diagnostic_names[-1] == "dropouts"
+    _run(ob, p, m)
+    assert tuple(ob.diagnostics()) == ob.diagnostic_names
+    ob.reset(batch=3)
+    d = ob.diagnostics()
+    assert tuple(d) == ob.diagnostic_names and all(np.shape(v) == (3,) for v in d.values())
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_a_batch_equals_its_members_run_alone(kind, make, p, m):
+    """Every family: B = 5 members fed different measurement streams (a dropout each at its
+    own sample) advance as one batch, bit-identical to each member run alone; the rows of a
+    block are the estimates after each sample."""
+    B, T = 5, STEPS
+    rng = np.random.default_rng(7)
+    Y = np.empty((B, T, p))
+    U = np.empty((B, T, m))
+    for k in range(T):
+        y, u = signals(k, p, m)
+        Y[:, k], U[:, k] = y, u
+    Y += 1e-3 * rng.standard_normal(Y.shape) * np.isfinite(Y)
+    for b in range(B):
+        Y[b, 2 + b, 0] = np.nan
+    batch = make()
+    batch.reset(batch=B)
+    blk = batch.advance(Y, U, DT)
+    assert blk.x_hat.shape == (B, T, len(batch.state_names))
+    assert blk.z_hat.shape == (B, T, batch.n)
+    assert blk.diagnostics.shape == (B, T, len(batch.diagnostic_names))
+    for b in range(B):
+        alone = make()
+        for k in range(T):
+            np.testing.assert_array_equal(alone.update(Y[b, k], U[b, k], DT), blk.x_hat[b, k])
+        np.testing.assert_array_equal(alone.z_hat, blk.z_hat[b, -1])
+        assert list(alone.diagnostics().values()) == pytest.approx(
+            blk.diagnostics[b, -1].tolist(), nan_ok=True, rel=0, abs=0)
+    np.testing.assert_array_equal(batch.x_hat, blk.x_hat[:, -1])
+
+
+def test_the_contract_is_an_abstract_base():
+    from hgo_mj.observers.base import Observer
+
+    with pytest.raises(TypeError, match="abstract"):
+        Observer(None, order=2)  # type: ignore[abstract]
+    for cls in OBSERVERS.values():
+        assert issubclass(cls, Observer) and not getattr(cls, "__abstractmethods__", None)
