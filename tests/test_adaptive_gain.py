@@ -228,7 +228,7 @@ def test_cli_parameters_build_the_observer():
     ob = make_observer(kind, BioreactorBullinger(), **spec)
     assert isinstance(ob, AdaptiveGainObserver) and ob.gamma == 100.0 and ob.n == 2
     assert ob.params()["p"] == [1.0, 0.2] and ob.diagnostics()["k"] == 0.1
-    with pytest.raises(DesignError, match="unexpected keyword argument 'lambda_hat'"):
+    with pytest.raises(DesignError, match=r"unknown parameter\(s\) \[.lambda_hat.\]; valid: \[.gamma., .k0."):
         make_observer("adaptive_gain", None, order=2, lam=0.1, lambda_hat=1.0, gamma=1.0, k0=1.0)
 
 

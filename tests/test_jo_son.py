@@ -310,7 +310,7 @@ def test_bad_forms_and_shapes():
         JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), x_hat0=[1.0])
     with pytest.raises(DesignError, match="give x_hat0 or z_hat0, not both"):
         _observer(x_hat0=[0, 0, 0], z_hat0=[0, 0, 0])
-    with pytest.raises(DesignError, match="jo_son.*unexpected keyword"):
+    with pytest.raises(DesignError, match=r"jo_son.: unknown parameter\(s\) \[.Lambda.\]; valid:"):
         make_observer("jo_son", JoSonExample(), Lambda=2.0)
     with pytest.raises(DimensionError, match="aux_outputs must name 2 channels"):
         JoSonForm.elastic_joint_motor_side(aux_outputs=(1,))

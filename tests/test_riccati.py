@@ -260,7 +260,7 @@ def test_registry_and_cli_style_parameters():
     spec = parse_spec("q_integral:q=2,gamma=min,rho=1.5", "type")
     ob = make_observer(spec.pop("type"), system, **spec)
     assert ob.gamma_ == pytest.approx(39.63, abs=0.01) and ob.params()["gamma_spec"] == "min"
-    with pytest.raises(DesignError, match="observer 'riccati': .*unexpected keyword argument 'k'"):
+    with pytest.raises(DesignError, match=r"observer 'riccati': unknown parameter\(s\) \['k'\]; valid:"):
         make_observer("riccati", system, k=6.0, gamma=6.0)
 
 
