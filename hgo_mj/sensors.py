@@ -1,24 +1,24 @@
 """Sensor models: turn a plant's clean outputs ``y`` into what a real sensor reports.
 
 A :class:`SensorChain` applies a sequence of :class:`Stage` objects **in the order they are
-given**, every stage drawing its random numbers from the one seeded
-:class:`numpy.random.Generator` owned by the chain, so that the same seed gives bit-identical
-measurement sequences.  Each stage returns a new array and never modifies its input.
+given** to blocks of samples of B streams at once: :meth:`SensorChain.apply` takes the sample
+times ``t`` ``(T,)`` and the clean outputs ``Y`` ``(B, T, p)`` (one run is B = 1) and every stage
+is called once per block through :meth:`Stage.apply`. Each stage returns a new array and never
+modifies its input; stateful stages (held samples, delay lines, drift, counters) keep one state
+per stream across blocks, so a block of ``T`` samples gives what the same samples cut into
+any smaller blocks give.
 
-**How the stages share the generator.** A random stage (Gaussian, uniform, drift, outliers,
-dropout) draws its variates from the generator in *blocks* and hands them out in stream order,
-a few at each call: a block of 16 at first, doubling up to 1024 (a fresh generator, after a
-reseed, costs little), and a call that needs more than the block holds takes the rest straight
-from the generator. A stage that is the generator's only consumer therefore sees exactly the
-values that one draw per call would give (for a lone Gaussian stage, ``y + std *
-rng.standard_normal(n)`` call after call, bit for bit). When several random stages share the
-generator, each takes whole blocks in turn, so the values a stage gets differ from the
-call-by-call interleaving, but remain independent, identically distributed and determined by
-the seed. A stage keeps its unused draws over :meth:`Stage.reset` (they are the next values of
-the stream it already reserved: an environment reset that does not reseed continues the noise
-sequence), and drops them when called with another generator (a reseeded chain has a new
-one). :meth:`Stage.apply_list` is :meth:`Stage.__call__` on a list of Python floats, for
-per-sample loops (same values, same draws, no small arrays).
+**Where the random numbers come from.** Every random stage (Gaussian, uniform, drift,
+outliers, dropout) of every stream draws from a seeded :class:`numpy.random.Generator` of its
+own (:func:`stream_generators`): the first random stage from ``default_rng(seed)``, later ones
+from generators spawned from the seed. So the same seed gives bit-identical measurements, a
+stream is the same alone or in a batch, and a chain with one random stage gives, per stream,
+exactly the numbers of ``default_rng(seed)`` drawn in sample order (for a lone Gaussian stage,
+``y + std * rng.standard_normal(p)`` sample after sample, bit for bit). The variates are drawn
+in blocks per stream (16 at first, doubling up to 1024) and handed out in stream order;
+:meth:`SensorChain.restart` clears the stages' state and lets the generators continue
+(an environment reset that does not reseed continues the noise sequence), and
+:meth:`SensorChain.reset` reseeds them.
 
 The order matters (quantizing then adding a bias is not the same as biasing then quantizing).
 The recommended physical order, from the plant to the observer, is::
@@ -53,9 +53,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from collections import deque
 from collections.abc import Mapping, Sequence
-from itertools import islice
 from typing import Any, ClassVar
 
 import numpy as np
@@ -161,61 +159,6 @@ def _copy(value: float | Array) -> float | Array:
 _FIRST_BLOCK, _MAX_BLOCK = 16, 1024
 
 
-class _Draws:
-    """One stage's stream of variates of one kind (``"standard_normal"`` or ``"random"``) from
-    the chain's generator, drawn in blocks and handed out in stream order (module docstring).
-
-    :meth:`one` costs a few tens of nanoseconds instead of a generator call per sample; the
-    values are those of consecutive calls of ``getattr(rng, kind)``, so a stage that is the
-    generator's only consumer gets the same numbers as drawing at every call.
-    """
-
-    __slots__ = ("_block", "_it", "_kind", "_rng")
-
-    def __init__(self, kind: str) -> None:
-        self._kind = kind
-        self._rng: np.random.Generator | None = None
-        self._it: Any = iter(())
-        self._block = _FIRST_BLOCK
-
-    def _source(self, rng: np.random.Generator) -> None:
-        """Switch to ``rng`` (a new or reseeded generator): drop the draws of the old one."""
-        self._rng = rng
-        self._it = iter(())
-        self._block = _FIRST_BLOCK
-
-    def one(self, rng: np.random.Generator) -> float:
-        """The next variate, a Python float."""
-        if rng is self._rng:
-            v = next(self._it, None)
-            if v is not None:
-                return v
-        else:
-            self._source(rng)
-        block = self._block
-        self._block = min(2 * block, _MAX_BLOCK)
-        self._it = iter(getattr(rng, self._kind)(block).tolist())
-        return next(self._it)
-
-    def take(self, rng: np.random.Generator, n: int) -> Array:
-        """The next ``n`` variates, an array (the rest of the block, then the generator)."""
-        if rng is not self._rng:
-            self._source(rng)
-        got = list(islice(self._it, n))
-        m = n - len(got)
-        if not m:
-            return np.array(got)
-        block = self._block
-        if m > block:                     # more than a block: straight from the generator
-            rest = getattr(rng, self._kind)(m)
-        else:                             # the block is spent: draw the next one
-            self._block = min(2 * block, _MAX_BLOCK)
-            fresh = getattr(rng, self._kind)(block)
-            rest = fresh[:m]
-            self._it = iter(fresh[m:].tolist())
-        return np.concatenate((got, rest)) if got else rest
-
-
 class _Streams:
     """The B generators of one random stage in a batched chain (one per stream) and their
     variates, drawn in blocks ``(B, K)`` and handed out in stream order with one cursor (every
@@ -271,9 +214,10 @@ class _Streams:
 class Stage:
     """One step of a sensor chain (base class).
 
-    Subclasses implement :meth:`__call__` and, when they keep state, :meth:`reset`.  They
-    validate their parameters in ``__init__`` and record them (as JSON-friendly values) in
-    ``self._params`` for :meth:`params`.
+    Subclasses implement :meth:`apply` (the one primitive: a block of samples of B streams),
+    keeping their per-stream state in ``self._bstate`` through :meth:`_fresh_state` (cleared
+    by :meth:`reset`).  They validate their parameters in ``__init__`` and record them (as
+    JSON-friendly values) in ``self._params`` for :meth:`params`.
 
     Attributes
     ----------
@@ -291,7 +235,7 @@ class Stage:
 
     def __init__(self) -> None:
         self._params: dict[str, Any] = {}
-        #: the batched path's per-member state (None: fresh, see :meth:`reset_batch`)
+        #: the batched path's per-member state (None: fresh, see :meth:`reset`)
         self._bstate: Any = None
         self._n: int | None = None      # channel count fixed by per-channel parameters
         self._n_from = ""               # name of the parameter that fixed it
@@ -316,49 +260,17 @@ class Stage:
         if self._n is not None and n != self._n:
             self._mismatch(n)
 
-    @staticmethod
-    def _list(value: float | Array) -> list[float] | None:
-        """A per-channel parameter as a list of Python floats (for :meth:`apply_list`), made
-        once; None for a scalar (every channel alike)."""
-        return None if isinstance(value, float) else value.tolist()
-
     def _mismatch(self, n: int) -> None:
         raise DimensionError(
             f"{type(self).__name__}.{self._n_from} has {self._n} entries (one per channel) "
             f"but y has {n} channels")
 
     # -- interface -------------------------------------------------------------------------
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        """Apply the stage.
-
-        Parameters
-        ----------
-        t : float
-            Time of the sample, seconds.
-        y : ndarray, shape (n,)
-            Input samples, a 1-D float array (not modified).
-        rng : numpy.random.Generator
-            The chain's generator; the only source of randomness.
-
-        Returns
-        -------
-        ndarray, shape (n,)
-            A new array.
-        """
-        raise NotImplementedError
-
-    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        """:meth:`__call__` on a list of Python floats: the same values and the same draws, as
-        a new list (NaN for a lost sample). For per-sample loops such as an environment step,
-        where small arrays cost more than the arithmetic; stages override it with a path in
-        plain floats (the default goes through :meth:`__call__`)."""
-        return self(t, np.array(y, dtype=float), rng).tolist()
-
     def reset(self) -> None:
-        """Clear the internal state (delay buffers, drift, held values, counters).
-
-        Variates a stage has drawn in advance but not used are kept: they are the next values
-        of its stream (see the module docstring)."""
+        """Clear the per-stream state (delay lines, drift, held samples, counters): the next
+        :meth:`apply` starts fresh, for any number of streams. The generators are the chain's
+        (:meth:`SensorChain.reset` reseeds them, :meth:`SensorChain.restart` does not)."""
+        self._bstate = None
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         """The batched primitive: apply the stage to a block of samples of B streams.
@@ -377,25 +289,21 @@ class Stage:
         -------
         ndarray, shape (B, T, p)
             A new array. Stateful stages (held samples, delay lines, drift, counters) keep one
-            state per stream across blocks, cleared by :meth:`reset_batch`; a block of ``T``
+            state per stream across blocks, cleared by :meth:`reset`; a block of ``T``
             samples gives what ``T`` blocks of one sample give.
         """
         raise DesignError(f"{type(self).__name__} has no batched apply(t, Y, draws); implement "
                           "it to use the stage in a batched chain")
 
-    def reset_batch(self) -> None:
-        """Clear the batched path's per-stream state (the next :meth:`apply` starts fresh)."""
-        self._bstate = None
-
     def _fresh_state(self, B: int, make: Any) -> Any:
         """The per-stream state for ``B`` streams: made by ``make()`` on the first block,
-        refused when B changes without :meth:`reset_batch`."""
+        refused when B changes without :meth:`reset`."""
         st = self._bstate
         if st is None:
             st = self._bstate = (B, make())
         elif st[0] != B:
             raise DimensionError(f"{type(self).__name__}: the batch changed from {st[0]} to {B} "
-                                 "streams without reset_batch()")
+                                 "streams without reset()")
         return st[1]
 
     def params(self) -> dict[str, Any]:
@@ -461,8 +369,6 @@ class GaussianNoise(Stage):
                          else np.sqrt(self._variance))
             self._params = {"psd": _json(psd_v), "sample_time": ts}
             self._channels(psd=psd_v)
-        self._std_list = self._list(self._std)
-        self._draws = _Draws("standard_normal")
 
     @property
     def variance(self) -> float | Array:
@@ -476,20 +382,6 @@ class GaussianNoise(Stage):
 
     def noise_variance(self) -> float | Array:
         return self.variance
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        self._check_width(n)
-        return y + self._std * self._draws.take(rng, n)
-
-    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        one, std = self._draws.one, self._std
-        if self._n is None:
-            if len(y) == 1:
-                return [y[0] + std * one(rng)]
-            return [v + std * one(rng) for v in y]
-        self._check_width(len(y))
-        return [v + s * one(rng) for v, s in zip(y, self._std_list)]  # type: ignore[arg-type]
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         B, T, p = Y.shape
@@ -516,8 +408,6 @@ class UniformNoise(Stage):
         self._hw = _channel_param("UniformNoise.half_width", half_width, "nonneg")
         self._params = {"half_width": _json(self._hw)}
         self._channels(half_width=self._hw)
-        self._hw_list = self._list(self._hw)
-        self._draws = _Draws("random")
 
     @property
     def variance(self) -> float | Array:
@@ -527,30 +417,11 @@ class UniformNoise(Stage):
     def noise_variance(self) -> float | Array:
         return self.variance
 
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        self._check_width(n)
-        out = self._draws.take(rng, n)  # [0, 1)
-        out *= 2.0
-        out -= 1.0                   # [-1, 1)
-        out *= self._hw
-        out += y
-        return out
-
-    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        one = self._draws.one
-        if self._n is None:
-            hw = self._hw
-            return [(2.0 * one(rng) - 1.0) * hw + v for v in y]
-        self._check_width(len(y))
-        return [(2.0 * one(rng) - 1.0) * h + v
-                for v, h in zip(y, self._hw_list)]  # type: ignore[arg-type]
-
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         B, T, p = Y.shape
         self._check_width(p)
         u = draws.take(T * p).reshape(B, T, p)  # type: ignore[union-attr]
-        return (u * 2.0 - 1.0) * self._hw + Y  # [0, 1) -> [-1, 1) -> [-hw, hw), as __call__
+        return (u * 2.0 - 1.0) * self._hw + Y  # [0, 1) -> [-1, 1) -> [-hw, hw)
 
 
 class Bias(Stage):
@@ -570,18 +441,6 @@ class Bias(Stage):
         self._offset = _channel_param("Bias.offset", offset, "real")
         self._params = {"offset": _json(self._offset)}
         self._channels(offset=self._offset)
-        self._offset_list = self._list(self._offset)
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        self._check_width(y.shape[0])
-        return y + self._offset
-
-    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        off = self._offset
-        if self._n is None:
-            return [v + off for v in y]
-        self._check_width(len(y))
-        return [v + o for v, o in zip(y, self._offset_list)]  # type: ignore[arg-type]
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         self._check_width(Y.shape[2])
@@ -591,10 +450,10 @@ class Bias(Stage):
 class RandomWalkDrift(Stage):
     """Bias that performs a random walk (integrated white noise).
 
-    At each call ``b += N(0, sigma**2 * dt)`` with ``dt`` the time since the previous call
-    (``dt = 0`` on the first call after construction or :meth:`reset`); the output is
-    ``y + b``.  Every call draws ``n`` normal numbers, whatever ``dt``, so the generator stream
-    does not depend on the call times.
+    At each sample ``b += N(0, sigma**2 * dt)`` with ``dt`` the time since the previous sample
+    (``dt = 0`` on the first sample after construction or :meth:`reset`, which sets ``b =
+    initial``); the output is ``y + b``.  Every sample draws ``p`` normal numbers, whatever
+    ``dt``, so the generator stream does not depend on the sample times.
 
     Parameters
     ----------
@@ -606,7 +465,8 @@ class RandomWalkDrift(Stage):
     Raises
     ------
     DesignError
-        At call time, if ``t`` decreases (call :meth:`reset` before restarting a simulation).
+        When ``t`` decreases, within a block or from one block to the next (call
+        :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting).
     """
 
     name = "drift"
@@ -619,43 +479,17 @@ class RandomWalkDrift(Stage):
         self._initial = _channel_param("RandomWalkDrift.initial", initial, "real")
         self._params = {"sigma": _json(self._sigma), "initial": _json(self._initial)}
         self._channels(sigma=self._sigma, initial=self._initial)
-        self._b: Array | None = None
-        self._t = 0.0
-        self._draws = _Draws("standard_normal")
 
     @property
     def bias(self) -> Array | None:
-        """Current drift value per channel (``None`` before the first call)."""
-        return None if self._b is None else self._b.copy()
-
-    def reset(self) -> None:
-        self._b = None
-        self._t = 0.0
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        self._check_width(n)
-        z = self._draws.take(rng, n)
-        if self._b is None:
-            self._b = np.zeros(n)
-            self._b += self._initial
-        else:
-            if n != self._b.shape[0]:
-                raise DimensionError(f"RandomWalkDrift: y changed length from "
-                                     f"{self._b.shape[0]} to {n} without reset()")
-            dt = t - self._t
-            if dt < 0:
-                raise DesignError(f"RandomWalkDrift: time must not decrease; found t={t} after "
-                                  f"t={self._t} (call reset() before restarting)")
-            z *= self._sigma
-            z *= math.sqrt(dt)
-            self._b += z
-        self._t = t
-        return y + self._b
+        """Current drift value per stream and channel, ``(B, p)`` (``None`` before the first
+        block after construction or :meth:`reset`)."""
+        return None if self._bstate is None else self._bstate[1]["b"].copy()
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         """Per stream the bias ``b`` (B, p) and the last time, across blocks; the increments of
-        a block are summed in order (``numpy.cumsum``: the same additions as call by call)."""
+        a block are summed in order (``numpy.cumsum``: the same additions as sample by
+        sample)."""
         B, T, p = Y.shape
         self._check_width(p)
         st = self._fresh_state(B, lambda: {"b": None, "t": 0.0})
@@ -718,14 +552,13 @@ class Quantization(Stage):
             c = _channel_param("Quantization.counts_per_rev", counts_per_rev, "positive")
             ca = np.asarray(c)
             if np.any(ca != np.round(ca)):
-                found = c if isinstance(c, float) else c.tolist()
+                shown = c if isinstance(c, float) else c.tolist()
                 raise DesignError("Quantization.counts_per_rev must be a positive integer; "
-                                  f"found {found}")
+                                  f"found {shown}")
             self._res = (2.0 * math.pi / c) if isinstance(c, float) else 2.0 * np.pi / c
             self._params = {"counts_per_rev": (int(c) if isinstance(c, float)
                                                else [int(v) for v in c])}
             self._channels(counts_per_rev=c)
-        self._res_list = self._list(self._res)
 
     @property
     def resolution(self) -> float | Array:
@@ -740,42 +573,15 @@ class Quantization(Stage):
     def noise_variance(self) -> float | Array:
         return self.variance
 
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        self._check_width(y.shape[0])
-        return np.rint(y / self._res) * self._res
-
-    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        n = len(y)
-        self._check_width(n)
-        res = self._res
-        if isinstance(res, float):
-            if n == 1:  # one channel: _rint inlined, no comprehension
-                q = y[0] / res
-                if q - q != 0.0:  # NaN or +-inf
-                    return [q * res]
-                r = float(round(q))
-                return [(r if r else math.copysign(0.0, q)) * res]
-            return [_rint(v / res) * res for v in y]
-        return [_rint(v / r) * r for v, r in zip(y, self._res_list)]  # type: ignore[arg-type]
-
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         self._check_width(Y.shape[2])
         return np.rint(Y / self._res) * self._res
 
 
-def _rint(q: float) -> float:
-    """:func:`numpy.rint` of a Python float, as a Python float: ties to even, NaN and +-inf
-    unchanged, and the sign of a zero result kept (``rint(-0.3) = -0.0``)."""
-    if q - q != 0.0:  # NaN or +-inf
-        return q
-    r = float(round(q))  # Python's round: ties to even, exact for every finite float
-    return r if r else math.copysign(0.0, q)
-
-
 class SampleHold(Stage):
     """Sample at its own ``period`` and hold between samples (zero-order hold).
 
-    The stage samples its input on the first call and whenever ``floor((t + eps) / period)``
+    The stage samples its input at the first sample and whenever ``floor((t + eps) / period)``
     changes, with ``eps = min(1e-9 * max(1, |t|), 1e-3 * period)`` so that times such as
     ``0.1 + 0.1 + 0.1`` sample on time; otherwise it returns the held sample.
 
@@ -792,23 +598,6 @@ class SampleHold(Stage):
         super().__init__()
         self._period = finite_scalar("SampleHold.period", period, positive=True)
         self._params = {"period": self._period}
-        self._k: int | None = None
-        self._held: Array | None = None
-
-    def reset(self) -> None:
-        self._k = None
-        self._held = None
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        eps = min(1e-9 * max(1.0, abs(t)), 1e-3 * self._period)
-        k = math.floor((t + eps) / self._period)
-        if self._held is None or k != self._k:
-            if self._held is not None and y.shape[0] != self._held.shape[0]:
-                raise DimensionError(f"SampleHold: y changed length from "
-                                     f"{self._held.shape[0]} to {y.shape[0]} without reset()")
-            self._k = k
-            self._held = y.copy()
-        return self._held.copy()
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         """The sample index ``k`` of every time (shared by the streams) decides where a new
@@ -834,11 +623,11 @@ class SampleHold(Stage):
 class Delay(Stage):
     """Transport delay of ``delay`` seconds.
 
-    Returns the input that arrived at the latest call time ``t_k <= t - delay`` (with a
-    tolerance of ``1e-9 * max(1, |t|)`` so that exact multiples of the call period work).
+    Returns the input that arrived at the latest sample time ``t_k <= t - delay`` (with a
+    tolerance of ``1e-9 * max(1, |t|)`` so that exact multiples of the sample period work).
     Before any such input exists, returns the **first** input received since construction or
     :meth:`reset`.  Called every ``Ts`` with ``delay = m * Ts``, the output is exactly the
-    input from ``m`` calls ago.  The buffer only keeps the entries still needed.
+    input from ``m`` samples ago.  The buffer only keeps the entries still needed.
 
     Parameters
     ----------
@@ -848,7 +637,8 @@ class Delay(Stage):
     Raises
     ------
     DesignError
-        At call time, if ``t`` decreases (call :meth:`reset` before restarting a simulation).
+        When ``t`` decreases, within a block or from one block to the next (call
+        :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting).
     """
 
     name = "delay"
@@ -858,35 +648,9 @@ class Delay(Stage):
         super().__init__()
         self._delay = finite_scalar("Delay.delay", delay, nonnegative=True)
         self._params = {"delay": self._delay}
-        self._buf: deque[tuple[float, Array]] = deque()
-        self._first: Array | None = None
-
-    def reset(self) -> None:
-        self._buf.clear()
-        self._first = None
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        buf = self._buf
-        if self._first is None:
-            self._first = y.copy()
-            buf.append((t, self._first))
-        else:
-            if y.shape[0] != self._first.shape[0]:
-                raise DimensionError(f"Delay: y changed length from {self._first.shape[0]} "
-                                     f"to {y.shape[0]} without reset()")
-            if t < buf[-1][0]:
-                raise DesignError(f"Delay: time must not decrease; found t={t} after "
-                                  f"t={buf[-1][0]} (call reset() before restarting)")
-            buf.append((t, y.copy()))
-        target = t - self._delay + 1e-9 * max(1.0, abs(t))
-        while len(buf) > 1 and buf[1][0] <= target:
-            buf.popleft()
-        # buf[0] is either the latest entry with t_k <= target or, when none exists yet, the
-        # first input (an entry is only dropped once its successor is old enough).
-        return buf[0][1].copy()
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
-        """The delay line of :meth:`__call__` for a block: the times (shared by the streams)
+        """The delay line for a block: the times (shared by the streams)
         give, for each sample, the index of the entry it returns (the latest received at or
         before ``t - delay``, never moving back; the first input until one exists); per stream
         the entries still needed carry over to the next block."""
@@ -917,7 +681,7 @@ class Delay(Stage):
 
 
 class Dropout(Stage):
-    """Lose samples: with probability ``p`` per call and channel the sample becomes NaN.
+    """Lose samples: with probability ``p`` per sample and channel the sample becomes NaN.
 
     A lost sample is NaN, never a silent zero; the observer must handle it.
 
@@ -928,8 +692,9 @@ class Dropout(Stage):
 
     Attributes
     ----------
-    count : int
-        Number of samples dropped since construction or :meth:`reset`.
+    counts : ndarray of int, shape (B,), or None
+        Samples dropped per stream since construction or :meth:`reset` (None before the
+        first block); :attr:`SensorChain.dropouts` sums them over the stages and streams.
     """
 
     name = "dropout"
@@ -941,38 +706,10 @@ class Dropout(Stage):
         self._p = _channel_param("Dropout.p", p, "prob")
         self._params = {"p": _json(self._p)}
         self._channels(p=self._p)
-        self._p_list = self._list(self._p)
-        self.count = 0
-        self._draws = _Draws("random")
-
-    def reset(self) -> None:
-        self.count = 0
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        self._check_width(n)
-        hit = self._draws.take(rng, n) < self._p
-        out = y.copy()
-        k = int(np.count_nonzero(hit))
-        if k:
-            out[hit] = np.nan
-            self.count += k
-        return out
-
-    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        self._check_width(len(y))
-        one = self._draws.one
-        ps = [self._p] * len(y) if self._p_list is None else self._p_list
-        out = list(y)
-        for i, p in enumerate(ps):
-            if one(rng) < p:
-                out[i] = math.nan
-                self.count += 1
-        return out
 
     @property
     def counts(self) -> NDArray[np.int64] | None:
-        """Samples dropped per stream by the batched path since :meth:`reset_batch` (None
+        """Samples dropped per stream by the batched path since :meth:`reset` (None
         before the first block)."""
         return None if self._bstate is None else self._bstate[1].copy()
 
@@ -988,9 +725,9 @@ class Dropout(Stage):
 
 
 class Outliers(Stage):
-    """Rare spikes: with probability ``p`` per call and channel, add ``+-magnitude``.
+    """Rare spikes: with probability ``p`` per sample and channel, add ``+-magnitude``.
 
-    The sign is random (+ or - with probability 1/2).  Every call draws ``2 n`` uniform
+    The sign is random (+ or - with probability 1/2).  Every sample draws ``2 p`` uniform
     numbers, hit or not.
 
     Parameters
@@ -1002,8 +739,9 @@ class Outliers(Stage):
 
     Attributes
     ----------
-    count : int
-        Number of outliers added since construction or :meth:`reset`.
+    counts : ndarray of int, shape (B,), or None
+        Outliers added per stream since construction or :meth:`reset` (None before the first
+        block).
     """
 
     name = "outliers"
@@ -1016,34 +754,15 @@ class Outliers(Stage):
         self._mag = _channel_param("Outliers.magnitude", magnitude, "nonneg")
         self._params = {"p": _json(self._p), "magnitude": _json(self._mag)}
         self._channels(p=self._p, magnitude=self._mag)
-        self.count = 0
-        self._draws = _Draws("random")
-
-    def reset(self) -> None:
-        self.count = 0
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        n = y.shape[0]
-        self._check_width(n)
-        u = self._draws.take(rng, 2 * n).reshape(2, n)
-        hit = u[0] < self._p
-        out = y.copy()
-        k = int(np.count_nonzero(hit))
-        if k:
-            spike = np.where(u[1] < 0.5, -1.0, 1.0)
-            spike *= self._mag
-            out[hit] += spike[hit]
-            self.count += k
-        return out
 
     @property
     def counts(self) -> NDArray[np.int64] | None:
-        """Outliers added per stream by the batched path since :meth:`reset_batch` (None
+        """Outliers added per stream by the batched path since :meth:`reset` (None
         before the first block)."""
         return None if self._bstate is None else self._bstate[1].copy()
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
-        """Per sample ``2 p`` uniform numbers (hit, then sign), as :meth:`__call__`."""
+        """Per sample ``2 p`` uniform numbers (hit, then sign)."""
         B, T, p = Y.shape
         self._check_width(p)
         counts = self._fresh_state(B, lambda: np.zeros(B, dtype=np.int64))
@@ -1076,24 +795,10 @@ class Saturation(Stage):
             raise DesignError(f"Saturation needs low < high; found low={_json(self._low)}, "
                               f"high={_json(self._high)}")
         self._params = {"low": _json(self._low), "high": _json(self._high)}
-        self._low_list, self._high_list = self._list(self._low), self._list(self._high)
-
-    def __call__(self, t: float, y: Array, rng: np.random.Generator) -> Array:
-        self._check_width(y.shape[0])
-        out = np.maximum(y, self._low)          # NaN propagates; cheaper than np.clip
-        np.minimum(out, self._high, out=out)
-        return out
-
-    def apply_list(self, t: float, y: list[float], rng: np.random.Generator) -> list[float]:
-        n = len(y)
-        self._check_width(n)
-        lo = [self._low] * n if self._low_list is None else self._low_list
-        hi = [self._high] * n if self._high_list is None else self._high_list
-        return [a if v < a else (b if v > b else v) for v, a, b in zip(y, lo, hi)]
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         self._check_width(Y.shape[2])
-        out = np.maximum(Y, self._low)          # NaN propagates, as __call__
+        out = np.maximum(Y, self._low)          # NaN propagates; cheaper than np.clip
         np.minimum(out, self._high, out=out)
         return out
 
@@ -1177,7 +882,8 @@ def _is_seed_sequence(seed: Any) -> bool:
 def stream_generators(seed: int | None, count: int) -> list[np.random.Generator]:
     """The generators of the ``count`` random stages of one stream with seed ``seed``: the
     first is ``numpy.random.default_rng(seed)`` (the one generator of a chain before the batch
-    axis: a chain with one random stage gives the same numbers as then), the ``k``-th one
+    axis and its per-sample path: a chain with one random stage gives the same numbers as
+    then), the ``k``-th one
     after it (``k = 1, 2, ...``) is seeded by the ``(k-1)``-th child of
     ``SeedSequence(seed)`` (``SeedSequence(seed, spawn_key=(k - 1,))``, what
     ``SeedSequence(seed).spawn`` gives), a stream independent of the first. ``seed`` None:
@@ -1191,34 +897,33 @@ def stream_generators(seed: int | None, count: int) -> list[np.random.Generator]
 
 
 class SensorChain:
-    """A sequence of sensor stages applied in order, with one seeded random generator.
+    """A sequence of sensor stages applied in order to blocks of B seeded streams.
 
     Parameters
     ----------
     stages : sequence of Stage, default ()
         Applied in the order given (see the module docstring for the recommended order).
     seed : int or None, default None
-        Seed of the chain's :func:`numpy.random.default_rng`.  The same seed gives
-        bit-identical output sequences.  ``None`` draws fresh OS entropy (at construction and
-        at every :meth:`reset` without a seed).
+        Seed of the one stream the chain starts with (B = 1, see :func:`stream_generators`).
+        The same seed gives bit-identical output sequences.  ``None`` draws fresh OS entropy
+        (at construction and at every :meth:`reset` without a seed).
 
     Notes
     -----
-    **Batched streams** (:meth:`reset` with a sequence of B seeds, then :meth:`apply` on blocks
-    ``(B, T, p)``): every random stage of a stream draws from its own generator
-    (:func:`stream_generators`): the first random stage from ``default_rng(seed)``, as the one
-    shared generator did, later ones from generators spawned from the seed. So a chain with one
-    random stage (e.g. Gaussian noise then quantization) gives, per stream, exactly the numbers
-    of ``chain(t, y)`` sample by sample with that seed; a chain with two or more random stages
-    gives other (equally distributed) numbers than the per-sample path, where the stages share
-    one generator. Each stream is the same whether run alone or in a batch, and whatever the
-    block sizes.
+    **Streams** (:meth:`reset` with one seed: B = 1; with a sequence of B seeds: B streams;
+    then :meth:`apply` on blocks ``(B, T, p)``): every random stage of a stream draws from its
+    own generator (:func:`stream_generators`): the first random stage from
+    ``default_rng(seed)``, later ones from generators spawned from the seed. So a chain with
+    one random stage (e.g. Gaussian noise then quantization) gives, per stream, exactly the
+    numbers of ``default_rng(seed)`` drawn sample after sample. Each stream is the same
+    whether run alone or in a batch, and whatever the block sizes. One sample of an unbatched
+    chain is ``chain.apply([t], y[None, None])[0, 0]``.
 
     Examples
     --------
     >>> chain = SensorChain([Bias(0.1), GaussianNoise(std=0.01)], seed=0)
-    >>> chain(0.0, np.zeros(2)).shape
-    (2,)
+    >>> chain.apply([0.0], np.zeros((1, 1, 2))).shape
+    (1, 1, 2)
     >>> chain.reset([0, 1, 2])
     >>> chain.apply(np.array([0.0, 0.01]), np.zeros((3, 2, 2))).shape
     (3, 2, 2)
@@ -1233,7 +938,6 @@ class SensorChain:
         self._stages: tuple[Stage, ...] = stages
         self._seed0 = _check_seed(seed)
         self._seed = self._seed0
-        self._rng = np.random.default_rng(self._seed)
         self._dropout_stages = tuple(s for s in stages if isinstance(s, Dropout))
         self._start_streams((self._seed,), batched=False)
 
@@ -1250,10 +954,11 @@ class SensorChain:
             else:
                 streams.append(_Streams([g[k] for g in per_stream], s.draws))
                 k += 1
-            s.reset_batch()
+            s.reset()
         self._streams = tuple(streams)
         self._seeds = seeds
         self._batched = batched
+
     @property
     def stages(self) -> tuple[Stage, ...]:
         """The stages, in the order they are applied."""
@@ -1263,11 +968,6 @@ class SensorChain:
     def seed(self) -> int | None:
         """Seed of the current random stream (``None``: OS entropy)."""
         return self._seed
-
-    @property
-    def rng(self) -> np.random.Generator:
-        """The chain's random generator (shared by all stages)."""
-        return self._rng
 
     @property
     def dropouts(self) -> int:
@@ -1291,8 +991,8 @@ class SensorChain:
         return self._seeds
 
     def dropout_counts(self) -> NDArray[np.int64]:
-        """Samples dropped per stream by the :class:`Dropout` stages on the batched path since
-        the reset, shape ``(B,)``."""
+        """Samples dropped per stream by the :class:`Dropout` stages since the reset, shape
+        ``(B,)``."""
         out = np.zeros(self.batch, dtype=np.int64)
         for s in self._dropout_stages:
             c = s.counts
@@ -1351,44 +1051,6 @@ class SensorChain:
     def __repr__(self) -> str:
         return f"SensorChain({list(self._stages)!r}, seed={self._seed!r})"
 
-    def __call__(self, t: float, y: ArrayLike) -> Array:
-        """Measure: apply every stage in order to the clean outputs ``y`` at time ``t``.
-
-        Parameters
-        ----------
-        t : float
-            Time, seconds (non-decreasing between resets for the stateful stages).
-        y : array_like, shape (n,)
-            Clean plant outputs, one entry per channel (not modified).
-
-        Returns
-        -------
-        ndarray, shape (n,)
-            The measurement, a new array (NaN where a sample was dropped).
-
-        Raises
-        ------
-        DimensionError
-            ``y`` is not 1-D, or does not match a per-channel parameter.
-        """
-        try:
-            y = np.asarray(y, dtype=float)
-        except (TypeError, ValueError):
-            raise DimensionError("SensorChain: y must be a 1-D array of numbers; "
-                                 f"found {y!r}") from None
-        if y.ndim != 1:
-            raise DimensionError("SensorChain: y must be 1-D (one entry per output channel); "
-                                 f"found shape {y.shape}")
-        if not self._stages:
-            return y.copy()
-        t = float(t)
-        if not math.isfinite(t):
-            raise DesignError(f"SensorChain: t must be finite; found {t}")
-        rng = self._rng
-        for s in self._stages:
-            y = s(t, y, rng)
-        return y
-
     def reset(self, seed: int | Sequence[int | None] | None = None) -> None:
         """Re-seed the generator(s) and reset every stage.
 
@@ -1408,9 +1070,6 @@ class SensorChain:
         else:
             self._seed = self._seed0 if seed is None else _check_seed(seed)
             seeds, batched = (self._seed,), False
-        self._rng = np.random.default_rng(self._seed)
-        for s in self._stages:
-            s.reset()
         self._start_streams(seeds, batched)
 
     def restart(self) -> None:
@@ -1418,7 +1077,6 @@ class SensorChain:
         generators continue where they are: Gymnasium's ``reset()`` without a seed."""
         for s in self._stages:
             s.reset()
-            s.reset_batch()
 
     def describe(self) -> list[dict[str, Any]]:
         """The chain as JSON-friendly data: ``[{"stage": name, **params}, ...]``.

@@ -5,13 +5,13 @@ MuJoCo rollout runs in its own threads):
 
 * ``sensor``: ``SensorChain.apply`` of Gaussian noise then quantization over B streams, in
   blocks of T samples, nanoseconds per stream-sample (the issue's target: at most 30 ns at
-  B = 1024), next to the per-sample path of one stream (``chain(t, y)``);
+  B = 1024); B = 1, T = 1 is one sample of one stream (the per-sample cost);
 * ``mujoco``: ``MujocoPlant.run`` of the pendulum, B members, open-loop inputs, physics steps
   per second, against bare ``mj_step`` on one ``MjData`` (the loop of one member, a short
   block: the Python loop; long or batched blocks: ``mujoco.rollout``), and the one-member
   block length where the rollout starts to pay (``_ROLLOUT_MIN_STEPS``);
 * ``ode``: ``OdePlant.run`` of a paper system, B members (a loop over the members of the
-  same RK4 as ``step``), microseconds per member-plant-step.
+  same RK4 as a one-member run), microseconds per member-plant-step.
 
 Usage::
 
@@ -57,16 +57,6 @@ def sensor_cost(B: int, T: int, samples: int) -> float:
     for k in range(8, 8 + blocks):
         chain.apply(ts[k], Y)
     return (CLOCK() - t0) / (blocks * T * B) * 1e9
-
-
-def sensor_per_sample_cost(samples: int) -> float:
-    """ns per sample of one stream through ``chain(t, y)`` (the per-sample path)."""
-    chain = SensorChain([GaussianNoise(std=1e-3), Quantization(counts_per_rev=4096)], seed=0)
-    y = np.zeros(1)
-    t0 = CLOCK()
-    for k in range(samples):
-        chain(k * 1e-3, y)
-    return (CLOCK() - t0) / samples * 1e9
 
 
 def mujoco_rate(B: int, T: int, steps: int, nthread: int) -> float:
@@ -126,8 +116,6 @@ def main(argv: list[str] | None = None) -> int:
     r = args.repeats
     lines = [f"### {SECTION}", "", *header("python scripts/bench_batch.py"), ""]
     lines += ["| sensor chain: Gaussian + quantization | ns per stream-sample |", "|---|---|"]
-    lines.append(f"| one stream, per sample (`chain(t, y)`) | "
-                 f"{best(lambda: sensor_per_sample_cost(20_000), r):.0f} |")
     for B, T in ((1, 1), (1, 100), (64, 1), (1024, 1), (1024, 10), (1024, 100)):
         cost = best(lambda B=B, T=T: sensor_cost(B, T, 2_000 if B == 1024 else 20_000), r)
         lines.append(f"| `apply`, B = {B}, blocks of T = {T} | {cost:.1f} |")

@@ -26,6 +26,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 import time
 from collections.abc import Callable
@@ -98,13 +99,18 @@ def _interleaved(fns: dict[str, Callable[[], float]], rounds: int, best: Callabl
 
 
 def _parts(rounds: int, n: int) -> dict[str, float]:
-    """CPU seconds of the per-sample calls of PendulumSwingUp's loop, alone."""
+    """CPU seconds of one sample of PendulumSwingUp's parts, alone: the sensor chain's
+    ``apply`` on one sample of one stream (on a copy of the environment's chain) and the
+    observer's unbatched ``update`` (both derived forms of the batched primitives)."""
     reg = gym.make(TARGET_ID).unwrapped
     free = gym.make(TARGET_ID, observer_kwargs={"k": 20.0, "model": False}).unwrapped
     for e in (reg, free):
         e.reset(seed=0)
-    y, u, ts = list(reg._y), [0.1], reg.sample_period  # the loop's lists of floats
-    stage, rng = reg.sensor.stages[0], reg.sensor.rng
+    y = np.asarray(reg.plant.outputs(), dtype=float).reshape(-1)
+    u, ts = np.array([0.1]), reg.sample_period
+    chain = copy.deepcopy(reg.sensor)
+    chain.reset(0)
+    t1, Y1 = np.zeros(1), y[None, None]
 
     def burst(f: Callable[[], Any]) -> Callable[[], float]:
         def go() -> float:
@@ -115,9 +121,9 @@ def _parts(rounds: int, n: int) -> dict[str, float]:
         return go
 
     return _interleaved({
-        "update_model": burst(lambda: reg.observer.update_list(y, u, ts)),
-        "update_free": burst(lambda: free.observer.update_list(y, u, ts)),
-        "stage": burst(lambda: stage.apply_list(0.0, y, rng)),
+        "update_model": burst(lambda: reg.observer.update(y, u, ts)),
+        "update_free": burst(lambda: free.observer.update(y, u, ts)),
+        "stage": burst(lambda: chain.apply(t1, Y1)),
     }, rounds, min)
 
 
@@ -176,17 +182,13 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
         f"({bare['step'] / ref['step']:.2f}x): two MuJoCo steps of the pendulum (about 2 us), "
         f"the action, the state read, reward, observation and `info`, and Gymnasium's three "
         f"wrappers. The sensor stage and the observer add "
-        f"{(tgt['step'] - bare['step']) * 1e6:.1f} us: the Gaussian stage "
-        f"(`GaussianNoise.apply_list`, {parts['stage'] * 1e6:.2f} us alone: one standard normal "
-        f"handed out from a block drawn in advance from the chain's seeded generator, the same "
-        f"stream as one draw per call), the observer "
-        f"(`HighGainObserver.update_list`, {parts['update_model'] * 1e6:.2f} us alone with the "
-        f"model term, the correction and the model term in one compiled call; "
-        f"{parts['update_free'] * 1e6:.2f} us model-free), and the estimate and error entries "
-        f"of `info` with the estimate's finiteness check. The loop runs in Python floats: "
-        f"MjData is written and read through cached views and addresses by generated "
-        f"straight-line functions, the substeps run in one `mj_step(m, d, nstep)` call, the "
-        f"measurement and the estimate stay lists of floats, and arrays are built only for "
+        f"{(tgt['step'] - bare['step']) * 1e6:.1f} us: the sensor chain (one sample of one "
+        f"stream through `SensorChain.apply`, {parts['stage'] * 1e6:.2f} us alone: the Gaussian "
+        f"stage's standard normals handed out from a block drawn in advance from the stream's "
+        f"seeded generator), the observer (`HighGainObserver.update`, the unbatched form "
+        f"derived from `advance`, {parts['update_model'] * 1e6:.2f} us alone with the model "
+        f"term; {parts['update_free'] * 1e6:.2f} us model-free), and the estimate and error "
+        f"entries of `info` with the estimate's finiteness check. Arrays are built only for "
         f"what `step` returns (the observation and the three `info` entries, each its own "
         f"array). `info_level='full'` (measurement, diagnostics, reward terms) costs a "
         f"`SyncVectorEnv` about 1 us per entry, copy and step, hence the default of three "

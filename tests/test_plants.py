@@ -9,7 +9,7 @@ import pytest
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.inputs import Constant
 from hgo_mj.observers import HighGainObserver
-from hgo_mj.plants import MujocoPlant, make_plant, model_path
+from hgo_mj.plants import MujocoPlant, OdePlant, Plant, make_plant, model_path
 from hgo_mj.simulate import simulate
 from hgo_mj.systems import ElasticJoint, Pendulum
 
@@ -97,3 +97,24 @@ def test_ode_plant_divergence_names_the_time(chain):
             plant.step([1e308])
     with pytest.raises(DesignError, match="must be a System instance"):
         OdePlant(Constant, dt=0.1)
+
+
+def test_plant_interface_is_reset_run_state_outputs():
+    """One interface: the abstract surface is the batched primitive and its readers; step is
+    derived once in the base from run (no per-plant twins, no list forms)."""
+    assert Plant.__abstractmethods__ == {"reset", "run", "state", "outputs"}
+    for cls in (MujocoPlant, OdePlant):
+        assert "step" not in vars(cls)
+        for name in ("state_list", "outputs_list", "step_list"):
+            assert not hasattr(cls, name)
+    plant = make_plant("pendulum")
+    ref = make_plant("pendulum")
+    plant.step([0.3])
+    X, Yc = ref.run(np.full((1, 1, 1), 0.3), 1)
+    np.testing.assert_array_equal(plant.state, ref.state)
+    assert plant.t == ref.t
+    with pytest.raises(DimensionError, match=r"u must have shape \(1,\); found shape \(2,\)"):
+        plant.step([0.3, 0.1])
+    plant.reset(batch=2)
+    with pytest.raises(DimensionError, match=r"u must have shape \(2, 1\); found shape \(1,\)"):
+        plant.step([0.3])

@@ -1,4 +1,9 @@
-"""Tests of hgo_mj.sensors: each stage's promised statistics, the chain, and the validation."""
+"""Tests of hgo_mj.sensors: each stage's promised statistics, the chain, and the validation.
+
+Everything goes through the one primitive, :meth:`SensorChain.apply` on blocks ``(B, T, p)``:
+:func:`one` is one sample of an unbatched chain (B = 1, T = 1), :func:`block` a series of
+samples of it (B = 1); the batched streams themselves are tested in tests/sensors/.
+"""
 
 from __future__ import annotations
 
@@ -32,6 +37,16 @@ from hgo_mj.sensors import (
 N_STAT = 100_000
 
 
+def one(chain: SensorChain, t: float, y) -> np.ndarray:
+    """One sample ``y`` ``(p,)`` at time ``t`` through an unbatched chain, ``(p,)``."""
+    return chain.apply([t], np.asarray(y, dtype=float)[None, None])[0, 0]
+
+
+def block(chain: SensorChain, t, Y) -> np.ndarray:
+    """Samples ``Y`` ``(T, p)`` at times ``t`` ``(T,)`` through an unbatched chain, ``(T, p)``."""
+    return chain.apply(np.asarray(t, dtype=float), np.asarray(Y, dtype=float)[None])[0]
+
+
 def _binomial_ok(k: int, n: int, p: float) -> bool:
     return abs(k / n - p) < 4 * math.sqrt(p * (1 - p) / n)
 
@@ -39,7 +54,7 @@ def _binomial_ok(k: int, n: int, p: float) -> bool:
 # --------------------------------------------------------------------------- additive noise
 def test_gaussian_std_statistics():
     chain = SensorChain([GaussianNoise(std=0.3)], seed=1)
-    e = chain(0.0, np.zeros(N_STAT))
+    e = one(chain, 0.0, np.zeros(N_STAT))
     assert abs(e.std() / 0.3 - 1) < 0.02
     assert abs(e.mean()) < 4 * 0.3 / math.sqrt(N_STAT)
 
@@ -47,7 +62,7 @@ def test_gaussian_std_statistics():
 def test_gaussian_std_per_channel_over_time():
     chain = SensorChain([GaussianNoise(std=[0.1, 2.0])], seed=2)
     y = np.array([1.0, -5.0])
-    e = np.array([chain(k * 1e-3, y) for k in range(50_000)]) - y
+    e = block(chain, np.arange(50_000) * 1e-3, np.tile(y, (50_000, 1))) - y
     assert np.all(np.abs(e.std(axis=0) / [0.1, 2.0] - 1) < 0.02)
     assert np.all(np.abs(e.mean(axis=0)) < 4 * np.array([0.1, 2.0]) / math.sqrt(50_000))
 
@@ -57,7 +72,7 @@ def test_gaussian_psd_form():
     var = 0.25e-6 / 0.01
     assert g.variance == pytest.approx(var, rel=1e-15)
     assert g.std == pytest.approx(math.sqrt(var))
-    e = SensorChain([g], seed=3)(0.0, np.zeros(N_STAT))
+    e = one(SensorChain([g], seed=3), 0.0, np.zeros(N_STAT))
     assert abs(e.var() / var - 1) < 0.02
     assert abs(e.mean()) < 4 * math.sqrt(var / N_STAT)
     assert g.params() == {"psd": 0.25e-6, "sample_time": 0.01}
@@ -71,7 +86,7 @@ def test_gaussian_std_variance_property():
 def test_uniform_statistics_and_bounds():
     hw = 0.5
     u = UniformNoise(hw)
-    e = SensorChain([u], seed=4)(0.0, np.zeros(N_STAT))
+    e = one(SensorChain([u], seed=4), 0.0, np.zeros(N_STAT))
     assert abs(e.std() / (hw / math.sqrt(3)) - 1) < 0.02
     assert np.all(np.abs(e) <= hw)
     assert e.min() < -0.99 * hw and e.max() > 0.99 * hw
@@ -81,9 +96,9 @@ def test_uniform_statistics_and_bounds():
 
 def test_bias_exact():
     y = np.array([0.1, -2.0, 3.5])
-    out = SensorChain([Bias(0.25)])(0.0, y)
+    out = one(SensorChain([Bias(0.25)]), 0.0, y)
     np.testing.assert_array_equal(out, y + 0.25)
-    out = SensorChain([Bias([1.0, 2.0, -3.0])])(0.0, y)
+    out = one(SensorChain([Bias([1.0, 2.0, -3.0])]), 0.0, y)
     np.testing.assert_array_equal(out, y + np.array([1.0, 2.0, -3.0]))
 
 
@@ -92,7 +107,7 @@ def test_drift_increment_variance():
     sigma, dt, n, steps = 0.5, 0.01, 20_000, 10
     chain = SensorChain([RandomWalkDrift(sigma)], seed=5)
     y = np.zeros(n)
-    b = np.array([chain(k * dt, y) for k in range(steps)])
+    b = block(chain, np.arange(steps) * dt, np.tile(y, (steps, 1)))
     np.testing.assert_array_equal(b[0], 0.0)  # first call: dt = 0, b = initial
     inc = np.diff(b, axis=0).ravel()
     assert abs(inc.var() / (sigma**2 * dt) - 1) < 0.05
@@ -104,23 +119,33 @@ def test_drift_irregular_dt_and_initial():
     d = RandomWalkDrift(sigma, initial=1.5)
     chain = SensorChain([d], seed=6)
     y = np.zeros(n)
-    b0 = chain(0.0, y)
+    b0 = one(chain, 0.0, y)
     np.testing.assert_array_equal(b0, 1.5)
-    b0b = chain(0.0, y)  # dt = 0: no change
+    b0b = one(chain, 0.0, y)  # dt = 0: no change
     np.testing.assert_array_equal(b0b, b0)
-    b1 = chain(0.04, y)
+    b1 = one(chain, 0.04, y)
     assert abs((b1 - b0).var() / (sigma**2 * 0.04) - 1) < 0.05
-    np.testing.assert_array_equal(d.bias, b1)
+    assert d.bias.shape == (1, n)                      # per stream and channel
+    np.testing.assert_array_equal(d.bias[0], b1)
     chain.reset()
     assert d.bias is None
-    np.testing.assert_array_equal(chain(0.0, y), 1.5)
+    np.testing.assert_array_equal(one(chain, 0.0, y), 1.5)
+    # a block with repeated and irregular times gives the same as those samples one by one
+    t = [0.0, 0.0, 0.04, 0.05, 0.05, 0.2]
+    chain.reset()
+    whole = block(chain, t, np.zeros((6, 3)))
+    chain.reset()
+    np.testing.assert_array_equal(np.array([one(chain, tk, np.zeros(3)) for tk in t]), whole)
 
 
 def test_drift_time_backwards_raises():
     chain = SensorChain([RandomWalkDrift(0.1)], seed=0)
-    chain(1.0, np.zeros(2))
+    one(chain, 1.0, np.zeros(2))
     with pytest.raises(DesignError, match="time must not decrease"):
-        chain(0.5, np.zeros(2))
+        one(chain, 0.5, np.zeros(2))
+    chain.reset()
+    with pytest.raises(DesignError, match="time must not decrease"):   # within a block
+        block(chain, [0.0, 1.0, 0.5], np.zeros((3, 2)))
 
 
 # --------------------------------------------------------------------------- quantization
@@ -134,7 +159,7 @@ def test_quantization_exact_step():
     rng = np.random.default_rng(0)
     y = rng.uniform(-10, 10, 10_000)
     for res in (0.01, 1e-3, 0.37, 2 * math.pi / 1024):
-        out = SensorChain([Quantization(res)])(0.0, y)
+        out = one(SensorChain([Quantization(res)]), 0.0, y)
         _assert_quantized(out, y, res)
         # the error spreads over the whole step (not a constant offset)
         assert np.max(np.abs(out - y)) > 0.49 * res
@@ -146,7 +171,7 @@ def test_quantization_counts_per_rev():
     assert q.params() == {"counts_per_rev": 4096}
     assert q.variance == pytest.approx(q.resolution**2 / 12)
     y = np.linspace(-7, 7, 1001)
-    _assert_quantized(SensorChain([q])(0.0, y), y, 2 * math.pi / 4096)
+    _assert_quantized(one(SensorChain([q]), 0.0, y), y, 2 * math.pi / 4096)
     enc = encoder(1024, std=0.001)
     assert [s.name for s in enc] == ["gaussian", "quantize"]
     assert [s.name for s in encoder(1024)] == ["quantize"]
@@ -159,7 +184,7 @@ def test_quantization_counts_per_rev():
 )
 def test_quantization_error_bounded_property(y, res):
     y = np.array(y)
-    out = SensorChain([Quantization(res)])(0.0, y)
+    out = one(SensorChain([Quantization(res)]), 0.0, y)
     k = out / res
     assert np.all(np.abs(k - np.rint(k)) <= 1e-12 * np.maximum(1.0, np.abs(k)))
     tol = res / 2 + 4 * np.finfo(float).eps * np.maximum(np.abs(y), res)
@@ -178,7 +203,7 @@ def test_sample_hold_changes_every_10_calls(accumulate):
             t = k * ts
         y = np.array([k + 1.0, -3.0 * k])
         ins.append(y)
-        outs.append(chain(t, y))
+        outs.append(one(chain, t, y))
         if accumulate:
             t += ts
     outs, ins = np.array(outs), np.array(ins)
@@ -189,18 +214,19 @@ def test_sample_hold_changes_every_10_calls(accumulate):
 
 
 def test_sample_hold_floating_point_accumulation():
-    sh = SampleHold(0.1)
-    rng = np.random.default_rng(0)
+    sh = SensorChain([SampleHold(0.1)])
     t = 0.0
-    assert sh(t, np.array([1.0]), rng)[0] == 1.0
+    assert one(sh, t, [1.0])[0] == 1.0
     t += 0.1
     t += 0.1
-    assert sh(t, np.array([2.0]), rng)[0] == 2.0   # 0.2: new sample
-    t += 0.1                                        # 0.30000000000000004
-    assert sh(t, np.array([3.0]), rng)[0] == 3.0
-    assert sh(0.35, np.array([4.0]), rng)[0] == 3.0
-    sh.reset()
-    assert sh(0.35, np.array([5.0]), rng)[0] == 5.0  # first call after reset samples
+    assert one(sh, t, [2.0])[0] == 2.0   # 0.2: new sample
+    t += 0.1                              # 0.30000000000000004
+    assert one(sh, t, [3.0])[0] == 3.0
+    assert one(sh, 0.35, [4.0])[0] == 3.0
+    sh.restart()
+    assert one(sh, 0.35, [5.0])[0] == 5.0  # first sample after a restart samples
+    sh.stages[0].reset()
+    assert one(sh, 0.36, [6.0])[0] == 6.0  # ... and after the stage's own reset
 
 
 # --------------------------------------------------------------------------- delay
@@ -216,10 +242,10 @@ def test_delay_exact_in_samples(accumulate):
             t = k * ts
         y = np.array([10.0 + k, -float(k) ** 2])
         ins.append(y)
-        outs.append(chain(t, y))
+        outs.append(one(chain, t, y))
         if accumulate:
             t += ts
-        assert len(d._buf) <= m + 2   # bounded buffer
+        assert len(d._bstate[1]["t"]) <= m + 2   # bounded buffer (the entries still needed)
     for k in range(n):
         np.testing.assert_array_equal(outs[k], ins[k - m] if k >= m else ins[0])
 
@@ -228,28 +254,28 @@ def test_delay_fractional_and_zero():
     ts = 0.01
     chain = SensorChain([Delay(2.5 * ts)])
     ins = [np.array([float(k)]) for k in range(20)]
-    outs = [chain(k * ts, y) for k, y in enumerate(ins)]
+    outs = [one(chain, k * ts, y) for k, y in enumerate(ins)]
     for k in range(20):
         assert outs[k][0] == max(k - 3, 0)
     chain0 = SensorChain([Delay(0.0)])
     for k in range(5):
         y = np.array([k * 1.5])
-        out = chain0(k * ts, y)
+        out = one(chain0, k * ts, y)
         np.testing.assert_array_equal(out, y)
         assert out is not y
 
 
 def test_delay_reset_and_errors():
     chain = SensorChain([Delay(0.02)])
-    chain(0.0, np.array([1.0]))
-    chain(0.01, np.array([2.0]))
+    one(chain, 0.0, np.array([1.0]))
+    one(chain, 0.01, np.array([2.0]))
     with pytest.raises(DesignError, match="time must not decrease"):
-        chain(0.005, np.array([3.0]))
+        one(chain, 0.005, np.array([3.0]))
     with pytest.raises(DimensionError, match="changed length from 1 to 2"):
-        chain(0.02, np.array([3.0, 4.0]))
+        one(chain, 0.02, np.array([3.0, 4.0]))
     chain.reset()
-    assert chain(5.0, np.array([7.0]))[0] == 7.0
-    assert chain(5.01, np.array([8.0]))[0] == 7.0
+    assert one(chain, 5.0, np.array([7.0]))[0] == 7.0
+    assert one(chain, 5.01, np.array([8.0]))[0] == 7.0
 
 
 @settings(max_examples=50, deadline=None)
@@ -258,7 +284,7 @@ def test_delay_reset_and_errors():
 def test_delay_property(m, ts, n):
     chain = SensorChain([Delay(m * ts)])
     for k in range(n):
-        out = chain(k * ts, np.array([float(k)]))
+        out = one(chain, k * ts, np.array([float(k)]))
         assert out[0] == max(k - m, 0)
 
 
@@ -269,33 +295,35 @@ def test_dropout_rate_and_count():
     chain = SensorChain([drop], seed=8)
     y = np.arange(n_ch, dtype=float)
     nan_total = 0
+    assert drop.counts is None and chain.dropouts == 0
     for k in range(calls):
-        before = drop.count
-        out = chain(k * 1e-3, y)
+        before = chain.dropouts
+        out = one(chain, k * 1e-3, y)
         nan = np.isnan(out)
-        assert drop.count - before == nan.sum()          # NaN exactly where counted
+        assert chain.dropouts - before == nan.sum()       # NaN exactly where counted
         np.testing.assert_array_equal(out[~nan], y[~nan])  # never a silent zero
         nan_total += int(nan.sum())
-    assert drop.count == nan_total == chain.dropouts
+    assert drop.counts.tolist() == [nan_total] and chain.dropouts == nan_total
     assert _binomial_ok(nan_total, n_ch * calls, p)
     chain.reset()
-    assert drop.count == 0 and chain.dropouts == 0
+    assert drop.counts is None and chain.dropouts == 0
 
 
 def test_dropout_extremes():
     y = np.ones(1000)
-    assert not np.any(np.isnan(SensorChain([Dropout(0.0)], seed=0)(0.0, y)))
-    assert np.all(np.isnan(SensorChain([Dropout(1.0)], seed=0)(0.0, y)))
-    out = SensorChain([Dropout([0.0, 1.0])], seed=0)(0.0, np.array([1.0, 2.0]))
+    assert not np.any(np.isnan(one(SensorChain([Dropout(0.0)], seed=0), 0.0, y)))
+    assert np.all(np.isnan(one(SensorChain([Dropout(1.0)], seed=0), 0.0, y)))
+    out = one(SensorChain([Dropout([0.0, 1.0])], seed=0), 0.0, np.array([1.0, 2.0]))
     assert out[0] == 1.0 and np.isnan(out[1])
 
 
 def test_chain_dropouts_sums_stages():
     chain = SensorChain([Dropout(0.2), Bias(1.0), Dropout(0.3)], seed=9)
     for k in range(100):
-        chain(k * 0.01, np.zeros(10))
-    a, b = chain.stages[0].count, chain.stages[2].count
+        one(chain, k * 0.01, np.zeros(10))
+    (a,), (b,) = chain.stages[0].counts, chain.stages[2].counts
     assert a > 0 and b > 0 and chain.dropouts == a + b
+    np.testing.assert_array_equal(chain.dropout_counts(), [a + b])
 
 
 def test_outliers_rate_and_magnitude():
@@ -303,34 +331,34 @@ def test_outliers_rate_and_magnitude():
     o = Outliers(p, mag)
     chain = SensorChain([o], seed=10)
     y = np.zeros(n_ch)
-    out = np.array([chain(k * 1e-3, y) for k in range(calls)])
+    out = np.array([one(chain, k * 1e-3, y) for k in range(calls)])
     assert set(np.unique(out)) <= {-mag, 0.0, mag}    # magnitude exact
     hits = int(np.count_nonzero(out))
-    assert hits == o.count
+    assert o.counts.tolist() == [hits]
     assert _binomial_ok(hits, n_ch * calls, p)
     assert _binomial_ok(int(np.count_nonzero(out > 0)), hits, 0.5)   # random sign
     chain.reset()
-    assert o.count == 0
+    assert o.counts is None
 
 
 def test_outliers_on_signal():
     y = np.linspace(-1, 1, 5000)
     o = Outliers(0.5, [2.0] * 5000)
-    out = SensorChain([o], seed=11)(0.0, y)
+    out = one(SensorChain([o], seed=11), 0.0, y)
     d = out - y
     hit = d != 0
     np.testing.assert_allclose(np.abs(d[hit]), 2.0, rtol=1e-14)
-    assert hit.sum() == o.count
+    assert o.counts.tolist() == [hit.sum()]
 
 
 # --------------------------------------------------------------------------- saturation
 def test_saturation():
     y = np.array([-5.0, -1.0, 0.0, 0.5, 7.0, np.nan])
-    out = SensorChain([Saturation(-1.0, 1.0)])(0.0, y)
+    out = one(SensorChain([Saturation(-1.0, 1.0)]), 0.0, y)
     np.testing.assert_array_equal(out, [-1.0, -1.0, 0.0, 0.5, 1.0, np.nan])
-    out = SensorChain([Saturation(-np.inf, 0.2)])(0.0, y[:5])
+    out = one(SensorChain([Saturation(-np.inf, 0.2)]), 0.0, y[:5])
     np.testing.assert_array_equal(out, [-5.0, -1.0, 0.0, 0.2, 0.2])
-    out = SensorChain([Saturation([0.0, -10.0], [1.0, 10.0])])(0.0, np.array([5.0, 5.0]))
+    out = one(SensorChain([Saturation([0.0, -10.0], [1.0, 10.0])]), 0.0, np.array([5.0, 5.0]))
     np.testing.assert_array_equal(out, [1.0, 5.0])
 
 
@@ -340,7 +368,7 @@ def test_saturation():
 def test_saturation_property(y, lo, width):
     y = np.array(y)
     hi = lo + width
-    out = SensorChain([Saturation(lo, hi)])(0.0, y)
+    out = one(SensorChain([Saturation(lo, hi)]), 0.0, y)
     assert np.all((out >= lo) & (out <= hi))
     inside = (y >= lo) & (y <= hi)
     np.testing.assert_array_equal(out[inside], y[inside])
@@ -354,14 +382,17 @@ def _full_chain(seed: int | None) -> SensorChain:
 
 
 def _run(chain: SensorChain, n: int = 300) -> np.ndarray:
-    return np.array([chain(k * 1e-3, np.array([math.sin(k * 0.01), math.cos(k * 0.01), 0.5]))
-                     for k in range(n)])
+    k = np.arange(n)
+    Y = np.stack([np.sin(k * 0.01), np.cos(k * 0.01), np.full(n, 0.5)], axis=1)
+    return np.concatenate([block(chain, k[:100] * 1e-3, Y[:100]),   # blocks of any length
+                           np.array([one(chain, j * 1e-3, Y[j]) for j in range(100, 150)]),
+                           block(chain, k[150:] * 1e-3, Y[150:])])
 
 
 def test_order_matters():
     y = np.array([0.0, 0.04])
-    a = SensorChain([Quantization(0.1), Bias(0.03)])(0.0, y)
-    b = SensorChain([Bias(0.03), Quantization(0.1)])(0.0, y)
+    a = one(SensorChain([Quantization(0.1), Bias(0.03)]), 0.0, y)
+    b = one(SensorChain([Bias(0.03), Quantization(0.1)]), 0.0, y)
     np.testing.assert_allclose(a, [0.03, 0.03])
     np.testing.assert_allclose(b, [0.0, 0.1])
 
@@ -392,29 +423,31 @@ def test_different_seeds_differ():
 def test_input_not_modified():
     y = np.array([0.3, -0.7, 1.2])
     y0 = y.copy()
+    Y = np.tile(y, (50, 1))[None]
+    Y0 = Y.copy()
     chain = _full_chain(0)
-    for k in range(50):
-        out = chain(k * 1e-3, y)
-        assert out is not y
-    np.testing.assert_array_equal(y, y0)
-    rng = np.random.default_rng(0)
+    out = chain.apply(np.arange(50) * 1e-3, Y)
+    assert not np.shares_memory(out, Y)
+    np.testing.assert_array_equal(Y, Y0)
     for s in _full_chain(0).stages:
-        out = s(0.0, y, rng)
-        assert out is not y
+        alone = SensorChain([s], seed=0)
+        out = alone.apply([0.0], Y[:, :1])
+        assert not np.shares_memory(out, Y)
         out[:] = 99.0                           # mutating an output leaves the input...
-        np.testing.assert_array_equal(y, y0)
-    sh = SampleHold(1.0)
-    out = sh(0.0, y, rng)
+        np.testing.assert_array_equal(Y, Y0)
+    sh = SensorChain([SampleHold(1.0)])
+    out = sh.apply([0.0], Y[:, :1])
     out[:] = 99.0                               # ...and the held sample intact
-    np.testing.assert_array_equal(sh(0.1, y * 2, rng), y0)
+    np.testing.assert_array_equal(one(sh, 0.1, y * 2), y0)
 
 
 def test_empty_chain_returns_copy():
     y = np.array([1.0, 2.0])
-    out = SensorChain()(0.0, y)
+    out = one(SensorChain(), 0.0, y)
     np.testing.assert_array_equal(out, y)
-    assert out is not y
-    np.testing.assert_array_equal(SensorChain()(0.0, [1, 2]), [1.0, 2.0])
+    Y = y[None, None]
+    assert not np.shares_memory(SensorChain().apply([0.0], Y), Y)
+    np.testing.assert_array_equal(one(SensorChain(), 0.0, [1, 2]), [1.0, 2.0])
 
 
 def test_describe_from_spec_round_trip():
@@ -437,8 +470,8 @@ def test_describe_from_spec_round_trip():
     again = SensorChain.from_spec(desc, seed=3)
     assert again.describe() == desc
     y = np.array([0.4, -0.2])
-    a = [chain(k * 1e-3, y) for k in range(100)]
-    b = [again(k * 1e-3, y) for k in range(100)]
+    a = [one(chain, k * 1e-3, y) for k in range(100)]
+    b = block(again, np.arange(100) * 1e-3, np.tile(y, (100, 1)))
     assert np.array_equal(np.array(a), np.array(b), equal_nan=True)
     assert GaussianNoise(std=[0.1, 0.2]).params() == {"std": [0.1, 0.2]}
 
@@ -463,7 +496,7 @@ def test_noise_variance_matches_empirical():
                         seed=12)
     rng = np.random.default_rng(1)
     y = rng.uniform(-1, 1, N_STAT)
-    e = chain(0.0, y) - y
+    e = one(chain, 0.0, y) - y
     assert abs(e.var() / chain.noise_variance(1)[0] - 1) < 0.03
 
 
@@ -571,10 +604,10 @@ def test_from_spec_errors():
 ])
 def test_per_channel_length_mismatch(stage):
     chain = SensorChain([stage], seed=0)
-    assert chain(0.0, np.zeros(3)).shape == (3,)   # right length works
+    assert one(chain, 0.0, np.zeros(3)).shape == (3,)   # right length works
     with pytest.raises(DimensionError, match=r"has 3 entries \(one per channel\) but y has "
                                              r"2 channels"):
-        chain(0.0, np.zeros(2))
+        one(chain, 0.0, np.zeros(2))
 
 
 def test_per_channel_params_disagree():
@@ -588,23 +621,26 @@ def test_per_channel_params_disagree():
         Bias([])
 
 
-@pytest.mark.parametrize("y", [np.zeros((2, 2)), np.float64(1.0), 3.0, np.zeros((1, 3))])
-def test_y_not_1d(y):
+@pytest.mark.parametrize("Y", [np.zeros((2, 2)), np.float64(1.0), 3.0, np.zeros((1, 3)),
+                               np.zeros(3), np.zeros((1, 1, 1, 3))])
+def test_y_not_a_block(Y):
     for chain in (SensorChain(), SensorChain([Bias(1.0)])):
-        with pytest.raises(DimensionError, match=r"y must be 1-D.*found shape"):
-            chain(0.0, y)
+        with pytest.raises(DimensionError, match=r"Y must have shape \(B, T, p\) = \(1, 1, p\); "
+                                                 r"found shape"):
+            chain.apply([0.0], Y)
 
 
 def test_call_errors():
-    with pytest.raises(DimensionError, match="y must be a 1-D array of numbers"):
-        SensorChain([Bias(1.0)])(0.0, ["a", "b"])
+    with pytest.raises(DimensionError, match=r"t \(T,\) and Y \(B, T, p\) must be arrays of "
+                                             "numbers"):
+        SensorChain([Bias(1.0)]).apply([0.0], [[["a", "b"]]])
     with pytest.raises(DesignError, match="t must be finite"):
-        SensorChain([Bias(1.0)])(float("nan"), np.zeros(2))
+        one(SensorChain([Bias(1.0)]), float("nan"), np.zeros(2))
     chain = SensorChain([RandomWalkDrift(0.1)], seed=0)
-    chain(0.0, np.zeros(2))
+    one(chain, 0.0, np.zeros(2))
     with pytest.raises(DimensionError, match="changed length from 2 to 3"):
-        chain(0.1, np.zeros(3))
+        one(chain, 0.1, np.zeros(3))
     chain = SensorChain([SampleHold(0.1)])
-    chain(0.0, np.zeros(2))
+    one(chain, 0.0, np.zeros(2))
     with pytest.raises(DimensionError, match="changed length from 2 to 3"):
-        chain(0.2, np.zeros(3))
+        one(chain, 0.2, np.zeros(3))

@@ -110,8 +110,9 @@ def divergence(message: str, member: int, t: float, rows: int, X: Array,
 
 
 class Plant(ABC):
-    """A simulated plant. ``step(u)`` advances one control period with ``u`` held; ``run(U,
-    steps)`` advances a block of samples for B members at once (module docstring).
+    """A simulated plant (module docstring). The one primitive is :meth:`run` (a block of
+    samples for B members); with :meth:`reset`, :attr:`state` and :meth:`outputs` it is the
+    whole abstract surface. :meth:`step` (one control period) is derived from :meth:`run`.
 
     Attributes
     ----------
@@ -150,10 +151,6 @@ class Plant(ABC):
         ``(n,)`` for every member or ``(B, n)``; ``batch`` the number of members."""
 
     @abstractmethod
-    def step(self, u: Any) -> None:
-        """Advance one control period ``dt`` with the input ``u`` held (``(m,)``; ``(B, m)``
-        for a batched plant)."""
-
     def run(self, U: Any, steps: int) -> tuple[Array, Array]:
         """Advance ``U.shape[1]`` samples of ``steps`` plant steps each (module docstring).
 
@@ -178,47 +175,36 @@ class Plant(ABC):
         DivergenceError
             A member's input or state left the allowed numbers (message names the member and
             the time; attributes ``member``, ``t``, ``rows``, ``X``, ``Yc``).
-
-        The default serves unbatched plants through :meth:`step`, :attr:`state` and
-        :meth:`outputs`; the shipped plants override it with their batched paths.
         """
-        U, steps = check_block(U, steps, self.batch, len(self.input_names))
-        if self.batch != 1:
-            raise DesignError(f"{type(self).__name__} implements no batched run; reset it with "
-                              f"one member (found batch {self.batch})")
-        T = U.shape[1]
-        X = np.full((1, T, len(self.state_names)), np.nan)
-        Yc = np.full((1, T, len(self.output_names)), np.nan)
-        for j in range(T):
-            t = float(self.t)
-            X[0, j] = np.asarray(self.state, dtype=float).reshape(-1)
-            Yc[0, j] = np.asarray(self.outputs(), dtype=float).reshape(-1)
-            try:
-                for _ in range(steps):
-                    self.step(U[0, j])
-            except DivergenceError as exc:
-                raise divergence(f"member 0 at t={t:g}: {exc}", 0, t, j + 1, X, Yc) from exc
-        return X, Yc
 
     @property
     @abstractmethod
     def state(self) -> Array:
-        """A copy of the true physical state."""
+        """A copy of the true physical state: ``(n,)`` unbatched, ``(B, n)`` batched."""
 
     @abstractmethod
     def outputs(self) -> Array:
-        """The clean measured outputs at the current time (a fresh array)."""
+        """The clean measured outputs at the current time (a fresh array): ``(p,)``
+        unbatched, ``(B, p)`` batched."""
 
-    def state_list(self) -> list[float]:
-        """:attr:`state` as a list of Python floats (the same values), for per-sample loops;
-        plants override it with a path that builds no array."""
-        return np.asarray(self.state, dtype=float).tolist()  # type: ignore[no-any-return]
+    def step(self, u: Any) -> None:
+        """Advance one control period ``dt`` with the input ``u`` held: ``(m,)`` (a scalar
+        for one input), or ``(B, m)`` for a batched plant: :meth:`run` of one sample of one
+        plant step (what it records is dropped).
 
-    def outputs_list(self) -> list[float]:
-        """:meth:`outputs` as a list of Python floats (the same values), for per-sample loops."""
-        return np.asarray(self.outputs(), dtype=float).tolist()  # type: ignore[no-any-return]
-
-    def step_list(self, u: list[float]) -> None:
-        """:meth:`step` with ``u`` a list of Python floats, for per-sample loops (plants whose
-        ``step`` takes any sequence alias it to ``step``)."""
-        self.step(np.array(u, dtype=float))
+        Raises
+        ------
+        DimensionError
+            ``u`` is not ``(m,)`` (unbatched) or ``(B, m)`` (batched).
+        DivergenceError
+            As :meth:`run`.
+        """
+        m = len(self.input_names)
+        try:
+            a = np.asarray(u, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise DimensionError(f"u must be an array of numbers; found {u!r}") from None
+        want = (self.batch, m) if self.batched else (m,)
+        if a.shape != want and (self.batched or a.ndim > 1 or a.size != m):
+            raise DimensionError(f"u must have shape {want}; found shape {a.shape}")
+        self.run(a.reshape(self.batch, 1, m), 1)

@@ -221,8 +221,8 @@ class MujocoPlant(Plant):
             self._W = np.zeros((B, m.nv))
 
     def _cache(self) -> None:
-        """What :meth:`step` and the ``*_list`` readers need, in one attribute each: MjData's
-        arrays are views of buffers that live as long as the MjData (rebuilt after a copy)."""
+        """What :meth:`_run_loop` needs, in one attribute each: MjData's arrays are views of
+        buffers that live as long as the MjData (rebuilt after a copy)."""
         m, d = self.model, self.data
         w = mujoco.mjtWarning
         self._bad = tuple(d.warning[int(k)] for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
@@ -231,22 +231,13 @@ class MujocoPlant(Plant):
         lo = int(w.mjWARN_BADQPOS)
         bad = d.warning.number[lo:int(w.mjWARN_BADQACC) + 1]
         # read through a memoryview (of the same memory): any() over it costs half of tolist()
-        aid = tuple(self._aid)
-        self._hot = (m, d, d.ctrl, aid, aid[0] if len(aid) == 1 else None, self.substeps,
-                     memoryview(bad))
-        #: state_list's sources, and whether the joints' slices are the whole qpos and qvel
-        sl = self._slices
-        self._read = (d.qpos, d.qvel, sl is not None and sl[0] == slice(0, m.nq)
-                      and sl[1] == slice(0, m.nv))
-        srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
-        #: outputs_list's sources: (array, address) per output
-        self._out = tuple((srcs[k], a) for k, a in self._sensor_src)
+        self._hot = (m, d, d.ctrl, memoryview(bad))
 
     def __getstate__(self) -> dict[str, Any]:
         """Copy or pickle without the cached views (they would be detached from the copy's
         MjData); :meth:`__setstate__` rebuilds them."""
         state = self.__dict__.copy()
-        for key in ("_bad", "_hot", "_read", "_out"):
+        for key in ("_bad", "_hot"):
             state.pop(key, None)
         state["_rollout"], state["_rdata"] = None, []  # a thread pool: made again when needed
         return state
@@ -255,37 +246,10 @@ class MujocoPlant(Plant):
         self.__dict__.update(state)
         self._cache()
 
-    def step(self, u: Any) -> None:
-        if self.batched:
-            self.run(np.asarray(u, dtype=float)[:, None, :], 1)
-            return
-        m, d, ctrl, aid, a0, substeps, bad = self._hot
-        if a0 is not None:  # one actuator (the common case): no loop
-            ui = float(u[0])
-            if not -_MAX_CTRL < ui < _MAX_CTRL:  # also False for NaN
-                raise self._bad_input(0, ui)
-            ctrl[a0] = ui
-        else:
-            for i, a in enumerate(aid):
-                ui = float(u[i])
-                if not -_MAX_CTRL < ui < _MAX_CTRL:
-                    raise self._bad_input(i, ui)
-                ctrl[a] = ui
-        _mj_step(m, d, substeps)  # the substeps in one call (MuJoCo loops over mj_step)
-        if any(bad):
-            # MuJoCo found NaN/inf/huge values and silently reset the simulation
-            which = [n for n, w in zip(("QPOS", "QVEL", "QACC"), self._bad) if w.number]
-            raise DivergenceError(f"MuJoCo found a non-finite or huge value near t={d.time:g} and "
-                                  f"reset the simulation (mjWARN_BAD{which[0]}); input was "
-                                  f"{[float(v) for v in u]}")
-
     @staticmethod
     def _bad_input(i: int, ui: float) -> DivergenceError:
         return DivergenceError(f"input u[{i}] must be finite and below {_MAX_CTRL:g} in "
                                f"magnitude (MuJoCo would zero it); found {ui}")
-
-    #: :meth:`step` takes any sequence of floats, a list too
-    step_list = step
 
     @property
     def t(self) -> float:  # type: ignore[override]
@@ -328,27 +292,6 @@ class MujocoPlant(Plant):
             mujoco.mj_forward(self.model, d)
         srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
         return np.array([srcs[k][a] for k, a in self._sensor_src])
-
-    def state_list(self) -> list[float]:
-        """:attr:`state` as a list of Python floats, read without building an array."""
-        qpos, qvel, whole = self._read
-        if whole:
-            return qpos.tolist() + qvel.tolist()  # type: ignore[no-any-return]
-        if self._slices is not None:
-            qs, vs = self._slices
-            return qpos[qs].tolist() + qvel[vs].tolist()  # type: ignore[no-any-return]
-        q, v = qpos.tolist(), qvel.tolist()
-        return [q[a] for a in self._qadr.tolist()] + [v[a] for a in self._vadr.tolist()]
-
-    def outputs_list(self) -> list[float]:
-        """:meth:`outputs` as a list of Python floats, read without building an array."""
-        if self._needs_forward:
-            mujoco.mj_forward(self.model, self.data)
-        out = self._out
-        if len(out) == 1:  # one output: no comprehension
-            src, a = out[0]
-            return [src.item(a)]
-        return [src.item(a) for src, a in out]
 
     # ------------------------------------------------------------------ batched paths
     def _load(self, b: int) -> None:
@@ -423,7 +366,7 @@ class MujocoPlant(Plant):
                   fails: list[tuple[int, int, float, str]]) -> None:
         """Member ``b`` (loaded in :attr:`data`) through the samples of ``U`` ``(T, m)`` with
         ``mj_step``, recording into ``X`` ``(T, n)`` and ``Yc`` ``(T, p)``."""
-        m, d, ctrl, aid, _, _, bad = self._hot
+        m, d, ctrl, bad = self._hot
         aid_arr = self._aid_arr
         qpos, qvel = d.qpos, d.qvel
         qa, va, nq = self._qadr, self._vadr, self._nq

@@ -1,8 +1,8 @@
 """An analytic system integrated by fixed-step RK4 as the true plant (the papers' examples).
 
-Batched runs (:meth:`OdePlant.run` with B members) integrate every member with the same RK4
-as :meth:`OdePlant.step`. A system that offers a vectorized ``dynamics_batch(t, X, U, p)``
-(rows ``X`` ``(B, n)``, ``U`` ``(B, m)``, returning ``(B, n)``) and optionally
+Runs (:meth:`OdePlant.run`, one member or B; :meth:`Plant.step` is one sample of it)
+integrate every member with the classical RK4 below. A system that offers a vectorized
+``dynamics_batch(t, X, U, p)`` (rows ``X`` ``(B, n)``, ``U`` ``(B, m)``, returning ``(B, n)``) and optionally
 ``output_batch(X, p)`` ``(B, p)`` is integrated over the rows at once with numpy; otherwise
 (every shipped system today) the members are integrated one after the other in a Python loop.
 Either way a member gives the bits it gives alone: the loop calls the very same
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import finite_scalar, integer_multiple, vector
-from ..exceptions import DesignError, DivergenceError
+from ..exceptions import DesignError
 from ..systems.base import System
 from .base import Array, Plant, check_block, divergence, initial_states
 
@@ -76,29 +76,12 @@ class OdePlant(Plant):
 
     def _advance_time(self) -> None:
         """One plant step of the clock: ``substeps`` additions of ``physics_dt``, then the
-        time snapped to ``k * dt`` when it is that to rounding (as :meth:`step` always did)."""
+        time snapped to ``k * dt`` when it is that to rounding (the clock of every run)."""
         t = self.t
         for _ in range(self.substeps):
             t += self.physics_dt
         self._k += 1
         self.t = self._k * self.dt if math.isclose(t, self._k * self.dt) else t
-
-    def step(self, u: Any) -> None:
-        if self.batched:
-            self.run(np.asarray(u, dtype=float)[:, None, :], 1)
-            return
-        u = np.asarray(u, dtype=float)
-        if not np.all(np.isfinite(u)):
-            raise DivergenceError(f"input u must be finite; found {u.tolist()}")
-        x, t = _rk4(self.system.dynamics, self.system.params, self._x, u, self.t,
-                    self.physics_dt, self.substeps)
-        if not np.all(np.isfinite(x)):
-            raise DivergenceError(f"{type(self.system).__name__} state left the finite numbers "
-                                  f"at t={t:g}: {x.tolist()}")
-        self._k += 1
-        self._x = x
-        self._X[0] = x
-        self.t = self._k * self.dt if math.isclose(t, (self._k) * self.dt) else t
 
     def run(self, U: Any, steps: int) -> tuple[Array, Array]:
         """Advance ``T`` samples of ``steps`` plant steps for every member (see
@@ -132,7 +115,7 @@ class OdePlant(Plant):
 
     def _run_members(self, U: Array, steps: int, starts: Array, bad_u: Array, X: Array,
                      Yc: Array, fails: list[tuple[int, int, str]]) -> None:
-        """Member after member: the same calls as :meth:`step`."""
+        """Member after member, each through ``system.dynamics`` on 1-D states."""
         f, out, p = self.system.dynamics, self.system.output, self.system.params
         h, sub, T = self.physics_dt, self.substeps, U.shape[1]
         st = starts.tolist()

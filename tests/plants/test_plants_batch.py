@@ -1,9 +1,11 @@
 """The plants' batched contract: ``reset(x0, batch=)`` and ``run(U, steps) -> (X, Yc)``.
 
-Every member of a batch equals the same member run alone, bit for bit, and equals the old
+Every member of a batch equals the same member run alone, bit for bit, and equals the
 ``step()``-based loop (state and outputs read at each sample, then ``steps`` calls of
-``step``); blocks may be cut anywhere; bad inputs and MuJoCo's bad-state reset raise
-:class:`DivergenceError` naming the member and the time.
+``step``, i.e. blocks of one sample of one plant step through the unbatched plant's own path:
+the Python ``mj_step`` loop, the per-member ``dynamics``); blocks may be cut anywhere; bad
+inputs and MuJoCo's bad-state reset raise :class:`DivergenceError` naming the member and the
+time.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ B = 64
 
 
 def step_loop(plant, x0, U, steps):
-    """The old loop: record state and outputs, then ``steps`` calls of ``step``."""
+    """Record state and outputs, then ``steps`` calls of ``step`` (one-sample runs)."""
     plant.reset(x0)
     X, Y = [], []
     for u in U:
@@ -312,7 +314,11 @@ def test_ode_batch_equals_single_and_the_step_loop(system, steps, vectorized):
     plant.reset(X0)
     X, Yc = plant.run(U, steps)
     assert hasattr(type(system), "dynamics_batch") == vectorized
-    ref = OdePlant(type(system)(), dt=0.01, physics_dt=0.005)
+    # the reference integrates each member through the 1-D ``dynamics`` (for the vectorized
+    # system: its parent, which has no dynamics_batch)
+    plain = BioreactorBullinger if vectorized else type(system)
+    assert not hasattr(plain, "dynamics_batch")
+    ref = OdePlant(plain(), dt=0.01, physics_dt=0.005)
     alone = OdePlant(type(system)(), dt=0.01, physics_dt=0.005)
     for b in range(B):
         Xr, Yr, xe, te = step_loop(ref, X0[b], U[b], steps)

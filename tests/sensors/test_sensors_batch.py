@@ -1,9 +1,9 @@
 """Batched sensor chains: ``SensorChain.reset(seeds)`` and ``apply(t, Y (B, T, p))``.
 
 Every stream equals the same seed run alone, bit for bit; a block equals the same samples cut
-into smaller blocks; a chain with one random stage gives exactly the numbers of the per-sample
-path (``chain(t, y)`` and the stages' ``apply_list``); in a chain with more random stages the
-later ones draw from generators spawned from the seed.
+into smaller blocks; the random stage of a chain with one draws exactly ``default_rng(seed)``'s
+numbers in sample order (checked against the stage's formula written out sample by sample);
+in a chain with more random stages the later ones draw from generators spawned from the seed.
 """
 
 from __future__ import annotations
@@ -59,10 +59,60 @@ ONE_RANDOM = [k for k, mk in CHAINS.items()
               if sum(s.draws is not None for s in mk()) <= 1]
 
 
+def _gaussian(std):
+    def ref(t, Y, rng):
+        return np.array([y + std * rng.standard_normal(P) for y in Y])
+    return ref
+
+
+def _uniform(t, Y, rng):
+    return np.array([(rng.random(P) * 2.0 - 1.0) * np.array([0.2, 0.05]) + y for y in Y])
+
+
+def _drift(t, Y, rng):
+    b, out = np.array([0.1, -0.1]), []
+    for j, y in enumerate(Y):
+        z = rng.standard_normal(P)
+        if j:
+            b = b + z * 0.3 * np.sqrt(t[j] - t[j - 1])
+        out.append(y + b)
+    return np.array(out)
+
+
+def _dropout(t, Y, rng):
+    return np.array([np.where(rng.random(P) < [0.2, 0.5], np.nan, y) for y in Y])
+
+
+def _outliers(t, Y, rng):
+    out = []
+    for y in Y:
+        hit, sign = rng.random(P) < 0.1, rng.random(P) < 0.5
+        out.append(np.where(hit, y + np.where(sign, -1.0, 1.0) * np.array([1.0, 2.0]), y))
+    return np.array(out)
+
+
+def _gaussian_quantize(t, Y, rng):
+    Z = _gaussian(0.01)(t, Y, rng)
+    return np.rint(Z / 0.005) * 0.005
+
+
+#: the random stages of the one-random-stage chains written out sample by sample
+REFERENCE = {
+    "gaussian": _gaussian(np.array([0.1, 0.2])),
+    "gaussian_psd": _gaussian(np.sqrt(0.25e-6 / 0.01)),
+    "uniform": _uniform,
+    "drift": _drift,
+    "dropout": _dropout,
+    "outliers": _outliers,
+    "gaussian+quantize": _gaussian_quantize,
+}
+
+
 def test_every_stage_is_covered():
     covered = {type(s) for mk in CHAINS.values() for s in mk()}
     assert covered == set(STAGES.values())
     assert set(ONE_RANDOM) == set(CHAINS) - {"recommended", "gaussian+dropout"}
+    assert {k for k in ONE_RANDOM if any(s.draws for s in CHAINS[k]())} == set(REFERENCE)
 
 
 def times(irregular: bool) -> np.ndarray:
@@ -95,21 +145,11 @@ def test_batch_equals_each_seed_alone(name, irregular):
         alone.reset(sd)                            # one seed: B = 1, unbatched
         assert alone.batch == 1 and not alone.batched
         np.testing.assert_array_equal(alone.apply(t, Y[b:b + 1])[0], out[b])
-    if name in ONE_RANDOM:
-        # the per-sample path of before, call by call, with the same seed: the same bits
-        per_sample = SensorChain(CHAINS[name]())
+    if name in REFERENCE:
+        # the formula sample by sample with default_rng(seed), as the per-sample path drew
         for b in (0, 1, B - 1):
-            per_sample.reset(SEEDS[b])
-            ref = np.array([per_sample(tj, Y[b, j]) for j, tj in enumerate(t)])
+            ref = REFERENCE[name](t, Y[b], np.random.default_rng(SEEDS[b]))
             np.testing.assert_array_equal(ref, out[b])
-            per_sample.reset(SEEDS[b])
-            ref = []
-            for j, tj in enumerate(t):
-                y = Y[b, j].tolist()
-                for s in per_sample.stages:
-                    y = s.apply_list(tj, y, per_sample.rng)
-                ref.append(y)
-            np.testing.assert_array_equal(np.array(ref), out[b])
 
 
 @pytest.mark.parametrize("cuts", [(1,) * T, (7,) * 28 + (4,), (3, 50, 1, 146), (T,)])
@@ -228,11 +268,11 @@ def test_apply_errors():
     hold = SampleHold(0.1)
     hold.apply(np.array([0.0]), np.zeros((2, 1, 1)), None)
     with pytest.raises(DimensionError, match=r"SampleHold: the batch changed from 2 to 3 "
-                                             r"streams without reset_batch\(\)"):
+                                             r"streams without reset\(\)"):
         hold.apply(np.array([0.1]), np.zeros((3, 1, 1)), None)
     with pytest.raises(DimensionError, match=r"SampleHold: y changed length from 1 to 2"):
         hold.apply(np.array([0.1]), np.zeros((2, 1, 2)), None)
-    hold.reset_batch()
+    hold.reset()
     hold.apply(np.array([0.1]), np.zeros((3, 1, 2)), None)
 
 
@@ -253,15 +293,11 @@ def test_reset_seed_errors():
     assert out[0, 0, 0] != out[1, 0, 0]
 
 
-def test_a_stage_without_a_batched_apply_is_refused():
+def test_a_stage_without_apply_is_refused():
     class Custom(Stage):
         name = "custom"
 
-        def __call__(self, t, y, rng):
-            return y * 2.0
-
     chain = SensorChain([Custom()])
-    np.testing.assert_array_equal(chain(0.0, [1.0]), [2.0])   # the per-sample path works
     with pytest.raises(DesignError, match=r"Custom has no batched apply\(t, Y, draws\)"):
         chain.apply([0.0], np.ones((1, 1, 1)))
 
