@@ -45,3 +45,32 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
              "assert importlib.util.find_spec('envs') is None;"
              "print('ok')")
     assert _run([str(py), "-c", probe], cwd=work).stdout.strip() == "ok"
+    _kernels_cache_outside_a_read_only_install(venv, py, tmp_path)
+
+
+def _kernels_cache_outside_a_read_only_install(venv: Path, py: Path, tmp_path: Path) -> None:
+    """Where the installed package cannot hold numba's cache (here every ``__pycache__`` of
+    the installed hgo_mj is a plain file, so no cache folder can be made there, even as root),
+    the kernels compile, run and are cached in the user's cache folder instead; a second
+    process loads them from there."""
+    import os
+    import shutil
+
+    (site,) = (venv / "lib").glob("python*/site-packages")
+    for d in (site / "hgo_mj").rglob("__pycache__"):
+        shutil.rmtree(d)
+    for pkg in [p for p in (site / "hgo_mj").rglob("*") if p.is_dir()] + [site / "hgo_mj"]:
+        (pkg / "__pycache__").write_text("not a folder")
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    env.update(HOME=str(home), XDG_CACHE_HOME=str(home / ".cache"))
+    code = ("import numpy as np; from hgo_mj.observers import HighGainObserver;"
+            "ob = HighGainObserver(order=2, k=5.0);"
+            "print(ob.update(np.zeros(1) + 1.0, np.zeros(1), 1e-3).tolist())")
+    for _ in range(2):
+        res = subprocess.run([str(py), "-c", code], cwd=tmp_path, env=env, capture_output=True,
+                             text=True, timeout=600)
+        assert res.returncode == 0, res.stderr[-3000:]
+    cached = list((home / ".cache").rglob("*.nbi"))
+    assert cached, "numba cached nothing in the user's cache folder"

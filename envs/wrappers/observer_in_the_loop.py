@@ -66,19 +66,19 @@ class EnvPlant(Plant):
         if x0 is not None or (batch is not None and batch != 1):
             raise DesignError("an environment plant is reset through its environment (one copy)")
 
-    def step(self, u: Any) -> None:
-        self.result = self.env.step(self.action)
-        self.obs = self.result[0]
-        self.t += self.dt
-
     def run(self, U: Array, steps: int) -> tuple[Array, Array]:
+        """Record the observation and the measured signals, then step the environment with
+        :attr:`action`, ``steps`` times per sample (the observer's input ``U`` is not the
+        environment's action)."""
         T = U.shape[1]
         X = np.empty((1, T, np.size(self.state)))
         Y = np.empty((1, T, np.size(self.outputs())))
         for j in range(T):
             X[0, j], Y[0, j] = self.state, self.outputs()
             for _ in range(steps):
-                self.step(U[0, j])
+                self.result = self.env.step(self.action)
+                self.obs = self.result[0]
+                self.t += self.dt
         return X, Y
 
     @property
