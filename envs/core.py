@@ -455,7 +455,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         periods = Periods.of(self.plant, cfg.sample_period, cfg.control_period)
         self._n_samples = periods.every
         self.loop = Loop(self.plant, self.sensor,
-                         {} if self.observer is None else {_OB: self.observer}, periods)
+                         {} if self.observer is None else {_OB: self.observer}, periods,
+                         exact=False)
         self._names()
         source = {"true": self.state_names, "measurement": self.output_names}.get(
             cfg.observation, self.estimate_names)

@@ -124,10 +124,16 @@ class Loop:
     observers : mapping name -> Observer
         Every observer sees the same measurement stream and the same input.
     periods : Periods
+    exact : bool
+        Keep what a stored run needs (default): each observer's estimate before a segment,
+        and a copy of its state before a segment of several samples, so that a failure is
+        found to the sample (see the module docstring). An environment, which keeps no rows,
+        turns it off: a failure then stops at the segment.
     """
 
     def __init__(self, plant: Plant, sensor: SensorChain | None,
-                 observers: Mapping[str, Observer], periods: Periods) -> None:
+                 observers: Mapping[str, Observer], periods: Periods, *,
+                 exact: bool = True) -> None:
         if not isinstance(plant, Plant):
             raise DesignError(f"plant must be a Plant; found {type(plant).__name__}")
         if sensor is not None and not isinstance(sensor, SensorChain):
@@ -139,6 +145,7 @@ class Loop:
                                   f"{type(ob).__name__}")
         self.plant, self.sensor, self.periods = plant, sensor, periods
         self.observers = dict(observers)
+        self.exact = bool(exact)
         self.batch = 1
         self.k = 0
         #: seconds spent in each observer's updates since the reset
@@ -183,7 +190,7 @@ class Loop:
         T = U.shape[1]
         Ts = self.periods.sample
         t = (self.k + np.arange(T)) * Ts
-        before = self.estimates()
+        before = self.estimates() if self.exact else {}
         try:
             X, Yc = self.plant.run(U, self.periods.steps)
         except DivergenceError as exc:  # the plant's: rows valid for every member, partial rows
@@ -220,7 +227,7 @@ class Loop:
         """One observer over the segment, timed; on a failure, the failing sample found by a
         replay from the state before the segment (:class:`_Found`)."""
         T = Ym.shape[1]
-        snap = copy.deepcopy(ob.__dict__) if T > 1 else None
+        snap = copy.deepcopy(ob.__dict__) if T > 1 and self.exact else None
         t0 = time.perf_counter()
         try:
             blk = ob._advance_checked(Ym, U, self.periods.sample)

@@ -243,7 +243,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
         m = self._u(action).size
         self.plant = EnvPlant(self.env, self._signals, self.dt, m)
         self.loop = Loop(self.plant, self.sensor, {"observer": self.observer},
-                         Periods(self.dt, self.dt, 1, 1))
+                         Periods(self.dt, self.dt, 1, 1), exact=False)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Array, dict[str, Any]]:

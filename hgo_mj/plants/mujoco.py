@@ -232,12 +232,15 @@ class MujocoPlant(Plant):
         bad = d.warning.number[lo:int(w.mjWARN_BADQACC) + 1]
         # read through a memoryview (of the same memory): any() over it costs half of tolist()
         self._hot = (m, d, d.ctrl, memoryview(bad))
+        srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
+        #: each output's (array, address), views of this MjData's buffers
+        self._out = tuple((srcs[k], a) for k, a in self._sensor_src)
 
     def __getstate__(self) -> dict[str, Any]:
         """Copy or pickle without the cached views (they would be detached from the copy's
         MjData); :meth:`__setstate__` rebuilds them."""
         state = self.__dict__.copy()
-        for key in ("_bad", "_hot"):
+        for key in ("_bad", "_hot", "_out"):
             state.pop(key, None)
         state["_rollout"], state["_rdata"] = None, []  # a thread pool: made again when needed
         return state
@@ -287,11 +290,9 @@ class MujocoPlant(Plant):
         return self._outputs1()
 
     def _outputs1(self) -> Array:
-        d = self.data
         if self._needs_forward:
-            mujoco.mj_forward(self.model, d)
-        srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
-        return np.array([srcs[k][a] for k, a in self._sensor_src])
+            mujoco.mj_forward(self.model, self.data)
+        return np.array([src.item(a) for src, a in self._out])
 
     # ------------------------------------------------------------------ batched paths
     def _load(self, b: int) -> None:
@@ -328,11 +329,14 @@ class MujocoPlant(Plant):
         """
         U, steps = check_block(U, steps, self.batch, len(self._aid))
         B, T, _ = U.shape
-        X = np.full((B, T, 2 * self._nq), np.nan)
-        Yc = np.full((B, T, len(self._output_names)), np.nan)
-        ok = np.abs(U) < _MAX_CTRL                        # False for NaN
-        bad = ~np.all(ok, axis=2)
-        jbad = int(np.argmax(bad.any(axis=0))) if bad.any() else T
+        X = np.empty((B, T, 2 * self._nq))
+        Yc = np.empty((B, T, len(self._output_names)))
+        if T == 0 or float(np.abs(U).max()) < _MAX_CTRL:  # every input usable (the usual case)
+            jbad, ok, bad = T, None, None
+        else:                                             # NaN, inf or too large somewhere
+            ok = np.abs(U) < _MAX_CTRL                    # False for NaN
+            bad = ~np.all(ok, axis=2)
+            jbad = int(np.argmax(bad.any(axis=0))) if bad.any() else T
         nstep = steps * self.substeps
         fails: list[tuple[int, int, float, str]] = []     # (sample, member, time, message)
         if jbad:
@@ -345,13 +349,15 @@ class MujocoPlant(Plant):
                     self._run_loop(b, U[b, :jbad], nstep, X[b], Yc[b], fails)
                     self._save(b)
         if not fails and jbad < T:
-            b = int(np.argmax(bad[:, jbad]))
-            i = int(np.argmax(~ok[b, jbad]))
+            b = int(np.argmax(bad[:, jbad]))  # type: ignore[index]
+            i = int(np.argmax(~ok[b, jbad]))  # type: ignore[index]
             self._record_now(X, Yc, jbad)
             t = self.t
             fails.append((jbad, b, t, str(self._bad_input(i, float(U[b, jbad, i])))))
         if fails:
             j, b, t, msg = min(fails)
+            X[:, j + 1:] = np.nan  # nothing recorded after the earliest failure
+            Yc[:, j + 1:] = np.nan
             raise divergence(f"member {b} at t={t:g}: {msg}", b, t, j + 1, X, Yc)
         return X, Yc
 
@@ -370,12 +376,22 @@ class MujocoPlant(Plant):
         aid_arr = self._aid_arr
         qpos, qvel = d.qpos, d.qvel
         qa, va, nq = self._qadr, self._vadr, self._nq
+        if self._slices is not None:
+            qa, va = self._slices  # type: ignore[assignment]  # contiguous joints: a view
+        out, forward = self._out, self._needs_forward
+        a0 = int(aid_arr[0]) if aid_arr.size == 1 else -1
         for j in range(U.shape[0]):
             X[j, :nq] = qpos[qa]
             X[j, nq:] = qvel[va]
-            Yc[j] = self._outputs1()
+            if forward:
+                mujoco.mj_forward(m, d)
+            for c, (src, a) in enumerate(out):
+                Yc[j, c] = src[a]
             t = float(d.time)
-            ctrl[aid_arr] = U[j]
+            if a0 >= 0:
+                ctrl[a0] = U[j, 0]
+            else:
+                ctrl[aid_arr] = U[j]
             _mj_step(m, d, nstep)
             if any(bad):
                 which = [n for n, w in zip(("QPOS", "QVEL", "QACC"), self._bad) if w.number]
