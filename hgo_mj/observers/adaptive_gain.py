@@ -659,8 +659,14 @@ class AdaptiveGainObserver(Observer):
             for j in range(T):
                 u = U[:, j]
                 prev = S.copy()
-                model_rk4(S, Y, j, dt, 1, M0, g0, lambda V, u=u: self._phi(V, u),
-                          lambda V, ph, j=j: self._stage(V, Y, j, ph))
+
+                def phi(V: Array, u: Array = u) -> Array:
+                    return self._phi(V, u)
+
+                def stage(V: Array, ph: Array, j: int = j) -> Array:
+                    return self._stage(V, Y, j, ph)
+
+                model_rk4(S, Y, j, dt, 1, M0, g0, phi, stage)
                 if adaptive_limits(S, prev, Y, j, par, stop, lim):
                     self._limits(dt)
                 D[:, j, 0] = S[:, 0]
