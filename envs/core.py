@@ -50,7 +50,7 @@ from hgo_mj._validate import finite_scalar, integer_multiple, vector
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
-from hgo_mj.plants import make_plant
+from hgo_mj.plants import MujocoPlant, make_plant
 from hgo_mj.sensors import SensorChain, Stage, make_stage
 
 Array = NDArray[np.float64]
@@ -132,7 +132,7 @@ def sensor_chain(spec: Any, seed: int | None = None) -> SensorChain:
     return SensorChain(stages, seed=seed)
 
 
-def _accepted(cls: type, params: Mapping[str, Any]) -> dict[str, Any]:
+def _accepted(cls: type[Any], params: Mapping[str, Any]) -> dict[str, Any]:
     """The entries of ``params`` that ``cls``'s constructor accepts (all, with ``**kwargs``)."""
     sig = inspect.signature(cls.__init__)
     if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
@@ -412,7 +412,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         Names of ``info["error"]``: the states the observer estimates, in plant order.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": [], "render_fps": 50}
+    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 50}
     task_class: ClassVar[type[Task] | None] = None
 
     def __init__(self, *, task: Task | None = None, observer: Any = "default",
@@ -475,8 +475,11 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         self._row: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ construction
-    def _make_plant(self, cfg: EnvConfig) -> Any:
+    def _make_plant(self, cfg: EnvConfig) -> MujocoPlant:
         plant = make_plant(cfg.task.plant, dt=cfg.sample_period, physics_dt=cfg.physics_dt)
+        if not isinstance(plant, MujocoPlant):
+            raise DesignError(f"an hgo_mj environment needs a MuJoCo plant; task plant "
+                              f"{cfg.task.plant!r} is {type(plant).__name__}")
         if len(cfg.task.max_action) != len(plant.input_names):
             raise DimensionError(f"max_action must have one entry per input "
                                  f"{list(plant.input_names)}; found {len(cfg.task.max_action)}")
@@ -496,7 +499,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         observer's run-time quantities."""
         obs = self.observer
         if obs is None:
-            self.estimate_names = self.error_names = self.diagnostic_names = ()
+            self.estimate_names: tuple[str, ...] = ()
+            self.error_names: tuple[str, ...] = ()
+            self.diagnostic_names: tuple[str, ...] = ()
             self._err_pairs: list[tuple[int, int]] = []
             return
         self.estimate_names = tuple(str(s) for s in obs.state_names)
@@ -677,11 +682,16 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                      "u": u.tolist(), "x_hat": x_hat, "diagnostics": diag,
                      "reward": 0.0 if reward is None else reward}
         mode = self.observation_mode
+        extra: Sequence[float] = ()
         if mode in ("estimate", "estimate+diagnostics"):
-            if not math.isfinite(sum(x_hat)):  # type: ignore[arg-type]
+            # these modes need an observer (refused at construction without one)
+            assert x_hat is not None and diag is not None
+            if not math.isfinite(sum(x_hat)):
                 raise DivergenceError(f"the observer's estimate left the finite numbers at "
                                       f"t={self.loop.t:g}: {x_hat}")
             vals = x_hat
+            if mode == "estimate+diagnostics":
+                extra = [diag[k] for k in self.diagnostic_names]
         elif mode == "true":
             vals = x
         else:  # a dropout (NaN) is held at the last valid value
@@ -690,8 +700,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                 if v == v:
                     held[i] = v
             vals = held
-        extra = [diag[k] for k in self.diagnostic_names] if mode == "estimate+diagnostics" else ()  # type: ignore[index]
-        return self.encoder(vals, self._goal, extra), self._info(x, y, x_hat, diag)  # type: ignore[arg-type]
+        return self.encoder(vals, self._goal, extra), self._info(x, y, x_hat, diag)
 
     def _info(self, x: list[float], y: list[float], x_hat: list[float] | None,
               diag: dict[str, Any] | None) -> dict[str, Any]:

@@ -120,7 +120,7 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
     (``run.seed``, default 0, is the sensor chain's seed until ``simulate`` re-seeds it).
     ``functools.partial(scenario_run, sc)`` is the ``make_run`` of
     :func:`hgo_mj.study.monte_carlo`."""
-    from .inputs import Constant, make_signal
+    from .inputs import Constant, Signal, make_signal
     from .observers import make_observer
     from .plants import make_plant
     from .sensors import SensorChain
@@ -154,6 +154,7 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
         observers[label] = make_observer(kind, plant.system, **spec)
     inp = dict(sc.get("input", {"type": "constant"}))
     kind = inp.pop("type", "constant")
+    inputs: Signal
     if kind == "constant" and "value" not in inp:
         inputs = Constant([0.0] * len(plant.input_names))
     else:
@@ -297,22 +298,22 @@ def cmd_list() -> str:
 
     w = width(SYSTEMS)
     lines = ["PLANTS (hgo-mj run --plant NAME)"]
-    for name, cls in SYSTEMS.items():
-        kind = f"MuJoCo models/{cls.model_file}" if cls.model_file else "ODE"
-        lines.append(f"  {name:<{w}} {cls.summary}  [{kind}; {cls.reference}]")
+    for name, system in SYSTEMS.items():
+        kind = f"MuJoCo models/{system.model_file}" if system.model_file else "ODE"
+        lines.append(f"  {name:<{w}} {system.summary}  [{kind}; {system.reference}]")
     w = width(STAGES)
     lines.append("\nSENSOR STAGES (--sensor NAME:key=value,...; applied in the order given)")
-    for name, cls in STAGES.items():
-        lines.append(f"  {name:<{w}} {cls.summary}  ({sig(cls)})")
+    for name, stage in STAGES.items():
+        lines.append(f"  {name:<{w}} {stage.summary}  ({sig(stage)})")
     w = width(OBSERVERS)
     lines.append("\nOBSERVERS (--observer KIND:key=value,...)")
-    for name, cls in OBSERVERS.items():
-        lines.append(f"  {name:<{w}} {cls.summary}  [{cls.reference}]\n"
-                     f"  {'':<{w}} ({sig(cls)})")
+    for name, observer in OBSERVERS.items():
+        lines.append(f"  {name:<{w}} {observer.summary}  [{observer.reference}]\n"
+                     f"  {'':<{w}} ({sig(observer)})")
     w = width(SIGNALS)
     lines.append("\nINPUTS (--input KIND:key=value,...)")
-    for name, cls in SIGNALS.items():
-        lines.append(f"  {name:<{w}} {cls.summary}  ({sig(cls)})")
+    for name, signal in SIGNALS.items():
+        lines.append(f"  {name:<{w}} {signal.summary}  ({sig(signal)})")
     w = width(REPRODUCTIONS)
     lines.append("\nREPRODUCTIONS (hgo-mj reproduce NAME --out DIR)")
     for name, (_, line) in REPRODUCTIONS.items():

@@ -556,20 +556,21 @@ def sampling_lmi_62(M: Any, N: Any, delta: float, *, order: int | None = None,
     import cvxpy as cp
 
     Xv = cp.Variable((n, n), symmetric=True)
-    e = cp.Variable()
-    t = cp.Variable()
-    L = cp.bmat(blocks(Xv, e, Z))
-    cons = [0.5 * (L + L.T) << -t * np.eye(2 * n + m1), Xv >> t * np.eye(n), e >= t,
-            cp.trace(Xv) <= x_bound, t <= 1.0]
-    prob = cp.Problem(cp.Maximize(t), cons)
+    ev = cp.Variable()
+    tv = cp.Variable()
+    L = cp.bmat(blocks(Xv, ev, Z))
+    cons = [0.5 * (L + L.T) << -tv * np.eye(2 * n + m1), Xv >> tv * np.eye(n), ev >= tv,
+            cp.trace(Xv) <= x_bound, tv <= 1.0]
+    prob = cp.Problem(cp.Maximize(tv), cons)
     prob.solve(solver="CLARABEL")
     status = str(prob.status)
-    if not _status_ok(status) or Xv.value is None:
+    X_val, t_val, e_val = Xv.value, tv.value, ev.value
+    if not _status_ok(status) or X_val is None or t_val is None or e_val is None:
         return {"feasible": False, "margin": float("nan"), "X": None, "epsilon": float("nan"),
                 "gain": None, "status": status}
-    Xn = 0.5 * (Xv.value + Xv.value.T)
-    return {"feasible": bool(t.value > 1e-7), "margin": float(t.value), "X": Xn,
-            "epsilon": float(e.value), "gain": np.linalg.solve(Xn, C.T).ravel(), "status": status}
+    Xn = 0.5 * (X_val + X_val.T)
+    return {"feasible": bool(t_val > 1e-7), "margin": float(t_val), "X": Xn,
+            "epsilon": float(e_val), "gain": np.linalg.solve(Xn, C.T).ravel(), "status": status}
 
 
 def max_sampling_period(alpha: Any, gamma: float, M: Any, N: Any, *, lmi: str = "63",

@@ -189,7 +189,7 @@ class Loop:
         docstring). Raises :class:`LoopFailure` on a failure inside it."""
         T = U.shape[1]
         Ts = self.periods.sample
-        t = (self.k + np.arange(T)) * Ts
+        t = np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64)
         before = self.estimates() if self.exact else {}
         try:
             X, Yc = self.plant.run(U, self.periods.steps)
@@ -334,7 +334,8 @@ class Drive:
 
     def describe(self) -> dict[str, Any]:
         src = self.controller if self.controller is not None else self.signal
-        return {"type": type(src).__name__, **(src.params() if hasattr(src, "params") else {})}
+        params = src.params() if src is not None and hasattr(src, "params") else {}
+        return {"type": type(src).__name__, **params}
 
 
 def _current(ob: Observer) -> tuple[Array, Array, Array]:

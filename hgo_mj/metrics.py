@@ -73,7 +73,10 @@ def observer_metrics(traj: Any, observer: str, *, t_transient: float | None = No
         finite = np.isfinite(e)
         ae = np.abs(e)
         settle = settling_time(t, np.where(finite, e, np.inf), band * scale)
-        rmse, peak, final, undefined = [], [], [], []
+        rmse: list[float | None] = []
+        peak: list[float | None] = []
+        final: list[float | None] = []
+        undefined: list[int | None] = []
         for j in range(e.shape[1]):
             if not est[j]:
                 for col in (rmse, peak, final, undefined):

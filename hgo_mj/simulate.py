@@ -454,7 +454,7 @@ class Store:
                 diagnostics={d: dg[:, j].copy() for j, d in enumerate(ob.diagnostic_names)},
                 update_time=float("nan") if update_time is None else update_time[name],
                 state_names=tuple(str(s) for s in ob.state_names))
-        t = np.arange(a, b) * (lp.periods.sample * self.every)
+        t = np.asarray(np.arange(a, b) * (lp.periods.sample * self.every), dtype=np.float64)
         return Trajectory(t=t, **{k: v[member, a:b].copy() for k, v in self.cols.items()},
                           observers=records, state_names=tuple(lp.plant.state_names),
                           output_names=tuple(lp.plant.output_names),

@@ -233,26 +233,29 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
 
     def _observation(self, x_hat: Array) -> Array:
         if not np.all(np.isfinite(x_hat)):
+            k = self.loop.k if self.loop is not None else 0
             raise DivergenceError(f"the observer's estimate left the finite numbers at step "
-                                  f"{self.loop.k}: {x_hat.tolist()}")
+                                  f"{k}: {x_hat.tolist()}")
         return np.clip(x_hat[self.layout], -self.bound, self.bound)
 
-    def _build_loop(self, action: Any) -> None:
+    def _build_loop(self, action: Any) -> Loop:
         """The loop around the environment, made at the first reset (when the width of the
         observer's input is known from the action space)."""
         m = self._u(action).size
         self.plant = EnvPlant(self.env, self._signals, self.dt, m)
         self.loop = Loop(self.plant, self.sensor, {"observer": self.observer},
                          Periods(self.dt, self.dt, 1, 1), exact=False)
+        return self.loop
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Array, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
-        if self.loop is None:
-            self._build_loop(self.env.action_space.sample() * 0)
+        loop = self.loop
+        if loop is None:
+            loop = self._build_loop(self.env.action_space.sample() * 0)
         self.plant.start(obs)
-        self.loop.reset(seed=env_seed(seed))
-        _, _, Ym = self.loop.sample()
+        loop.reset(seed=env_seed(seed))
+        _, _, Ym = loop.sample()
         y = Ym[0, 0]
         ob = self.observer
         if self._built and self._init == "measurement" and isinstance(ob, ObserverBank):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium
 import numpy as np
@@ -12,6 +12,11 @@ from gymnasium.utils import RecordConstructorArgs
 from numpy.typing import NDArray
 
 from hgo_mj.exceptions import DesignError
+
+if TYPE_CHECKING:
+    from hgo_mj.record import Recorder
+
+    from ..core import HgoEnv
 
 Array = NDArray[np.float64]
 
@@ -46,17 +51,17 @@ class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArg
     def __init__(self, env: gymnasium.Env, path: str | Path) -> None:
         RecordConstructorArgs.__init__(self, path=str(path))
         gymnasium.Wrapper.__init__(self, env)
-        base = env.unwrapped
-        if not hasattr(base, "current_row") or not hasattr(base, "loop"):
+        if not hasattr(env.unwrapped, "current_row") or not hasattr(env.unwrapped, "loop"):
             raise DesignError(f"RecordEpisodes records an hgo_mj environment (HgoEnv); found "
-                              f"{type(base).__name__}")
+                              f"{type(env.unwrapped).__name__}")
         from hgo_mj.record import Recorder
 
+        base = self._base
         self.path = Path(path)
         obs = base.observer
         names = [] if obs is None else [obs.name or type(obs).__name__]
         states = {names[0]: base.estimate_names} if names else None
-        self.recorder = Recorder.for_plant(self.path, base.plant, observers=names,
+        self.recorder: Recorder | None = Recorder.for_plant(self.path, base.plant, observers=names,
                                            observer_states=states,
                                            recording_name=type(base).__name__)
         self._rows: dict[str, list[Any]] = {k: [] for k in _COLUMNS}
@@ -65,18 +70,23 @@ class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArg
         #: per finished episode: its seed and metrics (the ``/metrics`` document)
         self.episodes: list[dict[str, Any]] = []
 
+    @property
+    def _base(self) -> HgoEnv:
+        """The wrapped hgo_mj environment (its methods checked in ``__init__``)."""
+        return cast("HgoEnv", self.env.unwrapped)
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Any, dict[str, Any]]:
         self._write_episode()
         out = self.env.reset(seed=seed, options=options)
         self._episode += 1
         self._seed = seed
-        self._add(self.env.unwrapped.current_row())
+        self._add(self._base.current_row())
         return out
 
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         out = self.env.step(action)
-        self._add(self.env.unwrapped.current_row())
+        self._add(self._base.current_row())
         return out
 
     def close(self) -> None:
@@ -93,14 +103,14 @@ class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArg
 
     def metadata_document(self) -> dict[str, Any]:
         """The environment's ``recording_metadata()`` with the seed of every episode."""
-        meta = self.env.unwrapped.recording_metadata()
+        meta = self._base.recording_metadata()
         seeds = [e["seed"] for e in self.episodes]
         meta["seed"] = seeds[0] if seeds else self._seed
         meta["seeds"] = {str(e["episode"]): e["seed"] for e in self.episodes}
         return meta
 
     def _metrics(self, x: Array, xh: Array | None, rewards: list[float]) -> dict[str, Any]:
-        base = self.env.unwrapped
+        base = self._base
         out: dict[str, Any] = {"episode": self._episode, "seed": self._seed,
                                "steps": len(x) - 1, "return": float(np.sum(rewards[1:])),
                                "terminated": bool(base.task.terminated(list(x[-1])))}

@@ -56,7 +56,9 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
         super().__init__(env)
         idx = box_indices(env.observation_space, indices, owner="SensorNoise", name="indices")
         self.indices = np.array(idx, dtype=np.intp)
-        self._all = idx == list(range(env.observation_space.shape[0]))
+        shape = env.observation_space.shape
+        assert shape is not None  # a 1-D Box (box_indices)
+        self._all = idx == list(range(shape[0]))
         self.sensor = sensor_chain(sensor)
         self.dt = env_dt(env, dt)
         self._k = 0

@@ -190,6 +190,35 @@ def gain_limits(t, j, par, lim):  # pragma: no cover - compiled
     return out
 
 
+@njit(cache=True, inline="always")
+def _plus(acc, g, phi, model):  # pragma: no cover - compiled
+    """``acc + g phi`` with the model term (``g`` its input gain), ``acc`` without."""
+    return acc + g * phi if model else acc
+
+
+@njit(cache=True, inline="always")
+def _mac(acc, w, c):  # pragma: no cover - compiled
+    """``acc + w c``, skipping the structural zeros ``w = 0`` of ``W``."""
+    return acc + w * c if w != 0.0 else acc
+
+
+@njit(cache=True, inline="always")
+def _reported(v, lo, hi, sat):  # pragma: no cover - compiled
+    """``v`` clipped to ``[lo, hi]`` where the estimate is saturated (``sat``)."""
+    if sat:
+        if v < lo:
+            return lo
+        if v > hi:
+            return hi
+    return v
+
+
+@njit(cache=True, inline="always")
+def _stops(code, stop):  # pragma: no cover - compiled
+    """Whether a member stops here: ``k`` crossed ``k_stab`` (:func:`gain_limits`) with ``stop``."""
+    return code >= 2 and stop
+
+
 @njit(cache=True)
 def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, mats, vecs,
                  bounds, Z, D, lim):  # pragma: no cover - compiled
@@ -214,7 +243,7 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
     ``par = (dt, lam, lam_hat, gamma, r, k_limit, k_max, k_stab)``, ``mats = (Phi, W, M0)``,
     ``vecs = (p, g0, C(n, j), real roots, Re and Im of the pairs)`` (rows padded to ``n + 1``).
     The loop is written flat: views and calls with many arrays inside it cost more than the
-    arithmetic.
+    arithmetic (the helpers it calls take and return scalars only, inlined by numba).
     """
     B = S.shape[0]
     n = mats.shape[1]
@@ -241,7 +270,7 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
                     acc = 0.0
                     for q in range(n):
                         acc += mats[2, r, q] * s[1 + q]
-                    t[1 + r] = acc + vecs[1, r] * phi if model else acc
+                    t[1 + r] = _plus(acc, vecs[1, r], phi, model)
             elif method == 0:
                 k = s[0]
                 e = y - s[1]
@@ -250,8 +279,7 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
                     for r in range(n):
                         gi = 0.0
                         for q in range(n):
-                            if mats[1, r, q] != 0.0:
-                                gi += mats[1, r, q] * c[q + 1]
+                            gi = _mac(gi, mats[1, r, q], c[q + 1])
                         gain[r] = gi
                     k_gain = k
                 for r in range(n):
@@ -259,7 +287,7 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
                     for q in range(r, n):
                         acc += mats[0, r, q] * s[1 + q]
                     v = acc + gain[r] * e
-                    t[1 + r] = v + vecs[1, r] * phi if model else v
+                    t[1 + r] = _plus(v, vecs[1, r], phi, model)
                 t[0] = k + dt * adaptation_rate(e, lam, lam_hat, gamma)
             elif method == 1:
                 joint_rhs(s, y, 0.0, vecs, lam, lam_hat, gamma, d1)
@@ -283,19 +311,13 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
             if y == y:
                 code = gain_limits(t, j, par, lim[i])
                 status |= code
-                if code >= 2 and stop:
+                if _stops(code, stop):
                     break
-            for q in range(n + 1):
-                s[q] = t[q]
+            s[0] = t[0]
             D[i, j, 0] = s[0]
             for q in range(n):
-                v = s[1 + q]
-                if sat:
-                    if v < lo[q]:
-                        v = lo[q]
-                    elif v > hi[q]:
-                        v = hi[q]
-                Z[i, j, q] = v
+                s[1 + q] = t[1 + q]
+                Z[i, j, q] = _reported(s[1 + q], lo[q], hi[q], sat)
         for q in range(n + 1):
             S[i, q] = s[q]
     return status
@@ -637,8 +659,14 @@ class AdaptiveGainObserver(Observer):
             for j in range(T):
                 u = U[:, j]
                 prev = S.copy()
-                model_rk4(S, Y, j, dt, 1, M0, g0, lambda V, u=u: self._phi(V, u),
-                          lambda V, ph, j=j: self._stage(V, Y, j, ph))
+
+                def phi(V: Array, u: Array = u) -> Array:
+                    return self._phi(V, u)
+
+                def stage(V: Array, ph: Array, j: int = j) -> Array:
+                    return self._stage(V, Y, j, ph)
+
+                model_rk4(S, Y, j, dt, 1, M0, g0, phi, stage)
                 if adaptive_limits(S, prev, Y, j, par, stop, lim):
                     self._limits(dt)
                 D[:, j, 0] = S[:, 0]

@@ -182,7 +182,7 @@ class Observer(ABC):
         self._max_col = max(self.outputs)
         #: the channels as a slice where they are consecutive (no fancy-index copy)
         lo, hi = self.outputs[0], self.outputs[-1] + 1
-        self._cols_index: slice | Array = (slice(lo, hi) if self.outputs == tuple(range(lo, hi))
+        self._cols_index: slice | NDArray[np.intp] = (slice(lo, hi) if self.outputs == tuple(range(lo, hi))
                                            else self._cols)
         self.batch = 1
         self._batched = False
@@ -368,7 +368,7 @@ class Observer(ABC):
         self.reset(x_hat0, batch=ya.shape[0] if ya.ndim == 3 else None)
         return self.advance(ya, ua, dt)
 
-    def _public(self, a: Array) -> Any:
+    def _public(self, a: NDArray[Any]) -> Any:
         """Drop the batch axis of an unbatched observer (``a[0]``; a float for a scalar)."""
         if self._batched:
             return a

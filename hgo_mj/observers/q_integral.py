@@ -261,7 +261,7 @@ class QIntegralObserver(AffineObserver):
         self.L = riccati_gains(a, g)  # Z(gamma) C' from the ARE of the augmented chain
         self._L = np.ascontiguousarray(self.L, dtype=float)
         self.condition = None if r is None else lipschitz_condition(a, g, r)
-        if self.condition is not None and not self.condition["satisfied"]:
+        if r is not None and self.condition is not None and not self.condition["satisfied"]:
             warnings.warn(f"QIntegralObserver: gamma = {g:g} does not meet condition (44) for "
                           f"rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
                           f"convergence is not guaranteed; min_gamma gives {min_gamma(a, r):.4g}",

@@ -318,8 +318,14 @@ class AffineObserver(Observer):
         elif self.method == "rk4":  # the model term at every stage
             for j in range(T):
                 u = U[:, j]
-                model_rk4(S, Y, j, dt, 0, M0, g0, lambda V, u=u: self._phi(V, u),
-                          lambda V, ph, j=j: self._stage(V, Y, j, ph))
+
+                def phi(V: Array, u: Array = u) -> Array:
+                    return self._phi(V, u)
+
+                def stage(V: Array, ph: Array, j: int = j) -> Array:
+                    return self._stage(V, Y, j, ph)
+
+                model_rk4(S, Y, j, dt, 0, M0, g0, phi, stage)
                 report(S, off, bounds, sat, j, Z)
         else:  # the model term held at its start-of-sample value (eq. 53 for euler)
             for j in range(T):
@@ -479,7 +485,7 @@ class RiccatiObserver(AffineObserver):
         self.L = riccati_gains(a, g)  # P(gamma) C' from the ARE; equals (alpha_i gamma^i)
         self._L = np.ascontiguousarray(self.L, dtype=float)
         self.condition = None if r is None else lipschitz_condition(a, g, r)
-        if self.condition is not None and not self.condition["satisfied"]:
+        if r is not None and self.condition is not None and not self.condition["satisfied"]:
             warnings.warn(f"RiccatiObserver: gamma = {g:g} does not meet the Lipschitz condition (5) "
                           f"for rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
                           f"convergence is not guaranteed; min_gamma gives "

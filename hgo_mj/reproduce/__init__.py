@@ -126,8 +126,10 @@ def record_runs(rrd: str | Path, runs: Mapping[str, Any],
     paths = []
     for suffix, traj in runs.items():
         path = rrd if not suffix else rrd.with_name(f"{rrd.stem}_{suffix}.rrd")
-        kw = {"recording_name": names[suffix]} if names and suffix in names else {}
-        record_trajectory(traj, path, **kw)
+        if names and suffix in names:
+            record_trajectory(traj, path, recording_name=names[suffix])
+        else:
+            record_trajectory(traj, path)
         paths.append(str(path))
     return paths
 

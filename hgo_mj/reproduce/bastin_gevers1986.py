@@ -69,10 +69,10 @@ from . import finish, fmt_num, record_runs
 #: design constant of the AOCF used throughout (``F = -c2``)
 C2 = 1.0
 FROZEN = {"c1": 5.0, "gamma": 20.0, "T": 150.0, "T_sampled": 80.0}
-BIO = {"c1": 20.0, "gamma": (100.0, 1.0, 1.0), "T": 400.0, "dt": 0.02, "t_from": 200.0}
-BIO_GUESS = {"mu_max": 2.0, "p2": 1.0, "p3": 0.1, "z": (1.0, 2.0)}
+BIO: dict[str, Any] = {"c1": 20.0, "gamma": (100.0, 1.0, 1.0), "T": 400.0, "dt": 0.02, "t_from": 200.0}
+BIO_GUESS: dict[str, Any] = {"mu_max": 2.0, "p2": 1.0, "p3": 0.1, "z": (1.0, 2.0)}
 CONTOIS = {"mu_max": 3.0, "K_m": 0.0, "K_c": 1.0, "p2": 0.5, "p3": 0.05}
-PENDULUM = {"c1": 50.0, "c2": 5.0, "gamma": 1e5, "gamma_damping": 1e3, "T": 60.0,
+PENDULUM: dict[str, Any] = {"c1": 50.0, "c2": 5.0, "gamma": 1e5, "gamma_damping": 1e3, "T": 60.0,
             "dt": 0.002, "x0": (0.3, 0.0), "amplitudes": (0.3, 0.2, 0.25),
             "frequencies": (0.2, 0.45, 1.3), "phases": (0.0, 1.0, 2.0)}
 

@@ -73,9 +73,9 @@ from . import finish, fmt_num
 
 Array = NDArray[np.float64]
 
-EX1 = {"lam": 10.0, "K0": (2.0, 1.0), "X": 10.0, "Theta": 10.0, "horizon": 200.0,
+EX1: dict[str, Any] = {"lam": 10.0, "K0": (2.0, 1.0), "X": 10.0, "Theta": 10.0, "horizon": 200.0,
        "x0": (1.0, 1.0)}
-EX2 = {"lam": 40.0, "K0": (2.0, 1.0), "X": 100.0, "Theta": 20.0, "horizon": 300.0,
+EX2: dict[str, Any] = {"lam": 40.0, "K0": (2.0, 1.0), "X": 100.0, "Theta": 20.0, "horizon": 300.0,
        "x0": (1.0, 1.0, 0.1, 2.0)}
 DT = 2e-3
 WINDOW = 10.0  # excitation window T of eq. 11 [s]
@@ -87,7 +87,7 @@ def _observer(system: Any, cfg: dict[str, Any], hold: str = "innovation") -> Bes
 
 
 def run_sampled(system: Any, cfg: dict[str, Any], inp: Any, dt: float = DT,
-                every: float = 0.01) -> dict[str, Array]:
+                every: float = 0.01) -> dict[str, Any]:
     """Plant (RK4 at ``dt``, the input taken at the middle of each sample) and the sampled
     observer, through the common loop (:func:`~hgo_mj.simulate.simulate`); rows every
     ``every`` s."""

@@ -91,7 +91,8 @@ METHOD = "rk4"
 INITIAL = {"x0_zero": "x_hat(0) = (0, 0)", "x0_y0": "x_hat(0) = (y(0), 0)"}
 
 
-def substrate_estimate(z_hat: Array, u: Array, params: dict[str, float]) -> tuple[Array, Array]:
+def substrate_estimate(z_hat: Array, u: Array,
+                       params: dict[str, float]) -> tuple[Array, NDArray[np.bool_]]:
     """``s_hat`` from the observer state by the inverse of eq. 16, and where it is defined.
 
     .. math:: \\hat s = \\frac{a_2 \\hat z_1 w}{a_1 \\hat z_1 - w}, \\qquad

@@ -329,7 +329,7 @@ def noise_numbers() -> dict[str, Any]:
     M, b, _ = one_step_map(np.array(ALPHA), GAMMA, SAMPLE_PERIOD, "exact")
     Mq, bq, _ = q_integral_step_map(binomial_coefficients(2 + Q_INT), GAMMA, Q_INT,
                                     SAMPLE_PERIOD, "exact")
-    out = {
+    out: dict[str, Any] = {
         "rmse_x2_standard": _rmse(noisy, "standard", 1),
         "rmse_x2_qintegral": _rmse(noisy, "q_integral", 1),
         "rmse_x2_qintegral_q1": _rmse(noisy, "q_integral_q1", 1),

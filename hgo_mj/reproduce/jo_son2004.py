@@ -54,7 +54,7 @@ from . import finish, fmt_num, record_runs
 
 PAPER = {"lam": 2.0, "gamma": 5.0, "T": 60.0}
 LEVELS = (1e-1, 1e-2)
-ELASTIC = {"lam": 50.0, "gamma": (1e4, 20.0, 1e6), "T": 30.0, "dt": 0.001, "dt_check": 0.0005,
+ELASTIC: dict[str, Any] = {"lam": 50.0, "gamma": (1e4, 20.0, 1e6), "T": 30.0, "dt": 0.001, "dt_check": 0.0005,
            "x0": (0.3, 0.3, 0.0, 0.0), "amplitudes": (0.3, 0.2, 0.1),
            "frequencies": (0.5, 2.3, 11.0), "phases": (0.0, 1.0, 2.0)}
 
@@ -112,7 +112,7 @@ def part_example(sampled_periods: tuple[float, ...] = (0.01, 0.001)) -> tuple[di
     x_hat = form.physical_rows(sol.y[3:6].T)
     theta_hat = sol.y[6]
     e = np.linalg.norm(x - x_hat, axis=1)
-    cont = {f"t_error_stays_below_{lv:g}": stays_below(ts, e, lv) for lv in LEVELS}
+    cont: dict[str, Any] = {f"t_error_stays_below_{lv:g}": stays_below(ts, e, lv) for lv in LEVELS}
     cont["t_error_stays_below_1e-3"] = stays_below(ts, e, 1e-3)
     cont["theta_at_60s"] = float(theta_hat[-1])
     cont["error_at"] = {f"{t:g}": float(e[int(round(t * 1000))]) for t in (1, 2, 5, 10, 20, 60)}
