@@ -432,6 +432,8 @@ class Observer(ABC):
             ok = np.all(np.isfinite(flat), axis=2) | ~np.all(np.isfinite(Z), axis=2)
             if ok.all():
                 X[...] = flat
+                if T:  # as the per-row path: the last row is the member's held value
+                    self._x_held[...] = flat[:, -1]
                 return
         for b in range(B):
             held = self._x_held[b]

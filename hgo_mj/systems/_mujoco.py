@@ -238,6 +238,10 @@ class _SecondOrderMujocoSystem(_MujocoSystem):
     def from_normal_unchecked(self, z: Array, u: Array) -> Array:
         return z
 
+    def from_normal_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`from_normal_unchecked` of the rows ``Z`` ``(N, 2)``: a copy of ``Z``."""
+        return np.array(Z, dtype=float)
+
     def phi_unchecked(self, z: Any, u: Array) -> float:
         """:meth:`phi` without validation, in plain floats: ``z`` is any sequence of two
         numbers (an observer passes its tuple of floats), ``u`` has one entry."""

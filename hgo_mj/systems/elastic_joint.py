@@ -78,6 +78,63 @@ def _affine_to_physical(Z: Array, TH: Array, c: Array, mode: int) -> Array:
     return X
 
 
+def _from_normal_row(q: float, w: float, a: float, j: float, inertia: float, k: float,
+                     dl: float, mass: float, g: float, lc: float) -> tuple[float, float]:
+    """The motor side ``(theta, theta')`` of the inverse normal-form map, once: the scalar path
+    (:meth:`ElasticJoint._from_normal`, plain Python) and the compiled rows of
+    :func:`_from_normal_rows` both run this source, so they agree bit for bit."""
+    mgl = mass * g * lc
+    th = q + (inertia * a + mgl * math.sin(q) + dl * w) / k
+    v = w + (inertia * j + mgl * math.cos(q) * w + dl * a) / k
+    return th, v
+
+
+def _phi_row(q: float, w: float, a: float, j: float, u0: float, inertia: float, k: float,
+             dl: float, mass: float, g: float, lc: float, dm: float, gear: float,
+             motor_inertia: float) -> float:
+    """``y^(4) = phi(z, u)``, once (scalar :meth:`ElasticJoint._phi` and compiled
+    :func:`_phi_rows`)."""
+    mgl = mass * g * lc
+    s, c = math.sin(q), math.cos(q)
+    # spring torque K (q - theta) and motor velocity from the inverse map
+    tau = -(inertia * a + mgl * s + dl * w)
+    v = w + (inertia * j + mgl * c * w + dl * a) / k
+    thdd = (tau - dm * v + gear * u0) / motor_inertia
+    return (mgl * s * w * w - mgl * c * a - k * (a - thdd) - dl * j) / inertia
+
+
+_from_normal_nb = njit(cache=True)(_from_normal_row)
+_phi_nb = njit(cache=True)(_phi_row)
+
+
+@njit(cache=True)
+def _from_normal_rows(Z: Array, c: Array) -> Array:
+    """:func:`_from_normal_row` of the rows ``Z`` ``(N, 4)``: ``x = (q, theta, q', theta')``;
+    ``c = (link_inertia, stiffness, link_damping, mass, g, com_distance)``."""
+    N = Z.shape[0]
+    X = np.empty((N, 4))
+    for i in range(N):
+        q, w, a, j = Z[i, 0], Z[i, 1], Z[i, 2], Z[i, 3]
+        th, v = _from_normal_nb(q, w, a, j, c[0], c[1], c[2], c[3], c[4], c[5])
+        X[i, 0] = q
+        X[i, 1] = th
+        X[i, 2] = w
+        X[i, 3] = v
+    return X
+
+
+@njit(cache=True)
+def _phi_rows(Z: Array, U: Array, c: Array) -> Array:
+    """:func:`_phi_row` of the rows ``Z`` ``(N, 4)``, ``U`` ``(N, 1)``; ``c = (link_inertia,
+    stiffness, link_damping, mass, g, com_distance, motor_damping, gear, motor_inertia)``."""
+    N = Z.shape[0]
+    out = np.empty(N)
+    for i in range(N):
+        out[i] = _phi_nb(Z[i, 0], Z[i, 1], Z[i, 2], Z[i, 3], U[i, 0], c[0], c[1], c[2], c[3],
+                         c[4], c[5], c[6], c[7], c[8])
+    return out
+
+
 class ElasticJoint(_MujocoSystem):
     r"""One link driven by a motor through a torsional spring: Spong's elastic-joint model.
 
@@ -250,23 +307,15 @@ class ElasticJoint(_MujocoSystem):
     @staticmethod
     def _from_normal(z: Array, p: Mapping[str, float]) -> Array:
         q, w, a, j = float(z[0]), float(z[1]), float(z[2]), float(z[3])
-        inertia, k, dl = p["link_inertia"], p["stiffness"], p["link_damping"]
-        mgl = p["mass"] * p["g"] * p["com_distance"]
-        th = q + (inertia * a + mgl * math.sin(q) + dl * w) / k
-        v = w + (inertia * j + mgl * math.cos(q) * w + dl * a) / k
+        th, v = _from_normal_row(q, w, a, j, p["link_inertia"], p["stiffness"],
+                                 p["link_damping"], p["mass"], p["g"], p["com_distance"])
         return np.array([q, th, w, v])
 
     @staticmethod
     def _phi(z: Array, u: Array, p: Mapping[str, float]) -> float:
-        q, w, a, j = float(z[0]), float(z[1]), float(z[2]), float(z[3])
-        inertia, k, dl = p["link_inertia"], p["stiffness"], p["link_damping"]
-        mgl = p["mass"] * p["g"] * p["com_distance"]
-        s, c = math.sin(q), math.cos(q)
-        # spring torque K (q - theta) and motor velocity from the inverse map
-        tau = -(inertia * a + mgl * s + dl * w)
-        v = w + (inertia * j + mgl * c * w + dl * a) / k
-        thdd = (tau - p["motor_damping"] * v + p["gear"] * float(u[0])) / p["motor_inertia"]
-        return (mgl * s * w * w - mgl * c * a - k * (a - thdd) - dl * j) / inertia
+        return _phi_row(float(z[0]), float(z[1]), float(z[2]), float(z[3]), float(u[0]),
+                        p["link_inertia"], p["stiffness"], p["link_damping"], p["mass"], p["g"],
+                        p["com_distance"], p["motor_damping"], p["gear"], p["motor_inertia"])
 
     # ------------------------------------------------------------- normal form (public)
     def to_normal(self, x: Any, u: Any = None) -> Array:
@@ -396,6 +445,24 @@ class ElasticJoint(_MujocoSystem):
                           physical_state_names=self.state_names, physical_params=physical,
                           true_physical={"stiffness": k_true, "MgL": mgl_true}
                           )._made_by(ElasticJoint._form_affine, self, unknown)
+
+    def _row_constants(self) -> Array:
+        """The parameters of :func:`_phi_rows` (the first six: of :func:`_from_normal_rows`)."""
+        p = self.params
+        return np.array([p["link_inertia"], p["stiffness"], p["link_damping"], p["mass"], p["g"],
+                         p["com_distance"], p["motor_damping"], p["gear"], p["motor_inertia"]])
+
+    def from_normal_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`from_normal_unchecked` of the rows ``Z`` ``(N, 4)``, compiled (equal to the
+        scalar path bit for bit; defined everywhere, the stiffness being > 0)."""
+        return _from_normal_rows(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
+                                 self._row_constants()[:6])
+
+    def phi_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`phi_unchecked` of the rows ``Z`` ``(N, 4)``, ``U`` ``(N, 1)``, compiled (equal
+        to the scalar path bit for bit)."""
+        return _phi_rows(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
+                         np.ascontiguousarray(U, dtype=float), self._row_constants())
 
 
 # ----------------------------------------------------------------------------------------

@@ -95,6 +95,57 @@ def bullinger_input(t: float) -> Array:
     return np.array([0.02 if 30.0 <= t < 50.0 else 0.08])
 
 
+def _bullinger_s_row(m: float, md: float, uu: float, a1: float, a2: float) -> float:
+    """:math:`s = \\Phi^{-1}_2(z, u)` of :class:`BioreactorBullinger`, once (scalar
+    :meth:`~BioreactorBullinger.from_normal` and compiled :func:`_bullinger_from_normal_rows`);
+    NaN outside the domain ``a1, a2 > 0``, ``m > 0``, ``0 <= m' + u m < a1 m``."""
+    w = md + uu * m
+    if not (a1 > 0 and a2 > 0 and m > 0 and 0.0 <= w < a1 * m):
+        return math.nan
+    return a2 * m * w / (a1 * m - w)
+
+
+def _bullinger_phi_row(m: float, md: float, uu: float, ud: float, a1: float, a2: float,
+                       a3: float, a4: float) -> float:
+    """:math:`\\varphi(z, u, \\dot u) = \\ddot m` of :class:`BioreactorBullinger`, once (scalar
+    :meth:`~BioreactorBullinger.phi` and compiled :func:`_bullinger_phi_rows`); NaN where
+    ``m > 0`` fails (the pole at ``m = 0``)."""
+    if not m > 0:
+        return math.nan
+    w = md + uu * m
+    r = a1 * m - w
+    return (w * w * md / (a1 * m * m) + r * r * (uu * a4 - a3 * w) / (a1 * a2 * m * m)
+            - uu * w * r / (a1 * m) - uu * md - ud * m)
+
+
+# error_model="numpy": a division by an underflowed m*m gives inf (the rows then take the scalar
+# path) instead of raising ZeroDivisionError inside the kernel
+_bullinger_s_nb = njit(cache=True, error_model="numpy")(_bullinger_s_row)
+_bullinger_phi_nb = njit(cache=True, error_model="numpy")(_bullinger_phi_row)
+
+
+@njit(cache=True, error_model="numpy")
+def _bullinger_from_normal_rows(Z: Array, U: Array, a1: float, a2: float) -> Array:
+    """Rows ``(m, s)`` of :func:`_bullinger_s_row`; NaN rows outside the domain."""
+    N = Z.shape[0]
+    X = np.empty((N, 2))
+    for i in range(N):
+        s = _bullinger_s_nb(Z[i, 0], Z[i, 1], U[i, 0], a1, a2)
+        X[i, 0] = Z[i, 0] if s == s else np.nan
+        X[i, 1] = s
+    return X
+
+
+@njit(cache=True, error_model="numpy")
+def _bullinger_phi_rows(Z: Array, U: Array, c: Array) -> Array:
+    """:func:`_bullinger_phi_row` of the rows with ``u' = 0``; ``c = (a1, a2, a3, a4)``."""
+    N = Z.shape[0]
+    out = np.empty(N)
+    for i in range(N):
+        out[i] = _bullinger_phi_nb(Z[i, 0], Z[i, 1], U[i, 0], 0.0, c[0], c[1], c[2], c[3])
+    return out
+
+
 class BioreactorBullinger(System):
     """Generic bioreactor of paper 000 (Bastin and Dochain's model), eq. 15.
 
@@ -221,7 +272,15 @@ class BioreactorBullinger(System):
                 f"Phi^-1 of the bioreactor is defined for 0 <= m' + u m < a1 m (growth term of "
                 f"a non-negative substrate); found m' + u m = {w:.6g} with a1 m = {a1 * m:.6g} "
                 f"(m = {m:.6g}, m' = {z[1]:.6g}, u = {uu:.6g})")
-        return np.array([m, a2 * m * w / (a1 * m - w)])
+        return np.array([m, _bullinger_s_row(m, z[1], uu, a1, a2)])
+
+    def from_normal_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`from_normal` of the rows ``Z`` ``(N, 2)``, ``U`` ``(N, 1)``, compiled (equal to
+        the scalar path bit for bit); NaN rows where it raises (outside the domain, a1 or
+        a2 not > 0, or a non-finite entry)."""
+        return _bullinger_from_normal_rows(  # type: ignore[no-any-return]
+            np.ascontiguousarray(Z, dtype=float), np.ascontiguousarray(U, dtype=float),
+            self.params["a1"], self.params["a2"])
 
     def phi(self, z: Any, u: Any = None, u_dot: float = 0.0) -> float:
         """:math:`\\varphi(z, u, \\dot u) = \\ddot m` in normal-form coordinates (see the class).
@@ -247,11 +306,22 @@ class BioreactorBullinger(System):
         m, md = z[0], z[1]
         if not m > 0:
             raise DesignError(f"phi of the bioreactor needs m = z1 > 0; found m = {m:.6g}")
-        a3, a4 = self.params["a3"], self.params["a4"]
-        w = md + uu * m
-        r = a1 * m - w
-        return float(w * w * md / (a1 * m * m) + r * r * (uu * a4 - a3 * w) / (a1 * a2 * m * m)
-                     - uu * w * r / (a1 * m) - uu * md - ud * m)
+        return float(_bullinger_phi_row(m, md, uu, ud, a1, a2, self.params["a3"],
+                                        self.params["a4"]))
+
+    def phi_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`phi_unchecked` (``u' = 0``) of the rows ``Z`` ``(N, 2)``, ``U`` ``(N, 1)``,
+        compiled (equal to the scalar path bit for bit). Where a row would raise (``m <= 0``,
+        a non-finite entry, ``a1`` or ``a2`` not > 0) or is not finite, the rows go through
+        the scalar path, which raises the same :class:`DesignError` as before."""
+        Z = np.ascontiguousarray(Z, dtype=float)
+        U = np.ascontiguousarray(U, dtype=float)
+        p = self.params
+        out = _bullinger_phi_rows(Z, U, np.array([p["a1"], p["a2"], p["a3"], p["a4"]]))
+        if (p["a1"] > 0 and p["a2"] > 0 and np.isfinite(out).all() and np.isfinite(Z).all()
+                and np.isfinite(U).all()):
+            return out  # type: ignore[no-any-return]
+        return super().phi_batch(Z, U)
 
 
 # =====================================================================================

@@ -47,6 +47,28 @@ def _aocf_features(Y: Array, U: Array) -> Array:
     return F
 
 
+def _acceleration_row(q: float, v: float, u0: float, gear: float, mass: float, g: float,
+                      lc: float, damping: float, inertia: float) -> float:
+    """The pendulum's ``q''``, once: the scalar path (:meth:`Pendulum._acceleration`, plain
+    Python) and the compiled rows of :func:`_phi_rows` both run this source, so they agree bit
+    for bit."""
+    return (gear * u0 - mass * g * lc * math.sin(q) - damping * v) / inertia
+
+
+_acceleration_nb = njit(cache=True)(_acceleration_row)
+
+
+@njit(cache=True)
+def _phi_rows(Z: Array, U: Array, c: Array) -> Array:
+    """:func:`_acceleration_row` of the rows ``Z`` ``(N, 2)``, ``U`` ``(N, 1)``; ``c = (gear,
+    mass, g, com_distance, damping, inertia)``."""
+    N = Z.shape[0]
+    out = np.empty(N)
+    for i in range(N):
+        out[i] = _acceleration_nb(Z[i, 0], Z[i, 1], U[i, 0], c[0], c[1], c[2], c[3], c[4], c[5])
+    return out
+
+
 class Pendulum(_SecondOrderMujocoSystem):
     r"""Rigid pendulum on a horizontal hinge with a torque motor and viscous damping.
 
@@ -121,8 +143,17 @@ class Pendulum(_SecondOrderMujocoSystem):
 
     @staticmethod
     def _acceleration(q: float, v: float, u0: float, p: Mapping[str, float]) -> float:
-        return (p["gear"] * u0 - p["mass"] * p["g"] * p["com_distance"] * math.sin(q)
-                - p["damping"] * v) / p["inertia"]
+        return _acceleration_row(q, v, u0, p["gear"], p["mass"], p["g"], p["com_distance"],
+                                 p["damping"], p["inertia"])
+
+    def phi_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`phi_unchecked` of the rows ``Z`` ``(N, 2)``, ``U`` ``(N, 1)``, compiled (equal
+        to the scalar path bit for bit)."""
+        p = self.params
+        c = np.array([p["gear"], p["mass"], p["g"], p["com_distance"], p["damping"],
+                      p["inertia"]])
+        return _phi_rows(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
+                         np.ascontiguousarray(U, dtype=float), c)
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
