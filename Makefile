@@ -19,6 +19,8 @@ demo: $(STAMP)
 	$(VENV)/bin/hgo-mj demo
 
 test: $(STAMP)
+	$(PY) -m mypy
+	$(PY) scripts/check_complexity.py
 	$(PY) -m pytest -q -ra
 
 bench: $(STAMP)
