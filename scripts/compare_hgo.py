@@ -20,7 +20,7 @@ elastic joint's ``phi`` and, for reference, at a tuned gamma; the q-integral obs
 separate seed at the middle noise level (criterion: the mean over the four states of RMSE after
 the transient divided by the state's range).
 
-``--quick`` (one noise level, one seed, 2 s) is what ``tests/test_compare_hgo.py`` runs.
+``--quick`` (one noise level, one seed, 2 s) is what ``tests/scripts/test_compare_hgo.py`` runs.
 """
 
 from __future__ import annotations

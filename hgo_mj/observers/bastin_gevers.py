@@ -32,7 +32,7 @@ the samples inside the kernel).
 
 **Three misprints of the paper, corrected here** (each follows from the error system 4.2,
 which the paper derives from 3.1; the derivation is in ``docs/adaptive_canonical_forms.md``
-and the test ``tests/test_bastin_gevers.py::test_error_system_4_2``):
+and the test ``tests/observers/test_bastin_gevers.py::test_error_system_4_2``):
 
 * 3.1a prints the correction of the last rows as :math:`v(t) \\hat\\theta(t)`; it is
   :math:`V(t) \\dot{\\hat\\theta}(t)`.

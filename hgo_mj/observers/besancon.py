@@ -46,7 +46,7 @@ row-major). The right-hand side above is written once, per row, in :func:`_deriv
 one integration stage of all members is one call of :func:`_stage`, between which the form's
 ``terms`` evaluates :math:`\\varphi, \\psi` of all members' saturated rows at once.
 
-**Corrections of the paper** (the checks are in ``tests/test_besancon.py`` and
+**Corrections of the paper** (the checks are in ``tests/observers/test_besancon.py`` and
 ``docs/results/adaptive.md``):
 
 1. Proof of Lemma 3.1: the error equation prints :math:`+\\hat\\Gamma^T C_0^T C_0

@@ -349,7 +349,7 @@ class ElasticJoint(_MujocoSystem):
         In the normal form :math:`z = (y, \\dot y, \\ddot y, y^{(3)})` (link inertia
         :math:`I`, motor inertia :math:`J`, damping :math:`d_l, d_m` and gear :math:`b` known,
         :math:`\\delta = d_l / I`), differentiating the link equation twice and eliminating
-        the motor angle gives (checked in ``tests/test_besancon.py``)
+        the motor angle gives (checked in ``tests/observers/test_besancon.py``)
 
         .. math::
 

@@ -380,7 +380,7 @@ class BioreactorBastinGevers(System):
     transformation 6.4 takes the model into its AOCF 6.5 only with it: along the printed 6.1,
     :math:`\\dot x_1 - (x_2 + y\\theta_1 + u_1) = z_1` and
     :math:`\\dot x_2 - (\\text{6.5, row 2}) = (1 - c_2) z_1`, both zero with :math:`-z_1`
-    restored (verified in ``tests/test_paper_systems.py`` for random states, inputs and
+    restored (verified in ``tests/systems/test_paper_systems.py`` for random states, inputs and
     :math:`c_2`); (iii) assumption F.4 and condition C.1 are the bound
     :math:`z_1 + z_2/p_2 \\le u_{max}`, which is invariant because
     :math:`\\frac{d}{dt}(z_1 + z_2/p_2) = -(z_1 + z_2/p_2) - p_3 z_2 + u_1 + u_2/p_2`, again only
@@ -837,7 +837,7 @@ class BesanconExample1(System):
     def _form_affine(self, unknown: Any = None) -> Any:
         """This system in the form eq. 9 (an :class:`~hgo_mj.systems.affine_form.AffineForm`
         with compiled rows, equal to :meth:`AffineForm.from_protocol` of :meth:`phi0` and
-        :meth:`regressor`, checked in ``tests/test_besancon.py``)."""
+        :meth:`regressor`, checked in ``tests/observers/test_besancon.py``)."""
         return _paper001_form(self, unknown, _besancon_ex1_terms, "paper 001 example 1 (eq. 9)")
 
 
@@ -1045,7 +1045,7 @@ class JoSonExample(System):
         \\dot z_3 &= -z_3 - (z_3 + \\tfrac12 y^2)^3 - \\tfrac12 y^2 + y^4
 
     Verified: the derivative of :math:`T(x)` along eq. 28 equals eq. 31 at :math:`z = T(x)`
-    (symbolically by hand and numerically in ``tests/test_paper_systems.py``), and
+    (symbolically by hand and numerically in ``tests/systems/test_paper_systems.py``), and
     :math:`T^{-1}` is the map the paper uses in its observer. Eq. 28, 30 and 31 are mutually
     consistent; no correction is needed. (In the paper's observer equations, printed after
     eq. 31, the line for :math:`\\dot{\\hat z}_2` reads :math:`z_1` where

@@ -67,7 +67,7 @@ def test_every_reproduction_writes_through_write_summary(name):
     """Each ``run`` writes ``summary.json`` with :func:`write_summary`, through :func:`finish`
     (no other ``json.dumps`` in the module). The numbers themselves are read back strictly by
     each reproduction's test (``read_summary``); ``besancon2004``
-    (``tests/test_besancon2004.py``) has a non-finite one."""
+    (``tests/reproduce/test_besancon2004.py``) has a non-finite one."""
     module = importlib.import_module(REPRODUCTIONS[name][0])
     src = inspect.getsource(module)
     assert "write_summary(out, summary)" in inspect.getsource(finish)

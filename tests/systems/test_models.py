@@ -7,7 +7,7 @@ from pathlib import Path
 import mujoco
 import pytest
 
-MODELS = sorted((Path(__file__).resolve().parents[1] / "models").glob("*.xml"))
+MODELS = sorted((Path(__file__).resolve().parents[2] / "models").glob("*.xml"))
 MECHANICAL = [p for p in MODELS if p.stem in
               ("pendulum", "cart_pendulum", "elastic_joint", "elastic_joint_2link")]
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import gymnasium as gym
 import hgo_mj.envs  # noqa: F401
 
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "train_rl.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "train_rl.py"
 spec = importlib.util.spec_from_file_location("train_rl", SCRIPT)
 train_rl = importlib.util.module_from_spec(spec)
 sys.modules["train_rl"] = train_rl  # dataclasses look their module up

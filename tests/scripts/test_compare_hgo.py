@@ -14,7 +14,7 @@ import pytest
 
 from hgo_mj.systems import ElasticJoint
 
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "compare_hgo.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "compare_hgo.py"
 
 
 @pytest.fixture(scope="module")

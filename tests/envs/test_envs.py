@@ -603,7 +603,7 @@ def test_readme_environment_examples_run():
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     section = text[text.index("## Gymnasium environments"):]
     blocks = re.findall(r"```py\n(.*?)```", section, re.S)
     assert len(blocks) == 2
