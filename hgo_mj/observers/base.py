@@ -281,7 +281,9 @@ class Observer(ABC):
         self.batch, self._batched = int(B), batched
         self._dropouts = np.zeros(B, dtype=np.int64)
         self._inverse_failures = np.zeros(B, dtype=np.int64)
-        self._x_held = np.full((B, len(self.state_names)), np.nan)
+        #: the width of ``x_hat`` (``len(state_names)``, looked up once per reset)
+        self._nx = len(self.state_names)
+        self._x_held = np.full((B, self._nx), np.nan)
         self._u_last = u
         self._reset(x0, z0, u)
 
@@ -308,10 +310,12 @@ class Observer(ABC):
         Yo = np.array(Y[:, :, self._cols_index], dtype=np.float64, order="C")
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
-        X = np.empty((B, T, len(self.state_names)))
+        X = np.empty((B, T, self._nx))
         Z = np.empty((B, T, self.n))
         D = np.empty((B, T, nd + 1))
-        if not np.isfinite(Yo).all():  # dropouts (NaN) counted; an infinite value refused
+        finite = (math.isfinite(Yo.item()) if Yo.size == 1  # one sample of one channel: cheap
+                  else bool(np.isfinite(Yo).all()))
+        if not finite:  # dropouts (NaN) counted; an infinite value refused
             if np.isinf(Yo).any():
                 b, j, c = (int(v[0]) for v in np.nonzero(np.isinf(Yo)))
                 raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
