@@ -37,7 +37,7 @@ import math
 import pickle
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import gymnasium
 import mujoco
@@ -468,6 +468,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         nu = len(self.plant.input_names)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(nu,), dtype=np.float32)
         self._nu, self._scale = nu, cfg.task.max_action
+        self._scale_arr = np.asarray(cfg.task.max_action, dtype=float)
         self._clip = cfg.invalid_action == "clip"
         self._full_info = cfg.info_level == "full"
         self._goal: tuple[float, ...] = ()
@@ -631,9 +632,11 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             at :meth:`reset`, plus (``info_level="full"``) the task's reward terms.
         """
         u = self._action(action)
-        U = np.broadcast_to(u, (1, self._n_samples, self._nu))
+        U = u.reshape(1, 1, -1)  # held over the control period's samples
+        if self._n_samples > 1:
+            U = np.repeat(U, self._n_samples, axis=1)
         try:
-            self.loop.segment(np.ascontiguousarray(U))
+            self.loop.segment(U)
         except LoopFailure as exc:
             raise DivergenceError(f"{exc}") from exc.cause
         obs, info = self._observe(u, None)
@@ -665,7 +668,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                     raise DesignError(f"action[{i}] = {v:g} is outside the action space [-1, 1] "
                                       f"(invalid_action='raise')")
             a = np.clip(a, -1.0, 1.0)
-        return a * np.asarray(self._scale)
+        return a * self._scale_arr
 
     def _observe(self, u: Array, reward: float | None) -> tuple[Array, dict[str, Any]]:
         """The observation and ``info`` at the current instant: the true state, the newest
@@ -674,24 +677,24 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         x, y = X[0, 0].tolist(), Ym[0, 0].tolist()
         obs = self.observer
         x_hat = diag = None
+        mode = self.observation_mode
         if obs is not None:
-            xh, _, d = obs._current()
-            x_hat = xh[0].tolist()
-            diag = obs.diagnostics()
+            x_hat = obs._current()[0][0].tolist()
+            if self._full_info or mode == "estimate+diagnostics":  # else read when asked
+                diag = obs.diagnostics()
         self._row = {"t": self.loop.t, "x": x, "y": y, "y_clean": Yc[0, 0].tolist(),
                      "u": u.tolist(), "x_hat": x_hat, "diagnostics": diag,
                      "reward": 0.0 if reward is None else reward}
-        mode = self.observation_mode
         extra: Sequence[float] = ()
         if mode in ("estimate", "estimate+diagnostics"):
             # these modes need an observer (refused at construction without one)
-            assert x_hat is not None and diag is not None
+            x_hat = cast(list[float], x_hat)
             if not math.isfinite(sum(x_hat)):
                 raise DivergenceError(f"the observer's estimate left the finite numbers at "
                                       f"t={self.loop.t:g}: {x_hat}")
             vals = x_hat
             if mode == "estimate+diagnostics":
-                extra = [diag[k] for k in self.diagnostic_names]
+                extra = [cast(dict[str, float], diag)[k] for k in self.diagnostic_names]
         elif mode == "true":
             vals = x
         else:  # a dropout (NaN) is held at the last valid value
@@ -723,7 +726,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         """The last reset's or step's row: time ``t``, true state ``x``, measurement ``y``,
         clean outputs ``y_clean``, input ``u``, estimate ``x_hat`` and ``diagnostics`` (None
         without an observer), ``reward`` (0 at a reset); what a recording wrapper writes."""
-        return dict(self._row)
+        row = dict(self._row)
+        if row["diagnostics"] is None and self.observer is not None:
+            row["diagnostics"] = self.observer.diagnostics()  # the state has not moved since
+        return row
 
     def recording_metadata(self) -> dict[str, Any]:
         """What a recording's ``/scenario`` document holds: the environment (registered id,
