@@ -47,8 +47,8 @@ class PendulumSwingUpEnv(HgoEnv):
     high-gain observer (paper 000, eq. 2) with the pendulum's model term (Gauthier et al.)
     estimates the angle and angular velocity from it, and the agent sees that estimate by
     default. The model-free observer (`observer_kwargs={"k": 20, "model": False}`, Tornambe's:
-    it knows only that the angle's second derivative is bounded) is about 0.4 microseconds
-    cheaper per step (``scripts/bench_envs.py``) but its velocity error is about six times
+    it knows only that the angle's second derivative is bounded) is about 7 microseconds
+    cheaper per step (``scripts/bench_envs.py``, 64 against 72 us) but its velocity error is about six times
     larger while the pendulum swings (0.48 against 0.08 rad/s RMS under an energy-pumping
     swing-up), enough that a swing-up controller acting on it fails to catch the pendulum.
 
