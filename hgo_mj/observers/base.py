@@ -186,7 +186,6 @@ class Observer(ABC):
                                            else self._cols)
         self.batch = 1
         self._batched = False
-        self._u_last: Array = np.zeros((1, self.n_inputs or 0))
 
     # ----------------------------------------------------------- construction
     def _order(self, system: System | None, order: int | None) -> int:
@@ -284,7 +283,6 @@ class Observer(ABC):
         #: the width of ``x_hat`` (``len(state_names)``, looked up once per reset)
         self._nx = len(self.state_names)
         self._x_held = np.full((B, self._nx), np.nan)
-        self._u_last = u
         self._reset(x0, z0, u)
 
     def advance(self, Y: Any, U: Any, dt: float) -> Block:
@@ -327,12 +325,10 @@ class Observer(ABC):
             U = np.ascontiguousarray(U)
         self._advance(Yo, U, dt, X, Z, D[:, :, :nd])
         if lost is None:
-            D[:, :, nd] = self._dropouts[:, None]
+            D[:, :, nd] = self._dropouts[0] if B == 1 else self._dropouts[:, None]
         else:
             D[:, :, nd] = self._dropouts[:, None] + lost
             self._dropouts = self._dropouts + lost[:, -1]
-        if T:
-            self._u_last = U[:, -1]
         return Block(X, Z, D)
 
     def step(self, y: Any, u: Any, dt: float) -> None:
