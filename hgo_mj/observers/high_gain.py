@@ -138,39 +138,6 @@ def packed_maps(chains: list[tuple[Array, Array, Array, Array, Array]]) -> Array
     return P
 
 
-def affine_step(M: Array, b: Array, g: Array | None = None) -> Callable[..., tuple[float, ...]]:
-    """``z -> M z + b y`` as a plain-float function ``step(y, *z)``; with ``g``,
-    ``z -> M z + b y + g w`` as ``step(y, w, *z)`` (``w`` the model term). Zero coefficients
-    are skipped and each row summed left to right, ``g w`` last.
-
-    Kept (without code generation) only for the adaptive-gain and q-integral observers until
-    their ports onto :func:`affine_advance`; the high-gain family does not use it.
-    """
-    n = len(b)
-    rows = [([(float(M[i, j]), j) for j in range(n) if M[i, j] != 0.0],
-             float(b[i]) if b[i] != 0.0 else None,
-             float(g[i]) if g is not None and g[i] != 0.0 else None) for i in range(n)]
-
-    def row(terms: list[tuple[float, int]], bi: float | None, gi: float | None,
-            y: float, w: float, z: tuple[float, ...]) -> float:
-        acc: float | None = None
-        for c, j in terms:
-            acc = c * z[j] if acc is None else acc + c * z[j]
-        if bi is not None:
-            acc = bi * y if acc is None else acc + bi * y
-        if gi is not None:
-            acc = gi * w if acc is None else acc + gi * w
-        return 0.0 if acc is None else acc
-
-    if g is None:
-        def step(y: float, *z: float) -> tuple[float, ...]:
-            return tuple([row(t, bi, None, y, 0.0, z) for t, bi, _ in rows])
-    else:
-        def step(y: float, w: float, *z: float) -> tuple[float, ...]:  # type: ignore[misc]
-            return tuple([row(t, bi, gi, y, w, z) for t, bi, gi in rows])
-    return step
-
-
 def sampled_chain(n: int, dt: float) -> tuple[Array, Array]:
     """``Phi = e^{A dt}`` and ``S = int_0^dt e^{A s} ds`` of the chain of ``n`` integrators."""
     Phi = np.zeros((n, n))
