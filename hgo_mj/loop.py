@@ -173,8 +173,9 @@ class Loop:
             if self.sensor.batch != B:
                 raise DimensionError(f"the sensor chain has {self.sensor.batch} stream(s) for "
                                      f"{B} plant(s): give one seed per member")
-        for ob in self.observers.values():
-            ob.reset(batch=B if batch is not None else None)
+        batched = batch is not None or bool(getattr(self.plant, "batched", False))
+        for ob in self.observers.values():  # as many copies as plants (B initial states)
+            ob.reset(batch=B if batched else None)
             ob.check_period(self.periods.sample)
         self.batch, self.k = B, 0
         self.wall = dict.fromkeys(self.observers, 0.0)

@@ -259,6 +259,12 @@ def simulate(plant: Plant, sensor: SensorChain | None,
         partial trajectory is ``exc.trajectory``. A ``DimensionError`` in an update and every
         error raised before the loop (argument validation, ``check_period``) propagate.
     """
+    if x0 is not None and np.ndim(x0) != 1:
+        raise DimensionError(f"simulate runs one member: x0 must be a state (n,); found shape "
+                             f"{np.shape(x0)} (for B initial states use simulate_batch)")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
+        raise DesignError(f"seed must be an integer or None; found {seed!r} (for B seeds use "
+                          f"simulate_batch)")
     return _run(plant, sensor, observers, inputs, duration, sample_period=sample_period,
                 control_period=control_period, x0=x0, seeds=seed, batch=None,
                 metadata=metadata, on_chunk=on_chunk, store_every=store_every)[0]

@@ -137,3 +137,27 @@ def test_open_loop_signal_of_wrong_width_names_channels_shape_and_time():
     with pytest.raises(DimensionError, match=r"input must have 1 channel\(s\) \('torque',\); "
                                              r"found shape \(2,\) at t=0"):
         simulate(plant, sensor, obs, Constant([0.0, 1.0]), 0.1)
+
+
+def test_initial_states_alone_make_a_batch():
+    """``x0`` of shape (B, n) without a sensor: B plants, and as many copies of each observer,
+    each member equal to its run alone."""
+    rng = np.random.default_rng(3)
+    x0 = np.column_stack([rng.uniform(-1, 1, 4), np.zeros(4)])
+
+    def parts():
+        plant = make_plant("pendulum")
+        return plant, {"hgo": HighGainObserver(plant.system, k=20.0)}
+
+    plant, obs = parts()
+    runs = simulate_batch(plant, None, obs, Multisine([0.2], [0.5]), 0.05, seeds=[None] * 4,
+                          x0=x0)
+    for i in (0, 3):
+        plant, obs = parts()
+        _same(runs[i], simulate(plant, None, obs, Multisine([0.2], [0.5]), 0.05, x0=x0[i]))
+    assert obs["hgo"].batch == 1  # the single runs left it unbatched
+    with pytest.raises(DimensionError, match=r"simulate runs one member: x0 must be a state "
+                                             r"\(n,\); found shape \(4, 2\)"):
+        simulate(plant, None, obs, Multisine([0.2], [0.5]), 0.05, x0=x0)
+    with pytest.raises(DesignError, match=r"seed must be an integer or None; found \[1, 2\]"):
+        simulate(plant, None, obs, Multisine([0.2], [0.5]), 0.05, seed=[1, 2])
