@@ -47,7 +47,8 @@ def test_every_observer_and_reproduction_is_in_the_readme():
 
 def test_environment_examples_run():
     """The two ```py blocks of the Gymnasium section, run one after the other as written."""
-    blocks = re.findall(r"```py\n(.*?)```", README, re.S)
+    section = README[README.index("## Gymnasium environments"):]
+    blocks = re.findall(r"```py\n(.*?)```", section, re.S)
     assert len(blocks) == 2
     ns: dict = {}
     exec(compile(blocks[0], "README.md", "exec"), ns)
@@ -55,3 +56,15 @@ def test_environment_examples_run():
     exec(compile(blocks[1], "README.md", "exec"), ns)
     obs, _ = ns["env"].reset(seed=0)
     assert obs.shape == (4,)
+
+
+def test_adding_an_observer_example_runs(capsys):
+    from hgo_mj.observers import OBSERVERS
+
+    (code,) = [b for b in re.findall(r"```py\n(.*?)```", README, re.S) if "@register" in b]
+    try:
+        exec(compile(code, "README.md", "exec"), {})
+        assert "[0.3] {'dropouts': 0.0}" in capsys.readouterr().out
+        assert "hold_last_example" in OBSERVERS
+    finally:
+        OBSERVERS.pop("hold_last_example", None)
