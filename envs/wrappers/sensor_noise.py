@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import gymnasium
 import numpy as np
@@ -56,8 +56,7 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
         super().__init__(env)
         idx = box_indices(env.observation_space, indices, owner="SensorNoise", name="indices")
         self.indices = np.array(idx, dtype=np.intp)
-        shape = env.observation_space.shape
-        assert shape is not None  # a 1-D Box (box_indices)
+        shape = cast(tuple[int, ...], env.observation_space.shape)  # a 1-D Box (box_indices)
         self._all = idx == list(range(shape[0]))
         self.sensor = sensor_chain(sensor)
         self.dt = env_dt(env, dt)

@@ -31,7 +31,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import rerun as rr
@@ -42,6 +42,8 @@ from ..exceptions import DesignError, DimensionError
 from . import documents, layout
 from .layout import EPISODE, SIM_TIME, STEP, TRUE_ROOT, EstimateLayout
 from .poses import Poses, model_for, xyzw
+
+_T = TypeVar("_T")
 
 Array = NDArray[np.float64]
 Steps = NDArray[np.int64]
@@ -472,20 +474,27 @@ class Recorder:
     def _scalars(self, path: str, index: list[rr.TimeColumn], values: Any) -> None:
         self._send(path, index, rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
 
+    @staticmethod
+    def _require(value: _T | None, what: str) -> _T:
+        """``value``, which the recorder made at its start (a missing one is a bug here)."""
+        if value is None:
+            raise DesignError(f"the recorder has no {what}: it was closed or never started")
+        return value
+
     def _send_rows(self, b: _Block) -> None:
         """Send the block's states, estimates, errors, outputs, inputs and extras (one row a
         sample), one ``send_columns`` per entity."""
-        assert self.layout is not None
+        lay = self._require(self.layout, "layout")
         index = time_columns(b.t, b.steps, b.episode)
         nan = np.full(b.t.size, np.nan)
-        for i, (s, ests) in enumerate(zip(self.state_names, self.layout.est_of)):
+        for i, (s, ests) in enumerate(zip(self.state_names, lay.est_of)):
             # an observer without an estimate in this block: NaN, and no ghost pose
             cols = [b.est[o][:, j] if o in b.est else nan for o, j in ests]
             self._scalars(layout.state_path(s), index, np.column_stack([b.x[:, i]] + cols))
             if cols:
                 self._scalars(layout.error_path(s), index,
                               np.column_stack([b.x[:, i] - c for c in cols]))
-        for o, own in self.layout.own.items():
+        for o, own in lay.own.items():
             if o in b.est:  # estimates that are not plant states: under the observer's names
                 for name, j in own:
                     self._scalars(layout.own_estimate_path(o, name), index, b.est[o][:, j])
@@ -558,14 +567,15 @@ class Recorder:
         and each posed observer (a joint an estimate does not give, or gives as NaN, on the
         truth); they are posed and sent :data:`_POSE_ROWS` rows at a time (a batch costs
         about the same whatever its length), the rest by :meth:`flush` or :meth:`close`."""
-        assert self.scene is not None and self.layout is not None
-        nj = self.scene.njoints
+        lay = self._require(self.layout, "layout")
+        scene = self._require(self.scene, "scene")
+        nj = scene.njoints
         sel = self._pose_rows_of(b)
         q_true = b.x[sel, :nj]
         sets = {TRUE_ROOT: q_true}
         for o in posed:
             q = q_true.copy()
-            for i, j in enumerate(self.layout.joint_columns(o, nj)):
+            for i, j in enumerate(lay.joint_columns(o, nj)):
                 if j is not None:
                     q[:, i] = b.est[o][sel, j]
             bad = ~np.isfinite(q)

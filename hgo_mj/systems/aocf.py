@@ -429,7 +429,8 @@ class AOCF(Rebuildable):
     def pendulum_theta(system: Any, unknown: Sequence[str] | None = None) -> Array:
         """The true :math:`\\theta` of a pendulum's AOCF (:attr:`theta_true`)."""
         th = AOCF.from_system(system, unknown=unknown).theta_true
-        assert th is not None
+        if th is None:
+            raise DesignError(f"the AOCF of {type(system).__name__} carries no true theta")
         return th
 
     @classmethod
