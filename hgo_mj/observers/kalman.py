@@ -109,13 +109,55 @@ _CACHE_MAX = 8
 # ======================================================================================
 
 
-@njit(cache=True)
-def _transition(F: Array, h: float, rk4: bool, Phi: Array) -> None:  # pragma: no cover - numba
-    """``Phi[b] = T_4(h F[b])`` (RK4) or ``I + h F[b]`` (Euler) [J70, sec. 8.3].
+@njit(cache=True, inline="always")
+def _t4(A: Array, rk4: bool, T: Array, W: Array) -> None:  # pragma: no cover - numba
+    r"""``T = T_4(A)`` (RK4) or ``I + A`` (Euler) [J70, sec. 8.3], ``W`` scratch.
 
     :math:`T_4(A) = I + A + A^2/2 + A^3/6 + A^4/24` by Horner:
-    :math:`T = I + A/4,\\ T \\leftarrow I + A T/3,\\ T \\leftarrow I + A T/2,\\ \\Phi = I + A T`,
-    exactly RK4's one-step map of :math:`\\dot x = F x`."""
+    :math:`T = I + A/4,\ T \leftarrow I + A T/3,\ T \leftarrow I + A T/2,\ \Phi = I + A T`,
+    exactly RK4's one-step map of :math:`\dot x = F x` with ``A = h F``."""
+    N = A.shape[0]
+    if not rk4:
+        for i in range(N):
+            for j in range(N):
+                T[i, j] = A[i, j] + (1.0 if i == j else 0.0)
+        return
+    for i in range(N):
+        for j in range(N):
+            T[i, j] = (1.0 if i == j else 0.0) + 0.25 * A[i, j]
+    for div in (3.0, 2.0, 1.0):
+        for i in range(N):
+            for j in range(N):
+                s = 0.0
+                for k in range(N):
+                    s += A[i, k] * T[k, j]
+                W[i, j] = (1.0 if i == j else 0.0) + s / div
+        T[:, :] = W
+
+
+@njit(cache=True, inline="always")
+def _sandwich(Phi: Array, P: Array, Qh: Array, M: Array) -> None:  # pragma: no cover - numba
+    """In place ``P = Phi P Phi^T + Q h`` (the upper triangle, mirrored), ``M`` scratch."""
+    N = P.shape[0]
+    for i in range(N):
+        for j in range(N):
+            s = 0.0
+            for k in range(N):
+                s += Phi[i, k] * P[k, j]
+            M[i, j] = s
+    for i in range(N):
+        for j in range(i, N):
+            s = 0.0
+            for k in range(N):
+                s += M[i, k] * Phi[j, k]
+            s += Qh[i, j]
+            P[i, j] = s
+            P[j, i] = s
+
+
+@njit(cache=True)
+def _transition(F: Array, h: float, rk4: bool, Phi: Array) -> None:  # pragma: no cover - numba
+    """``Phi[b] = T_4(h F[b])`` (RK4) or ``I + h F[b]`` (Euler): :func:`_t4` of each member."""
     B, N = F.shape[0], F.shape[1]
     A = np.empty((N, N))
     T = np.empty((N, N))
@@ -124,45 +166,17 @@ def _transition(F: Array, h: float, rk4: bool, Phi: Array) -> None:  # pragma: n
         for i in range(N):
             for j in range(N):
                 A[i, j] = h * F[b, i, j]
-        if not rk4:
-            for i in range(N):
-                for j in range(N):
-                    Phi[b, i, j] = A[i, j] + (1.0 if i == j else 0.0)
-            continue
-        for i in range(N):
-            for j in range(N):
-                T[i, j] = (1.0 if i == j else 0.0) + 0.25 * A[i, j]
-        for div in (3.0, 2.0, 1.0):
-            for i in range(N):
-                for j in range(N):
-                    s = 0.0
-                    for k in range(N):
-                        s += A[i, k] * T[k, j]
-                    W[i, j] = (1.0 if i == j else 0.0) + s / div
-            T[:, :] = W
+        _t4(A, rk4, T, W)
         Phi[b] = T
 
 
 @njit(cache=True)
 def _propagate(P: Array, Phi: Array, Qh: Array) -> None:  # pragma: no cover - numba
-    """In place ``P[b] = Phi[b] P[b] Phi[b]^T + Q h`` (the upper triangle, mirrored)."""
+    """In place ``P[b] = Phi[b] P[b] Phi[b]^T + Q h``: :func:`_sandwich` of each member."""
     B, N = P.shape[0], P.shape[1]
     M = np.empty((N, N))
     for b in range(B):
-        for i in range(N):
-            for j in range(N):
-                s = 0.0
-                for k in range(N):
-                    s += Phi[b, i, k] * P[b, k, j]
-                M[i, j] = s
-        for i in range(N):
-            for j in range(i, N):
-                s = 0.0
-                for k in range(N):
-                    s += M[i, k] * Phi[b, j, k]
-                s += Qh[i, j]
-                P[b, i, j] = s
-                P[b, j, i] = s
+        _sandwich(Phi[b], P[b], Qh, M)
 
 
 @njit(cache=True)
@@ -377,8 +391,8 @@ def _moments(S: Array, Wm: Array, Wc: Array, Qh: Array, X: Array,
 @njit(cache=True)
 def _ekf_covariance(P: Array, F: Array, h: float, rk4: bool, Qh: Array) -> None:  # pragma: no cover
     """In place ``P[b] = Phi P[b] Phi^T + Q h`` with ``Phi = T_4(h F[b])`` (RK4) or
-    ``I + h F[b]`` (Euler): :func:`_transition` then :func:`_propagate` of each member, written
-    out with one set of scratch matrices."""
+    ``I + h F[b]`` (Euler): :func:`_t4` then :func:`_sandwich` of each member, without storing
+    the transitions."""
     B, N = F.shape[0], F.shape[1]
     A = np.empty((N, N))
     T = np.empty((N, N))
@@ -387,37 +401,8 @@ def _ekf_covariance(P: Array, F: Array, h: float, rk4: bool, Qh: Array) -> None:
         for i in range(N):
             for j in range(N):
                 A[i, j] = h * F[b, i, j]
-        if rk4:
-            for i in range(N):
-                for j in range(N):
-                    T[i, j] = (1.0 if i == j else 0.0) + 0.25 * A[i, j]
-            for div in (3.0, 2.0, 1.0):
-                for i in range(N):
-                    for j in range(N):
-                        s = 0.0
-                        for k in range(N):
-                            s += A[i, k] * T[k, j]
-                        W[i, j] = (1.0 if i == j else 0.0) + s / div
-                T[:, :] = W
-        else:
-            for i in range(N):
-                for j in range(N):
-                    T[i, j] = A[i, j] + (1.0 if i == j else 0.0)
-        # T is Phi; W = Phi P
-        for i in range(N):
-            for j in range(N):
-                s = 0.0
-                for k in range(N):
-                    s += T[i, k] * P[b, k, j]
-                W[i, j] = s
-        for i in range(N):
-            for j in range(i, N):
-                s = 0.0
-                for k in range(N):
-                    s += W[i, k] * T[j, k]
-                s += Qh[i, j]
-                P[b, i, j] = s
-                P[b, j, i] = s
+        _t4(A, rk4, T, W)
+        _sandwich(T, P[b], Qh, W)
 
 
 @njit(cache=True)
