@@ -122,19 +122,8 @@ def saturated(S, off, bounds, sat, A):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def report(S, off, bounds, sat, j, Z):  # pragma: no cover - compiled
-    """Write ``sat(S[:, off:])`` into the rows ``Z[:, j]``."""
-    B, N = S.shape
-    n = Z.shape[2]
-    lo, hi = bounds[0], bounds[1]
-    for i in range(B):
-        for r in range(n):
-            v = S[i, off + r]
-            if sat:
-                if v < lo[r]:
-                    v = lo[r]
-                elif v > hi[r]:
-                    v = hi[r]
-            Z[i, j, r] = v
+    """Write ``sat(S[:, off:])`` into the rows ``Z[:, j]`` (:func:`saturated`)."""
+    saturated(S, off, bounds, sat, Z[:, j])
 
 
 @njit(cache=True)
