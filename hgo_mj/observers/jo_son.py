@@ -64,7 +64,7 @@ from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from ..systems.jo_son_form import JoSonForm
 from .base import Array, Observer, batch_rows, check_outputs, register
-from .bastin_gevers import check_rk_period
+from .bastin_gevers import check_rk_period, sym_eigvals
 
 __all__ = ["JoSonForm", "JoSonObserver", "jo_son_gain"]
 
@@ -225,51 +225,27 @@ def gram_sum(buf: Array, M: Array) -> None:  # pragma: no cover - jit
 @njit(cache=True)
 def min_eig_sym(M: Array, scale: float, out: Array) -> None:  # pragma: no cover - jit
     """``out[b]`` = the smallest eigenvalue of the symmetric ``scale * M[b]`` (``M``
-    ``(B, p, p)``) by cyclic Jacobi rotations (a rotation is skipped where the off-diagonal
-    entry is below the machine precision relative to its diagonal pair, and the entry a
-    rotation annihilates is set to zero; at most 50 sweeps);
-    NaN for a non-finite matrix. A small ``p`` is a few rotations: no LAPACK call per member."""
+    ``(B, p, p)``), by the Jacobi rotations of :func:`~hgo_mj.observers.bastin_gevers.sym_eigvals`
+    (the excitation measure of paper 002, eq. 4.5, computed the same way); NaN for a
+    non-finite matrix. A small ``p`` is a few rotations: no LAPACK call per member."""
     B, p, _ = M.shape
-    a = np.empty((p, p))
+    A = np.empty((p, p))
+    work = np.empty((p, p))
+    ev = np.empty(p)
     for b in range(B):
         finite = True
         for i in range(p):
             for j in range(p):
-                a[i, j] = scale * M[b, i, j]
-                if not np.isfinite(a[i, j]):
+                A[i, j] = scale * M[b, i, j]
+                if not np.isfinite(A[i, j]):
                     finite = False
         if not finite:
             out[b] = np.nan
             continue
-        for _ in range(50):
-            rotated = False
-            for i in range(p - 1):
-                for j in range(i + 1, p):
-                    aij = a[i, j]
-                    if abs(aij) <= 2.2e-16 * math.sqrt(abs(a[i, i] * a[j, j])) or aij == 0.0:
-                        continue
-                    rotated = True
-                    th = (a[j, j] - a[i, i]) / (2.0 * aij)
-                    if abs(th) > 1e150:
-                        t = 0.5 / th
-                    else:
-                        t = (1.0 if th >= 0.0 else -1.0) / (abs(th) + math.sqrt(th * th + 1.0))
-                    c = 1.0 / math.sqrt(t * t + 1.0)
-                    s = t * c
-                    for k in range(p):  # columns: A P
-                        aki, akj = a[k, i], a[k, j]
-                        a[k, i] = c * aki - s * akj
-                        a[k, j] = s * aki + c * akj
-                    for k in range(p):  # rows: P^T (A P)
-                        aik, ajk = a[i, k], a[j, k]
-                        a[i, k] = c * aik - s * ajk
-                        a[j, k] = s * aik + c * ajk
-                    a[i, j] = a[j, i] = 0.0  # annihilated (rounding left out)
-            if not rotated:
-                break
-        lo = a[0, 0]
+        sym_eigvals(A, work, ev)
+        lo = ev[0]
         for i in range(1, p):
-            lo = min(lo, a[i, i])
+            lo = min(lo, ev[i])
         out[b] = lo
 
 
