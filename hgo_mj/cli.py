@@ -1,4 +1,8 @@
-"""The ``hgo-mj`` command: ``run``, ``list``, ``demo``.
+"""The ``hgo-mj`` command: ``run``, ``sweep``, ``list``, ``reproduce``, ``demo``.
+
+``hgo-mj sweep STUDY.toml --out DIR`` runs a study (a scenario with a ``[sweep]`` table; see
+:mod:`hgo_mj.study`) and writes ``results.parquet``, ``summary.parquet``, ``summary.md`` and its
+figures into ``DIR``; Ctrl-C leaves every finished partition, and ``--resume`` goes on.
 
 ``hgo-mj run scenario.toml`` or ``hgo-mj run --plant NAME --observer KIND:k=v,... ...`` runs a
 headless study and writes ``trajectory.npz``, ``metrics.json``, ``figure.png`` and
@@ -151,7 +155,8 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
         label = spec.pop("name", f"{kind}_{i}")
         if label in observers:
             raise DesignError(f"two observers are named {label!r}; give each a distinct name")
-        observers[label] = make_observer(kind, plant.system, **spec)
+        observers[label] = make_observer(kind, observer_system(plant.system, spec.pop(
+            "system_params", None), label), **spec)
     inp = dict(sc.get("input", {"type": "constant"}))
     kind = inp.pop("type", "constant")
     inputs: Signal
@@ -165,6 +170,17 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
             "duration": run["duration"], "sample_period": run.get("sample_period"),
             "control_period": run.get("control_period"), "x0": pl.get("x0"),
             "metadata": {"scenario": sc.get("name", name), "scenario_spec": sc}}
+
+
+def observer_system(system: Any, params: Any, label: str) -> Any:
+    """The system an observer designs against: the plant's, or (model mismatch) one of the
+    same class whose parameters ``params`` differ from the plant's."""
+    if params is None:
+        return system
+    if not isinstance(params, dict):
+        raise DesignError(f"observer {label!r}: system_params must be a table of parameter "
+                          f"values; found {params!r}")
+    return type(system)(**{**system.params, **params})
 
 
 def run_scenario(sc: dict[str, Any], name: str = "run",
@@ -346,6 +362,24 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", help="output folder (default runs/run)")
     r.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                    help="also record to a rerun .rrd file (default OUT/run.rrd)")
+    sw = sub.add_parser("sweep", help="run a study: a scenario file with a [sweep] table of axes "
+                        "and seeds (see hgo_mj.study)")
+    sw.add_argument("study", help="study TOML file (a scenario with a [sweep] table)")
+    sw.add_argument("--out", help="results folder (default runs/STUDY-FILE-NAME)")
+    sw.add_argument("--jobs", metavar="N", default="1",
+                    help="worker processes, or CPUs of a local Ray instance (default 1; the "
+                    "results do not depend on it)")
+    sw.add_argument("--backend", choices=["local", "ray"], default="local",
+                    help="where the chunks run: local processes (default) or Ray "
+                    '(pip install "hgo_mj[ray]")')
+    sw.add_argument("--address", help="a Ray cluster's address (with --backend ray; default: "
+                    "a local instance on 127.0.0.1)")
+    sw.add_argument("--resume", action="store_true",
+                    help="skip the (cell, seed) runs already in OUT/results.parquet (the same "
+                    "study only)")
+    sw.add_argument("--yes", action="store_true",
+                    help="run a study of more than 10 million runs")
+    sw.add_argument("--quiet", action="store_true", help="no plan line and no progress")
     sub.add_parser("list", help="plants, sensor stages, observers, inputs and reproductions")
     rp = sub.add_parser("reproduce", help="reproduce a paper's example (see `hgo-mj list`)")
     rp.add_argument("name", help="reproduction name")
@@ -357,6 +391,23 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
     d.add_argument("--no-rrd", dest="no_rrd", action="store_true", help="write no recording")
     return ap
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """``hgo-mj sweep``: plan, run, summarize and draw a study; print where it went."""
+    from .study import Study
+    from .study.spec import MAX_RUNS
+
+    study = Study.from_toml(args.study, max_runs=None if args.yes else MAX_RUNS)
+    out = Path(args.out or f"runs/{Path(args.study).stem}")
+    jobs = _flag_int(args.jobs, "--jobs")
+    result = study.run(out, jobs=jobs, backend=args.backend, address=args.address,
+                       resume=args.resume, quiet=args.quiet)
+    result.plot(out)
+    print((out / "summary.md").read_text())
+    print(f"wrote {out}/results.parquet ({len(result.table)} rows), summary.parquet, summary.md, "
+          f"the figures (axis_*.png) and study.json in {result.seconds:.1f} s")
+    return 0
 
 
 def _reproduction_kwargs(name: str, rrd: Path | None) -> dict[str, Any]:
@@ -382,6 +433,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "list":
             print(cmd_list())
             return 0
+        if args.command == "sweep":
+            return cmd_sweep(args)
         if args.command == "reproduce":
             from .reproduce import run_reproduction
 
@@ -410,7 +463,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         print("hgo-mj: interrupted" + (f"; {rrd} holds the run up to its last chunk"
-                                       if rrd is not None else ""), file=sys.stderr)
+                                       if rrd is not None else "")
+              + ("; the finished runs are kept: rerun with --resume to go on"
+                 if args.command == "sweep" else ""), file=sys.stderr)
         return 130
     from .metrics import format_table
 

@@ -41,6 +41,9 @@ class System:
     #: paper and equation the model comes from
     reference: ClassVar[str] = ""
     state_names: ClassVar[tuple[str, ...]] = ()
+    #: the unit of each state, in the order of ``state_names`` (SI; ``""``: dimensionless or
+    #: as the paper leaves it); empty: not declared
+    state_units: ClassVar[tuple[str, ...]] = ()
     input_names: ClassVar[tuple[str, ...]] = ()
     #: names of the measured outputs; for MuJoCo plants these are MJCF ``<sensor>`` names
     output_names: ClassVar[tuple[str, ...]] = ()
@@ -59,6 +62,13 @@ class System:
     actuators: ClassVar[tuple[str, ...]] = ()
     #: the observer forms this system declares (see :meth:`form`), e.g. ``("affine",)``
     forms: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def unit(cls, state: str) -> str:
+        """The unit of the state called ``state`` (``""`` when not declared)."""
+        if state in cls.state_names and len(cls.state_units) == len(cls.state_names):
+            return cls.state_units[cls.state_names.index(state)]
+        return ""
 
     def __init__(self, **params: Any) -> None:
         merged = {**self.default_params, **params}

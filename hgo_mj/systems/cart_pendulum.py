@@ -86,6 +86,7 @@ class CartPendulum(_SecondOrderMujocoSystem):
     summary = "inverted pendulum driven by pivot acceleration, Ibrir 2007 eq. 66 (MuJoCo)"
     reference = "Ibrir (2007), On observer design for nonlinear systems, eq. 66"
     state_names = ("angle", "angular_velocity")
+    state_units = ("rad", "rad/s")
     input_names = ("acceleration",)
     output_names = ("angle",)
     param_names = ("g", "length", "mass", "inertia", "damping", "accel_gain")

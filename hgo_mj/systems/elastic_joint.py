@@ -189,6 +189,7 @@ class ElasticJoint(_MujocoSystem):
     summary = "single link with an elastic joint, Spong 1987 (MuJoCo)"
     reference = "Spong (1987); Nicosia and Tornambè (1989)"
     state_names = ("link_angle", "motor_angle", "link_velocity", "motor_velocity")
+    state_units = ("rad", "rad", "rad/s", "rad/s")
     input_names = ("torque",)
     output_names = ("link_angle",)
     param_names = ("link_inertia", "motor_inertia", "mass", "com_distance", "g", "stiffness",

@@ -180,6 +180,7 @@ class ElasticJoint2Link(_MujocoSystem):
     reference = "Spong (1987); Nicosia and Tornambè (1989)"
     state_names = ("link1_angle", "link2_angle", "motor1_angle", "motor2_angle",
                    "link1_velocity", "link2_velocity", "motor1_velocity", "motor2_velocity")
+    state_units = ("rad",) * 4 + ("rad/s",) * 4
     input_names = ("torque1", "torque2")
     output_names = ("link1_angle", "link2_angle")
     param_names = ("link1_inertia", "link1_moment", "link1_length", "link2_mass",

@@ -100,6 +100,7 @@ class Pendulum(_SecondOrderMujocoSystem):
     summary = "torque-driven pendulum with damping (MuJoCo)"
     reference = "Khalil, Nonlinear Systems (2002), Example 1.2.1"
     state_names = ("angle", "angular_velocity")
+    state_units = ("rad", "rad/s")
     input_names = ("torque",)
     output_names = ("angle",)
     param_names = ("mass", "com_distance", "inertia", "damping", "gear", "g")

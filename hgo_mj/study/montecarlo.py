@@ -38,10 +38,10 @@ from typing import Any
 
 import numpy as np
 
-from ._json import strict_json
-from ._validate import positive_int
-from .exceptions import DesignError, DivergenceError
-from .metrics import _cell
+from .._json import strict_json
+from .._validate import positive_int
+from ..exceptions import DesignError, DivergenceError
+from ..metrics import _cell
 
 #: the metrics aggregated with mean, std, min, median, max
 SPREAD_METRICS = ("rmse", "peak", "final")
@@ -66,8 +66,8 @@ def check_seeds(seeds: Iterable[Any]) -> list[int]:
 def run_seed(make_run: Callable[[], Mapping[str, Any]], seed: int,
              metric_kw: Mapping[str, Any] | None = None) -> dict[str, dict[str, Any]]:
     """One run of the study: ``simulate(**make_run(), seed=seed)`` and its metrics."""
-    from .metrics import all_metrics
-    from .simulate import simulate
+    from ..metrics import all_metrics
+    from ..simulate import simulate
 
     kw = dict(make_run())
     if "seed" in kw:

@@ -1,0 +1,118 @@
+"""Where a study's chunks run: this process, local worker processes, or Ray.
+
+Every backend hands out the same chunks (:class:`~hgo_mj.study.engine.Chunk`: plain data, the
+cells' scenarios and the members) and gets back their result rows (small: metrics, no
+trajectories); the parent writes each chunk's rows as one Parquet partition as it arrives. The
+results do not depend on the backend or on the number of workers.
+
+* ``local``: ``jobs = 1`` runs the chunks in this process; ``jobs > 1`` in that many worker
+  processes (``spawn``: safe with MuJoCo and threads).
+* ``ray``: ``pip install "hgo_mj[ray]"``. Without ``address``, a local Ray instance with
+  ``jobs`` CPUs bound to 127.0.0.1 without dashboard; with ``address`` (``ray start --head``
+  on the head node prints it, e.g. ``192.168.1.10:6379``), that cluster: every node needs
+  hgo_mj installed, and only the chunk specs and the rows move over the network.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from typing import Any
+
+from ..exceptions import DesignError
+from .engine import Chunk, run_chunk
+
+Rows = list[dict[str, Any]]
+Backend = Callable[[list[Chunk]], Iterator[tuple[Chunk, Rows]]]
+BACKENDS = ("local", "ray")
+
+
+def backend_for(name: Any, *, address: str | None = None, jobs: int = 1) -> Backend:
+    """The backend called ``name`` (checked before any work: Ray must import, the address
+    must answer)."""
+    if name not in BACKENDS:
+        raise DesignError(f"backend must be one of {list(BACKENDS)}; found {name!r}")
+    if name == "local":
+        if address is not None:
+            raise DesignError("--address is for --backend ray")
+        return lambda chunks: _local(chunks, jobs)
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise DesignError('--backend ray needs Ray: pip install "hgo_mj[ray]"') from None
+    return lambda chunks: _ray(chunks, jobs, address)
+
+
+def _local(chunks: list[Chunk], jobs: int) -> Iterator[tuple[Chunk, Rows]]:
+    if jobs == 1 or len(chunks) <= 1:
+        for c in chunks:
+            yield c, run_chunk(c)
+        return
+    ctx = multiprocessing.get_context("spawn")
+    pool = ProcessPoolExecutor(max_workers=min(jobs, len(chunks)), mp_context=ctx)
+    try:
+        pending = {pool.submit(run_chunk, c): c for c in chunks}
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for f in finished:
+                yield pending.pop(f), f.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def ray_init(jobs: int, address: str | None) -> None:
+    """Connect to ``address``, or start a local instance (127.0.0.1, ``jobs`` CPUs, no
+    dashboard) unless one is running in this process."""
+    import ray
+
+    if ray.is_initialized():
+        return
+    if address is not None:
+        _check_reachable(address)
+    try:
+        if address is None:
+            ray.init(num_cpus=jobs, include_dashboard=False, _node_ip_address="127.0.0.1",
+                     log_to_driver=False, configure_logging=False)
+        else:
+            ray.init(address=address, log_to_driver=False, configure_logging=False)
+    except (ConnectionError, RuntimeError, ValueError) as exc:
+        where = "a local Ray instance" if address is None else f"Ray at {address!r}"
+        raise DesignError(f"cannot start or reach {where}: {exc}") from None
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Refuse a ``host:port`` address that does not accept a connection within ``timeout``
+    seconds (Ray itself would retry for minutes). ``auto`` and ``ray://`` addresses are left
+    to Ray."""
+    import socket
+
+    if address == "auto" or "://" in address:
+        return
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit():
+        raise DesignError(f"--address must be HOST:PORT (as `ray start --head` prints it); "
+                          f"found {address!r}")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise DesignError(f"cannot start or reach Ray at {address!r}: {exc}") from None
+
+
+def _ray(chunks: list[Chunk], jobs: int, address: str | None) -> Iterator[tuple[Chunk, Rows]]:
+    import ray
+
+    ray_init(jobs, address)
+    task = ray.remote(num_cpus=1)(run_chunk)
+    pending = {task.remote(c): c for c in chunks}
+    try:
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                yield pending.pop(ref), ray.get(ref)
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+
+
+__all__ = ["BACKENDS", "backend_for", "ray_init"]

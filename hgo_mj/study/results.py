@@ -1,0 +1,213 @@
+"""A study's folder: ``study.json``, ``results.parquet/`` (partitions), ``summary.parquet``,
+``summary.md`` and the figures.
+
+``results.parquet`` is a folder of Parquet files with one schema, one file per finished
+chunk, each written to a temporary name and renamed into place: a kill leaves every finished
+partition readable, and ``pandas.read_parquet(DIR / "results.parquet")`` (or
+``polars.read_parquet(f"{DIR}/results.parquet/*.parquet")``) reads them all without hgo_mj.
+One row per cell x seed x observer x plant state; the columns:
+
+* one per swept axis, named by its dotted path (a float for numbers, else the value as JSON);
+* ``cell`` (the cell's index), ``seed``, ``observer``, ``state``, ``estimated``;
+* the metrics of :func:`hgo_mj.metrics.observer_metrics`: ``rmse`` (after the transient),
+  ``peak``, ``settling_time`` (seconds; ``inf``: never settled), ``final``,
+  ``undefined_samples``, ``update_time`` (seconds per observer-step, the batch's mean); null
+  where the observer does not estimate the state or the run diverged;
+* ``diverged`` and ``message`` (why; null when it finished);
+* ``diag.<name>``: each diagnostic's final value (e.g. the adaptive gain's ``diag.k``), null
+  where the observer has no such diagnostic.
+"""
+
+from __future__ import annotations
+
+import json
+import uuid
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._io import atomic_path, write_text
+from ..exceptions import DesignError
+from .engine import METRICS
+from .spec import StudySpec, axis_kind, column_value
+
+#: per metric, the statistics of the summary
+SUMMARY_STATS = ("median", "q25", "q75", "iqr", "mean", "std", "min", "max")
+#: the metrics summarized
+SUMMARY_METRICS = ("rmse", "peak", "final", "settling_time")
+
+
+def schema(spec: StudySpec, diagnostics: Sequence[str]) -> Any:
+    """The one Arrow schema of every partition of a study."""
+    import pyarrow as pa
+
+    fields = [pa.field(a.path, pa.float64() if axis_kind(a.values) == "number" else pa.string())
+              for a in spec.axes]
+    fields += [pa.field("cell", pa.int64()), pa.field("seed", pa.int64()),
+               pa.field("observer", pa.string()), pa.field("state", pa.string()),
+               pa.field("estimated", pa.bool_())]
+    fields += [pa.field(m, pa.float64()) for m in METRICS]
+    fields += [pa.field("diverged", pa.bool_()), pa.field("message", pa.string())]
+    fields += [pa.field(f"diag.{d}", pa.float64()) for d in diagnostics]
+    return pa.schema(fields, metadata={"hgo_mj": json.dumps(
+        {"axes": [a.path for a in spec.axes], "units": {"settling_time": "s",
+                                                        "update_time": "s"}})})
+
+
+class ResultsDir:
+    """The files of one study in ``out``."""
+
+    def __init__(self, out: str | Path) -> None:
+        self.out = Path(out)
+        self.parts = self.out / "results.parquet"
+
+    # ------------------------------------------------------------ the study's identity
+    def check_resume(self, spec: StudySpec) -> set[tuple[int, int]]:
+        """The ``(cell, seed)`` pairs already written, after checking that the folder holds
+        this study (``study.json``: the same scenario, axes, mode and store; the seeds may
+        differ, to add seeds); a different study is refused, naming the difference."""
+        path = self.out / "study.json"
+        if not path.is_file():
+            if self.parts.exists():
+                raise DesignError(f"--resume: {self.out} has results but no study.json; it is not "
+                                  f"a study folder hgo_mj wrote")
+            return set()
+        old = json.loads(path.read_text())
+        new = json.loads(json.dumps(spec.to_json()))
+        diff = [k for k in new if k != "seeds" and old.get(k) != new.get(k)]
+        if diff:  # more (or other) seeds of the same study are welcome
+            raise DesignError(f"--resume: {self.out} holds another study: {', '.join(diff)} "
+                              f"differ from this one's; use another --out")
+        return self.done()
+
+    def start(self, spec: StudySpec, resume: bool) -> set[tuple[int, int]]:
+        """Prepare the folder: the pairs done (resume), else refuse to mix with old results."""
+        if resume:
+            done = self.check_resume(spec)
+        else:
+            if self.parts.exists() and any(self.parts.glob("*.parquet")):
+                raise DesignError(f"{self.parts} exists: resume it with --resume, or choose "
+                                  f"another --out")
+            done = set()
+        self.parts.mkdir(parents=True, exist_ok=True)
+        write_text(self.out / "study.json", json.dumps(spec.to_json(), indent=2) + "\n")
+        return done
+
+    def done(self) -> set[tuple[int, int]]:
+        import pyarrow.parquet as pq
+
+        pairs: set[tuple[int, int]] = set()
+        for f in sorted(self.parts.glob("*.parquet")):
+            t = pq.read_table(f, columns=["cell", "seed"])
+            pairs.update(zip(t.column("cell").to_pylist(), t.column("seed").to_pylist()))
+        return pairs
+
+    # ------------------------------------------------------------ rows
+    def write(self, rows: Sequence[Mapping[str, Any]], spec: StudySpec,
+              cell_values: Mapping[int, Mapping[str, Any]], sch: Any) -> Path:
+        """One partition of result rows (atomic)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        cols: dict[str, list[Any]] = {f.name: [] for f in sch}
+        for r in rows:
+            vals = cell_values[r["cell"]]
+            for a in spec.axes:
+                cols[a.path].append(column_value(vals[a.path]))
+            for name in cols:
+                if name not in vals:
+                    cols[name].append(r.get(name))
+        table = pa.table({k: pa.array(v, type=sch.field(k).type) for k, v in cols.items()},
+                         schema=sch)
+        path = self.parts / f"part-{uuid.uuid4().hex[:12]}.parquet"
+        with atomic_path(path) as tmp:
+            pq.write_table(table, tmp)
+        return path
+
+    def table(self) -> Any:
+        """Every row written, as a pandas DataFrame (cell, seed, observer, state order)."""
+        import pandas as pd
+
+        files = sorted(self.parts.glob("*.parquet"))
+        if not files:
+            raise DesignError(f"no results in {self.parts}")
+        df = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+        return df.sort_values(["cell", "seed", "observer", "state"], kind="stable",
+                              ignore_index=True)
+
+
+def summarize(df: Any, axes: Sequence[str]) -> Any:
+    """Per cell, observer and state over the seeds: ``runs``, ``diverged_fraction``,
+    ``settled_fraction`` (of the runs that finished), and per metric in
+    :data:`SUMMARY_METRICS` its median, quartiles ``q25``, ``q75``, IQR (their difference),
+    mean, std (ddof=1),
+    min and max over the runs that finished (a settling time of ``inf`` counts as never
+    settled and is left out of its statistics)."""
+    import pandas as pd
+
+    keys = [*axes, "cell", "observer", "state"]
+    out = []
+    for _, g in df.groupby(["cell", "observer", "state"], sort=True):
+        first = g.iloc[0]
+        row = {k: first[k] for k in keys}
+        row["estimated"] = bool(first["estimated"])
+        row["runs"] = len(g)
+        ok = g[~g["diverged"]]
+        row["diverged_fraction"] = float(g["diverged"].mean())
+        settle = ok["settling_time"].to_numpy(dtype=float)
+        row["settled_fraction"] = (float(np.isfinite(settle).mean()) if len(ok) and
+                                   row["estimated"] else np.nan)
+        for m in SUMMARY_METRICS:
+            v = ok[m].to_numpy(dtype=float)
+            v = v[np.isfinite(v)]
+            if v.size:
+                q25, q75 = np.percentile(v, [25, 75])
+                stats = {"median": np.median(v), "q25": q25, "q75": q75, "iqr": q75 - q25, "mean": v.mean(),
+                         "std": v.std(ddof=1) if v.size > 1 else 0.0, "min": v.min(),
+                         "max": v.max()}
+            else:
+                stats = dict.fromkeys(SUMMARY_STATS, np.nan)
+            for s in SUMMARY_STATS:
+                row[f"{m}_{s}"] = float(stats[s])
+        out.append(row)
+    return pd.DataFrame(out)
+
+
+def summary_markdown(summary: Any, axes: Sequence[str], title: str) -> str:
+    """The summary as a Markdown table: the swept values, observer, state, RMSE median and
+    IQR, peak median, settled and diverged fractions."""
+    def fmt(v: Any) -> str:
+        if isinstance(v, float):
+            return "-" if not np.isfinite(v) else f"{v:.4g}"
+        return str(v)
+
+    head = [*axes, "observer", "state", "runs", "rmse median", "rmse IQR", "peak median",
+            "settled", "diverged"]
+    lines = [f"# {title}", "", "| " + " | ".join(head) + " |",
+             "|" + "|".join("---" for _ in head) + "|"]
+    for _, r in summary[summary["estimated"]].iterrows():
+        cells = [fmt(r[a]) for a in axes] + [
+            r["observer"], r["state"], str(r["runs"]), fmt(r["rmse_median"]), fmt(r["rmse_iqr"]),
+            fmt(r["peak_median"]),
+            "-" if not np.isfinite(r["settled_fraction"]) else f"{r['settled_fraction']:.0%}",
+            f"{r['diverged_fraction']:.0%}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", "Statistics over the seeds of each cell; rmse after the transient, peak over "
+              "the run; settled: fraction of finished runs whose error entered the band; "
+              "diverged: fraction of runs that diverged (their metrics are left out)."]
+    return "\n".join(lines) + "\n"
+
+
+def write_summary(out: Path, df: Any, axes: Sequence[str], title: str) -> Any:
+    """``summary.parquet`` and ``summary.md`` (atomic); returns the summary DataFrame."""
+    summary = summarize(df, axes)
+    with atomic_path(out / "summary.parquet") as tmp:
+        summary.to_parquet(tmp, index=False)
+    write_text(out / "summary.md", summary_markdown(summary, axes, title))
+    return summary
+
+
+__all__ = ["ResultsDir", "SUMMARY_METRICS", "SUMMARY_STATS", "schema", "summarize",
+           "summary_markdown", "write_summary"]

@@ -1,0 +1,343 @@
+"""A study: a scenario, the axes swept over it, and the seeds; expanded into cells.
+
+A study file is a scenario file (see :mod:`hgo_mj.cli`) with a ``[sweep]`` table::
+
+    [sweep]
+    seeds = 64                               # the seeds SEED ... SEED+63 of [run] seed; or a list
+    mode = "product"                         # or "zip": the axes advance together
+    "observers.hgo.k" = [10, 20, 40, 80]     # one axis per dotted path into the scenario
+    "sensor.stages.0.std" = [1e-4, 1e-3]
+
+A dotted path names a value of the scenario: its first part is a section (``plant``,
+``sensor``, ``observers``, ``input``, ``run``); an observer is addressed by its ``name``
+(``observers.hgo.k``), a list entry by its index (``sensor.stages.0.std``). A path that ends on
+an observer (``observers.hgo``) takes whole observer tables as values, to compare families
+under one name. ``observers.NAME.system_params.P`` gives the observer a model whose parameter
+``P`` differs from the plant's (model mismatch). A path must exist in the scenario, or end in a
+parameter its table accepts: an unknown one is refused with the valid keys at that level.
+
+Each **cell** is the scenario with one value per axis set (the product of the axes, or their
+zip); each cell runs once per seed. The expansion is pure data: a cell is a plain dict that
+:func:`hgo_mj.cli.scenario_run` builds, so a cell's run is exactly ``simulate`` of that
+scenario at that seed.
+"""
+
+from __future__ import annotations
+
+import copy
+import inspect
+import itertools
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import DesignError
+
+#: keys of ``[sweep]`` that are not axes
+SWEEP_KEYS = ("seeds", "mode", "store")
+#: the sections a dotted path may start with
+SECTIONS = ("plant", "sensor", "observers", "input", "run")
+#: refuse larger studies unless confirmed (``--yes``)
+MAX_RUNS = 10_000_000
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept dotted path and its values."""
+
+    path: str
+    values: tuple[Any, ...]
+
+
+@dataclass
+class StudySpec:
+    """A validated study: the base scenario, its axes, the mode and the seeds."""
+
+    scenario: dict[str, Any]
+    axes: tuple[Axis, ...]
+    seeds: tuple[int, ...]
+    mode: str = "product"
+    #: cell filters whose runs keep their trajectories (``[{"path": value}, ...]``)
+    store: tuple[dict[str, Any], ...] = field(default_factory=tuple)
+
+    @property
+    def n_cells(self) -> int:
+        if not self.axes:
+            return 1
+        sizes = [len(a.values) for a in self.axes]
+        return int(np.prod(sizes)) if self.mode == "product" else sizes[0]
+
+    @property
+    def n_runs(self) -> int:
+        return self.n_cells * len(self.seeds)
+
+    def cells(self) -> list[Cell]:
+        """Every cell, in order (the last axis varies fastest in a product)."""
+        if not self.axes:
+            combos: list[tuple[Any, ...]] = [()]
+        elif self.mode == "product":
+            combos = list(itertools.product(*(a.values for a in self.axes)))
+        else:
+            combos = list(zip(*(a.values for a in self.axes)))
+        out = []
+        for i, combo in enumerate(combos):
+            sc = copy.deepcopy(self.scenario)
+            for axis, value in zip(self.axes, combo):
+                set_path(sc, axis.path, copy.deepcopy(value))
+            out.append(Cell(i, dict(zip((a.path for a in self.axes), combo)), sc))
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        """The study as JSON data (what ``--resume`` compares)."""
+        return {"scenario": self.scenario, "axes": {a.path: list(a.values) for a in self.axes},
+                "mode": self.mode, "seeds": list(self.seeds), "store": list(self.store)}
+
+
+@dataclass
+class Cell:
+    """One combination of axis values: ``index``, ``values`` (path -> value), ``scenario``."""
+
+    index: int
+    values: dict[str, Any]
+    scenario: dict[str, Any]
+
+    def label(self) -> str:
+        return ", ".join(f"{p} = {json.dumps(v)}" for p, v in self.values.items()) or "the scenario"
+
+
+# ----------------------------------------------------------------- dotted paths
+def _observer_label(spec: Any, i: int) -> str:
+    if isinstance(spec, Mapping):
+        return str(spec.get("name", f"{spec.get('type')}_{i}"))
+    return f"#{i}"
+
+
+def _step(node: Any, part: str, walked: str) -> tuple[Any, Any]:
+    """The child of ``node`` named ``part`` and the key/index to set it, or a DesignError
+    listing the valid keys at that level."""
+    if walked == "observers":
+        if not isinstance(node, list):
+            raise DesignError(f"scenario observers must be a list of tables; found {node!r}")
+        labels = [_observer_label(s, i) for i, s in enumerate(node)]
+        if part not in labels:
+            raise DesignError(f"unknown dotted path 'observers.{part}': no observer named "
+                              f"{part!r}; valid: {labels}")
+        j = labels.index(part)
+        return node[j], j
+    if isinstance(node, list):
+        if not part.isdigit() or int(part) >= len(node):
+            raise DesignError(f"unknown dotted path '{walked}.{part}': {walked} is a list of "
+                              f"{len(node)}; valid indices: {list(range(len(node)))}")
+        return node[int(part)], int(part)
+    if isinstance(node, Mapping):
+        if part not in node:
+            raise KeyError(part)
+        return node[part], part
+    raise DesignError(f"unknown dotted path '{walked}.{part}': {walked} is a value "
+                      f"({node!r}), not a table or list")
+
+
+def _accepted_keys(walked: str, node: Mapping[str, Any]) -> list[str]:
+    """The keys a table at ``walked`` may take beyond those it has."""
+    from ..cli import SCENARIO_KEYS
+
+    parts = walked.split(".")
+    known = set(node)
+    if walked in ("plant", "run"):
+        known |= set(SCENARIO_KEYS[walked])
+    elif walked == "plant.params":
+        known |= set(node)  # a plant's own parameters: those it has
+    elif parts[0] == "observers" and len(parts) == 2:
+        from ..observers import registered
+
+        cls = registered().get(str(node.get("type")))
+        if cls is not None:
+            known |= {p for p in inspect.signature(cls.__init__).parameters
+                      if p not in ("self", "system")}
+        known |= {"type", "name", "system_params"}
+    elif parts[0] == "observers" and len(parts) == 3 and parts[2] == "system_params":
+        return sorted(known)  # checked against the system when the cell is built
+    elif parts[:2] == ["sensor", "stages"] and len(parts) == 3:
+        from ..sensors import STAGES
+
+        stage = STAGES.get(str(node.get("stage")))
+        if stage is not None:
+            known |= {p for p in inspect.signature(stage.__init__).parameters if p != "self"}
+        known.add("stage")
+    elif walked == "input":
+        from ..inputs import SIGNALS
+
+        sig = SIGNALS.get(str(node.get("type", "constant")))
+        if sig is not None:
+            known |= {p for p in inspect.signature(sig.__init__).parameters if p != "self"}
+        known.add("type")
+    return sorted(known)
+
+
+def check_path(scenario: Mapping[str, Any], path: str) -> None:
+    """Refuse a dotted path that does not name a value of ``scenario`` (or a parameter its
+    table accepts), listing the valid keys at the level where it goes wrong."""
+    if not isinstance(path, str) or not path or any(not p for p in path.split(".")):
+        raise DesignError(f"a sweep axis must be a dotted path such as 'observers.hgo.k'; found "
+                          f"{path!r}")
+    parts = path.split(".")
+    if parts[0] not in SECTIONS:
+        raise DesignError(f"unknown dotted path {path!r}: valid first parts: {list(SECTIONS)}")
+    node: Any = scenario.get(parts[0], [] if parts[0] == "observers" else {})
+    walked = parts[0]
+    for i, part in enumerate(parts[1:], start=1):
+        last = i == len(parts) - 1
+        try:
+            node, _ = _step(node, part, walked)
+        except KeyError:
+            valid = _accepted_keys(walked, node)
+            new_table = walked.endswith(".system_params") or walked == "plant.params"
+            if last and (part in valid or new_table):
+                return
+            if not last and part in ("system_params", "params") and part in valid:
+                return  # a new sub-table: its keys are checked when the cell is built
+            raise DesignError(f"unknown dotted path {path!r}: {walked} has no key {part!r}; "
+                              f"valid: {valid}") from None
+        walked = f"{walked}.{part}"
+
+
+def set_path(scenario: dict[str, Any], path: str, value: Any) -> None:
+    """Set the value at ``path`` (checked by :func:`check_path`), creating a missing last
+    table (``system_params``, ``params``)."""
+    parts = path.split(".")
+    if parts[0] not in scenario:
+        scenario[parts[0]] = [] if parts[0] == "observers" else {}
+    node: Any = scenario[parts[0]]
+    walked = parts[0]
+    for i, part in enumerate(parts[1:], start=1):
+        last = i == len(parts) - 1
+        try:
+            child, key = _step(node, part, walked)
+        except KeyError:
+            if last:
+                node[part] = value
+                return
+            node[part] = {}
+            child, key = node[part], part
+        if last:
+            if walked == "observers" and isinstance(value, Mapping):
+                value = {**value, "name": part}  # a whole observer table keeps its name
+            node[key] = value
+            return
+        node = child
+        walked = f"{walked}.{part}"
+
+
+# ----------------------------------------------------------------- the [sweep] table
+def _seeds(value: Any, base: int) -> tuple[int, ...]:
+    if isinstance(value, bool):
+        raise DesignError(f"sweep.seeds must be a positive integer or a list of seeds; found "
+                          f"{value!r}")
+    if isinstance(value, int):
+        if value < 1:
+            raise DesignError(f"sweep.seeds must be at least 1; found {value}")
+        return tuple(range(base, base + value))
+    if isinstance(value, list) and value:
+        for s in value:
+            if isinstance(s, bool) or not isinstance(s, int) or s < 0:
+                raise DesignError(f"sweep.seeds must hold non-negative integers; found {s!r}")
+        if len(set(value)) != len(value):
+            raise DesignError(f"sweep.seeds must be distinct; found {value}")
+        return tuple(value)
+    raise DesignError(f"sweep.seeds must be a positive integer or a non-empty list of seeds; "
+                      f"found {value!r}")
+
+
+def _base_seed(scenario: Mapping[str, Any]) -> int:
+    """``[run] seed`` (default 0), the first of ``seeds = N``."""
+    run = scenario.get("run", {})
+    if not isinstance(run, Mapping):
+        raise DesignError(f"scenario [run] must be a table; found {run!r}")
+    base = run.get("seed", 0)
+    if isinstance(base, bool) or not isinstance(base, int) or base < 0:
+        raise DesignError(f"run.seed must be a non-negative integer; found {base!r}")
+    if "seeds" in run:
+        raise DesignError("a study sets its seeds in [sweep] seeds = N (found run.seeds)")
+    return base
+
+
+def _value_key(v: Any) -> str:
+    return json.dumps(v, sort_keys=True)
+
+
+def _axes(scenario: Mapping[str, Any], sweep: Mapping[str, Any]) -> list[Axis]:
+    """The axes of a ``[sweep]`` table: each path checked, each value list non-empty and
+    without repeats."""
+    axes = []
+    for path, values in sweep.items():
+        if path in SWEEP_KEYS:
+            continue
+        check_path(scenario, path)
+        if not isinstance(values, list):
+            raise DesignError(f"sweep axis {path!r} must be a list of values; found {values!r}")
+        if not values:
+            raise DesignError(f"sweep axis {path!r} is empty: give at least one value")
+        keys = [_value_key(v) for v in values]
+        if len(set(keys)) != len(keys):
+            raise DesignError(f"sweep axis {path!r} repeats a value: {values}")
+        axes.append(Axis(path, tuple(values)))
+    return axes
+
+
+def parse_study(doc: Mapping[str, Any], *, max_runs: int | None = MAX_RUNS) -> StudySpec:
+    """A :class:`StudySpec` from a study document (a scenario with a ``[sweep]`` table),
+    validated: every axis path, the values (non-empty lists, distinct), zip lengths, the seeds
+    and the study's size (at most ``max_runs`` runs; None: no limit)."""
+    if not isinstance(doc, Mapping):
+        raise DesignError(f"a study must be a table; found {type(doc).__name__}")
+    scenario = {k: copy.deepcopy(v) for k, v in doc.items() if k != "sweep"}
+    sweep = doc.get("sweep", {})
+    if not isinstance(sweep, Mapping):
+        raise DesignError(f"[sweep] must be a table; found {sweep!r}")
+    seeds = _seeds(sweep.get("seeds", 1), _base_seed(scenario))
+    mode = sweep.get("mode", "product")
+    if mode not in ("product", "zip"):
+        raise DesignError(f"sweep.mode must be 'product' or 'zip'; found {mode!r}")
+    store = sweep.get("store", [])
+    if not isinstance(store, list) or not all(isinstance(s, Mapping) for s in store):
+        raise DesignError(f"sweep.store must be a list of tables (cell filters, e.g. "
+                          f"[{{\"observers.hgo.k\" = 20}}]); found {store!r}")
+    axes = _axes(scenario, sweep)
+    for f in store:
+        for p in f:
+            if p not in {a.path for a in axes}:
+                raise DesignError(f"sweep.store filter names {p!r}, which is not an axis; "
+                                  f"axes: {[a.path for a in axes]}")
+    if mode == "zip" and len({len(a.values) for a in axes}) > 1:
+        raise DesignError("zip axes must have the same length; found " + ", ".join(
+            f"{a.path}: {len(a.values)}" for a in axes))
+    spec = StudySpec(scenario, tuple(axes), seeds, mode, tuple(dict(s) for s in store))
+    if max_runs is not None and spec.n_runs > max_runs:
+        raise DesignError(f"the study has {spec.n_runs:,} runs ({spec.n_cells:,} cells x "
+                          f"{len(seeds):,} seeds), more than {max_runs:,}; confirm with --yes")
+    return spec
+
+
+def column_value(v: Any) -> Any:
+    """An axis value as a table cell: a number as a float, a string or bool as is, anything
+    else (lists, tables) as compact JSON text."""
+    if isinstance(v, bool) or isinstance(v, str):
+        return v
+    if isinstance(v, (int, float)) and math.isfinite(float(v)):
+        return float(v)
+    return json.dumps(v, sort_keys=True, separators=(",", ":"))
+
+
+def axis_kind(values: Sequence[Any]) -> str:
+    """``"number"`` when every value is a number (a column of floats), else ``"text"``."""
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return "number"
+    return "text"
+
+
+__all__ = ["Axis", "Cell", "MAX_RUNS", "StudySpec", "axis_kind", "check_path", "column_value",
+           "parse_study", "set_path"]

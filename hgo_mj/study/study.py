@@ -1,0 +1,329 @@
+"""The study as a user holds it: :class:`Study` (built from a file or in Python), its plan,
+its run on a backend, and the :class:`StudyResult`.
+
+>>> study = Study.from_toml("studies/gain_noise.toml")        # doctest: +SKIP
+>>> result = study.run("runs/gain_noise", jobs=2)              # doctest: +SKIP
+>>> result.table.groupby(["observers.hgo.k", "state"]).rmse.median()  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import sys
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..exceptions import DesignError, HgoError
+from .engine import Chunk, plan
+from .results import ResultsDir, schema, write_summary
+from .spec import MAX_RUNS, Cell, parse_study
+
+#: rough costs for the plan's time estimate (seconds; measured on a 2-core machine, BENCHMARKS.md)
+_PLANT_STEP_S = 5e-6
+_OBSERVER_STEP_S = 6e-8
+
+
+def load_toml(path: str | Path) -> dict[str, Any]:
+    """A TOML file as a dict, or a DesignError naming the file and the problem."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib  # type: ignore[no-redef]
+    p = Path(path)
+    if not p.is_file():
+        raise DesignError(f"study file {str(p)!r} does not exist")
+    try:
+        with open(p, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError(f"study file {str(p)!r} is not valid TOML: {exc}") from None
+
+
+@dataclass
+class Plan:
+    """What a study will do: its chunks, and the figures printed before it runs."""
+
+    chunks: list[Chunk]
+    cells: int
+    runs: int
+    todo: int
+    trajectories: int
+    estimate_s: float
+    out: Path | None
+
+    def describe(self) -> str:
+        where = f" -> {self.out}" if self.out is not None else ""
+        done = f" ({self.runs - self.todo} done already)" if self.todo != self.runs else ""
+        return (f"study: {_n(self.cells, 'cell')}, {_n(self.runs, 'run')}{done}, "
+                f"{_n(self.trajectories, 'distinct plant trajectory', 'distinct plant trajectories')}"
+                f", {_n(len(self.chunks), 'chunk')}, about {_seconds(self.estimate_s)}{where}")
+
+
+def _n(k: int, one: str, many: str | None = None) -> str:
+    return f"{k} {one if k == 1 else (many or one + 's')}"
+
+
+def _seconds(s: float) -> str:
+    if s < 60:
+        return f"{s:.0f} s" if s >= 1 else "1 s"
+    if s < 3600:
+        return f"{s / 60:.1f} min"
+    return f"{s / 3600:.1f} h"
+
+
+class Study:
+    """A scenario swept over axes and seeds (see :mod:`hgo_mj.study.spec`).
+
+    Parameters
+    ----------
+    scenario : mapping
+        A scenario as in a scenario file (``plant``, ``sensor``, ``observers``, ``input``,
+        ``run``).
+    axes : mapping dotted path -> list of values, optional
+    seeds : int or list of int
+        ``N``: the seeds ``run.seed ... run.seed + N - 1``; or the seeds themselves.
+    mode : {"product", "zip"}
+    store : list of cell filters, optional
+        Cells (``{path: value}``) whose runs also keep their trajectory (``.npz`` per run).
+    max_runs : int or None
+        Refuse a study with more runs (default 10 million; None: no limit).
+    """
+
+    def __init__(self, scenario: Mapping[str, Any], axes: Mapping[str, Any] | None = None,
+                 seeds: Any = 1, *, mode: str = "product", store: Iterable[Any] = (),
+                 max_runs: int | None = MAX_RUNS) -> None:
+        if not isinstance(scenario, Mapping):
+            raise DesignError(f"scenario must be a table; found {type(scenario).__name__}")
+        if axes is not None and not isinstance(axes, Mapping):
+            raise DesignError(f"axes must map dotted paths to lists of values; found {axes!r}")
+        sweep = {"seeds": seeds, "mode": mode, "store": list(store), **dict(axes or {})}
+        self.spec = parse_study({**copy.deepcopy(dict(scenario)), "sweep": sweep},
+                                max_runs=max_runs)
+        self.name = str(scenario.get("name", "study"))
+        self._validated = False
+
+    @classmethod
+    def from_toml(cls, path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Study:
+        """A study from a file: a scenario with a ``[sweep]`` table."""
+        doc = load_toml(path)
+        sweep = doc.pop("sweep", {})
+        if not isinstance(sweep, Mapping):
+            raise DesignError(f"[sweep] must be a table; found {sweep!r}")
+        sweep = dict(sweep)
+        seeds = sweep.pop("seeds", 1)
+        mode = sweep.pop("mode", "product")
+        store = sweep.pop("store", [])
+        if not isinstance(store, list):
+            raise DesignError(f"sweep.store must be a list of tables; found {store!r}")
+        doc.setdefault("name", Path(path).stem)
+        return cls(doc, sweep, seeds, mode=mode, store=store, max_runs=max_runs)
+
+    @property
+    def cells(self) -> list[Cell]:
+        return self.spec.cells()
+
+    def validate(self) -> list[str]:
+        """Build every distinct cell once (plant, sensor, observers, input), so that a bad
+        value is refused before any run, naming the cell. Returns every diagnostic name of
+        the study's observers (the result columns ``diag.<name>``)."""
+        from ..cli import scenario_run
+
+        names: list[str] = []
+        seen: set[str] = set()
+        for cell in self.cells:
+            key = json.dumps(cell.scenario, sort_keys=True)
+            if key in seen:
+                continue
+            seen.add(key)
+            try:
+                kw = scenario_run(cell.scenario, self.name)
+                if "t_transient" in cell.scenario.get("run", {}):
+                    t_tr = cell.scenario["run"]["t_transient"]
+                    if isinstance(t_tr, bool) or not isinstance(t_tr, (int, float)) or not (
+                            0 <= t_tr <= kw["duration"]):
+                        raise DesignError(f"run.t_transient must be a number in [0, duration = "
+                                          f"{kw['duration']}]; found {t_tr!r}")
+                if kw["inputs"].__class__.__name__ == "Controller":  # pragma: no cover
+                    raise DesignError("closed-loop studies are not supported yet")
+            except HgoError as exc:
+                raise DesignError(f"cell {cell.index} ({cell.label()}): {exc}") from None
+            except (TypeError, ValueError) as exc:
+                raise DesignError(f"cell {cell.index} ({cell.label()}): {exc}") from None
+            for ob in kw["observers"].values():
+                for d in ob.diagnostic_names:
+                    if d not in names:
+                        names.append(d)
+        self._validated = True
+        return names
+
+    def _metric_kw(self) -> dict[str, Any]:
+        run = self.spec.scenario.get("run", {})
+        return {k: run[k] for k in ("t_transient", "band") if k in run}
+
+    def plan(self, *, jobs: int = 1, done: set[tuple[int, int]] | None = None,
+             out: str | Path | None = None) -> Plan:
+        """The chunks of the runs left, grouped by what they share, and the plan's figures."""
+        cells = self.cells
+        chunks = plan(cells, self.spec.seeds, done=done, jobs=jobs, metric_kw=self._metric_kw())
+        trajectories, plant_steps, obs_steps = set(), 0.0, 0.0
+        for c in chunks:
+            for cell, _ in c.members:
+                sc = c.scenarios[cell]
+                key = json.dumps([{k: v for k, v in sc["plant"].items()}, sc.get("input"),
+                                  {k: sc["run"].get(k) for k in ("duration", "sample_period")}],
+                                 sort_keys=True)
+                dur = float(sc["run"]["duration"])
+                dt = float(sc["plant"].get("dt") or 0.001)
+                if key not in trajectories:
+                    trajectories.add(key)
+                    plant_steps += dur / dt
+                obs_steps += dur / float(sc["run"].get("sample_period") or dt) * max(
+                    len(sc.get("observers", [])), 1)
+        est = (plant_steps * _PLANT_STEP_S + obs_steps * _OBSERVER_STEP_S) / max(jobs, 1)
+        todo = sum(c.n_runs for c in chunks)
+        return Plan(chunks, self.spec.n_cells, self.spec.n_runs, todo, len(trajectories), est,
+                    None if out is None else Path(out))
+
+    def run(self, out: str | Path, *, jobs: int = 1, backend: str = "local",
+            address: str | None = None, resume: bool = False, quiet: bool = False,
+            echo: Callable[[str], None] | None = None) -> StudyResult:
+        """Run the study into the folder ``out`` (see :mod:`hgo_mj.study.results`).
+
+        Parameters
+        ----------
+        out : path
+            The study's folder.
+        jobs : int
+            Worker processes (local) or CPUs (a local Ray instance).
+        backend : {"local", "ray"}
+        address : str, optional
+            A Ray cluster's address (``ray start --head`` prints it); default: a local
+            instance on 127.0.0.1.
+        resume : bool
+            Skip the ``(cell, seed)`` pairs already in ``out``'s results (the same study only).
+        quiet : bool
+            No plan line and no progress on stderr.
+        """
+        from .._validate import positive_int
+        from .backends import backend_for
+
+        jobs = positive_int("jobs", jobs, floats=False)
+        run_backend = backend_for(backend, address=address, jobs=jobs)
+        diagnostics = self.validate()
+        res = ResultsDir(out)
+        done = res.start(self.spec, resume)
+        the_plan = self.plan(jobs=jobs, done=done, out=out)
+        say = echo or (lambda s: print(s, file=sys.stderr))
+        if not quiet:
+            say(the_plan.describe())
+        sch = schema(self.spec, diagnostics)
+        values = {c.index: c.values for c in self.cells}
+        progress = Progress(the_plan.todo, quiet=quiet, echo=say)
+        t0 = time.perf_counter()
+        for chunk, rows in run_backend(the_plan.chunks):
+            res.write(rows, self.spec, values, sch)
+            progress.add(chunk.n_runs)
+        progress.close()
+        result = StudyResult(self, Path(out), time.perf_counter() - t0)
+        result.write_summary()
+        self._store_trajectories(Path(out))
+        return result
+
+    def _store_trajectories(self, out: Path) -> None:
+        """The runs of the cells in ``store``: ``trajectories/cell<i>_seed<s>.npz``, each the
+        cell run alone through :func:`hgo_mj.simulate.simulate`."""
+        if not self.spec.store:
+            return
+        from ..cli import scenario_run
+        from ..simulate import simulate
+
+        for cell in self.cells:
+            if not any(all(cell.values.get(p) == v for p, v in f.items())
+                       for f in self.spec.store):
+                continue
+            for seed in self.spec.seeds:
+                try:
+                    traj = simulate(**scenario_run(cell.scenario, self.name), seed=seed)
+                except HgoError as exc:  # a diverged run: what it has, up to the divergence
+                    if getattr(exc, "trajectory", None) is None:
+                        continue
+                    traj = exc.trajectory  # type: ignore[attr-defined]
+                traj.save(out / "trajectories" / f"cell{cell.index}_seed{seed}.npz")
+
+
+class StudyResult:
+    """A finished study's folder: ``table`` (every row), :meth:`summary`, :meth:`plot`."""
+
+    def __init__(self, study: Study, out: Path, seconds: float = float("nan")) -> None:
+        self.study, self.out, self.seconds = study, Path(out), seconds
+        self._table: Any = None
+
+    @property
+    def axes(self) -> list[str]:
+        return [a.path for a in self.study.spec.axes]
+
+    @property
+    def table(self) -> Any:
+        """Every result row as a pandas DataFrame (see :mod:`hgo_mj.study.results`)."""
+        if self._table is None:
+            self._table = ResultsDir(self.out).table()
+        return self._table
+
+    def summary(self) -> Any:
+        """Per cell, observer and state: the statistics over the seeds (a DataFrame)."""
+        from .results import summarize
+
+        return summarize(self.table, self.axes)
+
+    def write_summary(self) -> Any:
+        return write_summary(self.out, self.table, self.axes, self.study.name)
+
+    def plot(self, out: str | Path | None = None) -> list[Any]:
+        """The study's figures (:mod:`hgo_mj.study.figures`); with ``out``, also saved there
+        as PNG files."""
+        from .figures import study_figures
+
+        return study_figures(self, out)
+
+
+class Progress:
+    """Runs done on stderr: a bar with rate and ETA on a terminal (tqdm), else a line at every
+    tenth of the work; nothing when ``quiet``."""
+
+    def __init__(self, total: int, *, quiet: bool = False,
+                 echo: Callable[[str], None] | None = None) -> None:
+        self.total, self.done, self.quiet = total, 0, quiet or total == 0
+        self.echo = echo or (lambda s: print(s, file=sys.stderr))
+        self.t0 = time.perf_counter()
+        self.next_tenth = 1
+        self.bar: Any = None
+        if not self.quiet and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit="run", file=sys.stderr, dynamic_ncols=True)
+
+    def add(self, n: int) -> None:
+        self.done += n
+        if self.quiet:
+            return
+        if self.bar is not None:
+            self.bar.update(n)
+            return
+        while self.next_tenth <= 10 and self.done * 10 >= self.next_tenth * self.total:
+            el = time.perf_counter() - self.t0
+            rate = self.done / el if el > 0 else float("inf")
+            eta = (self.total - self.done) / rate if rate > 0 else 0.0
+            self.echo(f"{self.next_tenth * 10:3d}% {self.done}/{self.total} runs, "
+                      f"{rate:.0f} runs/s, {_seconds(el)} elapsed, ETA {_seconds(eta)}")
+            self.next_tenth += 1
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+__all__ = ["Plan", "Progress", "Study", "StudyResult", "load_toml"]

@@ -1,0 +1,284 @@
+"""The study engine: every run equals the cell run alone through ``simulate``; failures are
+rows; results, summary, resume, figures and the command line."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hgo_mj.cli import main, scenario_run
+from hgo_mj.exceptions import DesignError, DivergenceError
+from hgo_mj.metrics import all_metrics
+from hgo_mj.simulate import simulate
+from hgo_mj.study import Study
+from hgo_mj.study.engine import plan
+
+BASE = {
+    "name": "mixed",
+    "plant": {"name": "pendulum", "dt": 0.001, "x0": [0.5, 0.0]},
+    "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3},
+                          {"stage": "quantize", "counts_per_rev": 4096}]},
+    "observers": [
+        {"type": "high_gain", "name": "hgo", "k": 20.0},
+        {"type": "adaptive_gain", "name": "ad", "lam": 0.01, "lam_hat": 0.02, "gamma": 100.0,
+         "k0": 5.0},
+    ],
+    "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+    "run": {"duration": 0.6, "seed": 3},
+}
+
+MIXED = {"observers.hgo.k": [20.0, 80.0], "plant.x0": [[0.5, 0.0], [1.0, 0.0]],
+         "sensor.stages.0.std": [1e-4, 1e-2]}
+
+EXACT = ("peak", "settling_time", "final", "undefined_samples")
+
+
+def _alone(cell_scenario, seed):
+    """The metrics of one cell at one seed run alone through simulate, or the error."""
+    warnings.simplefilter("ignore", RuntimeWarning)  # metrics of a blown-up estimate
+    try:
+        return all_metrics(simulate(**scenario_run(cell_scenario), seed=seed)), None
+    except DivergenceError as exc:
+        return None, str(exc)
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory):
+    study = Study(BASE, MIXED, seeds=3)
+    return study, study.run(tmp_path_factory.mktemp("mixed"), quiet=True)
+
+
+def test_every_run_of_a_mixed_study_equals_its_cell_run_alone(mixed):
+    """Gains x noise x initial states x 3 seeds, two observers: peak, settling time, final
+    error and undefined samples bit for bit; the RMSE to 1e-12 (a sum per segment of 1024
+    samples against numpy's pairwise mean over the whole window)."""
+    study, result = mixed
+    df = result.table
+    assert len(df) == 8 * 3 * 2 * 2
+    assert set(df["seed"]) == {3, 4, 5}
+    worst = 0.0
+    for cell in study.cells:
+        for seed in study.spec.seeds:
+            metrics, err = _alone(cell.scenario, seed)
+            assert err is None
+            for name, m in metrics.items():
+                for j, state in enumerate(m["states"]):
+                    row = df[(df.cell == cell.index) & (df.seed == seed) & (df.observer == name)
+                             & (df.state == state)]
+                    assert len(row) == 1
+                    row = row.iloc[0]
+                    for key in EXACT:
+                        assert row[key] == m[key][j], (cell.values, seed, name, state, key)
+                    worst = max(worst, abs(row["rmse"] - m["rmse"][j]) / m["rmse"][j])
+                    for path, value in cell.values.items():
+                        expect = value if isinstance(value, float) else json.dumps(
+                            value, separators=(",", ":"))
+                        assert row[path] == expect
+    assert worst <= 1e-12
+
+
+def test_a_study_shares_one_plant_run_per_initial_state():
+    study = Study(BASE, MIXED, seeds=3)
+    p = study.plan(jobs=1)
+    assert (p.cells, p.runs, p.trajectories) == (8, 24, 2)
+    # 4 buckets (gain x noise), each with both initial states and 3 seeds
+    assert sorted(c.n_runs for c in p.chunks) == [6, 6, 6, 6]
+    assert len(plan(study.cells, study.spec.seeds, jobs=4)) >= 4
+
+
+def test_diverging_runs_are_rows_and_the_others_are_kept(tmp_path):
+    """Rare huge outliers: the seeds that meet one lose the high-gain estimate (non-finite,
+    found by the metrics) and the EKF (its update raises); the other seeds and the
+    high-gain observer of an EKF failure are kept, and each row equals the run alone."""
+    sc = {**BASE, "sensor": {"stages": [{"stage": "outliers", "p": 0.002, "magnitude": 1e308}]},
+          "observers": [{"type": "high_gain", "name": "hgo", "k": 200.0},
+                        {"type": "ekf", "name": "ekf", "R": 1e-6}],
+          "run": {"duration": 0.5, "seed": 0}}
+    study = Study(sc, seeds=8)
+    df = study.run(tmp_path / "div", quiet=True).table
+    per_seed = df.groupby(["observer", "seed"])["diverged"].first()
+    assert per_seed["hgo"].any() and not per_seed["hgo"].all()
+    assert per_seed["ekf"].any() and not per_seed["ekf"].all()
+    for seed in study.spec.seeds:
+        for name in ("hgo", "ekf"):
+            one = {**sc, "observers": [o for o in sc["observers"] if o["name"] == name]}
+            metrics, err = _alone(one, seed)
+            rows = df[(df.seed == seed) & (df.observer == name)]
+            if err is not None:
+                assert rows["diverged"].all()
+                msg = rows["message"].iloc[0]
+                assert msg.split(":")[0] in err, (msg, err)  # the same observer and cause
+                assert rows["rmse"].isna().all()
+            else:
+                assert not rows["diverged"].any()
+                assert rows["message"].isna().all()
+                for j, state in enumerate(metrics[name]["states"]):
+                    assert rows[rows.state == state]["peak"].iloc[0] == metrics[name]["peak"][j]
+
+
+def test_results_are_parquet_that_pandas_reads_without_hgo_mj(mixed, tmp_path):
+    _, result = mixed
+    code = (f"import pandas as pd; df = pd.read_parquet({str(result.out / 'results.parquet')!r});"
+            f"s = pd.read_parquet({str(result.out / 'summary.parquet')!r});"
+            "print(len(df), len(s), sorted(df.columns)[:3])")
+    out = subprocess.run([sys.executable, "-I", "-c", code], capture_output=True, text=True,
+                         check=True, cwd=tmp_path).stdout
+    assert out.startswith("96 32 ")
+
+
+def test_the_summary_holds_the_statistics_over_seeds(mixed):
+    _, result = mixed
+    df, s = result.table, result.summary()
+    g = df[(df.cell == 5) & (df.observer == "hgo") & (df.state == "angular_velocity")]
+    row = s[(s.cell == 5) & (s.observer == "hgo") & (s.state == "angular_velocity")].iloc[0]
+    v = g["rmse"].to_numpy()
+    assert row["rmse_median"] == pytest.approx(np.median(v), rel=1e-15)
+    assert row["rmse_iqr"] == pytest.approx(np.subtract(*np.percentile(v, [75, 25])), rel=1e-12)
+    assert row["rmse_std"] == pytest.approx(np.std(v, ddof=1), rel=1e-12)
+    assert row["runs"] == 3 and row["diverged_fraction"] == 0.0
+    md = (result.out / "summary.md").read_text()
+    assert md.startswith("# mixed") and "| observers.hgo.k | plant.x0 |" in md
+
+
+def test_figures_have_units_and_one_file_per_axis(mixed, tmp_path):
+    _, result = mixed
+    figs = result.plot(tmp_path)
+    assert len(figs) == 3  # three axes: one figure each (a heatmap only for two axes)
+    names = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert names == ["axis_observers.hgo.k.png", "axis_plant.x0.png",
+                     "axis_sensor.stages.0.std.png"]
+    ax = figs[0].axes[0]
+    assert ax.get_xlabel() == "observers.hgo.k [1/s]" and ax.get_xscale() == "linear"
+    assert ax.get_ylabel().endswith("[rad]")
+    assert figs[2].axes[0].get_xlabel() == "sensor.stages.0.std [rad]"
+    assert figs[2].axes[0].get_xscale() == "log"
+
+
+def test_resume_runs_only_what_is_missing(tmp_path):
+    out = tmp_path / "r"
+    Study(BASE, {"observers.hgo.k": [20.0, 40.0]}, seeds=2).run(out, quiet=True)
+    first = pd.read_parquet(out / "results.parquet")
+    lines: list[str] = []
+    more = Study(BASE, {"observers.hgo.k": [20.0, 40.0]}, seeds=3)
+    res = more.run(out, resume=True, echo=lines.append)
+    assert "4 runs done already" in lines[0] or "(4 done already)" in lines[0]
+    df = res.table
+    assert len(df) == 3 * 2 * 2 * 2 and len(list((out / "results.parquet").glob("*"))) > 2
+    again = Study(BASE, {"observers.hgo.k": [20.0, 40.0]}, seeds=3).run(
+        tmp_path / "fresh", quiet=True).table
+    cols = ["cell", "seed", "observer", "state", "rmse", "peak", "final"]
+    pd.testing.assert_frame_equal(df[cols], again[cols])
+    assert set(map(tuple, first[["cell", "seed"]].to_numpy())) <= set(
+        map(tuple, df[["cell", "seed"]].to_numpy()))
+
+
+def test_resume_into_another_study_is_refused(tmp_path):
+    out = tmp_path / "r"
+    Study(BASE, {"observers.hgo.k": [20.0]}, seeds=1).run(out, quiet=True)
+    with pytest.raises(DesignError, match="holds another study: axes differ"):
+        Study(BASE, {"observers.hgo.k": [30.0]}, seeds=1).run(out, resume=True, quiet=True)
+    with pytest.raises(DesignError, match="exists: resume it with --resume"):
+        Study(BASE, {"observers.hgo.k": [20.0]}, seeds=1).run(out, quiet=True)
+
+
+def test_the_local_backend_with_two_processes_gives_the_same_rows(mixed, tmp_path):
+    study, result = mixed
+    two = Study(BASE, MIXED, seeds=3).run(tmp_path / "two", jobs=2, quiet=True).table
+    cols = [c for c in two.columns if c != "update_time"]
+    pd.testing.assert_frame_equal(two[cols], result.table[cols])
+
+
+def test_progress_without_a_terminal_is_a_line_per_tenth(tmp_path):
+    lines: list[str] = []
+    Study(BASE, {"observers.hgo.k": [10.0, 20.0, 40.0, 80.0, 160.0]}, seeds=2).run(
+        tmp_path / "p", echo=lines.append)
+    assert lines[0].startswith("study: 5 cells, 10 runs, 1 distinct plant trajectory")
+    assert "100% 10/10 runs" in lines[-1]
+    assert 2 <= len(lines) <= 11
+
+
+def test_observer_tables_as_axis_values_compare_families(tmp_path):
+    sc = {**BASE, "observers": [{"type": "high_gain", "name": "est", "k": 20.0}]}
+    study = Study(sc, {"observers.est": [{"type": "high_gain", "k": 40.0},
+                                         {"type": "ekf", "R": 1e-6}]}, seeds=2)
+    df = study.run(tmp_path / "fam", quiet=True).table
+    assert set(df["observer"]) == {"est"}
+    assert df["observers.est"].str.contains('"type":"ekf"').sum() == 4
+    metrics, _ = _alone(study.cells[1].scenario, 3)
+    row = df[(df.cell == 1) & (df.seed == 3) & (df.state == "angle")].iloc[0]
+    assert row["peak"] == metrics["est"]["peak"][0]
+
+
+def test_model_mismatch_through_the_observers_system_params(tmp_path):
+    sc = {**BASE, "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0, "model": True}]}
+    study = Study(sc, {"observers.hgo.system_params.mass": [1.0, 2.0]}, seeds=1)
+    df = study.run(tmp_path / "mm", quiet=True).table
+    a, b = (df[(df.cell == i) & (df.state == "angular_velocity")]["rmse"].iloc[0]
+            for i in (0, 1))
+    assert a != b
+    metrics, _ = _alone(study.cells[1].scenario, 3)
+    assert df[(df.cell == 1) & (df.state == "angle")]["peak"].iloc[0] == metrics["hgo"]["peak"][0]
+
+
+@pytest.mark.parametrize("axes, seeds, mode, match", [
+    ({"observers.hgx.k": [1.0]}, 1, "product", r"no observer named 'hgx'; valid: \['hgo', 'ad'\]"),
+    ({"observers.hgo.kk": [1.0]}, 1, "product", r"observers.hgo has no key 'kk'; valid: .*'k'"),
+    ({"sensor.stages.5.std": [1.0]}, 1, "product", r"valid indices: \[0, 1\]"),
+    ({"plant.nope": [1.0]}, 1, "product", r"plant has no key 'nope'; valid: \['dt', "),
+    ({"bogus.x": [1.0]}, 1, "product", r"valid first parts"),
+    ({"observers.hgo.k": []}, 1, "product", "is empty"),
+    ({"observers.hgo.k": 5}, 1, "product", "must be a list of values"),
+    ({"observers.hgo.k": [1.0, 2.0], "sensor.stages.0.std": [1.0]}, 1, "zip",
+     "zip axes must have the same length; found observers.hgo.k: 2, sensor.stages.0.std: 1"),
+    ({}, 0, "product", "sweep.seeds must be at least 1"),
+    ({}, True, "product", "sweep.seeds must be a positive integer"),
+    ({}, 1, "grid", "sweep.mode must be 'product' or 'zip'"),
+    ({"observers.hgo.k": list(range(1, 101))}, 200_000, "product", "more than 10,000,000"),
+])
+def test_bad_studies_are_refused_before_any_work(axes, seeds, mode, match):
+    with pytest.raises(DesignError, match=match):
+        Study(BASE, axes, seeds, mode=mode)
+
+
+def test_a_bad_value_names_its_cell(tmp_path):
+    study = Study(BASE, {"observers.hgo.k": [20.0, "fast"]}, seeds=1)
+    with pytest.raises(DesignError, match=r"cell 1 \(observers.hgo.k = \"fast\"\)"):
+        study.run(tmp_path / "bad", quiet=True)
+    assert not (tmp_path / "bad").exists()
+
+
+def test_the_sweep_command(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text('name = "cli"\n[plant]\nname = "pendulum"\nx0 = [0.5, 0.0]\n'
+                 '[sensor]\nstages = [{stage = "gaussian", std = 1e-3}]\n'
+                 '[[observers]]\ntype = "high_gain"\nname = "hgo"\nk = 20.0\n'
+                 '[run]\nduration = 0.3\n'
+                 '[sweep]\nseeds = 2\n"observers.hgo.k" = [10, 40]\n')
+    out = tmp_path / "o"
+    assert main(["sweep", str(f), "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "| observers.hgo.k |" in text and "wrote" in text
+    assert (out / "axis_observers.hgo.k.png").stat().st_size > 10_000
+    assert main(["sweep", str(f), "--out", str(out), "--quiet"]) == 2
+    assert "resume it with --resume" in capsys.readouterr().err
+    f.write_text(f.read_text().replace('"observers.hgo.k"', '"observers.hgo.q"'))
+    assert main(["sweep", str(f), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "observers.hgo has no key 'q'" in err
+    assert main(["sweep", str(tmp_path / "missing.toml")]) == 2
+
+
+def test_results_hold_nothing_non_finite_that_is_not_documented(mixed):
+    _, result = mixed
+    df = result.table
+    for col in ("rmse", "peak", "final", "update_time"):
+        assert np.isfinite(df[col].to_numpy(dtype=float)).all(), col
+    st = df["settling_time"].to_numpy(dtype=float)
+    assert np.all(np.isfinite(st) | (st == math.inf))
