@@ -12,7 +12,6 @@ from hgo_mj.exceptions import DesignError
 from hgo_mj.study import Study
 from hgo_mj.study.backends import backend_for
 
-
 BASE = {
     "name": "ray",
     "plant": {"name": "pendulum", "dt": 0.001, "x0": [0.5, 0.0]},
