@@ -5,8 +5,11 @@ cells' scenarios and the members) and gets back their result rows (small: metric
 trajectories); the parent writes each chunk's rows as one Parquet partition as it arrives. The
 results do not depend on the backend or on the number of workers.
 
-* ``local``: ``jobs = 1`` runs the chunks in this process; ``jobs > 1`` in that many worker
-  processes (``spawn``: safe with MuJoCo and threads).
+* ``local``: ``jobs = 1`` runs the chunks in this process; ``jobs > 1`` in this process and
+  ``jobs - 1`` worker processes (``spawn``: safe with MuJoCo and threads), when the plan
+  estimates at least :data:`WORKERS_WORTH_S` seconds of single-core work (a shorter study is
+  done before the workers would have started; the plants already run on MuJoCo's threads:
+  :func:`local_jobs`).
 * ``ray``: ``pip install "hgo_mj[ray]"``. Without ``address``, a local Ray instance with
   ``jobs`` CPUs bound to 127.0.0.1 without dashboard; with ``address`` (``ray start --head``
   on the head node prints it, e.g. ``192.168.1.10:6379``), that cluster: every node needs
@@ -16,16 +19,28 @@ results do not depend on the backend or on the number of workers.
 from __future__ import annotations
 
 import multiprocessing
+from collections import deque
 from collections.abc import Callable, Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
 
 from ..exceptions import DesignError
 from .engine import Chunk, run_chunk
 
 Rows = list[dict[str, Any]]
+#: ``backend(chunks)``: the chunks' rows as they finish
 Backend = Callable[[list[Chunk]], Iterator[tuple[Chunk, Rows]]]
 BACKENDS = ("local", "ray")
+#: local workers start only for single-core work (sensors, observers, metrics: the batched
+#: plant runs on threads already) estimated at this many seconds or more: a spawned worker
+#: needs 1-3 s before its first chunk (interpreter, hgo_mj, cached kernels)
+WORKERS_WORTH_S = 10.0
+
+
+def local_jobs(jobs: int, serial_s: float) -> int:
+    """The processes the local backend uses for ``serial_s`` seconds of single-core work:
+    ``jobs``, or 1 for less than :data:`WORKERS_WORTH_S`."""
+    return jobs if serial_s >= WORKERS_WORTH_S else 1
 
 
 def backend_for(name: Any, *, address: str | None = None, jobs: int = 1) -> Backend:
@@ -45,18 +60,30 @@ def backend_for(name: Any, *, address: str | None = None, jobs: int = 1) -> Back
 
 
 def _local(chunks: list[Chunk], jobs: int) -> Iterator[tuple[Chunk, Rows]]:
+    """The chunks on ``jobs`` processes: this one and ``jobs - 1`` workers. This process
+    takes chunks from the front of the queue while the workers (which start in about a
+    second: an interpreter, hgo_mj, the compiled kernels from their cache) are fed from the
+    back, one chunk ahead each."""
     if jobs == 1 or len(chunks) <= 1:
         for c in chunks:
             yield c, run_chunk(c)
         return
-    ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=min(jobs, len(chunks)), mp_context=ctx)
+    queue = deque(chunks)
+    workers = min(jobs - 1, len(chunks) - 1)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    pending: dict[Future[Rows], Chunk] = {}
     try:
-        pending = {pool.submit(run_chunk, c): c for c in chunks}
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for f in finished:
+        while queue or pending:
+            while queue and len(pending) < workers:
+                c = queue.pop()
+                pending[pool.submit(run_chunk, c)] = c
+            for f in [f for f in pending if f.done()]:
                 yield pending.pop(f), f.result()
+            if queue:
+                c = queue.popleft()
+                yield c, run_chunk(c)
+            elif pending:
+                wait(pending, return_when=FIRST_COMPLETED)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 

@@ -6,17 +6,18 @@ the noise seed nor the observers, so a chunk simulates each distinct initial sta
 members once (all of them as one batch of plants, :class:`~hgo_mj.loop.Loop` without sensor or
 observers). Inside a group, cells whose sensor chain and observers agree (they differ at most
 in ``plant.x0``) form a *bucket*: all its members (cell x seed) run as one batch. A chunk is a
-piece of one bucket: at most ``size`` members.
+piece of one group (its buckets one after the other): at most ``size`` members.
 
-**Running a chunk** (:func:`run_chunk`). The plant rows are replayed to the bucket's members by
-a :class:`ReplayPlant` (member ``b`` sees the trajectory of its initial state), the sensor chain
+**Running a chunk** (:func:`run_chunk`). The plant runs once for the chunk; its rows are
+replayed to each bucket's members by a :class:`ReplayPlant` (member ``b`` sees the trajectory
+of its initial state), the sensor chain
 draws one seeded stream per member, and every observer advances over all members, on
 :class:`~hgo_mj.loop.Loop` as ``simulate`` does: member ``b`` equals ``simulate`` of its cell at
 its seed (the same kernels on the same numbers). The metrics of :func:`hgo_mj.metrics.
 observer_metrics` are accumulated segment by segment (:class:`Metrics`), so no trajectory is
 kept: peak, final error, settling time and the undefined-sample count equal the single run's
-bit for bit; the RMSE sums its squares per segment, equal to ``numpy.mean`` over the whole
-window to rounding (relative 1e-12).
+bit for bit; the RMSE's sum of squares is compensated (Neumaier), equal to ``numpy.mean``'s
+pairwise sum over the whole window to rounding (relative 1e-12).
 
 **Failures are rows.** An observer whose update fails (a :class:`~hgo_mj.loop.LoopFailure`) is
 taken out of the batch, the others rerun without it (the same numbers: the streams are seeded),
@@ -35,6 +36,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from ..loop import Drive, Loop, LoopFailure, Periods
@@ -77,27 +79,28 @@ class Chunk:
 
 
 def plan(cells: Sequence[Any], seeds: Sequence[int], *, done: set[tuple[int, int]] | None = None,
-         jobs: int = 1, size: int = 256, metric_kw: Mapping[str, Any] | None = None
+         jobs: int = 1, size: int = 1024, metric_kw: Mapping[str, Any] | None = None
          ) -> list[Chunk]:
-    """Chunks of the runs ``cells x seeds`` not in ``done`` (pairs ``(cell, seed)``), grouped
-    as the module docstring says; at most ``size`` members a chunk, and pieces small enough
-    that ``jobs`` workers get at least two chunks each where the study allows."""
+    """Chunks of the runs ``cells x seeds`` not in ``done`` (pairs ``(cell, seed)``): the
+    members of one group (bucket after bucket), at most ``size`` a chunk, and pieces small
+    enough that ``jobs`` workers get at least two chunks each where the study allows."""
     done = done or set()
-    buckets: dict[tuple[str, str], list[tuple[int, int]]] = {}
+    groups: dict[str, dict[str, list[tuple[int, int]]]] = {}
     scen: dict[int, dict[str, Any]] = {}
     for cell in cells:
-        key = (_group_key(cell.scenario), _bucket_key(cell.scenario))
         todo = [(cell.index, s) for s in seeds if (cell.index, s) not in done]
         if todo:
-            buckets.setdefault(key, []).extend(todo)
+            bucket = groups.setdefault(_group_key(cell.scenario), {})
+            bucket.setdefault(_bucket_key(cell.scenario), []).extend(todo)
             scen[cell.index] = cell.scenario
-    total = sum(len(m) for m in buckets.values())
+    total = sum(len(m) for g in groups.values() for m in g.values())
     if total == 0:
         return []
-    want = max(1, math.ceil(total / (2 * max(jobs, 1)))) if jobs > 1 else total
+    want = math.ceil(total / (2 * jobs)) if jobs > 1 else total
     piece = max(1, min(size, want))
     chunks: list[Chunk] = []
-    for members in buckets.values():
+    for buckets in groups.values():
+        members = [m for ms in buckets.values() for m in ms]  # bucket after bucket
         n = math.ceil(len(members) / piece)
         step = math.ceil(len(members) / n)
         for i in range(0, len(members), step):
@@ -174,21 +177,64 @@ def plant_rows(plant: Plant, inputs: Any, periods: Periods, N: int, x0s: Array
 
 
 # ------------------------------------------------------------------- streamed metrics
+@njit(cache=True)
+def _accumulate(k0: int, X: Array, px: Array, pz: Array, BX: Array, BZ: Array, idx: Any,
+                cols: Any, Ts: float, t_tr: float, band: Array, sumsq: Array, comp: Array,
+                count: Any, peak: Array, undefined: Any, last_out: Any, final: Array,
+                bad_row: Any) -> None:  # pragma: no cover - compiled
+    """One pass over the rows ``k0 ... k0 + T - 1`` of B members (see :class:`Metrics`): the
+    estimate of row ``j`` is ``px``/``pz`` (before the block) for ``j = 0``, else the block's
+    row ``j - 1``. The squares are summed with Neumaier's compensation."""
+    B, T, nz, nx = X.shape[0], X.shape[1], pz.shape[1], px.shape[1]
+    for b in range(B):
+        for j in range(T):
+            if bad_row[b] < 0:
+                for q in range(nz):
+                    v = pz[b, q] if j == 0 else BZ[b, j - 1, q]
+                    if not np.isfinite(v):
+                        bad_row[b] = k0 + j
+                for q in range(nx):
+                    v = px[b, q] if j == 0 else BX[b, j - 1, q]
+                    if np.isinf(v):
+                        bad_row[b] = k0 + j
+            inwin = (k0 + j) * Ts >= t_tr
+            for s in range(idx.size):
+                e = X[b, j, idx[s]] - (px[b, cols[s]] if j == 0 else BX[b, j - 1, cols[s]])
+                ae = abs(e)
+                if j == T - 1:
+                    final[b, s] = ae
+                if not np.isfinite(e):
+                    undefined[b, s] += 1
+                    last_out[b, s] = k0 + j
+                    continue
+                if inwin:
+                    v, tot = e * e, sumsq[b, s]
+                    new = tot + v
+                    comp[b, s] += (tot - new) + v if abs(tot) >= abs(v) else (v - new) + tot
+                    sumsq[b, s] = new
+                    count[b, s] += 1
+                if ae > peak[b, s]:
+                    peak[b, s] = ae
+                if not ae <= band[b, s]:
+                    last_out[b, s] = k0 + j
+
+
 class Metrics:
     """:func:`hgo_mj.metrics.observer_metrics` of B runs of one observer, accumulated over the
     rows as they come (row ``k``: the true state at ``t_k`` and the estimate before
-    ``y(t_k)``), without keeping them. ``scale`` ``(B, n)`` is the band's scale (the true
-    state's range for a relative band)."""
+    ``y(t_k)``), without keeping them: one compiled pass per block. ``band`` ``(B, n)`` is the
+    band of each member and state (times the true state's range for a relative band)."""
 
     def __init__(self, observer: Observer, state_names: Sequence[str], B: int, Ts: float,
                  t_transient: float, band: Array) -> None:
         own = {s: j for j, s in enumerate(observer.state_names)}
-        self.est = np.array([s in own for s in state_names])
         self.cols = np.array([own[s] for s in state_names if s in own], dtype=np.intp)
-        self.idx = np.flatnonzero(self.est)
-        self.Ts, self.t_transient, self.band = Ts, t_transient, band[:, self.idx]
+        self.idx = np.flatnonzero([s in own for s in state_names]).astype(np.intp)
+        self.Ts, self.t_transient = Ts, t_transient
+        self.band = np.ascontiguousarray(band[:, self.idx])
         k = self.idx.size
-        self.sumsq, self.count = np.zeros((B, k)), np.zeros((B, k), dtype=np.int64)
+        self.sumsq, self.comp = np.zeros((B, k)), np.zeros((B, k))
+        self.count = np.zeros((B, k), dtype=np.int64)
         self.peak = np.full((B, k), -np.inf)
         self.undefined = np.zeros((B, k), dtype=np.int64)
         self.last_out = np.full((B, k), -1, dtype=np.int64)
@@ -196,37 +242,22 @@ class Metrics:
         self.bad_row = np.full(B, -1, dtype=np.int64)  # first row with a non-finite z_hat
         self.rows = 0
 
-    def add(self, k0: int, X: Array, Xh: Array, Zh: Array) -> None:
-        """Rows ``k0 ...``: true states ``X`` ``(B, T, n)``, estimates ``Xh`` ``(B, T, n_x)``
-        and ``Zh`` ``(B, T, n_z)`` (the observer's layout)."""
-        T = X.shape[1]
-        bad = ~np.all(np.isfinite(Zh), axis=2) | np.any(np.isinf(Xh), axis=2)
-        hit = bad.any(axis=1) & (self.bad_row < 0)
-        self.bad_row[hit] = k0 + np.argmax(bad[hit], axis=1)
-        with np.errstate(over="ignore", invalid="ignore"):
-            e = X[:, :, self.idx] - Xh[:, :, self.cols]
-            finite = np.isfinite(e)
-            ae = np.abs(e)
-            t = (k0 + np.arange(T)) * self.Ts
-            win = (t >= self.t_transient)[None, :, None] & finite
-            self.sumsq += (np.where(win, e, 0.0) ** 2).sum(axis=1)
-            self.count += win.sum(axis=1)
-            self.peak = np.maximum(self.peak, np.where(finite, ae, -np.inf).max(axis=1))
-            self.undefined += (~finite).sum(axis=1)
-            outside = ~(np.where(finite, ae, np.inf) <= self.band[:, None, :])
-            any_out = outside.any(axis=1)
-            last = T - 1 - np.argmax(outside[:, ::-1], axis=1)
-            self.last_out = np.where(any_out, k0 + last, self.last_out)
-            self.final = ae[:, -1]
-        self.rows = k0 + T
+    def add(self, k0: int, X: Array, prev: tuple[Array, Array], BX: Array, BZ: Array) -> None:
+        """Rows ``k0 ...``: true states ``X`` ``(B, T, n)``; the estimate before the block
+        ``prev`` (``x_hat``, ``z_hat``, ``(B, .)``) and the block's rows after each sample
+        ``BX``, ``BZ`` ``(B, T', .)`` (row ``j`` of the run is ``prev`` for ``j = 0``, else
+        the block's row ``j - 1``)."""
+        _accumulate(k0, X, prev[0], prev[1], BX, BZ, self.idx, self.cols, self.Ts,
+                    self.t_transient, self.band, self.sumsq, self.comp, self.count, self.peak,
+                    self.undefined, self.last_out, self.final, self.bad_row)
+        self.rows = k0 + X.shape[1]
 
     def result(self, n: int, update_time: float) -> dict[str, Array]:
         """Per metric ``(B, n)`` arrays over the plant's states (NaN: not estimated)."""
         B = self.sumsq.shape[0]
         out = {m: np.full((B, n), np.nan) for m in METRICS}
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rmse = np.where(self.count > 0, np.sqrt(self.sumsq / np.maximum(self.count, 1)),
-                            np.nan)
+        total = self.sumsq + self.comp
+        rmse = np.where(self.count > 0, np.sqrt(total / np.maximum(self.count, 1)), np.nan)
         peak = np.where(np.isfinite(self.peak), self.peak, np.nan)
         last = self.last_out
         settle = np.where(last < 0, 0.0,
@@ -278,100 +309,101 @@ def _observe(build: Any, members: list[int], names: list[str], exact: bool = Fal
         return out
 
 
-class _Bucket:
-    """Builds and runs the loop of a chunk's members (any subset, any of its observers)."""
+class _Plants:
+    """The plant side of a chunk: every distinct initial state of its members simulated once
+    (a batch of plants); the rows each member replays, the band's scale per trajectory."""
 
     def __init__(self, chunk: Chunk) -> None:
         from ..cli import scenario_run
 
-        first = chunk.scenarios[chunk.members[0][0]]
-        self.kw = scenario_run(first)
-        self.chunk = chunk
-        self.first = first
-        plant: Plant = self.kw["plant"]
-        self.plant = plant
-        self.periods = Periods.of(plant, self.kw["sample_period"], self.kw["control_period"])
-        duration = float(self.kw["duration"])
-        self.N = int(round(duration / self.periods.sample))
+        kw = scenario_run(chunk.scenarios[chunk.members[0][0]])
+        self.plant: Plant = kw["plant"]
+        self.periods = Periods.of(self.plant, kw["sample_period"], kw["control_period"])
+        self.N = int(round(float(kw["duration"]) / self.periods.sample))
         self.seeds = [s for _, s in chunk.members]
-        self.x0s, self.member_rows = _x0_rows(chunk.scenarios, chunk.members, plant)
-        self.state_names = tuple(plant.state_names)
+        self.x0s, self.member_rows = _x0_rows(chunk.scenarios, chunk.members, self.plant)
+        self.state_names = tuple(self.plant.state_names)
         mkw = chunk.metric_kw
-        t_end = self.N * self.periods.sample
         tt = mkw.get("t_transient")
-        self.t_transient = 0.2 * t_end if tt is None else float(tt)
-        self.band, self.relative = float(mkw.get("band", 0.05)), bool(mkw.get("relative", True))
-        self.plant_failed: dict[int, str] = {}
-        self._simulate_plants()
+        self.t_transient = 0.2 * self.N * self.periods.sample if tt is None else float(tt)
+        band = float(mkw.get("band", 0.05))
+        self.failed: dict[int, str] = {}
+        self.X, self.Yc = self._simulate(kw["inputs"])
+        if bool(mkw.get("relative", True)):  # each trajectory's range, as observer_metrics
+            with np.errstate(invalid="ignore"):
+                scale = np.ptp(self.X, axis=1)
+            self.band = band * np.where(scale > 0, scale, 1.0)
+        else:
+            self.band = np.full((self.X.shape[0], len(self.state_names)), band)
 
-    def _simulate_plants(self) -> None:
-        """The plant rows of every distinct initial state; a failing one alone, its message
-        kept (its members' runs are diverged rows)."""
+    def _simulate(self, inputs: Any) -> tuple[Array, Array]:
+        """The rows of every distinct initial state; on a failure each alone, the failing
+        ones' messages kept in ``failed`` (their members' runs are diverged rows)."""
         try:
-            self.X, self.Yc = plant_rows(self.plant, self.kw["inputs"], self.periods, self.N,
-                                         self.x0s)
-            return
+            return plant_rows(self.plant, inputs, self.periods, self.N, self.x0s)
         except LoopFailure:
             pass
         G, n, p = self.x0s.shape[0], len(self.state_names), len(self.plant.output_names)
-        self.X, self.Yc = np.full((G, self.N + 1, n), np.nan), np.full((G, self.N + 1, p), np.nan)
+        X, Yc = np.full((G, self.N + 1, n), np.nan), np.full((G, self.N + 1, p), np.nan)
         for g in range(G):
             try:
-                X, Yc = plant_rows(self.plant, self.kw["inputs"], self.periods, self.N,
-                                   self.x0s[g:g + 1])
-                self.X[g], self.Yc[g] = X[0], Yc[0]
+                Xg, Ycg = plant_rows(self.plant, inputs, self.periods, self.N,
+                                     self.x0s[g:g + 1])
+                X[g], Yc[g] = Xg[0], Ycg[0]
             except LoopFailure as exc:
-                self.plant_failed[g] = f"simulation stopped at t={exc.t:g}: {exc.cause}"
+                self.failed[g] = f"simulation stopped at t={exc.t:g}: {exc.cause}"
+        return X, Yc
+
+
+class _Bucket:
+    """Builds and runs the loop of some members of one bucket (any subset, any of its
+    observers) on the chunk's plant rows."""
+
+    def __init__(self, plants: _Plants, scenario: dict[str, Any]) -> None:
+        from ..cli import scenario_run
+
+        self.p, self.scenario = plants, scenario
+        self.kw = scenario_run(scenario)
 
     def run(self, members: list[int], names: list[str], exact: bool
             ) -> dict[str, tuple[dict[str, Array], Array, list[str | None]]]:
         from ..cli import scenario_run
 
-        kw = scenario_run(self.first)
+        p = self.p
+        kw = scenario_run(self.scenario)  # fresh parts: a run may be repeated after a failure
         obs = {n: kw["observers"][n] for n in names}
-        rows = self.member_rows[members]
-        plant = ReplayPlant(self.plant, self.X, self.Yc, rows)
-        loop = Loop(plant, kw["sensor"], obs, self.periods, exact=exact)
-        drive = Drive.of(kw["inputs"], obs, plant, self.periods)
-        loop.reset(None, seed=[self.seeds[i] for i in members], batch=len(members))
-        n = len(self.state_names)
-        if self.relative:
-            with np.errstate(invalid="ignore"):
-                scale = np.ptp(self.X[rows], axis=1)
-            scale = np.where(scale > 0, scale, 1.0)
-        else:
-            scale = np.ones((len(members), n))
-        band = self.band * scale
-        acc = {name: Metrics(ob, self.state_names, len(members), self.periods.sample,
-                             self.t_transient, band) for name, ob in obs.items()}
+        rows = p.member_rows[members]
+        plant = ReplayPlant(p.plant, p.X, p.Yc, rows)
+        loop = Loop(plant, kw["sensor"], obs, p.periods, exact=exact)
+        drive = Drive.of(kw["inputs"], obs, plant, p.periods)
+        loop.reset(None, seed=[p.seeds[i] for i in members], batch=len(members))
+        acc = {name: Metrics(ob, p.state_names, len(members), p.periods.sample,
+                             p.t_transient, p.band[rows]) for name, ob in obs.items()}
         prev = {name: (x, z) for name, (x, z, _) in loop.estimates().items()}
-        while loop.k < self.N:
-            k0, T = loop.k, drive.length(loop.k, self.N, SEGMENT)
+        while loop.k < p.N:
+            k0, T = loop.k, drive.length(loop.k, p.N, SEGMENT)
             seg = loop.segment(drive.inputs(loop, T))
             for name, blk in seg.blocks.items():
-                px, pz = prev[name]
-                Xh = np.concatenate([px[:, None], blk.x_hat[:, :-1]], axis=1)
-                Zh = np.concatenate([pz[:, None], blk.z_hat[:, :-1]], axis=1)
-                acc[name].add(k0, seg.x, Xh, Zh)
+                acc[name].add(k0, seg.x, prev[name], blk.x_hat, blk.z_hat)
                 prev[name] = (blk.x_hat[:, -1], blk.z_hat[:, -1])
         Xl = np.reshape(plant.state, (len(members), 1, -1))
         out = {}
         for name, (x, z, d) in loop.estimates().items():
-            acc[name].add(self.N, Xl, x[:, None], z[:, None])
-            wall = loop.wall[name] / (max(self.N, 1) * len(members))
-            res = acc[name].result(n, wall)
+            acc[name].add(p.N, Xl, (x, z), x[:, None], z[:, None])
+            res = acc[name].result(len(p.state_names),
+                                   loop.wall[name] / (max(p.N, 1) * len(members)))
             msgs: list[str | None] = [None] * len(members)
             for i, r in enumerate(acc[name].bad_row):
                 if r >= 0:
                     msgs[i] = (f"observer {name!r} estimate left the finite numbers at "
-                               f"t={r * self.periods.sample:g} (row {int(r)})")
+                               f"t={r * p.periods.sample:g} (row {int(r)})")
             out[name] = (res, d, msgs)
         return out
 
     def failed(self, B: int, name: str, msg: str
                ) -> tuple[dict[str, Array], Array, list[str | None]]:
-        n = len(self.state_names)
-        nd = len(self.kw["observers"][name].family_diagnostics) + 1
+        n = len(self.p.state_names)
+        nd = len(self.kw["observers"][name].diagnostic_names)
         return ({m: np.full((B, n), np.nan) for m in METRICS}, np.full((B, nd), np.nan),
                 [msg] * B)
 
@@ -380,37 +412,48 @@ def run_chunk(chunk: Chunk) -> list[dict[str, Any]]:
     """Run a chunk: its result rows, one per member x observer x plant state, each with
     ``cell``, ``seed``, ``observer``, ``state``, ``estimated``, the metrics (None: not
     estimated, or diverged), ``diverged``, ``message`` and ``diag.<name>`` (each diagnostic's
-    final value)."""
-    b = _Bucket(chunk)
-    names = list(b.kw["observers"])
-    ok = [i for i, r in enumerate(b.member_rows) if int(r) not in b.plant_failed]
-    got = _observe(b, ok, names)
-    pos = {i: j for j, i in enumerate(ok)}
+    final value). The plant runs once for the chunk; each bucket in it runs its loop."""
+    plants = _Plants(chunk)
+    buckets: dict[str, list[int]] = {}
+    for i, (cell, _) in enumerate(chunk.members):
+        buckets.setdefault(_bucket_key(chunk.scenarios[cell]), []).append(i)
     rows: list[dict[str, Any]] = []
-    for name in names:
-        ob = b.kw["observers"][name]
-        own = set(ob.state_names)
-        for i, (cell, seed) in enumerate(chunk.members):
-            g = int(b.member_rows[i])
-            if g in b.plant_failed:
-                res, dg, msgs = b.failed(1, name, b.plant_failed[g])
-                j = 0
-            else:
-                (res, dg, msgs), j = got[name], pos[i]
-            message = msgs[j]
-            diverged = message is not None
-            diag = {f"diag.{d}": None if diverged else float(dg[j, q])
-                    for q, d in enumerate(ob.diagnostic_names)}
-            for s, state in enumerate(b.state_names):
-                estimated = state in own
-                row: dict[str, Any] = {"cell": cell, "seed": seed, "observer": name,
-                                       "state": state, "estimated": estimated}
-                for m in METRICS:
-                    keep = estimated and (not diverged or m == "update_time")
-                    row[m] = float(res[m][j, s]) if keep else None
-                row.update(diverged=diverged, message=message, **diag)
-                rows.append(row)
+    for idxs in buckets.values():
+        b = _Bucket(plants, chunk.scenarios[chunk.members[idxs[0]][0]])
+        ok = [i for i in idxs if int(plants.member_rows[i]) not in plants.failed]
+        got = _observe(b, ok, list(b.kw["observers"]))
+        pos = {i: j for j, i in enumerate(ok)}
+        for name, ob in b.kw["observers"].items():
+            for i in idxs:
+                g = int(plants.member_rows[i])
+                if g in plants.failed:
+                    res, dg, msgs = b.failed(1, name, plants.failed[g])
+                    j = 0
+                else:
+                    (res, dg, msgs), j = got[name], pos[i]
+                rows.extend(_rows(chunk.members[i], name, ob, plants.state_names, res, dg[j],
+                                  msgs[j], j))
     return rows
+
+
+def _rows(member: tuple[int, int], name: str, ob: Observer, states: Sequence[str],
+          res: dict[str, Array], diag: Array, message: str | None, j: int
+          ) -> list[dict[str, Any]]:
+    """The result rows of one member and observer, one per plant state."""
+    own = set(ob.state_names)
+    diverged = message is not None
+    d = {f"diag.{n}": None if diverged else float(diag[q])
+         for q, n in enumerate(ob.diagnostic_names)}
+    out = []
+    for s, state in enumerate(states):
+        est = state in own
+        row: dict[str, Any] = {"cell": member[0], "seed": member[1], "observer": name,
+                               "state": state, "estimated": est}
+        for m in METRICS:
+            row[m] = float(res[m][j, s]) if est and (not diverged or m == "update_time") else None
+        row.update(diverged=diverged, message=message, **d)
+        out.append(row)
+    return out
 
 
 __all__ = ["Chunk", "METRICS", "Metrics", "ReplayPlant", "SEGMENT", "plan", "plant_rows",

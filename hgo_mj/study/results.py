@@ -140,39 +140,35 @@ class ResultsDir:
 
 def summarize(df: Any, axes: Sequence[str]) -> Any:
     """Per cell, observer and state over the seeds: ``runs``, ``diverged_fraction``,
-    ``settled_fraction`` (of the runs that finished), and per metric in
-    :data:`SUMMARY_METRICS` its median, quartiles ``q25``, ``q75``, IQR (their difference),
-    mean, std (ddof=1),
-    min and max over the runs that finished (a settling time of ``inf`` counts as never
-    settled and is left out of its statistics)."""
+    ``settled_fraction`` (of the runs that finished; NaN where not estimated), and per metric
+    in :data:`SUMMARY_METRICS` its median, quartiles ``q25``, ``q75``, IQR (their
+    difference), mean, std (ddof=1; 0 for one run), min and max over the runs that finished
+    (a settling time of ``inf``, never settled, is left out of its statistics)."""
     import pandas as pd
 
-    keys = [*axes, "cell", "observer", "state"]
-    out = []
-    for _, g in df.groupby(["cell", "observer", "state"], sort=True):
-        first = g.iloc[0]
-        row = {k: first[k] for k in keys}
-        row["estimated"] = bool(first["estimated"])
-        row["runs"] = len(g)
-        ok = g[~g["diverged"]]
-        row["diverged_fraction"] = float(g["diverged"].mean())
-        settle = ok["settling_time"].to_numpy(dtype=float)
-        row["settled_fraction"] = (float(np.isfinite(settle).mean()) if len(ok) and
-                                   row["estimated"] else np.nan)
-        for m in SUMMARY_METRICS:
-            v = ok[m].to_numpy(dtype=float)
-            v = v[np.isfinite(v)]
-            if v.size:
-                q25, q75 = np.percentile(v, [25, 75])
-                stats = {"median": np.median(v), "q25": q25, "q75": q75, "iqr": q75 - q25, "mean": v.mean(),
-                         "std": v.std(ddof=1) if v.size > 1 else 0.0, "min": v.min(),
-                         "max": v.max()}
-            else:
-                stats = dict.fromkeys(SUMMARY_STATS, np.nan)
-            for s in SUMMARY_STATS:
-                row[f"{m}_{s}"] = float(stats[s])
-        out.append(row)
-    return pd.DataFrame(out)
+    keys = ["cell", "observer", "state"]
+    d = df.copy()
+    for m in SUMMARY_METRICS:  # only finite values enter the statistics
+        v = d[m].to_numpy(dtype=float)
+        d[m] = np.where(np.isfinite(v) & ~d["diverged"].to_numpy(bool), v, np.nan)
+    d["_settled"] = np.where(d["diverged"] | ~d["estimated"], np.nan,
+                             np.isfinite(df["settling_time"].to_numpy(dtype=float)))
+    g = d.groupby(keys, sort=True)
+    out = g[[*axes, "estimated"]].first()
+    out["runs"] = g.size()
+    out["diverged_fraction"] = g["diverged"].mean().astype(float)
+    out["settled_fraction"] = g["_settled"].mean()
+    for m in SUMMARY_METRICS:
+        c = g[m]
+        q25, q75 = c.quantile(0.25), c.quantile(0.75)
+        std = c.std(ddof=1).where(c.count() > 1, 0.0)
+        for name, col in (("median", c.median()), ("q25", q25), ("q75", q75),
+                          ("iqr", q75 - q25), ("mean", c.mean()), ("std", std),
+                          ("min", c.min()), ("max", c.max())):
+            out[f"{m}_{name}"] = col.astype(float)
+    out = out.reset_index()
+    return pd.DataFrame(out[[*axes, *keys, *[c for c in out.columns
+                                             if c not in (*axes, *keys)]]])
 
 
 def summary_markdown(summary: Any, axes: Sequence[str], title: str) -> str:

@@ -17,14 +17,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .._validate import vector
 from ..exceptions import DesignError, HgoError
 from .engine import Chunk, plan
 from .results import ResultsDir, schema, write_summary
 from .spec import MAX_RUNS, Cell, parse_study
 
-#: rough costs for the plan's time estimate (seconds; measured on a 2-core machine, BENCHMARKS.md)
+#: rough costs for the plan's time estimate (seconds per plant step, on MuJoCo's rollout with
+#: 2 threads, and per observer-step of a high-gain observer with its sensor and metrics, on one
+#: core; scripts/bench_study.py on a 2-core machine)
 _PLANT_STEP_S = 5e-6
-_OBSERVER_STEP_S = 6e-8
+_OBSERVER_STEP_S = 6.5e-8
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
@@ -53,6 +56,9 @@ class Plan:
     todo: int
     trajectories: int
     estimate_s: float
+    #: the part of the estimate that runs on one core per process (sensors, observers,
+    #: metrics; the batched plant already runs on threads)
+    serial_s: float
     out: Path | None
 
     def describe(self) -> str:
@@ -133,14 +139,18 @@ class Study:
         from ..cli import scenario_run
 
         names: list[str] = []
-        seen: set[str] = set()
+        built: dict[str, Any] = {}
         for cell in self.cells:
-            key = json.dumps(cell.scenario, sort_keys=True)
-            if key in seen:
-                continue
-            seen.add(key)
+            # cells that differ only in x0 are built once; each x0 is checked on its own
+            rest = {**cell.scenario, "plant": {k: v for k, v in cell.scenario["plant"].items()
+                                               if k != "x0"}}
+            key = json.dumps(rest, sort_keys=True)
             try:
-                kw = scenario_run(cell.scenario, self.name)
+                if key in built:
+                    self._check_x0(cell.scenario["plant"].get("x0"), built[key]["plant"])
+                    continue
+                kw = built[key] = scenario_run(cell.scenario, self.name)
+                self._check_x0(cell.scenario["plant"].get("x0"), kw["plant"])
                 if "t_transient" in cell.scenario.get("run", {}):
                     t_tr = cell.scenario["run"]["t_transient"]
                     if isinstance(t_tr, bool) or not isinstance(t_tr, (int, float)) or not (
@@ -159,6 +169,11 @@ class Study:
                         names.append(d)
         self._validated = True
         return names
+
+    @staticmethod
+    def _check_x0(x0: Any, plant: Any) -> None:
+        if x0 is not None:
+            vector("plant.x0", x0, len(plant.state_names))
 
     def _metric_kw(self) -> dict[str, Any]:
         run = self.spec.scenario.get("run", {})
@@ -183,10 +198,11 @@ class Study:
                     plant_steps += dur / dt
                 obs_steps += dur / float(sc["run"].get("sample_period") or dt) * max(
                     len(sc.get("observers", [])), 1)
-        est = (plant_steps * _PLANT_STEP_S + obs_steps * _OBSERVER_STEP_S) / max(jobs, 1)
+        serial = obs_steps * _OBSERVER_STEP_S
+        est = plant_steps * _PLANT_STEP_S + serial / max(jobs, 1)
         todo = sum(c.n_runs for c in chunks)
         return Plan(chunks, self.spec.n_cells, self.spec.n_runs, todo, len(trajectories), est,
-                    None if out is None else Path(out))
+                    serial, None if out is None else Path(out))
 
     def run(self, out: str | Path, *, jobs: int = 1, backend: str = "local",
             address: str | None = None, resume: bool = False, quiet: bool = False,
@@ -209,14 +225,17 @@ class Study:
             No plan line and no progress on stderr.
         """
         from .._validate import positive_int
-        from .backends import backend_for
+        from .backends import backend_for, local_jobs
 
         jobs = positive_int("jobs", jobs, floats=False)
-        run_backend = backend_for(backend, address=address, jobs=jobs)
+        backend_for(backend, address=address, jobs=jobs)  # Ray importable, address reachable
         diagnostics = self.validate()
         res = ResultsDir(out)
         done = res.start(self.spec, resume)
+        if backend == "local":  # workers only for work that outlasts their start
+            jobs = local_jobs(jobs, self.plan(jobs=1, done=done).serial_s)
         the_plan = self.plan(jobs=jobs, done=done, out=out)
+        run_backend = backend_for(backend, address=address, jobs=jobs)
         say = echo or (lambda s: print(s, file=sys.stderr))
         if not quiet:
             say(the_plan.describe())
