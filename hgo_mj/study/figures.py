@@ -71,6 +71,14 @@ def _file(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
+def _tidy(fig: Any, rows: int) -> None:
+    """Margins for labels and the title (a fixed layout: matplotlib's constrained layout
+    costs seconds on figures of many panels)."""
+    h = fig.get_figheight()
+    fig.subplots_adjust(left=0.07, right=0.97, bottom=0.55 / h, top=1 - 0.6 / h,
+                        wspace=0.32, hspace=0.55 * 2.6 / max(h / max(rows, 1), 1.0))
+
+
 def _save(fig: Any, path: Path) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
@@ -84,7 +92,7 @@ def axis_figure(summary: Any, axis: str, axes: list[str], scenario: dict[str, An
     s = summary[summary["estimated"]]
     states = list(dict.fromkeys(s["state"]))
     others = [a for a in axes if a != axis]
-    fig = Figure(figsize=(4.2 * len(PANELS), 2.6 * len(states) + 0.9), layout="constrained")
+    fig = Figure(figsize=(4.2 * len(PANELS), 2.6 * len(states) + 0.9))
     grid = fig.subplots(len(states), len(PANELS), squeeze=False)
     numeric = s[axis].dtype.kind == "f"
     cats = list(dict.fromkeys(s[axis])) if not numeric else []
@@ -126,11 +134,12 @@ def axis_figure(summary: Any, axis: str, axes: list[str], scenario: dict[str, An
             ax.set_ylabel(f"{label} [{yunit}]", fontsize=8)
             ax.set_xlabel(_axis_label(axis, out_unit), fontsize=8)
             ax.set_title(state, fontsize=9)
-            ax.grid(True, which="both", alpha=0.3)
+            ax.grid(True, alpha=0.3)
             ax.tick_params(labelsize=7)
     if groups:
         grid[0, 0].legend(fontsize=7, loc="best")
     fig.suptitle(f"{title}: median and interquartile band over the seeds", fontsize=10)
+    _tidy(fig, len(states))
     return fig
 
 
@@ -143,7 +152,7 @@ def heatmap_figure(summary: Any, a: str, b: str, scenario: dict[str, Any], title
     pairs = list(dict.fromkeys(zip(s["observer"], s["state"])))
     cols = min(len(pairs), 3)
     rows = int(np.ceil(len(pairs) / cols))
-    fig = Figure(figsize=(4.6 * cols, 3.6 * rows + 0.6), layout="constrained")
+    fig = Figure(figsize=(4.6 * cols, 3.6 * rows + 0.6))
     grid = fig.subplots(rows, cols, squeeze=False)
     for i, (obs, state) in enumerate(pairs):
         ax = grid[i // cols, i % cols]
@@ -167,6 +176,7 @@ def heatmap_figure(summary: Any, a: str, b: str, scenario: dict[str, Any], title
     for j in range(len(pairs), rows * cols):
         grid[j // cols, j % cols].set_visible(False)
     fig.suptitle(f"{title}: median RMSE over the seeds", fontsize=10)
+    _tidy(fig, rows)
     return fig
 
 

@@ -332,13 +332,14 @@ class Progress:
         if self.bar is not None:
             self.bar.update(n)
             return
-        while self.next_tenth <= 10 and self.done * 10 >= self.next_tenth * self.total:
+        tenth = min(10, self.done * 10 // self.total)
+        if tenth >= self.next_tenth:  # one line for the tenths this step crossed
             el = time.perf_counter() - self.t0
             rate = self.done / el if el > 0 else float("inf")
             eta = (self.total - self.done) / rate if rate > 0 else 0.0
-            self.echo(f"{self.next_tenth * 10:3d}% {self.done}/{self.total} runs, "
+            self.echo(f"{self.done * 100 // self.total:3d}% {self.done}/{self.total} runs, "
                       f"{rate:.0f} runs/s, {_seconds(el)} elapsed, ETA {_seconds(eta)}")
-            self.next_tenth += 1
+            self.next_tenth = tenth + 1
 
     def close(self) -> None:
         if self.bar is not None:
