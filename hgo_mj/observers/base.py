@@ -302,15 +302,21 @@ class Observer(ABC):
                                  f"{'m' if m is None else m}); found shape {U.shape}")
         return self._advance_checked(Y, U, _positive_dt(dt))
 
-    def _advance_checked(self, Y: Array, U: Array, dt: float) -> Block:
-        """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float)."""
+    def _advance_checked(self, Y: Array, U: Array, dt: float, out: Block | None = None) -> Block:
+        """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float); the rows are
+        written into ``out`` where it is given with these B and T (a caller that keeps no
+        rows reuses its block), else into a new :class:`Block`."""
         # a copy of the observer's channels: a family may write into its measurement block
         Yo = np.array(Y[:, :, self._cols_index], dtype=np.float64, order="C")
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
-        X = np.empty((B, T, self._nx))
-        Z = np.empty((B, T, self.n))
-        D = np.empty((B, T, nd + 1))
+        if out is not None and out.z_hat.shape[:2] == (B, T):
+            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
+        else:
+            X = np.empty((B, T, self._nx))
+            Z = np.empty((B, T, self.n))
+            D = np.empty((B, T, nd + 1))
+            out = Block(X, Z, D)
         finite = (math.isfinite(Yo.item()) if Yo.size == 1  # one sample of one channel: cheap
                   else bool(np.isfinite(Yo).all()))
         if not finite:  # dropouts (NaN) counted; an infinite value refused
@@ -329,7 +335,7 @@ class Observer(ABC):
         else:
             D[:, :, nd] = self._dropouts[:, None] + lost
             self._dropouts = self._dropouts + lost[:, -1]
-        return Block(X, Z, D)
+        return out
 
     def step(self, y: Any, u: Any, dt: float) -> None:
         """One sample of every member: ``y`` ``(B, p)``, ``u`` ``(B, m)``."""

@@ -47,6 +47,8 @@ _CHUNK_DOUBLES = 1 << 22
 
 #: MuJoCo's mjMAXVAL: a larger control is zeroed with the warning mjWARN_BADCTRL
 _MAX_CTRL = 1e10
+#: a state of at most this many entries is recorded entry by entry (else by slices)
+_SCALAR_STATE = 8
 
 _DIRECT_SENSORS = {
     int(mujoco.mjtSensor.mjSENS_JOINTPOS): "qpos",
@@ -235,12 +237,17 @@ class MujocoPlant(Plant):
         srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
         #: each output's (array, address), views of this MjData's buffers
         self._out = tuple((srcs[k], a) for k, a in self._sensor_src)
+        #: each state entry's (array, address) where the state is short (one scalar copy each
+        #: costs less than two slice copies up to about 8 entries); None: read by slices
+        self._xsrc = (tuple([(d.qpos, int(a)) for a in self._qadr]
+                            + [(d.qvel, int(a)) for a in self._vadr])
+                      if 2 * self._nq <= _SCALAR_STATE else None)
 
     def __getstate__(self) -> dict[str, Any]:
         """Copy or pickle without the cached views (they would be detached from the copy's
         MjData); :meth:`__setstate__` rebuilds them."""
         state = self.__dict__.copy()
-        for key in ("_bad", "_hot", "_out"):
+        for key in ("_bad", "_hot", "_out", "_xsrc"):
             state.pop(key, None)
         state["_rollout"], state["_rdata"] = None, []  # a thread pool: made again when needed
         return state
@@ -269,6 +276,8 @@ class MujocoPlant(Plant):
         return self._state1()
 
     def _state1(self) -> Array:
+        if self._xsrc is not None:
+            return np.array([src.item(a) for src, a in self._xsrc])
         d = self.data
         if self._slices is not None:
             qs, vs = self._slices
@@ -331,7 +340,8 @@ class MujocoPlant(Plant):
         B, T, _ = U.shape
         X = np.empty((B, T, 2 * self._nq))
         Yc = np.empty((B, T, len(self._output_names)))
-        if T == 0 or float(np.abs(U).max()) < _MAX_CTRL:  # every input usable (the usual case)
+        if (-_MAX_CTRL < U.item() < _MAX_CTRL if U.size == 1 else  # one input, one sample
+                T == 0 or float(np.abs(U).max()) < _MAX_CTRL):  # every input usable (usual)
             jbad, ok, bad = T, None, None
         else:                                             # NaN, inf or too large somewhere
             ok = np.abs(U) < _MAX_CTRL                    # False for NaN
@@ -343,6 +353,8 @@ class MujocoPlant(Plant):
             if (self._rollout_ok and jbad * nstep >= 2
                     and (B > 1 or jbad * nstep >= _ROLLOUT_MIN_STEPS)):
                 self._run_rollout(U[:, :jbad], nstep, X, Yc, fails)
+            elif B == 1:  # one member lives in self.data
+                self._run_loop(0, U[0] if jbad == T else U[0, :jbad], nstep, X[0], Yc[0], fails)
             else:
                 for b in range(B):
                     self._load(b)
@@ -374,15 +386,20 @@ class MujocoPlant(Plant):
         ``mj_step``, recording into ``X`` ``(T, n)`` and ``Yc`` ``(T, p)``."""
         m, d, ctrl, bad = self._hot
         aid_arr = self._aid_arr
-        qpos, qvel = d.qpos, d.qvel
-        qa, va, nq = self._qadr, self._vadr, self._nq
-        if self._slices is not None:
-            qa, va = self._slices  # type: ignore[assignment]  # contiguous joints: a view
-        out, forward = self._out, self._needs_forward
+        xsrc, out, forward = self._xsrc, self._out, self._needs_forward
+        if xsrc is None:
+            qpos, qvel = d.qpos, d.qvel
+            qa, va, nq = self._qadr, self._vadr, self._nq
+            if self._slices is not None:
+                qa, va = self._slices  # type: ignore[assignment]  # contiguous joints: a view
         a0 = int(aid_arr[0]) if aid_arr.size == 1 else -1
         for j in range(U.shape[0]):
-            X[j, :nq] = qpos[qa]
-            X[j, nq:] = qvel[va]
+            if xsrc is not None:
+                for c, (src, a) in enumerate(xsrc):
+                    X[j, c] = src[a]
+            else:
+                X[j, :nq] = qpos[qa]
+                X[j, nq:] = qvel[va]
             if forward:
                 mujoco.mj_forward(m, d)
             for c, (src, a) in enumerate(out):
