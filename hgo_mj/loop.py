@@ -207,11 +207,11 @@ class Loop:
             raise LoopFailure(None, self.k + j - 1, float(t[max(j - 1, 0)]), exc, seg) from exc
         Ym = self._measure(t, Yc)
         blocks: dict[str, Block] = {}
-        items = list(self.observers.items())
-        for i, (name, ob) in enumerate(items):
+        for i, (name, ob) in enumerate(self.observers.items()):
             try:
                 blocks[name] = self._advance(name, ob, Ym, U)
             except _Found as found:
+                items = list(self.observers.items())
                 j = found.row
                 blocks = {n: _head(b, j) for n, b in blocks.items()}
                 blocks[name] = found.head

@@ -282,7 +282,8 @@ class Observer(ABC):
         self._inverse_failures = np.zeros(B, dtype=np.int64)
         #: the width of ``x_hat`` (``len(state_names)``, looked up once per reset)
         self._nx = len(self.state_names)
-        self._x_held = np.full((B, self._nx), np.nan)
+        self._x_held = np.empty((B, self._nx))
+        self._x_held.fill(np.nan)  # np.full's values, without its Python-level wrapper
         self._reset(x0, z0, u)
 
     def advance(self, Y: Any, U: Any, dt: float) -> Block:

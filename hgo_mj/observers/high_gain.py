@@ -545,8 +545,9 @@ class HighGainObserver(_Chains, Observer):
     def _current(self) -> tuple[Array, Array, Array]:
         z = self._sat(self._Z)
         z = z.copy() if z is self._Z else z
-        return (z.copy() if self._identity else self._X.copy(), z,
-                np.full((self.batch, 1), self.k_))
+        k = np.empty((self.batch, 1))
+        k.fill(self.k_)  # np.full's values, without its Python-level wrapper
+        return (z.copy() if self._identity else self._X.copy(), z, k)
 
     def params(self) -> dict[str, Any]:
         return {"k": self.k_, "p": self.p.tolist(), "order": self.n,

@@ -68,7 +68,7 @@ def initial_states(x0: Any, batch: Any, default: Array, n: int) -> tuple[Array, 
         else:
             raise DimensionError(f"x0 must be (n,) or (B, n) with n = {n}; found shape "
                                  f"{x.shape}")
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             raise DesignError(f"x0 must be finite; found {x.tolist()}")
     batched = batch is not None or (x0 is not None and np.ndim(x0) == 2)
     B = x.shape[0] if batch is None else int(batch)

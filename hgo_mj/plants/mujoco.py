@@ -166,6 +166,7 @@ class MujocoPlant(Plant):
         self._aid_arr = np.array(self._aid, dtype=np.intp)
         self._rollout: Any = None
         self._rdata: list[Any] = []
+        self._cache()
         self.reset()
 
     def _batch_layout(self) -> None:
@@ -210,7 +211,6 @@ class MujocoPlant(Plant):
         d.qpos[self._qadr] = X0[0, : self._nq]
         d.qvel[self._vadr] = X0[0, self._nq:]
         mujoco.mj_forward(m, d)
-        self._cache()
         if B > 1:
             # the members' full physics states: the reset one with their qpos and qvel
             # (mj_forward changes none of it), zero controls and warm starts
@@ -224,7 +224,7 @@ class MujocoPlant(Plant):
 
     def _cache(self) -> None:
         """What :meth:`_run_loop` needs, in one attribute each: MjData's arrays are views of
-        buffers that live as long as the MjData (rebuilt after a copy)."""
+        buffers that live as long as the MjData (made once, and again after a copy)."""
         m, d = self.model, self.data
         w = mujoco.mjtWarning
         self._bad = tuple(d.warning[int(k)] for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
