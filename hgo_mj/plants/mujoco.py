@@ -164,6 +164,8 @@ class MujocoPlant(Plant):
         self.nthread = int(nthread)
         self._batch_layout()
         self._aid_arr = np.array(self._aid, dtype=np.intp)
+        #: the one actuator's ctrl index (-1: several, set through ``_aid_arr``)
+        self._a0 = int(self._aid[0]) if len(self._aid) == 1 else -1
         self._rollout: Any = None
         self._rdata: list[Any] = []
         self._cache()
@@ -203,8 +205,10 @@ class MujocoPlant(Plant):
         One member lives in :attr:`data`; B > 1 members are kept as full physics states
         ``(B, nstate)`` with their controls, and are loaded into :attr:`data` to be read."""
         if x0 is not None and batch is None and np.ndim(x0) <= 1:
-            x0 = vector("x0", x0, 2 * self._nq)
-        X0, self.batched = initial_states(x0, batch, self._x0, 2 * self._nq)
+            # one state for one unbatched member, checked (a fresh finite (n,) array) once
+            X0, self.batched = vector("x0", x0, 2 * self._nq).reshape(1, -1), False
+        else:
+            X0, self.batched = initial_states(x0, batch, self._x0, 2 * self._nq)
         self.batch = B = X0.shape[0]
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
@@ -385,14 +389,13 @@ class MujocoPlant(Plant):
         """Member ``b`` (loaded in :attr:`data`) through the samples of ``U`` ``(T, m)`` with
         ``mj_step``, recording into ``X`` ``(T, n)`` and ``Yc`` ``(T, p)``."""
         m, d, ctrl, bad = self._hot
-        aid_arr = self._aid_arr
+        aid_arr, a0 = self._aid_arr, self._a0
         xsrc, out, forward = self._xsrc, self._out, self._needs_forward
         if xsrc is None:
             qpos, qvel = d.qpos, d.qvel
             qa, va, nq = self._qadr, self._vadr, self._nq
             if self._slices is not None:
                 qa, va = self._slices  # type: ignore[assignment]  # contiguous joints: a view
-        a0 = int(aid_arr[0]) if aid_arr.size == 1 else -1
         for j in range(U.shape[0]):
             if xsrc is not None:
                 for c, (src, a) in enumerate(xsrc):
