@@ -330,9 +330,9 @@ class Observer(ABC):
             lost = None
         if not U.flags.c_contiguous:
             U = np.ascontiguousarray(U)
-        self._advance(Yo, U, dt, X, Z, D[:, :, :nd])
-        if lost is None:
-            D[:, :, nd] = self._dropouts[0] if B == 1 else self._dropouts[:, None]
+        self._advance(Yo, U, dt, X, Z, D[..., :nd])
+        if lost is None:  # (D[..., nd] and a Python number: the cheapest indexing for one row)
+            D[..., nd] = self._dropouts.item(0) if B == 1 else self._dropouts[:, None]
         else:
             D[:, :, nd] = self._dropouts[:, None] + lost
             self._dropouts = self._dropouts + lost[:, -1]
