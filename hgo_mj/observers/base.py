@@ -65,6 +65,8 @@ from ..systems.base import System
 
 Array = NDArray[np.float64]
 
+_F64 = np.dtype(np.float64)
+
 #: the reactions to a sample period at which the observer's update is unstable
 ON_UNSTABLE = ("raise", "warn", "ignore")
 
@@ -307,8 +309,10 @@ class Observer(ABC):
         """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float); the rows are
         written into ``out`` where it is given with these B and T (a caller that keeps no
         rows reuses its block), else into a new :class:`Block`."""
-        # a copy of the observer's channels: a family may write into its measurement block
-        Yo = np.array(Y[:, :, self._cols_index], dtype=np.float64, order="C")
+        # a C-contiguous float64 copy of the observer's channels: a family may write into its
+        # measurement block
+        Yo = Y[..., self._cols_index]
+        Yo = Yo.copy() if Yo.dtype is _F64 else np.array(Yo, dtype=np.float64, order="C")
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
         if out is not None and out.z_hat.shape[:2] == (B, T):
