@@ -154,6 +154,70 @@ def _parts(rounds: int, n: int) -> dict[str, float]:
     }, rounds, min)
 
 
+#: the calls one ``HgoEnv.step`` makes, timed inside running steps by :func:`_in_step`
+IN_STEP = ("action", "segment", "sample", "observe", "reward")
+
+
+def _in_step(rounds: int, n: int) -> dict[str, float]:
+    """Seconds of each call one step of PendulumSwingUp makes, timed inside running steps
+    (``perf_counter_ns`` around the calls: the action, ``Loop.segment``, ``HgoEnv._observe``
+    and, inside it, ``Loop.sample``, the reward), and the same calls alone right after with the
+    same clock (``alone_<name>``); best burst of each. On an environment of its own."""
+    env = gym.make(TARGET_ID).unwrapped
+    env.reset(seed=0)
+    loop = env.loop
+    a = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
+    clk = time.perf_counter_ns
+    acc = dict.fromkeys(IN_STEP, 0)
+
+    def timed(key: str, f: Callable[..., Any]) -> Callable[..., Any]:
+        def g(*args: Any) -> Any:
+            t0 = clk()
+            out = f(*args)
+            acc[key] += clk() - t0
+            return out
+        return g
+
+    calls = {"action": env._action, "segment": loop.segment, "sample": loop.sample,
+             "observe": env._observe, "reward": env.task.reward}
+    env._action, loop.segment, loop.sample = (timed(k, calls[k]) for k in IN_STEP[:3])
+    env._observe, env.task.reward = timed("observe", calls["observe"]), timed("reward",
+                                                                             calls["reward"])
+    for _ in range(200):
+        env.step(a)
+    _, _, Ym = calls["sample"]()
+    x, U = env.plant.state.tolist(), np.zeros((1, 1, len(env.plant.input_names)))
+
+    def segment() -> None:
+        loop._pending = (loop.k, Ym)  # as in a step: the measurement drawn by the last sample
+        calls["segment"](U)
+
+    def sample() -> None:
+        loop._pending = None
+        calls["sample"]()
+
+    def observe() -> None:  # as in a step: Loop.sample draws the new instant's measurement
+        loop._pending = None
+        calls["observe"]([0.0], None)
+
+    alone = {"action": lambda: calls["action"](a), "segment": segment, "sample": sample,
+             "observe": observe, "reward": lambda: calls["reward"](x, [0.0], ())}
+    best: dict[str, float] = {}
+    for _ in range(rounds):
+        for k in IN_STEP:
+            acc[k] = 0
+        for _ in range(n):
+            env.step(a)
+        inside = {k: v / n * 1e-9 for k, v in acc.items()}
+        for k in IN_STEP:
+            best[k] = min(best.get(k, np.inf), inside[k])
+            t0 = clk()
+            for _ in range(n):
+                alone[k]()
+            best["alone_" + k] = min(best.get("alone_" + k, np.inf), (clk() - t0) / n * 1e-9)
+    return best
+
+
 def run(rounds: int = 200, steps: int = 200) -> dict[str, dict[str, float]]:
     envs = {k: gym.make(i, **kw) for k, (i, kw) in CONFIGS.items()}
     for e in envs.values():
@@ -178,7 +242,8 @@ def run(rounds: int = 200, steps: int = 200) -> dict[str, dict[str, float]]:
     for v in venvs.values():
         v.close()
     out = {k: {"step": step[k], "reset": reset[k], "vector": vec[k]} for k in CONFIGS}
-    out["parts"] = _parts(rounds, steps)
+    out["parts"] = {**_parts(rounds, steps), **{"in_" + k: v for k, v in
+                                                 _in_step(rounds, steps).items()}}
     return out
 
 
@@ -242,6 +307,22 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
         f"the parts, caches shared by the whole step) | {rest:.2f} |",
         f"| Gymnasium's wrappers (the registered step in the first table less the unwrapped "
         f"one) | {tgt['step'] * 1e6 - us['step']:.2f} |",
+        "",
+        "Inside a running step the same calls cost more than alone: timed with "
+        "`perf_counter_ns` around each call the step makes (the timing wrapper's own call, "
+        "about 0.1 us, included; `HgoEnv._observe` includes the wrapped `Loop.sample`), "
+        "against the same calls alone right after with the same clock (best burst of each, "
+        "us):",
+        "",
+        "| call | inside a step | alone | ratio |",
+        "|---|---:|---:|---:|",
+        *(f"| {label} | {us['in_' + k]:.2f} | {us['in_alone_' + k]:.2f} | "
+          f"{us['in_' + k] / us['in_alone_' + k]:.2f} |" for k, label in (
+              ("action", "the action (`HgoEnv._action`)"),
+              ("segment", "`Loop.segment`"),
+              ("observe", "`HgoEnv._observe`, observation and `info`"),
+              ("sample", "- of which `Loop.sample` (state, outputs, the sensor's draw)"),
+              ("reward", "the task's reward"))),
     ]
     lines += [
         "",
