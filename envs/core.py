@@ -468,12 +468,13 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         nu = len(self.plant.input_names)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(nu,), dtype=np.float32)
         self._nu, self._scale = nu, cfg.task.max_action
-        self._scale_arr = np.asarray(cfg.task.max_action, dtype=float)
         self._clip = cfg.invalid_action == "clip"
         self._full_info = cfg.info_level == "full"
         self._goal: tuple[float, ...] = ()
         self._y_held = [0.0] * len(self.output_names)
-        self._row: dict[str, Any] = {}
+        self._ashape = (nu,)
+        self._last: tuple[Any, ...] = ()
+        self._reward = 0.0
 
     # ------------------------------------------------------------------ construction
     def _make_plant(self, cfg: EnvConfig) -> MujocoPlant:
@@ -510,8 +511,6 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         #: ``(state index, estimate index)`` of each state the observer estimates
         self._err_pairs = [(j, est[name]) for j, name in enumerate(self.state_names)
                            if name in est]
-        self._err_x = np.array([j for j, _ in self._err_pairs], dtype=np.intp)
-        self._err_h = np.array([i for _, i in self._err_pairs], dtype=np.intp)
         self.error_names = tuple(self.state_names[j] for j, _ in self._err_pairs)
         self.diagnostic_names = tuple(k for k in obs.diagnostic_names if k != "dropouts")
 
@@ -607,7 +606,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         self._goal = goal
         self.loop.reset(x0, seed=env_seed(seed))
         self._y_held = [0.0] * len(self.output_names)
-        return self._observe(np.zeros(self._nu), 0.0)
+        obs, info, _ = self._observe([0.0] * self._nu, 0.0)
+        return obs, info
 
     def _options(self, options: Mapping[str, Any], x0: list[float], goal: tuple[float, ...]
                  ) -> tuple[list[float], tuple[float, ...]]:
@@ -632,47 +632,50 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             at :meth:`reset`, plus (``info_level="full"``) the task's reward terms.
         """
         u = self._action(action)
-        U = u.reshape(1, 1, -1)  # held over the control period's samples
-        if self._n_samples > 1:
-            U = np.repeat(U, self._n_samples, axis=1)
-        try:
-            self.loop.segment(U)
+        try:  # u held over the control period's samples, (1, T, m)
+            self.loop.segment(np.array([[u] * self._n_samples]))
         except LoopFailure as exc:
             raise DivergenceError(f"{exc}") from exc.cause
-        obs, info = self._observe(u, None)
-        x = self._row["x"]
-        reward, terms = self.task.reward(x, u.tolist(), self._goal)
+        obs, info, x = self._observe(u, None)
+        reward, terms = self.task.reward(x, u, self._goal)
         if self._full_info:
             info.update(terms)
-        self._row["reward"] = reward
+        self._reward = reward
         return obs, reward, self.task.terminated(x), False, info
 
-    def _action(self, action: Any) -> Array:
-        """``u = action * max_action``, the action checked (NaN raises; outside [-1, 1]: clip
-        or raise as configured)."""
-        try:
-            a = np.asarray(action, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise DimensionError(f"action must be a sequence of {self._nu} number(s); found "
-                                 f"{action!r}") from None
-        if np.ndim(action) == 0:
-            raise DimensionError(f"action must be a sequence of {self._nu} number(s); found "
-                                 f"{action!r}")
-        if a.size != self._nu:
-            raise DimensionError(f"action must have {self._nu} entries; found {a.size}")
-        if not np.all((a >= -1.0) & (a <= 1.0)):
-            for i, v in enumerate(a.tolist()):
+    def _action(self, action: Any) -> list[float]:
+        """``u = action * max_action`` as floats, the action checked (NaN raises; outside
+        [-1, 1]: clip or raise as configured)."""
+        if (type(action) is np.ndarray and action.shape == self._ashape
+                and action.dtype.kind == "f"):  # the usual action: float32 or float64
+            a = action.tolist()
+        else:
+            try:
+                arr = np.asarray(action, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise DimensionError(f"action must be a sequence of {self._nu} number(s); "
+                                     f"found {action!r}") from None
+            if np.ndim(action) == 0:
+                raise DimensionError(f"action must be a sequence of {self._nu} number(s); "
+                                     f"found {action!r}")
+            if arr.size != self._nu:
+                raise DimensionError(f"action must have {self._nu} entries; found {arr.size}")
+            a = arr.tolist()
+        for i, v in enumerate(a):
+            if not -1.0 <= v <= 1.0:
                 if v != v:
                     raise DesignError(f"action[{i}] is NaN")
-                if not -1.0 <= v <= 1.0 and not self._clip:
+                if not self._clip:
                     raise DesignError(f"action[{i}] = {v:g} is outside the action space [-1, 1] "
                                       f"(invalid_action='raise')")
-            a = np.clip(a, -1.0, 1.0)
-        return a * self._scale_arr
+                a[i] = -1.0 if v < -1.0 else 1.0
+        return [v * s for v, s in zip(a, self._scale)]
 
-    def _observe(self, u: Array, reward: float | None) -> tuple[Array, dict[str, Any]]:
-        """The observation and ``info`` at the current instant: the true state, the newest
-        measurement and the observer's estimate (from the measurements before it)."""
+    def _observe(self, u: list[float], reward: float | None
+                 ) -> tuple[Array, dict[str, Any], list[float]]:
+        """The observation, ``info`` and the true state at the current instant: the true
+        state, the newest measurement and the observer's estimate (from the measurements
+        before it)."""
         X, Yc, Ym = self.loop.sample()
         x, y = X[0, 0].tolist(), Ym[0, 0].tolist()
         obs = self.observer
@@ -682,9 +685,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             x_hat = obs._current()[0][0].tolist()
             if self._full_info or mode == "estimate+diagnostics":  # else read when asked
                 diag = obs.diagnostics()
-        self._row = {"t": self.loop.t, "x": x, "y": y, "y_clean": Yc[0, 0].tolist(),
-                     "u": u.tolist(), "x_hat": x_hat, "diagnostics": diag,
-                     "reward": 0.0 if reward is None else reward}
+        # the row a recording reads (current_row), kept as it is and built when asked
+        self._last = (self.loop.t, x, y, Yc, u, x_hat, diag)
+        self._reward = 0.0 if reward is None else reward
         extra: Sequence[float] = ()
         if mode in ("estimate", "estimate+diagnostics"):
             # these modes need an observer (refused at construction without one)
@@ -703,16 +706,17 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                 if v == v:
                     held[i] = v
             vals = held
-        return self.encoder(vals, self._goal, extra), self._info(x, y, x_hat, diag)
+        return self.encoder(vals, self._goal, extra), self._info(X[0, 0], x, y, x_hat, diag), x
 
-    def _info(self, x: list[float], y: list[float], x_hat: list[float] | None,
+    def _info(self, xa: Array, x: list[float], y: list[float], x_hat: list[float] | None,
               diag: dict[str, Any] | None) -> dict[str, Any]:
-        xa = np.array(x)
+        """``info``; ``xa`` is the true state as a fresh array of its own (it is handed out)."""
         if x_hat is None:
             info: dict[str, Any] = {"state": xa}
         else:
-            xh = np.array(x_hat)
-            info = {"state": xa, "estimate": xh, "error": xa[self._err_x] - xh[self._err_h]}
+            info = {"state": xa, "estimate": np.array(x_hat),
+                    "error": np.array([x[j] - x_hat[i] for j, i in self._err_pairs],
+                                      dtype=np.float64)}
         if self._full_info:
             info["time"] = self.loop.t
             info["measurement"] = np.array(y)
@@ -726,10 +730,12 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         """The last reset's or step's row: time ``t``, true state ``x``, measurement ``y``,
         clean outputs ``y_clean``, input ``u``, estimate ``x_hat`` and ``diagnostics`` (None
         without an observer), ``reward`` (0 at a reset); what a recording wrapper writes."""
-        row = dict(self._row)
-        if row["diagnostics"] is None and self.observer is not None:
-            row["diagnostics"] = self.observer.diagnostics()  # the state has not moved since
-        return row
+        t, x, y, Yc, u, x_hat, diag = self._last
+        if diag is None and self.observer is not None:
+            diag = self.observer.diagnostics()  # the state has not moved since
+        return {"t": t, "x": list(x), "y": list(y), "y_clean": Yc[0, 0].tolist(), "u": list(u),
+                "x_hat": None if x_hat is None else list(x_hat), "diagnostics": diag,
+                "reward": self._reward}
 
     def recording_metadata(self) -> dict[str, Any]:
         """What a recording's ``/scenario`` document holds: the environment (registered id,

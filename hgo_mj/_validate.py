@@ -38,7 +38,7 @@ def vector(name: str, value: Any, n: int | None = None, *, finite: bool = True) 
         raise DimensionError(f"{name} must be 1-D; found shape {np.shape(value)}")
     if n is not None and a.shape != (n,):
         raise DimensionError(f"{name} must have length {n}; found length {a.size}")
-    if finite and not np.all(np.isfinite(a)):
+    if finite and not np.isfinite(a).all():
         raise DesignError(f"{name} must be finite; found {a.tolist()}")
     return a
 

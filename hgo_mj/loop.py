@@ -128,7 +128,9 @@ class Loop:
         Keep what a stored run needs (default): each observer's estimate before a segment,
         and a copy of its state before a segment of several samples, so that a failure is
         found to the sample (see the module docstring). An environment, which keeps no rows,
-        turns it off: a failure then stops at the segment.
+        turns it off: a failure then stops at the segment, and the observers' rows of a
+        :class:`Segment` are written again by the next segment of the same length (keep a
+        copy to keep them).
     """
 
     def __init__(self, plant: Plant, sensor: SensorChain | None,
@@ -152,6 +154,8 @@ class Loop:
         self.wall: dict[str, float] = {}
         #: (sample index, measurement) drawn by :meth:`sample` and not yet consumed
         self._pending: tuple[int, Array] | None = None
+        #: each observer's last block, written again by the next segment (exact=False only)
+        self._blocks: dict[str, Block] = {}
 
     @property
     def t(self) -> float:
@@ -190,7 +194,8 @@ class Loop:
         docstring). Raises :class:`LoopFailure` on a failure inside it."""
         T = U.shape[1]
         Ts = self.periods.sample
-        t = np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64)
+        t = (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
+             np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64))
         before = self.estimates() if self.exact else {}
         try:
             X, Yc = self.plant.run(U, self.periods.steps)
@@ -202,11 +207,11 @@ class Loop:
             raise LoopFailure(None, self.k + j - 1, float(t[max(j - 1, 0)]), exc, seg) from exc
         Ym = self._measure(t, Yc)
         blocks: dict[str, Block] = {}
-        items = list(self.observers.items())
-        for i, (name, ob) in enumerate(items):
+        for i, (name, ob) in enumerate(self.observers.items()):
             try:
                 blocks[name] = self._advance(name, ob, Ym, U)
             except _Found as found:
+                items = list(self.observers.items())
                 j = found.row
                 blocks = {n: _head(b, j) for n, b in blocks.items()}
                 blocks[name] = found.head
@@ -231,7 +236,9 @@ class Loop:
         snap = copy.deepcopy(ob.__dict__) if T > 1 and self.exact else None
         t0 = time.perf_counter()
         try:
-            blk = ob._advance_checked(Ym, U, self.periods.sample)
+            # a loop that keeps no rows (exact=False) reuses each observer's block
+            blk = ob._advance_checked(Ym, U, self.periods.sample,
+                                      None if self.exact else self._blocks.get(name))
         except DimensionError:
             raise  # a shape mistake, not a divergence
         except _FAILURES as exc:
@@ -240,6 +247,8 @@ class Loop:
             ob.__dict__.update(snap)
             raise _replay(ob, Ym, U, self.periods.sample) from exc
         self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
+        if not self.exact:
+            self._blocks[name] = blk
         return blk
 
     def sample(self) -> tuple[Array, Array, Array]:
@@ -247,8 +256,9 @@ class Loop:
         each, without moving on (the last row of a run; an environment's newest measurement).
         The sensor draws for this instant once: the next :meth:`segment` consumes this
         measurement as its first."""
-        X = np.reshape(self.plant.state, (self.batch, 1, -1)).copy()
-        Yc = np.reshape(self.plant.outputs(), (self.batch, 1, -1)).copy()
+        B = self.batch  # the plant's state and outputs are fresh arrays: no copies
+        X = np.asarray(self.plant.state, dtype=np.float64).reshape(B, 1, -1)
+        Yc = np.asarray(self.plant.outputs(), dtype=np.float64).reshape(B, 1, -1)
         if self._pending is None or self._pending[0] != self.k:
             self._pending = (self.k, self._measure(np.array([self.t]), Yc, fresh=True))
         return X, Yc, self._pending[1].copy()
@@ -257,15 +267,16 @@ class Loop:
         """The sensor chain over the rows ``Yc`` at ``t``; a measurement already drawn for the
         first instant by :meth:`sample` is used, not drawn again."""
         pending, self._pending = (None if fresh else self._pending), None
-        if self.sensor is None:
-            return Yc.copy()
         if pending is not None and pending[0] == self.k:
+            if Yc.shape[1] == 1:
+                return pending[1]  # the loop's own array (sample() hands out copies)
             Ym = np.empty_like(Yc)
             Ym[:, :1] = pending[1]
-            if Yc.shape[1] > 1:
-                Ym[:, 1:] = self.sensor.apply(t[1:], Yc[:, 1:])
+            Ym[:, 1:] = self._measure(t[1:], Yc[:, 1:])
             return Ym
-        return self.sensor.apply(t, Yc)
+        if self.sensor is None or Yc.shape[1] == 0:
+            return Yc.copy()
+        return self.sensor._apply(t, Yc)
 
 
 class Drive:

@@ -1039,11 +1039,18 @@ class SensorChain:
                                  f"({self.batch}, {tt.shape[0]}, p); found shape {y.shape}")
         if not np.all(np.isfinite(tt)):
             raise DesignError(f"SensorChain.apply: t must be finite; found {tt.tolist()}")
-        if not self._stages or tt.shape[0] == 0:
+        if tt.shape[0] == 0:
             return y.copy()
+        return self._apply(tt, y)
+
+    def _apply(self, t: Array, Y: Array) -> Array:
+        """:meth:`apply` without its checks, for the loop (``t`` finite float ``(T,)``, ``Y``
+        float ``(B, T, p)`` with this chain's B, T >= 1): a new array."""
+        if not self._stages:
+            return Y.copy()
         for s, draws in zip(self._stages, self._streams):
-            y = s.apply(tt, y, draws)
-        return y
+            Y = s.apply(t, Y, draws)
+        return Y
 
     def __len__(self) -> int:
         return len(self._stages)

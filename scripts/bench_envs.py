@@ -35,6 +35,7 @@ from typing import Any
 
 import gymnasium as gym
 import hgo_mj.envs  # noqa: F401  (registers the environments)
+import mujoco
 import numpy as np
 
 from hgo_mj._bench import header, write_section
@@ -99,18 +100,38 @@ def _interleaved(fns: dict[str, Callable[[], float]], rounds: int, best: Callabl
 
 
 def _parts(rounds: int, n: int) -> dict[str, float]:
-    """CPU seconds of one sample of PendulumSwingUp's parts, alone: the sensor chain's
-    ``apply`` on one sample of one stream (on a copy of the environment's chain) and the
-    observer's unbatched ``update`` (both derived forms of the batched primitives)."""
-    reg = gym.make(TARGET_ID).unwrapped
-    free = gym.make(TARGET_ID, observer_kwargs={"k": 20.0, "model": False}).unwrapped
-    for e in (reg, free):
-        e.reset(seed=0)
-    y = np.asarray(reg.plant.outputs(), dtype=float).reshape(-1)
-    u, ts = np.array([0.1]), reg.sample_period
-    chain = copy.deepcopy(reg.sensor)
-    chain.reset(0)
-    t1, Y1 = np.zeros(1), y[None, None]
+    """CPU seconds of the parts of one step of PendulumSwingUp as registered, each alone and
+    as the environment's loop calls it, on an environment of its own (interleaved, best
+    burst): the whole unwrapped ``step``; ``Loop.segment`` of the control period (one sample,
+    the measurement drawn before); in it ``MujocoPlant.run`` (and the bare ``mj_step`` of the
+    same physics steps) and the observer's advance (``Loop._advance``: the timed call of
+    ``Observer._advance_checked``); the action's check; the observation and ``info``
+    (``HgoEnv._observe`` with the measurement drawn already: ``Loop.sample``'s reads of the
+    state and clean outputs, the estimate, the encoder, ``info``); the sensor chain's draw
+    for one sample (``SensorChain._apply``); the task's reward."""
+    env = gym.make(TARGET_ID).unwrapped
+    env.reset(seed=0)
+    loop, plant, ob = env.loop, env.plant, env.observer
+    a = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
+    for _ in range(200):
+        env.step(a)
+    U = np.zeros((1, 1, len(plant.input_names)))
+    steps = loop.periods.steps
+    nstep = steps * plant.substeps
+    _, Yc, Ym = loop.sample()
+    t1 = np.zeros(1)
+    chain = copy.deepcopy(env.sensor)
+    m, d = plant.model, plant.data
+
+    def segment() -> None:
+        loop._pending = (loop.k, Ym)
+        loop.segment(U)
+
+    def observe() -> None:
+        loop._pending = (loop.k, Ym)  # the measurement drawn already: no sensor draw
+        env._observe([0.0], None)
+
+    x = plant.state.tolist()
 
     def burst(f: Callable[[], Any]) -> Callable[[], float]:
         def go() -> float:
@@ -121,10 +142,80 @@ def _parts(rounds: int, n: int) -> dict[str, float]:
         return go
 
     return _interleaved({
-        "update_model": burst(lambda: reg.observer.update(y, u, ts)),
-        "update_free": burst(lambda: free.observer.update(y, u, ts)),
-        "stage": burst(lambda: chain.apply(t1, Y1)),
+        "step": burst(lambda: env.step(a)),
+        "segment": burst(segment),
+        "plant_run": burst(lambda: plant.run(U, steps)),
+        "mj_step": burst(lambda: mujoco.mj_step(m, d, nstep)),
+        "observer": burst(lambda: loop._advance("observer", ob, Ym, U)),
+        "action": burst(lambda: env._action(a)),
+        "observe": burst(observe),
+        "sensor": burst(lambda: chain._apply(t1, Yc)),
+        "reward": burst(lambda: env.task.reward(x, [0.0], ())),
     }, rounds, min)
+
+
+#: the calls one ``HgoEnv.step`` makes, timed inside running steps by :func:`_in_step`
+IN_STEP = ("action", "segment", "sample", "observe", "reward")
+
+
+def _in_step(rounds: int, n: int) -> dict[str, float]:
+    """Seconds of each call one step of PendulumSwingUp makes, timed inside running steps
+    (``perf_counter_ns`` around the calls: the action, ``Loop.segment``, ``HgoEnv._observe``
+    and, inside it, ``Loop.sample``, the reward), and the same calls alone right after with the
+    same clock (``alone_<name>``); best burst of each. On an environment of its own."""
+    env = gym.make(TARGET_ID).unwrapped
+    env.reset(seed=0)
+    loop = env.loop
+    a = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
+    clk = time.perf_counter_ns
+    acc = dict.fromkeys(IN_STEP, 0)
+
+    def timed(key: str, f: Callable[..., Any]) -> Callable[..., Any]:
+        def g(*args: Any) -> Any:
+            t0 = clk()
+            out = f(*args)
+            acc[key] += clk() - t0
+            return out
+        return g
+
+    calls = {"action": env._action, "segment": loop.segment, "sample": loop.sample,
+             "observe": env._observe, "reward": env.task.reward}
+    env._action, loop.segment, loop.sample = (timed(k, calls[k]) for k in IN_STEP[:3])
+    env._observe, env.task.reward = timed("observe", calls["observe"]), timed("reward",
+                                                                             calls["reward"])
+    for _ in range(200):
+        env.step(a)
+    _, _, Ym = calls["sample"]()
+    x, U = env.plant.state.tolist(), np.zeros((1, 1, len(env.plant.input_names)))
+
+    def segment() -> None:
+        loop._pending = (loop.k, Ym)  # as in a step: the measurement drawn by the last sample
+        calls["segment"](U)
+
+    def sample() -> None:
+        loop._pending = None
+        calls["sample"]()
+
+    def observe() -> None:  # as in a step: Loop.sample draws the new instant's measurement
+        loop._pending = None
+        calls["observe"]([0.0], None)
+
+    alone = {"action": lambda: calls["action"](a), "segment": segment, "sample": sample,
+             "observe": observe, "reward": lambda: calls["reward"](x, [0.0], ())}
+    best: dict[str, float] = {}
+    for _ in range(rounds):
+        for k in IN_STEP:
+            acc[k] = 0
+        for _ in range(n):
+            env.step(a)
+        inside = {k: v / n * 1e-9 for k, v in acc.items()}
+        for k in IN_STEP:
+            best[k] = min(best.get(k, np.inf), inside[k])
+            t0 = clk()
+            for _ in range(n):
+                alone[k]()
+            best["alone_" + k] = min(best.get("alone_" + k, np.inf), (clk() - t0) / n * 1e-9)
+    return best
 
 
 def run(rounds: int = 200, steps: int = 200) -> dict[str, dict[str, float]]:
@@ -151,8 +242,15 @@ def run(rounds: int = 200, steps: int = 200) -> dict[str, dict[str, float]]:
     for v in venvs.values():
         v.close()
     out = {k: {"step": step[k], "reset": reset[k], "vector": vec[k]} for k in CONFIGS}
-    out["parts"] = _parts(rounds, steps)
+    out["parts"] = {**_parts(rounds, steps), **{"in_" + k: v for k, v in
+                                                 _in_step(rounds, steps).items()}}
     return out
+
+
+def plant_steps() -> int:
+    """MuJoCo steps per sample of the registered environment (``mj_step``'s ``nstep``)."""
+    env = gym.make(TARGET_ID).unwrapped
+    return int(env.loop.periods.steps * env.plant.substeps)
 
 
 def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
@@ -176,23 +274,55 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
     ok = (tgt["step"] <= 0.5 * ref["step"], tgt["reset"] <= ref["reset"],
           tgt["vector"] >= ref["vector"])
     bare = res[BARE]
+    us = {k: v * 1e6 for k, v in parts.items()}
+    seg_rest = us["segment"] - us["plant_run"] - us["observer"]
+    named = ("action", "segment", "observe", "sensor", "reward")
+    rest = us["step"] - sum(us[k] for k in named)
     lines += [
         "",
         f"The loop alone (`{BARE.split(', ', 1)[1]}`) steps in {bare['step'] * 1e6:.1f} us "
-        f"({bare['step'] / ref['step']:.2f}x): two MuJoCo steps of the pendulum (about 2 us), "
-        f"the action, the state read, reward, observation and `info`, and Gymnasium's three "
-        f"wrappers. The sensor stage and the observer add "
-        f"{(tgt['step'] - bare['step']) * 1e6:.1f} us: the sensor chain (one sample of one "
-        f"stream through `SensorChain.apply`, {parts['stage'] * 1e6:.2f} us alone: the Gaussian "
-        f"stage's standard normals handed out from a block drawn in advance from the stream's "
-        f"seeded generator), the observer (`HighGainObserver.update`, the unbatched form "
-        f"derived from `advance`, {parts['update_model'] * 1e6:.2f} us alone with the model "
-        f"term; {parts['update_free'] * 1e6:.2f} us model-free), and the estimate and error "
-        f"entries of `info` with the estimate's finiteness check. Arrays are built only for "
-        f"what `step` returns (the observation and the three `info` entries, each its own "
-        f"array). `info_level='full'` (measurement, diagnostics, reward terms) costs a "
-        f"`SyncVectorEnv` about 1 us per entry, copy and step, hence the default of three "
-        f"entries.",
+        f"({bare['step'] / ref['step']:.2f}x); the sensor stage and the observer add "
+        f"{(tgt['step'] - bare['step']) * 1e6:.1f} us. Where one step of the registered "
+        f"environment goes (each part alone, as the environment and its loop call it, on an "
+        f"environment of its own; best burst):",
+        "",
+        "| part | us |",
+        "|---|---:|",
+        f"| `env.step` without Gymnasium's wrappers | {us['step']:.2f} |",
+        f"| - the action checked and scaled (`HgoEnv._action`) | {us['action']:.2f} |",
+        f"| - `Loop.segment` (one sample; the measurement drawn before) | {us['segment']:.2f} |",
+        f"| - - `MujocoPlant.run` (one sample of {plant_steps()} physics steps) | "
+        f"{us['plant_run']:.2f} |",
+        f"| - - - of which the bare `mj_step(m, d, {plant_steps()})` | {us['mj_step']:.2f} |",
+        f"| - - the observer's advance (`Loop._advance`: `Observer._advance_checked`, "
+        f"`HighGainObserver._advance` with the model term) | {us['observer']:.2f} |",
+        f"| - - the segment's own bookkeeping (sample time, measurement, `Segment`) | "
+        f"{seg_rest:.2f} |",
+        f"| - observation and `info` (`HgoEnv._observe`: the state and clean outputs read by "
+        f"`Loop.sample`, the estimate, the encoder, `info`) | {us['observe']:.2f} |",
+        f"| - the sensor chain's draw for the new instant (`SensorChain._apply`, Gaussian) | "
+        f"{us['sensor']:.2f} |",
+        f"| - the task's reward | {us['reward']:.2f} |",
+        f"| - not accounted for by the parts alone (the held input's array, the calls between "
+        f"the parts, caches shared by the whole step) | {rest:.2f} |",
+        f"| Gymnasium's wrappers (the registered step in the first table less the unwrapped "
+        f"one) | {tgt['step'] * 1e6 - us['step']:.2f} |",
+        "",
+        "Inside a running step the same calls cost more than alone: timed with "
+        "`perf_counter_ns` around each call the step makes (the timing wrapper's own call, "
+        "about 0.1 us, included; `HgoEnv._observe` includes the wrapped `Loop.sample`), "
+        "against the same calls alone right after with the same clock (best burst of each, "
+        "us):",
+        "",
+        "| call | inside a step | alone | ratio |",
+        "|---|---:|---:|---:|",
+        *(f"| {label} | {us['in_' + k]:.2f} | {us['in_alone_' + k]:.2f} | "
+          f"{us['in_' + k] / us['in_alone_' + k]:.2f} |" for k, label in (
+              ("action", "the action (`HgoEnv._action`)"),
+              ("segment", "`Loop.segment`"),
+              ("observe", "`HgoEnv._observe`, observation and `info`"),
+              ("sample", "- of which `Loop.sample` (state, outputs, the sensor's draw)"),
+              ("reward", "the task's reward"))),
     ]
     lines += [
         "",

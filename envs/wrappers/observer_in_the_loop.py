@@ -83,7 +83,7 @@ class EnvPlant(Plant):
 
     @property
     def state(self) -> Array:
-        return np.asarray(self.obs, dtype=float).reshape(-1)
+        return np.array(self.obs, dtype=float).reshape(-1)  # a copy, as Plant.state promises
 
     def outputs(self) -> Array:
         return self._measure(self.obs)
@@ -222,8 +222,8 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
 
     # ------------------------------------------------------------------ loop
     def _signals(self, obs: Any) -> Array:
-        if self._measure_fn is not None:
-            return np.asarray(self._measure_fn(self.env, obs), dtype=float).reshape(-1)
+        if self._measure_fn is not None:  # a fresh array (Plant.outputs), never the caller's
+            return np.array(self._measure_fn(self.env, obs), dtype=float).reshape(-1)
         return np.asarray(obs, dtype=float)[self._idx]
 
     def _u(self, action: Any) -> Array:

@@ -65,6 +65,8 @@ from ..systems.base import System
 
 Array = NDArray[np.float64]
 
+_F64 = np.dtype(np.float64)
+
 #: the reactions to a sample period at which the observer's update is unstable
 ON_UNSTABLE = ("raise", "warn", "ignore")
 
@@ -282,7 +284,8 @@ class Observer(ABC):
         self._inverse_failures = np.zeros(B, dtype=np.int64)
         #: the width of ``x_hat`` (``len(state_names)``, looked up once per reset)
         self._nx = len(self.state_names)
-        self._x_held = np.full((B, self._nx), np.nan)
+        self._x_held = np.empty((B, self._nx))
+        self._x_held.fill(np.nan)  # np.full's values, without its Python-level wrapper
         self._reset(x0, z0, u)
 
     def advance(self, Y: Any, U: Any, dt: float) -> Block:
@@ -302,15 +305,23 @@ class Observer(ABC):
                                  f"{'m' if m is None else m}); found shape {U.shape}")
         return self._advance_checked(Y, U, _positive_dt(dt))
 
-    def _advance_checked(self, Y: Array, U: Array, dt: float) -> Block:
-        """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float)."""
-        # a copy of the observer's channels: a family may write into its measurement block
-        Yo = np.array(Y[:, :, self._cols_index], dtype=np.float64, order="C")
+    def _advance_checked(self, Y: Array, U: Array, dt: float, out: Block | None = None) -> Block:
+        """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float); the rows are
+        written into ``out`` where it is given with these B and T (a caller that keeps no
+        rows reuses its block), else into a new :class:`Block`."""
+        # a C-contiguous float64 copy of the observer's channels: a family may write into its
+        # measurement block
+        Yo = Y[..., self._cols_index]
+        Yo = Yo.copy() if Yo.dtype is _F64 else np.array(Yo, dtype=np.float64, order="C")
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
-        X = np.empty((B, T, self._nx))
-        Z = np.empty((B, T, self.n))
-        D = np.empty((B, T, nd + 1))
+        if out is not None and out.z_hat.shape[:2] == (B, T):
+            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
+        else:
+            X = np.empty((B, T, self._nx))
+            Z = np.empty((B, T, self.n))
+            D = np.empty((B, T, nd + 1))
+            out = Block(X, Z, D)
         finite = (math.isfinite(Yo.item()) if Yo.size == 1  # one sample of one channel: cheap
                   else bool(np.isfinite(Yo).all()))
         if not finite:  # dropouts (NaN) counted; an infinite value refused
@@ -323,13 +334,13 @@ class Observer(ABC):
             lost = None
         if not U.flags.c_contiguous:
             U = np.ascontiguousarray(U)
-        self._advance(Yo, U, dt, X, Z, D[:, :, :nd])
-        if lost is None:
-            D[:, :, nd] = self._dropouts[0] if B == 1 else self._dropouts[:, None]
+        self._advance(Yo, U, dt, X, Z, D[..., :nd])
+        if lost is None:  # (D[..., nd] and a Python number: the cheapest indexing for one row)
+            D[..., nd] = self._dropouts.item(0) if B == 1 else self._dropouts[:, None]
         else:
             D[:, :, nd] = self._dropouts[:, None] + lost
             self._dropouts = self._dropouts + lost[:, -1]
-        return Block(X, Z, D)
+        return out
 
     def step(self, y: Any, u: Any, dt: float) -> None:
         """One sample of every member: ``y`` ``(B, p)``, ``u`` ``(B, m)``."""

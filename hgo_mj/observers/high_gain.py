@@ -483,11 +483,16 @@ class HighGainObserver(_Chains, Observer):
         if not self.model:
             self._kernel(self._Z, Y, None, maps, 0, T, Z)
         elif self.method != "rk4":
-            W = np.empty((Y.shape[0], T, 1))
             phi = self.system.phi_batch  # type: ignore[union-attr]
-            for j in range(T):  # phi at the start of the sample, held over it
-                W[:, j, 0] = phi(self._sat(self._Z), U[:, j])
-                self._kernel(self._Z, Y, W, maps, j, j + 1, Z)
+            if T == 1:  # one sample: phi's rows are the held term as they come
+                W = np.ascontiguousarray(phi(self._sat(self._Z), U[:, 0]),
+                                         dtype=np.float64).reshape(Y.shape[0], 1, 1)
+                self._kernel(self._Z, Y, W, maps, 0, 1, Z)
+            else:
+                W = np.empty((Y.shape[0], T, 1))
+                for j in range(T):  # phi at the start of the sample, held over it
+                    W[:, j, 0] = phi(self._sat(self._Z), U[:, j])
+                    self._kernel(self._Z, Y, W, maps, j, j + 1, Z)
         else:
             for j in range(T):
                 self._rk4_model(Y, U, dt, maps, j, Z)
@@ -545,8 +550,9 @@ class HighGainObserver(_Chains, Observer):
     def _current(self) -> tuple[Array, Array, Array]:
         z = self._sat(self._Z)
         z = z.copy() if z is self._Z else z
-        return (z.copy() if self._identity else self._X.copy(), z,
-                np.full((self.batch, 1), self.k_))
+        k = np.empty((self.batch, 1))
+        k.fill(self.k_)  # np.full's values, without its Python-level wrapper
+        return (z.copy() if self._identity else self._X.copy(), z, k)
 
     def params(self) -> dict[str, Any]:
         return {"k": self.k_, "p": self.p.tolist(), "order": self.n,

@@ -30,6 +30,7 @@ from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 
 Array = NDArray[np.float64]
+_F64 = np.dtype(np.float64)
 
 
 def initial_states(x0: Any, batch: Any, default: Array, n: int) -> tuple[Array, bool]:
@@ -67,7 +68,7 @@ def initial_states(x0: Any, batch: Any, default: Array, n: int) -> tuple[Array, 
         else:
             raise DimensionError(f"x0 must be (n,) or (B, n) with n = {n}; found shape "
                                  f"{x.shape}")
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             raise DesignError(f"x0 must be finite; found {x.tolist()}")
     batched = batch is not None or (x0 is not None and np.ndim(x0) == 2)
     B = x.shape[0] if batch is None else int(batch)
@@ -86,6 +87,9 @@ def check_block(U: Any, steps: Any, batch: int, m: int) -> tuple[Array, int]:
     DesignError
         ``steps`` is not a positive integer.
     """
+    if (type(U) is np.ndarray and U.dtype is _F64 and U.ndim == 3 and U.flags.c_contiguous
+            and U.shape[0] == batch and U.shape[2] == m and type(steps) is int and steps >= 1):
+        return U, steps  # already what is asked (the loop's blocks): nothing to convert
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise DesignError(f"steps must be a positive integer (plant steps per sample); found "
                           f"{steps!r}")

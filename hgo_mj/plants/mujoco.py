@@ -47,6 +47,8 @@ _CHUNK_DOUBLES = 1 << 22
 
 #: MuJoCo's mjMAXVAL: a larger control is zeroed with the warning mjWARN_BADCTRL
 _MAX_CTRL = 1e10
+#: a state of at most this many entries is recorded entry by entry (else by slices)
+_SCALAR_STATE = 8
 
 _DIRECT_SENSORS = {
     int(mujoco.mjtSensor.mjSENS_JOINTPOS): "qpos",
@@ -162,8 +164,11 @@ class MujocoPlant(Plant):
         self.nthread = int(nthread)
         self._batch_layout()
         self._aid_arr = np.array(self._aid, dtype=np.intp)
+        #: the one actuator's ctrl index (-1: several, set through ``_aid_arr``)
+        self._a0 = int(self._aid[0]) if len(self._aid) == 1 else -1
         self._rollout: Any = None
         self._rdata: list[Any] = []
+        self._cache()
         self.reset()
 
     def _batch_layout(self) -> None:
@@ -200,15 +205,16 @@ class MujocoPlant(Plant):
         One member lives in :attr:`data`; B > 1 members are kept as full physics states
         ``(B, nstate)`` with their controls, and are loaded into :attr:`data` to be read."""
         if x0 is not None and batch is None and np.ndim(x0) <= 1:
-            x0 = vector("x0", x0, 2 * self._nq)
-        X0, self.batched = initial_states(x0, batch, self._x0, 2 * self._nq)
+            # one state for one unbatched member, checked (a fresh finite (n,) array) once
+            X0, self.batched = vector("x0", x0, 2 * self._nq).reshape(1, -1), False
+        else:
+            X0, self.batched = initial_states(x0, batch, self._x0, 2 * self._nq)
         self.batch = B = X0.shape[0]
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[self._qadr] = X0[0, : self._nq]
         d.qvel[self._vadr] = X0[0, self._nq:]
         mujoco.mj_forward(m, d)
-        self._cache()
         if B > 1:
             # the members' full physics states: the reset one with their qpos and qvel
             # (mj_forward changes none of it), zero controls and warm starts
@@ -222,7 +228,7 @@ class MujocoPlant(Plant):
 
     def _cache(self) -> None:
         """What :meth:`_run_loop` needs, in one attribute each: MjData's arrays are views of
-        buffers that live as long as the MjData (rebuilt after a copy)."""
+        buffers that live as long as the MjData (made once, and again after a copy)."""
         m, d = self.model, self.data
         w = mujoco.mjtWarning
         self._bad = tuple(d.warning[int(k)] for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
@@ -235,12 +241,17 @@ class MujocoPlant(Plant):
         srcs = {"qpos": d.qpos, "qvel": d.qvel, "sensordata": d.sensordata}
         #: each output's (array, address), views of this MjData's buffers
         self._out = tuple((srcs[k], a) for k, a in self._sensor_src)
+        #: each state entry's (array, address) where the state is short (one scalar copy each
+        #: costs less than two slice copies up to about 8 entries); None: read by slices
+        self._xsrc = (tuple([(d.qpos, int(a)) for a in self._qadr]
+                            + [(d.qvel, int(a)) for a in self._vadr])
+                      if 2 * self._nq <= _SCALAR_STATE else None)
 
     def __getstate__(self) -> dict[str, Any]:
         """Copy or pickle without the cached views (they would be detached from the copy's
         MjData); :meth:`__setstate__` rebuilds them."""
         state = self.__dict__.copy()
-        for key in ("_bad", "_hot", "_out"):
+        for key in ("_bad", "_hot", "_out", "_xsrc"):
             state.pop(key, None)
         state["_rollout"], state["_rdata"] = None, []  # a thread pool: made again when needed
         return state
@@ -269,6 +280,8 @@ class MujocoPlant(Plant):
         return self._state1()
 
     def _state1(self) -> Array:
+        if self._xsrc is not None:
+            return np.array([src.item(a) for src, a in self._xsrc])
         d = self.data
         if self._slices is not None:
             qs, vs = self._slices
@@ -331,7 +344,8 @@ class MujocoPlant(Plant):
         B, T, _ = U.shape
         X = np.empty((B, T, 2 * self._nq))
         Yc = np.empty((B, T, len(self._output_names)))
-        if T == 0 or float(np.abs(U).max()) < _MAX_CTRL:  # every input usable (the usual case)
+        if (-_MAX_CTRL < U.item() < _MAX_CTRL if U.size == 1 else  # one input, one sample
+                T == 0 or float(np.abs(U).max()) < _MAX_CTRL):  # every input usable (usual)
             jbad, ok, bad = T, None, None
         else:                                             # NaN, inf or too large somewhere
             ok = np.abs(U) < _MAX_CTRL                    # False for NaN
@@ -343,6 +357,8 @@ class MujocoPlant(Plant):
             if (self._rollout_ok and jbad * nstep >= 2
                     and (B > 1 or jbad * nstep >= _ROLLOUT_MIN_STEPS)):
                 self._run_rollout(U[:, :jbad], nstep, X, Yc, fails)
+            elif B == 1:  # one member lives in self.data
+                self._run_loop(0, U[0] if jbad == T else U[0, :jbad], nstep, X[0], Yc[0], fails)
             else:
                 for b in range(B):
                     self._load(b)
@@ -373,16 +389,20 @@ class MujocoPlant(Plant):
         """Member ``b`` (loaded in :attr:`data`) through the samples of ``U`` ``(T, m)`` with
         ``mj_step``, recording into ``X`` ``(T, n)`` and ``Yc`` ``(T, p)``."""
         m, d, ctrl, bad = self._hot
-        aid_arr = self._aid_arr
-        qpos, qvel = d.qpos, d.qvel
-        qa, va, nq = self._qadr, self._vadr, self._nq
-        if self._slices is not None:
-            qa, va = self._slices  # type: ignore[assignment]  # contiguous joints: a view
-        out, forward = self._out, self._needs_forward
-        a0 = int(aid_arr[0]) if aid_arr.size == 1 else -1
+        aid_arr, a0 = self._aid_arr, self._a0
+        xsrc, out, forward = self._xsrc, self._out, self._needs_forward
+        if xsrc is None:
+            qpos, qvel = d.qpos, d.qvel
+            qa, va, nq = self._qadr, self._vadr, self._nq
+            if self._slices is not None:
+                qa, va = self._slices  # type: ignore[assignment]  # contiguous joints: a view
         for j in range(U.shape[0]):
-            X[j, :nq] = qpos[qa]
-            X[j, nq:] = qvel[va]
+            if xsrc is not None:
+                for c, (src, a) in enumerate(xsrc):
+                    X[j, c] = src[a]
+            else:
+                X[j, :nq] = qpos[qa]
+                X[j, nq:] = qvel[va]
             if forward:
                 mujoco.mj_forward(m, d)
             for c, (src, a) in enumerate(out):

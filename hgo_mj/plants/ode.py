@@ -181,4 +181,5 @@ class OdePlant(Plant):
         if self.batched:
             out, p = self.system.output, self.system.params
             return np.array([np.asarray(out(x, p), dtype=float) for x in self._X])
-        return np.asarray(self.system.output(self._x, self.system.params), dtype=float)
+        # a fresh array even where a system's output hands back a view of the state
+        return np.array(self.system.output(self._x, self.system.params), dtype=float)
