@@ -27,7 +27,6 @@ import numpy as np
 from hgo_mj._bench import machine_line, versions_line
 from hgo_mj._io import atomic_path, write_text
 from hgo_mj.study import Study
-from hgo_mj.study.study import StudyResult
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "gain_noise.toml"

@@ -325,7 +325,8 @@ class _Plants:
         self.state_names = tuple(self.plant.state_names)
         mkw = chunk.metric_kw
         tt = mkw.get("t_transient")
-        self.t_transient = 0.2 * self.N * self.periods.sample if tt is None else float(tt)
+        # as observer_metrics: 0.2 times the last row's time (the same float)
+        self.t_transient = 0.2 * (self.N * self.periods.sample) if tt is None else float(tt)
         band = float(mkw.get("band", 0.05))
         self.failed: dict[int, str] = {}
         self.X, self.Yc = self._simulate(kw["inputs"])
@@ -385,7 +386,8 @@ class _Bucket:
             seg = loop.segment(drive.inputs(loop, T))
             for name, blk in seg.blocks.items():
                 acc[name].add(k0, seg.x, prev[name], blk.x_hat, blk.z_hat)
-                prev[name] = (blk.x_hat[:, -1], blk.z_hat[:, -1])
+                # copies: the loop (exact=False) writes the next segment into the same block
+                prev[name] = (blk.x_hat[:, -1].copy(), blk.z_hat[:, -1].copy())
         Xl = np.reshape(plant.state, (len(members), 1, -1))
         out = {}
         for name, (x, z, d) in loop.estimates().items():

@@ -31,7 +31,7 @@ BASE = {
          "k0": 5.0},
     ],
     "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
-    "run": {"duration": 0.6, "seed": 3},
+    "run": {"duration": 2.1, "seed": 3},  # three segments of the loop (1024 samples each)
 }
 
 MIXED = {"observers.hgo.k": [20.0, 80.0], "plant.x0": [[0.5, 0.0], [1.0, 0.0]],
