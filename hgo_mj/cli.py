@@ -124,12 +124,13 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
     (``run.seed``, default 0, is the sensor chain's seed until ``simulate`` re-seeds it).
     ``functools.partial(scenario_run, sc)`` is the ``make_run`` of
     :func:`hgo_mj.study.monte_carlo`."""
-    from .inputs import Constant, Signal, make_signal
+    from .inputs import Constant, Controller, Signal, make_signal
     from .observers import make_observer
     from .plants import make_plant
     from .sensors import SensorChain
 
-    reject_unknown("scenario", sc, ["plant", "sensor", "observers", "input", "run", "name"])
+    reject_unknown("scenario", sc, ["plant", "sensor", "observers", "input", "controller", "run",
+                                    "name"])
     for section, keys in SCENARIO_KEYS.items():
         if section in sc and section != "input":
             if not isinstance(sc[section], dict):
@@ -157,13 +158,22 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
             raise DesignError(f"two observers are named {label!r}; give each a distinct name")
         observers[label] = make_observer(kind, observer_system(plant.system, spec.pop(
             "system_params", None), label), **spec)
-    inp = dict(sc.get("input", {"type": "constant"}))
-    kind = inp.pop("type", "constant")
-    inputs: Signal
-    if kind == "constant" and "value" not in inp:
-        inputs = Constant([0.0] * len(plant.input_names))
+    inputs: Signal | Controller
+    if "controller" in sc:
+        from .control import make_controller
+
+        if "input" in sc:
+            raise DesignError("a scenario has an [input] signal or a [controller], not both")
+        if not isinstance(sc["controller"], dict):
+            raise DesignError(f"scenario [controller] must be a table; found {sc['controller']!r}")
+        inputs = make_controller(sc["controller"], plant.system)
     else:
-        inputs = make_signal(kind, **inp)
+        inp = dict(sc.get("input", {"type": "constant"}))
+        kind = inp.pop("type", "constant")
+        if kind == "constant" and "value" not in inp:
+            inputs = Constant([0.0] * len(plant.input_names))
+        else:
+            inputs = make_signal(kind, **inp)
     if "duration" not in run:
         raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
     return {"plant": plant, "sensor": sensor, "observers": observers, "inputs": inputs,

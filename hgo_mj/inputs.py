@@ -245,6 +245,12 @@ class Controller:
     def __call__(self, t: float, x: Array) -> Array:
         return np.atleast_1d(np.asarray(self.law(t, x), dtype=float))
 
+    def act(self, t: float, X: Array) -> Array:
+        """The inputs ``(B, m)`` of B members at time ``t`` from their states ``X``
+        ``(B, n)`` (what the loop calls; here the law once per member, a batched law
+        overrides it)."""
+        return np.stack([self(t, x) for x in X])
+
     def params(self) -> dict[str, Any]:
         return {"source": self.source, "observer": self.observer,
                 "law": getattr(self.law, "__name__", repr(self.law))}

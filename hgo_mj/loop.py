@@ -333,7 +333,7 @@ class Drive:
             law = self.controller
             x = (np.reshape(loop.plant.state, (loop.batch, -1)) if self.observer is None
                  else _current(loop.observers[self.observer])[0])
-            self._held = np.stack([self._check(law(k * Ts, xi)[None], 1, k * Ts)[0] for xi in x])
+            self._held = self._check(law.act(k * Ts, x), loop.batch, k * Ts)
         return np.broadcast_to(self._held[:, None], (loop.batch, T, self.m)).copy()
 
     def _check(self, vals: Any, rows: int, t: float) -> Array:

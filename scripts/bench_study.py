@@ -14,12 +14,16 @@ Usage: ``python scripts/bench_study.py [--write BENCHMARKS.md] [--single N] [--n
    no noise, as one study, against bare ``mujoco.rollout.Rollout(nthread=2)`` of the same
    model, initial states and inputs (the controls made once, outside the timing). Target: at
    least 0.7x the rollout's throughput.
-3. **Ray**: study 1 on a local Ray instance (2 CPUs, 127.0.0.1; started before the timing,
+4. **Ray**: study 1 on a local Ray instance (2 CPUs, 127.0.0.1; started before the timing,
    its workers cold) against the local backend. Target: at least 0.7x, rows identical.
+
+3. **Closed loop**: 256 seeds of the LQR on the high-gain estimate of the cart pendulum (paper
+   004), 10 s at 1 kHz, as one study (every member its own plant, stepped together) against
+   the same runs through the single-run path (``--single-closed`` of them timed, scaled).
+   Target: at least 5x faster.
 
 Every study is timed after a small study in the same process has loaded the compiled kernels
 (a first study in a fresh process pays about a second more: ``import`` and the kernel cache).
-Closed-loop studies (target 3 of the issue) are not supported by the engine yet.
 """
 
 from __future__ import annotations
@@ -138,6 +142,34 @@ def initial_states(tmp: Path) -> dict[str, float]:
     return {"study_s": t_study, "rollout_s": best, "plant_steps": 256 * N * steps}
 
 
+CLOSED = {
+    "name": "closed",
+    "plant": {"name": "cart_pendulum", "dt": 0.001, "x0": [0.3, 0.0]},
+    "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    "controller": {"type": "lqr", "Q": [1.0, 1.0], "R": 1.0, "observer": "hgo"},
+    "run": {"duration": 10.0, "seed": 0},
+}
+
+
+def closed_loop(tmp: Path, single: int) -> dict[str, float]:
+    from hgo_mj.study import Study
+
+    study = Study(CLOSED, seeds=256)
+    t_study, result = _timed_study(study, tmp / "s3", jobs=2)
+    df = result.table
+    jobs = [(CLOSED, seed) for seed in study.spec.seeds[:single]]
+    t0 = time.perf_counter()
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        runs = pool.map(_single_run, jobs, chunksize=1)
+    t_single = (time.perf_counter() - t0) * (256 / len(jobs))
+    for (_, seed), m in zip(jobs, runs):
+        for j, state in enumerate(m["hgo"]["states"]):
+            row = df[(df.seed == seed) & (df.state == state)].iloc[0]
+            assert row["peak"] == m["hgo"]["peak"][j] and row["final"] == m["hgo"]["final"][j]
+    return {"study_s": t_study, "single_s": t_single, "compared": len(jobs)}
+
+
 def on_ray(tmp: Path, t_local: float, local_df) -> dict[str, float]:
     import ray
 
@@ -156,10 +188,11 @@ def on_ray(tmp: Path, t_local: float, local_df) -> dict[str, float]:
     return {"cold_s": t_cold, "warm_s": t_warm, "local_s": t_local, "identical": same}
 
 
-def report(s1: dict, s2: dict, r: dict | None, single: int) -> str:
+def report(s1: dict, s2: dict, s3: dict, r: dict | None, args: argparse.Namespace) -> str:
     lines = [
         "## Issue 11: the study engine (`scripts/bench_study.py`)", "",
-        *header(f"`python scripts/bench_study.py --write BENCHMARKS.md --single {single}`",
+        *header(f"`python scripts/bench_study.py --write BENCHMARKS.md --single {args.single} "
+                f"--single-closed {args.single_closed}`",
                 extra=("pandas", "pyarrow", "ray")), "",
         "| what | time [s] | ratio | target |", "|---|---:|---|---|",
         f"| 1. study: 256 seeds x 4 gains, HGO, pendulum 10 s at 1 kHz, Gaussian + "
@@ -172,6 +205,11 @@ def report(s1: dict, s2: dict, r: dict | None, single: int) -> str:
         f"| 2. bare `mujoco.rollout.Rollout(nthread=2)`, the same 256 x 10,000 steps | "
         f"{s2['rollout_s']:.2f} | study at {s2['rollout_s'] / s2['study_s']:.2f}x the "
         f"rollout's throughput | >= 0.7x |",
+        f"| 3. study: closed loop, LQR on the HGO estimate, cart pendulum 10 s at 1 kHz, 256 "
+        f"seeds, `jobs=2` | {s3['study_s']:.2f} | | |",
+        f"| 3. the same 256 runs through the single-run path (a pool of 2 processes; "
+        f"{s3['compared']} runs timed, scaled to 256) | {s3['single_s']:.1f} | study "
+        f"{s3['single_s'] / s3['study_s']:.1f}x faster | >= 5x |",
     ]
     if r is not None:
         lines += [
@@ -193,6 +231,8 @@ def main() -> int:
     ap.add_argument("--write", help="replace the bench_study block of this markdown file")
     ap.add_argument("--single", type=int, default=1024,
                     help="runs of the single-run path to time (default all 1024)")
+    ap.add_argument("--single-closed", type=int, default=64,
+                    help="closed-loop runs of the single-run path to time (default 64 of 256)")
     ap.add_argument("--no-ray", action="store_true", help="skip the Ray figure")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="bench_study_"))
@@ -203,6 +243,9 @@ def main() -> int:
               file=sys.stderr)
         s2 = initial_states(tmp)
         print(f"2: study {s2['study_s']:.2f} s, rollout {s2['rollout_s']:.2f} s", file=sys.stderr)
+        s3 = closed_loop(tmp, args.single_closed)
+        print(f"3: study {s3['study_s']:.2f} s, single path {s3['single_s']:.1f} s",
+              file=sys.stderr)
         r = None
         if not args.no_ray:
             from hgo_mj.study import Study
@@ -210,7 +253,7 @@ def main() -> int:
             t_local, res = _timed_study(Study(BASE, {"observers.hgo.k": GAINS}, seeds=256),
                                         tmp / "l1", jobs=2)
             r = on_ray(tmp, t_local, res.table)
-        text = report(s1, s2, r, args.single)
+        text = report(s1, s2, s3, r, args)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     print(text)

@@ -12,7 +12,7 @@ README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
 
 
 def test_python_example_runs(tmp_path, monkeypatch, capsys):
-    code, batch = re.findall(r"```python\n(.*?)```", README, re.S)
+    code, batch = re.findall(r"```python\n(.*?)```", README, re.S)[:2]
     assert len(code.strip().splitlines()) <= 22
     monkeypatch.chdir(tmp_path)
     scope: dict = {}
@@ -28,11 +28,30 @@ def test_python_example_runs(tmp_path, monkeypatch, capsys):
 
 
 def test_scenario_file_runs(tmp_path, monkeypatch):
-    (toml,) = re.findall(r"```toml\n(.*?)```", README, re.S)
+    toml = re.findall(r"```toml\n(.*?)```", README, re.S)[0]
     (tmp_path / "s.toml").write_text(toml)
     monkeypatch.chdir(tmp_path)
     assert main(["run", "s.toml"]) == 0
     assert (tmp_path / "runs" / "pendulum" / "metrics.json").is_file()
+
+
+def test_the_study_examples_run(tmp_path, monkeypatch, capsys):
+    """The scenario file with the [sweep] table appended, through `hgo-mj sweep`; and the
+    Python study on the scenario file."""
+    scenario, sweep = re.findall(r"```toml\n(.*?)```", README, re.S)[:2]
+    (tmp_path / "scenario.toml").write_text(scenario)
+    (tmp_path / "study.toml").write_text(scenario + sweep)
+    monkeypatch.chdir(tmp_path)
+    assert main(["sweep", "study.toml", "--out", "runs/sweep", "--quiet"]) == 0
+    import pandas as pd
+
+    df = pd.read_parquet(tmp_path / "runs" / "sweep" / "results.parquet")
+    assert len(df) == 32 * 4 * 3 * 2 and not df["diverged"].any()
+    study = re.findall(r"```python\n(.*?)```", README, re.S)[2]
+    scope: dict = {}
+    exec(compile(study, "README.md", "exec"), scope)
+    assert len(scope["result"].table) == 16 * 3 * 2
+    assert len(scope["figures"]) == 1
 
 
 def test_every_observer_and_reproduction_is_in_the_readme():

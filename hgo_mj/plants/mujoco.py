@@ -317,8 +317,7 @@ class MujocoPlant(Plant):
         mujoco.mj_setState(m, d, self._S[b], _FULL)
         d.ctrl[:] = self._C[b]
         d.qacc_warmstart[:] = self._W[b]
-        for w in d.warning:
-            w.number = 0
+        d.warning.number[:] = 0  # one view of the counters (a loop over the structs: 60 us)
 
     def _save(self, b: int) -> None:
         """Copy :attr:`data` back into member ``b`` (B > 1)."""
@@ -354,8 +353,7 @@ class MujocoPlant(Plant):
         nstep = steps * self.substeps
         fails: list[tuple[int, int, float, str]] = []     # (sample, member, time, message)
         if jbad:
-            if (self._rollout_ok and jbad * nstep >= 2
-                    and (B > 1 or jbad * nstep >= _ROLLOUT_MIN_STEPS)):
+            if self._rollout_ok and (B > 1 or jbad * nstep >= _ROLLOUT_MIN_STEPS):
                 self._run_rollout(U[:, :jbad], nstep, X, Yc, fails)
             elif B == 1:  # one member lives in self.data
                 self._run_loop(0, U[0] if jbad == T else U[0, :jbad], nstep, X[0], Yc[0], fails)
@@ -505,8 +503,7 @@ class MujocoPlant(Plant):
         else:
             mujoco.mj_setState(m, d, s0, _FULL)
             d.ctrl[:] = c0
-            for w in d.warning:
-                w.number = 0
+            d.warning.number[:] = 0
         before = len(fails)
         self._run_loop(b, U, nstep, X, Yc, fails)
         for k in range(before, len(fails)):

@@ -12,7 +12,7 @@ from .montecarlo import (
     run_seeds,
 )
 from .spec import StudySpec, parse_study
-from .study import Study, StudyResult
+from .study import Study, StudyResult, load_toml
 
 __all__ = ["MonteCarloResult", "Study", "StudyResult", "StudySpec", "aggregate", "check_seeds",
-           "format_mc_table", "monte_carlo", "parse_study", "run_seed", "run_seeds"]
+           "format_mc_table", "load_toml", "monte_carlo", "parse_study", "run_seed", "run_seeds"]

@@ -49,6 +49,9 @@ Array = NDArray[np.float64]
 SEGMENT = 1024
 #: the metric columns of a result row, in order
 METRICS = ("rmse", "peak", "settling_time", "final", "undefined_samples", "update_time")
+#: the closed loop's metrics of a run (the same in every row of the run): the cost
+#: ``sum_k (x_k' Q x_k + u_k' R u_k) Ts`` over the sample rows and the peak ``|u|``
+RUN_METRICS = ("cost", "peak_input")
 
 
 # ------------------------------------------------------------------- planning
@@ -56,7 +59,7 @@ def _group_key(sc: Mapping[str, Any]) -> str:
     plant = {k: v for k, v in sc.get("plant", {}).items() if k != "x0"}
     run = {k: v for k, v in sc.get("run", {}).items()
            if k in ("duration", "sample_period", "control_period")}
-    return json.dumps([plant, sc.get("input"), run], sort_keys=True)
+    return json.dumps([plant, sc.get("input"), sc.get("controller"), run], sort_keys=True)
 
 
 def _bucket_key(sc: Mapping[str, Any]) -> str:
@@ -181,10 +184,12 @@ def plant_rows(plant: Plant, inputs: Any, periods: Periods, N: int, x0s: Array
 def _accumulate(k0: int, X: Array, px: Array, pz: Array, BX: Array, BZ: Array, idx: Any,
                 cols: Any, Ts: float, t_tr: float, band: Array, sumsq: Array, comp: Array,
                 count: Any, peak: Array, undefined: Any, last_out: Any, final: Array,
-                bad_row: Any) -> None:  # pragma: no cover - compiled
+                bad_row: Any, E: Array) -> None:  # pragma: no cover - compiled
     """One pass over the rows ``k0 ... k0 + T - 1`` of B members (see :class:`Metrics`): the
     estimate of row ``j`` is ``px``/``pz`` (before the block) for ``j = 0``, else the block's
-    row ``j - 1``. The squares are summed with Neumaier's compensation."""
+    row ``j - 1``. The squares are summed with Neumaier's compensation. Where ``E`` has rows,
+    each error is also written there (``E[b, k0 + j, s]``)."""
+    keep = E.shape[1] > 0
     B, T, nz, nx = X.shape[0], X.shape[1], pz.shape[1], px.shape[1]
     for b in range(B):
         for j in range(T):
@@ -200,6 +205,8 @@ def _accumulate(k0: int, X: Array, px: Array, pz: Array, BX: Array, BZ: Array, i
             inwin = (k0 + j) * Ts >= t_tr
             for s in range(idx.size):
                 e = X[b, j, idx[s]] - (px[b, cols[s]] if j == 0 else BX[b, j - 1, cols[s]])
+                if keep:
+                    E[b, k0 + j, s] = e
                 ae = abs(e)
                 if j == T - 1:
                     final[b, s] = ae
@@ -223,16 +230,22 @@ class Metrics:
     """:func:`hgo_mj.metrics.observer_metrics` of B runs of one observer, accumulated over the
     rows as they come (row ``k``: the true state at ``t_k`` and the estimate before
     ``y(t_k)``), without keeping them: one compiled pass per block. ``band`` ``(B, n)`` is the
-    band of each member and state (times the true state's range for a relative band)."""
+    band of each member and state (times the true state's range for a relative band); None
+    when it is known only at the end (a closed loop): then the ``rows`` errors are kept and
+    :meth:`settle` finds the settling rows."""
 
     def __init__(self, observer: Observer, state_names: Sequence[str], B: int, Ts: float,
-                 t_transient: float, band: Array) -> None:
+                 t_transient: float, band: Array | None, rows: int = 0) -> None:
         own = {s: j for j, s in enumerate(observer.state_names)}
         self.cols = np.array([own[s] for s in state_names if s in own], dtype=np.intp)
         self.idx = np.flatnonzero([s in own for s in state_names]).astype(np.intp)
         self.Ts, self.t_transient = Ts, t_transient
-        self.band = np.ascontiguousarray(band[:, self.idx])
         k = self.idx.size
+        # a band not known yet (a closed loop: the true state's range comes with the run):
+        # only non-finite errors count as outside now, the errors are kept for the band
+        self.band = (np.full((B, k), np.inf) if band is None
+                     else np.ascontiguousarray(band[:, self.idx]))
+        self.E = np.empty((B, rows if band is None else 0, k))
         self.sumsq, self.comp = np.zeros((B, k)), np.zeros((B, k))
         self.count = np.zeros((B, k), dtype=np.int64)
         self.peak = np.full((B, k), -np.inf)
@@ -249,8 +262,17 @@ class Metrics:
         the block's row ``j - 1``)."""
         _accumulate(k0, X, prev[0], prev[1], BX, BZ, self.idx, self.cols, self.Ts,
                     self.t_transient, self.band, self.sumsq, self.comp, self.count, self.peak,
-                    self.undefined, self.last_out, self.final, self.bad_row)
+                    self.undefined, self.last_out, self.final, self.bad_row, self.E)
         self.rows = k0 + X.shape[1]
+
+    def settle(self, band: Array) -> None:
+        """The settling rows from the kept errors, once the band ``(B, n)`` is known."""
+        b = band[:, self.idx][:, None, :]
+        with np.errstate(invalid="ignore"):
+            outside = ~(np.where(np.isfinite(self.E), np.abs(self.E), np.inf) <= b)
+        any_out = outside.any(axis=1)
+        last = self.E.shape[1] - 1 - np.argmax(outside[:, ::-1], axis=1)
+        self.last_out = np.where(any_out, last, -1)
 
     def result(self, n: int, update_time: float) -> dict[str, Array]:
         """Per metric ``(B, n)`` arrays over the plant's states (NaN: not estimated)."""
@@ -410,15 +432,121 @@ class _Bucket:
                 [msg] * B)
 
 
+class _ClosedBucket:
+    """The members of one closed-loop bucket: B plants, B sensor streams, every observer and
+    the controller stepped together on the loop, one control period a segment; the plants'
+    range (for the band), the closed loop's cost and peak input accumulated as they come."""
+
+    def __init__(self, chunk: Chunk, scenario: dict[str, Any], idxs: list[int]) -> None:
+        from ..cli import scenario_run
+
+        self.scenario = scenario
+        self.kw = scenario_run(scenario)
+        plant: Plant = self.kw["plant"]
+        self.periods = Periods.of(plant, self.kw["sample_period"], self.kw["control_period"])
+        self.N = int(round(float(self.kw["duration"]) / self.periods.sample))
+        self.state_names = tuple(plant.state_names)
+        x0s, rows = _x0_rows(chunk.scenarios, chunk.members, plant)
+        self.x0 = {i: x0s[rows[i]] for i in idxs}
+        self.seeds = {i: chunk.members[i][1] for i in idxs}
+        mkw = chunk.metric_kw
+        tt = mkw.get("t_transient")
+        self.t_transient = 0.2 * (self.N * self.periods.sample) if tt is None else float(tt)
+        self.band, self.relative = float(mkw.get("band", 0.05)), bool(mkw.get("relative", True))
+
+    def run(self, members: list[int], names: list[str], exact: bool
+            ) -> dict[str, tuple[dict[str, Array], Array, list[str | None]]]:
+        from ..cli import scenario_run
+
+        kw = scenario_run(self.scenario)
+        obs, law = kw["observers"], kw["inputs"]
+        loop = Loop(kw["plant"], kw["sensor"], obs, self.periods, exact=exact)
+        drive = Drive.of(law, obs, kw["plant"], self.periods)
+        B, Ts = len(members), self.periods.sample
+        loop.reset(np.array([self.x0[i] for i in members]), seed=[self.seeds[i] for i in members],
+                   batch=B)
+        acc = {name: Metrics(ob, self.state_names, B, Ts, self.t_transient, None, self.N + 1)
+               for name, ob in obs.items()}
+        prev = {name: (x, z) for name, (x, z, _) in loop.estimates().items()}
+        n = len(self.state_names)
+        lo, hi = np.full((B, n), np.inf), np.full((B, n), -np.inf)
+        cost, peak_u = np.zeros(B), np.zeros(B)
+
+        def account(X: Array, U: Array) -> None:
+            nonlocal lo, hi, cost, peak_u
+            lo, hi = np.minimum(lo, X.min(axis=1)), np.maximum(hi, X.max(axis=1))
+            cost += (np.einsum("bti,ij,btj->b", X, law.Q, X)
+                     + np.einsum("bti,ij,btj->b", U, law.R, U))
+            peak_u = np.maximum(peak_u, np.abs(U).max(axis=(1, 2)))
+
+        while loop.k < self.N:
+            k0, T = loop.k, drive.length(loop.k, self.N, SEGMENT)
+            seg = loop.segment(drive.inputs(loop, T))
+            for name, blk in seg.blocks.items():
+                acc[name].add(k0, seg.x, prev[name], blk.x_hat, blk.z_hat)
+                prev[name] = (blk.x_hat[:, -1].copy(), blk.z_hat[:, -1].copy())
+            account(seg.x, seg.u)
+        Xl = loop.sample()[0]
+        account(Xl, drive.inputs(loop, 1))
+        scale = np.where(hi - lo > 0, hi - lo, 1.0) if self.relative else np.ones((B, n))
+        out = {}
+        for name, (x, z, d) in loop.estimates().items():
+            acc[name].add(self.N, Xl, (x, z), x[:, None], z[:, None])
+            acc[name].settle(self.band * scale)
+            res = acc[name].result(n, loop.wall[name] / (max(self.N, 1) * B))
+            res["cost"], res["peak_input"] = Ts * cost, peak_u.copy()
+            msgs: list[str | None] = [None] * B
+            for i, r in enumerate(acc[name].bad_row):
+                if r >= 0:
+                    msgs[i] = (f"observer {name!r} estimate left the finite numbers at "
+                               f"t={r * Ts:g} (row {int(r)})")
+            out[name] = (res, d, msgs)
+        return out
+
+    def failed(self, B: int, name: str, msg: str
+               ) -> tuple[dict[str, Array], Array, list[str | None]]:
+        n = len(self.state_names)
+        nd = len(self.kw["observers"][name].diagnostic_names)
+        res: dict[str, Array] = {m: np.full((B, n), np.nan) for m in METRICS}
+        res.update({m: np.full(B, np.nan) for m in RUN_METRICS})
+        return res, np.full((B, nd), np.nan), [msg] * B
+
+
+def _closed(build: _ClosedBucket, members: list[int], names: list[str], exact: bool = False
+            ) -> dict[str, tuple[dict[str, Array], Array, list[str | None]]]:
+    """A closed loop's members, failures isolated by bisection: the observers share the run
+    (the controller acts on one of them), so a member whose run fails is a failed run of every
+    observer, with the message of :func:`~hgo_mj.simulate.simulate`."""
+    try:
+        return build.run(members, names, exact)
+    except LoopFailure as failure:
+        if len(members) == 1:
+            if not exact:
+                return _closed(build, members, names, exact=True)
+            cause = failure.cause
+            msg = (f"simulation stopped at t={failure.t:g}: {cause}" if failure.observer is None
+                   else f"observer {failure.observer!r} failed in its update at "
+                        f"t={failure.t:g} (row {failure.row}): {type(cause).__name__}: {cause}")
+            return {n: build.failed(1, n, msg) for n in names}
+        half = len(members) // 2
+        a, b = _closed(build, members[:half], names), _closed(build, members[half:], names)
+        return {n: ({k: np.concatenate([a[n][0][k], b[n][0][k]]) for k in a[n][0]},
+                    np.concatenate([a[n][1], b[n][1]]), a[n][2] + b[n][2]) for n in names}
+
+
 def run_chunk(chunk: Chunk) -> list[dict[str, Any]]:
     """Run a chunk: its result rows, one per member x observer x plant state, each with
     ``cell``, ``seed``, ``observer``, ``state``, ``estimated``, the metrics (None: not
-    estimated, or diverged), ``diverged``, ``message`` and ``diag.<name>`` (each diagnostic's
-    final value). The plant runs once for the chunk; each bucket in it runs its loop."""
-    plants = _Plants(chunk)
+    estimated, or diverged), ``cost`` and ``peak_input`` (a closed loop's; None otherwise),
+    ``diverged``, ``message`` and ``diag.<name>`` (each diagnostic's final value). An open
+    loop's plant runs once for the chunk; each bucket in it runs its loop."""
     buckets: dict[str, list[int]] = {}
     for i, (cell, _) in enumerate(chunk.members):
         buckets.setdefault(_bucket_key(chunk.scenarios[cell]), []).append(i)
+    first = chunk.scenarios[chunk.members[0][0]]
+    if "controller" in first:
+        return _run_closed(chunk, buckets)
+    plants = _Plants(chunk)
     rows: list[dict[str, Any]] = []
     for idxs in buckets.values():
         b = _Bucket(plants, chunk.scenarios[chunk.members[idxs[0]][0]])
@@ -438,6 +566,20 @@ def run_chunk(chunk: Chunk) -> list[dict[str, Any]]:
     return rows
 
 
+def _run_closed(chunk: Chunk, buckets: dict[str, list[int]]) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any]] = []
+    for idxs in buckets.values():
+        b = _ClosedBucket(chunk, chunk.scenarios[chunk.members[idxs[0]][0]], idxs)
+        names = list(b.kw["observers"])
+        got = _closed(b, idxs, names)
+        for name, ob in b.kw["observers"].items():
+            res, dg, msgs = got[name]
+            for j, i in enumerate(idxs):
+                rows.extend(_rows(chunk.members[i], name, ob, b.state_names, res, dg[j],
+                                  msgs[j], j))
+    return rows
+
+
 def _rows(member: tuple[int, int], name: str, ob: Observer, states: Sequence[str],
           res: dict[str, Array], diag: Array, message: str | None, j: int
           ) -> list[dict[str, Any]]:
@@ -453,10 +595,12 @@ def _rows(member: tuple[int, int], name: str, ob: Observer, states: Sequence[str
                                "state": state, "estimated": est}
         for m in METRICS:
             row[m] = float(res[m][j, s]) if est and (not diverged or m == "update_time") else None
+        for m in RUN_METRICS:
+            row[m] = float(res[m][j]) if m in res and not diverged else None
         row.update(diverged=diverged, message=message, **d)
         out.append(row)
     return out
 
 
-__all__ = ["Chunk", "METRICS", "Metrics", "ReplayPlant", "SEGMENT", "plan", "plant_rows",
+__all__ = ["Chunk", "METRICS", "RUN_METRICS", "Metrics", "ReplayPlant", "SEGMENT", "plan", "plant_rows",
            "run_chunk"]

@@ -13,6 +13,9 @@ One row per cell x seed x observer x plant state; the columns:
   ``peak``, ``settling_time`` (seconds; ``inf``: never settled), ``final``,
   ``undefined_samples``, ``update_time`` (seconds per observer-step, the batch's mean); null
   where the observer does not estimate the state or the run diverged;
+* ``cost`` and ``peak_input``: a closed loop's cost ``sum_k (x_k' Q x_k + u_k' R u_k) Ts``
+  over the sample rows (the controller's weights) and its largest ``|u|``, the same in every
+  row of a run; null for an open loop;
 * ``diverged`` and ``message`` (why; null when it finished);
 * ``diag.<name>``: each diagnostic's final value (e.g. the adaptive gain's ``diag.k``), null
   where the observer has no such diagnostic.
@@ -30,13 +33,13 @@ import numpy as np
 
 from .._io import atomic_path, write_text
 from ..exceptions import DesignError
-from .engine import METRICS
+from .engine import METRICS, RUN_METRICS
 from .spec import StudySpec, axis_kind, column_value
 
 #: per metric, the statistics of the summary
 SUMMARY_STATS = ("median", "q25", "q75", "iqr", "mean", "std", "min", "max")
 #: the metrics summarized
-SUMMARY_METRICS = ("rmse", "peak", "final", "settling_time")
+SUMMARY_METRICS = ("rmse", "peak", "final", "settling_time", "cost", "peak_input")
 
 
 def schema(spec: StudySpec, diagnostics: Sequence[str]) -> Any:
@@ -48,7 +51,7 @@ def schema(spec: StudySpec, diagnostics: Sequence[str]) -> Any:
     fields += [pa.field("cell", pa.int64()), pa.field("seed", pa.int64()),
                pa.field("observer", pa.string()), pa.field("state", pa.string()),
                pa.field("estimated", pa.bool_())]
-    fields += [pa.field(m, pa.float64()) for m in METRICS]
+    fields += [pa.field(m, pa.float64()) for m in (*METRICS, *RUN_METRICS)]
     fields += [pa.field("diverged", pa.bool_()), pa.field("message", pa.string())]
     fields += [pa.field(f"diag.{d}", pa.float64()) for d in diagnostics]
     return pa.schema(fields, metadata={"hgo_mj": json.dumps(

@@ -40,7 +40,7 @@ from ..exceptions import DesignError
 #: keys of ``[sweep]`` that are not axes
 SWEEP_KEYS = ("seeds", "mode", "store")
 #: the sections a dotted path may start with
-SECTIONS = ("plant", "sensor", "observers", "input", "run")
+SECTIONS = ("plant", "sensor", "observers", "input", "controller", "run")
 #: refuse larger studies unless confirmed (``--yes``)
 MAX_RUNS = 10_000_000
 
@@ -168,6 +168,8 @@ def _accepted_keys(walked: str, node: Mapping[str, Any]) -> list[str]:
         if stage is not None:
             known |= {p for p in inspect.signature(stage.__init__).parameters if p != "self"}
         known.add("stage")
+    elif walked == "controller":
+        known |= {"type", "Q", "R", "x_eq", "u_eq", "u_max", "source", "observer"}
     elif walked == "input":
         from ..inputs import SIGNALS
 

@@ -28,6 +28,8 @@ from .spec import MAX_RUNS, Cell, parse_study
 #: core; scripts/bench_study.py on a 2-core machine)
 _PLANT_STEP_S = 5e-6
 _OBSERVER_STEP_S = 6.5e-8
+#: a closed loop's plant step (one control period a segment: MuJoCo's rollout called per step)
+_CLOSED_STEP_S = 4e-6
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
@@ -184,21 +186,25 @@ class Study:
         """The chunks of the runs left, grouped by what they share, and the plan's figures."""
         cells = self.cells
         chunks = plan(cells, self.spec.seeds, done=done, jobs=jobs, metric_kw=self._metric_kw())
-        trajectories, plant_steps, obs_steps = set(), 0.0, 0.0
+        trajectories, plant_steps, obs_steps, closed_steps = set(), 0.0, 0.0, 0.0
         for c in chunks:
-            for cell, _ in c.members:
+            for cell, seed in c.members:
                 sc = c.scenarios[cell]
+                dur = float(sc["run"]["duration"])
+                dt = float(sc["plant"].get("dt") or 0.001)
+                steps = dur / float(sc["run"].get("sample_period") or dt)
+                obs_steps += steps * max(len(sc.get("observers", [])), 1)
+                if "controller" in sc:  # a closed loop: every run its own plant trajectory
+                    trajectories.add(json.dumps([cell, seed]))
+                    closed_steps += dur / dt
+                    continue
                 key = json.dumps([{k: v for k, v in sc["plant"].items()}, sc.get("input"),
                                   {k: sc["run"].get(k) for k in ("duration", "sample_period")}],
                                  sort_keys=True)
-                dur = float(sc["run"]["duration"])
-                dt = float(sc["plant"].get("dt") or 0.001)
                 if key not in trajectories:
                     trajectories.add(key)
                     plant_steps += dur / dt
-                obs_steps += dur / float(sc["run"].get("sample_period") or dt) * max(
-                    len(sc.get("observers", [])), 1)
-        serial = obs_steps * _OBSERVER_STEP_S
+        serial = obs_steps * _OBSERVER_STEP_S + closed_steps * _CLOSED_STEP_S
         est = plant_steps * _PLANT_STEP_S + serial / max(jobs, 1)
         todo = sum(c.n_runs for c in chunks)
         return Plan(chunks, self.spec.n_cells, self.spec.n_runs, todo, len(trajectories), est,

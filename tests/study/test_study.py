@@ -289,3 +289,78 @@ def test_results_hold_nothing_non_finite_that_is_not_documented(mixed):
         assert np.isfinite(df[col].to_numpy(dtype=float)).all(), col
     st = df["settling_time"].to_numpy(dtype=float)
     assert np.all(np.isfinite(st) | (st == math.inf))
+
+
+CLOSED = {
+    "name": "closed",
+    "plant": {"name": "cart_pendulum", "dt": 0.001, "x0": [0.3, 0.0]},
+    "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0},
+                  {"type": "high_gain", "name": "passive", "k": 60.0}],
+    "controller": {"type": "lqr", "Q": [1.0, 1.0], "R": 1.0, "observer": "hgo"},
+    "run": {"duration": 1.2, "seed": 0},
+}
+
+
+def test_a_closed_loop_study_equals_its_runs_alone(tmp_path):
+    """LQR on the estimate (or the true state), gains x initial states x seeds: every plant
+    its own, stepped as one batch; each run equals simulate alone (the metrics bit for bit,
+    the cost to 1e-12), with its closed-loop cost and peak input."""
+    from hgo_mj.control import quadratic_cost
+
+    study = Study(CLOSED, {"observers.hgo.k": [10.0, 40.0], "controller.source":
+                           ["estimate", "true"], "plant.x0": [[0.3, 0.0], [-0.2, 0.5]]}, seeds=2)
+    assert study.plan().trajectories == 16  # a closed loop: every run its own trajectory
+    df = study.run(tmp_path / "cl", quiet=True).table
+    for cell in study.cells:
+        for seed in study.spec.seeds:
+            kw = scenario_run(cell.scenario)
+            traj = simulate(**kw, seed=seed)
+            metrics = all_metrics(traj)
+            cost = quadratic_cost(traj.x, traj.u, kw["inputs"].Q, kw["inputs"].R, 0.001)
+            for name, m in metrics.items():
+                rows = df[(df.cell == cell.index) & (df.seed == seed) & (df.observer == name)]
+                for j, state in enumerate(m["states"]):
+                    row = rows[rows.state == state].iloc[0]
+                    for key in EXACT:
+                        assert row[key] == m[key][j], (cell.values, seed, name, key)
+                    assert row["rmse"] == pytest.approx(m["rmse"][j], rel=1e-12)
+                assert (rows["cost"] == rows["cost"].iloc[0]).all()
+                assert rows["cost"].iloc[0] == pytest.approx(cost, rel=1e-12)
+                assert rows["peak_input"].iloc[0] == np.abs(traj.u).max()
+    s = df.groupby(["observers.hgo.k", "controller.source"])["cost"].median()
+    assert s[(10.0, "true")] == s[(40.0, "true")]  # the true-state loop ignores the gain
+    assert s[(10.0, "estimate")] > s[(10.0, "true")]
+
+
+def test_a_closed_loop_run_that_fails_is_a_row_and_the_others_are_kept(tmp_path):
+    """Huge outliers blow up the estimate the controller acts on: the plant gets a non-finite
+    input and stops. The seeds that meet one are diverged rows with simulate's message; the
+    other seeds finish."""
+    sc = {**CLOSED, "sensor": {"stages": [{"stage": "outliers", "p": 0.0006,
+                                           "magnitude": 1e308}]},
+          "observers": [{"type": "high_gain", "name": "hgo", "k": 200.0}]}
+    study = Study(sc, seeds=8)
+    df = study.run(tmp_path / "clf", quiet=True).table
+    per_seed = df.groupby("seed")["diverged"].first()
+    assert per_seed.any() and not per_seed.all()
+    for seed, diverged in per_seed.items():
+        try:
+            simulate(**scenario_run(sc), seed=seed)
+            alone = None
+        except DivergenceError as exc:
+            alone = str(exc)
+        assert diverged == (alone is not None)
+        if diverged:
+            msg = df[df.seed == seed]["message"].iloc[0]
+            assert msg.split(":")[0] in alone, (msg, alone)
+            assert df[df.seed == seed]["cost"].isna().all()
+
+
+def test_a_controller_and_an_input_are_refused_together():
+    with pytest.raises(DesignError, match=r"an \[input\] signal or a \[controller\], not both"):
+        scenario_run({**CLOSED, "input": {"type": "constant", "value": [0.0]}})
+    with pytest.raises(DesignError, match=r"unknown controller 'pid'; valid: \['lqr'\]"):
+        scenario_run({**CLOSED, "controller": {"type": "pid"}})
+    with pytest.raises(DesignError, match="controller has no key 'gain'"):
+        Study(CLOSED, {"controller.gain": [1.0]})

@@ -1,0 +1,52 @@
+"""LQR state feedback on a system's linearization, batched, with saturation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hgo_mj.control import LinearFeedback, linearize, lqr
+from hgo_mj.exceptions import DesignError
+from hgo_mj.systems import CartPendulum, ElasticJoint
+
+
+def test_the_cart_pendulums_lqr_gain_is_the_analytic_one():
+    """x1'' = sin x1 + u cos x1 at the upright: A = [[0, 1], [1, 0]], B = [0, 1]; with Q = I,
+    R = 1 the Riccati equation gives K = [1 + sqrt 2, sqrt(1 + 2 (1 + sqrt 2))]."""
+    A, B = linearize(CartPendulum())
+    np.testing.assert_allclose(A, [[0.0, 1.0], [1.0, 0.0]], atol=1e-8)
+    np.testing.assert_allclose(B, [[0.0], [1.0]], atol=1e-8)
+    K = lqr(CartPendulum(), Q=[1.0, 1.0], R=1.0).K
+    k1 = 1 + math.sqrt(2)
+    np.testing.assert_allclose(K, [[k1, math.sqrt(1 + 2 * k1)]], rtol=1e-6)
+
+
+def test_the_elastic_joints_lqr_closed_loop_is_stable():
+    sys = ElasticJoint()
+    law = lqr(sys, Q=1.0, R=0.1)
+    A, B = linearize(sys)
+    assert np.max(np.linalg.eigvals(A - B @ law.K).real) < 0
+    assert law.K.shape == (1, 4)
+
+
+def test_a_batch_acts_as_its_members_bit_for_bit_and_saturates():
+    law = LinearFeedback([[2.0, 0.7]], u_max=1.5)
+    X = np.random.default_rng(0).normal(size=(64, 2))
+    U = law.act(0.0, X)
+    for b in range(64):
+        assert law.act(0.0, X[b:b + 1])[0, 0] == U[b, 0]
+        assert law(0.0, X[b])[0] == U[b, 0]
+    assert np.abs(U).max() == 1.5
+    assert law.act(0.0, np.array([[0.1, 0.0]]))[0, 0] == pytest.approx(-0.2)
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"Q": [1.0, 1.0, 1.0]}, "Q must have length 2"),
+    ({"R": 0.0}, "R must be positive definite"),
+    ({"R": "1"}, "R must be a number"),
+])
+def test_bad_weights_are_refused(kw, match):
+    with pytest.raises((DesignError, ValueError), match=match):
+        lqr(CartPendulum(), **kw)
