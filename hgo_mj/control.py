@@ -60,8 +60,11 @@ def _weight(name: str, value: Any, size: int) -> Array:
 
 
 class LinearFeedback(Controller):
-    """``u = u_eq - K (x - x_eq)``, clipped to ``[-u_max, u_max]`` when ``u_max`` is given;
-    ``x`` the named observer's estimate (``source="estimate"``) or the true state. Batched:
+    """``u = u_eq - K (sat(x) - x_eq)``, clipped to ``[-u_max, u_max]`` when ``u_max`` is
+    given; ``x`` the named observer's estimate (``source="estimate"``) or the true state, and
+    ``sat`` the saturation of each entry to ``x_eq +- x_max`` when ``x_max`` is given and
+    ``saturate`` is true (Khalil's globally bounded output feedback: saturating the estimate
+    outside the region of interest keeps the observer's peaking from the plant). Batched:
     :meth:`act` maps ``(B, n)`` states to ``(B, m)`` inputs at once.
 
     Parameters
@@ -71,12 +74,17 @@ class LinearFeedback(Controller):
         The operating point (default: the origin).
     u_max : float or array_like, optional
         Saturation of every input (a limit per input, or one for all).
+    x_max : array_like, optional
+        Saturation of the state fed to the law, per entry (around ``x_eq``).
+    saturate : bool
+        Whether ``x_max`` applies (default true; false: the same law unsaturated, to compare).
     source, observer
         As :class:`~hgo_mj.inputs.Controller`.
     """
 
     def __init__(self, K: Any, *, x_eq: Any = None, u_eq: Any = None, u_max: Any = None,
-                 source: str = "estimate", observer: str | None = None) -> None:
+                 x_max: Any = None, saturate: bool = True, source: str = "estimate",
+                 observer: str | None = None) -> None:
         Km = np.atleast_2d(np.asarray(K, dtype=float))
         if Km.ndim != 2 or not np.all(np.isfinite(Km)):
             raise DesignError(f"K must be a finite (m, n) matrix; found {K!r}")
@@ -86,6 +94,10 @@ class LinearFeedback(Controller):
         self.u_eq = np.zeros(m) if u_eq is None else vector("u_eq", u_eq, m)
         self.u_max = (None if u_max is None else np.broadcast_to(
             np.abs(vector("u_max", np.atleast_1d(u_max))), (m,)).copy())
+        if not isinstance(saturate, bool):
+            raise DesignError(f"saturate must be true or false; found {saturate!r}")
+        self.x_max = None if x_max is None else np.abs(vector("x_max", x_max, n))
+        self.saturate = saturate
         #: the weights of the cost ``x'Qx + u'Ru`` (identity unless designed by :func:`lqr`)
         self.Q, self.R = np.eye(n), np.eye(m)
         super().__init__(self._law, source=source, observer=observer)
@@ -96,6 +108,8 @@ class LinearFeedback(Controller):
     def act(self, t: float, X: Array) -> Array:
         """The inputs ``(B, m)`` for the states ``X`` ``(B, n)``."""
         D = X - self.x_eq
+        if self.x_max is not None and self.saturate:
+            D = np.clip(D, -self.x_max, self.x_max)
         KD = np.zeros((D.shape[0], self.K.shape[0]))
         for j in range(D.shape[1]):  # elementwise, in a fixed order: a member's input does not
             KD += D[:, j:j + 1] * self.K[:, j]  # depend on the batch (BLAS kernels would)
@@ -107,12 +121,14 @@ class LinearFeedback(Controller):
     def params(self) -> dict[str, Any]:
         return {"K": self.K.tolist(), "x_eq": self.x_eq.tolist(), "u_eq": self.u_eq.tolist(),
                 "u_max": None if self.u_max is None else self.u_max.tolist(),
+                "x_max": None if self.x_max is None else self.x_max.tolist(),
+                "saturate": self.saturate,
                 "source": self.source, "observer": self.observer}
 
 
 def lqr(system: System, Q: Any = 1.0, R: Any = 1.0, *, x_eq: Any = None, u_eq: Any = None,
-        u_max: Any = None, source: str = "estimate", observer: str | None = None
-        ) -> LinearFeedback:
+        u_max: Any = None, x_max: Any = None, saturate: bool = True, source: str = "estimate",
+        observer: str | None = None) -> LinearFeedback:
     """The LQR state feedback of ``system`` linearized at ``(x_eq, u_eq)``: ``K = R^-1 B' P``
     with ``P`` the stabilizing solution of ``A'P + PA - P B R^-1 B' P + Q = 0``
     (``scipy.linalg.solve_continuous_are``).
@@ -139,8 +155,8 @@ def lqr(system: System, Q: Any = 1.0, R: Any = 1.0, *, x_eq: Any = None, u_eq: A
     K = np.linalg.solve(Rm, B.T @ P)
     if np.max(np.linalg.eigvals(A - B @ K).real) >= 0:  # pragma: no cover - the CARE ensures it
         raise DesignError(f"LQR of {type(system).__name__}: the closed loop is not stable")
-    law = LinearFeedback(K, x_eq=x_eq, u_eq=u_eq, u_max=u_max, source=source,
-                         observer=observer)
+    law = LinearFeedback(K, x_eq=x_eq, u_eq=u_eq, u_max=u_max, x_max=x_max, saturate=saturate,
+                         source=source, observer=observer)
     law.Q, law.R = Qm, Rm  # the weights, for the closed loop's cost
     return law
 
@@ -153,7 +169,7 @@ def quadratic_cost(x: Array, u: Array, Q: Array, R: Array, dt: float) -> float:
 
 def make_controller(spec: dict[str, Any], system: System) -> LinearFeedback:
     """A controller from a scenario's ``[controller]`` table: ``type = "lqr"`` with ``Q``,
-    ``R``, ``x_eq``, ``u_eq``, ``u_max``, ``source``, ``observer``."""
+    ``R``, ``x_eq``, ``u_eq``, ``u_max``, ``x_max``, ``saturate``, ``source``, ``observer``."""
     from ._validate import reject_unknown
 
     spec = dict(spec)
@@ -161,7 +177,7 @@ def make_controller(spec: dict[str, Any], system: System) -> LinearFeedback:
     if kind != "lqr":
         raise DesignError(f"unknown controller {kind!r}; valid: ['lqr']")
     reject_unknown("controller 'lqr'", spec,
-                   ["Q", "R", "x_eq", "u_eq", "u_max", "source", "observer"])
+                   ["Q", "R", "x_eq", "u_eq", "u_max", "x_max", "saturate", "source", "observer"])
     if "u_max" in spec:
         finite_scalar("controller u_max", np.max(np.abs(np.atleast_1d(spec["u_max"]))),
                       positive=True)

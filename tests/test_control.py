@@ -50,3 +50,12 @@ def test_a_batch_acts_as_its_members_bit_for_bit_and_saturates():
 def test_bad_weights_are_refused(kw, match):
     with pytest.raises((DesignError, ValueError), match=match):
         lqr(CartPendulum(), **kw)
+
+
+def test_the_estimate_is_saturated_only_when_asked():
+    law = LinearFeedback([[1.0, 1.0]], x_max=[0.5, 2.0])
+    assert law.act(0.0, np.array([[3.0, -9.0]]))[0, 0] == pytest.approx(-(0.5 - 2.0))
+    off = LinearFeedback([[1.0, 1.0]], x_max=[0.5, 2.0], saturate=False)
+    assert off.act(0.0, np.array([[3.0, -9.0]]))[0, 0] == pytest.approx(6.0)
+    with pytest.raises(DesignError, match="saturate must be true or false"):
+        LinearFeedback([[1.0, 1.0]], saturate="yes")

@@ -183,7 +183,7 @@ def heatmap_figure(summary: Any, a: str, b: str, scenario: dict[str, Any], title
 def study_figures(result: Any, out: str | Path | None = None) -> list[Any]:
     """Every figure of a study (module docstring); saved as PNG into ``out`` if given."""
     summary = result.summary()
-    axes = result.axes
+    axes = result.plot_axes
     scenario = result.study.spec.scenario
     title = result.study.name
     figs: list[tuple[str, Any]] = []

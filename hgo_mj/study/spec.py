@@ -8,6 +8,11 @@ A study file is a scenario file (see :mod:`hgo_mj.cli`) with a ``[sweep]`` table
     "observers.hgo.k" = [10, 20, 40, 80]     # one axis per dotted path into the scenario
     "sensor.stages.0.std" = [1e-4, 1e-3]
 
+Axes in a ``[[sweep.together]]`` table advance together (their lists have one length), and
+the group as a whole is one axis of the product: e.g. a plant with its own initial state and
+bounds, ``"plant.name" = ["pendulum", "elastic_joint"]`` beside ``"plant.x0" = [[0.3, 0.0],
+[0.3, 0.3, 0.0, 0.0]]``.
+
 A dotted path names a value of the scenario: its first part is a section (``plant``,
 ``sensor``, ``observers``, ``input``, ``run``); an observer is addressed by its ``name``
 (``observers.hgo.k``), a list entry by its index (``sensor.stages.0.std``). A path that ends on
@@ -38,7 +43,7 @@ import numpy as np
 from ..exceptions import DesignError
 
 #: keys of ``[sweep]`` that are not axes
-SWEEP_KEYS = ("seeds", "mode", "store")
+SWEEP_KEYS = ("seeds", "mode", "store", "together")
 #: the sections a dotted path may start with
 SECTIONS = ("plant", "sensor", "observers", "input", "controller", "run")
 #: refuse larger studies unless confirmed (``--yes``)
@@ -47,10 +52,12 @@ MAX_RUNS = 10_000_000
 
 @dataclass(frozen=True)
 class Axis:
-    """One swept dotted path and its values."""
+    """One swept dotted path and its values; axes of one ``group`` (a ``[[sweep.together]]``
+    table) advance together."""
 
     path: str
     values: tuple[Any, ...]
+    group: int | None = None
 
 
 @dataclass
@@ -64,12 +71,27 @@ class StudySpec:
     #: cell filters whose runs keep their trajectories (``[{"path": value}, ...]``)
     store: tuple[dict[str, Any], ...] = field(default_factory=tuple)
 
+    def units(self) -> list[list[Axis]]:
+        """What a product runs over: each axis alone, the axes of a group together."""
+        out: list[list[Axis]] = []
+        groups: dict[int, list[Axis]] = {}
+        for a in self.axes:
+            if a.group is None:
+                out.append([a])
+            elif a.group not in groups:
+                groups[a.group] = [a]
+                out.append(groups[a.group])
+            else:
+                groups[a.group].append(a)
+        return out
+
     @property
     def n_cells(self) -> int:
         if not self.axes:
             return 1
-        sizes = [len(a.values) for a in self.axes]
-        return int(np.prod(sizes)) if self.mode == "product" else sizes[0]
+        if self.mode == "zip":
+            return len(self.axes[0].values)
+        return int(np.prod([len(u[0].values) for u in self.units()]))
 
     @property
     def n_runs(self) -> int:
@@ -78,22 +100,26 @@ class StudySpec:
     def cells(self) -> list[Cell]:
         """Every cell, in order (the last axis varies fastest in a product)."""
         if not self.axes:
-            combos: list[tuple[Any, ...]] = [()]
-        elif self.mode == "product":
-            combos = list(itertools.product(*(a.values for a in self.axes)))
+            picks: list[dict[str, Any]] = [{}]
+        elif self.mode == "zip":
+            picks = [{a.path: a.values[i] for a in self.axes}
+                     for i in range(len(self.axes[0].values))]
         else:
-            combos = list(zip(*(a.values for a in self.axes)))
+            units = self.units()
+            picks = [{a.path: a.values[i] for u, i in zip(units, idx) for a in u}
+                     for idx in itertools.product(*(range(len(u[0].values)) for u in units))]
         out = []
-        for i, combo in enumerate(combos):
+        for i, pick in enumerate(picks):
             sc = copy.deepcopy(self.scenario)
-            for axis, value in zip(self.axes, combo):
-                set_path(sc, axis.path, copy.deepcopy(value))
-            out.append(Cell(i, dict(zip((a.path for a in self.axes), combo)), sc))
+            for axis in self.axes:
+                set_path(sc, axis.path, copy.deepcopy(pick[axis.path]))
+            out.append(Cell(i, {a.path: pick[a.path] for a in self.axes}, sc))
         return out
 
     def to_json(self) -> dict[str, Any]:
         """The study as JSON data (what ``--resume`` compares)."""
         return {"scenario": self.scenario, "axes": {a.path: list(a.values) for a in self.axes},
+                "groups": {a.path: a.group for a in self.axes if a.group is not None},
                 "mode": self.mode, "seeds": list(self.seeds), "store": list(self.store)}
 
 
@@ -169,7 +195,8 @@ def _accepted_keys(walked: str, node: Mapping[str, Any]) -> list[str]:
             known |= {p for p in inspect.signature(stage.__init__).parameters if p != "self"}
         known.add("stage")
     elif walked == "controller":
-        known |= {"type", "Q", "R", "x_eq", "u_eq", "u_max", "source", "observer"}
+        known |= {"type", "Q", "R", "x_eq", "u_eq", "u_max", "x_max", "saturate", "source",
+                  "observer"}
     elif walked == "input":
         from ..inputs import SIGNALS
 
@@ -274,20 +301,38 @@ def _value_key(v: Any) -> str:
 def _axes(scenario: Mapping[str, Any], sweep: Mapping[str, Any]) -> list[Axis]:
     """The axes of a ``[sweep]`` table: each path checked, each value list non-empty and
     without repeats."""
-    axes = []
-    for path, values in sweep.items():
-        if path in SWEEP_KEYS:
-            continue
-        check_path(scenario, path)
-        if not isinstance(values, list):
-            raise DesignError(f"sweep axis {path!r} must be a list of values; found {values!r}")
-        if not values:
-            raise DesignError(f"sweep axis {path!r} is empty: give at least one value")
-        keys = [_value_key(v) for v in values]
-        if len(set(keys)) != len(keys):
-            raise DesignError(f"sweep axis {path!r} repeats a value: {values}")
-        axes.append(Axis(path, tuple(values)))
+    axes = [_axis(scenario, path, values) for path, values in sweep.items()
+            if path not in SWEEP_KEYS]
+    together = sweep.get("together", [])
+    if not isinstance(together, list) or not all(isinstance(t, Mapping) and t for t in together):
+        raise DesignError(f"sweep.together must be a list of tables of axes ([[sweep.together]]"
+                          f"); found {together!r}")
+    for g, table in enumerate(together):
+        group = [_axis(scenario, path, values, g) for path, values in table.items()]
+        if len({len(a.values) for a in group}) > 1:
+            raise DesignError("the axes of a [[sweep.together]] table must have the same "
+                              "length; found " + ", ".join(f"{a.path}: {len(a.values)}"
+                                                           for a in group))
+        axes += group
+    paths = [a.path for a in axes]
+    if len(set(paths)) != len(paths):
+        twice = sorted(p for p in set(paths) if paths.count(p) > 1)
+        raise DesignError(f"a sweep axis is given twice: {twice}")
     return axes
+
+
+def _axis(scenario: Mapping[str, Any], path: str, values: Any, group: int | None = None) -> Axis:
+    """One axis, checked: its path names a value of the scenario, its values are a non-empty
+    list (without repeats, unless it advances with others in a group)."""
+    check_path(scenario, path)
+    if not isinstance(values, list):
+        raise DesignError(f"sweep axis {path!r} must be a list of values; found {values!r}")
+    if not values:
+        raise DesignError(f"sweep axis {path!r} is empty: give at least one value")
+    keys = [_value_key(v) for v in values]
+    if len(set(keys)) != len(keys) and group is None:
+        raise DesignError(f"sweep axis {path!r} repeats a value: {values}")
+    return Axis(path, tuple(values), group)
 
 
 def parse_study(doc: Mapping[str, Any], *, max_runs: int | None = MAX_RUNS) -> StudySpec:

@@ -95,6 +95,8 @@ class Study:
     seeds : int or list of int
         ``N``: the seeds ``run.seed ... run.seed + N - 1``; or the seeds themselves.
     mode : {"product", "zip"}
+    together : list of mappings, optional
+        Groups of axes that advance together (each a mapping path -> list, one length).
     store : list of cell filters, optional
         Cells (``{path: value}``) whose runs also keep their trajectory (``.npz`` per run).
     max_runs : int or None
@@ -103,12 +105,14 @@ class Study:
 
     def __init__(self, scenario: Mapping[str, Any], axes: Mapping[str, Any] | None = None,
                  seeds: Any = 1, *, mode: str = "product", store: Iterable[Any] = (),
+                 together: Iterable[Mapping[str, Any]] = (),
                  max_runs: int | None = MAX_RUNS) -> None:
         if not isinstance(scenario, Mapping):
             raise DesignError(f"scenario must be a table; found {type(scenario).__name__}")
         if axes is not None and not isinstance(axes, Mapping):
             raise DesignError(f"axes must map dotted paths to lists of values; found {axes!r}")
-        sweep = {"seeds": seeds, "mode": mode, "store": list(store), **dict(axes or {})}
+        sweep = {"seeds": seeds, "mode": mode, "store": list(store),
+                 "together": [dict(t) for t in together], **dict(axes or {})}
         self.spec = parse_study({**copy.deepcopy(dict(scenario)), "sweep": sweep},
                                 max_runs=max_runs)
         self.name = str(scenario.get("name", "study"))
@@ -125,10 +129,13 @@ class Study:
         seeds = sweep.pop("seeds", 1)
         mode = sweep.pop("mode", "product")
         store = sweep.pop("store", [])
-        if not isinstance(store, list):
-            raise DesignError(f"sweep.store must be a list of tables; found {store!r}")
+        together = sweep.pop("together", [])
+        for key, value in (("store", store), ("together", together)):
+            if not isinstance(value, list):
+                raise DesignError(f"sweep.{key} must be a list of tables; found {value!r}")
         doc.setdefault("name", Path(path).stem)
-        return cls(doc, sweep, seeds, mode=mode, store=store, max_runs=max_runs)
+        return cls(doc, sweep, seeds, mode=mode, store=store, together=together,
+                   max_runs=max_runs)
 
     @property
     def cells(self) -> list[Cell]:
@@ -289,7 +296,13 @@ class StudyResult:
 
     @property
     def axes(self) -> list[str]:
+        """Every swept path (a column each)."""
         return [a.path for a in self.study.spec.axes]
+
+    @property
+    def plot_axes(self) -> list[str]:
+        """One path per unit of the product (a group is drawn against its first path)."""
+        return [u[0].path for u in self.study.spec.units()]
 
     @property
     def table(self) -> Any:

@@ -364,3 +364,26 @@ def test_a_controller_and_an_input_are_refused_together():
         scenario_run({**CLOSED, "controller": {"type": "pid"}})
     with pytest.raises(DesignError, match="controller has no key 'gain'"):
         Study(CLOSED, {"controller.gain": [1.0]})
+
+
+def test_axes_together_advance_as_one(tmp_path):
+    """Two plants, each with its own initial state, as one axis of the product with the gain."""
+    sc = {**BASE, "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+          "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+          "run": {"duration": 0.5, "seed": 0}}
+    study = Study(sc, {"observers.hgo.k": [10.0, 40.0]}, seeds=1, together=[
+        {"plant.name": ["pendulum", "elastic_joint"],
+         "plant.x0": [[0.5, 0.0], [0.3, 0.3, 0.0, 0.0]]}])
+    assert [c.values for c in study.cells] == [
+        {"observers.hgo.k": k, "plant.name": p, "plant.x0": x} for k in (10.0, 40.0)
+        for p, x in (("pendulum", [0.5, 0.0]), ("elastic_joint", [0.3, 0.3, 0.0, 0.0]))]
+    result = study.run(tmp_path / "tog", quiet=True)
+    assert set(result.table["plant.name"]) == {"pendulum", "elastic_joint"}
+    assert result.plot_axes == ["observers.hgo.k", "plant.name"]
+    metrics, _ = _alone(study.cells[3].scenario, 0)
+    row = result.table[(result.table.cell == 3) & (result.table.state == "motor_velocity")]
+    assert row["peak"].iloc[0] == metrics["hgo"]["peak"][3]
+    with pytest.raises(DesignError, match="must have the same length"):
+        Study(sc, together=[{"plant.name": ["pendulum"], "plant.x0": [[0.5, 0.0], [1.0, 0.0]]}])
+    with pytest.raises(DesignError, match=r"given twice: \['plant.name'\]"):
+        Study(sc, {"plant.name": ["pendulum"]}, together=[{"plant.name": ["pendulum"]}])
