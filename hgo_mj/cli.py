@@ -10,8 +10,9 @@ headless study and writes ``trajectory.npz``, ``metrics.json``, ``figure.png`` a
 ``OUT/run.rrd``), written in chunks of ``RRD_CHUNK_SECONDS`` (2) simulated seconds as the run
 goes, so a run stopped with Ctrl-C (exit status 130) leaves a readable recording up to its last
 chunk. ``--seeds N`` (or ``seeds = N`` in the scenario's ``[run]``) repeats the run at the seeds
-``SEED ... SEED+N-1`` (``--jobs J`` processes) and also writes ``metrics_mc.json``,
-``summary_mc.txt`` and ``mc.png`` (:mod:`hgo_mj.study`); the other files are the first seed's.
+``SEED ... SEED+N-1`` (the seeds after the first as a study, :mod:`hgo_mj.study`, ``--jobs J``)
+and also writes ``metrics_mc.json``, ``summary_mc.txt``, ``mc.png`` and ``seeds/`` (the study's
+rows); the other files are the first seed's.
 ``hgo-mj demo``
 writes ``runs/demo/demo.rrd`` unless ``--no-rrd``. Bad input exits with status 2 and one line
 naming the parameter, what was expected and what was found.
@@ -253,17 +254,19 @@ def _flag_int(value: Any, where: str) -> int:
 def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
               jobs: int = 1) -> tuple[Any, dict[str, Any], Path, Any]:
     """:func:`run_scenario` at ``run.seed``, then, when ``run.seeds`` = N > 1, a Monte Carlo
-    over the seeds ``seed, seed + 1, ..., seed + N - 1`` (:func:`hgo_mj.study.monte_carlo` on
-    ``jobs`` processes) written to ``metrics_mc.json``, ``summary_mc.txt`` and ``mc.png``.
+    over the seeds ``seed, seed + 1, ..., seed + N - 1``: the other seeds as a study of the
+    same scenario (:class:`hgo_mj.study.Study`, up to ``jobs`` processes; its rows in
+    ``OUT/seeds/results.parquet``), written to ``metrics_mc.json``, ``summary_mc.txt`` and
+    ``mc.png``.
     Returns ``(trajectory, metrics, out_dir, mc)``: the first seed's run, and the
     :class:`~hgo_mj.study.MonteCarloResult` of all seeds (``None`` for one seed).
 
     The first seed's files (and ``rrd``) are exactly those of a single run at that seed."""
-    from functools import partial
+    import shutil
 
-    from . import cli as _cli  # scenario_run by its module name, also under `python -m`
     from .plotting import plot_monte_carlo
-    from .study import MonteCarloResult, run_seeds
+    from .study import MonteCarloResult, Study
+    from .study.results import seed_metrics
 
     run = sc.get("run", {})
     n = positive_int("run.seeds", run.get("seeds", 1), floats=False) if isinstance(run, dict) else 1
@@ -275,9 +278,13 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
         return traj, metrics, out, None
     seed = single["run"].get("seed", 0)
     seeds = list(range(seed, seed + n))
-    mkw = {k: single["run"][k] for k in ("t_transient", "band") if k in single["run"]}
-    done, runs, failed = run_seeds(partial(_cli.scenario_run, single, name), seeds[1:],
-                                   jobs=jobs, **mkw)
+    # the other seeds as a study (hgo_mj.study): one plant run, the seeds as one batch; its
+    # rows (results.parquet) in OUT/seeds/, replaced by each run as the other files are
+    folder = out / "seeds"
+    if folder.is_dir():
+        shutil.rmtree(folder)
+    table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=True).table
+    done, runs, failed = seed_metrics(table, metrics)
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
     (out / "summary_mc.txt").write_text(mc.table() + "\n")

@@ -46,8 +46,8 @@ def schema(spec: StudySpec, diagnostics: Sequence[str]) -> Any:
     """The one Arrow schema of every partition of a study."""
     import pyarrow as pa
 
-    fields = [pa.field(a.path, pa.float64() if axis_kind(a.values) == "number" else pa.string())
-              for a in spec.axes]
+    types = {"number": pa.float64(), "bool": pa.bool_(), "text": pa.string()}
+    fields = [pa.field(a.path, types[axis_kind(a.values)]) for a in spec.axes]
     fields += [pa.field("cell", pa.int64()), pa.field("seed", pa.int64()),
                pa.field("observer", pa.string()), pa.field("state", pa.string()),
                pa.field("estimated", pa.bool_())]
@@ -115,10 +115,11 @@ class ResultsDir:
         import pyarrow.parquet as pq
 
         cols: dict[str, list[Any]] = {f.name: [] for f in sch}
+        kinds = [(a, axis_kind(a.values)) for a in spec.axes]
         for r in rows:
             vals = cell_values[r["cell"]]
-            for a in spec.axes:
-                cols[a.path].append(column_value(vals[a.path]))
+            for a, kind in kinds:
+                cols[a.path].append(column_value(vals[a.path], kind))
             for name in cols:
                 if name not in vals:
                     cols[name].append(r.get(name))
@@ -139,6 +140,34 @@ class ResultsDir:
         df = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
         return df.sort_values(["cell", "seed", "observer", "state"], kind="stable",
                               ignore_index=True)
+
+
+def seed_metrics(table: Any, template: Mapping[str, Mapping[str, Any]]
+                 ) -> tuple[list[int], list[dict[str, dict[str, Any]]], dict[int, str]]:
+    """The rows of a seeds-only study as :func:`hgo_mj.metrics.all_metrics` of each run:
+    ``(seeds that finished, their metrics, {seed: message} of those where an observer
+    diverged)``, in seed order. ``template`` is ``all_metrics`` of one run of the same scenario
+    (the states, what each observer estimates, its extra states and the metric settings)."""
+    done, runs, failed = [], [], {}
+    for seed, g in table.groupby("seed", sort=True):
+        bad = g[g["diverged"]]
+        if len(bad):
+            failed[int(seed)] = f"seed {int(seed)}: {bad['message'].iloc[0]}"
+            continue
+        run: dict[str, dict[str, Any]] = {}
+        for name, t in template.items():
+            rows = g[g["observer"] == name].set_index("state")
+            m = {k: v for k, v in t.items()}
+            for key in ("rmse", "peak", "settling_time", "final"):
+                m[key] = [float(rows.at[s, key]) if est else None
+                          for s, est in zip(t["states"], t["estimated"])]
+            m["undefined_samples"] = [int(rows.at[s, "undefined_samples"]) if est else None
+                                      for s, est in zip(t["states"], t["estimated"])]
+            m["update_time"] = float(rows["update_time"].max())
+            run[name] = m
+        done.append(int(seed))
+        runs.append(run)
+    return done, runs, failed
 
 
 def summarize(df: Any, axes: Sequence[str]) -> Any:
@@ -208,5 +237,5 @@ def write_summary(out: Path, df: Any, axes: Sequence[str], title: str) -> Any:
     return summary
 
 
-__all__ = ["ResultsDir", "SUMMARY_METRICS", "SUMMARY_STATS", "schema", "summarize",
+__all__ = ["ResultsDir", "SUMMARY_METRICS", "SUMMARY_STATS", "schema", "seed_metrics", "summarize",
            "summary_markdown", "write_summary"]

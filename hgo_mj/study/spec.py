@@ -33,7 +33,6 @@ import copy
 import inspect
 import itertools
 import json
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -369,21 +368,24 @@ def parse_study(doc: Mapping[str, Any], *, max_runs: int | None = MAX_RUNS) -> S
     return spec
 
 
-def column_value(v: Any) -> Any:
-    """An axis value as a table cell: a number as a float, a string or bool as is, anything
-    else (lists, tables) as compact JSON text."""
-    if isinstance(v, bool) or isinstance(v, str):
-        return v
-    if isinstance(v, (int, float)) and math.isfinite(float(v)):
-        return float(v)
-    return json.dumps(v, sort_keys=True, separators=(",", ":"))
-
-
 def axis_kind(values: Sequence[Any]) -> str:
-    """``"number"`` when every value is a number (a column of floats), else ``"text"``."""
+    """The type of an axis's column: ``"number"`` (floats) when every value is a number,
+    ``"bool"`` when every value is true or false, else ``"text"``."""
+    if all(isinstance(v, bool) for v in values):
+        return "bool"
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         return "number"
     return "text"
+
+
+def column_value(v: Any, kind: str) -> Any:
+    """An axis value as a cell of its column (:func:`axis_kind`): a float, a bool, or text
+    (a string as is, anything else, lists and tables, as compact JSON)."""
+    if kind == "number":
+        return float(v)
+    if kind == "bool" or isinstance(v, str):
+        return v
+    return json.dumps(v, sort_keys=True, separators=(",", ":"))
 
 
 __all__ = ["Axis", "Cell", "MAX_RUNS", "StudySpec", "axis_kind", "check_path", "column_value",

@@ -29,7 +29,9 @@ from .spec import MAX_RUNS, Cell, parse_study
 _PLANT_STEP_S = 5e-6
 _OBSERVER_STEP_S = 6.5e-8
 #: a closed loop's plant step (one control period a segment: MuJoCo's rollout called per step)
+#: and the cost of one segment of the loop (plant, sensor, observers, controller calls)
 _CLOSED_STEP_S = 4e-6
+_SEGMENT_S = 1.5e-4
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
@@ -194,6 +196,8 @@ class Study:
         cells = self.cells
         chunks = plan(cells, self.spec.seeds, done=done, jobs=jobs, metric_kw=self._metric_kw())
         trajectories, plant_steps, obs_steps, closed_steps = set(), 0.0, 0.0, 0.0
+        closed_cells: set[int] = set()
+        segments = 0.0
         for c in chunks:
             for cell, seed in c.members:
                 sc = c.scenarios[cell]
@@ -204,6 +208,9 @@ class Study:
                 if "controller" in sc:  # a closed loop: every run its own plant trajectory
                     trajectories.add(json.dumps([cell, seed]))
                     closed_steps += dur / dt
+                    if cell not in closed_cells:  # one loop segment per control period
+                        closed_cells.add(cell)
+                        segments += steps
                     continue
                 key = json.dumps([{k: v for k, v in sc["plant"].items()}, sc.get("input"),
                                   {k: sc["run"].get(k) for k in ("duration", "sample_period")}],
@@ -211,7 +218,8 @@ class Study:
                 if key not in trajectories:
                     trajectories.add(key)
                     plant_steps += dur / dt
-        serial = obs_steps * _OBSERVER_STEP_S + closed_steps * _CLOSED_STEP_S
+        serial = (obs_steps * _OBSERVER_STEP_S + closed_steps * _CLOSED_STEP_S
+                  + segments * _SEGMENT_S)
         est = plant_steps * _PLANT_STEP_S + serial / max(jobs, 1)
         todo = sum(c.n_runs for c in chunks)
         return Plan(chunks, self.spec.n_cells, self.spec.n_runs, todo, len(trajectories), est,
