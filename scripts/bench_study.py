@@ -21,6 +21,8 @@ Usage: ``python scripts/bench_study.py [--write BENCHMARKS.md] [--single N] [--n
    004), 10 s at 1 kHz, as one study (every member its own plant, stepped together) against
    the same runs through the single-run path (``--single-closed`` of them timed, scaled).
    Target: at least 5x faster.
+5. **Memory**: 10,000 runs by ``hgo-mj sweep`` in a fresh process: its peak resident memory
+   (``ru_maxrss`` of the child, the largest of its processes). Target: under 500 MB.
 
 Every study is timed after a small study in the same process has loaded the compiled kernels
 (a first study in a fresh process pays about a second more: ``import`` and the kernel cache).
@@ -170,6 +172,46 @@ def closed_loop(tmp: Path, single: int) -> dict[str, float]:
     return {"study_s": t_study, "single_s": t_single, "compared": len(jobs)}
 
 
+MEMORY_TOML = """
+name = "memory"
+[plant]
+name = "pendulum"
+x0 = [0.5, 0.0]
+[sensor]
+stages = [{stage = "gaussian", std = 1e-3}, {stage = "quantize", counts_per_rev = 4096}]
+[[observers]]
+type = "high_gain"
+name = "hgo"
+k = 20.0
+[input]
+type = "multisine"
+amplitudes = [0.3]
+frequencies = [0.5]
+[run]
+duration = 10.0
+[sweep]
+seeds = 2500
+"observers.hgo.k" = [10.0, 20.0, 40.0, 80.0]
+"""
+
+
+def memory(tmp: Path) -> dict[str, float]:
+    """10,000 runs (2500 seeds x 4 gains, 10 s each) by `hgo-mj sweep` in a fresh process:
+    its peak resident memory and wall time."""
+    import resource
+    import subprocess
+
+    f = tmp / "memory.toml"
+    f.write_text(MEMORY_TOML)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "hgo_mj.cli", "sweep", str(f), "--out",
+                    str(tmp / "mem"), "--jobs", "2", "--quiet"], check=True,
+                   stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    return {"runs": 10_000, "rss_mb": peak_kib / 1024, "wall_s": wall}
+
+
 def on_ray(tmp: Path, t_local: float, local_df) -> dict[str, float]:
     import ray
 
@@ -188,7 +230,8 @@ def on_ray(tmp: Path, t_local: float, local_df) -> dict[str, float]:
     return {"cold_s": t_cold, "warm_s": t_warm, "local_s": t_local, "identical": same}
 
 
-def report(s1: dict, s2: dict, s3: dict, r: dict | None, args: argparse.Namespace) -> str:
+def report(s1: dict, s2: dict, s3: dict, mem: dict, r: dict | None,
+           args: argparse.Namespace) -> str:
     lines = [
         "## Issue 11: the study engine (`scripts/bench_study.py`)", "",
         *header(f"`python scripts/bench_study.py --write BENCHMARKS.md --single {args.single} "
@@ -210,6 +253,9 @@ def report(s1: dict, s2: dict, s3: dict, r: dict | None, args: argparse.Namespac
         f"| 3. the same 256 runs through the single-run path (a pool of 2 processes; "
         f"{s3['compared']} runs timed, scaled to 256) | {s3['single_s']:.1f} | study "
         f"{s3['single_s'] / s3['study_s']:.1f}x faster | >= 5x |",
+        f"| memory: 10,000 runs (2500 seeds x 4 gains, 10 s each) by `hgo-mj sweep --jobs 2`, "
+        f"peak RSS of the largest process | {mem['wall_s']:.1f} | {mem['rss_mb']:.0f} MB | "
+        f"<= 500 MB |",
     ]
     if r is not None:
         lines += [
@@ -246,6 +292,8 @@ def main() -> int:
         s3 = closed_loop(tmp, args.single_closed)
         print(f"3: study {s3['study_s']:.2f} s, single path {s3['single_s']:.1f} s",
               file=sys.stderr)
+        mem = memory(tmp)
+        print(f"memory: {mem['rss_mb']:.0f} MB for 10,000 runs", file=sys.stderr)
         r = None
         if not args.no_ray:
             from hgo_mj.study import Study
@@ -253,7 +301,7 @@ def main() -> int:
             t_local, res = _timed_study(Study(BASE, {"observers.hgo.k": GAINS}, seeds=256),
                                         tmp / "l1", jobs=2)
             r = on_ray(tmp, t_local, res.table)
-        text = report(s1, s2, s3, r, args)
+        text = report(s1, s2, s3, mem, r, args)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     print(text)

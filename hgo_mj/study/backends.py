@@ -45,7 +45,7 @@ def local_jobs(jobs: int, serial_s: float) -> int:
 
 def backend_for(name: Any, *, address: str | None = None, jobs: int = 1) -> Backend:
     """The backend called ``name`` (checked before any work: Ray must import, the address
-    must answer)."""
+    must accept a connection)."""
     if name not in BACKENDS:
         raise DesignError(f"backend must be one of {list(BACKENDS)}; found {name!r}")
     if name == "local":
@@ -56,6 +56,8 @@ def backend_for(name: Any, *, address: str | None = None, jobs: int = 1) -> Back
         import ray  # noqa: F401
     except ImportError:
         raise DesignError('--backend ray needs Ray: pip install "hgo_mj[ray]"') from None
+    if address is not None:
+        _check_reachable(address)
     return lambda chunks: _ray(chunks, jobs, address)
 
 
@@ -95,8 +97,6 @@ def ray_init(jobs: int, address: str | None) -> None:
 
     if ray.is_initialized():
         return
-    if address is not None:
-        _check_reachable(address)
     try:
         if address is None:
             ray.init(num_cpus=jobs, include_dashboard=False, _node_ip_address="127.0.0.1",

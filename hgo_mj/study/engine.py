@@ -45,8 +45,16 @@ from ..plants.base import Plant
 
 Array = NDArray[np.float64]
 
-#: samples per segment (as ``simulate``)
+#: samples per segment (as ``simulate``) ...
 SEGMENT = 1024
+#: ... at most: a segment's arrays hold members x samples values, bounded by this
+SEGMENT_VALUES = 2 ** 18
+
+
+def segment_length(B: int) -> int:
+    """Samples per segment for B members: :data:`SEGMENT`, fewer for large batches (memory
+    flat in B; at least 64 samples, where the per-segment overhead is small)."""
+    return max(64, min(SEGMENT, SEGMENT_VALUES // max(B, 1)))
 #: the metric columns of a result row, in order
 METRICS = ("rmse", "peak", "settling_time", "final", "undefined_samples", "update_time")
 #: the closed loop's metrics of a run (the same in every row of the run): the cost
@@ -404,7 +412,7 @@ class _Bucket:
                              p.t_transient, p.band[rows]) for name, ob in obs.items()}
         prev = {name: (x, z) for name, (x, z, _) in loop.estimates().items()}
         while loop.k < p.N:
-            k0, T = loop.k, drive.length(loop.k, p.N, SEGMENT)
+            k0, T = loop.k, drive.length(loop.k, p.N, segment_length(len(members)))
             seg = loop.segment(drive.inputs(loop, T))
             for name, blk in seg.blocks.items():
                 acc[name].add(k0, seg.x, prev[name], blk.x_hat, blk.z_hat)

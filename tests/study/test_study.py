@@ -387,3 +387,64 @@ def test_axes_together_advance_as_one(tmp_path):
         Study(sc, together=[{"plant.name": ["pendulum"], "plant.x0": [[0.5, 0.0], [1.0, 0.0]]}])
     with pytest.raises(DesignError, match=r"given twice: \['plant.name'\]"):
         Study(sc, {"plant.name": ["pendulum"]}, together=[{"plant.name": ["pendulum"]}])
+
+
+def test_an_interrupted_study_keeps_its_finished_chunks_and_resumes(tmp_path, monkeypatch):
+    """Ctrl-C after two chunks: their partitions are whole and readable, nothing half-written
+    is left, and --resume runs only the rest; the result equals an uninterrupted study."""
+    from hgo_mj.study import backends, engine
+
+    real, calls = engine.run_chunk, []
+
+    def flaky(chunk):
+        calls.append(chunk.id)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(chunk)
+
+    monkeypatch.setattr(backends, "run_chunk", flaky)
+    axes = {"run.duration": [0.3, 0.4, 0.5, 0.6]}  # four plant runs: four chunks
+    study = Study(BASE, axes, seeds=2)
+    out = tmp_path / "int"
+    with pytest.raises(KeyboardInterrupt):
+        study.run(out, quiet=True)
+    parts = sorted((out / "results.parquet").glob("*"))
+    assert len(parts) == 2 and all(p.suffix == ".parquet" for p in parts)
+    assert len(pd.read_parquet(out / "results.parquet")) == 2 * 2 * 2 * 2
+    monkeypatch.setattr(backends, "run_chunk", real)
+    done = study.run(out, resume=True, quiet=True).table
+    whole = Study(BASE, axes, seeds=2).run(tmp_path / "whole", quiet=True).table
+    cols = ["cell", "seed", "observer", "state", "rmse", "peak", "settling_time", "final"]
+    pd.testing.assert_frame_equal(done[cols], whole[cols])
+
+
+@pytest.mark.parametrize("sweep, extra, message", [
+    ('"observers.hgo.kk" = [1.0]', [], "observers.hgo has no key 'kk'"),
+    ('"observers.hgo.k" = []', [], "is empty"),
+    ('"observers.hgo.k" = ["x"]', [], "cell 0 (observers.hgo.k = \"x\")"),
+    ('mode = "zip"\n"observers.hgo.k" = [1.0, 2.0]\n"run.duration" = [0.1]', [],
+     "zip axes must have the same length"),
+    ('seeds = 100000\n"observers.hgo.k" = ' + str([float(k) for k in range(1, 101)]) +
+     '\n"run.duration" = ' + str([0.1 + i for i in range(2)]), [], "confirm with --yes"),
+    ('"observers.hgo.k" = [1.0]', ["--backend", "ray", "--address", "nowhere"],
+     "--address must be HOST:PORT"),
+])
+def test_bad_studies_on_the_command_line_are_one_line_and_leave_nothing(
+        sweep, extra, message, tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text('[plant]\nname = "pendulum"\n[[observers]]\ntype = "high_gain"\nname = "hgo"\n'
+                 f'k = 20.0\n[run]\nduration = 0.2\n[sweep]\n{sweep}\n')
+    out = tmp_path / "o"
+    assert main(["sweep", str(f), "--out", str(out), *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hgo-mj: error:") and message in err, err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_ray_not_installed_names_the_extra(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    f = tmp_path / "s.toml"
+    f.write_text('[plant]\nname = "pendulum"\n[run]\nduration = 0.1\n')
+    assert main(["sweep", str(f), "--out", str(tmp_path / "o"), "--backend", "ray"]) == 2
+    assert 'pip install "hgo_mj[ray]"' in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
