@@ -37,11 +37,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from .._validate import finite_scalar, vector
 from ..exceptions import DesignError
 from .aocf import AOCF, system_form
-from .base import Array, System
+from .base import Array, CompiledModel, System
 
 __all__ = [
     "BASTIN_GEVERS_U_MAX",
@@ -146,6 +147,29 @@ def _bullinger_phi_rows(Z: Array, U: Array, c: Array) -> Array:
     return out
 
 
+@register_jitable
+def _bullinger_rates(m: Any, s: Any, uu: Any, a1: float, a2: float, a3: float,
+                     a4: float) -> tuple[Any, Any]:
+    """Eq. 15: ``(m', s')`` with the growth ``a1 m s / (a2 m + s)``; floats or arrays (the
+    columns of a batch), and compiled into kernels (:class:`BullingerModel`)."""
+    g = a1 * m * s / (a2 * m + s)
+    return g - uu * m, -a3 * g - uu * s + uu * a4
+
+
+@register_jitable
+def _bullinger_dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u)`` of one row, ``c = (a1, a2, a3, a4)``: :meth:`BioreactorBullinger.dynamics`."""
+    out[0], out[1] = _bullinger_rates(x[0], x[1], u[0], c[0], c[1], c[2], c[3])
+
+
+class BullingerModel(CompiledModel):
+    """The bioreactor of paper 000 for numba kernels (no analytic Jacobian: the filters
+    difference it)."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_bullinger_dynamics_row)
+
+
 class BioreactorBullinger(System):
     """Generic bioreactor of paper 000 (Bastin and Dochain's model), eq. 15.
 
@@ -203,13 +227,12 @@ class BioreactorBullinger(System):
     default_params: ClassVar[Mapping[str, float]] = {"a1": 1.0, "a2": 1.0, "a3": 1.0, "a4": 0.1}
     default_x0: ClassVar[tuple[float, ...]] = (0.075, 0.03)
     normal_form_order: ClassVar[int | None] = 2
+    compiled: ClassVar[CompiledModel | None] = BullingerModel()
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """Eq. 15: ``[m', s']`` (fast path, no checks)."""
-        m, s, uu = x[0], x[1], u[0]
-        g = p["a1"] * m * s / (p["a2"] * m + s)
-        return np.array([g - uu * m, -p["a3"] * g - uu * s + uu * p["a4"]])
+        return np.array(_bullinger_rates(x[0], x[1], u[0], p["a1"], p["a2"], p["a3"], p["a4"]))
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
