@@ -33,14 +33,19 @@ against a textbook Kalman filter, and against the exact discretization as :math:
 
 **The model** comes from the system (:class:`SystemModel`): ``dynamics`` and, where given,
 the analytic ``jacobian(t, x, u, p)`` and ``param_jacobian(t, x, u, p, names)``, else central
-finite differences. Two ways to evaluate it over a batch, chosen once at construction:
+finite differences. Three ways to evaluate it over a batch, chosen once at construction:
 
+* *compiled* (every system of the package): the system's
+  :class:`~hgo_mj.systems.base.CompiledModel`, its ODE and Jacobians written once as rows that
+  numba kernels call (:func:`_model_step`, :func:`_model_jacobian`, :func:`_ekf_predict`); the
+  EKF then runs a whole block of samples in one call (:func:`_ekf_block`). The same operations
+  as the Python ``dynamics``, so the numbers are those of the two paths below, bit for bit;
 * *columns* (vectorized): a ``dynamics`` written as an array expression of the components
   ``x[i]``, ``u[j]`` and the parameters (numpy ufuncs, no ``float()`` or ``math.*``; the
   bioreactors of :mod:`hgo_mj.systems.papers` are) is called once on the columns of the whole
   batch, ``x`` of shape ``(n, K)``; detected by evaluating it on three rows at once and
   comparing with the rows one by one;
-* *rows*: one Python call per member (the MuJoCo systems' ``dynamics`` read floats).
+* *rows*: one Python call per member (a ``dynamics`` that reads floats).
 
 The MuJoCo variants (:class:`MujocoExtendedKalmanFilter`, :class:`MujocoUnscentedKalmanFilter`,
 model :class:`MujocoModel`) use the MJCF itself: the mean by stepping an ``MjData`` of a copy of
