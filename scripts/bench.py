@@ -173,7 +173,7 @@ def batched_rows() -> list[tuple[str, float, str]]:
     ekf.reset(batch=B)
     Yb = 0.08 + 1e-3 * rng.normal(size=(B, T, 1))
     Ub = np.full((B, T, 1), 0.08)
-    out.append(("ExtendedKalmanFilter.advance, bioreactor (n=2, vectorized model)",
+    out.append(("ExtendedKalmanFilter.advance, bioreactor (n=2, compiled model)",
                 per(lambda: ekf.advance(Yb, Ub, 0.01)), "<= 200"))
     chain = SensorChain([GaussianNoise(std=1e-3), Quantization(counts_per_rev=4096)])
     chain.reset(list(range(B)))

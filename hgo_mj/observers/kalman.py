@@ -33,14 +33,19 @@ against a textbook Kalman filter, and against the exact discretization as :math:
 
 **The model** comes from the system (:class:`SystemModel`): ``dynamics`` and, where given,
 the analytic ``jacobian(t, x, u, p)`` and ``param_jacobian(t, x, u, p, names)``, else central
-finite differences. Two ways to evaluate it over a batch, chosen once at construction:
+finite differences. Three ways to evaluate it over a batch, chosen once at construction:
 
+* *compiled* (every system of the package): the system's
+  :class:`~hgo_mj.systems.base.CompiledModel`, its ODE and Jacobians written once as rows that
+  numba kernels call (:func:`_model_step`, :func:`_model_jacobian`, :func:`_ekf_predict`); the
+  EKF then runs a whole block of samples in one call (:func:`_ekf_block`). The same operations
+  as the Python ``dynamics``, so the numbers are those of the two paths below, bit for bit;
 * *columns* (vectorized): a ``dynamics`` written as an array expression of the components
   ``x[i]``, ``u[j]`` and the parameters (numpy ufuncs, no ``float()`` or ``math.*``; the
   bioreactors of :mod:`hgo_mj.systems.papers` are) is called once on the columns of the whole
   batch, ``x`` of shape ``(n, K)``; detected by evaluating it on three rows at once and
   comparing with the rows one by one;
-* *rows*: one Python call per member (the MuJoCo systems' ``dynamics`` read floats).
+* *rows*: one Python call per member (a ``dynamics`` that reads floats).
 
 The MuJoCo variants (:class:`MujocoExtendedKalmanFilter`, :class:`MujocoUnscentedKalmanFilter`,
 model :class:`MujocoModel`) use the MJCF itself: the mean by stepping an ``MjData`` of a copy of
@@ -89,7 +94,13 @@ from .._validate import (
     vector,
 )
 from ..exceptions import DesignError, DivergenceError
-from ..systems.base import System
+from ..systems.base import (
+    CompiledModel,
+    System,
+    model_dynamics,
+    model_jacobian,
+    model_param_jacobian,
+)
 from .base import Array, Observer, batch_rows, register
 
 IntArray = NDArray[np.int64]
@@ -132,7 +143,9 @@ def _t4(A: Array, rk4: bool, T: Array, W: Array) -> None:  # pragma: no cover - 
                 for k in range(N):
                     s += A[i, k] * T[k, j]
                 W[i, j] = (1.0 if i == j else 0.0) + s / div
-        T[:, :] = W
+        for i in range(N):
+            for j in range(N):
+                T[i, j] = W[i, j]
 
 
 @njit(cache=True, inline="always")
@@ -432,6 +445,253 @@ def _first_nonfinite(X: Array) -> int:  # pragma: no cover - numba
     return -1
 
 
+# --------------------------------------------------------------------------------------
+# the model compiled with the filter: a system's CompiledModel (hgo_mj.systems.base) called
+# from the kernels, so that a time update never returns to Python. Rows are augmented states
+# (x, theta); ``c0`` holds the system's parameters in the order of its param_names and
+# ``pidx[k]`` the index of the k-th estimated one, read from ``xa[n + k]``. error_model
+# "numpy": a division by zero gives inf or NaN, as the system's Python dynamics on numpy floats.
+# --------------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _row_params(c0: Array, pidx: IntArray, xa: Array, n: int, c: Array) -> None:  # pragma: no cover
+    """``c`` = the parameters of the row ``xa``: ``c0`` with the estimated ones from it."""
+    for i in range(c0.shape[0]):
+        c[i] = c0[i]
+    for k in range(pidx.shape[0]):
+        c[pidx[k]] = xa[n + k]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rk4_row(model: Any, xa: Array, u: Array, c: Array, h: float, rk4: bool, out: Array,
+             k1: Array, k2: Array, k3: Array, k4: Array, xs: Array) -> None:  # pragma: no cover
+    """One RK4 (or Euler) step of ``h`` of the physical part ``x = xa[:n]`` of a row with ``u``
+    held, into ``out[:n]`` (``n = len(k1)``; ``k1`` ... ``xs`` scratch):
+    :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`,
+    :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`, ... (the arithmetic of :meth:`SystemModel.step`).
+    Whole rows, no slices: the model reads ``x[:n]`` only."""
+    n = k1.shape[0]
+    model_dynamics(model, xa, u, c, k1)
+    if not rk4:
+        for i in range(n):
+            out[i] = xa[i] + h * k1[i]
+        return
+    hh, h6 = 0.5 * h, h / 6.0
+    for i in range(n):
+        xs[i] = xa[i] + hh * k1[i]
+    model_dynamics(model, xs, u, c, k2)
+    for i in range(n):
+        xs[i] = xa[i] + hh * k2[i]
+    model_dynamics(model, xs, u, c, k3)
+    for i in range(n):
+        xs[i] = xa[i] + h * k3[i]
+    model_dynamics(model, xs, u, c, k4)
+    for i in range(n):
+        out[i] = xa[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _jacobian_row(model: Any, xa: Array, u: Array, c: Array, pidx: IntArray, analytic: bool,
+                  A: Array, fp: Array, fm: Array, xs: Array,
+                  Fp: Array) -> None:  # pragma: no cover - numba
+    """:math:`F = \\partial (f, 0) / \\partial (x, \\theta)` of the augmented row ``xa``
+    (parameters ``c`` read from it) into ``A`` ``(N, N)``, zero below row ``n = len(fp)``: the
+    model's ``jacobian`` and ``param_jacobian`` (``analytic``), else central differences with
+    the relative step ``1e-6`` (the arithmetic of :func:`_central_differences`); ``fp``,
+    ``fm``, ``xs`` ``(n,)`` and ``Fp`` ``(n, len(c))`` scratch."""
+    N, n = xa.shape[0], fp.shape[0]
+    for i in range(N):
+        for j in range(N):
+            A[i, j] = 0.0
+    # no early return, and the parameter columns in a loop: a branch around a call keeps
+    # numba's reference counting of the row views (several times slower)
+    if analytic:
+        model_jacobian(model, xa, u, c, A)  # writes A[:n, :n]
+        for k in range(pidx.shape[0]):
+            if k == 0:
+                model_param_jacobian(model, xa, u, c, Fp)
+            for i in range(n):
+                A[i, n + k] = Fp[i, pidx[k]]
+    else:
+        for j in range(n):
+            v = xa[j]
+            e = 1e-6 * max(1.0, abs(v))
+            for i in range(n):
+                xs[i] = xa[i]
+            xs[j] = v + e
+            model_dynamics(model, xs, u, c, fp)
+            xs[j] = v - e
+            model_dynamics(model, xs, u, c, fm)
+            for i in range(n):
+                A[i, j] = (fp[i] - fm[i]) / (2.0 * e)
+        for j in range(n, N):
+            v = xa[j]
+            e = 1e-6 * max(1.0, abs(v))
+            ci = pidx[j - n]
+            c[ci] = v + e
+            model_dynamics(model, xa, u, c, fp)
+            c[ci] = v - e
+            model_dynamics(model, xa, u, c, fm)
+            c[ci] = v
+            for i in range(n):
+                A[i, j] = (fp[i] - fm[i]) / (2.0 * e)
+
+
+@njit(cache=True, error_model="numpy")
+def _model_step(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray, h: float, rk4: bool,
+                out: Array) -> None:  # pragma: no cover - numba
+    """:meth:`SystemModel.step` of the rows ``X`` ``(K, N)`` with a compiled model (``out``
+    holds ``X``: the parameters are kept). One branch on the flag, outside the loop (see
+    :func:`_ekf_predict`)."""
+    if rk4:
+        _model_step_rows(model, X, U, c0, pidx, h, True, out)
+    else:
+        _model_step_rows(model, X, U, c0, pidx, h, False, out)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _model_step_rows(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray, h: float,
+                     rk4: bool, out: Array) -> None:  # pragma: no cover - numba
+    K, N = X.shape
+    n = N - pidx.shape[0]
+    c = np.empty(c0.shape[0])
+    k1, k2, k3, k4, xs = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for r in range(K):
+        _row_params(c0, pidx, X[r], n, c)
+        _rk4_row(model, X[r], U[r], c, h, rk4, out[r], k1, k2, k3, k4, xs)
+
+
+@njit(cache=True, error_model="numpy")
+def _model_jacobian(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray, analytic: bool,
+                    A: Array) -> None:  # pragma: no cover - numba
+    """:meth:`SystemModel.jac` of the rows ``X`` ``(K, N)`` with a compiled model (one branch
+    on the flag, outside the loop, see :func:`_ekf_predict`)."""
+    if analytic:
+        _model_jacobian_rows(model, X, U, c0, pidx, True, A)
+    else:
+        _model_jacobian_rows(model, X, U, c0, pidx, False, A)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _model_jacobian_rows(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray,
+                         analytic: bool, A: Array) -> None:  # pragma: no cover - numba
+    K, N = X.shape
+    n = N - pidx.shape[0]
+    c = np.empty(c0.shape[0])
+    fp, fm, xs = np.empty(n), np.empty(n), np.empty(n)
+    Fp = np.empty((n, c0.shape[0]))
+    for r in range(K):
+        _row_params(c0, pidx, X[r], n, c)
+        _jacobian_row(model, X[r], U[r], c, pidx, analytic, A[r], fp, fm, xs, Fp)
+
+
+@njit(cache=True, error_model="numpy")
+def _model_deriv(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray,
+                 out: Array) -> None:  # pragma: no cover - numba
+    """:meth:`SystemModel.deriv` of the rows ``X`` ``(K, N)`` with a compiled model (``out``
+    zero: :math:`\\dot\\theta = 0`)."""
+    K, N = X.shape
+    n = N - pidx.shape[0]
+    c = np.empty(c0.shape[0])
+    for r in range(K):
+        _row_params(c0, pidx, X[r], n, c)
+        model_dynamics(model, X[r], U[r], c, out[r])
+
+
+@njit(cache=True)
+def _ekf_scratch(n: int, N: int, nc: int) -> tuple[Any, Any]:  # pragma: no cover - numba
+    """Work arrays of :func:`_ekf_predict`, allocated once per block: the vectors ``(c, k1,
+    k2, k3, k4, xs, x1, fm)`` and the matrices ``(Fp, F, A, T, M)``."""
+    vs = (np.empty(nc), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
+          np.empty(n), np.empty(n))
+    ms = (np.empty((n, nc)), np.empty((N, N)), np.empty((N, N)), np.empty((N, N)),
+          np.empty((N, N)))
+    return vs, ms
+
+
+@njit(cache=True, error_model="numpy")
+def _ekf_predict(model: Any, X: Array, U: Array, P: Array, c0: Array, pidx: IntArray,
+                 analytic: bool, h: float, rk4: bool, Qh: Array, vs: Any,
+                 ms: Any) -> None:  # pragma: no cover - numba
+    """The EKF's time update of every member over one substep ``h`` with a compiled model, in
+    place: :math:`F` at the row, the mean by :func:`_rk4_row`, then
+    :math:`P \\leftarrow \\Phi P \\Phi^T + Q h`, :math:`\\Phi = T_4(hF)` (:func:`_t4`,
+    :func:`_sandwich`): the operations of ``jac``, ``step`` and :func:`_ekf_covariance`
+    (``vs``, ``ms``: :func:`_ekf_scratch`).
+
+    The flags are branched on once, here, and the loop (:func:`_ekf_predict_rows`, inlined)
+    compiled with them constant: a run-time branch inside the loop keeps numba's reference
+    counting of the row views, which made a member 3-4x slower."""
+    if rk4 and analytic:
+        _ekf_predict_rows(model, X, U, P, c0, pidx, True, h, True, Qh, vs, ms)
+    elif rk4:
+        _ekf_predict_rows(model, X, U, P, c0, pidx, False, h, True, Qh, vs, ms)
+    elif analytic:
+        _ekf_predict_rows(model, X, U, P, c0, pidx, True, h, False, Qh, vs, ms)
+    else:
+        _ekf_predict_rows(model, X, U, P, c0, pidx, False, h, False, Qh, vs, ms)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _ekf_predict_rows(model: Any, X: Array, U: Array, P: Array, c0: Array, pidx: IntArray,
+                      analytic: bool, h: float, rk4: bool, Qh: Array, vs: Any,
+                      ms: Any) -> None:  # pragma: no cover - numba
+    B, N = X.shape
+    n = N - pidx.shape[0]
+    c, k1, k2, k3, k4, xs, x1, fm = vs
+    Fp, F, A, T, M = ms
+    for b in range(B):
+        xa = X[b]
+        _row_params(c0, pidx, xa, n, c)
+        _jacobian_row(model, xa, U[b], c, pidx, analytic, F, k1, fm, xs, Fp)
+        _rk4_row(model, xa, U[b], c, h, rk4, x1, k1, k2, k3, k4, xs)
+        for i in range(n):
+            xa[i] = x1[i]
+        for i in range(N):
+            for j in range(N):
+                A[i, j] = h * F[i, j]
+        _t4(A, rk4, T, M)
+        _sandwich(T, P[b], Qh, M)
+
+
+@njit(cache=True)
+def _ekf_block(model: Any, X: Array, P: Array, Y: Array, U: Array, sel: IntArray, R: Array,
+               diagonal: bool, c0: Array, pidx: IntArray, analytic: bool, h: float,
+               substeps: int, rk4: bool, Qh: Array, Xs: Array, Zs: Array,
+               Ds: Array) -> int:  # pragma: no cover - numba
+    """The EKF over a block of samples ``Y`` ``(B, T, p)``, ``U`` ``(B, T, m)`` with a compiled
+    model and a selection output, in place: per sample :func:`_condition_selection`, then
+    ``substeps`` times :func:`_ekf_predict`, the estimate after it into ``Xs[:, j]`` and
+    ``Zs[:, j]`` ``(B, T, n)`` and the parameters into ``Ds[:, j]`` ``(B, T, q)``: the sample
+    loop of ``_KalmanFilter._advance`` in one call. Returns the sample at which an estimate
+    left the finite numbers (the state left there), else -1."""
+    B, T = Y.shape[0], Y.shape[1]
+    N = X.shape[1]
+    n = N - pidx.shape[0]
+    y = np.empty((B, Y.shape[2]))
+    u = np.empty((B, U.shape[2]))
+    vs, ms = _ekf_scratch(n, N, c0.shape[0])
+    for j in range(T):
+        for b in range(B):
+            for c in range(Y.shape[2]):
+                y[b, c] = Y[b, j, c]
+            for c in range(U.shape[2]):
+                u[b, c] = U[b, j, c]
+        _condition_selection(X, P, y, sel, R, diagonal)
+        for _ in range(substeps):
+            _ekf_predict(model, X, u, P, c0, pidx, analytic, h, rk4, Qh, vs, ms)
+        if _first_nonfinite(X) >= 0:
+            return j
+        for b in range(B):
+            for i in range(n):
+                Xs[b, j, i] = X[b, i]
+                Zs[b, j, i] = X[b, i]
+            for i in range(n, N):
+                Ds[b, j, i - n] = X[b, i]
+    return -1
+
+
 def _taylor4(A: Array) -> Array:
     """``I + A + A^2/2 + A^3/6 + A^4/24`` of one matrix (the kernel :func:`_transition`)."""
     Phi = np.empty((1, *A.shape))
@@ -531,6 +791,19 @@ class SystemModel:
         self.output_names = tuple(system.output_names)
         self.n_inputs = len(system.input_names)
         self.vectorized = self._columns_work()
+        #: the system's ODE compiled for the kernels (:class:`CompiledModel`), where it has
+        #: one with the Jacobians this filter asks for; ``None``: its Python ``dynamics``
+        self.compiled = self._compiled(system)
+        self._c0 = system.param_vector(self.base)
+        self._pidx = np.array([system.param_names.index(nm) for nm in self.names],
+                              dtype=np.int64)
+
+    def _compiled(self, system: System) -> CompiledModel | None:
+        cm = system.compiled
+        if cm is not None and self.analytic and (cm.jacobian is None or (
+                self.q and cm.param_jacobian is None)):
+            return None
+        return cm
 
     # --------------------------------------------------------------------- parameters
     def params(self, xa: Array) -> dict[str, float]:
@@ -591,6 +864,10 @@ class SystemModel:
         """:math:`(f(x, u, \\theta), 0)` of the rows, shape (K, N)."""
         out = np.zeros(X.shape)
         n = self.n
+        if self.compiled is not None:
+            _model_deriv(self.compiled, np.ascontiguousarray(X, dtype=float),
+                         np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, out)
+            return out
         if self.vectorized:
             out[:, :n] = self._f_columns(X, U)
             return out
@@ -603,6 +880,11 @@ class SystemModel:
         """:math:`F = \\partial (f, 0) / \\partial (x, \\theta)` of the rows, shape (K, N, N)."""
         n, N, K = self.n, self.N, X.shape[0]
         A = np.zeros((K, N, N))
+        if self.compiled is not None:
+            _model_jacobian(self.compiled, np.ascontiguousarray(X, dtype=float),
+                            np.ascontiguousarray(U, dtype=float), self._c0, self._pidx,
+                            self.analytic, A)
+            return A
         if not self.analytic:
             if not self.vectorized:
                 A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
@@ -639,7 +921,12 @@ class SystemModel:
         on columns (vectorized) or row by row, the same arithmetic
         :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`, :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`..."""
         n = self.n
-        out = X.copy()
+        out = np.array(X, dtype=float, order="C")
+        if self.compiled is not None:
+            _model_step(self.compiled, np.ascontiguousarray(X, dtype=float),
+                        np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, h,
+                        method == "rk4", out)
+            return out
         hh, h6 = 0.5 * h, h / 6.0
         if self.vectorized:
             Xc, Uc, p = self._columns(X, U)
@@ -1115,20 +1402,35 @@ class _KalmanFilter(Observer):
         h = dt / self.substeps
         Qh = self._Qh(h)
         T = Y.shape[1]
-        hist = np.empty((T, self.batch, self.N))  # the estimates, sample-major (contiguous rows)
-        for j in range(T):
-            self._condition_on(np.ascontiguousarray(Y[:, j]))
-            u = np.ascontiguousarray(U[:, j])
-            for _ in range(self.substeps):
-                self._predict(u, h, Qh)
+        j = self._block(Y, U, h, Qh, X, Z, D)
+        if j is None:  # sample by sample, from Python (the same arithmetic)
+            hist = np.empty((T, self.batch, self.N))  # the estimates, sample-major
+            for j in range(T):
+                self._condition_on(np.ascontiguousarray(Y[:, j]))
+                u = np.ascontiguousarray(U[:, j])
+                for _ in range(self.substeps):
+                    self._predict(u, h, Qh)
+                if _first_nonfinite(self._x) >= 0:
+                    break
+                hist[j] = self._x
+            else:
+                j = -1
+                X[...] = hist[:, :, :n].transpose(1, 0, 2)
+                Z[...] = X
+                D[...] = hist[:, :, n:].transpose(1, 0, 2)
+        if j >= 0:
             b = _first_nonfinite(self._x)
-            if b >= 0:
-                raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: "
-                                      f"{self._x[b].tolist()} (member {b}, sample {j})")
-            hist[j] = self._x
-        X[...] = hist[:, :, :n].transpose(1, 0, 2)
-        Z[...] = X
-        D[...] = hist[:, :, n:].transpose(1, 0, 2)
+            raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: "
+                                  f"{self._x[b].tolist()} (member {b}, sample {j})")
+
+    def _block(self, Y: Array, U: Array, h: float, Qh: Array, X: Array, Z: Array,
+               D: Array) -> int | None:
+        """The whole block in one kernel call where the filter has one (the EKF with a compiled
+        model and a selection output): the rows after each sample into ``X``, ``Z``, ``D`` (as
+        :meth:`_advance`); returns the sample at which an estimate left the finite numbers (the
+        state is left there), else -1. ``None``: no such kernel, the samples go one by one
+        from Python."""
+        return None
 
     def _condition_on(self, Y: Array) -> None:
         """The measurement update of every member with ``Y`` ``(B, p)`` (NaN: lost channel)."""
@@ -1252,12 +1554,26 @@ class ExtendedKalmanFilter(_KalmanFilter):
         mdl = self.model
         if isinstance(mdl, MujocoModel):
             self._x, Phi = mdl.transition(self._x, U, h)
+        elif mdl.compiled is not None:
+            vs, ms = _ekf_scratch(self.n, self.N, mdl._c0.shape[0])
+            _ekf_predict(mdl.compiled, self._x, U, self._P, mdl._c0, mdl._pidx, mdl.analytic, h,
+                         self.method == "rk4", Qh, vs, ms)
+            return
         else:
             F = mdl.jac(self._x, U)
             self._x = mdl.step(self._x, U, h, self.method)
             _ekf_covariance(self._P, F, h, self.method == "rk4", Qh)
             return
         _propagate(self._P, Phi, Qh)
+
+    def _block(self, Y: Array, U: Array, h: float, Qh: Array, X: Array, Z: Array,
+               D: Array) -> int | None:
+        mdl = self.model
+        if not isinstance(mdl, SystemModel) or mdl.compiled is None or self.sel is None:
+            return None
+        return _ekf_block(mdl.compiled, self._x, self._P, Y, U, self._sel, self.R,  # type: ignore[no-any-return]
+                          self._diag_R, mdl._c0, mdl._pidx, mdl.analytic, h, self.substeps,
+                          self.method == "rk4", Qh, X, Z, D)
 
     def _condition_general(self, Y: Array) -> None:
         """Linearize ``h`` by central differences at each member's prediction, then update."""

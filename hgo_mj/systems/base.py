@@ -19,16 +19,84 @@ Conventions: state vectors are 1-D ``(n,)``; ``dynamics`` is the fast private pa
 
 from __future__ import annotations
 
+from collections import namedtuple
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
+from numba.extending import overload
 from numpy.typing import NDArray
 
 from .._validate import check_params, vector
 from ..exceptions import DesignError
 
 Array = NDArray[np.float64]
+
+
+class CompiledModel(namedtuple("CompiledModel", ())):
+    """Base of a system's compiled model: the ODE written once as row functions that numba
+    kernels call without returning to Python (the Kalman filters' time update).
+
+    A system module subclasses it next to its equations and sets :attr:`System.compiled` to an
+    instance; the subclass holds three ``numba.extending.register_jitable`` functions (plain
+    Python from Python, compiled into the kernel that calls them), each of one row ``x``
+    ``(n,)``, input ``u`` ``(m,)`` and the parameters ``c`` in the order of
+    :attr:`System.param_names`, writing into ``out``:
+
+    * ``dynamics(x, u, c, out)``: ``out (n,) = f(x, u; c)``, the same floating-point
+      operations as :meth:`System.dynamics` (so both agree bit for bit);
+    * ``jacobian(x, u, c, out)`` (optional, ``None``): ``out[:n, :n] = df/dx`` (``out`` may be
+      larger: the augmented ``(N, N)`` Jacobian, whose other entries it leaves alone);
+    * ``param_jacobian(x, u, c, out)`` (optional): ``out (n, len(param_names)) = df/dc``.
+
+    A kernel takes the instance as an argument: its numba type names the subclass, so the
+    kernel is compiled (and cached) once per system, and :func:`model_dynamics`,
+    :func:`model_jacobian` and :func:`model_param_jacobian` resolve to the subclass's
+    functions at compile time.
+    """
+
+    __slots__ = ()
+    dynamics: ClassVar[Any] = None
+    jacobian: ClassVar[Any] = None
+    param_jacobian: ClassVar[Any] = None
+
+
+def model_dynamics(model: CompiledModel, x: Array, u: Array, c: Array, out: Array) -> None:
+    """``model``'s ``dynamics`` of one row (from Python and from numba kernels)."""
+    type(model).dynamics(x, u, c, out)
+
+
+def model_jacobian(model: CompiledModel, x: Array, u: Array, c: Array, out: Array) -> None:
+    """``model``'s ``jacobian`` of one row (from Python and from numba kernels)."""
+    type(model).jacobian(x, u, c, out)
+
+
+def model_param_jacobian(model: CompiledModel, x: Array, u: Array, c: Array,
+                         out: Array) -> None:
+    """``model``'s ``param_jacobian`` of one row (from Python and from numba kernels)."""
+    type(model).param_jacobian(x, u, c, out)
+
+
+def _model_overload(attr: str) -> Any:
+    """The numba implementation of ``model_<attr>``: the function ``attr`` of the model's
+    class (a model without it: an implementation that raises, never called by the filters,
+    which check :attr:`CompiledModel.jacobian` before asking for it)."""
+
+    # no annotations: numba compares the typer's signature with the implementation's
+    def typer(model, x, u, c, out):  # type: ignore[no-untyped-def]
+        fn = getattr(getattr(model, "instance_class", None), attr, None)
+        if fn is None:
+            def missing(model, x, u, c, out):  # type: ignore[no-untyped-def]
+                raise NotImplementedError("the compiled model has no such function")
+            return missing
+        return lambda model, x, u, c, out: fn(x, u, c, out)
+
+    return typer
+
+
+for _fn, _attr in ((model_dynamics, "dynamics"), (model_jacobian, "jacobian"),
+                   (model_param_jacobian, "param_jacobian")):
+    overload(_fn, inline="always")(_model_overload(_attr))
 
 
 class System:
@@ -62,6 +130,8 @@ class System:
     actuators: ClassVar[tuple[str, ...]] = ()
     #: the observer forms this system declares (see :meth:`form`), e.g. ``("affine",)``
     forms: ClassVar[tuple[str, ...]] = ()
+    #: the ODE compiled for numba kernels (:class:`CompiledModel`), or ``None``
+    compiled: ClassVar[CompiledModel | None] = None
 
     @classmethod
     def unit(cls, state: str) -> str:
@@ -73,6 +143,12 @@ class System:
     def __init__(self, **params: Any) -> None:
         merged = {**self.default_params, **params}
         self.params: dict[str, float] = check_params(type(self).__name__, merged, self.param_names)
+
+    def param_vector(self, params: Mapping[str, float] | None = None) -> Array:
+        """The parameters (default :attr:`params`) as a vector in the order of
+        :attr:`param_names` (the ``c`` of :class:`CompiledModel`)."""
+        p = self.params if params is None else params
+        return np.array([p[k] for k in self.param_names], dtype=float)
 
     # ---------------------------------------------------------------- dynamics
     @staticmethod

@@ -8,13 +8,15 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from ..exceptions import DesignError
 from ._mujoco import _TOL, _MjReader, _SecondOrderMujocoSystem
 from .aocf import AOCF, joint_aocf
-from .base import Array
+from .base import Array, CompiledModel
 
 
+@register_jitable
 def _acceleration_row(q: float, v: float, u0: float, mass: float, length: float, g: float,
                       accel_gain: float, damping: float, inertia: float) -> float:
     """The cart pendulum's ``x1''``, once: the scalar path (:meth:`CartPendulum._acceleration`,
@@ -25,6 +27,22 @@ def _acceleration_row(q: float, v: float, u0: float, mass: float, length: float,
 
 
 _acceleration_nb = njit(cache=True)(_acceleration_row)
+
+
+@register_jitable
+def _dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u) = (x1', x1'')``: :meth:`CartPendulum.dynamics`; ``c`` in the order of
+    ``param_names`` ``(g, length, mass, inertia, damping, accel_gain)``."""
+    out[0] = x[1]
+    out[1] = _acceleration_row(x[0], x[1], u[0], c[2], c[1], c[0], c[5], c[4], c[3])
+
+
+class CartPendulumModel(CompiledModel):
+    """The cart pendulum's ODE for numba kernels (no analytic Jacobian: the filters
+    difference it)."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_dynamics_row)
 
 
 @njit(cache=True)
@@ -90,6 +108,7 @@ class CartPendulum(_SecondOrderMujocoSystem):
     input_names = ("acceleration",)
     output_names = ("angle",)
     param_names = ("g", "length", "mass", "inertia", "damping", "accel_gain")
+    compiled = CartPendulumModel()
     _positive = ("length", "mass", "inertia")
     default_x0 = (0.1, 0.0)
     normal_form_order = 2

@@ -8,10 +8,11 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from ..exceptions import DesignError
 from ._mujoco import _MjReader, _MujocoSystem
-from .base import Array
+from .base import Array, CompiledModel
 
 #: the parameters of the elastic joint's affine form (paper 001, eq. 9)
 AFFINE_PARAMS = ("MgL", "stiffness")
@@ -107,6 +108,83 @@ _from_normal_nb = njit(cache=True)(_from_normal_row)
 _phi_nb = njit(cache=True)(_phi_row)
 
 
+# the ODE for the compiled model; c in the order of ElasticJoint.param_names: (link_inertia,
+# motor_inertia, mass, com_distance, g, stiffness, link_damping, motor_damping, gear)
+
+
+@register_jitable
+def _accelerations(q: float, th: float, w: float, v: float, u0: float, I: float, J: float,
+                   mass: float, lc: float, g: float, k: float, dl: float, dm: float,
+                   gear: float) -> tuple[float, float]:
+    """``(q'', theta'')`` of Spong's model, once (:meth:`ElasticJoint.dynamics` and the
+    compiled rows): :math:`I q'' = -m g l_c \\sin q - K (q - \\theta) - d_l q'`,
+    :math:`J \\theta'' = K (q - \\theta) - d_m \\theta' + b u`."""
+    tau = k * (q - th)
+    mgl = mass * g * lc
+    qdd = (-mgl * math.sin(q) - tau - dl * w) / I
+    thdd = (tau - dm * v + gear * u0) / J
+    return qdd, thdd
+
+
+@register_jitable
+def _dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u) = (q', theta', q'', theta'')``: :meth:`ElasticJoint.dynamics`."""
+    out[0] = x[2]
+    out[1] = x[3]
+    out[2], out[3] = _accelerations(x[0], x[1], x[2], x[3], u[0], c[0], c[1], c[2], c[3], c[4],
+                                    c[5], c[6], c[7], c[8])
+
+
+@register_jitable
+def _jacobian_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out[:4, :4] = df/dx``: :meth:`ElasticJoint.jacobian`."""
+    I, J, k = c[0], c[1], c[5]
+    mgl = c[2] * c[4] * c[3]
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = 0.0
+    out[0, 2] = 1.0
+    out[1, 3] = 1.0
+    out[2, 0] = (-mgl * math.cos(x[0]) - k) / I
+    out[2, 1] = k / I
+    out[2, 2] = -c[6] / I
+    out[3, 0] = k / J
+    out[3, 1] = -k / J
+    out[3, 3] = -c[7] / J
+
+
+@register_jitable
+def _param_jacobian_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = df/dc`` (4, 9), columns in the order of ``param_names``:
+    :meth:`ElasticJoint.param_jacobian`."""
+    q, th, w, v, uu = x[0], x[1], x[2], x[3], u[0]
+    I, J, M, L, g = c[0], c[1], c[2], c[3], c[4]
+    s = math.sin(q)
+    qdd, thdd = _accelerations(q, th, w, v, uu, I, J, M, L, g, c[5], c[6], c[7], c[8])
+    for i in range(4):
+        for j in range(9):
+            out[i, j] = 0.0
+    out[2, 0] = -qdd / I  # link_inertia
+    out[3, 1] = -thdd / J  # motor_inertia
+    out[2, 2] = -g * L * s / I  # mass
+    out[2, 3] = -M * g * s / I  # com_distance
+    out[2, 4] = -M * L * s / I  # g
+    out[2, 5] = -(q - th) / I  # stiffness
+    out[3, 5] = (q - th) / J
+    out[2, 6] = -w / I  # link_damping
+    out[3, 7] = -v / J  # motor_damping
+    out[3, 8] = uu / J  # gear
+
+
+class ElasticJointModel(CompiledModel):
+    """The elastic joint's ODE for numba kernels (:class:`~hgo_mj.systems.base.CompiledModel`)."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_dynamics_row)
+    jacobian = staticmethod(_jacobian_row)
+    param_jacobian = staticmethod(_param_jacobian_row)
+
+
 @njit(cache=True)
 def _from_normal_rows(Z: Array, c: Array) -> Array:
     """:func:`_from_normal_row` of the rows ``Z`` ``(N, 4)``: ``x = (q, theta, q', theta')``;
@@ -196,6 +274,7 @@ class ElasticJoint(_MujocoSystem):
                    "link_damping", "motor_damping", "gear")
     _positive = ("link_inertia", "motor_inertia", "stiffness")
     default_x0 = (0.3, 0.3, 0.0, 0.0)
+    compiled = ElasticJointModel()
     normal_form_order = 4
     model_file = "elastic_joint.xml"
     joints = ("link", "motor")
@@ -255,10 +334,10 @@ class ElasticJoint(_MujocoSystem):
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         q, th, w, v = float(x[0]), float(x[1]), float(x[2]), float(x[3])
-        tau = p["stiffness"] * (q - th)
-        mgl = p["mass"] * p["g"] * p["com_distance"]
-        qdd = (-mgl * math.sin(q) - tau - p["link_damping"] * w) / p["link_inertia"]
-        thdd = (tau - p["motor_damping"] * v + p["gear"] * float(u[0])) / p["motor_inertia"]
+        qdd, thdd = _accelerations(q, th, w, v, float(u[0]), p["link_inertia"],
+                                   p["motor_inertia"], p["mass"], p["com_distance"], p["g"],
+                                   p["stiffness"], p["link_damping"], p["motor_damping"],
+                                   p["gear"])
         return np.array([w, v, qdd, thdd])
 
     @staticmethod
@@ -269,31 +348,18 @@ class ElasticJoint(_MujocoSystem):
     def jacobian(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """:math:`\\partial f / \\partial x` of :meth:`dynamics`, shape (4, 4) (used by the
         Kalman filters of :mod:`hgo_mj.observers.kalman`)."""
-        I, J, k = p["link_inertia"], p["motor_inertia"], p["stiffness"]
-        mgl = p["mass"] * p["g"] * p["com_distance"]
-        return np.array([[0.0, 0.0, 1.0, 0.0],
-                         [0.0, 0.0, 0.0, 1.0],
-                         [(-mgl * math.cos(float(x[0])) - k) / I, k / I, -p["link_damping"] / I, 0.0],
-                         [k / J, -k / J, 0.0, -p["motor_damping"] / J]])
+        out = np.empty((4, 4))
+        _jacobian_row(x, u, _params(p), out)
+        return out
 
     @staticmethod
     def param_jacobian(t: float, x: Array, u: Array, p: Mapping[str, float],
                        names: tuple[str, ...]) -> Array:
         """:math:`\\partial f / \\partial p` of :meth:`dynamics` for the parameters ``names``,
         shape (4, len(names))."""
-        q, th, w, v, uu = (float(x[0]), float(x[1]), float(x[2]), float(x[3]), float(u[0]))
-        I, J = p["link_inertia"], p["motor_inertia"]
-        M, g, L, s = p["mass"], p["g"], p["com_distance"], math.sin(q)
-        qdd, thdd = ElasticJoint.dynamics(t, x, u, p)[2:].tolist()
-        d = {"stiffness": (-(q - th) / I, (q - th) / J), "mass": (-g * L * s / I, 0.0),
-             "com_distance": (-M * g * s / I, 0.0), "g": (-M * L * s / I, 0.0),
-             "link_damping": (-w / I, 0.0), "motor_damping": (0.0, -v / J),
-             "gear": (0.0, uu / J), "link_inertia": (-qdd / I, 0.0),
-             "motor_inertia": (0.0, -thdd / J)}
-        out = np.zeros((4, len(names)))
-        for j, nm in enumerate(names):
-            out[2, j], out[3, j] = d[nm]
-        return out
+        out = np.empty((4, len(ElasticJoint.param_names)))
+        _param_jacobian_row(x, u, _params(p), out)
+        return out[:, [ElasticJoint.param_names.index(nm) for nm in names]]
 
     # ------------------------------------------------------------- normal form (fast)
     @staticmethod
@@ -529,3 +595,8 @@ def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
     return JoSonForm([1.0], _motor_gamma_o, _motor_beta, theta_names=tuple(unknown),
                      state_names=("motor_velocity",), aux_outputs=aux,
                      label="elastic joint motor side: y = motor velocity, deflection measured")
+
+
+def _params(p: Mapping[str, float]) -> Array:
+    """The parameters in the order of ``ElasticJoint.param_names``."""
+    return np.array([p[k] for k in ElasticJoint.param_names], dtype=float)

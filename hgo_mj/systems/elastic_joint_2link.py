@@ -8,10 +8,11 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from ..exceptions import DesignError
 from ._mujoco import _MjReader, _MujocoSystem
-from .base import Array
+from .base import Array, CompiledModel
 
 
 @njit(cache=True)
@@ -113,6 +114,46 @@ def _affine_to_physical(Z: Array, TH: Array, U: Array, c: Array) -> Array:
     return X
 
 
+@register_jitable
+def _dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u)`` of the two-link arm (:meth:`ElasticJoint2Link.dynamics`, and compiled
+    for the Kalman filters); ``c`` in the order of ``param_names``."""
+    q1, q2, t1, t2, w1, w2, v1, v2 = x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7]
+    (i1, s1, l1, m2, s2, i2, j1, j2, jr, k1, k2, dl1, dl2, dm1, dm2, b1, b2,
+     g0) = (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12],
+            c[13], c[14], c[15], c[16], c[17])
+    c2, sn2, s12 = math.cos(q2), math.sin(q2), math.sin(q1 + q2)
+    m11 = i1 + i2 + m2 * l1 * l1 + 2.0 * l1 * s2 * c2 + jr
+    m12 = i2 + l1 * s2 * c2
+    h = l1 * s2 * sn2
+    e1 = k1 * (q1 - t1)
+    e2 = k2 * (q2 - t2)
+    tau1 = (h * (2.0 * w1 * w2 + w2 * w2)
+            - g0 * ((s1 + m2 * l1) * math.sin(q1) + s2 * s12)
+            - dl1 * w1 - e1)
+    tau2 = -h * w1 * w1 - g0 * s2 * s12 - dl2 * w2 - e2
+    sig1 = e1 - dm1 * v1 + b1 * u[0]
+    sig2 = e2 - dm2 * v2 + b2 * u[1]
+    # eliminate theta2'' = (sig2 - jr q1'') / j2 from the link-1 row
+    a11 = m11 - jr * jr / j2
+    r1 = tau1 - jr * sig2 / j2
+    det = a11 * i2 - m12 * m12
+    q1dd = (i2 * r1 - m12 * tau2) / det
+    q2dd = (a11 * tau2 - m12 * r1) / det
+    out[0], out[1], out[2], out[3] = w1, w2, v1, v2
+    out[4], out[5] = q1dd, q2dd
+    out[6] = sig1 / j1
+    out[7] = (sig2 - jr * q1dd) / j2
+
+
+class ElasticJoint2LinkModel(CompiledModel):
+    """The two-link arm's ODE for numba kernels (no analytic Jacobian: the filters
+    difference it)."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_dynamics_row)
+
+
 class ElasticJoint2Link(_MujocoSystem):
     r"""Two-link arm in a vertical plane, each joint elastic (Spong's reduced model).
 
@@ -196,6 +237,7 @@ class ElasticJoint2Link(_MujocoSystem):
     joints = ("link1", "link2", "motor1", "motor2")
     actuators = ("torque1", "torque2")
     forms = ("affine", "kalman_fields")
+    compiled = ElasticJoint2LinkModel()
 
     def _form_kalman_fields(self) -> dict[str, str]:
         """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
@@ -240,30 +282,9 @@ class ElasticJoint2Link(_MujocoSystem):
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
-        q1, q2, t1, t2, w1, w2, v1, v2 = (float(v) for v in x)
-        l1, s2, i2, jr, j2 = (p["link1_length"], p["link2_moment"], p["link2_inertia"],
-                              p["rotor2_inertia"], p["motor2_inertia"])
-        c2, sn2, s12 = math.cos(q2), math.sin(q2), math.sin(q1 + q2)
-        m11 = p["link1_inertia"] + i2 + p["link2_mass"] * l1 * l1 + 2.0 * l1 * s2 * c2 + jr
-        m12 = i2 + l1 * s2 * c2
-        h = l1 * s2 * sn2
-        g0 = p["g"]
-        e1 = p["stiffness1"] * (q1 - t1)
-        e2 = p["stiffness2"] * (q2 - t2)
-        tau1 = (h * (2.0 * w1 * w2 + w2 * w2)
-                - g0 * ((p["link1_moment"] + p["link2_mass"] * l1) * math.sin(q1) + s2 * s12)
-                - p["link1_damping"] * w1 - e1)
-        tau2 = -h * w1 * w1 - g0 * s2 * s12 - p["link2_damping"] * w2 - e2
-        sig1 = e1 - p["motor1_damping"] * v1 + p["gear1"] * float(u[0])
-        sig2 = e2 - p["motor2_damping"] * v2 + p["gear2"] * float(u[1])
-        # eliminate theta2'' = (sig2 - jr q1'') / j2 from the link-1 row
-        a11 = m11 - jr * jr / j2
-        r1 = tau1 - jr * sig2 / j2
-        det = a11 * i2 - m12 * m12
-        q1dd = (i2 * r1 - m12 * tau2) / det
-        q2dd = (a11 * tau2 - m12 * r1) / det
-        return np.array([w1, w2, v1, v2, q1dd, q2dd, sig1 / p["motor1_inertia"],
-                         (sig2 - jr * q1dd) / j2])
+        out = np.empty(8)
+        _dynamics_row(x, u, np.array([p[k] for k in ElasticJoint2Link.param_names]), out)
+        return out
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:

@@ -37,11 +37,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from .._validate import finite_scalar, vector
 from ..exceptions import DesignError
 from .aocf import AOCF, system_form
-from .base import Array, System
+from .base import Array, CompiledModel, System
 
 __all__ = [
     "BASTIN_GEVERS_U_MAX",
@@ -146,6 +147,29 @@ def _bullinger_phi_rows(Z: Array, U: Array, c: Array) -> Array:
     return out
 
 
+@register_jitable
+def _bullinger_rates(m: Any, s: Any, uu: Any, a1: float, a2: float, a3: float,
+                     a4: float) -> tuple[Any, Any]:
+    """Eq. 15: ``(m', s')`` with the growth ``a1 m s / (a2 m + s)``; floats or arrays (the
+    columns of a batch), and compiled into kernels (:class:`BullingerModel`)."""
+    g = a1 * m * s / (a2 * m + s)
+    return g - uu * m, -a3 * g - uu * s + uu * a4
+
+
+@register_jitable
+def _bullinger_dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u)`` of one row, ``c = (a1, a2, a3, a4)``: :meth:`BioreactorBullinger.dynamics`."""
+    out[0], out[1] = _bullinger_rates(x[0], x[1], u[0], c[0], c[1], c[2], c[3])
+
+
+class BullingerModel(CompiledModel):
+    """The bioreactor of paper 000 for numba kernels (no analytic Jacobian: the filters
+    difference it)."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_bullinger_dynamics_row)
+
+
 class BioreactorBullinger(System):
     """Generic bioreactor of paper 000 (Bastin and Dochain's model), eq. 15.
 
@@ -203,13 +227,12 @@ class BioreactorBullinger(System):
     default_params: ClassVar[Mapping[str, float]] = {"a1": 1.0, "a2": 1.0, "a3": 1.0, "a4": 0.1}
     default_x0: ClassVar[tuple[float, ...]] = (0.075, 0.03)
     normal_form_order: ClassVar[int | None] = 2
+    compiled: ClassVar[CompiledModel | None] = BullingerModel()
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """Eq. 15: ``[m', s']`` (fast path, no checks)."""
-        m, s, uu = x[0], x[1], u[0]
-        g = p["a1"] * m * s / (p["a2"] * m + s)
-        return np.array([g - uu * m, -p["a3"] * g - uu * s + uu * p["a4"]])
+        return np.array(_bullinger_rates(x[0], x[1], u[0], p["a1"], p["a2"], p["a3"], p["a4"]))
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
@@ -360,6 +383,28 @@ def bastin_gevers_input(t: float) -> Array:
                      0.5 + 0.3 * math.sin(1.1 * t)])
 
 
+@register_jitable
+def _bastin_gevers_rates(z1: Any, z2: Any, u1: Any, u2: Any, mu_max: float, K_m: float,
+                         K_c: float, p2: float, p3: float) -> tuple[Any, Any]:
+    """Eq. 6.1 (with the substrate dilution ``-z1``): ``(z1', z2')``, floats or columns, and
+    compiled (:class:`BastinGeversModel`)."""
+    p1 = mu_max / (K_m + K_c * z2 + z1)
+    return -(p1 / p2) * z1 * z2 - p3 * z2 - z1 + u1, p1 * z1 * z2 - z2 + u2
+
+
+@register_jitable
+def _bastin_gevers_dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u)``, ``c = (mu_max, K_m, K_c, p2, p3)``."""
+    out[0], out[1] = _bastin_gevers_rates(x[0], x[1], u[0], u[1], c[0], c[1], c[2], c[3], c[4])
+
+
+class BastinGeversModel(CompiledModel):
+    """The bioreactor of paper 002 for numba kernels."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_bastin_gevers_dynamics_row)
+
+
 class BioreactorBastinGevers(System):
     """Biomass growth in a continuous stirred tank reactor, paper 002, eq. 6.1 (corrected).
 
@@ -444,6 +489,7 @@ class BioreactorBastinGevers(System):
     input_names: ClassVar[tuple[str, ...]] = ("u1", "u2")
     output_names: ClassVar[tuple[str, ...]] = ("z1",)
     param_names: ClassVar[tuple[str, ...]] = ("mu_max", "K_m", "K_c", "p2", "p3")
+    compiled: ClassVar[CompiledModel | None] = BastinGeversModel()
     default_params: ClassVar[Mapping[str, float]] = {
         "mu_max": 3.0, "K_m": 1.0, "K_c": 0.0, "p2": 0.5, "p3": 0.05}
     default_x0: ClassVar[tuple[float, ...]] = (1.0, 1.0)
@@ -458,10 +504,8 @@ class BioreactorBastinGevers(System):
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """Eq. 6.1 with the substrate dilution ``-z1``: ``[z1', z2']`` (fast path)."""
-        z1, z2 = x[0], x[1]
-        p1 = p["mu_max"] / (p["K_m"] + p["K_c"] * z2 + z1)
-        return np.array([-(p1 / p["p2"]) * z1 * z2 - p["p3"] * z2 - z1 + u[0],
-                         p1 * z1 * z2 - z2 + u[1]])
+        return np.array(_bastin_gevers_rates(x[0], x[1], u[0], u[1], p["mu_max"], p["K_m"],
+                                             p["K_c"], p["p2"], p["p3"]))
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
@@ -751,6 +795,27 @@ def _paper001_form(system: System, unknown: Any, terms: Any, label: str) -> Any:
                       )._made_by(type(system)._form_affine, system, unknown)  # type: ignore[attr-defined]
 
 
+@register_jitable
+def _besancon1_rates(x1: float, x2: float, u0: float, th1: float,
+                     th2: float) -> tuple[float, float]:
+    """Paper 001, example 1: ``(x1', x2')`` (and compiled, :class:`Besancon1Model`)."""
+    return (x2 + u0,
+            -x1 - 2.0 * math.sin(x2) + math.atan(x2) * th1 + math.cos(x1 * x2) * th2)
+
+
+@register_jitable
+def _besancon1_dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u)``, ``c = (theta1, theta2)``."""
+    out[0], out[1] = _besancon1_rates(x[0], x[1], u[0], c[0], c[1])
+
+
+class Besancon1Model(CompiledModel):
+    """Paper 001's example 1 for numba kernels."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_besancon1_dynamics_row)
+
+
 class BesanconExample1(System):
     """First example of paper 001, section 4: single output, two unknown parameters.
 
@@ -790,6 +855,7 @@ class BesanconExample1(System):
     input_names: ClassVar[tuple[str, ...]] = ("u",)
     output_names: ClassVar[tuple[str, ...]] = ("y",)
     param_names: ClassVar[tuple[str, ...]] = ("theta1", "theta2")
+    compiled: ClassVar[CompiledModel | None] = Besancon1Model()
     default_params: ClassVar[Mapping[str, float]] = {"theta1": 1.0, "theta2": 2.0}
     default_x0: ClassVar[tuple[float, ...]] = (1.0, 1.0)
     forms: ClassVar[tuple[str, ...]] = ("affine",)
@@ -797,10 +863,7 @@ class BesanconExample1(System):
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """``[x1', x2']`` (fast path)."""
-        x1, x2 = x[0], x[1]
-        return np.array([x2 + u[0],
-                         -x1 - 2.0 * math.sin(x2) + math.atan(x2) * p["theta1"]
-                         + math.cos(x1 * x2) * p["theta2"]])
+        return np.array(_besancon1_rates(x[0], x[1], u[0], p["theta1"], p["theta2"]))
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
@@ -839,6 +902,27 @@ class BesanconExample1(System):
         with compiled rows, equal to :meth:`AffineForm.from_protocol` of :meth:`phi0` and
         :meth:`regressor`, checked in ``tests/observers/test_besancon.py``)."""
         return _paper001_form(self, unknown, _besancon_ex1_terms, "paper 001 example 1 (eq. 9)")
+
+
+@register_jitable
+def _besancon2_rates(x1: float, x2: float, x3: float, x4: float, u0: float, th1: float,
+                     th2: float) -> tuple[float, float, float, float]:
+    """Paper 001, example 2: ``(y', y'', u', u'')`` (and compiled, :class:`Besancon2Model`)."""
+    w = x1 * x2
+    return x2, math.sin(w) + math.cos(w) * th1 + x4 * x3 * x3 * th2, x4, u0
+
+
+@register_jitable
+def _besancon2_dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u)``, ``c = (theta1, theta2)``."""
+    out[0], out[1], out[2], out[3] = _besancon2_rates(x[0], x[1], x[2], x[3], u[0], c[0], c[1])
+
+
+class Besancon2Model(CompiledModel):
+    """Paper 001's example 2 for numba kernels."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_besancon2_dynamics_row)
 
 
 class BesanconExample2(System):
@@ -897,6 +981,7 @@ class BesanconExample2(System):
     input_names: ClassVar[tuple[str, ...]] = ("u_ddot",)
     output_names: ClassVar[tuple[str, ...]] = ("y", "u")
     param_names: ClassVar[tuple[str, ...]] = ("theta1", "theta2")
+    compiled: ClassVar[CompiledModel | None] = Besancon2Model()
     default_params: ClassVar[Mapping[str, float]] = {"theta1": 10.0, "theta2": -5.0}
     default_x0: ClassVar[tuple[float, ...]] = (1.0, 1.0, 0.1, 2.0)
     forms: ClassVar[tuple[str, ...]] = ("affine",)
@@ -904,12 +989,8 @@ class BesanconExample2(System):
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """``[y', y'', u', u'']`` (fast path); ``u[0]`` is the generator input ``u''``."""
-        x1, x2, x3, x4 = x[0], x[1], x[2], x[3]
-        w = x1 * x2
-        return np.array([x2,
-                         math.sin(w) + math.cos(w) * p["theta1"] + x4 * x3 * x3 * p["theta2"],
-                         x4,
-                         u[0]])
+        return np.array(_besancon2_rates(x[0], x[1], x[2], x[3], u[0], p["theta1"],
+                                         p["theta2"]))
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
@@ -1014,6 +1095,29 @@ def _jo_son_gamma_obar(y: Any, u: Any) -> tuple[Any]:
     return (-0.5 * y2 + y2 * y2,)
 
 
+@register_jitable
+def _jo_son_rates(x1: float, x2: float, x3: float, uu: float,
+                  th: float) -> tuple[float, float, float]:
+    """Paper 003, eq. 28: ``(x1', x2', x3')`` (and compiled, :class:`JoSonModel`)."""
+    x1sq = x1 * x1
+    return (x2 - x1sq * x1 + uu + th * x1 * uu,
+            -x1sq * x2 + x1 * math.sin(x1) * uu + 2.0 * th * x1 * uu - th * x1sq * x1 * uu,
+            -x3 - x3 * x3 * x3 + x1 * x2 + x1 * uu + th * x1sq * uu)
+
+
+@register_jitable
+def _jo_son_dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u)``, ``c = (theta,)``."""
+    out[0], out[1], out[2] = _jo_son_rates(x[0], x[1], x[2], u[0], c[0])
+
+
+class JoSonModel(CompiledModel):
+    """Paper 003's example for numba kernels."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_jo_son_dynamics_row)
+
+
 class JoSonExample(System):
     """Example of paper 003, eq. 28: a not-observable system with one unknown parameter.
 
@@ -1068,6 +1172,7 @@ class JoSonExample(System):
     input_names: ClassVar[tuple[str, ...]] = ("u",)
     output_names: ClassVar[tuple[str, ...]] = ("y",)
     param_names: ClassVar[tuple[str, ...]] = ("theta",)
+    compiled: ClassVar[CompiledModel | None] = JoSonModel()
     default_params: ClassVar[Mapping[str, float]] = {"theta": 1.0}
     default_x0: ClassVar[tuple[float, ...]] = (0.5, 1.0, -1.0)
     #: ``b`` of the canonical form eq. 10 / 31 (``b_r = 1 > 0``, ``s + 2`` Hurwitz)
@@ -1078,13 +1183,7 @@ class JoSonExample(System):
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """Eq. 28: ``[x1', x2', x3']`` (fast path)."""
-        x1, x2, x3, uu, th = x[0], x[1], x[2], u[0], p["theta"]
-        x1sq = x1 * x1
-        return np.array([
-            x2 - x1sq * x1 + uu + th * x1 * uu,
-            -x1sq * x2 + x1 * math.sin(x1) * uu + 2.0 * th * x1 * uu - th * x1sq * x1 * uu,
-            -x3 - x3 * x3 * x3 + x1 * x2 + x1 * uu + th * x1sq * uu,
-        ])
+        return np.array(_jo_son_rates(x[0], x[1], x[2], u[0], p["theta"]))
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:

@@ -8,11 +8,12 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from ..exceptions import DesignError
 from ._mujoco import _MjReader, _SecondOrderMujocoSystem
 from .aocf import AOCF, joint_aocf
-from .base import Array
+from .base import Array, CompiledModel
 
 #: the parameters of the pendulum's affine form (paper 001, eq. 9), in the order of
 #: :func:`_affine_terms`' basis regressors
@@ -47,6 +48,7 @@ def _aocf_features(Y: Array, U: Array) -> Array:
     return F
 
 
+@register_jitable
 def _acceleration_row(q: float, v: float, u0: float, gear: float, mass: float, g: float,
                       lc: float, damping: float, inertia: float) -> float:
     """The pendulum's ``q''``, once: the scalar path (:meth:`Pendulum._acceleration`, plain
@@ -56,6 +58,53 @@ def _acceleration_row(q: float, v: float, u0: float, gear: float, mass: float, g
 
 
 _acceleration_nb = njit(cache=True)(_acceleration_row)
+
+
+# the ODE of one row for the compiled model; c = (mass, com_distance, inertia, damping, gear,
+# g), the order of Pendulum.param_names
+
+
+@register_jitable
+def _dynamics_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = f(x, u) = (theta', theta'')``: :meth:`Pendulum.dynamics`."""
+    out[0] = x[1]
+    out[1] = _acceleration_row(x[0], x[1], u[0], c[4], c[0], c[5], c[1], c[3], c[2])
+
+
+@register_jitable
+def _jacobian_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = df/dx`` (2, 2): :meth:`Pendulum.jacobian`."""
+    mass, lc, J, d, g = c[0], c[1], c[2], c[3], c[5]
+    out[0, 0] = 0.0
+    out[0, 1] = 1.0
+    out[1, 0] = -mass * g * lc * math.cos(x[0]) / J
+    out[1, 1] = -d / J
+
+
+@register_jitable
+def _param_jacobian_row(x: Array, u: Array, c: Array, out: Array) -> None:
+    """``out = df/dc`` (2, 6), columns in the order of ``param_names``:
+    :meth:`Pendulum.param_jacobian`."""
+    mass, lc, J, d, gear, g = c[0], c[1], c[2], c[3], c[4], c[5]
+    th, w, uu = x[0], x[1], u[0]
+    s = math.sin(th)
+    acc = _acceleration_row(th, w, uu, gear, mass, g, lc, d, J)
+    out[0, :] = 0.0
+    out[1, 0] = -g * lc * s / J  # mass
+    out[1, 1] = -mass * g * s / J  # com_distance
+    out[1, 2] = -acc / J  # inertia
+    out[1, 3] = -w / J  # damping
+    out[1, 4] = uu / J  # gear
+    out[1, 5] = -mass * lc * s / J  # g
+
+
+class PendulumModel(CompiledModel):
+    """The pendulum's ODE for numba kernels (:class:`~hgo_mj.systems.base.CompiledModel`)."""
+
+    __slots__ = ()
+    dynamics = staticmethod(_dynamics_row)
+    jacobian = staticmethod(_jacobian_row)
+    param_jacobian = staticmethod(_param_jacobian_row)
 
 
 @njit(cache=True)
@@ -111,6 +160,7 @@ class Pendulum(_SecondOrderMujocoSystem):
     joints = ("hinge",)
     actuators = ("torque",)
     forms = ("affine", "kalman_fields", "aocf")
+    compiled = PendulumModel()
 
     def _form_kalman_fields(self) -> dict[str, str]:
         """The ``"kalman_fields"`` form: the MJCF fields an augmented MuJoCo Kalman filter
@@ -169,25 +219,18 @@ class Pendulum(_SecondOrderMujocoSystem):
     def jacobian(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """:math:`\\partial f / \\partial x` of :meth:`dynamics`, shape (2, 2) (used by the
         Kalman filters of :mod:`hgo_mj.observers.kalman`)."""
-        J = p["inertia"]
-        return np.array([[0.0, 1.0],
-                         [-p["mass"] * p["g"] * p["com_distance"] * math.cos(float(x[0])) / J,
-                          -p["damping"] / J]])
+        out = np.empty((2, 2))
+        _jacobian_row(x, u, _params(p), out)
+        return out
 
     @staticmethod
     def param_jacobian(t: float, x: Array, u: Array, p: Mapping[str, float],
                        names: tuple[str, ...]) -> Array:
         """:math:`\\partial f / \\partial p` of :meth:`dynamics` for the parameters ``names``,
         shape (2, len(names))."""
-        th, w, uu, J = float(x[0]), float(x[1]), float(u[0]), p["inertia"]
-        m, g, lc, s = p["mass"], p["g"], p["com_distance"], math.sin(th)
-        acc = Pendulum._acceleration(th, w, uu, p)
-        d = {"mass": -g * lc * s / J, "com_distance": -m * g * s / J, "g": -m * lc * s / J,
-             "gear": uu / J, "damping": -w / J, "inertia": -acc / J}
-        out = np.zeros((2, len(names)))
-        for j, nm in enumerate(names):
-            out[1, j] = d[nm]
-        return out
+        out = np.empty((2, len(Pendulum.param_names)))
+        _param_jacobian_row(x, u, _params(p), out)
+        return out[:, [Pendulum.param_names.index(nm) for nm in names]]
 
     # ------------------------------------------------------------------ forms
     def _form_affine(self, unknown: Any = None) -> Any:
@@ -239,3 +282,8 @@ class Pendulum(_SecondOrderMujocoSystem):
                           theta=[true[k] for k in order], state_names=self.state_names,
                           n_inputs=1, true_physical={k: true[k] for k in order}
                           )._made_by(Pendulum._form_affine, self, unknown)
+
+
+def _params(p: Mapping[str, float]) -> Array:
+    """The parameters in the order of ``Pendulum.param_names``."""
+    return np.array([p[k] for k in Pendulum.param_names], dtype=float)

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from hgo_mj.exceptions import DivergenceError
 from hgo_mj.observers import make_observer
 from hgo_mj.observers.base import Observer
 from hgo_mj.systems import BioreactorBullinger, ElasticJoint, ElasticJoint2Link, Pendulum
@@ -165,3 +166,52 @@ def test_period_cache_is_bounded():
     for dt in 0.01 + 1e-4 * rng.random(200):
         ob.update([0.1], [0.0], float(dt))
     assert len(ob._qh) <= 8
+
+
+# the filters of the system-model cases (not the MuJoCo ones, not the general output, whose
+# model is Python) run with the system's compiled model; the same filter on the Python model
+# (``model.compiled = None``: one dynamics call per member and stage) gives the same bits
+COMPILED = [c for c in CASES if not c[0].startswith(("ekf_mujoco", "ukf_mujoco"))
+            and "general" not in c[0]]
+
+
+@pytest.mark.parametrize(ARGS, [pytest.param(*c[1:], id=c[0]) for c in COMPILED])
+def test_compiled_model_equals_python_model(make, dt, x0, spread, th0, u_level):
+    fast, slow = make(), make()
+    assert fast.model.compiled is not None
+    slow.model.compiled = None
+    Y, U = _streams(fast, dt, x0, spread, u_level, seed=13)
+    Y, U = Y[:6, :80], U[:6, :80]
+    X0, TH0 = _initial(x0, spread, th0, seed=4)
+    for ob in (fast, slow):
+        ob.reset(X0[:6], theta_hat0=None if TH0 is None else TH0[:6])
+    a, b = fast.advance(Y, U, dt), slow.advance(Y, U, dt)
+    np.testing.assert_array_equal(a.x_hat, b.x_hat)
+    np.testing.assert_array_equal(a.diagnostics, b.diagnostics)
+    np.testing.assert_array_equal(fast.P_, slow.P_)
+    X = np.column_stack([X0[:6], TH0[:6]]) if TH0 is not None else X0[:6]
+    for name in ("deriv", "jac"):
+        np.testing.assert_array_equal(getattr(fast.model, name)(X, U[:, 0]),
+                                      getattr(slow.model, name)(X, U[:, 0]))
+    np.testing.assert_array_equal(fast.model.step(X, U[:, 0], dt, fast.method),
+                                  slow.model.step(X, U[:, 0], dt, fast.method))
+
+
+@pytest.mark.parametrize("cls", ["ekf", "ukf"])
+def test_compiled_model_divergence_is_reported_alike(cls):
+    """An estimate that leaves the finite numbers raises the same error, naming the member and
+    the sample, from the compiled and the Python model (the state is left at that sample)."""
+    errors, states = [], []
+    for compiled in (True, False):
+        ob = make_observer(cls, BioreactorBullinger(), R=1e-4, P0=1e-4)
+        if not compiled:
+            ob.model.compiled = None
+        ob.reset(np.array([[0.075, 0.03], [1e200, 1e200], [0.075, 0.03]]))
+        Y = np.full((3, 40, 1), 0.075)
+        # numpy warns of the overflow on the Python model's floats; the kernels do not
+        with pytest.raises(DivergenceError) as e, np.errstate(all="ignore"):
+            ob.advance(Y, np.full((3, 40, 1), 0.08), 0.5)
+        errors.append(str(e.value))
+        states.append(ob._x.copy())
+    assert errors[0] == errors[1] and "member 1" in errors[0]
+    np.testing.assert_array_equal(states[0], states[1])
