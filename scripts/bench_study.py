@@ -197,18 +197,24 @@ seeds = 2500
 
 def memory(tmp: Path) -> dict[str, float]:
     """10,000 runs (2500 seeds x 4 gains, 10 s each) by `hgo-mj sweep` in a fresh process:
-    its peak resident memory and wall time."""
-    import resource
+    the peak resident memory of that process and of its own workers, and the wall time."""
     import subprocess
 
     f = tmp / "memory.toml"
     f.write_text(MEMORY_TOML)
+    code = ("import resource, sys\n"
+            "from hgo_mj.cli import main\n"
+            f"rc = main(['sweep', {str(f)!r}, '--out', {str(tmp / 'mem')!r}, '--jobs', '2', "
+            "'--quiet'])\n"
+            "peak = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,\n"
+            "           resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n"
+            "print('PEAK', peak, file=sys.stderr)\n"
+            "sys.exit(rc)\n")
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "hgo_mj.cli", "sweep", str(f), "--out",
-                    str(tmp / "mem"), "--jobs", "2", "--quiet"], check=True,
-                   stdout=subprocess.DEVNULL)
+    done = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                          text=True)
     wall = time.perf_counter() - t0
-    peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    peak_kib = int(done.stderr.split("PEAK")[-1].split()[0])
     return {"runs": 10_000, "rss_mb": peak_kib / 1024, "wall_s": wall}
 
 
