@@ -15,6 +15,7 @@ from collections.abc import Iterable
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 
+from hgo_mj._io import write_text
 from hgo_mj.simulate import package_versions
 
 
@@ -71,4 +72,4 @@ def write_section(path: str | Path, name: str, text: str) -> None:
         new = old[:i] + begin + "\n" + body + "\n" + old[j:]
     else:
         new = (old.rstrip("\n") + "\n\n" if old.strip() else "") + f"{begin}\n{body}\n{end}\n"
-    path.write_text(new)
+    write_text(path, new)

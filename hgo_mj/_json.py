@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ._io import write_text
+
 
 def strict_json(value: Any) -> Any:
     """``value`` as plain JSON data: dicts (keys as strings), lists (tuples and arrays too),
@@ -32,7 +34,8 @@ def strict_json(value: Any) -> Any:
 
 
 def write_json(path: str | Path, value: Any) -> Any:
-    """Write ``value`` to ``path`` as strict JSON (indented) and return what was written."""
+    """Write ``value`` to ``path`` as strict JSON (indented, atomically) and return what was
+    written."""
     data = strict_json(value)
-    Path(path).write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+    write_text(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
     return data

@@ -32,6 +32,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from ._io import write_text
 from ._json import write_json
 from ._validate import positive_int, reject_unknown
 from .exceptions import DesignError, HgoError
@@ -240,7 +241,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     plot_trajectory(traj, out / "figure.png",
                     title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}")
     table = format_table(metrics)
-    (out / "summary.txt").write_text(table + "\n")
+    write_text(out / "summary.txt", table + "\n")
     return traj, metrics, out
 
 
@@ -287,7 +288,7 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     done, runs, failed = seed_metrics(table, metrics)
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
-    (out / "summary_mc.txt").write_text(mc.table() + "\n")
+    write_text(out / "summary_mc.txt", mc.table() + "\n")
     plot_monte_carlo(mc, out / "mc.png",
                      title=f"{sc.get('name', name)}: {sc['plant']['name']}, seeds "
                            f"{seeds[0]}..{seeds[-1]}")

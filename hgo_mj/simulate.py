@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ._io import atomic_path
 from ._validate import finite_scalar, positive_int, vector
 from .exceptions import DesignError, DimensionError, DivergenceError
 from .loop import Drive, Loop, LoopFailure, Periods, Segment
@@ -148,7 +149,7 @@ class Trajectory:
                 "input_names": self.input_names, "observers": obs_meta,
                 "metadata": self.metadata}
         cols["__meta__"] = np.array(json.dumps(meta))
-        with open(path, "wb") as fh:
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # a kill keeps the old file
             np.savez_compressed(fh, **cols)
         return path
 

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import write_text
 from .._json import write_json
 from ..exceptions import DesignError
 
@@ -110,7 +111,7 @@ def finish(out: str | Path, summary: dict[str, Any], report: str) -> dict[str, A
     note = null_note(summary)
     data = write_summary(out, summary)
     text = report.rstrip("\n") + "\n"
-    Path(out, "report.txt").write_text(text + (f"\n{note}\n" if note else ""))
+    write_text(Path(out, "report.txt"), text + (f"\n{note}\n" if note else ""))
     return data
 
 

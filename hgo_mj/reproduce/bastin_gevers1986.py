@@ -55,6 +55,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .._io import save_figure
 from ..inputs import Multisine
 from ..metrics import settling_time
 from ..observers.bastin_gevers import BastinGeversObserver
@@ -359,7 +360,7 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     ax.set_title("(a) AOCF 6.5 with theta frozen: parameter error")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "fig_a_frozen_theta.png", dpi=110)
+    save_figure(fig, out / "fig_a_frozen_theta.png")
     plt.close(fig)
     files.append("fig_a_frozen_theta.png")
 
@@ -402,7 +403,7 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     for ax in axes[-1]:
         ax.set_xlabel("t (residence times)")
     fig.tight_layout()
-    fig.savefig(out / "fig_b_bioreactor.png", dpi=110)
+    save_figure(fig, out / "fig_b_bioreactor.png")
     plt.close(fig)
     files.append("fig_b_bioreactor.png")
 
@@ -430,7 +431,7 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     axes[2].set_xlabel("t [s]")
     axes[2].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "fig_c_pendulum.png", dpi=110)
+    save_figure(fig, out / "fig_c_pendulum.png")
     plt.close(fig)
     files.append("fig_c_pendulum.png")
     return files

@@ -57,6 +57,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from .._io import save_figure
 from ..inputs import FunctionSignal, TimeShift
 from ..metrics import settling_time
 from ..observers.besancon import BesanconObserver
@@ -191,7 +192,7 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
     ax[1].set_xlabel("t [s]")
     ax[0].set_title("Example 1: state estimation errors (paper Fig. 1), lambda = 10")
     fig.tight_layout()
-    fig.savefig(out / "fig1_state_errors.png", dpi=110)
+    save_figure(fig, out / "fig1_state_errors.png")
     plt.close(fig)
     files.append("fig1_state_errors.png")
     for name, r, th, title in (("fig2_parameters.png", r1, th1, "Example 1 (paper Fig. 2), lambda = 10"),
@@ -206,7 +207,7 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
         ax[1].set_xlabel("t [s]")
         ax[0].set_title(title)
         fig.tight_layout()
-        fig.savefig(out / name, dpi=110)
+        save_figure(fig, out / name)
         plt.close(fig)
         files.append(name)
     fig, ax = plt.subplots(1, 1, figsize=(8, 3.5))
@@ -218,7 +219,7 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
                  f"the integral of Gamma^T C^T C Gamma over the last {WINDOW:g} s", fontsize=10)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "excitation.png", dpi=110)
+    save_figure(fig, out / "excitation.png")
     plt.close(fig)
     files.append("excitation.png")
     return files

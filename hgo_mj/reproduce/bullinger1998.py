@@ -68,6 +68,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
+from .._io import save_figure
 from ..observers.adaptive_gain import AdaptiveGainObserver
 from ..plants.ode import OdePlant
 from ..sensors import GaussianNoise, SensorChain
@@ -232,7 +233,7 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     ae.set_xlabel("t [h]")
     ae.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "fig2a_output.png", dpi=110)
+    save_figure(fig, out / "fig2a_output.png")
     plt.close(fig)
     names.append("fig2a_output.png")
     # (b) s and its estimate
@@ -247,7 +248,7 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     ax.set_title("Fig. 2b: substrate and its estimate through the inverse of eq. 16 (noisy y)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "fig2b_substrate.png", dpi=110)
+    save_figure(fig, out / "fig2b_substrate.png")
     plt.close(fig)
     names.append("fig2b_substrate.png")
     # (c) k(t)
@@ -269,7 +270,7 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     ax.set_title("Fig. 2c: observer gain k(t)")
     ax.legend(fontsize=8, loc="center", bbox_to_anchor=(0.5, 0.56), ncol=2)
     fig.tight_layout()
-    fig.savefig(out / "fig2c_gain.png", dpi=110)
+    save_figure(fig, out / "fig2c_gain.png")
     plt.close(fig)
     names.append("fig2c_gain.png")
     return names

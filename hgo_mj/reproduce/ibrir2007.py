@@ -76,6 +76,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import save_figure
 from ..design import (
     binomial_coefficients,
     lipschitz_condition,
@@ -411,7 +412,7 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
         ae.text(0.99, 0.92, f"RMSE (t >= {T_TRANSIENT:g}) = {noise[key]:.4f}", ha="right",
                 va="top", transform=ae.transAxes, fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / fname, dpi=110)
+        save_figure(fig, out / fname)
         plt.close(fig)
         files.append(fname)
 
@@ -433,7 +434,7 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
     az.set_title("zoom, 20 <= t <= 22", fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "fig2_noisy_output.png", dpi=110)
+    save_figure(fig, out / "fig2_noisy_output.png")
     plt.close(fig)
     files.append("fig2_noisy_output.png")
 
@@ -452,7 +453,7 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
                  fontsize=10)
     ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
-    fig.savefig(out / "fig4_euler_periods.png", dpi=110)
+    save_figure(fig, out / "fig4_euler_periods.png")
     plt.close(fig)
     files.append("fig4_euler_periods.png")
 
@@ -469,7 +470,7 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
     axes[1].set_ylabel("$x_2 - \\hat x_2$")
     axes[1].set_xlabel("t")
     fig.tight_layout()
-    fig.savefig(out / "fig5_mujoco.png", dpi=110)
+    save_figure(fig, out / "fig5_mujoco.png")
     plt.close(fig)
     files.append("fig5_mujoco.png")
     return files

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .._io import save_figure
 from ..inputs import Multisine
 from ..metrics import settling_time
 from ..observers.jo_son import JoSonForm, JoSonObserver, jo_son_gain
@@ -214,7 +215,7 @@ def _figures(out: Path, c: dict, el: Any) -> list[str]:
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
     fig.tight_layout()
-    fig.savefig(out / "fig1_example.png", dpi=110)
+    save_figure(fig, out / "fig1_example.png")
     plt.close(fig)
 
     tr, form, truth = el
@@ -233,7 +234,7 @@ def _figures(out: Path, c: dict, el: Any) -> list[str]:
     axes[1].set_xlabel("t [s]")
     axes[1].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "fig_elastic_joint.png", dpi=110)
+    save_figure(fig, out / "fig_elastic_joint.png")
     plt.close(fig)
     return ["fig1_example.png", "fig_elastic_joint.png"]
 

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .._io import atomic_path
+from .._io import save_figure
 
 #: the metrics drawn against each axis, with their labels
 PANELS = (("rmse", "RMSE after the transient"), ("peak", "peak error"),
@@ -77,11 +77,6 @@ def _tidy(fig: Any, rows: int) -> None:
     h = fig.get_figheight()
     fig.subplots_adjust(left=0.07, right=0.97, bottom=0.55 / h, top=1 - 0.6 / h,
                         wspace=0.32, hspace=0.55 * 2.6 / max(h / max(rows, 1), 1.0))
-
-
-def _save(fig: Any, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
 
 
 def axis_figure(summary: Any, axis: str, axes: list[str], scenario: dict[str, Any],
@@ -195,7 +190,7 @@ def study_figures(result: Any, out: str | Path | None = None) -> list[Any]:
                      heatmap_figure(summary, axes[0], axes[1], scenario, title)))
     if out is not None:
         for name, fig in figs:
-            _save(fig, Path(out) / name)
+            save_figure(fig, Path(out) / name)
     return [f for _, f in figs]
 
 

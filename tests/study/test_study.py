@@ -448,3 +448,21 @@ def test_ray_not_installed_names_the_extra(tmp_path, monkeypatch, capsys):
     assert main(["sweep", str(f), "--out", str(tmp_path / "o"), "--backend", "ray"]) == 2
     assert 'pip install "hgo_mj[ray]"' in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_stored_cells_keep_their_trajectories_as_npz(tmp_path):
+    """store = [{path: value}]: the runs of the matching cells are also kept, each the cell run
+    alone through simulate; the others are not."""
+    from hgo_mj.simulate import Trajectory
+
+    study = Study(BASE, {"observers.hgo.k": [20.0, 80.0]}, seeds=2,
+                  store=[{"observers.hgo.k": 80.0}])
+    out = tmp_path / "st"
+    study.run(out, quiet=True)
+    files = sorted(p.name for p in (out / "trajectories").glob("*.npz"))
+    assert files == ["cell1_seed3.npz", "cell1_seed4.npz"]
+    traj = Trajectory.load(out / "trajectories" / "cell1_seed4.npz")
+    alone = simulate(**scenario_run(study.cells[1].scenario), seed=4)
+    np.testing.assert_array_equal(traj.observers["hgo"].x_hat, alone.observers["hgo"].x_hat)
+    with pytest.raises(DesignError, match="store filter names 'plant.x0', which is not an axis"):
+        Study(BASE, {"observers.hgo.k": [20.0]}, store=[{"plant.x0": [0.5, 0.0]}])
