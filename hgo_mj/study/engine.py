@@ -313,8 +313,13 @@ def _x0_rows(scenarios: Mapping[int, Mapping[str, Any]], members: Sequence[tuple
     return np.array(list(keys), dtype=float).reshape(len(keys), -1), np.array(rows)
 
 
+#: what a loop gives per observer: the metrics (per metric ``(B, n)``, or ``(B,)`` for a
+#: run's), the final diagnostics ``(B, d)`` and a message per member (None: finished)
+Outcome = tuple[dict[str, Array], Array, list[str | None]]
+
+
 def _observe(build: Any, members: list[int], names: list[str], exact: bool = False
-             ) -> dict[str, tuple[dict[str, Array], Array, list[str | None]]]:
+             ) -> dict[str, Outcome]:
     """Run the observers ``names`` over the members (indices into the chunk) on the loop;
     isolate failures (module docstring). Per observer: metrics, final diagnostics, messages."""
     if not names or not members:
@@ -337,6 +342,36 @@ def _observe(build: Any, members: list[int], names: list[str], exact: bool = Fal
         out[bad] = ({k: np.concatenate([a[0][k], b[0][k]]) for k in a[0]},
                     np.concatenate([a[1], b[1]]), a[2] + b[2])
         return out
+
+
+def _finish(loop: Loop, acc: dict[str, Metrics], N: int, Xl: Array, *,
+            band: Array | None = None, run: dict[str, Array] | None = None
+            ) -> dict[str, Outcome]:
+    """Each observer's outcome after the last row ``N`` (true state ``Xl``): its last
+    estimate accumulated, the settling rows found (``band`` given: a closed loop), the
+    metrics with the run's (``run``), a message where the estimate left the finite numbers."""
+    B, Ts = Xl.shape[0], loop.periods.sample
+    out = {}
+    for name, (x, z, d) in loop.estimates().items():
+        acc[name].add(N, Xl, (x, z), x[:, None], z[:, None])
+        if band is not None:
+            acc[name].settle(band)
+        res = acc[name].result(Xl.shape[2], loop.wall[name] / (max(N, 1) * B))
+        res.update({k: v.copy() for k, v in (run or {}).items()})
+        msgs: list[str | None] = [None] * B
+        for i, r in enumerate(acc[name].bad_row):
+            if r >= 0:
+                msgs[i] = (f"observer {name!r} estimate left the finite numbers at "
+                           f"t={r * Ts:g} (row {int(r)})")
+        out[name] = (res, d, msgs)
+    return out
+
+
+def _failed(n: int, observer: Observer, B: int, msg: str) -> Outcome:
+    """The outcome of B members whose run failed with ``msg``: every metric NaN."""
+    res: dict[str, Array] = {m: np.full((B, n), np.nan) for m in METRICS}
+    res.update({m: np.full(B, np.nan) for m in RUN_METRICS})
+    return res, np.full((B, len(observer.diagnostic_names)), np.nan), [msg] * B
 
 
 class _Plants:
@@ -396,8 +431,7 @@ class _Bucket:
         self.p, self.scenario = plants, scenario
         self.kw = scenario_run(scenario)
 
-    def run(self, members: list[int], names: list[str], exact: bool
-            ) -> dict[str, tuple[dict[str, Array], Array, list[str | None]]]:
+    def run(self, members: list[int], names: list[str], exact: bool) -> dict[str, Outcome]:
         from ..cli import scenario_run
 
         p = self.p
@@ -419,25 +453,10 @@ class _Bucket:
                 # copies: the loop (exact=False) writes the next segment into the same block
                 prev[name] = (blk.x_hat[:, -1].copy(), blk.z_hat[:, -1].copy())
         Xl = np.reshape(plant.state, (len(members), 1, -1))
-        out = {}
-        for name, (x, z, d) in loop.estimates().items():
-            acc[name].add(p.N, Xl, (x, z), x[:, None], z[:, None])
-            res = acc[name].result(len(p.state_names),
-                                   loop.wall[name] / (max(p.N, 1) * len(members)))
-            msgs: list[str | None] = [None] * len(members)
-            for i, r in enumerate(acc[name].bad_row):
-                if r >= 0:
-                    msgs[i] = (f"observer {name!r} estimate left the finite numbers at "
-                               f"t={r * p.periods.sample:g} (row {int(r)})")
-            out[name] = (res, d, msgs)
-        return out
+        return _finish(loop, acc, p.N, Xl)
 
-    def failed(self, B: int, name: str, msg: str
-               ) -> tuple[dict[str, Array], Array, list[str | None]]:
-        n = len(self.p.state_names)
-        nd = len(self.kw["observers"][name].diagnostic_names)
-        return ({m: np.full((B, n), np.nan) for m in METRICS}, np.full((B, nd), np.nan),
-                [msg] * B)
+    def failed(self, B: int, name: str, msg: str) -> Outcome:
+        return _failed(len(self.p.state_names), self.kw["observers"][name], B, msg)
 
 
 class _ClosedBucket:
@@ -462,8 +481,7 @@ class _ClosedBucket:
         self.t_transient = 0.2 * (self.N * self.periods.sample) if tt is None else float(tt)
         self.band, self.relative = float(mkw.get("band", 0.05)), bool(mkw.get("relative", True))
 
-    def run(self, members: list[int], names: list[str], exact: bool
-            ) -> dict[str, tuple[dict[str, Array], Array, list[str | None]]]:
+    def run(self, members: list[int], names: list[str], exact: bool) -> dict[str, Outcome]:
         from ..cli import scenario_run
 
         kw = scenario_run(self.scenario)
@@ -497,31 +515,15 @@ class _ClosedBucket:
         Xl = loop.sample()[0]
         account(Xl, drive.inputs(loop, 1))
         scale = np.where(hi - lo > 0, hi - lo, 1.0) if self.relative else np.ones((B, n))
-        out = {}
-        for name, (x, z, d) in loop.estimates().items():
-            acc[name].add(self.N, Xl, (x, z), x[:, None], z[:, None])
-            acc[name].settle(self.band * scale)
-            res = acc[name].result(n, loop.wall[name] / (max(self.N, 1) * B))
-            res["cost"], res["peak_input"] = Ts * cost, peak_u.copy()
-            msgs: list[str | None] = [None] * B
-            for i, r in enumerate(acc[name].bad_row):
-                if r >= 0:
-                    msgs[i] = (f"observer {name!r} estimate left the finite numbers at "
-                               f"t={r * Ts:g} (row {int(r)})")
-            out[name] = (res, d, msgs)
-        return out
+        return _finish(loop, acc, self.N, Xl, band=self.band * scale,
+                       run={"cost": Ts * cost, "peak_input": peak_u})
 
-    def failed(self, B: int, name: str, msg: str
-               ) -> tuple[dict[str, Array], Array, list[str | None]]:
-        n = len(self.state_names)
-        nd = len(self.kw["observers"][name].diagnostic_names)
-        res: dict[str, Array] = {m: np.full((B, n), np.nan) for m in METRICS}
-        res.update({m: np.full(B, np.nan) for m in RUN_METRICS})
-        return res, np.full((B, nd), np.nan), [msg] * B
+    def failed(self, B: int, name: str, msg: str) -> Outcome:
+        return _failed(len(self.state_names), self.kw["observers"][name], B, msg)
 
 
 def _closed(build: _ClosedBucket, members: list[int], names: list[str], exact: bool = False
-            ) -> dict[str, tuple[dict[str, Array], Array, list[str | None]]]:
+            ) -> dict[str, Outcome]:
     """A closed loop's members, failures isolated by bisection: the observers share the run
     (the controller acts on one of them), so a member whose run fails is a failed run of every
     observer, with the message of :func:`~hgo_mj.simulate.simulate`."""
