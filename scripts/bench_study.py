@@ -14,13 +14,12 @@ Usage: ``python scripts/bench_study.py [--write BENCHMARKS.md] [--single N] [--n
    no noise, as one study, against bare ``mujoco.rollout.Rollout(nthread=2)`` of the same
    model, initial states and inputs (the controls made once, outside the timing). Target: at
    least 0.7x the rollout's throughput.
-4. **Ray**: study 1 on a local Ray instance (2 CPUs, 127.0.0.1; started before the timing,
-   its workers cold) against the local backend. Target: at least 0.7x, rows identical.
-
 3. **Closed loop**: 256 seeds of the LQR on the high-gain estimate of the cart pendulum (paper
    004), 10 s at 1 kHz, as one study (every member its own plant, stepped together) against
    the same runs through the single-run path (``--single-closed`` of them timed, scaled).
    Target: at least 5x faster.
+4. **Ray**: study 1 on a local Ray instance (2 CPUs, 127.0.0.1; started before the timing,
+   its workers cold) against the local backend. Target: at least 0.7x, rows identical.
 5. **Memory**: 10,000 runs by ``hgo-mj sweep`` in a fresh process: its peak resident memory
    (``ru_maxrss`` of the child, the largest of its processes). Target: under 500 MB.
 
