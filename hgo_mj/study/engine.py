@@ -64,6 +64,8 @@ RUN_METRICS = ("cost", "peak_input")
 
 # ------------------------------------------------------------------- planning
 def _group_key(sc: Mapping[str, Any]) -> str:
+    """What decides a plant's trajectory apart from its initial state (open loop: plant,
+    input, periods; a closed loop's controller too)."""
     plant = {k: v for k, v in sc.get("plant", {}).items() if k != "x0"}
     run = {k: v for k, v in sc.get("run", {}).items()
            if k in ("duration", "sample_period", "control_period")}
@@ -71,13 +73,15 @@ def _group_key(sc: Mapping[str, Any]) -> str:
 
 
 def _bucket_key(sc: Mapping[str, Any]) -> str:
+    """What decides the loop around the plant: the sensor chain and the observers."""
     return json.dumps([sc.get("sensor"), sc.get("observers")], sort_keys=True)
 
 
 @dataclass
 class Chunk:
-    """A piece of work: members ``(cell, seed)`` of one bucket, with every cell's scenario.
-    Plain data (pickled to worker processes and Ray tasks)."""
+    """A piece of work: members ``(cell, seed)`` of one group (its buckets one after the
+    other), every cell's scenario and the metric settings (``t_transient``, ``band``). Plain
+    data (pickled to worker processes and Ray tasks)."""
 
     id: int
     members: list[tuple[int, int]]
