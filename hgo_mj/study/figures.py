@@ -15,6 +15,7 @@ is left alone and nothing opens a window.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -31,19 +32,20 @@ _PARAM_UNITS = {"k": "1/s", "sample_period": "s", "control_period": "s", "durati
                 "dt": "s", "t_transient": "s", "delay": "s", "k0": "1/s"}
 
 
-def _state_unit(scenario: dict[str, Any], state: str) -> str:
+def _units(scenarios: list[dict[str, Any]]) -> tuple[Callable[[str], str], str]:
+    """``(unit of a state, unit of the first measured output)`` over the plants a study's
+    cells name (a state's unit from the first plant that has it; ``""`` when undeclared)."""
     from ..systems import SYSTEMS
 
-    cls = SYSTEMS.get(str(scenario.get("plant", {}).get("name")))
-    return cls.unit(state) if cls is not None else ""
-
-
-def _output_unit(scenario: dict[str, Any]) -> str:
-    """The unit of the first measured output (where it is a state: a noise std's unit)."""
-    from ..systems import SYSTEMS
-
-    cls = SYSTEMS.get(str(scenario.get("plant", {}).get("name")))
-    return cls.unit(cls.output_names[0]) if cls is not None and cls.output_names else ""
+    names = list(dict.fromkeys(str(sc.get("plant", {}).get("name")) for sc in scenarios))
+    systems = [SYSTEMS[n] for n in names if n in SYSTEMS]
+    units: dict[str, str] = {}
+    for cls in systems:
+        for st in cls.state_names:
+            units.setdefault(st, cls.unit(st))
+    first = systems[0] if systems else None
+    out = first.unit(first.output_names[0]) if first is not None and first.output_names else ""
+    return (lambda state: units.get(state, "")), out
 
 
 def _plain_ticks(axis: Any) -> None:
@@ -71,74 +73,108 @@ def _file(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
-def _tidy(fig: Any, rows: int) -> None:
-    """Margins for labels and the title (a fixed layout: matplotlib's constrained layout
-    costs seconds on figures of many panels)."""
+def _tidy(fig: Any, rows: int, top: float = 0.6) -> None:
+    """Margins for labels, the legend and the title (``top`` inches; a fixed layout:
+    matplotlib's constrained layout costs seconds on figures of many panels)."""
     h = fig.get_figheight()
-    fig.subplots_adjust(left=0.07, right=0.97, bottom=0.55 / h, top=1 - 0.6 / h,
+    fig.subplots_adjust(left=0.07, right=0.97, bottom=0.55 / h, top=1 - top / h,
                         wspace=0.32, hspace=0.55 * 2.6 / max(h / max(rows, 1), 1.0))
 
 
-def axis_figure(summary: Any, axis: str, axes: list[str], scenario: dict[str, Any],
-                title: str) -> Any:
+#: at most this many curves (observer x values of the other axes) a panel; beyond, one curve
+#: per observer pooled over the other axes' values
+MAX_CURVES = 8
+
+
+def _curves(summary: Any, table: Any, axis: str, others: list[str]
+            ) -> tuple[list[tuple[str, Any]], bool]:
+    """``[(label, rows)]`` to draw against ``axis`` and whether they are pooled: per observer
+    and combination of the other axes (the summary's statistics over seeds), or, for more than
+    :data:`MAX_CURVES` of them, per observer over every seed and other cell (from the rows)."""
+    s = summary[summary["estimated"]]
+    groups = list(s.groupby(["observer", *others], sort=False))
+    if len(groups) <= MAX_CURVES:
+        out = []
+        for key, g in groups:
+            parts = [str(key[0])] + [f"{o.split('.')[-1]}={v:g}" if isinstance(v, float)
+                                     else f"{o.split('.')[-1]}={v}" for o, v in zip(others, key[1:])]
+            out.append((", ".join(parts), g))
+        return out, False
+    t = table[table["estimated"] & ~table["diverged"]]
+    pooled = []
+    for obs, g in t.groupby("observer", sort=False):
+        by = g.groupby([axis, "state"], sort=True)
+        rows = {}
+        for m, _ in PANELS:
+            rows[f"{m}_median"] = by[m].median()
+            rows[f"{m}_q25"] = by[m].quantile(0.25)
+            rows[f"{m}_q75"] = by[m].quantile(0.75)
+        import pandas as pd
+
+        pooled.append((f"{obs} (pooled)", pd.DataFrame(rows).reset_index()))
+    return pooled, True
+
+
+def axis_figure(summary: Any, table: Any, axis: str, axes: list[str],
+                unit_of: Callable[[str], str], out_unit: str, title: str) -> Any:
     """The metrics against one axis (module docstring)."""
     from matplotlib.figure import Figure
 
     s = summary[summary["estimated"]]
     states = list(dict.fromkeys(s["state"]))
-    others = [a for a in axes if a != axis]
-    fig = Figure(figsize=(4.2 * len(PANELS), 2.6 * len(states) + 0.9))
+    curves, pooled = _curves(summary, table, axis, [a for a in axes if a != axis])
+    fig = Figure(figsize=(4.2 * len(PANELS), 2.6 * len(states) + 1.4))
     grid = fig.subplots(len(states), len(PANELS), squeeze=False)
     numeric = s[axis].dtype.kind == "f"
     cats = list(dict.fromkeys(s[axis])) if not numeric else []
-    out_unit = _output_unit(scenario)
-    groups = list(s.groupby(["observer", *others], sort=False))
     observers = list(dict.fromkeys(s["observer"]))
-    combos = list(dict.fromkeys(tuple(k[1:]) for k, _ in groups))
-    colors = [f"C{observers.index(k[0]) % 10}" for k, _ in groups]
-    styles = [("-", "--", ":", "-.")[combos.index(tuple(k[1:])) % 4] for k, _ in groups]
     for r, state in enumerate(states):
-        unit = _state_unit(scenario, state)
         for c, (metric, label) in enumerate(PANELS):
             ax = grid[r, c]
-            for (key, g), color, style in zip(groups, colors, styles):
+            for i, (name, g) in enumerate(curves):
                 g = g[g["state"] == state].sort_values(axis)
                 x = g[axis].to_numpy(dtype=float) if numeric else np.array(
                     [cats.index(v) for v in g[axis]], dtype=float)
-                med = g[f"{metric}_median"].to_numpy(dtype=float)
-                lo = g[f"{metric}_q25"].to_numpy(dtype=float)
-                hi = g[f"{metric}_q75"].to_numpy(dtype=float)
-                name = ", ".join(
-                    [str(key[0])] + [f"{o.split('.')[-1]}={v:g}" if isinstance(v, float)
-                                     else f"{o.split('.')[-1]}={v}" for o, v in zip(others,
-                                                                                    key[1:])])
-                ax.plot(x, med, marker="o", ls=style, color=color, lw=1.4, ms=3.5, label=name)
-                ax.fill_between(x, lo, hi, color=color, alpha=0.2, lw=0)
-            xs = s[axis].to_numpy(dtype=float) if numeric else np.arange(len(cats), dtype=float)
-            if numeric and _spans_decades(xs):
-                ax.set_xscale("log")
-                _plain_ticks(ax.xaxis)
-            if not numeric:
-                ax.set_xticks(range(len(cats)), [str(v)[:18] for v in cats], rotation=20,
-                              fontsize=7)
-            ys = s[s["state"] == state][f"{metric}_median"].to_numpy(dtype=float)
-            if _spans_decades(ys):
-                ax.set_yscale("log")
-                _plain_ticks(ax.yaxis)
-            yunit = "s" if metric == "settling_time" else (unit or "-")
+                color = f"C{observers.index(name.split(',')[0].split(' ')[0]) % 10}"
+                style = ("-", "--", ":", "-.")[i % 4] if not pooled else "-"
+                ax.plot(x, g[f"{metric}_median"].to_numpy(dtype=float), marker="o", ls=style,
+                        color=color, lw=1.4, ms=3.5, label=name)
+                ax.fill_between(x, g[f"{metric}_q25"].to_numpy(dtype=float),
+                                g[f"{metric}_q75"].to_numpy(dtype=float), color=color,
+                                alpha=0.15, lw=0)
+            _scales(ax, s, axis, state, metric, numeric, cats)
+            yunit = "s" if metric == "settling_time" else (unit_of(state) or "-")
             ax.set_ylabel(f"{label} [{yunit}]", fontsize=8)
             ax.set_xlabel(_axis_label(axis, out_unit), fontsize=8)
             ax.set_title(state, fontsize=9)
             ax.grid(True, alpha=0.3)
             ax.tick_params(labelsize=7)
-    if groups:
-        grid[0, 0].legend(fontsize=7, loc="best")
-    fig.suptitle(f"{title}: median and interquartile band over the seeds", fontsize=10)
-    _tidy(fig, len(states))
+    handles, labels = grid[0, 0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="upper center", ncol=min(4, len(handles)), fontsize=7,
+                   bbox_to_anchor=(0.5, 1 - 0.45 / fig.get_figheight()), frameon=False)
+    how = ("pooled over the seeds and the other axes' values" if pooled
+           else "over the seeds")
+    fig.suptitle(f"{title}: median and interquartile band {how}", fontsize=10)
+    _tidy(fig, len(states), top=0.75 + 0.2 * int(np.ceil(len(handles) / 4)))
     return fig
 
 
-def heatmap_figure(summary: Any, a: str, b: str, scenario: dict[str, Any], title: str) -> Any:
+def _scales(ax: Any, s: Any, axis: str, state: str, metric: str, numeric: bool,
+            cats: list[Any]) -> None:
+    """Log scales where the values span a decade or more; category ticks for text axes."""
+    if numeric and _spans_decades(s[axis].to_numpy(dtype=float)):
+        ax.set_xscale("log")
+        _plain_ticks(ax.xaxis)
+    if not numeric:
+        ax.set_xticks(range(len(cats)), [str(v)[:18] for v in cats], rotation=20, fontsize=7)
+    if _spans_decades(s[s["state"] == state][f"{metric}_median"].to_numpy(dtype=float)):
+        ax.set_yscale("log")
+        _plain_ticks(ax.yaxis)
+
+
+def heatmap_figure(summary: Any, a: str, b: str, unit_of: Callable[[str], str], out_unit: str,
+                   title: str) -> Any:
     """The median RMSE over two axes, one panel per observer and state."""
     from matplotlib.colors import LogNorm
     from matplotlib.figure import Figure
@@ -163,9 +199,9 @@ def heatmap_figure(summary: Any, a: str, b: str, scenario: dict[str, Any], title
                                        for v in xa], fontsize=7)
         ax.set_yticks(range(len(xb)), [f"{v:g}" if isinstance(v, float) else str(v)
                                        for v in xb], fontsize=7)
-        unit = _state_unit(scenario, state) or "-"
-        ax.set_xlabel(_axis_label(a, _output_unit(scenario)), fontsize=8)
-        ax.set_ylabel(_axis_label(b, _output_unit(scenario)), fontsize=8)
+        unit = unit_of(state) or "-"
+        ax.set_xlabel(_axis_label(a, out_unit), fontsize=8)
+        ax.set_ylabel(_axis_label(b, out_unit), fontsize=8)
         ax.set_title(f"{obs}: {state}", fontsize=9)
         fig.colorbar(im, ax=ax, label=f"median RMSE [{unit}]")
     for j in range(len(pairs), rows * cols):
@@ -177,17 +213,18 @@ def heatmap_figure(summary: Any, a: str, b: str, scenario: dict[str, Any], title
 
 def study_figures(result: Any, out: str | Path | None = None) -> list[Any]:
     """Every figure of a study (module docstring); saved as PNG into ``out`` if given."""
-    summary = result.summary()
+    summary, table = result.summary(), result.table
     axes = result.plot_axes
-    scenario = result.study.spec.scenario
+    cells = result.study.cells
+    unit_of, out_unit = _units([c.scenario for c in cells])
     title = result.study.name
     figs: list[tuple[str, Any]] = []
     for axis in axes:
-        figs.append((f"axis_{_file(axis)}.png", axis_figure(summary, axis, axes, scenario,
-                                                             title)))
+        figs.append((f"axis_{_file(axis)}.png",
+                     axis_figure(summary, table, axis, axes, unit_of, out_unit, title)))
     if len(axes) == 2:
         figs.append((f"heatmap_{_file(axes[0])}__{_file(axes[1])}.png",
-                     heatmap_figure(summary, axes[0], axes[1], scenario, title)))
+                     heatmap_figure(summary, axes[0], axes[1], unit_of, out_unit, title)))
     if out is not None:
         for name, fig in figs:
             save_figure(fig, Path(out) / name)

@@ -180,7 +180,8 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
 
     keys = ["cell", "observer", "state"]
     d = df.copy()
-    for m in SUMMARY_METRICS:  # only finite values enter the statistics
+    metrics = [m for m in SUMMARY_METRICS if m in d]  # results written before a metric existed
+    for m in metrics:  # only finite values enter the statistics
         v = d[m].to_numpy(dtype=float)
         d[m] = np.where(np.isfinite(v) & ~d["diverged"].to_numpy(bool), v, np.nan)
     d["_settled"] = np.where(d["diverged"] | ~d["estimated"], np.nan,
@@ -190,7 +191,7 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
     out["runs"] = g.size()
     out["diverged_fraction"] = g["diverged"].mean().astype(float)
     out["settled_fraction"] = g["_settled"].mean()
-    for m in SUMMARY_METRICS:
+    for m in metrics:
         c = g[m]
         q25, q75 = c.quantile(0.25), c.quantile(0.75)
         std = c.std(ddof=1).where(c.count() > 1, 0.0)

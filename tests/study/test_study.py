@@ -467,3 +467,29 @@ def test_stored_cells_keep_their_trajectories_as_npz(tmp_path):
     np.testing.assert_array_equal(traj.observers["hgo"].x_hat, alone.observers["hgo"].x_hat)
     with pytest.raises(DesignError, match="store filter names 'plant.x0', which is not an axis"):
         Study(BASE, {"observers.hgo.k": [20.0]}, store=[{"plant.x0": [0.5, 0.0]}])
+
+
+def test_many_curves_are_pooled_and_every_plant_gives_its_units(tmp_path):
+    """Beyond eight observer x other-axis curves a panel draws one curve per observer pooled
+    over the other axes; each state's unit comes from the plant that has it."""
+    sc = {**BASE, "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+          "run": {"duration": 0.3, "seed": 0}}
+    study = Study(sc, {"observers.hgo.k": [10.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-3,
+                                                                               1e-2]},
+                  seeds=1, together=[{"plant.name": ["pendulum", "elastic_joint"],
+                                      "plant.x0": [[0.5, 0.0], [0.3, 0.3, 0.0, 0.0]]}])
+    result = study.run(tmp_path / "pool", quiet=True)
+    figs = result.plot()
+    k_fig = figs[0]  # against the gain: 3 noise levels x 2 plants = 6 curves
+    labels = k_fig.legends[0].get_texts()
+    assert len(labels) == 6 and "std=0.0001" in labels[0].get_text()
+    pooled = [f for f in figs if "pooled" in f._suptitle.get_text()]
+    assert not pooled
+    many = Study(sc, {"observers.hgo.k": [10.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-3,
+                                                                              1e-2, 2e-2, 3e-2]},
+                 seeds=1, together=[{"plant.name": ["pendulum", "elastic_joint"],
+                                     "plant.x0": [[0.5, 0.0], [0.3, 0.3, 0.0, 0.0]]}])
+    fig = many.run(tmp_path / "many", quiet=True).plot()[0]
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["hgo (pooled)"]
+    ylabels = {ax.get_title(): ax.get_ylabel() for ax in fig.axes[::3]}
+    assert ylabels["motor_velocity"].endswith("[rad/s]") and ylabels["angle"].endswith("[rad]")
