@@ -69,6 +69,8 @@ _F64 = np.dtype(np.float64)
 
 #: the reactions to a sample period at which the observer's update is unstable
 ON_UNSTABLE = ("raise", "warn", "ignore")
+#: from this many member-samples on, a new :class:`Block`'s three arrays share one allocation
+ONE_BUFFER = 4096
 
 
 @dataclass
@@ -82,6 +84,17 @@ class Block:
     x_hat: Array
     z_hat: Array
     diagnostics: Array
+
+
+def _one_buffer(B: int, T: int, nx: int, n: int, nd: int) -> Block:
+    """A new :class:`Block` ``(B, T, nx)``, ``(B, T, n)``, ``(B, T, nd)`` whose arrays are
+    consecutive parts of one allocation. (glibc returns the freed top of its heap to the system
+    when it exceeds twice the largest block freed before; three arrays of nearly that size per
+    call exceeded it, so every call of a large batch page-faulted its fresh rows in again; one
+    allocation of their total stays under it.)"""
+    buf = np.empty(B * T * (nx + n + nd))
+    a, b = B * T * nx, B * T * (nx + n)
+    return Block(buf[:a].reshape(B, T, nx), buf[a:b].reshape(B, T, n), buf[b:].reshape(B, T, nd))
 
 
 def check_outputs(outputs: Any, where: str = "outputs") -> tuple[int, ...]:
@@ -317,11 +330,14 @@ class Observer(ABC):
         nd = len(self.family_diagnostics)
         if out is not None and out.z_hat.shape[:2] == (B, T):
             X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        else:
+        elif B * T < ONE_BUFFER:
             X = np.empty((B, T, self._nx))
             Z = np.empty((B, T, self.n))
             D = np.empty((B, T, nd + 1))
             out = Block(X, Z, D)
+        else:
+            out = _one_buffer(B, T, self._nx, self.n, nd + 1)
+            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
         finite = (math.isfinite(Yo.item()) if Yo.size == 1  # one sample of one channel: cheap
                   else bool(np.isfinite(Yo).all()))
         if not finite:  # dropouts (NaN) counted; an infinite value refused

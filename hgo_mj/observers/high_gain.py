@@ -68,6 +68,39 @@ MAP_CACHE = 8
 
 #: ``flags`` bits of :func:`affine_advance`
 SATURATE, MODEL_TERM = 1, 2
+#: members advanced together by :func:`affine_advance` (its scratch rows hold one tile)
+TILE = 64
+
+
+@njit(inline="always")
+def _row_sums(Pi: Array, col: int, z: Array, f: int, m: int, gn: int,
+              acc: Array) -> None:  # pragma: no cover
+    """``acc[g] = 0 + Pi[col] z[f, g] + ... + Pi[col + m - 1] z[f + m - 1, g]`` for the tile's
+    first ``gn`` members, left to right: a row of ``M z`` (``col = 0``) or of ``M0 z``
+    (``col = nm``) of :func:`affine_advance`."""
+    p = Pi[col]
+    for g in range(gn):
+        acc[g] = 0.0 + p * z[f, g]
+    for j in range(1, m):
+        p = Pi[col + j]
+        for g in range(gn):
+            acc[g] += p * z[f + j, g]
+
+
+@njit(inline="always")
+def _report(z: Array, gn: int, bounds: Array, saturate: bool,
+            out: Array) -> None:  # pragma: no cover
+    """``out[g] = z[:, g]`` for the tile's first ``gn`` members, clipped to ``[bounds[0],
+    bounds[1]]`` when ``saturate``."""
+    for g in range(gn):
+        for i in range(z.shape[0]):
+            v = z[i, g]
+            if saturate:
+                if v < bounds[0, i]:
+                    v = bounds[0, i]
+                elif v > bounds[1, i]:
+                    v = bounds[1, i]
+            out[g, i] = v
 
 
 @njit(cache=True)
@@ -84,42 +117,67 @@ def affine_advance(Z: Array, Y: Array, W: Array, P: Array, lay: Array, bounds: A
               \text{ is NaN,}\quad z_c^+ = M_0 z_c\, [+ g_0 w_c]
 
     with ``w = W[b, t, c]`` the held model term when ``flags & MODEL_TERM``. Each row is summed
-    left to right (``M z``, then ``b y``, then ``g w``). ``Zout[b, t]`` receives the new state,
-    clipped to ``[bounds[0], bounds[1]]`` when ``flags & SATURATE`` (the reported estimate; the
-    state is not clipped).
+    left to right from zero (``0 + M_i1 z_1 + ... + M_im z_m``, then ``b y``, then ``g w``).
+    ``Zout[b, t]`` receives the new state, clipped to ``[bounds[0], bounds[1]]`` when
+    ``flags & SATURATE`` (the reported estimate; the state is not clipped).
+
+    The members go in tiles of :data:`TILE`, every sample of a tile before the next tile; a
+    tile's state, measurements and sums are held member-minor (``z[i, member]``), so that each
+    term of a row is one loop over the tile's members, which the compiler vectorizes (the
+    members are independent; one member at a time, each sample waits on the previous one).
+    Every member's arithmetic is the same, in the same order, whatever the tile: a member
+    advanced alone gives the same bits.
     """
     B, n = Z.shape
     nb = lay.shape[0]
     nm = P.shape[1]
     saturate = (flags & 1) != 0
     use_w = (flags & 2) != 0
-    zn = np.empty(n)
-    for b in range(B):
+    tl = min(TILE, B)
+    rows = np.empty((2 * n + 3, tl))  # the tile's scratch rows, one allocation
+    z = rows[:n]  # the tile's state
+    zn = rows[n:2 * n]  # its next state
+    y = rows[2 * n]
+    w = rows[2 * n + 1]
+    acc = rows[2 * n + 2]  # a row's running sum of M z (or M0 z)
+    for b0 in range(0, B, tl):
+        gn = min(tl, B - b0)
+        for g in range(gn):
+            for i in range(n):
+                z[i, g] = Z[b0 + g, i]
         for t in range(t0, t1):
             for c in range(nb):
                 f = lay[c, 0]
                 m = lay[c, 1]
-                y = Y[b, t, c]
-                lost = y != y
-                off = nm if lost else 0
+                lost = False
+                for g in range(gn):
+                    v = Y[b0 + g, t, c]
+                    y[g] = v
+                    lost |= v != v
+                if use_w:
+                    for g in range(gn):
+                        w[g] = W[b0 + g, t, c]
                 for i in range(m):
-                    acc = 0.0
-                    for j in range(m):
-                        acc += P[c, i, off + j] * Z[b, f + j]
-                    if not lost:
-                        acc += P[c, i, 2 * nm] * y
+                    _row_sums(P[c, i], 0, z, f, m, gn, acc)
+                    p = P[c, i, 2 * nm]
                     if use_w:
-                        acc += P[c, i, 2 * nm + (2 if lost else 1)] * W[b, t, c]
-                    zn[f + i] = acc
+                        q = P[c, i, 2 * nm + 1]
+                        for g in range(gn):
+                            zn[f + i, g] = acc[g] + p * y[g] + q * w[g]
+                    else:
+                        for g in range(gn):
+                            zn[f + i, g] = acc[g] + p * y[g]
+                    if lost:  # some member's y is NaN: its row of the open-loop map
+                        _row_sums(P[c, i], nm, z, f, m, gn, acc)
+                        q = P[c, i, 2 * nm + 2]
+                        for g in range(gn):
+                            if y[g] != y[g]:
+                                zn[f + i, g] = acc[g] + q * w[g] if use_w else acc[g]
+            z, zn = zn, z
+            _report(z, gn, bounds, saturate, Zout[b0:b0 + gn, t])
+        for g in range(gn):
             for i in range(n):
-                v = zn[i]
-                Z[b, i] = v
-                if saturate:
-                    if v < bounds[0, i]:
-                        v = bounds[0, i]
-                    elif v > bounds[1, i]:
-                        v = bounds[1, i]
-                Zout[b, t, i] = v
+                Z[b0 + g, i] = z[i, g]
 
 
 #: the model-term argument of :func:`affine_advance` when there is none (never read)

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from hgo_mj.observers import HighGainObserver, MultiOutputHighGainObserver, ObserverBank
+from hgo_mj.observers.base import ONE_BUFFER
+from hgo_mj.observers.high_gain import TILE
 from hgo_mj.systems import ElasticJoint, Pendulum
 
 B, T, DT = 64, 200, 2e-3
@@ -126,6 +128,56 @@ def test_high_gain_batch_from_physical_initial_states():
         for j in range(T):
             x = alone.update(Y[b, j], U[b, j], DT)
         np.testing.assert_array_equal(x, blk.x_hat[b, -1])
+
+
+@pytest.mark.parametrize("orders", [(4,), (2, 4, 1)], ids=["one-chain", "three-chains"])
+def test_members_across_kernel_tiles_equal_each_member_alone(orders):
+    """Two whole tiles of the kernel and a partial one (``B = 2 TILE + 3``), with dropouts
+    and saturation: each member as alone, bit for bit."""
+    nb, t, n = 2 * TILE + 3, 40, sum(orders)
+    Y, U = streams(len(orders), 1, seed=21, n_b=nb, t=t)
+    z0 = np.random.default_rng(21).uniform(-1.0, 1.0, (nb, n))
+    if len(orders) == 1:
+        def make():
+            return HighGainObserver(order=4, k=40.0, z_bounds=(np.full(4, -2.0), np.full(4, 2.0)))
+    else:
+        def make():
+            return MultiOutputHighGainObserver(orders=orders, k=(20.0, 15.0, 30.0))
+    batched = make()
+    batched.reset(z_hat0=z0)
+    blk = batched.advance(Y, U, DT)
+    assert np.isnan(Y).any()
+    for b in range(nb):
+        alone = make()
+        alone.reset(z_hat0=z0[b])
+        np.testing.assert_array_equal(alone.advance(Y[b:b + 1], U[b:b + 1], DT).z_hat[0],
+                                      blk.z_hat[b], err_msg=f"member {b}")
+        np.testing.assert_array_equal(alone.z_hat, batched.z_hat[b])
+
+
+def test_large_block_arrays_share_one_allocation_and_nothing_else():
+    """From ``ONE_BUFFER`` member-samples on, a new block's three arrays are parts of one
+    allocation: C-contiguous, disjoint, each its own shape, the values of the small path's
+    separate arrays, and the next call's block is new memory."""
+    nb, t = 2 * TILE + 3, 40
+    assert nb * t >= ONE_BUFFER > t
+    Y, U = streams(1, 1, seed=22, n_b=nb, t=t)
+    ob = HighGainObserver(order=3, k=40.0)
+    ob.reset(batch=nb)
+    blk = ob.advance(Y, U, DT)
+    arrays = (blk.x_hat, blk.z_hat, blk.diagnostics)
+    assert [a.shape for a in arrays] == [(nb, t, 3), (nb, t, 3), (nb, t, 2)]
+    assert all(a.flags.c_contiguous and a.flags.writeable for a in arrays)
+    assert not any(np.shares_memory(a, b) for i, a in enumerate(arrays) for b in arrays[i + 1:])
+    nxt = ob.advance(Y, U, DT)
+    assert not any(np.shares_memory(a, b) for a in arrays
+                   for b in (nxt.x_hat, nxt.z_hat, nxt.diagnostics))
+    alone = HighGainObserver(order=3, k=40.0)
+    for b in (0, nb - 1):
+        alone.reset()
+        one = alone.advance(Y[b:b + 1], U[b:b + 1], DT)
+        np.testing.assert_array_equal(one.x_hat[0], blk.x_hat[b])
+        np.testing.assert_array_equal(one.diagnostics[0], blk.diagnostics[b])
 
 
 def multi_maker(method: str, coupled: bool):
