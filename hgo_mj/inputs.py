@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._validate import check_call, finite_scalar, positive_int, reject_unknown, vector
+from ._validate import check_call, finite_scalar, numbers_only, positive_int, reject_unknown, vector
 from .exceptions import DesignError, DimensionError
 
 Array = NDArray[np.float64]
@@ -86,6 +86,8 @@ class TimeShift(Signal):
 
 
 def _channels(name: str, value: Any) -> Array:
+    if not numbers_only(value):  # a string or a bool is refused, not converted
+        raise DesignError(f"{name} must be a number or a list of numbers; found {value!r}")
     return vector(name, np.atleast_1d(np.asarray(value, dtype=float)))
 
 
@@ -116,6 +118,8 @@ class Schedule(Signal):
 
     def __init__(self, times: Sequence[float], values: Any) -> None:
         self.times = vector("Schedule.times", times)
+        if not numbers_only(values):
+            raise DesignError(f"Schedule.values must be numbers; found {values!r}")
         vals = np.asarray(values, dtype=float)
         self.levels = vals.reshape(len(self.times), -1) if vals.ndim <= 1 else vals
         if self.levels.shape[0] != self.times.size or self.times.size == 0:
