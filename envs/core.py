@@ -46,7 +46,7 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 from numpy.typing import NDArray
 
-from hgo_mj._validate import finite_scalar, integer_multiple, vector
+from hgo_mj._validate import finite_scalar, integer_multiple, numbers_only, vector
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
@@ -596,6 +596,15 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             ``state`` and, with an observer, ``estimate`` and ``error`` (see
             :attr:`error_names`); with ``info_level="full"`` also ``time``, ``measurement``,
             ``diagnostics`` and, for the reach tasks, ``goal``.
+        Raises
+        ------
+        DesignError
+            An unknown option, or an ``x0`` the plant cannot take: not finite, or on a MuJoCo
+            plant an entry beyond its ``mjMAXVAL`` (1e10) or a state its ``mj_forward`` flags
+            as bad (MuJoCo would reset it to zero and the episode would go on from there); the
+            message names the entry and its value.
+        DimensionError
+            An ``x0`` or ``goal`` of the wrong length.
         """
         super().reset(seed=seed)
         task, rng = self.task, self.np_random
@@ -630,6 +639,16 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         observation, reward, terminated, truncated, info
             ``truncated`` is always False here: the time limit is ``TimeLimit``'s. ``info`` as
             at :meth:`reset`, plus (``info_level="full"``) the task's reward terms.
+
+        Raises
+        ------
+        DimensionError
+            An action that is not a sequence of real numbers of the action space's shape (a
+            bool, a string, a nested list, the wrong length).
+        DesignError
+            A NaN entry, or one outside [-1, 1] with ``invalid_action="raise"``.
+        DivergenceError
+            The plant or the observer left the finite numbers.
         """
         u = self._action(action)
         try:  # u held over the control period's samples, (1, T, m)
@@ -650,16 +669,13 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                 and action.dtype.kind == "f"):  # the usual action: float32 or float64
             a = action.tolist()
         else:
-            try:
-                arr = np.asarray(action, dtype=float).reshape(-1)
-            except (TypeError, ValueError):
-                raise DimensionError(f"action must be a sequence of {self._nu} number(s); "
-                                     f"found {action!r}") from None
-            if np.ndim(action) == 0:
-                raise DimensionError(f"action must be a sequence of {self._nu} number(s); "
-                                     f"found {action!r}")
+            if not numbers_only(action) or np.ndim(action) != 1:
+                raise DimensionError(f"action must be a sequence of {self._nu} number(s) (shape "
+                                     f"{self._ashape}); found {action!r}")
+            arr = np.asarray(action, dtype=float)
             if arr.size != self._nu:
-                raise DimensionError(f"action must have {self._nu} entries; found {arr.size}")
+                raise DimensionError(f"action must have {self._nu} entries; found {arr.size} "
+                                     f"(expected shape {self._ashape})")
             a = arr.tolist()
         for i, v in enumerate(a):
             if not -1.0 <= v <= 1.0:

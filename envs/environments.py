@@ -32,6 +32,14 @@ _ARGUMENTS = """
     |                   |              | time, measurement, diagnostics, goal, reward terms   |
 
     Recording episodes to rerun is the wrapper `hgo_mj.envs.wrappers.RecordEpisodes`.
+
+    Bad actions and starting states raise, they are never replaced: `step` raises
+    `DimensionError` for an action that is not a sequence of numbers of the action space's
+    shape (a bool, a string, a nested list) and `DesignError` for a NaN entry (or one outside
+    [-1, 1] with `invalid_action="raise"`); `reset(options={"x0": x0})` raises `DesignError`
+    naming the entry for a state the plant cannot take (not finite, or, on a MuJoCo plant, an
+    entry beyond 1e10 or one `mj_forward` flags as bad, which MuJoCo would silently reset to
+    zero) and `DimensionError` for a state of the wrong length.
 """
 
 

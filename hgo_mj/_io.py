@@ -29,6 +29,36 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise
 
 
+def check_writable(name: str, path: str | Path, *, folder: bool) -> Path:
+    """Raise :class:`~hgo_mj.exceptions.DesignError` unless ``path`` can be written: a folder
+    (``folder=True``) that exists or can be created, or a file that is not a folder and whose
+    folder exists or can be created. Probed by creating (and removing) a temporary file in the
+    nearest existing folder, so a read-only folder or file system is found before any work;
+    nothing is left behind. ``name`` names the option (``--out``) in the message."""
+    from .exceptions import DesignError
+
+    path = Path(path)
+    if folder and path.exists() and not path.is_dir():
+        raise DesignError(f"{name} must be a folder; found the existing file {str(path)!r}")
+    if not folder and path.is_dir():
+        raise DesignError(f"{name} must be a file; found the existing folder {str(path)!r}")
+    base = path if folder else path.parent
+    probe = base.absolute()
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise DesignError(f"{name} {str(path)!r} cannot be created: {str(probe)!r} is a file, "
+                          f"not a folder")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".hgo_mj_probe.", dir=probe)
+    except OSError as exc:
+        raise DesignError(f"{name} {str(path)!r} is not writable: cannot create a file in "
+                          f"{str(probe)!r} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(tmp)
+    return path
+
+
 def write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically; returns ``path``."""
     with atomic_path(path) as tmp:

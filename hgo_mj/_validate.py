@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import inspect
 import math
-from collections.abc import Iterable, Mapping
+import numbers
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -12,12 +14,25 @@ from numpy.typing import NDArray
 from .exceptions import DesignError, DimensionError
 
 
+def is_real(value: Any) -> bool:
+    """Whether ``value`` is a real number: an int, a float, a numpy integer or float, or a 0-d
+    array of one. A bool, a string and anything else are not (types are checked, not coerced)."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, np.ndarray):
+        return value.ndim == 0 and value.dtype.kind in "iuf"
+    return isinstance(value, numbers.Real)
+
+
 def finite_scalar(name: str, value: Any, *, positive: bool = False,
                   nonnegative: bool = False) -> float:
-    """Return ``value`` as a float, raising :class:`DesignError` unless finite (and signed as asked)."""
+    """Return ``value`` as a float, raising :class:`DesignError` unless a finite real number
+    (signed as asked); a bool or a string such as ``"1"`` is refused, not converted."""
+    if not is_real(value):
+        raise DesignError(f"{name} must be a real number; found {value!r}")
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise DesignError(f"{name} must be a real number; found {value!r}") from None
     if not math.isfinite(v):
         raise DesignError(f"{name} must be finite; found {v}")
@@ -28,8 +43,20 @@ def finite_scalar(name: str, value: Any, *, positive: bool = False,
     return v
 
 
+def numbers_only(value: Any) -> bool:
+    """Whether an array-like holds only real numbers (no bool, string or other object)."""
+    if isinstance(value, np.ndarray):
+        return value.dtype.kind in "iuf"
+    if isinstance(value, (list, tuple)):
+        return all(numbers_only(v) for v in value)
+    return is_real(value)
+
+
 def vector(name: str, value: Any, n: int | None = None, *, finite: bool = True) -> NDArray[np.float64]:
-    """Return ``value`` as a fresh 1-D float array of length ``n`` (if given)."""
+    """Return ``value`` as a fresh 1-D float array of length ``n`` (if given); its entries must
+    be real numbers (a bool or a string is refused, not converted)."""
+    if not numbers_only(value):
+        raise DimensionError(f"{name} must be a 1-D array of numbers; found {value!r}")
     try:
         a = np.array(value, dtype=float).reshape(-1) if np.ndim(value) <= 1 else None
     except (TypeError, ValueError):
@@ -153,3 +180,39 @@ def integer_multiple(name: str, period: float, base: float, base_name: str) -> i
         raise DesignError(f"{name} = {period:g} must be a positive integer multiple of {base_name} "
                           f"= {base:g}; found ratio {ratio:.9g}")
     return n
+
+
+def boolean(name: str, value: Any) -> bool:
+    """Return ``value``, raising :class:`DesignError` unless it is ``True`` or ``False`` (a
+    string such as ``"no"`` or a number is refused, not converted)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise DesignError(f"{name} must be true or false; found {value!r}")
+    return bool(value)
+
+
+def text(name: str, value: Any) -> str:
+    """Return ``value``, raising :class:`DesignError` unless it is a string."""
+    if not isinstance(value, str):
+        raise DesignError(f"{name} must be a string; found {value!r}")
+    return value
+
+
+def check_call(where: str, fn: Callable[..., Any], params: Mapping[str, Any],
+               skip: int = 0) -> None:
+    """Raise :class:`DesignError` unless ``fn(<skip positional>, **params)`` binds: an unknown
+    keyword (the valid ones listed) or a missing required parameter is named, before ``fn``
+    runs (so that no ``TypeError`` escapes a constructor called with a user's table)."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):  # a builtin without a signature: let the call decide
+        return
+    ps = list(sig.parameters.values())
+    if ps and ps[0].name == "self":
+        ps = ps[1:]
+    ps = ps[skip:]
+    if not any(p.kind is p.VAR_KEYWORD for p in ps):
+        reject_unknown(where, params, [p.name for p in ps if p.kind is not p.VAR_POSITIONAL])
+    missing = [p.name for p in ps if p.default is p.empty and p.name not in params
+               and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    if missing:
+        raise DesignError(f"{where}: missing required parameter(s) {missing}")

@@ -32,18 +32,14 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-from ._io import write_text
+from ._io import check_writable, write_text
 from ._json import write_json
-from ._validate import positive_int, reject_unknown
-from .exceptions import DesignError, HgoError
+from ._validate import positive_int
+from .exceptions import DesignError, DivergenceError, HgoError
+from .schema import SCHEMA, check_scenario
 
-SCENARIO_KEYS = {
-    "plant": ["name", "dt", "physics_dt", "params", "x0"],
-    "sensor": ["stages"],
-    "input": ["type"],  # plus the signal's own parameters
-    "run": ["duration", "sample_period", "control_period", "seed", "seeds", "out", "t_transient",
-            "band"],
-}
+#: the keys of each section (:data:`hgo_mj.schema.SCHEMA`; ``[input]`` also takes its signal's)
+SCENARIO_KEYS = {section: list(SCHEMA[section]) for section in ("plant", "sensor", "input", "run")}
 
 
 def parse_value(text: str) -> Any:
@@ -51,6 +47,8 @@ def parse_value(text: str) -> Any:
     a bare word that is no TOML value is taken as a string."""
     try:
         return tomllib.loads(f"v = {text}")["v"]
+    except RecursionError:
+        raise DesignError(f"value {text[:40]!r}... is nested too deeply") from None
     except tomllib.TOMLDecodeError:
         if text.replace("_", "").replace("-", "").isalnum():
             return text
@@ -91,6 +89,11 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
                 sc = tomllib.load(fh)
             except tomllib.TOMLDecodeError as exc:
                 raise DesignError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
+            except RecursionError:
+                raise DesignError(f"scenario file {str(path)!r} is nested too deeply (arrays or "
+                                  f"tables inside each other beyond Python's recursion limit)"
+                                  ) from None
+        check_scenario(sc, required=False)  # its sections are tables before flags go in
     else:
         sc = {}
     sc.setdefault("plant", {})
@@ -125,29 +128,32 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
     ``duration``, ``sample_period``, ``control_period``, ``x0``, ``metadata``) except ``seed``
     (``run.seed``, default 0, is the sensor chain's seed until ``simulate`` re-seeds it).
     ``functools.partial(scenario_run, sc)`` is the ``make_run`` of
-    :func:`hgo_mj.study.monte_carlo`."""
+    :func:`hgo_mj.study.monte_carlo`.
+
+    Raises
+    ------
+    DesignError
+        The scenario does not fit :data:`hgo_mj.schema.SCHEMA`, or a part refuses its
+        parameters; a ``TypeError`` of a part's constructor (one registered by another package)
+        is reported as a DesignError naming the scenario."""
+    try:
+        return _scenario_run(sc, name)
+    except TypeError as exc:
+        raise DesignError(f"scenario {str(sc.get('name', name))!r}: {exc}") from exc
+
+
+def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
     from .inputs import Constant, Controller, Signal, make_signal
     from .observers import make_observer
     from .plants import make_plant
     from .sensors import SensorChain
 
-    reject_unknown("scenario", sc, ["plant", "sensor", "observers", "input", "controller", "run",
-                                    "name"])
-    for section, keys in SCENARIO_KEYS.items():
-        if section in sc and section != "input":
-            if not isinstance(sc[section], dict):
-                raise DesignError(f"scenario [{section}] must be a table; found {sc[section]!r}")
-            reject_unknown(f"scenario [{section}]", sc[section], keys)
+    check_scenario(sc)
     pl = sc["plant"]
-    if "name" not in pl:
-        raise DesignError("scenario needs a plant: [plant] name = ... or --plant NAME "
-                          "(see `hgo-mj list`)")
     plant = make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
                        **pl.get("params", {}))
     run = sc["run"]
     seed = run.get("seed", 0)
-    if not isinstance(seed, int):
-        raise DesignError(f"run.seed must be an integer; found {seed!r}")
     sensor = SensorChain.from_spec(sc.get("sensor", {}).get("stages", []), seed=seed)
     observers = {}
     for i, spec in enumerate(sc.get("observers", [])):
@@ -166,8 +172,6 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
 
         if "input" in sc:
             raise DesignError("a scenario has an [input] signal or a [controller], not both")
-        if not isinstance(sc["controller"], dict):
-            raise DesignError(f"scenario [controller] must be a table; found {sc['controller']!r}")
         inputs = make_controller(sc["controller"], plant.system)
     else:
         inp = dict(sc.get("input", {"type": "constant"}))
@@ -176,8 +180,6 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
             inputs = Constant([0.0] * len(plant.input_names))
         else:
             inputs = make_signal(kind, **inp)
-    if "duration" not in run:
-        raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
     return {"plant": plant, "sensor": sensor, "observers": observers, "inputs": inputs,
             "duration": run["duration"], "sample_period": run.get("sample_period"),
             "control_period": run.get("control_period"), "x0": pl.get("x0"),
@@ -210,6 +212,9 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     kw = scenario_run(sc, name)
     plant, observers, pl, run = kw["plant"], kw["observers"], sc["plant"], sc["run"]
     seed = run.get("seed", 0)
+    out = check_writable("--out (run.out)", run.get("out", f"runs/{name}"), folder=True)
+    if rrd is not None:
+        check_writable("--rrd", rrd, folder=False)
     rec = None
     if rrd is not None:
         from .record import Recorder
@@ -228,13 +233,13 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
         traj = simulate(**kw, seed=seed, on_chunk=on_chunk)
         mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
         metrics = all_metrics(traj, **mkw)
+        check_metrics(metrics)
         if rec is not None:
             rec.log_metadata(traj.metadata)
             rec.log_metrics(metrics)
     finally:
         if rec is not None:
             rec.close()
-    out = Path(run.get("out", f"runs/{name}"))
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / "trajectory.npz")
     write_json(out / "metrics.json", metrics)
@@ -243,6 +248,25 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
     return traj, metrics, out
+
+
+def check_metrics(metrics: dict[str, Any]) -> None:
+    """Raise :class:`DivergenceError` when an error metric overflowed to infinity (noise or
+    estimates so large that their squares leave the floats): such a result is reported, not
+    written as ``null`` metrics."""
+    import math
+
+    for ob, m in metrics.items():
+        for key in ("rmse", "peak", "final"):
+            for state, v in zip(m.get("states", ()), m.get(key, ())):
+                if isinstance(v, float) and math.isinf(v):
+                    raise DivergenceError(f"observer {ob!r}: the {key} of {state} overflowed to "
+                                          f"{v} (errors beyond the floats' range: is the noise or "
+                                          f"the gain too large?); nothing was written")
+
+
+#: the most seeds ``hgo-mj run --seeds`` runs; more are a study (``hgo-mj sweep``)
+MAX_SEEDS = 100_000
 
 
 def _flag_int(value: Any, where: str) -> int:
@@ -268,9 +292,14 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     from .plotting import plot_monte_carlo
     from .study import MonteCarloResult, Study
     from .study.results import seed_metrics
+    from .study.spec import MAX_RUNS
 
     run = sc.get("run", {})
     n = positive_int("run.seeds", run.get("seeds", 1), floats=False) if isinstance(run, dict) else 1
+    if n > MAX_SEEDS:
+        raise DesignError(f"run.seeds (--seeds) must be at most {MAX_SEEDS} for `hgo-mj run`; found "
+                          f"{n}: run that many as a study, `hgo-mj sweep STUDY.toml` with "
+                          f"[sweep] seeds = {n} (and --yes beyond {MAX_RUNS} runs)")
     jobs = positive_int("--jobs", jobs, floats=False)
     single = {**sc, "run": {k: v for k, v in run.items() if k != "seeds"}} if isinstance(
         run, dict) else sc

@@ -63,7 +63,12 @@ def hgo_gains(p: Any, k: float) -> Array:
     """
     p = check_hurwitz(p)
     k = finite_scalar("k", k, positive=True)
-    return p * k ** np.arange(1, p.size + 1)
+    with np.errstate(over="ignore"):
+        L = p * k ** np.arange(1, p.size + 1)
+    if not np.all(np.isfinite(L)):
+        raise DesignError(f"k = {k:g} is too large: the gains p_i k^i (i = 1..{p.size}) overflow "
+                          f"the floats; found {L.tolist()}")
+    return L
 
 
 def observer_matrix(p: Any, k: float) -> Array:

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._validate import finite_scalar, reject_unknown, vector
+from ._validate import check_call, finite_scalar, numbers_only, positive_int, reject_unknown, vector
 from .exceptions import DesignError, DimensionError
 
 Array = NDArray[np.float64]
@@ -86,6 +86,8 @@ class TimeShift(Signal):
 
 
 def _channels(name: str, value: Any) -> Array:
+    if not numbers_only(value):  # a string or a bool is refused, not converted
+        raise DesignError(f"{name} must be a number or a list of numbers; found {value!r}")
     return vector(name, np.atleast_1d(np.asarray(value, dtype=float)))
 
 
@@ -116,6 +118,8 @@ class Schedule(Signal):
 
     def __init__(self, times: Sequence[float], values: Any) -> None:
         self.times = vector("Schedule.times", times)
+        if not numbers_only(values):
+            raise DesignError(f"Schedule.values must be numbers; found {values!r}")
         vals = np.asarray(values, dtype=float)
         self.levels = vals.reshape(len(self.times), -1) if vals.ndim <= 1 else vals
         if self.levels.shape[0] != self.times.size or self.times.size == 0:
@@ -192,9 +196,19 @@ class Chirp(Signal):
                 "duration": self.duration, "offset": self.offset}
 
 
+#: the longest PRBS (levels held in memory, 8 bytes each)
+PRBS_MAX_LENGTH = 2 ** 22
+
+
 class PRBS(Signal):
     """Pseudo-random binary sequence: ``offset ± amplitude``, switching with probability 1/2 every
-    ``period`` seconds, drawn once from ``seed`` (a fixed sequence, independent of the run)."""
+    ``period`` seconds, drawn once from ``seed`` (a fixed sequence, independent of the run), of
+    ``length`` levels (1 ... :data:`PRBS_MAX_LENGTH`) repeated cyclically.
+
+    Raises
+    ------
+    DesignError
+        A parameter of the wrong type (``length = 2.5``, ``seed = "1"``) or out of range."""
 
     name = "prbs"
     summary = "pseudo-random binary sequence"
@@ -204,8 +218,13 @@ class PRBS(Signal):
         self.amplitude = finite_scalar("PRBS.amplitude", amplitude)
         self.period = finite_scalar("PRBS.period", period, positive=True)
         self.offset = finite_scalar("PRBS.offset", offset)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise DesignError(f"PRBS.seed must be a non-negative integer; found {seed!r}")
         self.seed = int(seed)
-        self.length = int(length)
+        self.length = positive_int("PRBS.length", length, floats=False)
+        if self.length > PRBS_MAX_LENGTH:
+            raise DesignError(f"PRBS.length must be at most {PRBS_MAX_LENGTH} (the sequence "
+                              f"repeats cyclically); found {self.length}")
         rng = np.random.default_rng(self.seed)
         self._levels = np.where(rng.random(self.length) < 0.5, -1.0, 1.0)
 
@@ -262,10 +281,11 @@ SIGNALS: dict[str, type[Signal]] = {
 
 def make_signal(kind: str, **params: Any) -> Signal:
     """Build an open-loop signal by registry name; unknown names and keywords are listed."""
-    if kind not in SIGNALS:
+    if not isinstance(kind, str) or kind not in SIGNALS:
         raise DesignError(f"unknown input {kind!r}; valid: {sorted(SIGNALS)}")
     import inspect
 
     sig = inspect.signature(SIGNALS[kind].__init__)
     reject_unknown(f"input {kind!r}", params, [p for p in sig.parameters if p != "self"])
+    check_call(f"input {kind!r}", SIGNALS[kind].__init__, params)
     return SIGNALS[kind](**params)

@@ -112,6 +112,19 @@ CONTINUE = _Continue()
 _FAILURES = (DivergenceError, ValueError, ArithmeticError)
 
 
+def check_fits(name: str, ob: Observer, plant: Plant) -> None:
+    """Raise :class:`DimensionError` unless the observer's output channels and input width are
+    the plant's (checked before a run, not found deep in an update)."""
+    p, m = len(plant.output_names), len(plant.input_names)
+    bad = [o for o in ob.outputs if o >= p]
+    if bad:
+        raise DimensionError(f"observer {name!r} reads output channel(s) {bad}; the plant has "
+                             f"{p} output(s) {list(plant.output_names)} (channels 0..{p - 1})")
+    if ob.n_inputs is not None and ob.n_inputs != m:
+        raise DimensionError(f"observer {name!r} takes {ob.n_inputs} input(s); the plant has {m} "
+                             f"{list(plant.input_names)}")
+
+
 class Loop:
     """Plant, sensor chain and observers stepped together at their periods, B members.
 
@@ -166,7 +179,8 @@ class Loop:
         """Restart every part: the plant from ``x0`` (``(n,)`` or ``(B, n)``; default the
         system's), the sensor streams from ``seed`` (an int or None for one stream, a sequence
         of B seeds for B), each observer from its own initial estimate; check each observer's
-        sample period (a too-long period for a high gain is refused here, before any work)."""
+        output channels and inputs against the plant and its sample period (a too-long period
+        for a high gain is refused here, before any work)."""
         self.plant.reset(x0, batch=batch)
         B = self.plant.batch
         if self.sensor is not None:
@@ -178,7 +192,8 @@ class Loop:
                 raise DimensionError(f"the sensor chain has {self.sensor.batch} stream(s) for "
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
-        for ob in self.observers.values():  # as many copies as plants (B initial states)
+        for name, ob in self.observers.items():  # as many copies as plants (B initial states)
+            check_fits(name, ob, self.plant)
             ob.reset(batch=B if batched else None)
             ob.check_period(self.periods.sample)
         self.batch, self.k = B, 0

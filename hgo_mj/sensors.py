@@ -59,7 +59,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validate import finite_scalar, reject_unknown
+from ._validate import finite_scalar, numbers_only, reject_unknown
 from .exceptions import DesignError, DimensionError
 
 Array = NDArray[np.float64]
@@ -116,7 +116,7 @@ def _channel_param(where: str, value: Any, kind: str = "real") -> float | Array:
     DimensionError
         More than one dimension, or an empty sequence.
     """
-    if value is None or isinstance(value, (str, bytes)):
+    if value is None or not numbers_only(value):
         raise DesignError(f"{where} must be a real number or a 1-D sequence of them (one per "
                           f"channel); found {value!r}")
     try:

@@ -78,6 +78,7 @@ class Trajectory:
     metadata: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        self._check_lengths()
         n = len(self.state_names)
         for name, rec in self.observers.items():
             width = rec.x_hat.shape[1] if rec.x_hat.ndim == 2 else 1
@@ -92,6 +93,25 @@ class Trajectory:
             if len(set(rec.state_names)) != width:
                 raise DimensionError(f"observer {name!r}: state_names must be distinct; found "
                                      f"{list(rec.state_names)}")
+
+    def _check_lengths(self) -> None:
+        """Every column has one row per sample instant of ``t`` (a file whose columns disagree
+        is refused, not read with rows silently misaligned)."""
+        if np.ndim(self.t) != 1:
+            raise DimensionError(f"t must be 1-D (one time per row); found shape "
+                                 f"{np.shape(self.t)}")
+        T = len(self.t)
+        cols: dict[str, Any] = {"x": self.x, "y_clean": self.y_clean, "y_meas": self.y_meas,
+                                "u": self.u}
+        for name, rec in self.observers.items():
+            cols[f"observers[{name!r}].x_hat"] = rec.x_hat
+            cols[f"observers[{name!r}].z_hat"] = rec.z_hat
+            for d, v in rec.diagnostics.items():
+                cols[f"observers[{name!r}].diagnostics[{d!r}]"] = v
+        for key, v in cols.items():
+            if np.ndim(v) == 0 or len(v) != T:
+                raise DimensionError(f"trajectory column {key} must have {T} rows (one per "
+                                     f"time in t); found shape {np.shape(v)}")
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -155,6 +175,13 @@ class Trajectory:
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
+        """Read a trajectory written by :meth:`save`.
+
+        Raises
+        ------
+        DimensionError
+            Columns of different lengths (or a column missing its rows).
+        """
         with np.load(Path(path), allow_pickle=False) as z:
             meta = json.loads(str(z["__meta__"]))
             observers = {
@@ -299,6 +326,9 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
          store_every: Any) -> list[Trajectory]:
     periods = Periods.of(plant, sample_period, control_period)
     duration = finite_scalar("duration", duration, positive=True)
+    if duration < periods.sample:
+        raise DesignError(f"duration = {duration:g} s must be at least one sample_period = "
+                          f"{periods.sample:g} s; a shorter run has a single row")
     every = positive_int("store_every", store_every, floats=False)
     N = int(round(duration / periods.sample))
     obs = _named_observers(observers)
@@ -377,6 +407,9 @@ class Store:
         lp, B, R = self.loop, self.loop.batch, self.rows
         n, p, m = (len(lp.plant.state_names), len(lp.plant.output_names),
                    len(lp.plant.input_names))
+        width = n + 2 * p + m + sum(x.shape[1] + z.shape[1] + d.shape[1]
+                                    for x, z, d in lp.estimates().values())
+        check_memory(8 * B * R * width, R)
         self.cols = {"x": np.empty((B, R, n)), "y_clean": np.empty((B, R, p)),
                      "y_meas": np.empty((B, R, p)), "u": np.empty((B, R, m))}
         self.est = {}
@@ -482,6 +515,26 @@ class Store:
             m = {**meta, "seed": seed, "x0": x0s[b].tolist(), "inverse_failures": inv}
             out.append(self._trajectory(b, 0, self.done, m, update_time))
         return out
+
+
+def available_memory() -> float:
+    """Bytes of physical memory available now (``inf`` where the system does not say)."""
+    import os
+
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return float("inf")
+
+
+def check_memory(nbytes: float, rows: int) -> None:
+    """Raise :class:`DesignError` before a run whose stored rows (``nbytes``) would not fit in
+    the memory available, naming the estimate and ``store_every`` (keep every k-th row)."""
+    avail = available_memory()
+    if nbytes > avail:
+        raise DesignError(f"the run would store {rows} rows, about {nbytes / 2**30:.3g} GiB; "
+                          f"found {avail / 2**30:.3g} GiB of memory available: shorten the "
+                          f"duration or keep every k-th row (store_every)")
 
 
 def plant_x0_rows(plant: Plant, x0: Any) -> Array:

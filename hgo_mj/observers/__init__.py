@@ -6,6 +6,7 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
+from .._validate import check_call
 from ..exceptions import DesignError
 from .adaptive_gain import AdaptiveGainObserver
 from .bank import ObserverBank
@@ -41,7 +42,7 @@ def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
         does not take (its valid keywords are listed).
     """
     known = registered()
-    if kind not in known:
+    if not isinstance(kind, str) or kind not in known:
         raise DesignError(f"unknown observer {kind!r}; valid: {sorted(known)}")
     cls = known[kind]
     sig = inspect.signature(cls.__init__)
@@ -51,6 +52,7 @@ def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
         if bad:
             raise DesignError(f"observer {kind!r}: unknown parameter(s) {bad}; valid: "
                               f"{sorted(valid)}")
+    check_call(f"observer {kind!r}", cls.__init__, params, skip=1)
     return cls(system, **params)
 
 

@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
-from .._validate import finite_scalar
+from .._validate import boolean, finite_scalar
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
@@ -533,7 +533,7 @@ class AdaptiveGainObserver(Observer):
                 raise DesignError(f"k_max must be >= k0; found k_max={self.k_max:g} < "
                                   f"k0={self.k0:g}")
         check_options(method, self.on_unstable, model, system)
-        self.model = bool(model)
+        self.model = boolean("model", model)
         self.method = method
         self.z_bounds = bounds_pair(z_bounds, n)
         self._bounds, self._sat = bounds_rows(self.z_bounds, n)

@@ -306,8 +306,7 @@ class Observer(ABC):
         observer reads :attr:`outputs`), ``U`` ``(B, T, m)``; return the rows of the estimate
         after each sample (:class:`Block`). The validating entry; the loop calls
         :meth:`_advance_checked` on arrays it has already checked."""
-        Y = np.asarray(Y, dtype=float)
-        U = np.asarray(U, dtype=float)
+        Y, U = self._floats("y", Y), self._inputs(U)
         if Y.ndim != 3 or Y.shape[0] != self.batch or Y.shape[2] <= self._max_col:
             raise DimensionError(f"{self.name}: y must have shape (B={self.batch}, T, p) with "
                                  f"channel(s) {list(self.outputs)}; found shape {Y.shape}")
@@ -368,8 +367,7 @@ class Observer(ABC):
         if self._batched:
             raise DimensionError(f"{self.name}: update() is for an unbatched observer; this one "
                                  f"holds a batch of {self.batch} (use step or advance)")
-        ya = np.asarray(y, dtype=float)
-        ua = np.asarray(u, dtype=float)
+        ya, ua = self._floats("y", y), self._inputs(u)
         if ya.ndim != 1 or ya.shape[0] <= self._max_col:
             raise DimensionError(f"{self.name}: y must be a vector with channel(s) "
                                  f"{list(self.outputs)} (the measured outputs this observer "
@@ -387,8 +385,7 @@ class Observer(ABC):
         """Offline driver over recorded data (filterpy's ``batch_filter``): reset (unbatched,
         or batched when ``ys`` is ``(B, T, p)``), then advance over ``ys`` ``(T, p)`` with
         ``us`` ``(T, m)``. The returned rows are the estimate *after* each sample."""
-        ya = np.asarray(ys, dtype=float)
-        ua = np.asarray(us, dtype=float)
+        ya, ua = self._floats("ys", ys), self._inputs(us, "us")
         if ya.ndim == 2:
             self.reset(x_hat0)
             return self.advance(ya[None], ua[None], dt)
@@ -430,6 +427,24 @@ class Observer(ABC):
         return out
 
     # --------------------------------------------------------------- helpers
+    def _floats(self, what: str, value: Any) -> Array:
+        """``value`` as a float array: real numbers only (a bool or a string is refused, not
+        converted); NaN is allowed (a measurement's dropout)."""
+        a = np.asarray(value)
+        if a.dtype.kind not in "iuf":
+            raise DimensionError(f"{self.name}: {what} must be an array of real numbers; found "
+                                 f"{value!r}")
+        return a.astype(np.float64, copy=False)
+
+    def _inputs(self, value: Any, what: str = "u") -> Array:
+        """The input as a float array: real numbers, finite (an input is never a dropout)."""
+        a = self._floats(what, value)
+        if not np.isfinite(a).all():
+            at = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+            raise DesignError(f"{self.name}: {what} must be finite; found {what}{list(at)} = "
+                              f"{a[at]}")
+        return a
+
     def _initial_z(self, x0: Array | None, z0: Array | None, u0: Array) -> Array:
         """``(B, n)`` observer coordinates from a physical ``x0`` (through ``to_normal``) or
         ``z0``; zero if neither is given."""

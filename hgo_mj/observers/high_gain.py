@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from .._validate import finite_scalar, one_of, vector
+from .._validate import boolean, finite_scalar, one_of, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
 from ..exceptions import DesignError, DimensionError
 from ..systems.base import System
@@ -328,6 +328,7 @@ def check_options(method: str, on_unstable: str, model: bool = False,
                   system: System | None = None) -> None:
     """The integration method, the reaction to an unstable sample period and the model term
     (which needs a system), validated."""
+    boolean("model", model)
     one_of("method", method, METHODS)
     one_of("on_unstable", on_unstable, ("raise", "warn", "ignore"))
     if model and system is None:
@@ -487,7 +488,7 @@ class HighGainObserver(_Chains, Observer):
             raise DimensionError(f"p must have n = {n} coefficients; found {self.p.size}")
         self.k_ = finite_scalar("k", k, positive=True)
         check_options(method, on_unstable, model, system)
-        self.model = bool(model)
+        self.model = boolean("model", model)
         self.method = method
         self.z_bounds = bounds_pair(z_bounds, n)
         self.L = hgo_gains(self.p, self.k_)

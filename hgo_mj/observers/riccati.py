@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from .._validate import finite_scalar
+from .._validate import boolean, finite_scalar
 from ..design import (
     binomial_coefficients,
     check_riccati_alpha,
@@ -260,7 +260,7 @@ class AffineObserver(Observer):
 
     def _setup(self, model: bool, method: str, z_bounds: Any, x_hat0: Any, z_hat0: Any) -> None:
         check_options(method, self.on_unstable, model, self.system)
-        self.model = bool(model)
+        self.model = boolean("model", model)
         self.method = method
         self.z_bounds = bounds_pair(z_bounds, self.n)
         self._bounds, self._sat = bounds_rows(self.z_bounds, self.n)

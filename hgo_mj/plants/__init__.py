@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .._validate import reject_unknown
+from .._validate import check_call, reject_unknown
 from ..exceptions import DesignError
 from .base import Plant
 from .mujoco import MujocoPlant, model_path
@@ -21,13 +21,14 @@ def make_plant(name: str, dt: float | None = None, *, physics_dt: float | None =
     """
     from ..systems import SYSTEMS
 
-    if name not in SYSTEMS:
+    if not isinstance(name, str) or name not in SYSTEMS:
         raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}")
     cls = SYSTEMS[name]
     if cls.model_file is not None:
         reject_unknown(f"plant {name!r} (MuJoCo: parameters come from {cls.model_file})",
                        params, ["model_file", "outputs", "nthread"])
         return MujocoPlant(cls, 0.001 if dt is None else dt, physics_dt=physics_dt, **params)
+    check_call(f"plant {name!r}", cls.__init__, params)
     system = cls(**params)
     return OdePlant(system, getattr(cls, "default_dt", 0.01) if dt is None else dt,
                     physics_dt=physics_dt)

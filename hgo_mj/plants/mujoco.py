@@ -45,7 +45,8 @@ _ROLLOUT_MIN_STEPS = 64
 #: doubles in the rollout's buffers (controls, states, sensors) per chunk: 32 MiB
 _CHUNK_DOUBLES = 1 << 22
 
-#: MuJoCo's mjMAXVAL: a larger control is zeroed with the warning mjWARN_BADCTRL
+#: MuJoCo's mjMAXVAL: a larger control is zeroed with the warning mjWARN_BADCTRL (a larger
+#: position or velocity resets the data with mjWARN_BADQPOS / mjWARN_BADQVEL)
 _MAX_CTRL = 1e10
 #: a state of at most this many entries is recorded entry by entry (else by slices)
 _SCALAR_STATE = 8
@@ -203,18 +204,36 @@ class MujocoPlant(Plant):
         ``system.default_x0``), ``batch`` members (see :mod:`hgo_mj.plants.base`).
 
         One member lives in :attr:`data`; B > 1 members are kept as full physics states
-        ``(B, nstate)`` with their controls, and are loaded into :attr:`data` to be read."""
+        ``(B, nstate)`` with their controls, and are loaded into :attr:`data` to be read.
+
+        Raises
+        ------
+        DesignError
+            A state MuJoCo cannot take (an entry beyond its ``mjMAXVAL`` = 1e10, or one its
+            ``mj_forward`` flags as a bad position, velocity or acceleration, which it would
+            silently replace by its reset state): the entry is named with its value."""
         if x0 is not None and batch is None and np.ndim(x0) <= 1:
             # one state for one unbatched member, checked (a fresh finite (n,) array) once
             X0, self.batched = vector("x0", x0, 2 * self._nq).reshape(1, -1), False
         else:
             X0, self.batched = initial_states(x0, batch, self._x0, 2 * self._nq)
+        big = np.argwhere(np.abs(X0) > _MAX_CTRL)
+        if big.size:
+            b, i = (int(v) for v in big[0])
+            raise DesignError(f"x0{f'[{b}]' if X0.shape[0] > 1 else ''}: "
+                              f"{self.state_names[i]} = {X0[b, i]:g} is a state MuJoCo cannot "
+                              f"take (|entry| <= {_MAX_CTRL:g}, its mjMAXVAL)")
         self.batch = B = X0.shape[0]
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[self._qadr] = X0[0, : self._nq]
         d.qvel[self._vadr] = X0[0, self._nq:]
         mujoco.mj_forward(m, d)
+        if any(w.number for w in self._bad):
+            d.warning.number[:] = 0
+            raise DesignError(f"x0 = {X0[0].tolist()} is a state MuJoCo cannot take: "
+                              f"mj_forward flags a bad position, velocity or acceleration "
+                              f"(and would reset it to zero)")
         if B > 1:
             # the members' full physics states: the reset one with their qpos and qvel
             # (mj_forward changes none of it), zero controls and warm starts

@@ -1,0 +1,124 @@
+"""The scenario schema: the sections of a scenario, their keys and the type of each value.
+
+:func:`check_scenario` checks a scenario document (a parsed TOML file, the command line's
+flags, a study's cell) against :data:`SCHEMA` before anything is built: every value of the
+wrong type, every unknown key and every missing required key is a :class:`DesignError` that
+names the key, what was expected and what was found. Types are checked, not coerced: a
+string is not a number (``duration = "1"``), a bool is not a number (``duration = true``), a
+float is not an integer (``seed = 1.7``), a TOML date is not a name. The values' ranges and
+the parameters of each plant, sensor stage, observer, input and controller are checked by the
+objects themselves (their constructors), also before the simulation starts.
+
+The fuzz suite (``tests/test_fuzz_scenarios.py``) generates its malformed documents from
+:data:`SCHEMA`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from ._validate import is_real, numbers_only, reject_unknown
+from .exceptions import DesignError
+
+#: the value types of the schema: a name and a test
+KINDS: dict[str, str] = {
+    "string": "a string",
+    "number": "a real number",
+    "positive": "a real number > 0",
+    "nonneg": "a real number >= 0",
+    "seed": "an integer >= 0",
+    "count": "a positive integer",
+    "table": "a table",
+    "tables": "a list of tables",
+    "numbers": "a list of numbers",
+}
+
+#: section -> key -> kind; ``None`` for a section means "a list of tables" (``observers``)
+SCHEMA: dict[str, dict[str, str]] = {
+    "": {"name": "string", "plant": "table", "sensor": "table", "observers": "tables",
+         "input": "table", "controller": "table", "run": "table"},
+    "plant": {"name": "string", "dt": "positive", "physics_dt": "positive", "params": "table",
+              "x0": "numbers"},
+    "sensor": {"stages": "tables"},
+    "run": {"duration": "positive", "sample_period": "positive", "control_period": "positive",
+            "seed": "seed", "seeds": "count", "out": "string", "t_transient": "nonneg",
+            "band": "positive"},
+    # the tables below take their family's own parameters beside these keys
+    "observers": {"type": "string", "name": "string", "system_params": "table"},
+    "input": {"type": "string"},
+    "controller": {"type": "string"},
+    "stages": {"stage": "string"},
+}
+
+#: keys a scenario must have (``section.key``)
+REQUIRED = ("plant.name", "run.duration")
+#: sections whose tables take more keys than the schema lists (the family's parameters)
+OPEN = ("observers", "input", "controller", "stages")
+
+
+def _ok(kind: str, value: Any) -> bool:
+    if kind == "string":
+        return isinstance(value, str)
+    if kind in ("table", "tables"):
+        return isinstance(value, Mapping) if kind == "table" else (
+            isinstance(value, list) and all(isinstance(v, Mapping) for v in value))
+    if kind == "numbers":
+        return isinstance(value, list) and numbers_only(value)
+    if kind in ("seed", "count"):
+        return (is_real(value) and not isinstance(value, float) and int(value) == value
+                and value >= (1 if kind == "count" else 0))
+    if not is_real(value) or value != value or abs(value) == float("inf"):
+        return False
+    return kind == "number" or (value > 0 if kind == "positive" else value >= 0)
+
+
+def check_value(where: str, kind: str, value: Any) -> None:
+    """Raise :class:`DesignError` unless ``value`` is of the schema's ``kind``."""
+    if not _ok(kind, value):
+        raise DesignError(f"{where} must be {KINDS[kind]}; found {value!r} "
+                          f"({type(value).__name__})")
+
+
+def _check_table(where: str, section: str, table: Mapping[str, Any]) -> None:
+    keys = SCHEMA[section]
+    if section not in OPEN:
+        reject_unknown(f"scenario [{where}]" if where else "scenario", table, keys)
+    for key, value in table.items():
+        if key in keys:
+            check_value(f"{where}.{key}" if where else key, keys[key], value)
+
+
+def check_scenario(sc: Any, *, required: bool = True) -> None:
+    """Check a scenario document against :data:`SCHEMA` (types, unknown and missing keys;
+    ``required=False``: a file whose missing keys the command line may still give).
+
+    Raises
+    ------
+    DesignError
+        The first key whose value is not of its type, an unknown key (the valid ones
+        listed) or a missing required key; the message names the key (``run.duration``,
+        ``observers[1].type``), what was expected and what was found.
+    """
+    if not isinstance(sc, Mapping):
+        raise DesignError(f"a scenario must be a table; found {sc!r}")
+    _check_table("", "", sc)
+    for section in ("plant", "sensor", "input", "controller", "run"):
+        if section in sc:
+            _check_table(section, section, sc[section])
+    for i, ob in enumerate(sc.get("observers", [])):
+        _check_table(f"observers[{i}]", "observers", ob)
+        if "type" not in ob:
+            raise DesignError(f"observers[{i}] needs type = ... (see `hgo-mj list`); found keys "
+                              f"{sorted(map(str, ob))}")
+    for i, st in enumerate(sc.get("sensor", {}).get("stages", [])):
+        _check_table(f"sensor.stages[{i}]", "stages", st)
+    for path in REQUIRED if required else ():
+        section, key = path.split(".")
+        if key not in sc.get(section, {}):
+            hint = {"plant.name": "[plant] name = ... or --plant NAME (see `hgo-mj list`)",
+                    "run.duration": "[run] duration = SECONDS or --duration SECONDS"}[path]
+            raise DesignError(f"scenario needs {path}: {hint}")
+
+
+__all__ = ["KINDS", "OPEN", "REQUIRED", "SCHEMA", "check_scenario", "check_value"]
