@@ -103,12 +103,15 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
         sc["sensor"] = {"stages": [parse_spec(s, "stage") for s in args.sensor]}
     if args.input:
         sc["input"] = parse_spec(args.input, "type")
-    for key in ("duration", "sample_period", "control_period", "seed", "out"):
+    for key in ("duration", "sample_period", "control_period", "seed", "out", "t_transient",
+                "band"):
         v = getattr(args, key)
         if v is not None:
             sc["run"][key] = v
     if args.dt is not None:
         sc["plant"]["dt"] = args.dt
+    if args.x0 is not None:
+        sc["plant"]["x0"] = parse_value(args.x0)
     if args.seeds is not None:
         sc["run"]["seeds"] = _flag_int(args.seeds, "--seeds")
     return sc
@@ -355,28 +358,55 @@ def cmd_list() -> str:
     return "\n".join(lines)
 
 
+def _version() -> str:
+    """The installed distribution's version (what ``pip`` installed), or ``unknown``."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("hgo_mj")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="hgo-mj", description=__doc__.splitlines()[0])
-    sub = ap.add_subparsers(dest="command", required=True)
+    ap.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                    help="print the installed version of hgo_mj and exit")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                            help="what to do (`hgo-mj COMMAND --help` for its flags)")
     r = sub.add_parser("run", help="run a scenario (TOML file and/or flags)")
     r.add_argument("scenario", nargs="?", help="TOML scenario file")
     r.add_argument("--plant", help="plant name (see `hgo-mj list`)")
     r.add_argument("--dt", type=float, help="plant step (control hold), seconds")
+    r.add_argument("--x0", metavar="[X1,X2,...]",
+                   help="initial true state, one value per plant state (plant.x0; default the "
+                   "model's)")
     r.add_argument("--observer", action="append",
                    help="KIND:key=value,... e.g. high_gain:k=50 (repeatable)")
     r.add_argument("--sensor", action="append",
                    help="STAGE:key=value,... e.g. gaussian:std=1e-3 (repeatable, in order)")
     r.add_argument("--input", help="KIND:key=value,... e.g. multisine:amplitudes=[1],"
                    "frequencies=[0.5]")
-    r.add_argument("--duration", type=float)
-    r.add_argument("--sample-period", dest="sample_period", type=float)
-    r.add_argument("--control-period", dest="control_period", type=float)
-    r.add_argument("--seed", type=int)
+    r.add_argument("--duration", type=float, help="simulated time, seconds (run.duration)")
+    r.add_argument("--sample-period", dest="sample_period", type=float,
+                   help="sensor sample period, seconds, a multiple of --dt (default --dt)")
+    r.add_argument("--control-period", dest="control_period", type=float,
+                   help="period at which the input is computed and held, seconds (default "
+                   "--dt)")
+    r.add_argument("--seed", type=int, help="seed of the sensor noise (run.seed, default 0)")
+    r.add_argument("--t-transient", dest="t_transient", type=float, metavar="S",
+                   help="metrics (RMSE, peak, final) over t >= S seconds (run.t_transient; "
+                   "default the first 20%% of the run is left out)")
+    r.add_argument("--band", type=float, metavar="FRACTION",
+                   help="settling band as a fraction of each true state's range (run.band, "
+                   "default 0.05)")
     r.add_argument("--seeds", metavar="N",
                    help="Monte Carlo: N runs at the seeds SEED, SEED+1, ..., SEED+N-1; also "
                    "writes metrics_mc.json, summary_mc.txt and mc.png (default 1: one run)")
     r.add_argument("--jobs", metavar="J", default="1",
-                   help="processes for the --seeds runs (default 1; results do not depend on it)")
+                   help="processes for the --seeds runs (default 1; the seeds after the first "
+                   "run as one batch, so workers start only for 10 s of work or more; results "
+                   "do not depend on it)")
     r.add_argument("--out", help="output folder (default runs/run)")
     r.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                    help="also record to a rerun .rrd file (default OUT/run.rrd)")
@@ -405,7 +435,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                     help="also record to a rerun .rrd file (default OUT/NAME.rrd)")
     d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
-    d.add_argument("--out", default="runs/demo")
+    d.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
     d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
     d.add_argument("--no-rrd", dest="no_rrd", action="store_true", help="write no recording")
     return ap
