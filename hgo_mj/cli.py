@@ -101,8 +101,9 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
         sc["observers"] = [parse_spec(s, "type") for s in args.observer]
     if args.sensor:
         sc["sensor"] = {"stages": [parse_spec(s, "stage") for s in args.sensor]}
-    if args.input:
-        sc["input"] = parse_spec(args.input, "type")
+    if args.input:  # one signal, or one per actuator
+        specs = [parse_spec(s, "type") for s in args.input]
+        sc["input"] = specs[0] if len(specs) == 1 else specs
     for key in ("duration", "sample_period", "control_period", "seed", "out", "t_transient",
                 "band"):
         v = getattr(args, key)
@@ -129,7 +130,7 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
     (``run.seed``, default 0, is the sensor chain's seed until ``simulate`` re-seeds it).
     ``functools.partial(scenario_run, sc)`` is the ``make_run`` of
     :func:`hgo_mj.study.monte_carlo`."""
-    from .inputs import Constant, Controller, Signal, make_signal
+    from .inputs import Controller, Signal, signal_from_spec
     from .observers import make_observer
     from .plants import make_plant
     from .sensors import SensorChain
@@ -172,13 +173,8 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
         if not isinstance(sc["controller"], dict):
             raise DesignError(f"scenario [controller] must be a table; found {sc['controller']!r}")
         inputs = make_controller(sc["controller"], plant.system)
-    else:
-        inp = dict(sc.get("input", {"type": "constant"}))
-        kind = inp.pop("type", "constant")
-        if kind == "constant" and "value" not in inp:
-            inputs = Constant([0.0] * len(plant.input_names))
-        else:
-            inputs = make_signal(kind, **inp)
+    else:  # one table, or one table per actuator
+        inputs = signal_from_spec(sc.get("input"), len(plant.input_names))
     if "duration" not in run:
         raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
     return {"plant": plant, "sensor": sensor, "observers": observers, "inputs": inputs,
@@ -385,8 +381,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="KIND:key=value,... e.g. high_gain:k=50 (repeatable)")
     r.add_argument("--sensor", action="append",
                    help="STAGE:key=value,... e.g. gaussian:std=1e-3 (repeatable, in order)")
-    r.add_argument("--input", help="KIND:key=value,... e.g. multisine:amplitudes=[1],"
-                   "frequencies=[0.5]")
+    r.add_argument("--input", action="append",
+                   help="KIND:key=value,... e.g. multisine:amplitudes=[1],frequencies=[0.5]; "
+                   "repeat it for one signal per actuator, in the plant's input order")
     r.add_argument("--duration", type=float, help="simulated time, seconds (run.duration)")
     r.add_argument("--sample-period", dest="sample_period", type=float,
                    help="sensor sample period, seconds, a multiple of --dt (default --dt)")

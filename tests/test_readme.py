@@ -38,7 +38,8 @@ def test_scenario_file_runs(tmp_path, monkeypatch):
 def test_the_study_examples_run(tmp_path, monkeypatch, capsys):
     """The scenario file with the [sweep] table appended, through `hgo-mj sweep`; and the
     Python study on the scenario file."""
-    scenario, sweep = re.findall(r"```toml\n(.*?)```", README, re.S)[:2]
+    blocks = re.findall(r"```toml\n(.*?)```", README, re.S)
+    scenario, (sweep,) = blocks[0], [b for b in blocks if "[sweep]" in b]
     (tmp_path / "scenario.toml").write_text(scenario)
     (tmp_path / "study.toml").write_text(scenario + sweep)
     monkeypatch.chdir(tmp_path)
@@ -122,3 +123,15 @@ def test_the_command_line_and_the_scenario_file_are_the_same_study(tmp_path, mon
         assert cli[name]["rmse"] == python[name]["rmse"] == scenario[name]["rmse"], name
         for value in python[name]["rmse"]:
             assert f"{value:.4g}" in printed  # the printed table
+
+
+def test_the_input_per_actuator_example_drives_the_two_link_arm(tmp_path):
+    import numpy as np
+
+    (block,) = [b for b in re.findall(r"```toml\n(.*?)```", README, re.S) if "[[input]]" in b]
+    (tmp_path / "arm.toml").write_text('[plant]\nname = "elastic_joint_2link"\n' + block
+                                       + "[run]\nduration = 1.0\n")
+    assert main(["run", str(tmp_path / "arm.toml"), "--out", str(tmp_path / "o")]) == 0
+    traj = Trajectory.load(tmp_path / "o" / "trajectory.npz")
+    assert traj.u.shape[1] == 2
+    assert np.ptp(traj.u[:, 0]) > 0.3 and np.ptp(traj.u[:, 1]) == 0.1
