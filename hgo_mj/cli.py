@@ -32,7 +32,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-from ._io import write_text
+from ._io import save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int, reject_unknown
 from .exceptions import DesignError, HgoError
@@ -237,8 +237,8 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / "trajectory.npz")
     write_json(out / "metrics.json", metrics)
-    plot_trajectory(traj, out / "figure.png",
-                    title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}")
+    save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}"),
+                out / "figure.png")
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
     return traj, metrics, out
@@ -264,7 +264,7 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     The first seed's files (and ``rrd``) are exactly those of a single run at that seed."""
     import shutil
 
-    from .plotting import plot_monte_carlo
+    from .plotting import plot_monte_carlo, units_of
     from .study import MonteCarloResult, Study
     from .study.results import seed_metrics
 
@@ -288,9 +288,9 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
     write_text(out / "summary_mc.txt", mc.table() + "\n")
-    plot_monte_carlo(mc, out / "mc.png",
-                     title=f"{sc.get('name', name)}: {sc['plant']['name']}, seeds "
-                           f"{seeds[0]}..{seeds[-1]}")
+    units, _ = units_of(traj)
+    save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {sc['plant']['name']}, "
+                                 f"seeds {seeds[0]}..{seeds[-1]}", units=units), out / "mc.png")
     return traj, metrics, out, mc
 
 
