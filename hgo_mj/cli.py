@@ -32,7 +32,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-from ._io import check_writable, write_text
+from ._io import check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
 from .exceptions import DesignError, DivergenceError, HgoError
@@ -104,14 +104,18 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
         sc["observers"] = [parse_spec(s, "type") for s in args.observer]
     if args.sensor:
         sc["sensor"] = {"stages": [parse_spec(s, "stage") for s in args.sensor]}
-    if args.input:
-        sc["input"] = parse_spec(args.input, "type")
-    for key in ("duration", "sample_period", "control_period", "seed", "out"):
+    if args.input:  # one signal, or one per actuator
+        specs = [parse_spec(s, "type") for s in args.input]
+        sc["input"] = specs[0] if len(specs) == 1 else specs
+    for key in ("duration", "sample_period", "control_period", "seed", "out", "t_transient",
+                "band"):
         v = getattr(args, key)
         if v is not None:
             sc["run"][key] = v
     if args.dt is not None:
         sc["plant"]["dt"] = args.dt
+    if args.x0 is not None:
+        sc["plant"]["x0"] = parse_value(args.x0)
     if args.seeds is not None:
         sc["run"]["seeds"] = _flag_int(args.seeds, "--seeds")
     return sc
@@ -143,7 +147,7 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
 
 
 def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
-    from .inputs import Constant, Controller, Signal, make_signal
+    from .inputs import Controller, Signal, signal_from_spec
     from .observers import make_observer
     from .plants import make_plant
     from .sensors import SensorChain
@@ -173,13 +177,10 @@ def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
         if "input" in sc:
             raise DesignError("a scenario has an [input] signal or a [controller], not both")
         inputs = make_controller(sc["controller"], plant.system)
-    else:
-        inp = dict(sc.get("input", {"type": "constant"}))
-        kind = inp.pop("type", "constant")
-        if kind == "constant" and "value" not in inp:
-            inputs = Constant([0.0] * len(plant.input_names))
-        else:
-            inputs = make_signal(kind, **inp)
+    else:  # one table, or one table per actuator
+        inputs = signal_from_spec(sc.get("input"), len(plant.input_names))
+    if "duration" not in run:
+        raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
     return {"plant": plant, "sensor": sensor, "observers": observers, "inputs": inputs,
             "duration": run["duration"], "sample_period": run.get("sample_period"),
             "control_period": run.get("control_period"), "x0": pl.get("x0"),
@@ -243,8 +244,8 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / "trajectory.npz")
     write_json(out / "metrics.json", metrics)
-    plot_trajectory(traj, out / "figure.png",
-                    title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}")
+    save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}"),
+                out / "figure.png")
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
     return traj, metrics, out
@@ -289,7 +290,7 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     The first seed's files (and ``rrd``) are exactly those of a single run at that seed."""
     import shutil
 
-    from .plotting import plot_monte_carlo
+    from .plotting import plot_monte_carlo, units_of
     from .study import MonteCarloResult, Study
     from .study.results import seed_metrics
     from .study.spec import MAX_RUNS
@@ -318,9 +319,9 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
     write_text(out / "summary_mc.txt", mc.table() + "\n")
-    plot_monte_carlo(mc, out / "mc.png",
-                     title=f"{sc.get('name', name)}: {sc['plant']['name']}, seeds "
-                           f"{seeds[0]}..{seeds[-1]}")
+    units, _ = units_of(traj)
+    save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {sc['plant']['name']}, "
+                                 f"seeds {seeds[0]}..{seeds[-1]}", units=units), out / "mc.png")
     return traj, metrics, out, mc
 
 
@@ -384,28 +385,56 @@ def cmd_list() -> str:
     return "\n".join(lines)
 
 
+def _version() -> str:
+    """The installed distribution's version (what ``pip`` installed), or ``unknown``."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("hgo_mj")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="hgo-mj", description=__doc__.splitlines()[0])
-    sub = ap.add_subparsers(dest="command", required=True)
+    ap.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                    help="print the installed version of hgo_mj and exit")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                            help="what to do (`hgo-mj COMMAND --help` for its flags)")
     r = sub.add_parser("run", help="run a scenario (TOML file and/or flags)")
     r.add_argument("scenario", nargs="?", help="TOML scenario file")
     r.add_argument("--plant", help="plant name (see `hgo-mj list`)")
     r.add_argument("--dt", type=float, help="plant step (control hold), seconds")
+    r.add_argument("--x0", metavar="[X1,X2,...]",
+                   help="initial true state, one value per plant state (plant.x0; default the "
+                   "model's)")
     r.add_argument("--observer", action="append",
                    help="KIND:key=value,... e.g. high_gain:k=50 (repeatable)")
     r.add_argument("--sensor", action="append",
                    help="STAGE:key=value,... e.g. gaussian:std=1e-3 (repeatable, in order)")
-    r.add_argument("--input", help="KIND:key=value,... e.g. multisine:amplitudes=[1],"
-                   "frequencies=[0.5]")
-    r.add_argument("--duration", type=float)
-    r.add_argument("--sample-period", dest="sample_period", type=float)
-    r.add_argument("--control-period", dest="control_period", type=float)
-    r.add_argument("--seed", type=int)
+    r.add_argument("--input", action="append",
+                   help="KIND:key=value,... e.g. multisine:amplitudes=[1],frequencies=[0.5]; "
+                   "repeat it for one signal per actuator, in the plant's input order")
+    r.add_argument("--duration", type=float, help="simulated time, seconds (run.duration)")
+    r.add_argument("--sample-period", dest="sample_period", type=float,
+                   help="sensor sample period, seconds, a multiple of --dt (default --dt)")
+    r.add_argument("--control-period", dest="control_period", type=float,
+                   help="period at which the input is computed and held, seconds (default "
+                   "--dt)")
+    r.add_argument("--seed", type=int, help="seed of the sensor noise (run.seed, default 0)")
+    r.add_argument("--t-transient", dest="t_transient", type=float, metavar="S",
+                   help="metrics (RMSE, peak, final) over t >= S seconds (run.t_transient; "
+                   "default the first 20%% of the run is left out)")
+    r.add_argument("--band", type=float, metavar="FRACTION",
+                   help="settling band as a fraction of each true state's range (run.band, "
+                   "default 0.05)")
     r.add_argument("--seeds", metavar="N",
                    help="Monte Carlo: N runs at the seeds SEED, SEED+1, ..., SEED+N-1; also "
                    "writes metrics_mc.json, summary_mc.txt and mc.png (default 1: one run)")
     r.add_argument("--jobs", metavar="J", default="1",
-                   help="processes for the --seeds runs (default 1; results do not depend on it)")
+                   help="processes for the --seeds runs (default 1; the seeds after the first "
+                   "run as one batch, so workers start only for 10 s of work or more; results "
+                   "do not depend on it)")
     r.add_argument("--out", help="output folder (default runs/run)")
     r.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                    help="also record to a rerun .rrd file (default OUT/run.rrd)")
@@ -434,7 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                     help="also record to a rerun .rrd file (default OUT/NAME.rrd)")
     d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
-    d.add_argument("--out", default="runs/demo")
+    d.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
     d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
     d.add_argument("--no-rrd", dest="no_rrd", action="store_true", help="write no recording")
     return ap

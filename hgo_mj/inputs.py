@@ -4,6 +4,23 @@ Open-loop signals compute ``u`` at many instants at once (:meth:`Signal.values`,
 ``(T, m)`` values); ``signal(t) -> u`` (a 1-D array) is derived from it. A :class:`Controller`
 wraps a feedback law that sees only an observer's estimate (or, when asked, the true state, for
 comparison). Every signal validates its parameters and reports them with ``params()``.
+
+A plant with several actuators takes one signal per actuator: :class:`Channels` puts signals
+side by side (channel ``i`` of ``u`` is the ``i``-th signal's), and a scenario file says the
+same with a list of input tables, one per actuator, in the plant's input order
+(:func:`signal_from_spec`)::
+
+    [[input]]                   # torque1
+    type = "multisine"
+    amplitudes = [0.3]
+    frequencies = [0.5]
+    [[input]]                   # torque2
+    type = "prbs"
+    amplitude = 0.1
+    period = 0.05
+
+(on the command line: ``--input`` once per actuator, in the same order). A single ``[input]``
+table is one signal for every channel, as before.
 """
 
 from __future__ import annotations
@@ -196,35 +213,78 @@ class Chirp(Signal):
                 "duration": self.duration, "offset": self.offset}
 
 
-#: the longest PRBS (levels held in memory, 8 bytes each)
-PRBS_MAX_LENGTH = 2 ** 22
+#: the longest telegraph sequence (levels held in memory, 8 bytes each)
+TELEGRAPH_MAX_LENGTH = 2 ** 22
 
 
 class PRBS(Signal):
-    """Pseudo-random binary sequence: ``offset ± amplitude``, switching with probability 1/2 every
-    ``period`` seconds, drawn once from ``seed`` (a fixed sequence, independent of the run), of
-    ``length`` levels (1 ... :data:`PRBS_MAX_LENGTH`) repeated cyclically.
+    """Maximum-length pseudo-random binary sequence (an m-sequence): ``u = offset +
+    amplitude * (2 b_k - 1)`` for ``k period <= t < (k + 1) period``, where ``b`` is the
+    output of an ``nbits``-stage linear feedback shift register with primitive taps
+    (:func:`scipy.signal.max_len_seq`), started at element ``shift`` and repeated.
 
-    Raises
-    ------
-    DesignError
-        A parameter of the wrong type (``length = 2.5``, ``seed = "1"``) or out of range."""
+    Its properties (tested): the period is ``N = 2**nbits - 1`` clock periods and no shorter;
+    one period holds ``2**(nbits-1)`` high and ``2**(nbits-1) - 1`` low levels; the circular
+    autocorrelation of the +-1 levels is ``N`` at lag 0 and ``-1`` at every other lag, so its
+    spectrum is flat (to within the ``sinc^2`` of the hold) up to about ``0.44 / period`` Hz.
+    The random telegraph signal this name used to give is :class:`Telegraph` (``telegraph``).
+    """
 
     name = "prbs"
-    summary = "pseudo-random binary sequence"
+    summary = "maximum-length pseudo-random binary sequence (m-sequence, period 2^nbits - 1)"
 
-    def __init__(self, amplitude: float, period: float, seed: int = 0, offset: float = 0.0,
-                 length: int = 4096) -> None:
+    def __init__(self, amplitude: float, period: float, nbits: int = 10, offset: float = 0.0,
+                 shift: int = 0) -> None:
+        from scipy.signal import max_len_seq
+
         self.amplitude = finite_scalar("PRBS.amplitude", amplitude)
         self.period = finite_scalar("PRBS.period", period, positive=True)
         self.offset = finite_scalar("PRBS.offset", offset)
+        self.nbits = positive_int("PRBS.nbits", nbits, floats=False)
+        if not 2 <= self.nbits <= 20:  # 2^20 - 1 levels: 8 MB, a period of a million clocks
+            raise DesignError(f"PRBS.nbits must be in 2..20 (a period of 3 to 2^20 - 1 clock "
+                              f"periods); found {self.nbits}")
+        if isinstance(shift, bool) or not isinstance(shift, (int, np.integer)) or shift < 0:
+            raise DesignError(f"PRBS.shift must be an integer >= 0; found {shift!r}")
+        self.shift = int(shift)
+        bits, _ = max_len_seq(self.nbits)
+        self._levels = np.roll(2.0 * bits - 1.0, -(self.shift % bits.size))
+
+    @property
+    def length(self) -> int:
+        """The sequence's period in clock periods, ``2**nbits - 1``."""
+        return int(self._levels.size)
+
+    def values(self, t: Array) -> Array:
+        i = np.floor(np.asarray(t, dtype=float) / self.period + 1e-9).astype(np.int64) % self.length
+        return (self.offset + self.amplitude * self._levels[i])[:, None]
+
+    def params(self) -> dict[str, Any]:
+        return {"amplitude": self.amplitude, "period": self.period, "nbits": self.nbits,
+                "offset": self.offset, "shift": self.shift}
+
+
+class Telegraph(Signal):
+    """Random telegraph signal: ``offset +- amplitude``, each ``period`` seconds the level drawn
+    anew, high or low with probability 1/2, from ``seed`` (a fixed sequence of ``length``
+    levels, repeated; independent of the run). What ``prbs`` gave before it became a true
+    m-sequence (:class:`PRBS`): the same numbers for the same parameters."""
+
+    name = "telegraph"
+    summary = "random telegraph signal (a level drawn each period)"
+
+    def __init__(self, amplitude: float, period: float, seed: int = 0, offset: float = 0.0,
+                 length: int = 4096) -> None:
+        self.amplitude = finite_scalar("Telegraph.amplitude", amplitude)
+        self.period = finite_scalar("Telegraph.period", period, positive=True)
+        self.offset = finite_scalar("Telegraph.offset", offset)
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise DesignError(f"PRBS.seed must be a non-negative integer; found {seed!r}")
+            raise DesignError(f"Telegraph.seed must be a non-negative integer; found {seed!r}")
         self.seed = int(seed)
-        self.length = positive_int("PRBS.length", length, floats=False)
-        if self.length > PRBS_MAX_LENGTH:
-            raise DesignError(f"PRBS.length must be at most {PRBS_MAX_LENGTH} (the sequence "
-                              f"repeats cyclically); found {self.length}")
+        self.length = positive_int("Telegraph.length", length, floats=False)
+        if self.length > TELEGRAPH_MAX_LENGTH:
+            raise DesignError(f"Telegraph.length must be at most {TELEGRAPH_MAX_LENGTH} (the "
+                              f"sequence repeats cyclically); found {self.length}")
         rng = np.random.default_rng(self.seed)
         self._levels = np.where(rng.random(self.length) < 0.5, -1.0, 1.0)
 
@@ -235,6 +295,27 @@ class PRBS(Signal):
     def params(self) -> dict[str, Any]:
         return {"amplitude": self.amplitude, "period": self.period, "seed": self.seed,
                 "offset": self.offset, "length": self.length}
+
+
+class Channels(Signal):
+    """Signals side by side, one per actuator: ``u = (signals[0](t), signals[1](t), ...)``
+    (a signal of several channels gives several)."""
+
+    name = "channels"
+    summary = "one signal per actuator"
+
+    def __init__(self, signals: Sequence[Signal]) -> None:
+        signals = list(signals)
+        if not signals or not all(isinstance(sg, Signal) for sg in signals):
+            raise DesignError(f"Channels needs a non-empty list of Signals; found "
+                              f"{[type(sg).__name__ for sg in signals]}")
+        self.signals = signals
+
+    def values(self, t: Array) -> Array:
+        return np.hstack([sg.values(t) for sg in self.signals])
+
+    def params(self) -> dict[str, Any]:
+        return {"signals": [{"type": sg.name, **sg.params()} for sg in self.signals]}
 
 
 class Controller:
@@ -276,7 +357,7 @@ class Controller:
 
 
 SIGNALS: dict[str, type[Signal]] = {
-    c.name: c for c in (Constant, Schedule, Multisine, Chirp, PRBS)}
+    c.name: c for c in (Constant, Schedule, Multisine, Chirp, PRBS, Telegraph)}
 
 
 def make_signal(kind: str, **params: Any) -> Signal:
@@ -289,3 +370,30 @@ def make_signal(kind: str, **params: Any) -> Signal:
     reject_unknown(f"input {kind!r}", params, [p for p in sig.parameters if p != "self"])
     check_call(f"input {kind!r}", SIGNALS[kind].__init__, params)
     return SIGNALS[kind](**params)
+
+
+def signal_from_spec(spec: Any, n_inputs: int) -> Signal:
+    """The open-loop signal of a scenario's ``input``: ``None`` (zero on every channel), one
+    table ``{"type": KIND, ...}`` (:func:`make_signal`; ``constant`` without ``value`` is zero
+    on all ``n_inputs`` channels), or a list of tables, one per actuator in the plant's input
+    order (:class:`Channels`; there a ``constant`` without ``value`` is one zero channel)."""
+    if spec is None:
+        return Constant([0.0] * n_inputs)
+    if isinstance(spec, (list, tuple)):
+        if not spec:
+            raise DesignError("scenario [[input]] is an empty list; expected one table per "
+                              "actuator")
+        return Channels([signal_from_spec(_input_table(item, i), 1) for i, item in enumerate(spec)])
+    inp = dict(_input_table(spec, None))
+    kind = inp.pop("type", "constant")
+    if kind == "constant" and "value" not in inp:
+        return Constant([0.0] * n_inputs)
+    return make_signal(kind, **inp)
+
+
+def _input_table(spec: Any, index: int | None) -> dict[str, Any]:
+    if not isinstance(spec, dict):
+        where = "scenario [input]" if index is None else f"scenario input #{index + 1}"
+        raise DesignError(f"{where} must be a table (type = ..., and its parameters), or a list "
+                          f"of tables one per actuator; found {spec!r}")
+    return spec

@@ -1,4 +1,9 @@
-"""Figures of a trajectory: true versus estimated states and the estimation error per state.
+"""Figures of a trajectory and of a Monte Carlo study, as :class:`matplotlib.figure.Figure`.
+
+The functions build their figures without pyplot and never change the user's matplotlib
+backend, so they work in a notebook, a script and headless alike: show a figure in a notebook
+by leaving it as the cell's value, save it with ``fig.savefig(path)`` (or atomically with
+:func:`hgo_mj._io.save_figure`, as the command line does).
 
 Estimates are matched to the plant's states by name (:meth:`~hgo_mj.simulate.Trajectory.
 estimate`): an observer that does not estimate a plant state draws nothing in its row. The
@@ -6,20 +11,19 @@ observers' columns that are not plant states (an order-only observer's ``z1, z2,
 derivatives of a multi-output observer, parameter estimates) get rows of their own below,
 estimates only (there is no true value, so no error). NaN samples (an inverse map undefined,
 a dropout) are gaps; axis limits use the finite samples only.
+
+Every axis label carries a unit in brackets, taken from the plant's system
+(:attr:`~hgo_mj.systems.base.System.state_units`, :attr:`~hgo_mj.systems.base.System.time_unit`):
+``[-]`` is dimensionless; the derivatives of an output get the output's unit per second
+(``rad/s^2``); ``[?]`` marks a quantity whose unit no system declares (a parameter estimate).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+import math
 from typing import Any
 
-import matplotlib
 import numpy as np
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from ._io import save_figure
 
 TRUE_COLOR = "black"
 
@@ -34,38 +38,106 @@ def _finite_range(*arrays: Any) -> tuple[float, float] | None:
     return float(cat.min()), float(cat.max())
 
 
-def plot_trajectory(traj: Any, path: str | Path, *, title: str = "") -> Path:
-    """Write a PNG: one row per plant state, left true vs every estimate, right the error;
-    then one row per estimated quantity that is not a plant state (estimates only)."""
+def _colors() -> list[str]:
+    import matplotlib
+
+    return list(matplotlib.rcParams["axes.prop_cycle"].by_key()["color"])
+
+
+def subplots(*args: Any, figsize: tuple[float, float] | None = None, layout: Any = None,
+             **kw: Any) -> tuple[Any, Any]:
+    """``pyplot.subplots`` without pyplot: a :class:`~matplotlib.figure.Figure` (no backend,
+    no global state) and its axes (``Figure.subplots(*args, **kw)``)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, layout=layout)
+    return fig, fig.subplots(*args, **kw)
+
+
+def system_of(traj: Any) -> Any:
+    """The registered system class of a trajectory's plant (by its metadata), or ``None``."""
+    from .systems import SYSTEMS
+
+    plant = str(traj.metadata.get("plant", ""))
+    for cls in SYSTEMS.values():
+        if plant in (cls.__name__, cls.name):
+            return cls
+    return None
+
+
+def bracket(unit: str | None) -> str:
+    """``"[rad]"``; ``"[-]"`` for a dimensionless quantity, ``"[?]"`` for an unknown unit."""
+    return "[?]" if unit is None else f"[{unit or '-'}]"
+
+
+def _per_second(unit: str, order: int) -> str:
+    if order == 0:
+        return unit
+    tail = "s" if order == 1 else f"s^{order}"
+    return f"{unit}/{tail}" if unit else f"1/{tail}"
+
+
+def units_of(traj: Any) -> tuple[dict[str, str], str | None]:
+    """The units the plant's system declares: ``({name: unit}, time unit)``, the names being
+    the plant's states and the derivatives of its outputs (``link1_acceleration``:
+    ``rad/s^2``; an observer without a system calls output ``i``'s derivatives ``y<i>_d<j>``).
+    Names whose unit is not declared are missing; the time unit is ``None`` when unknown."""
+    from .observers.high_gain import derivative_names
+
+    cls = system_of(traj)
+    if cls is None:
+        return {}, None
+    units: dict[str, str] = {}
+    if len(cls.state_units) == len(cls.state_names):
+        units.update(zip(cls.state_names, cls.state_units))
+    for i, out in enumerate(traj.output_names):
+        if out not in units:
+            continue
+        for alias in (out, f"y{i + 1}"):
+            for j, name in enumerate(derivative_names(alias, 6)):
+                units.setdefault(name, _per_second(units[out], j))
+    return units, cls.time_unit
+
+
+def plot_trajectory(traj: Any, *, title: str = "") -> Any:
+    """A figure of one run: one row per plant state, left the truth (black, drawn on top) and
+    every estimate, right the estimation error; then one row per estimated quantity that is
+    not a plant state (estimates only). Returns a :class:`matplotlib.figure.Figure`."""
+    from matplotlib.figure import Figure
+
     n = traj.x.shape[1]
     extra: list[str] = []
     for oname in traj.observers:
         extra += [s for s in traj.extra_states(oname) if s not in extra]
     rows = n + len(extra)
-    fig, axes = plt.subplots(rows, 2, figsize=(11, 2.2 * rows + 0.8), sharex=True,
-                             squeeze=False)
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    units, t_unit = units_of(traj)
+    fig = Figure(figsize=(11, 2.0 * rows + 1.0), layout="constrained")
+    axes = fig.subplots(rows, 2, sharex=True, squeeze=False)
+    colors = _colors()
     late = len(traj.t) // 5
     est = {oname: traj.estimate(oname) for oname in traj.observers}
     for i, name in enumerate(traj.state_names):
         ax, ae = axes[i]
-        ax.plot(traj.t, traj.x[:, i], color=TRUE_COLOR, lw=1.6, label="true")
         errs = []
         for j, oname in enumerate(traj.observers):
             if not traj.estimated(oname)[i]:
                 continue  # not estimated: nothing to draw
             c = colors[j % len(colors)]
             e = traj.x[:, i] - est[oname][:, i]
-            ax.plot(traj.t, est[oname][:, i], color=c, lw=0.9, ls="--", alpha=0.85, label=oname)
+            ax.plot(traj.t, est[oname][:, i], color=c, lw=0.9, ls="--", alpha=0.8, label=oname,
+                    zorder=2)
             ae.plot(traj.t, e, color=c, lw=0.7, alpha=0.7, label=oname)
             errs.append(e[late:])
-        ax.set_ylabel(name)
+        # the truth last and above every estimate, so that a noisy estimate cannot hide it
+        ax.plot(traj.t, traj.x[:, i], color=TRUE_COLOR, lw=1.3, label="true", zorder=3)
+        unit = bracket(units.get(name))
+        ax.set_ylabel(f"{name} {unit}", fontsize=9)
         rng = _finite_range(traj.x[:, i])
         if rng is not None:
             lo, hi = rng
             pad = 0.5 * (hi - lo) + 1e-9
             ax.set_ylim(lo - pad, hi + pad)  # keep the true signal readable under peaking
-        ae.set_ylabel(f"error {name}")
+        ae.set_ylabel(f"error {name} {unit}", fontsize=9)
         ae.axhline(0.0, color="0.6", lw=0.6)
         rng = _finite_range(*errs) if errs else None
         if rng is not None:
@@ -83,7 +155,7 @@ def plot_trajectory(traj: Any, path: str | Path, *, title: str = "") -> Path:
                 ax.plot(traj.t, v, color=colors[j % len(colors)], lw=0.9, ls="--", alpha=0.85,
                         label=oname)
                 vals.append(v[late:])
-        ax.set_ylabel(f"{name}\n(estimate only)")
+        ax.set_ylabel(f"{name} {bracket(units.get(name))}\n(estimate only)", fontsize=9)
         rng = _finite_range(*vals)
         if rng is not None:
             lo, hi = rng
@@ -93,60 +165,97 @@ def plot_trajectory(traj: Any, path: str | Path, *, title: str = "") -> Path:
         ae.text(0.5, 0.5, f"{name}: not a plant state (no true value)", transform=ae.transAxes,
                 ha="center", va="center", color="0.4")
     axes[0, 0].legend(loc="upper right", fontsize=8)
-    axes[0, 0].set_title("true vs estimate")
-    axes[0, 1].set_title("estimation error (axis fits t > 20% of the run)")
+    axes[0, 0].set_title("true vs estimate", fontsize=10)
+    axes[0, 1].set_title("estimation error (axis fits t > 20% of the run)", fontsize=10)
     for ax in axes[-1]:
-        ax.set_xlabel("t")
+        ax.set_xlabel(f"t {bracket(t_unit)}")
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    save_figure(fig, path)
-    plt.close(fig)
-    return path
+    return fig
 
 
-def plot_monte_carlo(result: Any, path: str | Path, *, title: str = "") -> Path:
-    """Write a PNG of a Monte Carlo study (:class:`hgo_mj.study.MonteCarloResult`): one panel
-    per plant state (row) and observer (column), the RMSE of every seed as a dot over its box
-    plot (quartiles, whiskers to 1.5 IQR, the mean as a triangle), each panel on its own scale
-    so that the spread shows; runs with a NaN RMSE are left out (their count is noted)."""
+def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | None = None) -> Any:
+    """A figure of a Monte Carlo study (:class:`hgo_mj.study.MonteCarloResult`): one panel per
+    plant state that some observer estimates, the observers side by side on the panel's one
+    y-axis (logarithmic where the RMSEs span a decade or more), the RMSE of every seed as a dot
+    over the observer's box plot (quartiles, whiskers to 1.5 IQR, the mean as a triangle); runs
+    with a NaN RMSE are left out (their count is noted). ``units``: ``{state: unit}`` for the
+    axis labels (``[?]`` where missing). Returns a :class:`matplotlib.figure.Figure`."""
+    from matplotlib.figure import Figure
+
     runs, agg = result.runs, result.aggregate
-    observers = list(agg) or [""]
-    states = list(next(iter(agg.values()))["states"]) if agg else [""]
-    rows, cols = len(states), len(observers)
-    fig, axes = plt.subplots(rows, cols, figsize=(2.6 * cols + 1.2, 1.9 * rows + 1.0),
-                             squeeze=False)
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    jitter = np.random.default_rng(0).uniform(-0.08, 0.08, len(runs))  # same figure every time
-    for i, name in enumerate(states):
-        for j, oname in enumerate(observers):
-            ax = axes[i, j]
-            if i == 0:
-                ax.set_title(oname, fontsize=9)
-            if j == 0:
-                ax.set_ylabel(f"RMSE {name}", fontsize=8)
-            ax.tick_params(labelsize=7)
-            ax.set_xticks([])
-            if not agg or not agg[oname]["estimated"][i]:
-                ax.text(0.5, 0.5, "not estimated", transform=ax.transAxes, ha="center",
-                        va="center", color="0.4", fontsize=8)
-                continue
-            v = np.array([r[oname]["rmse"][i] for r in runs], dtype=float)
-            ok = np.isfinite(v)
-            if ok.any():
-                ax.boxplot(v[ok], showmeans=True, widths=0.5)
-                ax.plot(1 + jitter[ok], v[ok], "o", ms=3, color=colors[j % len(colors)],
-                        alpha=0.6)
-                ax.set_xticks([])
-            if not ok.all():
-                ax.text(0.02, 0.96, f"{int((~ok).sum())} NaN", transform=ax.transAxes,
-                        va="top", fontsize=7, color="0.4")
-    fig.suptitle((f"{title}\n" if title else "") + f"RMSE over {len(runs)} seeds", fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    save_figure(fig, path)
-    plt.close(fig)
-    return path
+    observers = list(agg)
+    states = list(next(iter(agg.values()))["states"]) if agg else []
+    units = units or {}
+    shown = [i for i in range(len(states)) if any(agg[o]["estimated"][i] for o in observers)]
+    cols = min(max(len(shown), 1), 4)
+    rows = max(math.ceil(len(shown) / cols), 1)
+    width = max(1.0 + 0.9 * len(observers), 3.2)
+    fig = Figure(figsize=(width * cols + 0.6, 3.0 * rows + 0.9), layout="constrained")
+    grid = fig.subplots(rows, cols, squeeze=False)
+    colors = _colors()
+    jitter = np.random.default_rng(0).uniform(-0.12, 0.12, len(runs))  # same figure every time
+    for k, ax in enumerate(grid.ravel()):
+        if k >= len(shown):
+            ax.axis("off")
+            if not shown:
+                ax.text(0.5, 0.5, "no plant state is estimated", ha="center", va="center",
+                        color="0.4", transform=ax.transAxes)
+            continue
+        i = shown[k]
+        _mc_panel(ax, runs, agg, observers, i, colors, jitter)
+        ax.set_title(states[i], fontsize=9)
+        ax.set_ylabel(f"RMSE {states[i]} {bracket(units.get(states[i]))}", fontsize=8)
+    hidden = [states[i] for i in range(len(states)) if i not in shown]
+    head = f"{title}\n" if title else ""
+    fig.suptitle(head + f"RMSE after the transient over {len(runs)} seeds"
+                 + (f" (not estimated by any observer: {', '.join(hidden)})" if hidden else ""),
+                 fontsize=10)
+    return fig
+
+
+def _mc_panel(ax: Any, runs: list[Any], agg: dict[str, Any], observers: list[str], i: int,
+              colors: list[str], jitter: Any) -> None:
+    """One state's panel of :func:`plot_monte_carlo`: every observer on the same y-axis."""
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    finite: list[Any] = []
+    for j, oname in enumerate(observers):
+        pos = j + 1
+        if not agg[oname]["estimated"][i]:
+            ax.text(pos, 0.5, "not\nestimated", transform=ax.get_xaxis_transform(), ha="center",
+                    va="center", color="0.4", fontsize=7)
+            continue
+        v = np.array([r[oname]["rmse"][i] for r in runs], dtype=float)
+        ok = np.isfinite(v)
+        if ok.any():
+            ax.boxplot(v[ok], positions=[pos], showmeans=True, widths=0.5, showfliers=False,
+                       medianprops={"color": "black"},
+                       meanprops={"marker": "^", "markerfacecolor": "white",
+                                  "markeredgecolor": "black", "markersize": 5})
+            ax.plot(pos + jitter[ok], v[ok], "o", ms=3, color=colors[j % len(colors)], alpha=0.6,
+                    zorder=3)
+            finite.append(v[ok])
+        if not ok.all():
+            ax.text(pos, 0.97, f"{int((~ok).sum())} NaN", transform=ax.get_xaxis_transform(),
+                    ha="center", va="top", fontsize=7, color="0.4")
+    ax.set_xticks(range(1, len(observers) + 1), [o[:14] for o in observers], rotation=20,
+                  fontsize=7)
+    ax.set_xlim(0.4, len(observers) + 0.6)
+    ax.tick_params(labelsize=7)
+    ax.grid(True, axis="y", alpha=0.3)
+    vals = np.concatenate(finite) if finite else np.array([])
+    if vals.size and np.all(vals > 0) and vals.max() / vals.min() >= 10:
+        ax.set_yscale("log")
+        ax.yaxis.set_major_locator(LogLocator(base=10))
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(FuncFormatter(_minor_log_label))
+        ax.tick_params(which="both", labelsize=7)
+
+
+def _minor_log_label(v: float, _: Any) -> str:
+    """Plain labels at 2 and 5 times a power of ten on a log axis, none elsewhere."""
+    if v <= 0:
+        return ""
+    lead = round(v / 10 ** math.floor(math.log10(v)))
+    return f"{v:g}" if lead in (2, 5) else ""

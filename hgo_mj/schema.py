@@ -31,13 +31,14 @@ KINDS: dict[str, str] = {
     "count": "a positive integer",
     "table": "a table",
     "tables": "a list of tables",
+    "table_or_tables": "a table, or a list of tables (one per actuator)",
     "numbers": "a list of numbers",
 }
 
 #: section -> key -> kind; ``None`` for a section means "a list of tables" (``observers``)
 SCHEMA: dict[str, dict[str, str]] = {
     "": {"name": "string", "plant": "table", "sensor": "table", "observers": "tables",
-         "input": "table", "controller": "table", "run": "table"},
+         "input": "table_or_tables", "controller": "table", "run": "table"},
     "plant": {"name": "string", "dt": "positive", "physics_dt": "positive", "params": "table",
               "x0": "numbers"},
     "sensor": {"stages": "tables"},
@@ -60,6 +61,8 @@ OPEN = ("observers", "input", "controller", "stages")
 def _ok(kind: str, value: Any) -> bool:
     if kind == "string":
         return isinstance(value, str)
+    if kind == "table_or_tables":
+        return _ok("table", value) or (_ok("tables", value) and bool(value))
     if kind in ("table", "tables"):
         return isinstance(value, Mapping) if kind == "table" else (
             isinstance(value, list) and all(isinstance(v, Mapping) for v in value))
@@ -105,7 +108,11 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
     _check_table("", "", sc)
     for section in ("plant", "sensor", "input", "controller", "run"):
         if section in sc:
-            _check_table(section, section, sc[section])
+            if isinstance(sc[section], list):  # [[input]]: one table per actuator
+                for i, table in enumerate(sc[section]):
+                    _check_table(f"{section}[{i}]", section, table)
+            else:
+                _check_table(section, section, sc[section])
     for i, ob in enumerate(sc.get("observers", [])):
         _check_table(f"observers[{i}]", "observers", ob)
         if "type" not in ob:

@@ -115,12 +115,14 @@ def test_observer_output_checked_by_the_loop_before_running():
 @pytest.mark.parametrize("doc, needles", [
     (BASE + '[input]\ntype = "multisine"\namplitudes = [0.3]\n',
      ["input 'multisine': missing required parameter(s) ['frequencies']"]),
-    (BASE + '[input]\ntype = "prbs"\namplitude = 0.1\nperiod = 0.05\nlength = 0\n',
-     ["PRBS.length must be a positive integer; found 0"]),
-    (BASE + '[input]\ntype = "prbs"\namplitude = 0.1\nperiod = 0.05\nlength = 2000000000\n',
-     ["PRBS.length must be at most", "found 2000000000"]),
-    (BASE + '[input]\ntype = "prbs"\namplitude = 0.1\nperiod = 0.05\nlength = 10.5\n',
-     ["PRBS.length must be a positive integer; found 10.5"]),
+    (BASE + '[input]\ntype = "telegraph"\namplitude = 0.1\nperiod = 0.05\nlength = 0\n',
+     ["Telegraph.length must be a positive integer; found 0"]),
+    (BASE + '[input]\ntype = "telegraph"\namplitude = 0.1\nperiod = 0.05\nlength = 2000000000\n',
+     ["Telegraph.length must be at most", "found 2000000000"]),
+    (BASE + '[input]\ntype = "telegraph"\namplitude = 0.1\nperiod = 0.05\nlength = 10.5\n',
+     ["Telegraph.length must be a positive integer; found 10.5"]),
+    (BASE + '[input]\ntype = "prbs"\namplitude = 0.1\nperiod = 0.05\nnbits = 40\n',
+     ["PRBS.nbits must be in 2..20", "found 40"]),
 ])
 def test_bad_input_signal_is_one_line(doc, needles, tmp_path, capsys):
     assert_one_line(*_run(tmp_path, doc, capsys), *needles)

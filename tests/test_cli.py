@@ -160,3 +160,74 @@ def test_list_sizes_name_columns_to_the_longest_name(capsys):
     observers = blocks[2].splitlines()
     multi = next(r for r in observers if r.startswith("  high_gain_multi "))
     assert multi[3 + len("high_gain_multi"):].startswith(OBSERVERS["high_gain_multi"].summary)
+
+
+def test_version_is_the_installed_one(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"hgo-mj {version('hgo_mj')}"
+    res = subprocess.run([sys.executable, "-m", "hgo_mj.cli", "--version"], capture_output=True,
+                         text=True, timeout=120)
+    assert res.returncode == 0 and res.stdout.strip() == f"hgo-mj {version('hgo_mj')}"
+
+
+def _all_parsers(parser):
+    """The parser and every subcommand's parser, depth first."""
+    import argparse
+
+    yield parser.prog, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                yield from _all_parsers(sub)
+
+
+def test_every_flag_of_every_subcommand_has_help():
+    import argparse
+
+    from hgo_mj.cli import build_parser
+
+    seen, missing = set(), []
+    for prog, parser in _all_parsers(build_parser()):
+        seen.add(prog)
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            if not (action.help or "").strip() or action.help == argparse.SUPPRESS:
+                missing.append(f"{prog} {'/'.join(action.option_strings) or action.dest}")
+    assert seen == {"hgo-mj", *(f"hgo-mj {c}" for c in ("run", "sweep", "list", "reproduce",
+                                                       "demo"))}
+    assert not missing, missing
+
+
+def test_t_transient_and_band_flags_set_the_run_keys(tmp_path):
+    """``--t-transient`` and ``--band`` give the metrics of the TOML keys ``run.t_transient``
+    and ``run.band``, and differ from the defaults."""
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO.replace("t_transient = 0.5", ""))
+    with_keys = tmp_path / "k.toml"
+    with_keys.write_text(SCENARIO.replace("t_transient = 0.5", "t_transient = 1.2\nband = 0.2"))
+    assert main(["run", str(path), "--out", str(tmp_path / "default")]) == 0
+    assert main(["run", str(path), "--t-transient", "1.2", "--band", "0.2",
+                 "--out", str(tmp_path / "flags")]) == 0
+    assert main(["run", str(with_keys), "--out", str(tmp_path / "keys")]) == 0
+    default, flags, keys = (json.loads((tmp_path / d / "metrics.json").read_text())
+                            for d in ("default", "flags", "keys"))
+    def without_timing(m):  # the wall time per update differs from run to run
+        return {o: {k: v for k, v in mo.items() if k != "update_time"} for o, mo in m.items()}
+
+    assert without_timing(flags) == without_timing(keys)
+    traj = Trajectory.load(tmp_path / "flags" / "trajectory.npz")
+    np.testing.assert_allclose(flags["fast"]["rmse"],
+                               np.sqrt(np.mean(traj.error("fast")[traj.t >= 1.2] ** 2, axis=0)))
+    assert flags["fast"]["rmse"] != default["fast"]["rmse"]
+    assert flags["slow"]["settling_time"] != default["slow"]["settling_time"]
+
+
+def test_bad_t_transient_flag_exits_2(tmp_path, capsys):
+    assert main(["run", "--plant", "pendulum", "--observer", "high_gain:k=10", "--duration", "1",
+                 "--t-transient", "-1", "--out", str(tmp_path / "o")]) == 2
+    assert "t_transient" in capsys.readouterr().err

@@ -17,6 +17,7 @@ import warnings
 import numpy as np
 import pytest
 
+from hgo_mj._io import save_figure
 from hgo_mj.exceptions import DimensionError
 from hgo_mj.inputs import Multisine
 from hgo_mj.metrics import all_metrics, format_table
@@ -97,7 +98,7 @@ def test_metrics_of_unestimated_states_are_none(arm_run):
 def test_figure_of_a_partial_estimate(arm_run, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        path = plot_trajectory(arm_run, tmp_path / "f.png", title="multi")
+        path = save_figure(plot_trajectory(arm_run, title="multi"), tmp_path / "f.png")
     assert path.stat().st_size > 10_000
 
 
@@ -181,7 +182,7 @@ def test_an_estimate_that_is_never_defined(tmp_path):
         warnings.simplefilter("error")
         m = all_metrics(tr)["o"]
         format_table({"o": m})
-        plot_trajectory(tr, tmp_path / "f.png")
+        save_figure(plot_trajectory(tr), tmp_path / "f.png")
     assert m["estimated"] == [True, True] and m["undefined_samples"] == [0, T]
     assert m["rmse"][0] == pytest.approx(0.01) and np.isnan(m["rmse"][1])
     assert np.isnan(m["peak"][1]) and np.isnan(m["final"][1])

@@ -27,6 +27,12 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
     assert "hgo_mj/models/elastic_joint.xml" in names
     assert "hgo_mj/envs/__init__.py" in names
     assert not any(n.startswith("envs/") or n.startswith("models/") for n in names)
+    # PEP 639: an SPDX license expression and the license file in the wheel's metadata
+    (meta,) = [n for n in names if n.endswith(".dist-info/METADATA")]
+    text = zipfile.ZipFile(wheel).read(meta).decode()
+    assert "License-Expression: MIT" in text and "License-File: LICENSE" in text
+    (lic,) = [n for n in names if n.endswith("/LICENSE")]
+    assert "Copyright (c) 2026 the hgo_mj authors" in zipfile.ZipFile(wheel).read(lic).decode()
 
     venv = tmp_path / "venv"
     _run([sys.executable, "-m", "venv", str(venv)], cwd=tmp_path)

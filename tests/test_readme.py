@@ -17,7 +17,7 @@ def test_python_example_runs(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     scope: dict = {}
     exec(compile(code, "README.md", "exec"), scope)
-    assert "k=80" in capsys.readouterr().out
+    assert "k80" in capsys.readouterr().out
     alone = Trajectory.load(tmp_path / "runs" / "pendulum.npz")
     assert len(alone) == 10001
     exec(compile(batch, "README.md", "exec"), scope)  # the batch of 64, on the same parts
@@ -38,7 +38,8 @@ def test_scenario_file_runs(tmp_path, monkeypatch):
 def test_the_study_examples_run(tmp_path, monkeypatch, capsys):
     """The scenario file with the [sweep] table appended, through `hgo-mj sweep`; and the
     Python study on the scenario file."""
-    scenario, sweep = re.findall(r"```toml\n(.*?)```", README, re.S)[:2]
+    blocks = re.findall(r"```toml\n(.*?)```", README, re.S)
+    scenario, (sweep,) = blocks[0], [b for b in blocks if "[sweep]" in b]
     (tmp_path / "scenario.toml").write_text(scenario)
     (tmp_path / "study.toml").write_text(scenario + sweep)
     monkeypatch.chdir(tmp_path)
@@ -46,11 +47,12 @@ def test_the_study_examples_run(tmp_path, monkeypatch, capsys):
     import pandas as pd
 
     df = pd.read_parquet(tmp_path / "runs" / "sweep" / "results.parquet")
-    assert len(df) == 32 * 4 * 3 * 2 and not df["diverged"].any()
+    # 32 seeds x 4 gains of k20 x 3 noise levels, two observers (k20, k80), two states
+    assert len(df) == 32 * 4 * 3 * 2 * 2 and not df["diverged"].any()
     study = re.findall(r"```python\n(.*?)```", README, re.S)[2]
     scope: dict = {}
     exec(compile(study, "README.md", "exec"), scope)
-    assert len(scope["result"].table) == 16 * 3 * 2
+    assert len(scope["result"].table) == 16 * 3 * 2 * 2
     assert len(scope["figures"]) == 1
 
 
@@ -87,3 +89,49 @@ def test_adding_an_observer_example_runs(capsys):
         assert "hold_last_example" in OBSERVERS
     finally:
         OBSERVERS.pop("hold_last_example", None)
+
+
+def test_the_command_line_and_the_scenario_file_are_the_same_study(tmp_path, monkeypatch, capsys):
+    """The README calls its command line and its scenario file "the same study" as the Python
+    example: all three print the same RMSE of every observer and state."""
+    import json
+    import shlex
+
+    from hgo_mj.metrics import all_metrics
+
+    monkeypatch.chdir(tmp_path)
+    code = re.findall(r"```python\n(.*?)```", README, re.S)[0]
+    scope: dict = {}
+    exec(compile(code, "README.md", "exec"), scope)
+    python = all_metrics(scope["traj"], t_transient=1.0)
+    assert list(python) == ["k20", "k80"]
+    sh = re.findall(r"```sh\n(hgo-mj run --plant.*?)```", README, re.S)[0]
+    command = sh.split("\nhgo-mj run scenario.toml")[0].replace("\\\n", " ")
+    argv = shlex.split(command)
+    assert argv[:2] == ["hgo-mj", "run"] and "--t-transient" in argv
+    capsys.readouterr()
+    assert main(argv[1:]) == 0
+    printed = capsys.readouterr().out
+    cli = json.loads((tmp_path / "runs" / "pend" / "metrics.json").read_text())
+    toml = re.findall(r"```toml\n(.*?)```", README, re.S)[0]
+    assert 'name = "pendulum-two-gains"' in toml and toml.count("[[observers]]") == 2
+    (tmp_path / "scenario.toml").write_text(toml)
+    assert main(["run", "scenario.toml"]) == 0
+    scenario = json.loads((tmp_path / "runs" / "pendulum" / "metrics.json").read_text())
+    assert list(cli) == list(scenario) == ["k20", "k80"]
+    for name in python:
+        assert cli[name]["rmse"] == python[name]["rmse"] == scenario[name]["rmse"], name
+        for value in python[name]["rmse"]:
+            assert f"{value:.4g}" in printed  # the printed table
+
+
+def test_the_input_per_actuator_example_drives_the_two_link_arm(tmp_path):
+    import numpy as np
+
+    (block,) = [b for b in re.findall(r"```toml\n(.*?)```", README, re.S) if "[[input]]" in b]
+    (tmp_path / "arm.toml").write_text('[plant]\nname = "elastic_joint_2link"\n' + block
+                                       + "[run]\nduration = 1.0\n")
+    assert main(["run", str(tmp_path / "arm.toml"), "--out", str(tmp_path / "o")]) == 0
+    traj = Trajectory.load(tmp_path / "o" / "trajectory.npz")
+    assert traj.u.shape[1] == 2
+    assert np.ptp(traj.u[:, 0]) > 0.3 and np.ptp(traj.u[:, 1]) == 0.1

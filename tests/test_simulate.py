@@ -6,7 +6,16 @@ import numpy as np
 import pytest
 
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
-from hgo_mj.inputs import PRBS, Chirp, Constant, Controller, Multisine, Schedule, make_signal
+from hgo_mj.inputs import (
+    PRBS,
+    Chirp,
+    Constant,
+    Controller,
+    Multisine,
+    Schedule,
+    Telegraph,
+    make_signal,
+)
 from hgo_mj.metrics import all_metrics, format_table, observer_metrics, settling_time
 from hgo_mj.observers import HighGainObserver
 from hgo_mj.plants.ode import OdePlant
@@ -130,10 +139,12 @@ def test_signals():
     sig = np.array([ch(v)[0] for v in tt])
     zc = tt[1:][np.diff(np.sign(sig)) != 0]
     assert np.diff(zc)[-1] < 0.5 * np.diff(zc)[1]
-    pr = PRBS(0.5, 0.1, seed=2)
-    levels = {pr(0.1 * i + 0.05)[0] for i in range(100)}
+    tg = Telegraph(0.5, 0.1, seed=2)  # what PRBS(0.5, 0.1, seed=2) was
+    levels = {tg(0.1 * i + 0.05)[0] for i in range(100)}
     assert levels == {-0.5, 0.5}
-    assert pr(0.05)[0] == PRBS(0.5, 0.1, seed=2)(0.05)[0]
+    assert tg(0.05)[0] == Telegraph(0.5, 0.1, seed=2)(0.05)[0]
+    pr = PRBS(0.5, 0.1, nbits=7)  # the m-sequence (tests/test_inputs.py)
+    assert {pr(0.1 * i + 0.05)[0] for i in range(127)} == {-0.5, 0.5}
     with pytest.raises(DesignError, match=r"unknown input 'sine'; valid: \['chirp'"):
         make_signal("sine")
     with pytest.raises(DesignError, match=r"unknown parameter\(s\) \['freq'\]"):

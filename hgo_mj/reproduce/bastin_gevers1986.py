@@ -342,33 +342,29 @@ def part_pendulum() -> tuple[dict[str, Any], dict]:
 
 
 def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[str]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plotting import subplots
 
     files = []
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = subplots(figsize=(8, 4))
     ax.semilogy(curves_a["t"], np.maximum(curves_a["continuous"], 1e-17), "k", lw=1.5,
                 label="continuous time (DOP853)")
     for k, v in curves_a.items():
         if k.startswith("sampled"):
             ax.semilogy(v[0], np.maximum(v[1], 1e-17), lw=1, label=f"{k} (y held)")
     ax.axhline(1e-6, color="0.5", ls=":", lw=1)
-    ax.set_xlabel("t")
+    ax.set_xlabel("t [-] (residence times)")
     ax.set_ylabel(r"$\max_i |\hat\theta_i - \theta_i|$")
     ax.set_title("(a) AOCF 6.5 with theta frozen: parameter error")
     ax.legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig_a_frozen_theta.png")
-    plt.close(fig)
     files.append("fig_a_frozen_theta.png")
 
     tr, sys_ = trajs_b["monod"]
     tr_c = trajs_b["contois"]
     d = tr.observers["bastin_gevers"].diagnostics
     th = np.array([sys_.to_aocf(x, C2)[1] for x in tr.x])
-    fig, axes = plt.subplots(3, 2, figsize=(12, 8.5), sharex=True)
+    fig, axes = subplots(3, 2, figsize=(12, 8.5), sharex=True)
     axes[0, 0].plot(tr.t, tr.x[:, 1], "k", lw=1.2, label="z2 (biomass)")
     axes[0, 0].plot(tr.t, tr.observers["bastin_gevers"].x_hat[:, 1], "C0", lw=0.8, label="Monod: z2_hat")
     axes[0, 0].plot(tr_c.t, tr_c.x[:, 1], "0.5", lw=1.0, label="Contois: z2")
@@ -404,10 +400,9 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
         ax.set_xlabel("t (residence times)")
     fig.tight_layout()
     save_figure(fig, out / "fig_b_bioreactor.png")
-    plt.close(fig)
     files.append("fig_b_bioreactor.png")
 
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    fig, axes = subplots(3, 1, figsize=(9, 8), sharex=True)
     tr, names, truth = trajs_c["damping_known"]
     tr2, names2, truth2 = trajs_c["damping_estimated"]
     d, d2 = tr.observers["bastin_gevers"].diagnostics, tr2.observers["bastin_gevers"].diagnostics
@@ -432,7 +427,6 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     axes[2].legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig_c_pendulum.png")
-    plt.close(fig)
     files.append("fig_c_pendulum.png")
     return files
 

@@ -176,13 +176,10 @@ def true_regressor_gram(t: Array, x: Array, window: float = WINDOW) -> dict[str,
 
 
 def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th2: Array) -> list[str]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plotting import subplots
 
     files = []
-    fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    fig, ax = subplots(2, 1, figsize=(8, 5), sharex=True)
     e = r1["x_hat"] - r1["x"]
     for i in range(2):
         ax[i].plot(r1["t"], e[:, i], lw=0.8)
@@ -193,11 +190,10 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
     ax[0].set_title("Example 1: state estimation errors (paper Fig. 1), lambda = 10")
     fig.tight_layout()
     save_figure(fig, out / "fig1_state_errors.png")
-    plt.close(fig)
     files.append("fig1_state_errors.png")
     for name, r, th, title in (("fig2_parameters.png", r1, th1, "Example 1 (paper Fig. 2), lambda = 10"),
                                ("fig3_parameters.png", r2, th2, "Example 2 (paper Fig. 3), lambda = 40")):
-        fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+        fig, ax = subplots(2, 1, figsize=(8, 5), sharex=True)
         for i in range(2):
             ax[i].plot(r["t"], r["theta"][:, i], lw=1.0, label=f"theta_hat{i + 1}")
             ax[i].axhline(th[i], color="k", ls="--", lw=0.8, label=f"theta{i + 1} = {th[i]:g}")
@@ -208,9 +204,8 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
         ax[0].set_title(title)
         fig.tight_layout()
         save_figure(fig, out / name)
-        plt.close(fig)
         files.append(name)
-    fig, ax = plt.subplots(1, 1, figsize=(8, 3.5))
+    fig, ax = subplots(1, 1, figsize=(8, 3.5))
     ax.semilogy(r1["t"], r1["excitation"], label="example 1")
     ax.semilogy(r2["t"], r2["excitation"], label="example 2")
     ax.set_xlabel("t [s]")
@@ -220,7 +215,6 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
     ax.legend()
     fig.tight_layout()
     save_figure(fig, out / "excitation.png")
-    plt.close(fig)
     files.append("excitation.png")
     return files
 

@@ -201,16 +201,13 @@ def initial_state_scan(y: Array, x0_true_z: Array) -> dict[str, Any]:
 
 def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, float],
              k_027: tuple[float, Array] | None) -> list[str]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plotting import subplots
 
     t, lam = noisy.t, TUNING["lam"]
     names = []
     # (a) y, noisy y, estimate, output error
     rec = noisy.observers["x0_zero"]
-    fig, (ax, ae) = plt.subplots(2, 1, figsize=(9, 6.2), sharex=True,
+    fig, (ax, ae) = subplots(2, 1, figsize=(9, 6.2), sharex=True,
                                  gridspec_kw={"height_ratios": [2, 1.3]})
     ax.plot(t, noisy.y_meas[:, 0], color="0.75", lw=0.5, label="$y_n$ (noisy)")
     ax.plot(t, noisy.y_clean[:, 0], color="black", lw=1.4, label="$y = m$")
@@ -234,10 +231,9 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     ae.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig2a_output.png")
-    plt.close(fig)
     names.append("fig2a_output.png")
     # (b) s and its estimate
-    fig, ax = plt.subplots(figsize=(9, 4.2))
+    fig, ax = subplots(figsize=(9, 4.2))
     ax.plot(t, noisy.x[:, 1], color="black", lw=1.4, label="$s$")
     for name, c, ls in (("x0_zero", "tab:red", "--"), ("x0_y0", "tab:blue", ":")):
         s_hat, _ = substrate_estimate(noisy.observers[name].z_hat, noisy.u[:, 0], params)
@@ -249,10 +245,9 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     ax.legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig2b_substrate.png")
-    plt.close(fig)
     names.append("fig2b_substrate.png")
     # (c) k(t)
-    fig, ax = plt.subplots(figsize=(9, 4.2))
+    fig, ax = subplots(figsize=(9, 4.2))
     for name, c in (("x0_zero", "tab:red"), ("x0_y0", "tab:blue")):
         ax.plot(t, noisy.observers[name].diagnostics["k"], color=c, lw=1.2,
                 label=f"{INITIAL[name]}, noisy")
@@ -271,7 +266,6 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     ax.legend(fontsize=8, loc="center", bbox_to_anchor=(0.5, 0.56), ncol=2)
     fig.tight_layout()
     save_figure(fig, out / "fig2c_gain.png")
-    plt.close(fig)
     names.append("fig2c_gain.png")
     return names
 

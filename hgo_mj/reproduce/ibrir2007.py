@@ -385,16 +385,13 @@ def mujoco_numbers(rrd: Path | None = None, reference: Any = None) -> dict[str, 
 # ------------------------------------------------------------------------------ figures
 def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[str, Any],
              mj: dict[str, Any]) -> list[str]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plotting import subplots
 
     tr = noise["_noisy"]
     files = []
 
     def estimate_figure(name: str, label: str, fname: str, title: str) -> None:
-        fig, (ax, ae) = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True,
+        fig, (ax, ae) = subplots(2, 1, figsize=(8, 5.2), sharex=True,
                                      gridspec_kw={"height_ratios": [2, 1]})
         ax.plot(tr.t, tr.x[:, 1], color="black", lw=1.4, label="$x_2$ (true)")
         ax.plot(tr.t, tr.observers[name].x_hat[:, 1], color="C3" if name == "standard" else "C0",
@@ -407,13 +404,12 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
         ae.axhline(0.0, color="0.6", lw=0.6)
         ae.set_ylim(-0.4, 0.4)
         ae.set_ylabel("$x_2 - \\hat x_2$")
-        ae.set_xlabel("t (time-scaled units)")
+        ae.set_xlabel("t [-] (time-scaled units)")
         key = "rmse_x2_standard" if name == "standard" else "rmse_x2_qintegral"
         ae.text(0.99, 0.92, f"RMSE (t >= {T_TRANSIENT:g}) = {noise[key]:.4f}", ha="right",
                 va="top", transform=ae.transAxes, fontsize=8)
         fig.tight_layout()
         save_figure(fig, out / fname)
-        plt.close(fig)
         files.append(fname)
 
     estimate_figure("standard", "Riccati observer (67), $\\gamma=6$", "fig1_standard.png",
@@ -422,12 +418,12 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
                     "fig3_q_integral.png",
                     "Fig. 3 analogue: q-integral observer (q=2), the same noise")
 
-    fig, (ax, az) = plt.subplots(1, 2, figsize=(10, 3.4), gridspec_kw={"width_ratios": [2, 1]})
+    fig, (ax, az) = subplots(1, 2, figsize=(10, 3.4), gridspec_kw={"width_ratios": [2, 1]})
     zoom = (tr.t >= 20.0) & (tr.t <= 22.0)
     for a_, sel in ((ax, slice(None)), (az, zoom)):
         a_.plot(tr.t[sel], tr.y_meas[sel, 0], color="0.55", lw=0.5, label="measured y")
         a_.plot(tr.t[sel], tr.x[sel, 0], color="black", lw=1.2, label="$x_1$")
-        a_.set_xlabel("t")
+        a_.set_xlabel("t [-] (time-scaled units)")
     ax.set_ylabel("angle $x_1$ (rad, from upright)")
     ax.set_title(f"Fig. 2 analogue: noisy output (white Gaussian, std {NOISE_STD:g}, "
                  f"sampled every {SAMPLE_PERIOD:g})", fontsize=10)
@@ -435,10 +431,9 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig2_noisy_output.png")
-    plt.close(fig)
     files.append("fig2_noisy_output.png")
 
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = subplots(figsize=(8, 4))
     err = np.clip(euler["_err"], 1e-18, 1e6)
     ax.semilogy(euler["_grid"], err, color="C0", lw=1.0, label="$|e_K| / |e_0|$, K = 20000")
     for d, c, ls, lab in ((lmi["delta_max_lmi63"], "C2", "--", "LMI (63) bound (sufficient)"),
@@ -454,11 +449,10 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
     ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
     save_figure(fig, out / "fig4_euler_periods.png")
-    plt.close(fig)
     files.append("fig4_euler_periods.png")
 
     tm = mj["_noisy"]
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
+    fig, axes = subplots(2, 1, figsize=(8, 5.2), sharex=True)
     axes[0].plot(tm.t, tm.x[:, 1], color="black", lw=1.4, label="$x_2$ (MuJoCo)")
     for name, c in (("riccati", "C3"), ("q_integral", "C0")):
         axes[0].plot(tm.t, tm.observers[name].x_hat[:, 1], color=c, lw=0.7, label=name)
@@ -468,10 +462,9 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
     axes[0].set_title("MuJoCo cart pendulum (eq. 66), u = 0.5 sin t, the same noise", fontsize=10)
     axes[1].set_ylim(-0.4, 0.4)
     axes[1].set_ylabel("$x_2 - \\hat x_2$")
-    axes[1].set_xlabel("t")
+    axes[1].set_xlabel("t [s]")
     fig.tight_layout()
     save_figure(fig, out / "fig5_mujoco.png")
-    plt.close(fig)
     files.append("fig5_mujoco.png")
     return files
 

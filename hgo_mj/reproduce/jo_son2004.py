@@ -184,13 +184,10 @@ def part_elastic_joint(dt_check: bool = True) -> tuple[dict[str, Any], Any]:
 
 
 def _figures(out: Path, c: dict, el: Any) -> list[str]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plotting import subplots
 
     t = c["t"]
-    fig, axes = plt.subplots(3, 2, figsize=(12, 8), sharex=True)
+    fig, axes = subplots(3, 2, figsize=(12, 8), sharex=True)
     for i in range(3):
         ax = axes[i, 0]
         ax.plot(t, c["x"][:, i], "k", lw=1.3, label=f"x{i + 1}")
@@ -216,11 +213,10 @@ def _figures(out: Path, c: dict, el: Any) -> list[str]:
         ax.set_xlabel("t [s]")
     fig.tight_layout()
     save_figure(fig, out / "fig1_example.png")
-    plt.close(fig)
 
     tr, form, truth = el
     d = tr.observers["jo_son"].diagnostics
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig, axes = subplots(2, 1, figsize=(9, 6), sharex=True)
     for j, nm in enumerate(form.theta_names):
         axes[0].plot(tr.t, d[f"theta_{nm}"] / truth[j], lw=1.0, label=nm)
     axes[0].axhline(1.0, color="k", lw=0.6)
@@ -235,7 +231,6 @@ def _figures(out: Path, c: dict, el: Any) -> list[str]:
     axes[1].legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig_elastic_joint.png")
-    plt.close(fig)
     return ["fig1_example.png", "fig_elastic_joint.png"]
 
 

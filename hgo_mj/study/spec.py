@@ -196,7 +196,7 @@ def _accepted_keys(walked: str, node: Mapping[str, Any]) -> list[str]:
     elif walked == "controller":
         known |= {"type", "Q", "R", "x_eq", "u_eq", "u_max", "x_max", "saturate", "source",
                   "observer"}
-    elif walked == "input":
+    elif parts[0] == "input" and len(parts) <= 2:  # the input, or one actuator's (a list)
         from ..inputs import SIGNALS
 
         sig = SIGNALS.get(str(node.get("type", "constant")))

@@ -112,6 +112,8 @@ class System:
     #: the unit of each state, in the order of ``state_names`` (SI; ``""``: dimensionless or
     #: as the paper leaves it); empty: not declared
     state_units: ClassVar[tuple[str, ...]] = ()
+    #: the unit of time of the model (``""``: dimensionless, e.g. in residence times)
+    time_unit: ClassVar[str] = "s"
     input_names: ClassVar[tuple[str, ...]] = ()
     #: names of the measured outputs; for MuJoCo plants these are MJCF ``<sensor>`` names
     output_names: ClassVar[tuple[str, ...]] = ()

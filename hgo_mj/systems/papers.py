@@ -221,6 +221,9 @@ class BioreactorBullinger(System):
     reference: ClassVar[str] = ("Bullinger, Ilchmann, Allgöwer, NOLCOS 1998 "
                                 "(000_76f8d44710f783d2.txt), eq. 15 (model), eq. 16 (normal form)")
     state_names: ClassVar[tuple[str, ...]] = ("m", "s")
+    #: concentrations; the paper states no unit for them ("conc."), time in hours
+    state_units: ClassVar[tuple[str, ...]] = ("conc.", "conc.")
+    time_unit: ClassVar[str] = "h"
     input_names: ClassVar[tuple[str, ...]] = ("u",)
     output_names: ClassVar[tuple[str, ...]] = ("m",)
     param_names: ClassVar[tuple[str, ...]] = ("a1", "a2", "a3", "a4")
@@ -486,6 +489,10 @@ class BioreactorBastinGevers(System):
                                 "(dilution -z1 restored), 6.2-6.3, AOCF 6.4-6.5, inverse 6.6 "
                                 "(sign of 6.6b corrected)")
     state_names: ClassVar[tuple[str, ...]] = ("z1", "z2")
+    #: substrate and biomass concentrations, no unit stated in the paper ("conc."); time in
+    #: residence times (unit flow rate), dimensionless
+    state_units: ClassVar[tuple[str, ...]] = ("conc.", "conc.")
+    time_unit: ClassVar[str] = ""
     input_names: ClassVar[tuple[str, ...]] = ("u1", "u2")
     output_names: ClassVar[tuple[str, ...]] = ("z1",)
     param_names: ClassVar[tuple[str, ...]] = ("mu_max", "K_m", "K_c", "p2", "p3")
@@ -852,6 +859,9 @@ class BesanconExample1(System):
     reference: ClassVar[str] = ("Besançon, Zhang, Hammouri, IFAC 2004 (001_fa1af3b6b9a222a1.txt), "
                                 "section 4 first example, form eq. 9")
     state_names: ClassVar[tuple[str, ...]] = ("x1", "x2")
+    #: a mathematical example: dimensionless states and time (the paper states no units)
+    state_units: ClassVar[tuple[str, ...]] = ("", "")
+    time_unit: ClassVar[str] = ""
     input_names: ClassVar[tuple[str, ...]] = ("u",)
     output_names: ClassVar[tuple[str, ...]] = ("y",)
     param_names: ClassVar[tuple[str, ...]] = ("theta1", "theta2")
@@ -978,6 +988,9 @@ class BesanconExample2(System):
     reference: ClassVar[str] = ("Besançon, Zhang, Hammouri, IFAC 2004 (001_fa1af3b6b9a222a1.txt), "
                                 "section 4 second example, form eq. 6 / 21")
     state_names: ClassVar[tuple[str, ...]] = ("y", "y_dot", "u", "u_dot")
+    #: a mathematical example: dimensionless states and time (the paper states no units)
+    state_units: ClassVar[tuple[str, ...]] = ("", "", "", "")
+    time_unit: ClassVar[str] = ""
     input_names: ClassVar[tuple[str, ...]] = ("u_ddot",)
     output_names: ClassVar[tuple[str, ...]] = ("y", "u")
     param_names: ClassVar[tuple[str, ...]] = ("theta1", "theta2")
@@ -1169,6 +1182,9 @@ class JoSonExample(System):
     reference: ClassVar[str] = ("Jo, Son, KSME Int. J. 2004 (003_bd61d49996cbe973.txt), eq. 28 "
                                 "(system), eq. 30 (transformation), eq. 31 (canonical form)")
     state_names: ClassVar[tuple[str, ...]] = ("x1", "x2", "x3")
+    #: a mathematical example: dimensionless states; time in seconds ("after approximately
+    #: 2 seconds", section 4)
+    state_units: ClassVar[tuple[str, ...]] = ("", "", "")
     input_names: ClassVar[tuple[str, ...]] = ("u",)
     output_names: ClassVar[tuple[str, ...]] = ("y",)
     param_names: ClassVar[tuple[str, ...]] = ("theta",)

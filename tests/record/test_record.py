@@ -25,7 +25,7 @@ from hgo_mj.inputs import make_signal
 from hgo_mj.observers import make_observer
 from hgo_mj.plants import make_plant
 from hgo_mj.plants.mujoco import model_path
-from hgo_mj.record import Poses, Recorder, diagnostic_path, record_trajectory
+from hgo_mj.record import Poses, Recorder, diagnostic_path, read, record_trajectory
 from hgo_mj.sensors import SensorChain
 from hgo_mj.simulate import Trajectory, simulate
 
@@ -244,8 +244,9 @@ def test_episode_without_estimates(tmp_path):
         rec.record_episode(1, np.arange(4) * 1e-3, x, x[:, :1], np.zeros((4, 1)),
                            estimates={"hgo": 2 * x})
     ents, _ = read_rrd(path)
-    vals = ents["/state/angle"]["Scalars:scalars"]
-    assert np.isnan(vals[:4, 1]).all() and np.all(vals[4:, 1] == 2.0) and np.all(vals[:, 0] == 1.0)
+    df = read(path)
+    est, true = df["/state/angle[angle hgo]"].to_numpy(), df["/state/angle[angle true]"].to_numpy()
+    assert np.isnan(est[:4]).all() and np.all(est[4:] == 2.0) and np.all(true == 1.0)
     assert ents["/world/estimate/hgo/pole"].rows < ents["/world/true/pole"].rows
 
 
@@ -525,11 +526,11 @@ def test_cli_run_rrd(tmp_path, capsys):
     assert main([*RUN, "--duration", "1.5", "--out", str(tmp_path / "o"), "--rrd", str(path)]) == 0
     assert str(path) in capsys.readouterr().out
     traj = Trajectory.load(tmp_path / "o" / "trajectory.npz")
-    ents, blueprints = read_rrd(path)
-    assert blueprints == 1 and ents["/state/angle"].rows == len(traj) == 1501
-    np.testing.assert_array_equal(ents["/state/angle"]["Scalars:scalars"][:, 0], traj.x[:, 0])
-    assert "rmse" in ents["/metrics"].static["TextDocument:text"][0]
-    assert '"seed": 4' in ents["/scenario"].static["TextDocument:text"][0]
+    df = read(path)
+    assert len(df) == len(traj) == 1501 and read_rrd(path)[1] == 1  # one blueprint
+    np.testing.assert_array_equal(df["/state/angle[angle true]"], traj.x[:, 0])
+    assert "rmse" in df.attrs["static"]["/metrics"]["TextDocument:text"][0]
+    assert '"seed": 4' in df.attrs["static"]["/scenario"]["TextDocument:text"][0]
     # a bare --rrd writes OUT/run.rrd
     assert main([*RUN, "--duration", "0.1", "--out", str(tmp_path / "p"), "--rrd"]) == 0
     assert (tmp_path / "p" / "run.rrd").stat().st_size > 0
@@ -591,13 +592,14 @@ def test_cli_sigint_leaves_a_readable_recording(tmp_path):
     assert blueprints == 1 and rows >= chunk and rows % chunk == 0  # whole chunks
     for name in ("/state/angular_velocity", "/error/angle", "/sensor/angle", "/input/torque"):
         assert ents[name].rows == rows
+    df = read(path)
+    assert len(df) == rows and not df["/input/torque"].isna().any()
     # the same scenario, run to the recorded length, gives the recorded values
     assert main([*argv[:-4], "--duration", f"{(rows - 1) * 1e-3:.3f}",
                  "--out", str(tmp_path / "ref")]) == 0
     ref = Trajectory.load(tmp_path / "ref" / "trajectory.npz")
-    vals = ents["/state/angle"]["Scalars:scalars"]
-    np.testing.assert_array_equal(vals[:, 0], ref.x[:, 0])
-    np.testing.assert_array_equal(vals[:, 2], ref.observers["fast"].x_hat[:, 0])
+    np.testing.assert_array_equal(df["/state/angle[angle true]"], ref.x[:, 0])
+    np.testing.assert_array_equal(df["/state/angle[angle fast]"], ref.observers["fast"].x_hat[:, 0])
 
 
 # ----------------------------------------------------------------------------- estimate layout

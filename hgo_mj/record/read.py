@@ -1,0 +1,135 @@
+"""Reading a recording back: :func:`read` returns its series as a pandas DataFrame.
+
+Read with rerun's own reader (``rerun.chunk.RrdReader``, rerun-sdk >= 0.39), so a recording is
+checked against what rerun itself decodes, not against a second parser.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import DesignError
+from .layout import EPISODE, SIM_TIME, STEP
+
+#: the component holding a scalar series' values
+SCALARS = "Scalars:scalars"
+#: static components that name the series of an entity, in order
+_NAMES = ("SeriesLines:names", "SeriesPoints:names")
+
+
+def read(path: str | Path) -> Any:
+    """The scalar series of a recording (``.rrd``) as a :class:`pandas.DataFrame`.
+
+    One row per ``step`` (the index, the recording's ``step`` timeline), the ``sim_time``
+    timeline in seconds as a column (and ``episode`` where episodes were recorded), and one
+    column per series: the entity path (``/state/angle``, ``/input/torque``,
+    ``/observer/fast/gain``) where the entity holds one value per step, else
+    ``<entity>[<name>]`` with the series' name from its style (``/state/angle[angle true]``,
+    ``/state/angle[angle fast]``), or ``<entity>[<i>]`` where it has none. A series not logged
+    at a step is NaN there (a diagnostic logged only when it changes, decimated poses).
+    ``df.attrs["static"]`` holds every entity's static components
+    (``df.attrs["static"]["/scenario"]["TextDocument:text"][0]`` is the scenario document).
+    Poses (``Transform3D``) and other non-scalar components are not series and are left out.
+
+    Raises
+    ------
+    DesignError
+        The file does not exist or holds no recording.
+
+    Examples
+    --------
+    >>> df = read("runs/demo/demo.rrd")                      # doctest: +SKIP
+    >>> df[["sim_time", "/state/link_angle[link_angle true]"]].head()  # doctest: +SKIP
+    """
+    import pandas as pd
+    from rerun.chunk import RrdReader
+
+    path = Path(path)
+    if not path.is_file():
+        raise DesignError(f"recording {str(path)!r} does not exist")
+    try:
+        reader = RrdReader(path)
+        chunks = list(reader.stream())
+    except Exception as exc:  # rerun's own errors: not a readable recording
+        raise DesignError(f"cannot read {str(path)!r} as a rerun recording: {exc}") from None
+    static: dict[str, dict[str, Any]] = {}
+    parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    clocks: list[Any] = []
+    for chunk in chunks:
+        rb = chunk.to_record_batch()
+        names = [n for n in rb.schema.names if not n.startswith("rerun.controls")]
+        if chunk.is_static:
+            comps = static.setdefault(chunk.entity_path, {})
+            for name in names:
+                comps[name] = rb.column(name).to_pylist()[-1]
+            continue
+        if STEP not in names:
+            continue
+        steps = rb.column(STEP).to_numpy()
+        clocks.append(_clock_frame(rb, names, steps))
+        if SCALARS in names:
+            parts.setdefault(chunk.entity_path, []).append((steps, _scalars(rb.column(SCALARS))))
+    columns = {}
+    for entity, got in parts.items():
+        steps = np.concatenate([s for s, _ in got])
+        values = _stack([v for _, v in got])
+        labels = _labels(entity, values.shape[1], static.get(entity, {}))
+        frame = pd.DataFrame(values, index=pd.Index(steps, name=STEP), columns=labels)
+        frame = frame[~frame.index.duplicated(keep="last")]
+        for label in labels:
+            columns[label] = frame[label]
+    clock = (pd.concat(clocks) if clocks else pd.DataFrame(columns=[SIM_TIME]))
+    clock = clock[~clock.index.duplicated(keep="last")]
+    df = pd.concat([clock, pd.DataFrame(columns)], axis=1).sort_index()
+    df.index.name = STEP
+    df.attrs["static"] = static
+    return df
+
+
+def _clock_frame(rb: Any, names: list[str], steps: np.ndarray) -> Any:
+    import pandas as pd
+    import pyarrow as pa
+
+    out = {}
+    if SIM_TIME in names:
+        out[SIM_TIME] = rb.column(SIM_TIME).cast(pa.int64()).to_numpy(zero_copy_only=False) / 1e9
+    if EPISODE in names:
+        out[EPISODE] = rb.column(EPISODE).to_numpy(zero_copy_only=False)
+    return pd.DataFrame(out, index=pd.Index(steps, name=STEP))
+
+
+def _scalars(col: Any) -> np.ndarray:
+    """A column of scalar lists as ``(rows, width)`` floats; ragged or missing rows padded
+    with NaN."""
+    import pyarrow.compute as pc
+
+    lens = pc.list_value_length(col).to_numpy(zero_copy_only=False)
+    if col.null_count == 0 and len(lens) and np.all(lens == lens[0]):
+        flat = col.flatten().to_numpy(zero_copy_only=False).astype(float)
+        return flat.reshape(len(lens), int(lens[0]))
+    rows = col.to_pylist()
+    width = max((len(r) for r in rows if r is not None), default=1)
+    out = np.full((len(rows), width), np.nan)
+    for i, r in enumerate(rows):
+        if r:
+            out[i, : len(r)] = r
+    return out
+
+
+def _stack(blocks: list[np.ndarray]) -> np.ndarray:
+    width = max(b.shape[1] for b in blocks)
+    return np.concatenate([np.pad(b, ((0, 0), (0, width - b.shape[1])), constant_values=np.nan)
+                           for b in blocks])
+
+
+def _labels(entity: str, width: int, static: dict[str, Any]) -> list[str]:
+    if width == 1:
+        return [entity]
+    for key in _NAMES:
+        names = static.get(key)
+        if names is not None and len(names) == width and len(set(names)) == width:
+            return [f"{entity}[{n}]" for n in names]
+    return [f"{entity}[{i}]" for i in range(width)]
