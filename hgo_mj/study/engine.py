@@ -116,13 +116,29 @@ def plan(cells: Sequence[Any], seeds: Sequence[int], *, done: set[tuple[int, int
     chunks: list[Chunk] = []
     for buckets in groups.values():
         members = [m for ms in buckets.values() for m in ms]  # bucket after bucket
-        n = math.ceil(len(members) / piece)
+        n = math.ceil(len(members) / min(piece, _closed_piece(scen[members[0][0]])))
         step = math.ceil(len(members) / n)
         for i in range(0, len(members), step):
             part = members[i:i + step]
             chunks.append(Chunk(len(chunks), part, {c: scen[c] for c, _ in part},
                                 dict(metric_kw or {})))
     return chunks
+
+
+#: a closed loop keeps its members' errors until the end (:meth:`Metrics.settle`): at most
+#: this many member-samples a chunk (with 4 states, 64 MiB a chunk and observer)
+CLOSED_VALUES = 2 ** 21
+
+
+def _closed_piece(sc: Mapping[str, Any]) -> int:
+    """The most members a chunk of this scenario's group holds: unbounded for an open loop,
+    :data:`CLOSED_VALUES` over the run's samples for a closed loop."""
+    if "controller" not in sc:
+        return 2 ** 62
+    run, plant = sc.get("run", {}), sc.get("plant", {})
+    period = run.get("sample_period") or plant.get("dt") or 0.001
+    samples = int(float(run.get("duration", 1.0)) / float(period)) + 1
+    return max(1, CLOSED_VALUES // max(samples, 1))
 
 
 # ------------------------------------------------------------------- the replayed plant

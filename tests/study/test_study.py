@@ -493,3 +493,15 @@ def test_many_curves_are_pooled_and_every_plant_gives_its_units(tmp_path):
     assert [t.get_text() for t in fig.legends[0].get_texts()] == ["hgo (pooled)"]
     ylabels = {ax.get_title(): ax.get_ylabel() for ax in fig.axes[::3]}
     assert ylabels["motor_velocity"].endswith("[rad/s]") and ylabels["angle"].endswith("[rad]")
+
+
+def test_a_closed_loops_chunks_are_bounded_by_its_kept_errors():
+    """A closed loop keeps every member's errors until the end: its chunks hold at most
+    CLOSED_VALUES member-samples; an open loop's are not bounded that way."""
+    from hgo_mj.study.engine import CLOSED_VALUES
+
+    study = Study({**CLOSED, "run": {"duration": 10.0, "seed": 0}}, seeds=1024)
+    sizes = [c.n_runs for c in study.plan().chunks]
+    assert sum(sizes) == 1024 and max(sizes) * 10001 <= CLOSED_VALUES
+    assert [c.n_runs for c in Study({**BASE, "run": {"duration": 10.0}}, seeds=1024).plan(
+    ).chunks] == [1024]
