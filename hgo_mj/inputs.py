@@ -217,7 +217,22 @@ class Chirp(Signal):
 TELEGRAPH_MAX_LENGTH = 2 ** 22
 
 
-class PRBS(Signal):
+class _Levels(Signal):
+    """A sequence of +-1 ``_levels``, each held ``period`` seconds and repeated:
+    ``offset + amplitude * level`` (what :class:`PRBS` and :class:`Telegraph` share)."""
+
+    amplitude: float
+    period: float
+    offset: float
+    _levels: Array
+
+    def values(self, t: Array) -> Array:
+        i = (np.floor(np.asarray(t, dtype=float) / self.period + 1e-9).astype(np.int64)
+             % self._levels.size)
+        return (self.offset + self.amplitude * self._levels[i])[:, None]
+
+
+class PRBS(_Levels):
     """Maximum-length pseudo-random binary sequence (an m-sequence): ``u = offset +
     amplitude * (2 b_k - 1)`` for ``k period <= t < (k + 1) period``, where ``b`` is the
     output of an ``nbits``-stage linear feedback shift register with primitive taps
@@ -255,16 +270,12 @@ class PRBS(Signal):
         """The sequence's period in clock periods, ``2**nbits - 1``."""
         return int(self._levels.size)
 
-    def values(self, t: Array) -> Array:
-        i = np.floor(np.asarray(t, dtype=float) / self.period + 1e-9).astype(np.int64) % self.length
-        return (self.offset + self.amplitude * self._levels[i])[:, None]
-
     def params(self) -> dict[str, Any]:
         return {"amplitude": self.amplitude, "period": self.period, "nbits": self.nbits,
                 "offset": self.offset, "shift": self.shift}
 
 
-class Telegraph(Signal):
+class Telegraph(_Levels):
     """Random telegraph signal: ``offset +- amplitude``, each ``period`` seconds the level drawn
     anew, high or low with probability 1/2, from ``seed`` (a fixed sequence of ``length``
     levels, repeated; independent of the run). What ``prbs`` gave before it became a true
@@ -287,10 +298,6 @@ class Telegraph(Signal):
                               f"sequence repeats cyclically); found {self.length}")
         rng = np.random.default_rng(self.seed)
         self._levels = np.where(rng.random(self.length) < 0.5, -1.0, 1.0)
-
-    def values(self, t: Array) -> Array:
-        i = np.floor(np.asarray(t, dtype=float) / self.period + 1e-9).astype(np.int64) % self.length
-        return (self.offset + self.amplitude * self._levels[i])[:, None]
 
     def params(self) -> dict[str, Any]:
         return {"amplitude": self.amplitude, "period": self.period, "seed": self.seed,

@@ -171,8 +171,6 @@ class Study:
                             0 <= t_tr <= kw["duration"]):
                         raise DesignError(f"run.t_transient must be a number in [0, duration = "
                                           f"{kw['duration']}]; found {t_tr!r}")
-                if kw["inputs"].__class__.__name__ == "Controller":  # pragma: no cover
-                    raise DesignError("closed-loop studies are not supported yet")
             except HgoError as exc:
                 raise DesignError(f"cell {cell.index} ({cell.label()}): {exc}") from None
             except (TypeError, ValueError) as exc:
