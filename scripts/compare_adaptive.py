@@ -57,6 +57,7 @@ from hgo_mj.metrics import settling_time
 from hgo_mj.observers import make_observer
 from hgo_mj.observers.besancon import BesanconObserver
 from hgo_mj.plants import make_plant
+from hgo_mj.progress import track
 from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
 
@@ -533,7 +534,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plants", nargs="*", default=list(PLANTS))
     ap.add_argument("--cache", help="pickle of the raw runs: written after a run; with "
                                     "--render-only, read instead of running")
-    ap.add_argument("--render-only", action="store_true")
+    ap.add_argument("--render-only", action="store_true",
+                    help="write the report from --cache without running")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     args.seeds = SEEDS[:1] if args.quick else SEEDS
     jobs = []
@@ -559,9 +562,11 @@ def main(argv: list[str] | None = None) -> int:
     else:
         if args.jobs > 1:
             with ProcessPoolExecutor(args.jobs) as ex:
-                results = list(ex.map(run_one, jobs, chunksize=1))
+                results = list(track(ex.map(run_one, jobs, chunksize=1), total=len(jobs),
+                                     desc="compare_adaptive", quiet=args.quiet))
         else:
-            results = [run_one(j) for j in jobs]
+            results = [run_one(j) for j in track(jobs, desc="compare_adaptive",
+                                                  quiet=args.quiet)]
         elapsed = time.perf_counter() - t0
         if args.cache:
             Path(args.cache).parent.mkdir(parents=True, exist_ok=True)

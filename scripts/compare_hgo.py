@@ -54,6 +54,7 @@ from hgo_mj.observers import (
 )
 from hgo_mj.observers.base import Observer
 from hgo_mj.plants import make_plant
+from hgo_mj.progress import Progress
 from hgo_mj.sensors import SensorChain, encoder
 from hgo_mj.simulate import simulate
 from hgo_mj.systems import ElasticJoint
@@ -188,14 +189,17 @@ def relative_score(traj: Any, t_transient: float) -> float:
 
 
 def tune(plant: Any, std: float, duration: float, t_transient: float,
-         grid: Sequence[float]) -> dict[str, dict[str, Any]]:
-    """Grid search of each family's gain on :data:`TUNE_SEED` (not an evaluation seed)."""
+         grid: Sequence[float], progress: Progress | None = None) -> dict[str, dict[str, Any]]:
+    """Grid search of each family's gain on :data:`TUNE_SEED` (not an evaluation seed); one
+    step of ``progress`` a run."""
+    progress = progress or Progress(0)
     out = {}
     for fam, make in FAMILIES.items():
         scores = {}
         for g in grid:
             traj, _ = run(plant, make(plant.system, g), std, TUNE_SEED, duration)
             scores[g] = math.inf if traj is None else relative_score(traj, t_transient)
+            progress.add()
         best = min(scores, key=lambda g: scores[g])
         out[fam] = {"best": best, "scores": scores}
     return out
@@ -233,9 +237,11 @@ def build_rows(system: ElasticJoint, tuned: dict[str, dict[str, Any]], rho: floa
 
 
 def evaluate(plant: Any, rows: list[Row], noise: Sequence[float], seeds: Sequence[int],
-             duration: float, t_transient: float) -> tuple[dict[tuple[str, float], Cell],
-                                                          dict[float, Any]]:
-    """Every row at every noise level and seed; also the seed-0 trajectories for the figure."""
+             duration: float, t_transient: float, progress: Progress | None = None
+             ) -> tuple[dict[tuple[str, float], Cell], dict[float, Any]]:
+    """Every row at every noise level and seed; also the seed-0 trajectories for the figure;
+    one step of ``progress`` a run."""
+    progress = progress or Progress(0)
     cells: dict[tuple[str, float], Cell] = {}
     shown: dict[float, Any] = {}
     for std in noise:
@@ -244,6 +250,7 @@ def evaluate(plant: Any, rows: list[Row], noise: Sequence[float], seeds: Sequenc
             for seed in seeds:
                 ob = row.make(plant.system, std)
                 traj, caught = run(plant, ob, std, seed, duration)
+                progress.add()
                 cell.warnings.update(caught)
                 if traj is None:
                     cell.diverged += 1
@@ -457,6 +464,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--grid", type=float, nargs="+", default=list(GAIN_GRID))
     ap.add_argument("--quick", action="store_true",
                     help="one noise level, one seed, 2 s, a 3-point grid (for the test)")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     if args.quick:
         args.noise, args.seeds, args.duration, args.transient = [1e-4], 1, 2.0, 0.5
@@ -471,10 +479,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     rho, at = lipschitz_rho(system.params)
     g_min = min_gamma(alpha, rho)
     mid = args.noise[len(args.noise) // 2]
-    tuned = tune(plant, mid, args.duration, args.transient, args.grid)
-    rows = build_rows(system, tuned, rho, g_min)
     seeds = list(range(args.seeds))
-    cells, shown = evaluate(plant, rows, args.noise, seeds, args.duration, args.transient)
+    with Progress(len(FAMILIES) * len(args.grid), desc="compare_hgo: tuning",
+                  quiet=args.quiet) as progress:
+        tuned = tune(plant, mid, args.duration, args.transient, args.grid, progress)
+    rows = build_rows(system, tuned, rho, g_min)
+    with Progress(len(rows) * len(args.noise) * len(seeds), desc="compare_hgo: evaluation",
+                  quiet=args.quiet) as progress:
+        cells, shown = evaluate(plant, rows, args.noise, seeds, args.duration, args.transient,
+                                progress)
     costs = update_costs(plant, rows, shown[mid][rows[1].name], mid)
     zmax = np.abs([system.to_normal(x) for x in shown[mid][rows[1].name].x]).max(axis=0)
     figure(fig_path, rows, cells, shown, args.noise)

@@ -61,6 +61,7 @@ from ..metrics import settling_time
 from ..observers.bastin_gevers import BastinGeversObserver
 from ..plants import make_plant
 from ..plants.ode import OdePlant
+from ..progress import Progress
 from ..simulate import Trajectory, simulate
 from ..systems.aocf import AOCF
 from ..systems.base import Array, System
@@ -506,7 +507,8 @@ def _report(s: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(out: Path, *, rrd: Path | None = None, sweep: bool = True) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, sweep: bool = True,
+        quiet: bool = False) -> dict[str, Any]:
     """Run parts 0, (a), (b), (c); write ``summary.json``, ``report.txt`` and the figures.
 
     Parameters
@@ -518,13 +520,20 @@ def run(out: Path, *, rrd: Path | None = None, sweep: bool = True) -> dict[str, 
         it (``<stem>_pendulum.rrd``).
     sweep : bool
         Include the small gain sweep of part (b) (three more runs).
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a part).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    transform = check_transformations()
-    frozen, curves_a = part_frozen()
-    bio, trajs_b = part_bioreactor(sweep=sweep)
-    pend, trajs_c = part_pendulum()
+    with Progress(4, unit="part", desc="bastin_gevers1986", quiet=quiet) as progress:
+        transform = check_transformations()
+        progress.add()
+        frozen, curves_a = part_frozen()
+        progress.add()
+        bio, trajs_b = part_bioreactor(sweep=sweep)
+        progress.add()
+        pend, trajs_c = part_pendulum()
+        progress.add()
     mo = bio["monod"]
     summary: dict[str, Any] = {
         "frozen_theta_error": frozen["frozen_theta_error"],

@@ -62,6 +62,7 @@ from ..inputs import FunctionSignal, TimeShift
 from ..metrics import settling_time
 from ..observers.besancon import BesanconObserver
 from ..plants.ode import OdePlant
+from ..progress import Progress
 from ..simulate import package_versions, simulate
 from ..systems.papers import (
     BesanconExample1,
@@ -219,21 +220,25 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
     return files
 
 
-def run(out: Path, *, rrd: Path | None = None, dt: float = DT,
-        continuous: bool = True) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, dt: float = DT, continuous: bool = True,
+        quiet: bool = False) -> dict[str, Any]:
     """Run both examples; write ``summary.json``, ``report.txt`` and the figures to ``out``.
 
     ``rrd``: write the sampled run of example 1 to this rerun recording and that of example 2
     next to it (``<stem>_ex2.rrd``; their states differ), both listed in the summary's
-    ``recordings`` (the continuous-time LSODA runs are not recorded).
+    ``recordings`` (the continuous-time LSODA runs are not recorded). ``quiet``: no progress
+    on stderr (:class:`hgo_mj.progress.Progress`, one step a run).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     s1, s2 = BesanconExample1(), BesanconExample2()
     th1, th2 = s1.theta, s2.theta
+    progress = Progress(4 if continuous else 2, unit="run", desc="besancon2004", quiet=quiet)
     r1 = run_sampled(s1, EX1, besancon_ex1_input, dt)
+    progress.add()
     r2 = run_sampled(s2, EX2, besancon_ex2_input, dt)
+    progress.add()
     ex1 = {
         "theta_at_30s": _at(r1, "theta", 30.0).tolist(),
         "time_to_5pct": time_within(r1["t"], r1["theta"], th1),
@@ -262,8 +267,10 @@ def run(out: Path, *, rrd: Path | None = None, dt: float = DT,
     if continuous:
         te1 = np.arange(0.0, EX1["horizon"] + 1e-9, 0.5)
         c1 = run_continuous(s1, EX1, besancon_ex1_input, te1)
+        progress.add()
         te2 = np.arange(0.0, EX2["horizon"] + 1e-9, 1.0)
         c2 = run_continuous(s2, EX2, lambda t: besancon_ex2_signal(t)[2:], te2)
+        progress.add()
         summary["continuous"] = {
             "ex1": {"theta_at_30s": _at(c1, "theta", 30.0).tolist(),
                     "time_to_5pct": time_within(c1["t"], c1["theta"], th1),
@@ -272,6 +279,7 @@ def run(out: Path, *, rrd: Path | None = None, dt: float = DT,
             "ex2": {"theta_at_30s": _at(c2, "theta", 30.0).tolist(),
                     "theta_at_300s": _at(c2, "theta", 300.0).tolist()},
         }
+    progress.close()
     summary["figures"] = _plots(out, r1, r2, th1, th2)
     if rrd is not None:
         rrd = Path(rrd)

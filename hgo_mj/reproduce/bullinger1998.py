@@ -71,6 +71,7 @@ from scipy.optimize import brentq
 from .._io import save_figure
 from ..observers.adaptive_gain import AdaptiveGainObserver
 from ..plants.ode import OdePlant
+from ..progress import Progress
 from ..sensors import GaussianNoise, SensorChain
 from ..simulate import Trajectory, simulate
 from ..systems.papers import BioreactorBullinger, bullinger_input
@@ -328,7 +329,8 @@ def _report(s: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, seeds: int = 10,
+        quiet: bool = False) -> dict[str, Any]:
     """Run the reproduction; write ``out/summary.json``, ``out/report.txt`` and the figures.
 
     Parameters
@@ -341,6 +343,8 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
         summary's ``recordings`` and the report.
     seeds : int
         Number of noise realizations (seeds ``0 .. seeds-1``) averaged in the noisy numbers.
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a run).
 
     Returns
     -------
@@ -364,8 +368,13 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
     x0 = np.array(system.default_x0)
     y0 = float(x0[0])
     z0s = {"x0_zero": (0.0, 0.0), "x0_y0": (y0, 0.0)}
-    clean = _simulate(z0s, None)
-    runs = [_simulate(z0s, s) for s in range(seeds)]
+    with Progress(seeds + 1, unit="run", desc="bullinger1998", quiet=quiet) as progress:
+        clean = _simulate(z0s, None)
+        progress.add()
+        runs = []
+        for s in range(seeds):
+            runs.append(_simulate(z0s, s))
+            progress.add()
     summary: dict[str, Any] = {}
     for name in z0s:
         c = _run_stats(clean, name, params)

@@ -91,6 +91,7 @@ from ..design import (
     sampling_lmi_63,
 )
 from ..exceptions import DesignError
+from ..progress import Progress
 from . import finish
 
 ALPHA = (3.0, 2.0)
@@ -514,7 +515,7 @@ def _report(s: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, quiet: bool = False) -> dict[str, Any]:
     """Run the reproduction; write ``out/summary.json``, ``out/report.txt`` and the figures.
 
     Parameters
@@ -523,15 +524,23 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
         Output folder (created).
     rrd : Path, optional
         Also write a rerun recording of the noisy MuJoCo run there.
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a part).
     """
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    design = design_numbers()
-    lmi = lmi_numbers()
-    euler = euler_numbers(lmi)
-    noise = noise_numbers()
-    mj = mujoco_numbers(rrd, reference=noise["_noisy"])
+    with Progress(5, unit="part", desc="ibrir2007", quiet=quiet) as progress:
+        design = design_numbers()
+        progress.add()
+        lmi = lmi_numbers()
+        progress.add()
+        euler = euler_numbers(lmi)
+        progress.add()
+        noise = noise_numbers()
+        progress.add()
+        mj = mujoco_numbers(rrd, reference=noise["_noisy"])
+        progress.add()
     corrections = [
         "eq. 8 / condition (10): the sum must be sum_l (-1)^l alpha_(i+l) alpha_(i-l) (eq. 17); "
         f"for alpha = C(4,k) the printed form gives Q~ = {design['qintegral_Q_weights_eq8_as_printed']}"

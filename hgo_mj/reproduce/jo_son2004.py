@@ -48,6 +48,7 @@ from ..metrics import settling_time
 from ..observers.jo_son import JoSonForm, JoSonObserver, jo_son_gain
 from ..plants import make_plant
 from ..plants.ode import OdePlant
+from ..progress import Progress
 from ..simulate import simulate
 from ..systems.base import Array
 from ..systems.papers import JoSonExample, jo_son_input
@@ -291,7 +292,7 @@ def _report(s: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, quiet: bool = False) -> dict[str, Any]:
     """Run parts 0-2; write ``summary.json``, ``report.txt`` and the figures.
 
     Parameters
@@ -301,12 +302,18 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
     rrd : Path, optional
         Write the elastic-joint run to this rerun recording (the example runs in continuous time,
         outside the testbed's loop, and is not recorded).
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a part).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    coords = check_coordinates()
-    example, curves = part_example()
-    elastic, el = part_elastic_joint()
+    with Progress(3, unit="part", desc="jo_son2004", quiet=quiet) as progress:
+        coords = check_coordinates()
+        progress.add()
+        example, curves = part_example()
+        progress.add()
+        elastic, el = part_elastic_joint()
+        progress.add()
     c = example["continuous"]
     summary: dict[str, Any] = {
         "t_error_stays_below_1e-1": c["t_error_stays_below_0.1"],
