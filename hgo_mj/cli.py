@@ -275,7 +275,8 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         from .simulate import package_versions
 
         rec = Recorder.for_plant(rrd, plant, list(observers),
-                                 recording_name=str(sc.get("name", name)))
+                                 recording_name=str(sc.get("name", name)),
+                                 dropouts=kw["sensor"].has_dropouts)
     try:
         on_chunk = None
         if rec is not None:

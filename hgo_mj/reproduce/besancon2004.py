@@ -113,6 +113,7 @@ def record_sampled(run: dict[str, Any], system: Any, path: Path, name: str,
     the (noise-free) outputs, the input, and the parameter estimates and the excitation level
     as the observer's diagnostics (the true parameters next to them)."""
     from ..record import Recorder
+    from ..units import system_units
 
     run = {k: v[::stride] if isinstance(v, np.ndarray) and k != "gram" else v
            for k, v in run.items()}
@@ -120,7 +121,8 @@ def record_sampled(run: dict[str, Any], system: Any, path: Path, name: str,
     diag["excitation"] = run["excitation"]
     with Recorder(path, state_names=system.state_names, output_names=system.output_names,
                   input_names=system.input_names, observers=["besancon"], params=system.params,
-                  recording_name=f"besancon2004 {name}") as rec:
+                  recording_name=f"besancon2004 {name}", units=system_units(type(system)),
+                  dropouts=False) as rec:
         rec.log_metadata({"scenario": f"besancon2004 {name}", "plant": type(system).__name__,
                           "system_params": dict(system.params), "versions": package_versions()})
         rec.record(run["t"], run["x"], run["y"], run["y"], run["u"], {"besancon": run["x_hat"]},
