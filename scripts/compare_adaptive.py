@@ -295,10 +295,8 @@ def _fmt_t(v: list[float]) -> str:
 
 
 def write_report(groups: dict, out: Path, args: Any, elapsed: float) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from hgo_mj._io import save_figure
+    from hgo_mj.plotting import subplots
 
     out.mkdir(parents=True, exist_ok=True)
     lines = [
@@ -334,7 +332,9 @@ def write_report(groups: dict, out: Path, args: Any, elapsed: float) -> None:
                   f"{', '.join(cfg['params'])} | state RMSE ({', '.join(_state_names(plant))}) "
                   "| cost [us] |",
                   "|---|---:|---:|---|---|---:|"]
-        fig, axes = plt.subplots(1, len(cfg["params"]), figsize=(11, 3.6), sharey=True)
+        fig, axes = subplots(1, len(cfg["params"]), figsize=(11, 3.6), sharey=True,
+                             layout="constrained", squeeze=False)
+        axes = axes[0]
         for mname in METHODS:
             if mname in g["skipped"]:
                 continue
@@ -356,12 +356,11 @@ def write_report(groups: dict, out: Path, args: Any, elapsed: float) -> None:
             ax.set_title(f"|{cfg['params'][i]} error| / truth")
             ax.set_xlabel("t [s]")
             ax.set_ylim(1e-6, 3.0)
-        np.atleast_1d(axes)[0].legend(fontsize=7, loc="lower left")
+        axes[0].legend(fontsize=7, loc="lower left")
+        axes[0].set_ylabel("|estimate - true| / true [-]")
         fig.suptitle(title, fontsize=10)
-        fig.tight_layout()
         fname = f"adaptive_{plant}_{noise:g}{'_mismatch' if mismatch else ''}.png"
-        fig.savefig(out / fname, dpi=100)
-        plt.close(fig)
+        save_figure(fig, out / fname, dpi=100)
         lines += ["", f"![{title}]({fname})", ""]
         for mname in METHODS:
             if mname in g["skipped"]:

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from hgo_mj._bench import machine_line, versions_line
+from hgo_mj._io import save_figure
 from hgo_mj.design import binomial_coefficients, min_gamma
 from hgo_mj.exceptions import DivergenceError
 from hgo_mj.inputs import Multisine
@@ -54,6 +55,7 @@ from hgo_mj.observers import (
 )
 from hgo_mj.observers.base import Observer
 from hgo_mj.plants import make_plant
+from hgo_mj.plotting import subplots
 from hgo_mj.progress import Progress
 from hgo_mj.sensors import SensorChain, encoder
 from hgo_mj.simulate import simulate
@@ -396,19 +398,14 @@ def headline(rows: list[Row], cells: dict[tuple[str, float], Cell], noise: Seque
 
 def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
            shown: dict[float, Any], noise: Sequence[float]) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (a1, a2, a3) = plt.subplots(3, 1, figsize=(8.5, 10.5))
+    fig, (a1, a2, a3) = subplots(3, 1, figsize=(8.5, 10.5), layout="constrained")
     std = noise[len(noise) // 2]
     trajs = shown.get(std, {})
     pick = [rows[1], rows[3], rows[5], rows[7]]
     first = next(iter(trajs.values()), None)
     if first is not None:
         win = first.t <= min(first.t[-1], 3.0)
-        a1.plot(first.t[win], first.x[win, 3], color="black", lw=1.6, label="true")
+        a1.plot(first.t[win], first.x[win, 3], color="black", lw=1.6, label="true", zorder=3)
         for i, row in enumerate(pick):
             if row.name in trajs:
                 tr = trajs[row.name]
@@ -416,7 +413,7 @@ def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
                         label=row.name)
         a1.set_ylim(1.5 * first.x[:, 3].min() - 0.5, 1.5 * first.x[:, 3].max() + 0.5)
     a1.set_title(f"motor velocity and its estimates, sigma = {std:g} rad, seed 0", fontsize=10)
-    a1.set_ylabel("rad/s")
+    a1.set_ylabel("motor velocity [rad/s]")
     a1.set_xlabel("t [s]")
     a1.legend(fontsize=7, loc="upper right")
     for i, s in enumerate(noise):
@@ -426,7 +423,7 @@ def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
                     label=f"sigma = {s:g}")
     a2.set_title("adaptive gain k(t) (paper 000, eq. 4-5), seed 0", fontsize=10)
     a2.set_xlabel("t [s]")
-    a2.set_ylabel("k")
+    a2.set_ylabel("gain k [1/s]")
     a2.legend(fontsize=7)
     for i, row in enumerate(rows):
         means, errs, xs = [], [], []
@@ -446,10 +443,7 @@ def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
     a3.set_ylabel("motor velocity RMSE [rad/s]")
     a3.set_title("motor velocity RMSE after the transient, mean and std over seeds", fontsize=10)
     a3.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
