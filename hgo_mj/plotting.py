@@ -126,6 +126,9 @@ def plot_trajectory(traj: Any, *, title: str = "") -> Any:
     axes[0, 1].set_title("estimation error (axis fits t > 20% of the run)", fontsize=10)
     for ax in axes[-1]:
         ax.set_xlabel(f"t {bracket(t_unit)}")
+    if extra:  # the error column ends at the last plant state: its time axis is labelled there
+        axes[n - 1, 1].tick_params(labelbottom=True)
+        axes[n - 1, 1].set_xlabel(f"t {bracket(t_unit)}")
     if title:
         fig.suptitle(title)
     return fig

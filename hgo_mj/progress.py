@@ -84,7 +84,8 @@ class Progress:
             el = time.perf_counter() - self.t0
             rate = self.done / el if el > 0 else float("inf")
             eta = (self.total - self.done) / rate if rate > 0 else 0.0
-            speed = f"{rate:.0f} {self.unit}s/s" if rate >= 1 else f"{1 / rate:.1f} s/{self.unit}"
+            speed = (f"{rate:.0f} {self.unit}s/s" if rate >= 100 else
+                     f"{rate:.3g} {self.unit}s/s" if rate >= 1 else f"{1 / rate:.3g} s/{self.unit}")
             head = f"{self.desc}: " if self.desc else ""
             self.echo(f"{head}{self.done * 100 // self.total:3d}% {self.done}/{self.total} "
                       f"{self.unit}s, {speed}, {seconds(el)} elapsed, ETA {seconds(eta)}")

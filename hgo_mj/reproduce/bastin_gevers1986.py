@@ -426,7 +426,8 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     axes[1].set_ylabel("estimate / true [-]")
     axes[1].legend(fontsize=7, ncol=2)
     axes[2].semilogy(tr.t, np.maximum(d["excitation"], 1e-9), "C0", label="damping known")
-    axes[2].semilogy(tr2.t, np.maximum(d2["excitation"], 1e-9), "C3", label="damping estimated")
+    axes[2].semilogy(tr2.t, np.maximum(d2["excitation"], 1e-9), "C3--", lw=1.0,
+                     label="damping estimated (dashed: the curves coincide)")
     axes[2].set_ylabel("excitation (4.5) [regressor$^2$ s]")
     axes[2].set_xlabel("t [s]")
     axes[2].legend(fontsize=8)

@@ -205,7 +205,7 @@ def _plots(out: Path, r1: dict[str, Array], r2: dict[str, Array], th1: Array, th
             ax[i].fill_between(r["t"], th[i] - 0.05 * abs(th[i]), th[i] + 0.05 * abs(th[i]),
                                color="0.85", label="5 %")
             ax[i].set_ylabel(f"theta{i + 1} [-]")
-            ax[i].legend(loc="lower right", fontsize=8)
+            ax[i].legend(loc="best", fontsize=8)
         ax[1].set_xlabel("t [s]")
         ax[0].set_title(title)
         fig.tight_layout()

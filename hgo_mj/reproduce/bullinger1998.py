@@ -375,8 +375,8 @@ def _report(s: dict[str, Any]) -> str:
         f"{th['bound'][0]:.4g} conc., limsup |e2| <= {th['bound'][1]:.4g} conc./h",
         f"  (with the final gain k_inf = {th['k_inf']:.4g} instead of k0: "
         f"{th['bound_with_k_inf'][0]:.3g}, {th['bound_with_k_inf'][1]:.3g});",
-        f"  found, max over t >= {th['max_error_after_h']:g} h: |e1| = {th['max_error'][0]:.3g}, "
-        f"|e2| = {th['max_error'][1]:.3g} -> the bound "
+        f"  found, max over t >= {th['max_error_after_h']:g} h: |e1| = {th['max_error'][0]:.3g} "
+        f"conc., |e2| = {th['max_error'][1]:.3g} conc./h -> the bound "
         + ("HOLDS" if th["holds"] else "does NOT hold")
         + (" (also with k_inf)." if th["holds_with_k_inf"] else
            " (with k0; not with k_inf)." if th["holds"] else "."),

@@ -438,6 +438,7 @@ def _figures(out: Path, noise: dict[str, Any], euler: dict[str, Any], lmi: dict[
     ax.set_title(f"Fig. 2 analogue: noisy output (white Gaussian, std {NOISE_STD:g}, "
                  f"sampled every {SAMPLE_PERIOD:g})", fontsize=10)
     az.set_title("zoom, 20 <= t <= 22", fontsize=10)
+    az.set_ylabel("$x_1$ [rad]")
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig2_noisy_output.png")

@@ -338,8 +338,9 @@ def _report(s: dict[str, Any]) -> str:
         "z_hat1 - z_hat2^3/3 with it, keep the offset they integrated (fig2_as_printed.png).", "",
         "2. MuJoCo: elastic joint, y = motor velocity, spring deflection measured (Corollary 3.3 holds: "
         "r = 1, b = (1))",
-        "   " + "; ".join(f"{nm} = {est:.5g} (true {tr_:.5g}, {100 * rel:+.2f} %, within 5 % after "
-                          f"{fmt_num(t5, '.3g')} s)"
+        "   " + "; ".join(f"{nm} = {est:.5g} (true {tr_:.5g}, {100 * rel:+.2f} %, within 5 % "
+                          + (f"after {fmt_num(t5, '.3g')} s)" if fmt_num(t5) != "never"
+                             else "never)")
                           for nm, est, tr_, rel, t5 in zip(el["theta_names"], el["theta_final"],
                                                             el["theta_true"], el["relative_error_final"],
                                                             el["time_to_5pct"])),
