@@ -5,15 +5,18 @@
 figures into ``DIR``; Ctrl-C leaves every finished partition, and ``--resume`` goes on.
 
 ``hgo-mj run scenario.toml`` or ``hgo-mj run --plant NAME --observer KIND:k=v,... ...`` runs a
-headless study and writes ``trajectory.npz``, ``metrics.json``, ``figure.png`` and
-``summary.txt`` into ``--out``; ``--rrd [FILE]`` also records it to a rerun file (default
+headless study and writes ``trajectory.npz``, ``trajectory.parquet`` and ``metrics.parquet``
+(tidy tables with units in the schema, :mod:`hgo_mj.tidy`; ``--format npz|parquet|csv``,
+repeatable, chooses), ``metrics.json``, ``figure.png`` and ``summary.txt`` into ``--out``;
+``--rrd [FILE]`` also records it to a rerun file (default
 ``OUT/run.rrd``), written in chunks of ``RRD_CHUNK_SECONDS`` (2) simulated seconds as the run
 goes, so a run stopped with Ctrl-C (exit status 130) leaves a readable recording up to its last
 chunk. ``--seeds N`` (or ``seeds = N`` in the scenario's ``[run]``) repeats the run at the seeds
 ``SEED ... SEED+N-1`` (the seeds after the first as a study, :mod:`hgo_mj.study`, ``--jobs J``)
 and also writes ``metrics_mc.json``, ``summary_mc.txt``, ``mc.png`` and ``seeds/`` (the study's
 rows); the other files are the first seed's.
-``hgo-mj demo``
+Long jobs show their progress on stderr (:mod:`hgo_mj.progress`; ``--quiet``: none);
+``hgo-mj reproduce`` prints the reproduction's report. ``hgo-mj demo``
 writes ``runs/demo/demo.rrd`` unless ``--no-rrd``. Bad input exits with status 2 and one line
 naming the parameter, what was expected and what was found.
 """
@@ -32,7 +35,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-from ._io import check_writable, save_figure, write_text
+from ._io import atomic_path, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
 from .exceptions import DesignError, DivergenceError, HgoError
@@ -198,10 +201,59 @@ def observer_system(system: Any, params: Any, label: str) -> Any:
     return type(system)(**{**system.params, **params})
 
 
-def run_scenario(sc: dict[str, Any], name: str = "run",
-                 rrd: str | Path | None = None) -> tuple[Any, dict[str, Any], Path]:
+#: what ``hgo-mj run --format`` can write: the trajectory as ``.npz``
+#: (:meth:`~hgo_mj.simulate.Trajectory.save`), or as a tidy table with the metrics beside it
+#: (``trajectory.parquet`` and ``metrics.parquet``, units in the schema; or ``.csv``)
+FORMATS = ("npz", "parquet", "csv")
+#: written when ``--format`` is not given: the npz and Parquet beside it
+DEFAULT_FORMATS = ("npz", "parquet")
+
+
+def check_formats(formats: Any) -> tuple[str, ...]:
+    """``formats`` as a tuple of distinct names from :data:`FORMATS`, in the order given."""
+    if (not isinstance(formats, (list, tuple)) or not formats
+            or not all(isinstance(f, str) for f in formats)):
+        raise DesignError(f"formats must be a non-empty list of {list(FORMATS)}; found "
+                          f"{formats!r}")
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:
+        raise DesignError(f"--format must be one of {list(FORMATS)}; found {bad[0]!r}")
+    return tuple(dict.fromkeys(formats))
+
+
+def write_results(traj: Any, metrics: dict[str, Any], out: Path,
+                  formats: tuple[str, ...]) -> list[str]:
+    """Write the run's trajectory and metrics in ``formats`` into ``out``; ``metrics.json``
+    always. Returns the names of the files written."""
+    from .metrics import metrics_frame
+    from .tidy import write_table
+    from .units import units_of
+
+    written = []
+    if "npz" in formats:
+        traj.save(out / "trajectory.npz")
+        written.append("trajectory.npz")
+    write_json(out / "metrics.json", metrics)
+    written.append("metrics.json")
+    frame = metrics_frame(metrics, units_of(traj)[0])
+    for fmt in ("parquet", "csv"):
+        if fmt in formats:
+            write_table(traj, out / f"trajectory.{fmt}", fmt)
+            if fmt == "parquet":
+                with atomic_path(out / "metrics.parquet") as tmp:
+                    frame.to_parquet(tmp, index=False)
+            else:
+                write_text(out / "metrics.csv", frame.to_csv(index=False))
+            written += [f"trajectory.{fmt}", f"metrics.{fmt}"]
+    return written
+
+
+def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
+                 formats: Any = DEFAULT_FORMATS) -> tuple[Any, dict[str, Any], Path]:
     """Build everything a scenario names, simulate, and write the results. Returns
-    ``(trajectory, metrics, out_dir)``.
+    ``(trajectory, metrics, out_dir)``. ``formats`` (:data:`FORMATS`) chooses the files of the
+    trajectory and metrics (:func:`write_results`); ``metrics.json``, ``figure.png`` and
+    ``summary.txt`` are always written.
 
     With ``rrd``, the run is also recorded to that rerun file (:class:`hgo_mj.record.Recorder`)
     chunk by chunk while it runs; the file is closed even when the run is interrupted.
@@ -210,6 +262,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
     from .plotting import plot_trajectory
     from .simulate import simulate
 
+    formats = check_formats(formats)
     kw = scenario_run(sc, name)
     plant, observers, pl, run = kw["plant"], kw["observers"], sc["plant"], sc["run"]
     seed = run.get("seed", 0)
@@ -222,7 +275,8 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
         from .simulate import package_versions
 
         rec = Recorder.for_plant(rrd, plant, list(observers),
-                                 recording_name=str(sc.get("name", name)))
+                                 recording_name=str(sc.get("name", name)),
+                                 dropouts=kw["sensor"].has_dropouts)
     try:
         on_chunk = None
         if rec is not None:
@@ -242,8 +296,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run",
         if rec is not None:
             rec.close()
     out.mkdir(parents=True, exist_ok=True)
-    traj.save(out / "trajectory.npz")
-    write_json(out / "metrics.json", metrics)
+    write_results(traj, metrics, out, formats)
     save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}"),
                 out / "figure.png")
     table = format_table(metrics)
@@ -278,7 +331,8 @@ def _flag_int(value: Any, where: str) -> int:
 
 
 def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
-              jobs: int = 1) -> tuple[Any, dict[str, Any], Path, Any]:
+              jobs: int = 1, formats: Any = DEFAULT_FORMATS,
+              quiet: bool = False) -> tuple[Any, dict[str, Any], Path, Any]:
     """:func:`run_scenario` at ``run.seed``, then, when ``run.seeds`` = N > 1, a Monte Carlo
     over the seeds ``seed, seed + 1, ..., seed + N - 1``: the other seeds as a study of the
     same scenario (:class:`hgo_mj.study.Study`, up to ``jobs`` processes; its rows in
@@ -290,10 +344,11 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     The first seed's files (and ``rrd``) are exactly those of a single run at that seed."""
     import shutil
 
-    from .plotting import plot_monte_carlo, units_of
+    from .plotting import plot_monte_carlo
     from .study import MonteCarloResult, Study
     from .study.results import seed_metrics
     from .study.spec import MAX_RUNS
+    from .units import units_of
 
     run = sc.get("run", {})
     n = positive_int("run.seeds", run.get("seeds", 1), floats=False) if isinstance(run, dict) else 1
@@ -304,7 +359,7 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     jobs = positive_int("--jobs", jobs, floats=False)
     single = {**sc, "run": {k: v for k, v in run.items() if k != "seeds"}} if isinstance(
         run, dict) else sc
-    traj, metrics, out = run_scenario(single, name, rrd=rrd)
+    traj, metrics, out = run_scenario(single, name, rrd=rrd, formats=formats)
     if n == 1:
         return traj, metrics, out, None
     seed = single["run"].get("seed", 0)
@@ -314,7 +369,7 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     folder = out / "seeds"
     if folder.is_dir():
         shutil.rmtree(folder)
-    table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=True).table
+    table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=quiet).table
     done, runs, failed = seed_metrics(table, metrics)
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
@@ -438,6 +493,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", help="output folder (default runs/run)")
     r.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                    help="also record to a rerun .rrd file (default OUT/run.rrd)")
+    r.add_argument("--format", dest="formats", action="append", choices=FORMATS,
+                   help="files of the trajectory and metrics (repeatable): npz "
+                   "(trajectory.npz), parquet (trajectory.parquet and metrics.parquet, units in "
+                   "the schema) or csv (trajectory.csv, metrics.csv); default npz and parquet")
+    r.add_argument("--quiet", action="store_true",
+                   help="no progress on stderr (the --seeds study's plan line and progress)")
     sw = sub.add_parser("sweep", help="run a study: a scenario file with a [sweep] table of axes "
                         "and seeds (see hgo_mj.study)")
     sw.add_argument("study", help="study TOML file (a scenario with a [sweep] table)")
@@ -462,6 +523,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", help="output folder (default runs/reproduce/NAME)")
     rp.add_argument("--rrd", nargs="?", const="", metavar="FILE",
                     help="also record to a rerun .rrd file (default OUT/NAME.rrd)")
+    rp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
     d.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
     d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
@@ -486,20 +548,30 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def _reproduction_kwargs(name: str, rrd: Path | None) -> dict[str, Any]:
-    """``rrd=`` for a reproduction's ``run()`` when asked for, if that ``run()`` takes it."""
+def _reproduction_kwargs(name: str, rrd: Path | None, quiet: bool = False) -> dict[str, Any]:
+    """``rrd=`` for a reproduction's ``run()`` when asked for, if that ``run()`` takes it;
+    ``quiet=True`` when asked for and taken (a ``run()`` without it shows no progress)."""
+    from .reproduce import REPRODUCTIONS
+
+    if name not in REPRODUCTIONS:  # an unknown name is reported by run_reproduction
+        return {} if rrd is None else {"rrd": rrd}
+    params = inspect.signature(run_of(name)).parameters
+    kw: dict[str, Any] = {"quiet": True} if quiet and "quiet" in params else {}
     if rrd is None:
-        return {}
+        return kw
+    if "rrd" not in params:
+        raise DesignError(f"reproduction {name!r} cannot record: expected run(out, *, rrd=None)"
+                          f"; found run{inspect.signature(run_of(name))}")
+    return {**kw, "rrd": rrd}
+
+
+def run_of(name: str) -> Any:
+    """The ``run`` function of the reproduction called ``name``."""
     import importlib
 
     from .reproduce import REPRODUCTIONS
 
-    if name in REPRODUCTIONS:  # an unknown name is reported by run_reproduction
-        run = importlib.import_module(REPRODUCTIONS[name][0]).run
-        if "rrd" not in inspect.signature(run).parameters:
-            raise DesignError(f"reproduction {name!r} cannot record: expected run(out, *, rrd=None)"
-                              f"; found run{inspect.signature(run)}")
-    return {"rrd": rrd}
+    return importlib.import_module(REPRODUCTIONS[name][0]).run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -516,24 +588,27 @@ def main(argv: list[str] | None = None) -> int:
 
             out = Path(args.out or f"runs/reproduce/{args.name}")
             rrd = None if args.rrd is None else Path(args.rrd or out / f"{args.name}.rrd")
-            summary = run_reproduction(args.name, out, **_reproduction_kwargs(args.name, rrd))
-            print(json.dumps(summary, indent=2, default=float))
+            run_reproduction(args.name, out, **_reproduction_kwargs(args.name, rrd, args.quiet))
+            if (out / "report.txt").is_file():  # the readable report (summary.json: the data)
+                print((out / "report.txt").read_text().rstrip("\n"))
             print(f"\nwrote {out}/summary.json, report.txt and figures"
                   + (f", {rrd}" if rrd is not None else ""))
             return 0
         if args.command == "demo":
             sc = json.loads(json.dumps(DEMO))
-            jobs = 1
+            jobs, formats, quiet = 1, DEFAULT_FORMATS, False
             sc["run"]["out"] = args.out
             name = "demo"
             rrd = None if args.no_rrd else Path(args.rrd or Path(args.out) / "demo.rrd")
         else:
             sc = scenario_from_args(args)
             jobs = _flag_int(args.jobs, "--jobs")
+            formats, quiet = args.formats or DEFAULT_FORMATS, args.quiet
             name = "run"
             rrd = None if args.rrd is None else Path(
                 args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")
-        _, metrics, out, mc = run_study(sc, name, rrd=rrd, jobs=jobs)
+        _, metrics, out, mc = run_study(sc, name, rrd=rrd, jobs=jobs, formats=formats,
+                                        quiet=quiet)
     except (HgoError, ValueError) as exc:
         print(f"hgo-mj: error: {exc}", file=sys.stderr)
         return 2
@@ -549,7 +624,9 @@ def main(argv: list[str] | None = None) -> int:
     if mc is not None:
         print(f"\nMonte Carlo over the seeds {mc.seeds[0]}..{mc.seeds[-1]} (the table above: seed "
               f"{mc.seeds[0]})\n" + mc.table())
-    print(f"\nwrote {out}/trajectory.npz, metrics.json, figure.png, summary.txt"
+    files = [f for f in ("trajectory.npz", "trajectory.parquet", "metrics.parquet",
+                         "trajectory.csv", "metrics.csv") if f.split(".")[1] in formats]
+    print(f"\nwrote {out}/" + ", ".join([*files, "metrics.json", "figure.png", "summary.txt"])
           + (", metrics_mc.json, summary_mc.txt, mc.png" if mc is not None else "")
           + (f", {rrd}" if rrd is not None else ""))
     return 0

@@ -519,7 +519,9 @@ def sampling_lmi_62(M: Any, N: Any, delta: float, *, order: int | None = None,
         \\end{bmatrix} < 0
 
     Feasible: the Euler observer (51) with the gain ``X^{-1} C'`` converges to the states of the
-    Euler discretization (50) of the plant. Solved with cvxpy/Clarabel by maximising a margin
+    Euler discretization (50) of the plant. (The derivation's eq. 57 prints its second factor
+    with ``A_delta + X^{-1} C'C``; the error map (54), (56) and eq. 58 have
+    ``A_delta - X^{-1} C'C``, which (62) is built from.) Solved with cvxpy/Clarabel by maximising a margin
     ``t`` (matrix ``<= -t I``, ``X >= t I``, ``epsilon >= t``, ``trace X <= x_bound``):
     feasible when ``t > 0``. With ``X`` and ``epsilon`` given, they are only checked.
 

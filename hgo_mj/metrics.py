@@ -108,6 +108,44 @@ def all_metrics(traj: Any, **kw: Any) -> dict[str, dict[str, Any]]:
     return {name: observer_metrics(traj, name, **kw) for name in traj.observers}
 
 
+#: the per-state metrics, the columns of :func:`metrics_frame` after ``observer``, ``state``
+PER_STATE = ("estimated", "rmse", "peak", "settling_time", "final", "undefined_samples")
+
+
+def metrics_frame(metrics: dict[str, dict[str, Any]],
+                  units: dict[str, str] | None = None) -> Any:
+    """The metrics of :func:`all_metrics` as a tidy :class:`pandas.DataFrame`: one row per
+    observer and plant state, the columns ``observer``, ``state``, ``unit`` (from ``units``,
+    ``{state: unit}``, e.g. :func:`hgo_mj.units.units_of`; ``None`` where missing), then
+    ``estimated``, ``rmse``, ``peak``, ``settling_time``, ``final``, ``undefined_samples``
+    (NaN where the state is not estimated), ``update_time``, ``t_transient``, ``band``.
+
+    Examples
+    --------
+    >>> m = {"hgo": {"states": ["angle"], "estimated": [True], "rmse": [0.1], "peak": [0.5],
+    ...              "settling_time": [1.0], "final": [0.01], "undefined_samples": [0],
+    ...              "update_time": 1e-6, "t_transient": 2.0, "band": 0.05}}
+    >>> metrics_frame(m, {"angle": "rad"})[["observer", "state", "unit", "rmse"]]
+      observer  state unit  rmse
+    0      hgo  angle  rad   0.1
+    """
+    import pandas as pd
+
+    units = units or {}
+    rows = []
+    for name, m in metrics.items():
+        for i, state in enumerate(m["states"]):
+            row: dict[str, Any] = {"observer": name, "state": state, "unit": units.get(state)}
+            for key in PER_STATE:
+                v = m[key][i]
+                row[key] = bool(v) if key == "estimated" else (math.nan if v is None else v)
+            for key in ("update_time", "t_transient", "band"):
+                row[key] = m.get(key, math.nan)
+            rows.append(row)
+    columns = ["observer", "state", "unit", *PER_STATE, "update_time", "t_transient", "band"]
+    return pd.DataFrame(rows, columns=columns)
+
+
 def _cell(v: Any, width: int) -> str:
     return f"{'-':>{width}}" if v is None else f"{v:>{width}.4g}"
 

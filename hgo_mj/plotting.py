@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from .units import bracket, units_of
+
 TRUE_COLOR = "black"
 
 
@@ -52,51 +54,6 @@ def subplots(*args: Any, figsize: tuple[float, float] | None = None, layout: Any
 
     fig = Figure(figsize=figsize, layout=layout)
     return fig, fig.subplots(*args, **kw)
-
-
-def system_of(traj: Any) -> Any:
-    """The registered system class of a trajectory's plant (by its metadata), or ``None``."""
-    from .systems import SYSTEMS
-
-    plant = str(traj.metadata.get("plant", ""))
-    for cls in SYSTEMS.values():
-        if plant in (cls.__name__, cls.name):
-            return cls
-    return None
-
-
-def bracket(unit: str | None) -> str:
-    """``"[rad]"``; ``"[-]"`` for a dimensionless quantity, ``"[?]"`` for an unknown unit."""
-    return "[?]" if unit is None else f"[{unit or '-'}]"
-
-
-def _per_second(unit: str, order: int) -> str:
-    if order == 0:
-        return unit
-    tail = "s" if order == 1 else f"s^{order}"
-    return f"{unit}/{tail}" if unit else f"1/{tail}"
-
-
-def units_of(traj: Any) -> tuple[dict[str, str], str | None]:
-    """The units the plant's system declares: ``({name: unit}, time unit)``, the names being
-    the plant's states and the derivatives of its outputs (``link1_acceleration``:
-    ``rad/s^2``; an observer without a system calls output ``i``'s derivatives ``y<i>_d<j>``).
-    Names whose unit is not declared are missing; the time unit is ``None`` when unknown."""
-    from .observers.high_gain import derivative_names
-
-    cls = system_of(traj)
-    if cls is None:
-        return {}, None
-    units: dict[str, str] = {}
-    if len(cls.state_units) == len(cls.state_names):
-        units.update(zip(cls.state_names, cls.state_units))
-    for i, out in enumerate(traj.output_names):
-        if out not in units:
-            continue
-        for alias in (out, f"y{i + 1}"):
-            for j, name in enumerate(derivative_names(alias, 6)):
-                units.setdefault(name, _per_second(units[out], j))
-    return units, cls.time_unit
 
 
 def plot_trajectory(traj: Any, *, title: str = "") -> Any:
@@ -169,6 +126,9 @@ def plot_trajectory(traj: Any, *, title: str = "") -> Any:
     axes[0, 1].set_title("estimation error (axis fits t > 20% of the run)", fontsize=10)
     for ax in axes[-1]:
         ax.set_xlabel(f"t {bracket(t_unit)}")
+    if extra:  # the error column ends at the last plant state: its time axis is labelled there
+        axes[n - 1, 1].tick_params(labelbottom=True)
+        axes[n - 1, 1].set_xlabel(f"t {bracket(t_unit)}")
     if title:
         fig.suptitle(title)
     return fig

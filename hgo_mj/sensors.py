@@ -965,6 +965,11 @@ class SensorChain:
         return self._stages
 
     @property
+    def has_dropouts(self) -> bool:
+        """Whether the chain has a :class:`Dropout` stage (else no sample is ever dropped)."""
+        return bool(self._dropout_stages)
+
+    @property
     def seed(self) -> int | None:
         """Seed of the current random stream (``None``: OS entropy)."""
         return self._seed

@@ -152,7 +152,63 @@ class Trajectory:
         is NaN (inverse map undefined)."""
         return self.x - self.estimate(observer)
 
+    def to_pandas(self, form: str = "wide") -> Any:
+        """The run as a :class:`pandas.DataFrame`: ``form="wide"`` (one row per sample, the
+        columns ``t``, ``true/<state>``, ``<observer>/<state>``,
+        ``<observer>/diagnostics/<name>``, ``measured/<output>``, ``clean/<output>``,
+        ``input/<input>``; ``attrs["units"]`` their units) or ``form="long"`` (one row per
+        sample and column: ``t``, ``source``, ``name``, ``value``, ``unit``). See
+        :mod:`hgo_mj.tidy`.
+
+        Raises
+        ------
+        DesignError
+            ``form`` is neither ``"wide"`` nor ``"long"``.
+
+        Examples
+        --------
+        >>> from hgo_mj.inputs import Constant
+        >>> from hgo_mj.observers import make_observer
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system,
+        ...                 k=20.0)}, Constant(0.0), duration=0.1)
+        >>> df = traj.to_pandas()
+        >>> df.shape
+        (11, 10)
+        >>> df.attrs["units"]["hgo/angular_velocity"], df.attrs["units"]["t"]
+        ('rad/s', 's')
+        >>> long = traj.to_pandas("long")
+        >>> sorted(set(long["source"]))
+        ['clean', 'hgo', 'hgo/diagnostics', 'input', 'measured', 'true']
+        """
+        from .tidy import to_pandas
+
+        return to_pandas(self, form)
+
+    def to_arrow(self, form: str = "wide") -> Any:
+        """The run as a :class:`pyarrow.Table` (the columns of :meth:`to_pandas`); in the wide
+        form each field's metadata holds its unit (``field.metadata[b"unit"]``), and the
+        schema metadata ``b"hgo_mj"`` the names, units and run metadata as JSON. Writing it
+        with :func:`pyarrow.parquet.write_table` keeps both (:func:`hgo_mj.tidy.write_table`
+        does so atomically).
+
+        Examples
+        --------
+        >>> from hgo_mj.inputs import Constant
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> table = simulate(plant, None, {}, Constant(0.0), duration=0.1).to_arrow()
+        >>> table.schema.field("true/angular_velocity").metadata
+        {b'unit': b'rad/s'}
+        """
+        from .tidy import to_arrow
+
+        return to_arrow(self, form)
+
     def save(self, path: str | Path) -> Path:
+        """Write the run to one ``.npz`` (numpy columns, no pickle) with its names and metadata
+        as JSON, atomically; :meth:`load` reads it back."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         cols: dict[str, Any] = {"t": self.t, "x": self.x, "y_clean": self.y_clean,

@@ -57,6 +57,7 @@ from hgo_mj.metrics import settling_time
 from hgo_mj.observers import make_observer
 from hgo_mj.observers.besancon import BesanconObserver
 from hgo_mj.plants import make_plant
+from hgo_mj.progress import track
 from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
 
@@ -294,10 +295,8 @@ def _fmt_t(v: list[float]) -> str:
 
 
 def write_report(groups: dict, out: Path, args: Any, elapsed: float) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from hgo_mj._io import save_figure
+    from hgo_mj.plotting import subplots
 
     out.mkdir(parents=True, exist_ok=True)
     lines = [
@@ -333,7 +332,9 @@ def write_report(groups: dict, out: Path, args: Any, elapsed: float) -> None:
                   f"{', '.join(cfg['params'])} | state RMSE ({', '.join(_state_names(plant))}) "
                   "| cost [us] |",
                   "|---|---:|---:|---|---|---:|"]
-        fig, axes = plt.subplots(1, len(cfg["params"]), figsize=(11, 3.6), sharey=True)
+        fig, axes = subplots(1, len(cfg["params"]), figsize=(11, 3.6), sharey=True,
+                             layout="constrained", squeeze=False)
+        axes = axes[0]
         for mname in METHODS:
             if mname in g["skipped"]:
                 continue
@@ -355,12 +356,11 @@ def write_report(groups: dict, out: Path, args: Any, elapsed: float) -> None:
             ax.set_title(f"|{cfg['params'][i]} error| / truth")
             ax.set_xlabel("t [s]")
             ax.set_ylim(1e-6, 3.0)
-        np.atleast_1d(axes)[0].legend(fontsize=7, loc="lower left")
+        axes[0].legend(fontsize=7, loc="lower left")
+        axes[0].set_ylabel("|estimate - true| / true [-]")
         fig.suptitle(title, fontsize=10)
-        fig.tight_layout()
         fname = f"adaptive_{plant}_{noise:g}{'_mismatch' if mismatch else ''}.png"
-        fig.savefig(out / fname, dpi=100)
-        plt.close(fig)
+        save_figure(fig, out / fname, dpi=100)
         lines += ["", f"![{title}]({fname})", ""]
         for mname in METHODS:
             if mname in g["skipped"]:
@@ -533,7 +533,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plants", nargs="*", default=list(PLANTS))
     ap.add_argument("--cache", help="pickle of the raw runs: written after a run; with "
                                     "--render-only, read instead of running")
-    ap.add_argument("--render-only", action="store_true")
+    ap.add_argument("--render-only", action="store_true",
+                    help="write the report from --cache without running")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     args.seeds = SEEDS[:1] if args.quick else SEEDS
     jobs = []
@@ -559,9 +561,11 @@ def main(argv: list[str] | None = None) -> int:
     else:
         if args.jobs > 1:
             with ProcessPoolExecutor(args.jobs) as ex:
-                results = list(ex.map(run_one, jobs, chunksize=1))
+                results = list(track(ex.map(run_one, jobs, chunksize=1), total=len(jobs),
+                                     desc="compare_adaptive", quiet=args.quiet))
         else:
-            results = [run_one(j) for j in jobs]
+            results = [run_one(j) for j in track(jobs, desc="compare_adaptive",
+                                                  quiet=args.quiet)]
         elapsed = time.perf_counter() - t0
         if args.cache:
             Path(args.cache).parent.mkdir(parents=True, exist_ok=True)

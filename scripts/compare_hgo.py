@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from hgo_mj._bench import machine_line, versions_line
+from hgo_mj._io import save_figure
 from hgo_mj.design import binomial_coefficients, min_gamma
 from hgo_mj.exceptions import DivergenceError
 from hgo_mj.inputs import Multisine
@@ -54,6 +55,8 @@ from hgo_mj.observers import (
 )
 from hgo_mj.observers.base import Observer
 from hgo_mj.plants import make_plant
+from hgo_mj.plotting import subplots
+from hgo_mj.progress import Progress
 from hgo_mj.sensors import SensorChain, encoder
 from hgo_mj.simulate import simulate
 from hgo_mj.systems import ElasticJoint
@@ -188,14 +191,17 @@ def relative_score(traj: Any, t_transient: float) -> float:
 
 
 def tune(plant: Any, std: float, duration: float, t_transient: float,
-         grid: Sequence[float]) -> dict[str, dict[str, Any]]:
-    """Grid search of each family's gain on :data:`TUNE_SEED` (not an evaluation seed)."""
+         grid: Sequence[float], progress: Progress | None = None) -> dict[str, dict[str, Any]]:
+    """Grid search of each family's gain on :data:`TUNE_SEED` (not an evaluation seed); one
+    step of ``progress`` a run."""
+    progress = progress or Progress(0)
     out = {}
     for fam, make in FAMILIES.items():
         scores = {}
         for g in grid:
             traj, _ = run(plant, make(plant.system, g), std, TUNE_SEED, duration)
             scores[g] = math.inf if traj is None else relative_score(traj, t_transient)
+            progress.add()
         best = min(scores, key=lambda g: scores[g])
         out[fam] = {"best": best, "scores": scores}
     return out
@@ -233,9 +239,11 @@ def build_rows(system: ElasticJoint, tuned: dict[str, dict[str, Any]], rho: floa
 
 
 def evaluate(plant: Any, rows: list[Row], noise: Sequence[float], seeds: Sequence[int],
-             duration: float, t_transient: float) -> tuple[dict[tuple[str, float], Cell],
-                                                          dict[float, Any]]:
-    """Every row at every noise level and seed; also the seed-0 trajectories for the figure."""
+             duration: float, t_transient: float, progress: Progress | None = None
+             ) -> tuple[dict[tuple[str, float], Cell], dict[float, Any]]:
+    """Every row at every noise level and seed; also the seed-0 trajectories for the figure;
+    one step of ``progress`` a run."""
+    progress = progress or Progress(0)
     cells: dict[tuple[str, float], Cell] = {}
     shown: dict[float, Any] = {}
     for std in noise:
@@ -244,6 +252,7 @@ def evaluate(plant: Any, rows: list[Row], noise: Sequence[float], seeds: Sequenc
             for seed in seeds:
                 ob = row.make(plant.system, std)
                 traj, caught = run(plant, ob, std, seed, duration)
+                progress.add()
                 cell.warnings.update(caught)
                 if traj is None:
                     cell.diverged += 1
@@ -389,19 +398,14 @@ def headline(rows: list[Row], cells: dict[tuple[str, float], Cell], noise: Seque
 
 def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
            shown: dict[float, Any], noise: Sequence[float]) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (a1, a2, a3) = plt.subplots(3, 1, figsize=(8.5, 10.5))
+    fig, (a1, a2, a3) = subplots(3, 1, figsize=(8.5, 10.5), layout="constrained")
     std = noise[len(noise) // 2]
     trajs = shown.get(std, {})
     pick = [rows[1], rows[3], rows[5], rows[7]]
     first = next(iter(trajs.values()), None)
     if first is not None:
         win = first.t <= min(first.t[-1], 3.0)
-        a1.plot(first.t[win], first.x[win, 3], color="black", lw=1.6, label="true")
+        a1.plot(first.t[win], first.x[win, 3], color="black", lw=1.6, label="true", zorder=3)
         for i, row in enumerate(pick):
             if row.name in trajs:
                 tr = trajs[row.name]
@@ -409,7 +413,7 @@ def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
                         label=row.name)
         a1.set_ylim(1.5 * first.x[:, 3].min() - 0.5, 1.5 * first.x[:, 3].max() + 0.5)
     a1.set_title(f"motor velocity and its estimates, sigma = {std:g} rad, seed 0", fontsize=10)
-    a1.set_ylabel("rad/s")
+    a1.set_ylabel("motor velocity [rad/s]")
     a1.set_xlabel("t [s]")
     a1.legend(fontsize=7, loc="upper right")
     for i, s in enumerate(noise):
@@ -419,7 +423,7 @@ def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
                     label=f"sigma = {s:g}")
     a2.set_title("adaptive gain k(t) (paper 000, eq. 4-5), seed 0", fontsize=10)
     a2.set_xlabel("t [s]")
-    a2.set_ylabel("k")
+    a2.set_ylabel("gain k [1/s]")
     a2.legend(fontsize=7)
     for i, row in enumerate(rows):
         means, errs, xs = [], [], []
@@ -439,10 +443,7 @@ def figure(path: Path, rows: list[Row], cells: dict[tuple[str, float], Cell],
     a3.set_ylabel("motor velocity RMSE [rad/s]")
     a3.set_title("motor velocity RMSE after the transient, mean and std over seeds", fontsize=10)
     a3.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -457,6 +458,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--grid", type=float, nargs="+", default=list(GAIN_GRID))
     ap.add_argument("--quick", action="store_true",
                     help="one noise level, one seed, 2 s, a 3-point grid (for the test)")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     if args.quick:
         args.noise, args.seeds, args.duration, args.transient = [1e-4], 1, 2.0, 0.5
@@ -471,10 +473,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     rho, at = lipschitz_rho(system.params)
     g_min = min_gamma(alpha, rho)
     mid = args.noise[len(args.noise) // 2]
-    tuned = tune(plant, mid, args.duration, args.transient, args.grid)
-    rows = build_rows(system, tuned, rho, g_min)
     seeds = list(range(args.seeds))
-    cells, shown = evaluate(plant, rows, args.noise, seeds, args.duration, args.transient)
+    with Progress(len(FAMILIES) * len(args.grid), desc="compare_hgo: tuning",
+                  quiet=args.quiet) as progress:
+        tuned = tune(plant, mid, args.duration, args.transient, args.grid, progress)
+    rows = build_rows(system, tuned, rho, g_min)
+    with Progress(len(rows) * len(args.noise) * len(seeds), desc="compare_hgo: evaluation",
+                  quiet=args.quiet) as progress:
+        cells, shown = evaluate(plant, rows, args.noise, seeds, args.duration, args.transient,
+                                progress)
     costs = update_costs(plant, rows, shown[mid][rows[1].name], mid)
     zmax = np.abs([system.to_normal(x) for x in shown[mid][rows[1].name].x]).max(axis=0)
     figure(fig_path, rows, cells, shown, args.noise)

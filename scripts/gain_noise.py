@@ -195,11 +195,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(ROOT / "runs" / "gain_noise"))
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--quiet", action="store_true", help="no plan line and no progress")
     args = ap.parse_args()
     study = Study.from_toml(STUDY)
     shutil.rmtree(args.out, ignore_errors=True)  # a fresh run: the page states its time
     t0 = time.perf_counter()
-    result = study.run(args.out, jobs=args.jobs)
+    result = study.run(args.out, jobs=args.jobs, quiet=args.quiet)
     seconds = time.perf_counter() - t0
     summary, table = result.summary(), result.table
     res = analyse(summary, table)

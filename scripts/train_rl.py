@@ -45,6 +45,7 @@ import numpy as np
 
 from hgo_mj._bench import machine_line, versions_line
 from hgo_mj._json import write_json
+from hgo_mj.progress import track
 
 ENVS = ("hgo_mj/PendulumSwingUp-v0", "hgo_mj/ElasticJointReach-v0")
 MODES = ("true", "estimate", "measurement")
@@ -285,6 +286,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "rl.md")
     ap.add_argument("--report-from", type=Path, metavar="JSON",
                     help="rewrite the report from the raw results of an earlier run (no training)")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     if args.report_from is not None:
         raw = json.loads(args.report_from.read_text())
@@ -310,7 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     done: list[Run] = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         futures = [pool.submit(train_one, r, args.eval_episodes) for r in runs]
-        for f in futures:
+        for f in track(futures, desc="train_rl", quiet=args.quiet):
             r = f.result()
             done.append(r)
             print(f"{r.env_id} {r.mode:12s} seed {r.seed}: {r.train_seconds:6.1f} s, returns "

@@ -77,6 +77,17 @@ def blueprint_views(path: Path) -> list[tuple[str, str]]:
     return views
 
 
+def blueprint_view_names(path: Path) -> list[str]:
+    """The display name of every view of the file's blueprint."""
+    reader = RrdReader(path)
+    names = []
+    for chunk in reader.stream(store=reader.blueprints()[-1]):
+        rb = chunk.to_record_batch()
+        if "ViewBlueprint:display_name" in rb.schema.names:
+            names += [v[0] for v in rb.column("ViewBlueprint:display_name").to_pylist() if v]
+    return names
+
+
 def chunk_ids(path: Path) -> list[str]:
     """The id of every chunk of the file, its recording's and its blueprints' (in file order)."""
     reader = RrdReader(path)
@@ -84,4 +95,4 @@ def chunk_ids(path: Path) -> list[str]:
     return [chunk.id for store in stores for chunk in reader.stream(store=store)]
 
 
-__all__ = ["Entity", "blueprint_views", "chunk_ids", "read_rrd"]
+__all__ = ["Entity", "blueprint_view_names", "blueprint_views", "chunk_ids", "read_rrd"]

@@ -54,6 +54,8 @@ def test_every_system_declares_its_units():
     for name, cls in SYSTEMS.items():
         assert len(cls.state_units) == len(cls.state_names), name
         assert isinstance(cls.time_unit, str), name
+        if cls.model_file:  # the MuJoCo plants' actuators have SI units
+            assert len(cls.input_units) == len(cls.input_names), name
     assert SYSTEMS["bioreactor_bullinger"].time_unit == "h"
     assert SYSTEMS["bioreactor_bullinger"].unit("m") == "conc."
     assert SYSTEMS["pendulum"].unit("angular_velocity") == "rad/s"
@@ -85,6 +87,10 @@ def test_the_trajectory_figure(pend_run):
     assert "angular_acceleration [rad/s^2]\n(estimate only)" in ys
     assert all(y.split("\n")[0].endswith("]") for y in ys), ys
     assert {x for _, x, _ in labels if x} == {"t [s]"}
+    # both columns show their time axis: the error column ends above the extra row
+    err_last = fig.axes[3]
+    assert err_last.get_xlabel() == "t [s]"
+    assert any(t.get_visible() and t.get_text() for t in err_last.get_xticklabels())
     for ax in fig.axes[::2][:2]:  # the left column: truth and estimates
         lines = ax.get_lines()
         true = [ln for ln in lines if ln.get_label() == "true"]

@@ -63,7 +63,8 @@ class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArg
         states = {names[0]: base.estimate_names} if names else None
         self.recorder: Recorder | None = Recorder.for_plant(self.path, base.plant, observers=names,
                                            observer_states=states,
-                                           recording_name=type(base).__name__)
+                                           recording_name=type(base).__name__,
+                                           dropouts=base.sensor.has_dropouts)
         self._rows: dict[str, list[Any]] = {k: [] for k in _COLUMNS}
         self._episode = -1
         self._seed: int | None = None

@@ -30,7 +30,7 @@ written once, in :func:`rhs_3_1`, and integrated over one sample period (measure
 input held) for B members at once by :func:`advance_3_1` (numba; a loop over the members and
 the samples inside the kernel).
 
-**Three misprints of the paper, corrected here** (each follows from the error system 4.2,
+**Four misprints of the paper, corrected here** (each follows from the error system 4.2,
 which the paper derives from 3.1; the derivation is in ``docs/adaptive_canonical_forms.md``
 and the test ``tests/observers/test_bastin_gevers.py::test_error_system_4_2``):
 
@@ -42,6 +42,12 @@ and the test ``tests/observers/test_bastin_gevers.py::test_error_system_4_2``):
 * 4.1 prints :math:`\\tilde x^* = \\tilde x - (0, \\tilde\\theta)`; dimensions require
   :math:`\\tilde x^* = \\tilde x - (0, V \\tilde\\theta)`, and the forcing of 4.2 is the true
   parameter drift :math:`\\dot\\theta` (printed :math:`\\hat\\theta`).
+* Theorem 4.1 v), eq. 4.6, prints the bound on
+  :math:`|[-V(t);\\ I_m]\\, \\dot{\\hat\\theta}(t)|`; it is the true parameter's drift
+  :math:`|[-V(t);\\ I_m]\\, \\dot\\theta(t)| \\le M_1`, the forcing of 4.2 (Comment 4.1 v)
+  discusses the boundedness of :math:`|\\dot\\theta|`, and only so does 4.7b,
+  :math:`\\limsup |\\varepsilon| \\le K_3 M_1`, give convergence for a constant
+  :math:`\\theta`).
 
 **Output reachability, Theorem 4.2.** The filter (3.1d, e) with output :math:`\\varphi` is
 output reachable from :math:`\\omega` iff :math:`S(\\omega)` of eq. 4.11 has full column rank

@@ -32,14 +32,26 @@ The unobservable part must be contracting (Theorem 3.2 (i)); that is a property 
 system the caller asserts, not checked here.
 
 **Misprints of the paper, corrected here.** In eq. 21 and 27 the second line reads
-:math:`A_{\\bar o o} \\hat z_{\\bar o}` ("= f"); the proof's error equation
-:math:`\\dot e_{\\bar o} = A_{\\bar o o} e_o + \\dots` requires :math:`A_{\\bar o o} \\hat z_o`.
+:math:`A_{\\bar o o} \\hat z_{\\bar o}`; the proof's error equation
+:math:`\\dot e_{\\bar o} = A_{\\bar o o} e_o + \\dots` requires :math:`A_{\\bar o o} \\hat z_o`,
+and eq. 21 prints :math:`\\dot{\\hat z}_{\\bar o} = A_{\\bar o o} \\hat z_{\\bar o} = f_{\\bar o}
++ \\gamma_{\\bar o}` with "=" where "+" is meant (eq. 27 has the "+"). Eq. 27's parameter line
+prints :math:`\\hat\\theta = \\Gamma \\beta (y - \\hat z_r)`, the dot of
+:math:`\\dot{\\hat\\theta}` missing (eq. 21 has it).
 In the proof of Corollary 3.3 the first line reads :math:`b_r b_1 = \\lambda b_1`
 (it is :math:`b_r k_1 = \\lambda b_1`) and the transfer function is printed
 :math:`C_o (sI - A_o)^{-1} b` (it is :math:`C_o (sI - A_o + K C_o)^{-1} b`). In the example
 (section 4) the observer's :math:`\\dot{\\hat z}_2` reads :math:`z_1` where :math:`\\hat z_1` is
-meant. The proof of Corollary 3.3 also writes :math:`b \\beta^T e_o`; it is
-:math:`b \\beta^T e_\\theta`.
+meant (run as printed, that leaves a constant offset in :math:`\\hat x_2`: see
+:mod:`hgo_mj.reproduce.jo_son2004`). The proof of Corollary 3.3 also writes
+:math:`b \\beta^T e_o`; it is :math:`b \\beta^T e_\\theta`. Eq. 5 writes
+:math:`X_i = ad^{i-1} \\tau` without the sign of the drift: the example's
+:math:`X_2 = \\partial_{x_1} - x_1^2 \\partial_{x_2} + x_1 \\partial_{x_3}` is
+:math:`ad_{-f} \\tau = -[f, \\tau]` (with :math:`[f, g] = (\\partial g/\\partial x) f -
+(\\partial f/\\partial x) g`), as the proof of Theorem 3.1 writes it
+(:math:`\\langle dh, ad_{-f}^i \\tau \\rangle`). The example cites conditions (v)-(viii) of
+Theorem 3.1, which has (i)-(iii) (its (i) is Theorem 2.2's (i)-(vii)); its "(vii)",
+:math:`[X_2, q] = u (2 X_1 + X_2)`, is Theorem 3.1 (iii).
 
 References
 ----------

@@ -6,6 +6,8 @@
     \\qquad A P(\\gamma) + P(\\gamma) A' - P(\\gamma) C' C P(\\gamma) + Q(\\gamma) = 0
 
 (eq. 6; the paper prints the innovation as ``gamma - C x_hat``, a typo for ``y - C x_hat``).
+The plant is the chain of eq. 3, ``x_i' = x_{i+1}``, ``x_n' = phi(x, u)``, ``y = x_1`` (the
+paper prints ``x_i' = x_i + 1``).
 By Lemma 4 the gain ``P(gamma) C'`` equals ``(alpha_i gamma^i)``: the observer is the
 high-gain observer with ``p = alpha``, ``k = gamma`` and the model term of Gauthier et al.;
 its one-sample map is that of :func:`~hgo_mj.observers.high_gain.one_step_map`, with the gain

@@ -3,28 +3,36 @@
 Pure functions: names in, entity paths and rerun archetype or blueprint objects out. Nothing
 here writes to a stream, so the layout is tested without a file.
 
-Entities (names escaped with :func:`rerun.escape_entity_path_part`)::
+Entities (names escaped with :func:`rerun.escape_entity_path_part`), one scalar series each,
+so that a reviewer can show, hide and query each on its own::
 
-    /state/<state>              scalars [true, <observer 1>, <observer 2>, ...], one row a sample
-                                (the observers that estimate that plant state, by name)
-    /error/<state>              scalars [<observer 1>, ...]: x - x_hat, for those observers
+    /state/<state>/true         the true state, one row a sample
+    /state/<state>/<obs>        each observer's estimate of it (the observers that estimate
+                                that plant state, by name)
+    /error/<state>/<obs>        x - x_hat, for those observers
     /observer/<obs>/estimate/<name>   an estimate that is not a plant state (the observer's
                                 own state names: an order-only observer's z1, z2, ..., the
                                 derivatives of a multi-output observer, ...)
-    /sensor/<output>            scalars [clean, measured] (a dropout is NaN)
+    /sensor/<output>/clean      the plant's output before the sensor chain
+    /sensor/<output>/measured   what the observers saw (a dropout is NaN)
     /input/<input>              scalar u
     /observer/<obs>/gain        the gain diagnostic (``k``, ``gain``, ``gamma``; ``k_<x>`` -> gain/<x>)
     /observer/<obs>/theta/<p>   parameter estimates (diagnostics ``theta...``), next to
     /plant/param/<p>            the true parameter, when the system has one of that name
-    /observer/<obs>/diagnostics/<key>   every other diagnostic (dropouts, ...)
+    /observer/<obs>/diagnostics/<key>   every other diagnostic (dropouts: recorded only where
+                                the sensor chain has a dropout stage, or is not known)
     /env/<name>                 environment extras (reward, ...)
     /world/true/<body>/<geom>   the MuJoCo model's geometry posed from the true state
     /world/estimate/<obs>/<body>/<geom>   translucent ghost posed from that observer's estimate
     /scenario, /metrics         text documents (:mod:`hgo_mj.record.documents`)
 
-One entity per state holds the truth and every estimate as instances (rather than one entity
-per observer and state): each entity row costs about 20 bytes of row id and time on top of its
-values, and this layout keeps a 10 s, 1 kHz pendulum recording with two observers under 3 MB.
+Units: every series is named with its unit in brackets (``angle fast [rad]``, ``torque [N m]``,
+``[-]`` dimensionless; :mod:`hgo_mj.units`, from the plant's system), and so is every view of
+states, errors, inputs and outputs (``angle [rad]: true vs estimated``). A quantity whose unit
+no system declares (an observer's gain, a parameter estimate) has no bracket.
+
+One entity per observer and state costs about 20 bytes of row id and time per row on top of
+its values (BENCHMARKS.md, ``scripts/bench_record.py``).
 
 Estimates are matched to the plant's states by name (:func:`estimate_layout`): each observer's
 columns are named by its ``state_names``; an observer given none names the plant's states when
@@ -75,12 +83,35 @@ def observer_color(i: int) -> tuple[int, int, int]:
     return OBSERVER_COLORS[i % len(OBSERVER_COLORS)]
 
 
-def state_path(state: str) -> str:
+#: the name of the true state's entity under ``/state/<state>`` (no observer may take it)
+TRUE = "true"
+#: the clean and measured outputs' entities under ``/sensor/<output>``
+CLEAN, MEASURED = "clean", "measured"
+
+
+def label(name: str, unit: str | None) -> str:
+    """A series or view name with its unit: ``"angle [rad]"``, ``"k [-]"`` for a dimensionless
+    quantity; ``name`` alone when the unit is not known (``None``)."""
+    return name if unit is None else f"{name} [{unit or '-'}]"
+
+
+def state_root(state: str) -> str:
+    """The entity of a plant state, above its truth and estimates (a view's origin)."""
     return f"/state/{part(state)}"
 
 
-def error_path(state: str) -> str:
+def state_path(state: str, who: str = TRUE) -> str:
+    """The truth (``who="true"``) or one observer's estimate of a plant state."""
+    return f"{state_root(state)}/{part(who)}"
+
+
+def error_root(state: str) -> str:
     return f"/error/{part(state)}"
+
+
+def error_path(state: str, observer: str) -> str:
+    """``x - x_hat`` of one observer for one plant state."""
+    return f"{error_root(state)}/{part(observer)}"
 
 
 def own_estimate_path(observer: str, name: str) -> str:
@@ -88,8 +119,9 @@ def own_estimate_path(observer: str, name: str) -> str:
     return f"/observer/{part(observer)}/estimate/{part(name)}"
 
 
-def sensor_path(output: str) -> str:
-    return f"/sensor/{part(output)}"
+def sensor_path(output: str, which: str = MEASURED) -> str:
+    """The clean (``which="clean"``) or measured output."""
+    return f"/sensor/{part(output)}/{which}"
 
 
 def input_path(name: str) -> str:
@@ -142,6 +174,12 @@ def diagnostic_path(observer: str, key: str, param_names: Sequence[str] = ()) ->
     if low == "theta":
         return f"/observer/{o}/theta/theta", "theta"
     return f"/observer/{o}/diagnostics/{part(key)}", "other"
+
+
+def has_dropout_stage(stages: Sequence[Mapping[str, object]] | None) -> bool:
+    """Whether a sensor chain (:meth:`hgo_mj.sensors.SensorChain.describe`: a list of
+    ``{"stage": name, ...}``; ``None``: no sensor chain) has a dropout stage."""
+    return any(isinstance(st, Mapping) and st.get("stage") == "dropout" for st in stages or ())
 
 
 def theta_param(path: str) -> str:
@@ -232,34 +270,43 @@ def _series_lines(names: tuple[str, ...], colors: tuple[tuple[int, ...], ...],
 
 
 def signal_styles(layout: EstimateLayout, output_names: Sequence[str],
-                  input_names: Sequence[str]) -> list[tuple[str, rr.SeriesLines]]:
-    """Entity path and style of every per-sample series: states with their estimates,
-    errors, the observers' own estimates, outputs and inputs."""
+                  input_names: Sequence[str], units: Mapping[str, str] | None = None
+                  ) -> list[tuple[str, rr.SeriesLines]]:
+    """Entity path and style of every per-sample series: each state's truth and estimates,
+    errors, the observers' own estimates, outputs and inputs, each named with its unit
+    (``units``: ``{name: unit}`` of states, outputs, inputs and output derivatives)."""
+    units = units or {}
     out: list[tuple[str, rr.SeriesLines]] = []
     color = {o: observer_color(i) for i, o in enumerate(layout.observers)}
     for s, ests in zip(layout.state_names, layout.est_of):
-        obs = [o for o, _ in ests]
-        colors = [color[o] for o in obs]
-        out.append((state_path(s), series_lines([f"{s} true"] + [f"{s} {o}" for o in obs],
-                                                [TRUE_COLOR] + colors, [2.0] + [1.0] * len(obs))))
-        if obs:
-            out.append((error_path(s), series_lines([f"{s} error {o}" for o in obs], colors)))
+        u = units.get(s)
+        out.append((state_path(s), series_lines([label(f"{s} true", u)], [TRUE_COLOR], [2.0])))
+        for o, _ in ests:
+            out.append((state_path(s, o), series_lines([label(f"{s} {o}", u)], [color[o]])))
+            out.append((error_path(s, o), series_lines([label(f"{s} error {o}", u)], [color[o]])))
     for o, own in layout.own.items():
-        out += [(own_estimate_path(o, name), series_lines([f"{name} {o}"], [color[o]]))
+        out += [(own_estimate_path(o, name),
+                 series_lines([label(f"{name} {o}", units.get(name))], [color[o]]))
                 for name, _ in own]
-    out += [(sensor_path(y), series_lines([f"{y} clean", f"{y} measured"],
-                                          [TRUE_COLOR, MEASURED_COLOR], [1.5, 1.0]))
-            for y in output_names]
-    out += [(input_path(u), series_lines([u], [INPUT_COLOR])) for u in input_names]
+    for y in output_names:
+        u = units.get(y)
+        out.append((sensor_path(y, CLEAN), series_lines([label(f"{y} clean", u)], [TRUE_COLOR],
+                                                        [1.5])))
+        out.append((sensor_path(y, MEASURED), series_lines([label(f"{y} measured", u)],
+                                                           [MEASURED_COLOR])))
+    out += [(input_path(u), series_lines([label(u, units.get(u))], [INPUT_COLOR]))
+            for u in input_names]
     return out
 
 
 def diagnostic_styles(observer: str, index: int, key: str, params: Collection[str]
                       ) -> list[tuple[str, rr.SeriesLines]]:
     """Entity path and style of one diagnostic of the ``index``-th observer, and of the true
-    parameter next to a parameter estimate (both drawn as steps)."""
+    parameter next to a parameter estimate (both drawn as steps). The dropout count is
+    dimensionless; the other diagnostics' units are not declared."""
     path, kind = diagnostic_path(observer, key, tuple(params))
-    out = [(path, series_lines([f"{observer} {key}"], [observer_color(index)], steps=True))]
+    name = label(f"{observer} {key}", "" if key == "dropouts" else None)
+    out = [(path, series_lines([name], [observer_color(index)], steps=True))]
     if kind == "theta" and theta_param(path) in params:
         p = theta_param(path)
         out.append((param_path(p), series_lines([f"{p} true"], [TRUE_COLOR], steps=True)))
@@ -294,23 +341,40 @@ def _adaptive_views(diagnostics: Sequence[tuple[str, str]],
     return views
 
 
+def _with_units(names: Sequence[str], units: Mapping[str, str]) -> str:
+    """``"torque [N m]"``, or ``"torque1, torque2 [N m]"`` when they share a unit."""
+    found = {units.get(n) for n in names}
+    if len(found) == 1:
+        return label(", ".join(names), found.pop())
+    return ", ".join(label(n, units.get(n)) for n in names)
+
+
 def blueprint(layout: EstimateLayout, diagnostics: Sequence[tuple[str, str]] = (),
-              params: Collection[str] = (), *, extras: bool = False,
-              world: bool = False) -> rrb.Blueprint:
+              params: Collection[str] = (), *, extras: bool = False, world: bool = False,
+              units: Mapping[str, str] | None = None, output_names: Sequence[str] = (),
+              input_names: Sequence[str] = ()) -> rrb.Blueprint:
     """The default layout of a recording: 3D view (``world``) and text documents, one view
     per state (truth and estimates), one per estimated state's errors, the observers' own
     estimates, the adaptive quantities (``diagnostics``: ``(path, kind)`` pairs of
-    :func:`diagnostic_path`), inputs, measurements and the environment's ``extras``."""
-    states = [rrb.TimeSeriesView(origin=state_path(s), name=f"{s}: true vs estimated")
+    :func:`diagnostic_path`), inputs, measurements and the environment's ``extras``; the
+    views of quantities with a unit (``units``) name it."""
+    units = units or {}
+    states = [rrb.TimeSeriesView(origin=state_root(s),
+                                 name=f"{label(s, units.get(s))}: true vs estimated")
               for s in layout.state_names]
     states += [rrb.TimeSeriesView(origin=f"/observer/{part(o)}/estimate",
                                   name=f"{o}: estimates that are not plant states")
                for o, own in layout.own.items() if own]
-    errors = [rrb.TimeSeriesView(origin=error_path(s), name=f"{s}: error x - x_hat")
+    errors = [rrb.TimeSeriesView(origin=error_root(s),
+                                 name=f"{label(s, units.get(s))}: error x - x_hat")
               for s, ests in zip(layout.state_names, layout.est_of) if ests]
     side: list[rrb.TimeSeriesView] = _adaptive_views(diagnostics, params)
-    side.append(rrb.TimeSeriesView(origin="/input", name="inputs"))
-    side.append(rrb.TimeSeriesView(origin="/sensor", name="outputs: clean and measured"))
+    side.append(rrb.TimeSeriesView(
+        origin="/input", name="inputs" + (f": {_with_units(input_names, units)}"
+                                          if input_names else "")))
+    side.append(rrb.TimeSeriesView(
+        origin="/sensor", name="outputs, clean and measured" + (
+            f": {_with_units(output_names, units)}" if output_names else "")))
     if extras:
         side.append(rrb.TimeSeriesView(origin="/env", name="environment"))
     docs = rrb.Tabs(rrb.TextDocumentView(origin="/metrics", name="metrics"),
@@ -327,6 +391,7 @@ def blueprint(layout: EstimateLayout, diagnostics: Sequence[tuple[str, str]] = (
     return rrb.Blueprint(rrb.Horizontal(*columns), rrb.TimePanel(timeline=SIM_TIME))
 
 
-__all__ = ["EPISODE", "SIM_TIME", "STEP", "EstimateLayout", "blueprint", "diagnostic_path",
-           "diagnostic_styles", "estimate_layout", "extra_style", "observer_color", "part",
-           "signal_styles"]
+__all__ = ["CLEAN", "EPISODE", "MEASURED", "SIM_TIME", "STEP", "TRUE", "EstimateLayout",
+           "blueprint", "diagnostic_path", "diagnostic_styles", "error_path", "error_root",
+           "estimate_layout", "extra_style", "has_dropout_stage", "label", "observer_color",
+           "part", "sensor_path", "signal_styles", "state_path", "state_root"]

@@ -6,6 +6,7 @@ checked against what rerun itself decodes, not against a second parser.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,9 @@ def read(path: str | Path) -> Any:
     ``/state/angle[angle fast]``), or ``<entity>[<i>]`` where it has none. A series not logged
     at a step is NaN there (a diagnostic logged only when it changes, decimated poses).
     ``df.attrs["static"]`` holds every entity's static components
-    (``df.attrs["static"]["/scenario"]["TextDocument:text"][0]`` is the scenario document).
+    (``df.attrs["static"]["/scenario"]["TextDocument:text"][0]`` is the scenario document);
+    ``df.attrs["units"]`` maps each series to the unit in its name (``angle true [rad]``:
+    ``"rad"``; ``""`` dimensionless), for the series named with one.
     Poses (``Transform3D``) and other non-scalar components are not series and are left out.
 
     Raises
@@ -86,7 +89,22 @@ def read(path: str | Path) -> Any:
     df = pd.concat([clock, pd.DataFrame(columns)], axis=1).sort_index()
     df.index.name = STEP
     df.attrs["static"] = static
+    df.attrs["units"] = {c: u for c, u in ((c, _unit(c, static)) for c in columns)
+                         if u is not None}
     return df
+
+
+def _unit(column: str, static: dict[str, Any]) -> str | None:
+    """The unit at the end of a one-series entity's name (``"angle true [rad]"``), or
+    ``None``."""
+    names = next((static.get(column, {}).get(k) for k in _NAMES
+                  if static.get(column, {}).get(k)), None)
+    if not names or len(names) != 1:
+        return None
+    m = re.search(r" \[([^\]]*)\]$", str(names[0]))
+    if m is None:
+        return None
+    return "" if m.group(1) == "-" else m.group(1)
 
 
 def _clock_frame(rb: Any, names: list[str], steps: np.ndarray) -> Any:

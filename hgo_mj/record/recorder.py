@@ -149,6 +149,13 @@ class Recorder:
     pose_rate : float or None
         Samples per unit of simulated time of the 3D poses (``None``: every sample). Pose
         rows are queued and sent 250 at a time (and by :meth:`flush` and :meth:`close`).
+    units : mapping, optional
+        ``{name: unit}`` of the states, outputs, inputs and output derivatives
+        (:func:`hgo_mj.units.system_units`): each series and view is named with its unit.
+    dropouts : bool or None
+        Whether the sensor chain has a dropout stage: ``False`` leaves the observers'
+        ``dropouts`` diagnostic out (a count that is zero by construction); ``None`` (not
+        known) records it.
     footer : bool
         End the file with rerun's footer (a manifest of its chunks, for random access and
         ``rerun.chunk.RrdReader(...).store()``). ``False`` leaves a file that reads as a
@@ -169,6 +176,7 @@ class Recorder:
                  params: Mapping[str, float] | None = None,
                  stream: rr.RecordingStream | None = None, application_id: str = "hgo_mj",
                  recording_name: str | None = None, pose_rate: float | None = 50.0,
+                 units: Mapping[str, str] | None = None, dropouts: bool | None = None,
                  footer: bool = True) -> None:
         self.state_names = tuple(str(s) for s in state_names)
         self.output_names = tuple(str(s) for s in output_names)
@@ -176,6 +184,12 @@ class Recorder:
         self.observers = tuple(str(o) for o in observers)
         if len(set(self.observers)) != len(self.observers):
             raise DesignError(f"observer names must be distinct; found {list(self.observers)}")
+        if layout.TRUE in self.observers:
+            raise DesignError(f"an observer cannot be named {layout.TRUE!r} in a recording "
+                              f"(/state/<state>/true is the true state); found "
+                              f"{list(self.observers)}")
+        self.units = {str(k): str(v) for k, v in (units or {}).items()}
+        self.dropouts = dropouts
         self._names = {str(o): layout.check_names(str(o), names)
                        for o, names in (observer_states or {}).items()}
         unknown = [o for o in self._names if o not in self.observers]
@@ -243,8 +257,11 @@ class Recorder:
                   **kw: Any) -> Recorder:
         """A recorder for runs of ``plant`` (a :class:`~hgo_mj.plants.base.Plant`); MuJoCo
         plants get the 3D view from their model and ``system.joints``."""
+        from ..units import system_units
+
         model = getattr(plant, "model", None)
         kw.setdefault("params", getattr(plant.system, "params", None))
+        kw.setdefault("units", system_units(type(plant.system), tuple(plant.output_names)))
         kw.setdefault("joints", plant.system.joints if model is not None else ())
         return cls(path, state_names=plant.state_names, output_names=plant.output_names,
                    input_names=plant.input_names, observers=observers, model=model, **kw)
@@ -254,8 +271,15 @@ class Recorder:
                        joints: Sequence[str] | None = None, **kw: Any) -> Recorder:
         """A recorder for ``traj``. Without ``model``, the MJCF of the system named in
         ``traj.metadata["plant"]`` is loaded (the scenario's ``model_file`` if it names one);
-        ODE systems get no 3D view."""
+        ODE systems get no 3D view. The units are the system's (:func:`hgo_mj.units.units_of`);
+        the observers' ``dropouts`` are left out when ``traj.metadata["sensor"]`` (the chain's
+        stages) has no dropout stage."""
+        from ..units import units_of
+
         meta = traj.metadata or {}
+        kw.setdefault("units", units_of(traj)[0])
+        if "sensor" in meta:
+            kw.setdefault("dropouts", layout.has_dropout_stage(meta["sensor"]))
         if model is None:
             model, sys_joints = model_for(meta)
             joints = sys_joints if joints is None else joints
@@ -361,7 +385,8 @@ class Recorder:
                                      f"(columns {list(names[o])}); found {a.shape}")
         self._check_observers("diagnostics of", diagnostics)
         diag = {o: {str(k): self._series(f"diagnostic {k!r} of {o!r}", v, T)
-                    for k, v in d.items()} for o, d in (diagnostics or {}).items()}
+                    for k, v in d.items() if self.dropouts is not False or k != "dropouts"}
+                for o, d in (diagnostics or {}).items()}
         extras = {str(k): np.asarray(v, dtype=float) for k, v in (extra or {}).items()}
         for name, v in extras.items():
             if v.ndim not in (1, 2) or v.shape[0] != T:
@@ -371,7 +396,7 @@ class Recorder:
             self._names = names
             self.layout = layout.estimate_layout(self.state_names, self.observers, names)
             self._static += [(path, [style]) for path, style in layout.signal_styles(
-                self.layout, self.output_names, self.input_names)]
+                self.layout, self.output_names, self.input_names, self.units)]
             if self.scene is not None:
                 self._static += [("/world", [rr.ViewCoordinates.RIGHT_HAND_Z_UP])]
                 self._static += self.scene.geometry()
@@ -488,19 +513,20 @@ class Recorder:
         index = time_columns(b.t, b.steps, b.episode)
         nan = np.full(b.t.size, np.nan)
         for i, (s, ests) in enumerate(zip(self.state_names, lay.est_of)):
-            # an observer without an estimate in this block: NaN, and no ghost pose
-            cols = [b.est[o][:, j] if o in b.est else nan for o, j in ests]
-            self._scalars(layout.state_path(s), index, np.column_stack([b.x[:, i]] + cols))
-            if cols:
-                self._scalars(layout.error_path(s), index,
-                              np.column_stack([b.x[:, i] - c for c in cols]))
+            self._scalars(layout.state_path(s), index, b.x[:, i])
+            for o, j in ests:
+                # an observer without an estimate in this block: NaN, and no ghost pose
+                est = b.est[o][:, j] if o in b.est else nan
+                self._scalars(layout.state_path(s, o), index, est)
+                self._scalars(layout.error_path(s, o), index, b.x[:, i] - est)
         for o, own in lay.own.items():
             if o in b.est:  # estimates that are not plant states: under the observer's names
                 for name, j in own:
                     self._scalars(layout.own_estimate_path(o, name), index, b.est[o][:, j])
         for j, name in enumerate(self.output_names):
             clean = b.y_clean[:, j] if b.y_clean is not None else nan
-            self._scalars(layout.sensor_path(name), index, np.column_stack((clean, b.y_meas[:, j])))
+            self._scalars(layout.sensor_path(name, layout.CLEAN), index, clean)
+            self._scalars(layout.sensor_path(name, layout.MEASURED), index, b.y_meas[:, j])
         for j, name in enumerate(self.input_names):
             self._scalars(layout.input_path(name), index, b.u[:, j])
         for name, v in b.extra.items():
@@ -626,7 +652,9 @@ class Recorder:
         lay = self.layout or layout.estimate_layout(  # before the first block: the names given
             self.state_names, self.observers, {o: self._names.get(o, ()) for o in self.observers})
         return layout.blueprint(lay, list(self._diag.values()), self.params,
-                                extras=bool(self._extra), world=self.scene is not None)
+                                extras=bool(self._extra), world=self.scene is not None,
+                                units=self.units, output_names=self.output_names,
+                                input_names=self.input_names)
 
     def _send_blueprint(self) -> None:
         """Send :meth:`blueprint` as the recording's default layout, once per layout (a new

@@ -1,9 +1,11 @@
 """Paper reproductions: ``hgo-mj reproduce NAME --out DIR``.
 
 Each reproduction is a module ``hgo_mj.reproduce.<name>`` with a function
-``run(out: pathlib.Path, *, rrd: pathlib.Path | None = None) -> dict`` that writes
-``out/summary.json``, PNG figures and ``out/report.txt`` and returns the summary. Its test
-asserts the summary's numbers against the paper within stated tolerances.
+``run(out: pathlib.Path, *, rrd: pathlib.Path | None = None, quiet: bool = False) -> dict``
+that writes ``out/summary.json``, PNG figures and ``out/report.txt`` and returns the summary,
+showing its progress on stderr unless ``quiet`` (:class:`hgo_mj.progress.Progress`, a step per
+part or run); ``hgo-mj reproduce`` prints ``report.txt``. Its test asserts the summary's
+numbers against the paper within stated tolerances.
 
 Recording (``hgo-mj reproduce NAME --rrd [FILE]``): the command passes ``rrd=Path`` (default
 ``OUT/NAME.rrd``) only when asked, and refuses a reproduction whose ``run`` has no ``rrd``

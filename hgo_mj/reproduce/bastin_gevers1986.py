@@ -61,6 +61,7 @@ from ..metrics import settling_time
 from ..observers.bastin_gevers import BastinGeversObserver
 from ..plants import make_plant
 from ..plants.ode import OdePlant
+from ..progress import Progress
 from ..simulate import Trajectory, simulate
 from ..systems.aocf import AOCF
 from ..systems.base import Array, System
@@ -353,7 +354,7 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
             ax.semilogy(v[0], np.maximum(v[1], 1e-17), lw=1, label=f"{k} (y held)")
     ax.axhline(1e-6, color="0.5", ls=":", lw=1)
     ax.set_xlabel("t [-] (residence times)")
-    ax.set_ylabel(r"$\max_i |\hat\theta_i - \theta_i|$")
+    ax.set_ylabel(r"$\max_i |\hat\theta_i - \theta_i|$ [-]")
     ax.set_title("(a) AOCF 6.5 with theta frozen: parameter error")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -365,22 +366,24 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     d = tr.observers["bastin_gevers"].diagnostics
     th = np.array([sys_.to_aocf(x, C2)[1] for x in tr.x])
     fig, axes = subplots(3, 2, figsize=(12, 8.5), sharex=True)
-    axes[0, 0].plot(tr.t, tr.x[:, 1], "k", lw=1.2, label="z2 (biomass)")
+    axes[0, 0].plot(tr.t, tr.x[:, 1], "k", lw=1.2, label="z2 (biomass)", zorder=3)
     axes[0, 0].plot(tr.t, tr.observers["bastin_gevers"].x_hat[:, 1], "C0", lw=0.8, label="Monod: z2_hat")
-    axes[0, 0].plot(tr_c.t, tr_c.x[:, 1], "0.5", lw=1.0, label="Contois: z2")
+    axes[0, 0].plot(tr_c.t, tr_c.x[:, 1], "0.5", lw=1.0, label="Contois: z2", zorder=3)
     axes[0, 0].plot(tr_c.t, tr_c.observers["bastin_gevers"].x_hat[:, 1], "C1", lw=0.8,
                     label="Contois: z2_hat")
     axes[0, 0].set_ylim(-1, 8)
+    axes[0, 0].set_ylabel("biomass z2 [conc.]")
     axes[0, 0].legend(fontsize=7, ncol=2)
     axes[0, 0].set_title("(b) biomass and its estimate (6.6b)")
     for j, ax in enumerate((axes[1, 0], axes[2, 0], axes[0, 1])):
-        ax.plot(tr.t, th[:, j], "k", lw=1.0, label=f"theta{j + 1} (Monod)")
+        ax.plot(tr.t, th[:, j], "k", lw=1.0, label=f"theta{j + 1} (Monod)", zorder=3)
         ax.plot(tr.t, d[f"theta_{j + 1}"], "C0", lw=0.8, label="estimate")
         est = d[f"theta_{j + 1}"][tr.t >= 20.0]
         lo = min(th[:, j].min(), np.percentile(est, 1))
         hi = max(th[:, j].max(), np.percentile(est, 99))
         pad = max(0.2 * (hi - lo), 0.05)
         ax.set_ylim(lo - pad, hi + pad)
+        ax.set_ylabel(f"theta{j + 1} (AOCF) [-]")
         ax.legend(fontsize=7)
     axes[1, 1].plot(tr.t, d["theta_p2"], "C0", lw=0.8, label="p2_hat Monod")
     axes[1, 1].plot(tr.t, d["theta_p3"], "C2", lw=0.8, label="p3_hat Monod")
@@ -390,14 +393,16 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     axes[1, 1].axhline(sys_.params["p2"], color="k", ls="--", lw=0.8)
     axes[1, 1].axhline(sys_.params["p3"], color="k", ls=":", lw=0.8)
     axes[1, 1].set_ylim(-0.5, 1.5)
+    axes[1, 1].set_ylabel("yield p2, maintenance p3 [-]")
     axes[1, 1].legend(fontsize=7, ncol=2)
     axes[1, 1].set_title("physical parameters (6.6a, d); true dashed/dotted")
     axes[2, 1].semilogy(tr.t, np.maximum(d["excitation"], 1e-9), "C0", lw=0.8, label="Monod")
     axes[2, 1].semilogy(tr_c.t, np.maximum(dc["excitation"], 1e-9), "C1", lw=0.8, label="Contois")
     axes[2, 1].set_title(r"excitation (4.5): $\lambda_{min}\int_{t-10}^t \varphi\varphi^T$")
+    axes[2, 1].set_ylabel("excitation [conc.$^2$]")
     axes[2, 1].legend(fontsize=7)
     for ax in axes[-1]:
-        ax.set_xlabel("t (residence times)")
+        ax.set_xlabel("t [-] (residence times)")
     fig.tight_layout()
     save_figure(fig, out / "fig_b_bioreactor.png")
     files.append("fig_b_bioreactor.png")
@@ -406,7 +411,7 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
     tr, names, truth = trajs_c["damping_known"]
     tr2, names2, truth2 = trajs_c["damping_estimated"]
     d, d2 = tr.observers["bastin_gevers"].diagnostics, tr2.observers["bastin_gevers"].diagnostics
-    axes[0].plot(tr.t, tr.x[:, 0], "k", lw=1.0, label="angle")
+    axes[0].plot(tr.t, tr.x[:, 0], "k", lw=1.0, label="angle", zorder=3)
     axes[0].plot(tr.t, tr.observers["bastin_gevers"].x_hat[:, 0], "C0--", lw=0.8, label="estimate")
     axes[0].set_ylabel("angle [rad]")
     axes[0].legend(fontsize=8)
@@ -418,11 +423,12 @@ def _figures(out: Path, curves_a: dict, trajs_b: dict, trajs_c: dict) -> list[st
                      label=f"{nm} (damping estimated)")
     axes[1].axhline(1.0, color="k", lw=0.6)
     axes[1].set_ylim(-0.5, 2.0)
-    axes[1].set_ylabel("estimate / true")
+    axes[1].set_ylabel("estimate / true [-]")
     axes[1].legend(fontsize=7, ncol=2)
     axes[2].semilogy(tr.t, np.maximum(d["excitation"], 1e-9), "C0", label="damping known")
-    axes[2].semilogy(tr2.t, np.maximum(d2["excitation"], 1e-9), "C3", label="damping estimated")
-    axes[2].set_ylabel("excitation (4.5)")
+    axes[2].semilogy(tr2.t, np.maximum(d2["excitation"], 1e-9), "C3--", lw=1.0,
+                     label="damping estimated (dashed: the curves coincide)")
+    axes[2].set_ylabel("excitation (4.5) [regressor$^2$ s]")
     axes[2].set_xlabel("t [s]")
     axes[2].legend(fontsize=8)
     fig.tight_layout()
@@ -447,7 +453,10 @@ def _report(s: dict[str, Any]) -> str:
         f"{tf['printed_6_6b_relative_distance_to_minus_z2']:.1e}).",
         "   Observer misprints (derived from the error system 4.2): 3.1a's correction is V dtheta_hat/dt, "
         "3.1e defines phi = V^T k + Omega_1^T (not its derivative), 4.1 is x~* = x~ - (0, V theta~), "
-        "4.11's F_j^-2 is F^(j-2).", "",
+        "4.11's F_j^-2 is F^(j-2); the forcing of 4.2 and the bound (4.6) of Theorem 4.1 v) are "
+        "on the true parameter's drift, [-V; I] dtheta/dt, printed dtheta_hat/dt (Comment 4.1 v) "
+        "discusses |dtheta/dt|, and (4.7b), limsup |eps| <= K3 M1, vanishes for a constant "
+        "theta only so).", "",
         "(a) AOCF 6.5 with theta frozen (implementation check)",
         f"   theta = {np.round(a['theta'], 4).tolist()}, c2 = {a['c2']:g}, c1 = {a['c1']:g}, "
         f"Gamma = {a['gamma']:g} I, zero-mean multisine input.",
@@ -506,7 +515,8 @@ def _report(s: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(out: Path, *, rrd: Path | None = None, sweep: bool = True) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, sweep: bool = True,
+        quiet: bool = False) -> dict[str, Any]:
     """Run parts 0, (a), (b), (c); write ``summary.json``, ``report.txt`` and the figures.
 
     Parameters
@@ -518,13 +528,20 @@ def run(out: Path, *, rrd: Path | None = None, sweep: bool = True) -> dict[str, 
         it (``<stem>_pendulum.rrd``).
     sweep : bool
         Include the small gain sweep of part (b) (three more runs).
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a part).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    transform = check_transformations()
-    frozen, curves_a = part_frozen()
-    bio, trajs_b = part_bioreactor(sweep=sweep)
-    pend, trajs_c = part_pendulum()
+    with Progress(4, unit="part", desc="bastin_gevers1986", quiet=quiet) as progress:
+        transform = check_transformations()
+        progress.add()
+        frozen, curves_a = part_frozen()
+        progress.add()
+        bio, trajs_b = part_bioreactor(sweep=sweep)
+        progress.add()
+        pend, trajs_c = part_pendulum()
+        progress.add()
     mo = bio["monod"]
     summary: dict[str, Any] = {
         "frozen_theta_error": frozen["frozen_theta_error"],

@@ -46,10 +46,16 @@ value that is not "high"; after the first hours the output error ``y - y_o`` sta
 (clean ``y``: every sample after 10 h; noisy ``y``: over 99.9 %); the substrate estimate
 follows ``s`` with jumps where ``u`` jumps.
 
-Paper inconsistencies met on the way (documented, not needed here): eq. 3 says "``p_i = C(n,
-i)`` for ``k = 1, ..., n``" (``i``); the proof of Theorem 2 differentiates "along the
-trajectory of (3)" (it is (6)); the proof of Theorem 3 inverts inequality (11) (see
-:func:`hgo_mj.design.bullinger_theorem3_bound`).
+**Theorem 3** (eq. 14) is evaluated on the noise-free run (:func:`theorem3`, ``theorem3`` in
+``summary.json``): ``mu`` is the largest ``|m''|`` along the true trajectory between the input
+steps, and the largest errors after 60 h are compared with the bound.
+
+Paper inconsistencies met on the way: eq. 3 says "``p_i = C(n, i)`` for ``k = 1, ..., n``"
+(``i``); the proof of Theorem 2 differentiates "along the trajectory of (3)" (it is (6)); the
+proof of Theorem 3 inverts inequality (11) (see :func:`hgo_mj.design.bullinger_theorem3_bound`);
+the example's input steps (30 h, 50 h) make ``m' = a1 m s/(a2 m + s) - u m`` jump, so
+``phi = m''`` holds the impulse ``-u' m`` there: the boundedness assumption of Theorems 1-3
+(A2, "phi essentially bounded") fails at the switching instants and holds only between them.
 
 References
 ----------
@@ -71,6 +77,7 @@ from scipy.optimize import brentq
 from .._io import save_figure
 from ..observers.adaptive_gain import AdaptiveGainObserver
 from ..plants.ode import OdePlant
+from ..progress import Progress
 from ..sensors import GaussianNoise, SensorChain
 from ..simulate import Trajectory, simulate
 from ..systems.papers import BioreactorBullinger, bullinger_input
@@ -162,6 +169,43 @@ def _run_stats(traj: Trajectory, name: str, params: dict[str, float]) -> dict[st
             "m_rmse": float(np.sqrt(np.mean(e_clean ** 2)))}
 
 
+def theorem3(clean: Trajectory, name: str = "x0_zero", after: float = 60.0) -> dict[str, Any]:
+    """Theorem 3 (eq. 14) evaluated on the noise-free run with :func:`hgo_mj.design.
+    bullinger_theorem3_bound`, against the errors found.
+
+    ``mu`` is the largest ``|phi| = |m''|`` along the true trajectory between the input steps
+    (``u' = 0`` there; :meth:`~hgo_mj.systems.papers.BioreactorBullinger.phi`). At the steps
+    ``u`` jumps, so ``m' = a1 m s/(a2 m + s) - u m`` jumps by ``-(u+ - u-) m``: ``phi``
+    holds ``-u' m``, a Dirac impulse there, and no ``mu`` bounds it (the assumption of
+    Theorems 2 and 3 fails at the switching instants). After the last step (50 h) the
+    run is an initial-value problem of the same observer where the assumption holds, so the
+    ``limsup`` of eq. 14 is compared with the largest errors ``|e_i| = |z_i - z_hat_i|`` over
+    ``t >= after`` (h). The bound with ``k0`` (eq. 14) and with the final gain ``k_inf`` (the
+    sharper form the proof's argument gives as ``k(t) -> k_inf``) are both reported.
+    """
+    from ..design import bullinger_theorem3_bound
+
+    system = BioreactorBullinger()
+    u = clean.u[:, 0]
+    z = np.array([system.to_normal(x, [v]) for x, v in zip(clean.x, u)])
+    phi = np.array([system.phi(zi, [v]) for zi, v in zip(z, u)])
+    steps = np.flatnonzero(np.diff(u) != 0.0) + 1
+    mu = float(np.max(np.abs(phi)))
+    rec = clean.observers[name]
+    k_inf = float(rec.diagnostics["k"][-1])
+    late = clean.t >= after
+    found = np.max(np.abs(z[late] - rec.z_hat[late]), axis=0)
+    bound = bullinger_theorem3_bound(TUNING["p"], mu, TUNING["k0"])
+    bound_kinf = bullinger_theorem3_bound(TUNING["p"], mu, k_inf)
+    return {"initial_estimate": name, "mu": mu, "k0": TUNING["k0"], "k_inf": k_inf,
+            "bound": bound.tolist(), "bound_with_k_inf": bound_kinf.tolist(),
+            "max_error_after_h": after, "max_error": found.tolist(),
+            "holds": bool(np.all(found <= bound)),
+            "holds_with_k_inf": bool(np.all(found <= bound_kinf)),
+            "input_steps_h": clean.t[steps].tolist(),
+            "mdot_jumps": [float(z[k, 1] - z[k - 1, 1]) for k in steps]}
+
+
 def _roots(f: Any, grid: Array, values: Array, target: float) -> list[float]:
     """Every crossing of ``f = target`` bracketed on ``grid``, refined by Brent's method."""
     out = []
@@ -210,13 +254,13 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     fig, (ax, ae) = subplots(2, 1, figsize=(9, 6.2), sharex=True,
                                  gridspec_kw={"height_ratios": [2, 1.3]})
     ax.plot(t, noisy.y_meas[:, 0], color="0.75", lw=0.5, label="$y_n$ (noisy)")
-    ax.plot(t, noisy.y_clean[:, 0], color="black", lw=1.4, label="$y = m$")
+    ax.plot(t, noisy.y_clean[:, 0], color="black", lw=1.4, label="$y = m$", zorder=3)
     ax.plot(t, rec.z_hat[:, 0], color="tab:red", lw=1.0, ls="--",
             label=r"$y_o$ ($\hat x(0) = 0$)")
     ax.plot(t, noisy.observers["x0_y0"].z_hat[:, 0], color="tab:blue", lw=0.9, ls=":",
             label=r"$y_o$ ($\hat x(0) = (y(0), 0)$)")
     ax.set_ylim(-0.01, 0.13)
-    ax.set_ylabel("microorganism $m$")
+    ax.set_ylabel("microorganism $m$ [conc.]")
     ax.legend(loc="lower right", fontsize=8, ncol=2)
     ax.set_title("Fig. 2a: output and estimate (noise PSD 0.25e-6 at 0.01 h, seed 0)")
     ae.plot(t, noisy.y_meas[:, 0] - rec.z_hat[:, 0], color="0.6", lw=0.4,
@@ -226,7 +270,7 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     for s in (-lam, lam):
         ae.axhline(s, color="black", lw=0.8, ls="--")
     ae.set_ylim(-0.05, 0.08)
-    ae.set_ylabel("output error")
+    ae.set_ylabel("output error [conc.]")
     ae.set_xlabel("t [h]")
     ae.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
@@ -234,13 +278,13 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
     names.append("fig2a_output.png")
     # (b) s and its estimate
     fig, ax = subplots(figsize=(9, 4.2))
-    ax.plot(t, noisy.x[:, 1], color="black", lw=1.4, label="$s$")
+    ax.plot(t, noisy.x[:, 1], color="black", lw=1.4, label="$s$", zorder=3)
     for name, c, ls in (("x0_zero", "tab:red", "--"), ("x0_y0", "tab:blue", ":")):
         s_hat, _ = substrate_estimate(noisy.observers[name].z_hat, noisy.u[:, 0], params)
         ax.plot(t, s_hat, color=c, lw=0.9, ls=ls, label=f"$s_o$ ({INITIAL[name]})")
     ax.set_ylim(-0.002, 0.06)
     ax.set_xlabel("t [h]")
-    ax.set_ylabel("substrate $s$")
+    ax.set_ylabel("substrate $s$ [conc.]")
     ax.set_title("Fig. 2b: substrate and its estimate through the inverse of eq. 16 (noisy y)")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -261,7 +305,7 @@ def _figures(out: Path, clean: Trajectory, noisy: Trajectory, params: dict[str, 
                label="paper: 0.55 (discrete adaptation, 1997)")
     ax.set_ylim(0.0, 0.7)
     ax.set_xlabel("t [h]")
-    ax.set_ylabel("observer gain $k$")
+    ax.set_ylabel("observer gain $k$ [1/h]")
     ax.set_title("Fig. 2c: observer gain k(t)")
     ax.legend(fontsize=8, loc="center", bbox_to_anchor=(0.5, 0.56), ncol=2)
     fig.tight_layout()
@@ -322,13 +366,34 @@ def _report(s: dict[str, Any]) -> str:
     ]
     for m0, k in zip(scan["grid_m_hat0"][::3], scan["grid_k_final_m_hat0"][::3]):
         lines.append(f"    m_hat(0) = {m0:5.3f}   k_final = {k:.4f}")
-    lines += ["", f"figures: {', '.join(s['figures'])}", f"runtime: {s['runtime_s']:.1f} s"]
+    th = s["theorem3"]
+    lines += [
+        "",
+        "THEOREM 3 (eq. 14), noise-free run, x_hat(0) = (0, 0)",
+        f"  mu = max |phi| = max |m''| between the input steps = {th['mu']:.4g} conc./h^2;",
+        f"  bound 2 mu |P_bar| / k0^(n+1-i), k0 = {th['k0']:g}: limsup |e1| <= "
+        f"{th['bound'][0]:.4g} conc., limsup |e2| <= {th['bound'][1]:.4g} conc./h",
+        f"  (with the final gain k_inf = {th['k_inf']:.4g} instead of k0: "
+        f"{th['bound_with_k_inf'][0]:.3g}, {th['bound_with_k_inf'][1]:.3g});",
+        f"  found, max over t >= {th['max_error_after_h']:g} h: |e1| = {th['max_error'][0]:.3g} "
+        f"conc., |e2| = {th['max_error'][1]:.3g} conc./h -> the bound "
+        + ("HOLDS" if th["holds"] else "does NOT hold")
+        + (" (also with k_inf)." if th["holds_with_k_inf"] else
+           " (with k0; not with k_inf)." if th["holds"] else "."),
+        "  The assumption behind it fails at the input steps "
+        f"({', '.join(f'{t:g} h' for t in th['input_steps_h'])}): m' = a1 m s/(a2 m + s) - u m "
+        f"jumps by {', '.join(f'{j:+.3g}' for j in th['mdot_jumps'])} conc./h there, so "
+        "phi = m'' holds a Dirac impulse",
+        "  (-u' m) and is not bounded; the paper's 'phi essentially bounded' holds only "
+        "between the steps, and the limsup is taken after the last one.",
+        "", f"figures: {', '.join(s['figures'])}", f"runtime: {s['runtime_s']:.1f} s"]
     if s.get("recordings"):
         lines.append(f"recordings (rerun): {', '.join(s['recordings'])}")
     return "\n".join(lines) + "\n"
 
 
-def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, seeds: int = 10,
+        quiet: bool = False) -> dict[str, Any]:
     """Run the reproduction; write ``out/summary.json``, ``out/report.txt`` and the figures.
 
     Parameters
@@ -341,6 +406,8 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
         summary's ``recordings`` and the report.
     seeds : int
         Number of noise realizations (seeds ``0 .. seeds-1``) averaged in the noisy numbers.
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a run).
 
     Returns
     -------
@@ -364,8 +431,13 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
     x0 = np.array(system.default_x0)
     y0 = float(x0[0])
     z0s = {"x0_zero": (0.0, 0.0), "x0_y0": (y0, 0.0)}
-    clean = _simulate(z0s, None)
-    runs = [_simulate(z0s, s) for s in range(seeds)]
+    with Progress(seeds + 1, unit="run", desc="bullinger1998", quiet=quiet) as progress:
+        clean = _simulate(z0s, None)
+        progress.add()
+        runs = []
+        for s in range(seeds):
+            runs.append(_simulate(z0s, s))
+            progress.add()
     summary: dict[str, Any] = {}
     for name in z0s:
         c = _run_stats(clean, name, params)
@@ -387,6 +459,7 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10) -> dict[str, Any
     x0_true_z = system.to_normal(x0, bullinger_input(0.0))
     scan = initial_state_scan(clean.y_clean[:, 0], x0_true_z)
     summary["initial_state_for_k_0_27"] = scan
+    summary["theorem3"] = theorem3(clean)
     low = scan["m_hat0_for_k_0_27_with_mdot_hat0_0"]
     k_027 = None
     if low:

@@ -1,8 +1,8 @@
 """Reproduction of Jo and Son (2004), section 4: the adaptive observer on the example eq. 28.
 
 ``hgo-mj reproduce jo_son2004 --out DIR`` writes ``DIR/summary.json``, ``DIR/report.txt`` and
-the figures ``fig1_example.png`` (the paper's Fig. 1, states and parameter) and
-``fig_elastic_joint.png``.
+the figures ``fig1_example.png`` (the paper's Fig. 1, states and parameter),
+``fig2_as_printed.png`` (the example's observer as printed) and ``fig_elastic_joint.png``.
 
 Setup, all from the paper: the system eq. 28 (:class:`~hgo_mj.systems.papers.JoSonExample`,
 ``theta = 1``, ``x(0) = (0.5, 1, -1)``), ``u = sin(pi t/3) sin(pi t/2)``, the observer eq. 27
@@ -19,6 +19,12 @@ equation where the paper prints ``z1``.
    ``t_error_stays_below_1e-1`` and ``..._1e-2`` are the first times after which it stays
    below those levels up to 60 s; ``theta_at_60s`` is ``theta_hat(60)``. The sampled-data
    observer of the testbed (``y``, ``u`` held over a sample) is run at two periods (``sampled``).
+   **As printed** (``as_printed``): the same integration with the example's observer exactly as
+   the paper prints it, the true (unmeasured) ``z1`` in the line of ``z_hat2``. Its errors
+   then obey ``e2' = -k2 e2 + y u theta~``, ``theta~' = -Gamma y u e2`` and
+   ``e1' = 2 y u theta~ - k1 e2``: ``e2`` and ``theta~`` converge as before, but nothing feeds
+   ``e1`` back, so ``z_hat1`` keeps the offset it has integrated and ``x_hat2 = z_hat1 -
+   z_hat2^3/3`` with it (``x_hat2_offset_at_60s``; ``fig2_as_printed.png``).
 2. **A MuJoCo plant where Corollary 3.3 holds** (``docs/adaptive_canonical_forms.md``): the
    elastic joint (``models/elastic_joint.xml``) measured by a motor tachometer, with the spring
    deflection from the link and motor encoders as a known signal
@@ -48,6 +54,7 @@ from ..metrics import settling_time
 from ..observers.jo_son import JoSonForm, JoSonObserver, jo_son_gain
 from ..plants import make_plant
 from ..plants.ode import OdePlant
+from ..progress import Progress
 from ..simulate import simulate
 from ..systems.base import Array
 from ..systems.papers import JoSonExample, jo_son_input
@@ -92,26 +99,49 @@ def check_coordinates(samples: int = 200, seed: int = 0) -> dict[str, Any]:
             "min_real_part_W": float(np.min(H.real))}
 
 
-def part_example(sampled_periods: tuple[float, ...] = (0.01, 0.001)) -> tuple[dict[str, Any], dict]:
-    """Part 1: the example, continuous time (keys) and sampled."""
+def _continuous(as_printed: bool = False) -> tuple[Array, Array, Array, Array]:
+    """Plant eq. 28 and the example's observer integrated together (DOP853, rtol 1e-11) over
+    60 s: ``(t, x, x_hat, theta_hat)``. ``as_printed``: the observer exactly as the paper
+    prints it after eq. 31, the true ``z1 = x1^3/3 + x2`` in the line of ``z_hat2`` (eq. 27
+    with ``A_o z_hat_o`` has ``z_hat1`` there)."""
     sys_ = JoSonExample()
     ob = JoSonObserver(sys_, lam=PAPER["lam"], gamma=PAPER["gamma"], z_hat0=(0.0, 0.0, 0.0),
                        theta_hat0=(0.0,), excitation_window=None)
-    form, T = ob.form, PAPER["T"]
+    T = PAPER["T"]
 
     def f(t: float, s: Array) -> Array:
         x = s[:3]
         u = jo_son_input(t)
         # eq. 27 on one row (the observer's own right-hand side), y = x1 measured exactly
-        return np.concatenate((sys_.dynamics(t, x, u, sys_.params),
-                               ob.rhs(s[None, 3:], x[:1], u[None])[0]))
+        obs = ob.rhs(s[None, 3:], x[:1], u[None])[0]
+        if as_printed:  # z_hat2' = z1 - 4/3 y^3 + ...: the true z1 replaces z_hat1
+            obs[1] += x[0] ** 3 / 3.0 + x[1] - s[3]
+        return np.concatenate((sys_.dynamics(t, x, u, sys_.params), obs))
 
     ts = np.linspace(0.0, T, 60001)
     sol = solve_ivp(f, (0.0, T), np.concatenate((sys_.default_x0, np.zeros(4))), method="DOP853",
                     rtol=1e-11, atol=1e-13, t_eval=ts)
-    x = sol.y[:3].T
-    x_hat = form.physical_rows(sol.y[3:6].T)
-    theta_hat = sol.y[6]
+    return ts, sol.y[:3].T, ob.form.physical_rows(sol.y[3:6].T), sol.y[6]
+
+
+def as_printed() -> tuple[dict[str, Any], dict[str, Array]]:
+    """The example's observer as printed (see the module docstring): the offset it leaves in
+    ``x_hat2`` (and ``z_hat1``), with ``theta_hat`` and ``x_hat1`` converging as before."""
+    ts, x, x_hat, theta_hat = _continuous(as_printed=True)
+    off = x_hat - x
+    out = {"x_hat2_offset_at_60s": float(off[-1, 1]),
+           "x_hat2_offset_change_last_10s": float(np.ptp(off[ts >= PAPER["T"] - 10, 1])),
+           "x_hat1_error_at_60s": float(abs(off[-1, 0])),
+           "x_hat3_error_at_60s": float(abs(off[-1, 2])),
+           "theta_at_60s": float(theta_hat[-1])}
+    return out, {"t": ts, "x": x, "x_hat": x_hat, "theta_hat": theta_hat}
+
+
+def part_example(sampled_periods: tuple[float, ...] = (0.01, 0.001)) -> tuple[dict[str, Any], dict]:
+    """Part 1: the example, continuous time (keys) and sampled."""
+    sys_ = JoSonExample()
+    T = PAPER["T"]
+    ts, x, x_hat, theta_hat = _continuous()
     e = np.linalg.norm(x - x_hat, axis=1)
     cont: dict[str, Any] = {f"t_error_stays_below_{lv:g}": stays_below(ts, e, lv) for lv in LEVELS}
     cont["t_error_stays_below_1e-3"] = stays_below(ts, e, 1e-3)
@@ -183,36 +213,56 @@ def part_elastic_joint(dt_check: bool = True) -> tuple[dict[str, Any], Any]:
     return section, (tr, form, truth)
 
 
-def _figures(out: Path, c: dict, el: Any) -> list[str]:
+def _figures(out: Path, c: dict, el: Any, printed: dict[str, Array]) -> list[str]:
     from ..plotting import subplots
 
     t = c["t"]
-    fig, axes = subplots(3, 2, figsize=(12, 8), sharex=True)
+    fig, axes = subplots(3, 2, figsize=(12, 8), sharex="col", layout="constrained")
     for i in range(3):
         ax = axes[i, 0]
-        ax.plot(t, c["x"][:, i], "k", lw=1.3, label=f"x{i + 1}")
         ax.plot(t, c["x_hat"][:, i], "C0--", lw=1.0, label=f"x{i + 1}_hat")
-        ax.set_xlim(0, 20)
-        ax.legend(fontsize=8)
-    axes[0, 0].set_title("Fig. 1 of paper 003 (continuous time, first 20 s)")
+        ax.plot(t, c["x"][:, i], "k", lw=1.3, label=f"x{i + 1} (true)", zorder=3)
+        ax.set_ylabel(f"x{i + 1} [-]")
+        ax.legend(fontsize=8, loc="upper right")
+    axes[0, 0].set_xlim(0, 20)
+    axes[0, 0].set_title("states, first 20 s (paper 003, Fig. 1; continuous time)", fontsize=10)
     axes[0, 1].plot(t, c["theta_hat"], "C0", label="theta_hat")
     axes[0, 1].axhline(1.0, color="k", lw=0.8, label="theta")
-    axes[0, 1].legend(fontsize=8)
+    axes[0, 1].set_ylabel("theta [-]")
+    axes[0, 1].legend(fontsize=8, loc="lower right")
+    axes[0, 1].set_title("parameter and errors, 60 s", fontsize=10)
     axes[1, 1].semilogy(t, np.maximum(c["e"], 1e-16), "k", lw=1.2, label="continuous")
     for k, v in c.items():
         if k.startswith("sampled"):
-            axes[1, 1].semilogy(v[0], np.maximum(v[1], 1e-16), lw=0.8, label=k)
+            axes[1, 1].semilogy(v[0], np.maximum(v[1], 1e-16), lw=0.8, label=k.replace("dt=", "dt = ") + " s")
     for lv in LEVELS:
         axes[1, 1].axhline(lv, color="0.5", ls=":", lw=0.8)
-    axes[1, 1].set_ylabel("|x - x_hat|")
-    axes[1, 1].legend(fontsize=7)
+    axes[1, 1].set_ylabel("|x - x_hat| [-]")
+    axes[1, 1].legend(fontsize=7, loc="upper right")
     axes[2, 1].semilogy(t, np.maximum(np.abs(c["theta_hat"] - 1.0), 1e-16), "C0")
-    axes[2, 1].set_ylabel("|theta_hat - theta|")
+    axes[2, 1].set_ylabel("|theta_hat - theta| [-]")
     axes[1, 1].set_xlim(0, 60)
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
-    fig.tight_layout()
     save_figure(fig, out / "fig1_example.png")
+
+    pt = printed["t"]
+    fig, axes = subplots(2, 1, figsize=(9, 6), sharex=True, layout="constrained")
+    axes[0].plot(t, c["x_hat"][:, 1], "C0--", lw=1.0, label="x2_hat, eq. 27 (z_hat1 in the z_hat2 line)")
+    axes[0].plot(pt, printed["x_hat"][:, 1], "C3--", lw=1.0,
+                 label="x2_hat, the example's observer as printed (true z1 there)")
+    axes[0].plot(t, c["x"][:, 1], "k", lw=1.3, label="x2 (true)", zorder=3)
+    axes[0].set_ylabel("x2 [-]")
+    axes[0].legend(fontsize=8, loc="lower right")
+    axes[0].set_title("paper 003, section 4: the observer as printed keeps an offset in x2_hat",
+                      fontsize=10)
+    axes[1].plot(t, c["x_hat"][:, 1] - c["x"][:, 1], "C0", lw=1.0, label="eq. 27")
+    axes[1].plot(pt, printed["x_hat"][:, 1] - printed["x"][:, 1], "C3", lw=1.0, label="as printed")
+    axes[1].axhline(0.0, color="0.6", lw=0.6)
+    axes[1].set_ylabel("x2_hat - x2 [-]")
+    axes[1].set_xlabel("t [s]")
+    axes[1].legend(fontsize=8, loc="lower right")
+    save_figure(fig, out / "fig2_as_printed.png")
 
     tr, form, truth = el
     d = tr.observers["jo_son"].diagnostics
@@ -221,17 +271,18 @@ def _figures(out: Path, c: dict, el: Any) -> list[str]:
         axes[0].plot(tr.t, d[f"theta_{nm}"] / truth[j], lw=1.0, label=nm)
     axes[0].axhline(1.0, color="k", lw=0.6)
     axes[0].set_ylim(-0.5, 2.0)
-    axes[0].set_ylabel("estimate / true")
+    axes[0].set_ylabel("estimate / true [-]")
     axes[0].legend(fontsize=8)
-    axes[0].set_title("Jo-Son on the MuJoCo elastic joint (y = motor velocity, deflection measured)")
-    axes[1].plot(tr.t, tr.x[:, 3], "k", lw=0.8, label="motor velocity")
+    axes[0].set_title("Jo-Son on the MuJoCo elastic joint (y = motor velocity, deflection "
+                      "measured)", fontsize=10)
     axes[1].plot(tr.t, tr.observers["jo_son"].x_hat[:, 0], "C0--", lw=0.6, label="estimate")
-    axes[1].set_ylabel("rad/s")
+    axes[1].plot(tr.t, tr.x[:, 3], "k", lw=0.8, label="motor velocity (true)", zorder=3)
+    axes[1].set_ylabel("motor velocity [rad/s]")
     axes[1].set_xlabel("t [s]")
     axes[1].legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, out / "fig_elastic_joint.png")
-    return ["fig1_example.png", "fig_elastic_joint.png"]
+    return ["fig1_example.png", "fig2_as_printed.png", "fig_elastic_joint.png"]
 
 
 def _report(s: dict[str, Any]) -> str:
@@ -249,9 +300,18 @@ def _report(s: dict[str, Any]) -> str:
         f"{co['transfer_function_minus_br_over_s_plus_lambda']:.1e} "
         "over 1e-2..1e3 rad/s (the paper prints (sI - A_o)^-1; with K it is SPR: min Re W = "
         f"{co['min_real_part_W']:.2e} > 0).",
-        "   Misprints: the example's observer reads z1 where z_hat1 is meant (z1 is not measured); "
-        "eq. 21/27 read A_oo z_hat_obar for A_oo z_hat_o; Corollary 3.3's proof reads b_r b_1 = lambda b_1 "
-        "(b_r k_1) and b beta^T e_o (e_theta).", "",
+        "   Misprints: the example's observer reads z1 where z_hat1 is meant (z1 is not measured; "
+        "run as printed below); eq. 21 and 27 read A_oo z_hat_obar for A_oo z_hat_o, and eq. 21 "
+        "'A_oo z_hat_obar = f_obar(...)' has '=' for '+'; eq. 27 prints theta_hat = Gamma beta "
+        "(y - z_hat_r) for its derivative theta_hat' (the dot is missing); Corollary 3.3's proof "
+        "reads b_r b_1 = lambda b_1 (b_r k_1) and b beta^T e_o (e_theta).",
+        "   Eq. 5 defines X_i = ad^(i-1) tau without the sign of f: the example's X_2 = d/dx1 - "
+        "x1^2 d/dx2 + x1 d/dx3 is ad_(-f) tau = -[f, tau] (with [f, g] = (dg/dx) f - (df/dx) g), "
+        "the convention of the proof of Theorem 3.1 (<dh, ad_(-f)^i tau>).",
+        "   The example cites 'assumptions (i), (ii), (v), (vi), and (viii)' and 'condition (vii)' "
+        "of Theorem 3.1, which has conditions (i)-(iii) (its (i) being Theorem 2.2's (i)-(vii); "
+        "there is no (viii)): the (vii) meant, [X_2, q] = u (2 X_1 + X_2) with b = (2, 1), is "
+        "Theorem 3.1 (iii).", "",
         "1. The example (lambda = 2, Gamma = 5, theta = 1, x(0) = (0.5, 1, -1), z_hat(0) = 0, "
         "theta_hat(0) = 0)",
         "   continuous time: |x - x_hat| stays below 1e-1 after "
@@ -268,11 +328,19 @@ def _report(s: dict[str, Any]) -> str:
             f"{fmt_num(v['t_error_stays_below_0.01'], '.4g')} s, max error over the last 10 s "
             f"{v['error_max_last_10s']:.1e}, "
             f"theta_hat(60) = {v['theta_at_60s']:.4f}" for k, v in ex["sampled"].items()),
-        "   (holding y leaves an O(dt) error floor: 1e-2 is reached only with dt well below 0.01).", "",
+        "   (holding y leaves an O(dt) error floor: 1e-2 is reached only with dt well below 0.01).",
+        "   The observer exactly as printed (the true z1 in the z_hat2 line): theta_hat(60) = "
+        f"{ex['as_printed']['theta_at_60s']:.6f}, |x1_hat - x1|(60) = "
+        f"{ex['as_printed']['x_hat1_error_at_60s']:.1e}, but x2_hat - x2 = "
+        f"{ex['as_printed']['x_hat2_offset_at_60s']:.4f} at 60 s (changing by "
+        f"{ex['as_printed']['x_hat2_offset_change_last_10s']:.1e} over the last 10 s): nothing "
+        "feeds the error of z_hat1 back (e1' = 2 y u theta~ - k1 e2), so z_hat1, and x2_hat = "
+        "z_hat1 - z_hat2^3/3 with it, keep the offset they integrated (fig2_as_printed.png).", "",
         "2. MuJoCo: elastic joint, y = motor velocity, spring deflection measured (Corollary 3.3 holds: "
         "r = 1, b = (1))",
-        "   " + "; ".join(f"{nm} = {est:.5g} (true {tr_:.5g}, {100 * rel:+.2f} %, within 5 % after "
-                          f"{fmt_num(t5, '.3g')} s)"
+        "   " + "; ".join(f"{nm} = {est:.5g} (true {tr_:.5g}, {100 * rel:+.2f} %, within 5 % "
+                          + (f"after {fmt_num(t5, '.3g')} s)" if fmt_num(t5) != "never"
+                             else "never)")
                           for nm, est, tr_, rel, t5 in zip(el["theta_names"], el["theta_final"],
                                                             el["theta_true"], el["relative_error_final"],
                                                             el["time_to_5pct"])),
@@ -291,7 +359,7 @@ def _report(s: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
+def run(out: Path, *, rrd: Path | None = None, quiet: bool = False) -> dict[str, Any]:
     """Run parts 0-2; write ``summary.json``, ``report.txt`` and the figures.
 
     Parameters
@@ -301,12 +369,19 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
     rrd : Path, optional
         Write the elastic-joint run to this rerun recording (the example runs in continuous time,
         outside the testbed's loop, and is not recorded).
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a part).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    coords = check_coordinates()
-    example, curves = part_example()
-    elastic, el = part_elastic_joint()
+    with Progress(3, unit="part", desc="jo_son2004", quiet=quiet) as progress:
+        coords = check_coordinates()
+        progress.add()
+        example, curves = part_example()
+        example["as_printed"], printed = as_printed()
+        progress.add()
+        elastic, el = part_elastic_joint()
+        progress.add()
     c = example["continuous"]
     summary: dict[str, Any] = {
         "t_error_stays_below_1e-1": c["t_error_stays_below_0.1"],
@@ -315,10 +390,11 @@ def run(out: Path, *, rrd: Path | None = None) -> dict[str, Any]:
         "error_norm": "Euclidean |x - x_hat| in the coordinates of eq. 28, continuous time",
         "coordinates": coords, "example": example, "elastic_joint_motor_side": elastic,
     }
-    summary["figures"] = _figures(out, curves, el)
+    summary["figures"] = _figures(out, curves, el, printed)
     if rrd is not None:
         summary["recordings"] = record_runs(rrd, {"": el[0]})
     return finish(out, summary, _report(summary))
 
 
-__all__ = ["check_coordinates", "part_elastic_joint", "part_example", "run", "stays_below"]
+__all__ = ["as_printed", "check_coordinates", "part_elastic_joint", "part_example", "run",
+           "stays_below"]

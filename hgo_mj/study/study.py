@@ -19,6 +19,7 @@ from typing import Any
 
 from .._validate import vector
 from ..exceptions import DesignError, HgoError
+from ..progress import Progress, seconds
 from .engine import Chunk, plan
 from .results import ResultsDir, schema, write_summary
 from .spec import MAX_RUNS, Cell, parse_study
@@ -73,19 +74,11 @@ class Plan:
         done = f" ({self.runs - self.todo} done already)" if self.todo != self.runs else ""
         return (f"study: {_n(self.cells, 'cell')}, {_n(self.runs, 'run')}{done}, "
                 f"{_n(self.trajectories, 'distinct plant trajectory', 'distinct plant trajectories')}"
-                f", {_n(len(self.chunks), 'chunk')}, about {_seconds(self.estimate_s)}{where}")
+                f", {_n(len(self.chunks), 'chunk')}, about {seconds(self.estimate_s)}{where}")
 
 
 def _n(k: int, one: str, many: str | None = None) -> str:
     return f"{k} {one if k == 1 else (many or one + 's')}"
-
-
-def _seconds(s: float) -> str:
-    if s < 60:
-        return f"{s:.0f} s" if s >= 1 else "1 s"
-    if s < 3600:
-        return f"{s / 60:.1f} min"
-    return f"{s / 3600:.1f} h"
 
 
 class Study:
@@ -263,7 +256,7 @@ class Study:
             say(the_plan.describe())
         sch = schema(self.spec, diagnostics)
         values = {c.index: c.values for c in self.cells}
-        progress = Progress(the_plan.todo, quiet=quiet, echo=say)
+        progress = Progress(the_plan.todo, desc=self.name, quiet=quiet, echo=echo)
         t0 = time.perf_counter()
         for chunk, rows in run_backend(the_plan.chunks):
             res.write(rows, self.spec, values, sch)
@@ -337,41 +330,4 @@ class StudyResult:
         return study_figures(self, out)
 
 
-class Progress:
-    """Runs done on stderr: a bar with rate and ETA on a terminal (tqdm), else a line at every
-    tenth of the work; nothing when ``quiet``."""
-
-    def __init__(self, total: int, *, quiet: bool = False,
-                 echo: Callable[[str], None] | None = None) -> None:
-        self.total, self.done, self.quiet = total, 0, quiet or total == 0
-        self.echo = echo or (lambda s: print(s, file=sys.stderr))
-        self.t0 = time.perf_counter()
-        self.next_tenth = 1
-        self.bar: Any = None
-        if not self.quiet and sys.stderr.isatty():
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, unit="run", file=sys.stderr, dynamic_ncols=True)
-
-    def add(self, n: int) -> None:
-        self.done += n
-        if self.quiet:
-            return
-        if self.bar is not None:
-            self.bar.update(n)
-            return
-        tenth = min(10, self.done * 10 // self.total)
-        if tenth >= self.next_tenth:  # one line for the tenths this step crossed
-            el = time.perf_counter() - self.t0
-            rate = self.done / el if el > 0 else float("inf")
-            eta = (self.total - self.done) / rate if rate > 0 else 0.0
-            self.echo(f"{self.done * 100 // self.total:3d}% {self.done}/{self.total} runs, "
-                      f"{rate:.0f} runs/s, {_seconds(el)} elapsed, ETA {_seconds(eta)}")
-            self.next_tenth = tenth + 1
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
-__all__ = ["Plan", "Progress", "Study", "StudyResult", "load_toml"]
+__all__ = ["Plan", "Study", "StudyResult", "load_toml"]

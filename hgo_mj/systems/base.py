@@ -115,6 +115,9 @@ class System:
     #: the unit of time of the model (``""``: dimensionless, e.g. in residence times)
     time_unit: ClassVar[str] = "s"
     input_names: ClassVar[tuple[str, ...]] = ()
+    #: the unit of each input, in the order of ``input_names`` (``""``: dimensionless or as
+    #: the paper leaves it); empty: not declared
+    input_units: ClassVar[tuple[str, ...]] = ()
     #: names of the measured outputs; for MuJoCo plants these are MJCF ``<sensor>`` names
     output_names: ClassVar[tuple[str, ...]] = ()
     param_names: ClassVar[tuple[str, ...]] = ()

@@ -106,6 +106,7 @@ class CartPendulum(_SecondOrderMujocoSystem):
     state_names = ("angle", "angular_velocity")
     state_units = ("rad", "rad/s")
     input_names = ("acceleration",)
+    input_units = ("m/s^2",)
     output_names = ("angle",)
     param_names = ("g", "length", "mass", "inertia", "damping", "accel_gain")
     compiled = CartPendulumModel()

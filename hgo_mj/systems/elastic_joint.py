@@ -269,6 +269,7 @@ class ElasticJoint(_MujocoSystem):
     state_names = ("link_angle", "motor_angle", "link_velocity", "motor_velocity")
     state_units = ("rad", "rad", "rad/s", "rad/s")
     input_names = ("torque",)
+    input_units = ("N m",)
     output_names = ("link_angle",)
     param_names = ("link_inertia", "motor_inertia", "mass", "com_distance", "g", "stiffness",
                    "link_damping", "motor_damping", "gear")

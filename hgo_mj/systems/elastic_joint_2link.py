@@ -223,6 +223,7 @@ class ElasticJoint2Link(_MujocoSystem):
                    "link1_velocity", "link2_velocity", "motor1_velocity", "motor2_velocity")
     state_units = ("rad",) * 4 + ("rad/s",) * 4
     input_names = ("torque1", "torque2")
+    input_units = ("N m", "N m")
     output_names = ("link1_angle", "link2_angle")
     param_names = ("link1_inertia", "link1_moment", "link1_length", "link2_mass",
                    "link2_moment", "link2_inertia", "motor1_inertia", "motor2_inertia",

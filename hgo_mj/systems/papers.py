@@ -86,7 +86,11 @@ def bullinger_input(t: float) -> Array:
     Returns
     -------
     ndarray, shape (1,)
-        ``[u(t)]``. Its derivative is zero except at the jumps ``t = 30`` and ``t = 50``.
+        ``[u(t)]``. Its derivative is zero except at the jumps ``t = 30`` and ``t = 50``, where
+        it is an impulse: there ``m' = a_1 m s/(a_2 m + s) - u m`` jumps and
+        :math:`\\varphi = \\ddot m` holds :math:`-\\dot u m`, so the paper's boundedness
+        assumption on :math:`\\varphi` (A2; "essentially bounded" in Theorems 2-3) fails at
+        the switching instants and holds only between them (the paper does not say so).
 
     References
     ----------

@@ -151,6 +151,7 @@ class Pendulum(_SecondOrderMujocoSystem):
     state_names = ("angle", "angular_velocity")
     state_units = ("rad", "rad/s")
     input_names = ("torque",)
+    input_units = ("N m",)
     output_names = ("angle",)
     param_names = ("mass", "com_distance", "inertia", "damping", "gear", "g")
     _positive = ("mass", "com_distance", "inertia")

@@ -20,6 +20,7 @@ from rrd_reader import read_rrd
 
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers import OBSERVERS, make_observer
+from hgo_mj.record import read
 from hgo_mj.systems import CartPendulum
 
 ENV_IDS = sorted(envs.ENVIRONMENTS)
@@ -508,43 +509,43 @@ def test_record_episodes_holds_every_episode(tmp_path, env_id):
     E = np.array([i["error"] for i in infos])
     assert X.shape[0] == rows
     est = {name: k for k, name in enumerate(u.estimate_names)}
+    df = read(path)
     for j, s in enumerate(u.state_names):
-        e = ents[f"/state/{s}"]
+        e = ents[f"/state/{s}/true"]
         assert e.rows == rows, s
         np.testing.assert_array_equal(e["episode"], np.repeat([0, 1], [n + 1 for n in lengths]))
         np.testing.assert_array_equal(e["step"], np.arange(rows))
         assert np.all(np.diff(e["sim_time"]) > 0)  # the second episode follows the first
-        vals = e["Scalars:scalars"]
-        np.testing.assert_array_equal(vals[:, 0], X[:, j])
-        if s in est:
-            assert vals.shape[1] == 2
-            np.testing.assert_array_equal(vals[:, 1], XH[:, est[s]])
-            err = ents[f"/error/{s}"]["Scalars:scalars"][:, 0]
-            np.testing.assert_array_equal(err, E[:, u.error_names.index(s)])
+        np.testing.assert_array_equal(df[f"/state/{s}/true"], X[:, j])
+        if s in est:  # one entity per observer and state
+            np.testing.assert_array_equal(df[f"/state/{s}/{obs_name}"], XH[:, est[s]])
+            np.testing.assert_array_equal(df[f"/error/{s}/{obs_name}"],
+                                          E[:, u.error_names.index(s)])
         else:  # a state the observer does not estimate: the truth only, no error
-            assert vals.shape[1] == 1 and f"/error/{s}" not in ents
+            assert f"/state/{s}/{obs_name}" not in ents and f"/error/{s}/{obs_name}" not in ents
     assert set(u.error_names) == {s for s in u.state_names if s in est}
     for name, k in est.items():  # estimates that are not plant states: the observer's names
         if name not in u.state_names:
             e = ents[f"/observer/{obs_name}/estimate/{name}"]
             np.testing.assert_array_equal(e["Scalars:scalars"][:, 0], XH[:, k])
-    np.testing.assert_allclose(ents["/env/reward"]["Scalars:scalars"][:, 0], rewards)
+    np.testing.assert_allclose(df["/env/reward"], rewards)
     inputs = np.array(actions)
     for j, name in enumerate(u.plant.input_names):
-        np.testing.assert_allclose(ents[f"/input/{name}"]["Scalars:scalars"][:, 0], inputs[:, j],
-                                   rtol=1e-6)
+        np.testing.assert_allclose(df[f"/input/{name}"], inputs[:, j], rtol=1e-6)
+        assert df.attrs["units"][f"/input/{name}"] == "N m"
     for name in u.output_names:  # the clean output is the true state's
-        sensor = ents[f"/sensor/{name}"]["Scalars:scalars"]
+        clean, measured = df[f"/sensor/{name}/clean"], df[f"/sensor/{name}/measured"]
         if name in u.state_names:
-            np.testing.assert_allclose(sensor[:, 0], X[:, u.state_names.index(name)], atol=1e-12)
-        assert np.all(np.abs(sensor[:, 1] - sensor[:, 0]) < 0.05)  # noise, quantization
+            np.testing.assert_allclose(clean, X[:, u.state_names.index(name)], atol=1e-12)
+        assert np.all(np.abs(measured - clean) < 0.05)  # noise, quantization
     # diagnostics: where they change and at each episode's end
     diag = u.observer.diagnostics()
     if "k" in diag:
         gain = ents[f"/observer/{obs_name}/gain"]
         assert np.all(gain["Scalars:scalars"] == diag["k"]) and gain["step"][-1] == rows - 1
-    drops = ents[f"/observer/{obs_name}/diagnostics/dropouts"]
-    assert np.all(drops["Scalars:scalars"] == 0.0) and drops["step"][-1] == rows - 1
+    # no dropout stage in the sensor chain: no dropout series
+    assert not u.sensor.has_dropouts
+    assert f"/observer/{obs_name}/diagnostics/dropouts" not in ents
     # the ghost poses the estimated joints
     body = {"hgo_mj/PendulumSwingUp-v0": "pole", "hgo_mj/ElasticJoint2LinkReach-v0": "link2"}[env_id]
     ghost = ents[f"/world/estimate/{obs_name}/{body}"]
@@ -590,7 +591,8 @@ def test_record_episodes_without_observer(tmp_path):
         env.step(np.zeros(1, dtype=np.float32))
     env.close()
     ents, _ = read_rrd(path)
-    assert ents["/state/angle"].rows == 4 and ents["/state/angle"]["Scalars:scalars"].shape[1] == 1
+    assert ents["/state/angle/true"].rows == 4
+    assert [e for e in ents if e.startswith("/state/angle/")] == ["/state/angle/true"]
     assert not any(e.startswith(("/error", "/observer", "/world/estimate")) for e in ents)
     table = _json_blocks(ents["/metrics"].static["TextDocument:text"][0])[0]
     assert table == [{"episode": 0, "seed": 4, "steps": 3, "return": table[0]["return"],

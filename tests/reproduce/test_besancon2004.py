@@ -44,6 +44,12 @@ def test_example1(summary):
     # the numbers found (tolerance 2 %) and the continuous-time observer (sampling effect)
     np.testing.assert_allclose(e1["theta_at_30s"], [0.671, 1.987], rtol=0.02)
     np.testing.assert_allclose(e1["theta_at_30s"], c1["theta_at_30s"], atol=0.01)
+    # ... but not to the digits: the gap is first order in the sample period (halves with it)
+    gap = np.abs(np.subtract(e1["theta_at_30s"], c1["theta_at_30s"]))
+    half = np.abs(np.subtract(c1["theta_at_30s_half_period"], c1["theta_at_30s"]))
+    assert gap[0] > 3e-3
+    np.testing.assert_allclose(gap / half, 2.0, rtol=0.05)
+    assert "halves to" in (summary["_out"] / "report.txt").read_text()
     assert 44.0 < e1["time_to_5pct"] < 50.0
     assert abs(e1["time_to_5pct"] - c1["time_to_5pct"]) < 1.0
     assert max(e1["state_error_at_30s"]) < 0.01

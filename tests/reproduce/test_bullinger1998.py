@@ -80,6 +80,23 @@ def test_initial_states_that_give_0_27(reproduction):
     assert scan["k_final_x0_zero_method_exact"] == pytest.approx(0.5528, rel=0.01)
 
 
+def test_theorem3_bound_is_evaluated(reproduction):
+    """Eq. 14 with mu = max |m''| between the input steps holds on the noise-free run (loosely:
+    it uses k0), and the input steps make m' jump (phi is not bounded there)."""
+    from hgo_mj.design import bullinger_theorem3_bound
+
+    out, s = reproduction
+    th = s["theorem3"]
+    assert th["mu"] == pytest.approx(0.0080746, rel=0.01)
+    np.testing.assert_allclose(th["bound"], bullinger_theorem3_bound((1.0, 0.2), th["mu"], 0.1))
+    assert th["holds"] and th["holds_with_k_inf"]
+    assert np.all(np.array(th["max_error"]) < np.array(th["bound_with_k_inf"]) / 100)
+    assert th["input_steps_h"] == [30.0, 50.0]
+    # u: 0.08 -> 0.02 -> 0.08, so m' jumps by -(u+ - u-) m: up, then down
+    assert th["mdot_jumps"][0] > 5e-3 and th["mdot_jumps"][1] < -5e-3
+    assert "THEOREM 3 (eq. 14)" in (out / "report.txt").read_text()
+
+
 def test_files_and_runtime(reproduction):
     out, s = reproduction
     for name in ("fig2a_output.png", "fig2b_substrate.png", "fig2c_gain.png"):

@@ -97,6 +97,11 @@ def test_q_integral_is_smoother(summary):
     assert qi == pytest.approx(summary["rmse_x2_qintegral_predicted"], rel=0.15)
     assert summary["rmse_x2_standard_noise_free"] < 3e-3
     assert summary["rmse_x2_qintegral_noise_free"] < 1e-2
+    # the noise-free error is the measurement held over a sample: it halves with the period
+    for name in ("standard", "qintegral"):
+        ratio = (summary[f"rmse_x2_{name}_noise_free"]
+                 / summary[f"rmse_x2_{name}_noise_free_half_period"])
+        assert ratio == pytest.approx(2.0, rel=0.05), name
 
 
 def test_mujoco_cart_pendulum(summary):

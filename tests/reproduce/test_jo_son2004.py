@@ -36,6 +36,20 @@ def test_example_with_the_papers_settings():
     assert 3e-3 < coarse["error_max_last_10s"] < 3e-2
 
 
+def test_the_example_observer_as_printed_keeps_an_offset_in_x_hat_2():
+    """The paper's example observer with the true z1 in the z_hat2 line: theta_hat and x_hat1
+    converge, x_hat2 settles at a constant offset (nothing feeds the z_hat1 error back)."""
+    p, curves = js.as_printed()
+    assert p["theta_at_60s"] == pytest.approx(1.0, abs=1e-5)
+    assert p["x_hat1_error_at_60s"] < 1e-6 and p["x_hat3_error_at_60s"] < 1e-6
+    assert p["x_hat2_offset_at_60s"] == pytest.approx(-1.3725, abs=2e-3)  # not 0
+    assert p["x_hat2_offset_change_last_10s"] < 1e-5  # a constant offset, not a slow decay
+    # x_hat2(0) = z_hat1(0) - z_hat2(0)^3/3 = 0 against x2(0) = 1; the error never dies out
+    off = curves["x_hat"][:, 1] - curves["x"][:, 1]
+    assert off[0] == pytest.approx(-1.0, abs=1e-12)
+    assert np.all(np.abs(off[curves["t"] >= 5.0]) > 1.0)
+
+
 def test_elastic_joint_motor_side_mujoco():
     el, _ = js.part_elastic_joint(dt_check=False)
     rel = np.array(el["relative_error_final"])
@@ -58,6 +72,8 @@ def test_run_writes_the_summary_report_and_figures(tmp_path):
     assert saved["t_error_stays_below_1e-1"] == pytest.approx(1.699, abs=0.01)
     rel = saved["elastic_joint_motor_side"]["relative_error_final_at_dt_check"]["relative_error"]
     assert abs(rel[1]) < abs(saved["elastic_joint_motor_side"]["relative_error_final"][1])
-    assert "HOLDS at the 0.1 level" in (tmp_path / "report.txt").read_text()
+    report = (tmp_path / "report.txt").read_text()
+    assert "HOLDS at the 0.1 level" in report
+    assert "as printed" in report and "fig2_as_printed.png" in saved["figures"]
     for f in s["figures"]:
         assert (tmp_path / f).stat().st_size > 10_000

@@ -1,0 +1,201 @@
+"""A :class:`~hgo_mj.simulate.Trajectory` as a table: pandas, Arrow, Parquet and CSV.
+
+Wide form (one row per sample instant), the columns in this order:
+
+==============================  ==========================================================
+``t``                           time of the sample
+``true/<state>``                the plant's true state
+``<observer>/<state>``          the observer's estimate, one column per column of its
+                                ``x_hat`` (its own ``state_names``: plant states, output
+                                derivatives, parameter estimates)
+``<observer>/diagnostics/<d>``  its run-time diagnostics (gain, dropouts, ...)
+``measured/<output>``           the measurement the observers saw
+``clean/<output>``              the plant's output before the sensor chain
+``input/<input>``               the input applied over the next sample
+==============================  ==========================================================
+
+Long form (tidy, one row per sample and column of the wide form): ``t``, ``source`` (the
+column's name up to its last ``/``: ``true``, an observer, ``<observer>/diagnostics``,
+``measured``, ``clean``, ``input``), ``name`` (after the last ``/``), ``value`` and ``unit``.
+
+Units come from the plant's system (:mod:`hgo_mj.units`): in the wide form each Arrow field
+carries its unit in the field metadata (key ``unit``; absent when unknown, ``""`` for
+dimensionless) and ``DataFrame.attrs["units"]`` maps each column to its unit; the long form
+has them in its ``unit`` column. The Arrow schema metadata (key ``hgo_mj``) holds, as strict
+JSON, the form, the units, the time unit, the names and the run's metadata; ``z_hat`` (the
+observers' own normal-form coordinates) stays in the ``.npz`` only.
+
+Examples
+--------
+>>> from hgo_mj.inputs import Constant
+>>> from hgo_mj.observers import make_observer
+>>> from hgo_mj.plants import make_plant
+>>> from hgo_mj.simulate import simulate
+>>> plant = make_plant("pendulum", 0.01)
+>>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system, k=20.0)},
+...                 Constant(0.0), duration=0.05)
+>>> df = traj.to_pandas()
+>>> list(df.columns[:5])
+['t', 'true/angle', 'true/angular_velocity', 'hgo/angle', 'hgo/angular_velocity']
+>>> df.attrs["units"]["hgo/angular_velocity"]
+'rad/s'
+>>> traj.to_pandas("long").columns.tolist()
+['t', 'source', 'name', 'value', 'unit']
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._io import atomic_path, write_text
+from ._json import strict_json
+from .exceptions import DesignError
+from .units import units_of
+
+#: the sources of the wide form's columns that are not observers
+RESERVED = ("t", "true", "measured", "clean", "input")
+#: the table forms
+FORMS = ("wide", "long")
+#: the file formats of :func:`write_table` (``npz`` is :meth:`Trajectory.save`)
+FILE_FORMATS = ("parquet", "csv")
+
+
+def _check_form(form: Any) -> str:
+    if not isinstance(form, str) or form not in FORMS:
+        raise DesignError(f"form must be one of {list(FORMS)}; found {form!r}")
+    return form
+
+
+def _columns(x: Any) -> list[Any]:
+    """The columns of a ``(T,)`` or ``(T, k)`` array."""
+    a = np.asarray(x, dtype=float)
+    return [a] if a.ndim == 1 else [a[:, j] for j in range(a.shape[1])]
+
+
+def wide_columns(traj: Any) -> tuple[dict[str, Any], dict[str, str | None]]:
+    """The wide form's columns ``{name: (T,) array}`` in order, and each column's unit
+    (``None``: unknown)."""
+    for name in traj.observers:
+        if name in RESERVED or "/" in name:
+            raise DesignError(f"observer name {name!r} cannot name table columns: expected no "
+                              f"'/' and none of {list(RESERVED)}")
+    units, t_unit = units_of(traj)
+    cols: dict[str, Any] = {"t": np.asarray(traj.t, dtype=float)}
+    unit: dict[str, str | None] = {"t": t_unit}
+
+    def put(source: str, names: Any, values: Any, fixed: Any = False) -> None:
+        for name, v in zip(names, _columns(values)):
+            key = f"{source}/{name}"
+            cols[key] = v
+            unit[key] = units.get(name) if fixed is False else fixed
+
+    put("true", traj.state_names, traj.x)
+    for oname, rec in traj.observers.items():
+        put(oname, rec.state_names, rec.x_hat)
+        for d, v in rec.diagnostics.items():
+            put(f"{oname}/diagnostics", [d], v, "" if d == "dropouts" else None)
+    put("measured", traj.output_names, traj.y_meas)
+    put("clean", traj.output_names, traj.y_clean)
+    put("input", traj.input_names, traj.u)
+    return cols, unit
+
+
+def schema_metadata(traj: Any, form: str, units: dict[str, str | None]) -> dict[str, Any]:
+    """What the Arrow schema's ``hgo_mj`` metadata holds (strict JSON data)."""
+    return strict_json({
+        "form": form, "units": units, "time_unit": units.get("t"),
+        "state_names": list(traj.state_names), "output_names": list(traj.output_names),
+        "input_names": list(traj.input_names),
+        "observers": {name: {"state_names": list(rec.state_names),
+                             "diagnostics": list(rec.diagnostics),
+                             "update_time": rec.update_time}
+                      for name, rec in traj.observers.items()},
+        "metadata": traj.metadata})
+
+
+def to_pandas(traj: Any, form: str = "wide") -> Any:
+    """The trajectory as a :class:`pandas.DataFrame` in the wide or long form (see the module
+    docstring); ``attrs["units"]`` maps each wide column to its unit, ``attrs["hgo_mj"]`` is
+    the schema metadata.
+
+    Raises
+    ------
+    DesignError
+        ``form`` is not ``"wide"`` or ``"long"``; an observer's name would collide with the
+        reserved column sources or contains ``/``.
+    """
+    import pandas as pd
+
+    form = _check_form(form)
+    cols, units = wide_columns(traj)
+    if form == "wide":
+        df = pd.DataFrame(cols)
+    else:
+        names = [c for c in cols if c != "t"]
+        T = len(cols["t"])
+        split = [c.rsplit("/", 1) for c in names]
+        df = pd.DataFrame({
+            "t": np.tile(cols["t"], len(names)),
+            "source": np.repeat([s for s, _ in split], T),
+            "name": np.repeat([n for _, n in split], T),
+            "value": np.concatenate([cols[c] for c in names]) if names else np.array([]),
+            "unit": np.repeat(np.array([units[c] for c in names], dtype=object), T)})
+    df.attrs["units"] = units
+    df.attrs["hgo_mj"] = schema_metadata(traj, form, units)
+    return df
+
+
+def to_arrow(traj: Any, form: str = "wide") -> Any:
+    """The trajectory as a :class:`pyarrow.Table` in the wide or long form; in the wide form
+    every field with a known unit carries it in its metadata (``field.metadata[b"unit"]``),
+    and the schema metadata ``b"hgo_mj"`` holds :func:`schema_metadata` as JSON."""
+    import pyarrow as pa
+    from pandas.api.types import is_numeric_dtype
+
+    df = to_pandas(traj, form)
+    units = df.attrs["units"]
+    fields = []
+    for c in df.columns:
+        typ = pa.float64() if is_numeric_dtype(df[c]) else pa.string()
+        meta = ({"unit": units[c]} if form == "wide" and units.get(c) is not None else None)
+        fields.append(pa.field(c, typ, metadata=meta))
+    meta = {"hgo_mj": json.dumps(df.attrs["hgo_mj"], allow_nan=False)}
+    return pa.Table.from_pandas(df, schema=pa.schema(fields, metadata=meta), preserve_index=False)
+
+
+def write_table(traj: Any, path: str | Path, fmt: str = "parquet", form: str = "wide") -> Path:
+    """Write the trajectory's table to ``path`` atomically: ``fmt`` ``"parquet"`` (units and
+    metadata in the schema) or ``"csv"`` (the columns only; the units in a ``# units:`` line
+    would break plain readers, so a CSV carries none: read them from the Parquet file or
+    :attr:`~hgo_mj.systems.base.System.state_units`)."""
+    if fmt not in FILE_FORMATS:
+        raise DesignError(f"table format must be one of {list(FILE_FORMATS)}; found {fmt!r}")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if fmt == "csv":
+        return write_text(path, to_pandas(traj, form).to_csv(index=False))
+    import pyarrow.parquet as pq
+
+    table = to_arrow(traj, form)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, str(tmp))
+    return path
+
+
+def read_units(path: str | Path) -> dict[str, str | None]:
+    """The units a Parquet file written by :func:`write_table` declares, ``{column: unit}``."""
+    import pyarrow.parquet as pq
+
+    meta = pq.read_schema(str(path)).metadata or {}
+    if b"hgo_mj" not in meta:
+        raise DesignError(f"{str(path)!r} is no hgo_mj table: its schema has no 'hgo_mj' "
+                          f"metadata")
+    return dict(json.loads(meta[b"hgo_mj"])["units"])
+
+
+__all__ = ["FILE_FORMATS", "FORMS", "RESERVED", "read_units", "schema_metadata", "to_arrow",
+           "to_pandas", "wide_columns", "write_table"]
