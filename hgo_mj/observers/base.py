@@ -336,6 +336,10 @@ class Observer(ABC):
             fresh.__dict__ = copy.deepcopy(state)
             self._fresh_copy = fresh
         fresh.reset(batch=len(rows))
+        shared = _shared_clock(self, fresh)
+        if shared:
+            raise DesignError(f"{self.name}: its members share a clock or counter "
+                              f"({', '.join(shared)}): one member cannot be restarted alone")
         _transplant(self, fresh, rows, self.batch, len(rows))
 
     def advance(self, Y: Any, U: Any, dt: float) -> Block:
@@ -538,6 +542,24 @@ class Observer(ABC):
 
 
 ObserverT = TypeVar("ObserverT", bound=type[Observer])
+
+def _shared_clock(dst: Any, src: Any) -> list[str]:
+    """The numbers (ints, floats) of ``dst``'s state, and of the observers it holds, that are
+    not what a fresh reset (``src``) gives: a clock or a counter shared by the members."""
+    out = []
+    for key, d in vars(dst).items():
+        s = vars(src).get(key)
+        if isinstance(d, (int, float)) and not isinstance(d, bool) and key != "batch":
+            if not (d == s or (d != d and s != s)):
+                out.append(key)
+        elif isinstance(d, Observer) and isinstance(s, Observer):
+            out += _shared_clock(d, s)
+        elif isinstance(d, (list, tuple)) and isinstance(s, (list, tuple)) and len(d) == len(s):
+            for di, si in zip(d, s):
+                if isinstance(di, Observer) and isinstance(si, Observer):
+                    out += _shared_clock(di, si)
+    return out
+
 
 def _transplant(dst: Any, src: Any, rows: list[int], B: int, k: int) -> None:
     """Copy the ``k`` members of ``src`` into the members ``rows`` of ``dst`` (B members):
