@@ -72,21 +72,28 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
     max_episode_steps : int, optional
         Steps after which a member is truncated (``gymnasium.make_vec`` passes the
         registered one); default the task's.
+    nthread : int, optional
+        Threads of MuJoCo's batched step (default: the plant's, ``min(2, cpu count)``).
     **kwargs
         The environment's arguments (:class:`~envs.core.HgoEnv`), the same for every member.
 
     Raises
     ------
     DesignError
-        ``num_envs`` not an integer >= 1, ``max_episode_steps`` not a positive integer, a
+        ``num_envs`` not an integer >= 1, ``max_episode_steps`` or ``nthread`` not a positive
+        integer, a
         sensor stage that keeps time, or any argument the environment refuses.
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
     def __init__(self, env_class: type[HgoEnv], num_envs: int = 1, *,
-                 max_episode_steps: int | None = None, **kwargs: Any) -> None:
+                 max_episode_steps: int | None = None, nthread: int | None = None,
+                 **kwargs: Any) -> None:
         N = check_num_envs(num_envs)
+        if nthread is not None and (isinstance(nthread, bool)
+                                    or not isinstance(nthread, (int, np.integer)) or nthread < 1):
+            raise DesignError(f"nthread must be a positive integer; found {nthread!r}")
         if not (isinstance(env_class, type) and issubclass(env_class, HgoEnv)):
             raise DesignError(f"env_class must be an HgoEnv subclass; found {env_class!r}")
         env = env_class(**kwargs)
@@ -98,6 +105,8 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
             raise DesignError(f"the native vector environment restarts members on their own; "
                               f"sensor stage(s) {timed} keep one clock over the streams: use "
                               f"vectorization_mode='sync' for them")
+        if nthread is not None:
+            env.plant.nthread = int(nthread)
         self.env, self.task, self.loop = env, env.task, env.loop
         self.num_envs, self.max_episode_steps = N, int(limit)
         self.single_observation_space = env.observation_space
