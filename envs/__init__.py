@@ -16,6 +16,9 @@ task; the agent acts on the observer's estimate by default. Use them after
     env = gymnasium.make("hgo_mj.envs:hgo_mj/PendulumSwingUp-v0", observation="true")
 
 (Gymnasium 1.x loads no plugins by entry point; the ``module:id`` form imports the module.)
+``gymnasium.make_vec(id, num_envs=N)`` gives the native vector environment
+(:class:`~envs.vector.HgoVectorEnv`: the one loop at B = N, one process);
+``vectorization_mode="sync"`` Gymnasium's ``SyncVectorEnv`` of single environments.
 The time limit is Gymnasium's ``TimeLimit``, added by ``gymnasium.make`` from
 ``max_episode_steps``. Wrappers for other environments are in :mod:`hgo_mj.envs.wrappers`.
 """
@@ -31,6 +34,7 @@ from .environments import (
     ElasticJointReachEnv,
     PendulumSwingUpEnv,
 )
+from .vector import HgoVectorEnv, vector_entry_point
 
 #: registered id -> environment class
 ENVIRONMENTS: dict[str, type[HgoEnv]] = {
@@ -47,11 +51,13 @@ def register_all() -> None:
         if env_id in gymnasium.registry:
             continue
         gymnasium.register(id=env_id, entry_point=f"{__name__}.environments:{cls.__name__}",
-                           max_episode_steps=cls.task_class.max_episode_steps)  # type: ignore[union-attr]
+                           max_episode_steps=cls.task_class.max_episode_steps,  # type: ignore[union-attr]
+                           vector_entry_point=vector_entry_point(cls))
 
 
 register_all()
 
 __all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "CartPendulumBalanceEnv",
-           "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "PendulumSwingUpEnv",
+           "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "HgoVectorEnv",
+           "PendulumSwingUpEnv",
            "Task", "register_all", "sensor_chain"]

@@ -205,6 +205,23 @@ class Task:
         """Whether the true state ``x`` ends the episode (default: never)."""
         return False
 
+    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
+        """:meth:`reward` of B members at once (a vector environment): true states ``X``
+        ``(B, n)``, inputs ``U`` ``(B, m)``, goals ``G`` ``(B, g)``; the rewards ``(B,)`` and
+        the terms as ``(B,)`` arrays. Default: :meth:`reward` row by row; a task may give a
+        vectorized form, which must give the same numbers bit for bit (tested)."""
+        out = [self.reward(x, u, tuple(g)) for x, u, g in zip(X.tolist(), U.tolist(),
+                                                               G.tolist())]
+        terms = {k: np.array([t[k] for _, t in out]) for k in (out[0][1] if out else {})}
+        return np.array([r for r, _ in out], dtype=np.float64), terms
+
+    def terminations(self, X: Array) -> NDArray[np.bool_]:
+        """:meth:`terminated` of B members at once, ``(B,)`` (default: row by row; none
+        where the task never terminates)."""
+        if type(self).terminated is Task.terminated:
+            return np.zeros(X.shape[0], dtype=bool)
+        return np.array([self.terminated(x) for x in X.tolist()], dtype=bool)
+
     def fallback_observer(self, system: Any, sample_period: float) -> Observer | None:
         """The observer to use when ``default_observer`` is not registered (default: none)."""
         return None
@@ -247,6 +264,29 @@ class Encoder:
         labels += [f"diagnostic:{k}" for k in diagnostics]
         low += [-b for b in self.diag_bounds]
         self.labels, self.low = tuple(labels), np.array(low, dtype=np.float64)
+
+    def batch(self, vals: Array, goal: Array, diag: Array | None = None) -> Array:
+        """The observations of B members at once, ``(B, len(labels))``: ``vals`` ``(B, k)``,
+        ``goal`` ``(B, g)``, ``diag`` ``(B, d)`` (what :meth:`__call__` gives row by row)."""
+        B = vals.shape[0]
+        out = np.empty((B, len(self.labels)))
+        c = 0
+        for i, periodic, b in self.items:
+            if periodic:
+                out[:, c] = np.cos(vals[:, i])
+                out[:, c + 1] = np.sin(vals[:, i])
+                c += 2
+            else:
+                np.clip(vals[:, i], -b, b, out=out[:, c])
+                c += 1
+        g = goal.shape[1]
+        out[:, c:c + g] = goal
+        c += g
+        if diag is not None and self.diag_bounds:
+            d = np.nan_to_num(diag, nan=0.0, posinf=np.inf, neginf=-np.inf)
+            bd = np.array(self.diag_bounds)
+            np.clip(d, -bd, bd, out=out[:, c:])
+        return out
 
     def __call__(self, vals: Sequence[float], goal: Sequence[float],
                  diag: Sequence[float] = ()) -> Array:

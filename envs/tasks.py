@@ -11,13 +11,14 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hgo_mj._validate import finite_scalar
 from hgo_mj.exceptions import DesignError
 from hgo_mj.observers import HighGainObserver, Observer
 from hgo_mj.observers.bank import ObserverBank
 
-from .core import Task
+from .core import Array, Task
 
 _TWO_PI = 2.0 * math.pi
 
@@ -25,6 +26,14 @@ _TWO_PI = 2.0 * math.pi
 def _wrap(a: float) -> float:
     """Angle wrapped to ``[-pi, pi)``."""
     return (a + math.pi) % _TWO_PI - math.pi
+
+
+def _total(terms: dict[str, Array]) -> Array:
+    """The terms summed in order from 0, as the scalar ``sum(terms.values())`` does."""
+    total = np.zeros_like(next(iter(terms.values())))
+    for v in terms.values():
+        total = total + v
+    return total
 
 
 def _range(name: str, value: float, upper: float | None = None) -> float:
@@ -80,6 +89,14 @@ class SwingUpTask(Task):
                                               "reward_velocity": velocity,
                                               "reward_control": control}
 
+    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
+        d = np.remainder(X[:, 0] - math.pi + math.pi, _TWO_PI) - math.pi
+        a = U[:, 0] / self.max_torque
+        upright, velocity, control = -d * d, -0.1 * X[:, 1] * X[:, 1], -0.001 * a * a
+        return upright + velocity + control, {"reward_upright": upright,
+                                              "reward_velocity": velocity,
+                                              "reward_control": control}
+
     def params(self) -> dict[str, Any]:
         return {"max_torque": self.max_torque, "start_noise": self.start_noise}
 
@@ -129,6 +146,15 @@ class BalanceTask(Task):
 
     def terminated(self, x: list[float]) -> bool:
         return not abs(x[0]) <= self.max_angle
+
+    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
+        a = U[:, 0] / self.max_acceleration
+        angle, control = -X[:, 0] * X[:, 0], -0.01 * a * a
+        return 1.0 + angle + control, {"reward_alive": np.ones(X.shape[0]),
+                                       "reward_angle": angle, "reward_control": control}
+
+    def terminations(self, X: Array) -> NDArray[np.bool_]:
+        return ~(np.abs(X[:, 0]) <= self.max_angle)
 
     def params(self) -> dict[str, Any]:
         return {"max_acceleration": self.max_acceleration, "max_angle": self.max_angle,
@@ -187,6 +213,14 @@ class ReachTask(Task):
         terms = {"reward_tracking": -e * e, "reward_velocity": -0.01 * x[2] * x[2],
                  "reward_vibration": -0.01 * defl * defl, "reward_control": -0.001 * a * a}
         return max(sum(terms.values()), -self.max_cost), terms
+
+    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
+        e = X[:, 0] - G[:, 0]
+        a = U[:, 0] / self.max_torque
+        defl = X[:, 2] - X[:, 3]
+        terms = {"reward_tracking": -e * e, "reward_velocity": -0.01 * X[:, 2] * X[:, 2],
+                 "reward_vibration": -0.01 * defl * defl, "reward_control": -0.001 * a * a}
+        return np.maximum(_total(terms), -self.max_cost), terms
 
     def params(self) -> dict[str, Any]:
         return {"max_torque": self.max_torque, "target_range": self.target_range,
@@ -256,6 +290,16 @@ class Reach2LinkTask(Task):
                  "reward_vibration": -0.01 * (d1 * d1 + d2 * d2),
                  "reward_control": -0.001 * (a1 * a1 + a2 * a2)}
         return max(sum(terms.values()), -self.max_cost), terms
+
+    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
+        e1, e2 = X[:, 0] - G[:, 0], X[:, 1] - G[:, 1]
+        d1, d2 = X[:, 4] - X[:, 6], X[:, 5] - X[:, 7]
+        a1, a2 = U[:, 0] / self.max_torque[0], U[:, 1] / self.max_torque[1]
+        terms = {"reward_tracking": -(e1 * e1 + e2 * e2),
+                 "reward_velocity": -0.01 * (X[:, 4] * X[:, 4] + X[:, 5] * X[:, 5]),
+                 "reward_vibration": -0.01 * (d1 * d1 + d2 * d2),
+                 "reward_control": -0.001 * (a1 * a1 + a2 * a2)}
+        return np.maximum(_total(terms), -self.max_cost), terms
 
     def params(self) -> dict[str, Any]:
         return {"max_torque": list(self.max_torque), "target_range": self.target_range,

@@ -200,6 +200,45 @@ class Loop:
         self.wall = dict.fromkeys(self.observers, 0.0)
         self._pending = None
 
+    def reset_members(self, idx: Any, X0: Any, seeds: Any) -> None:
+        """Restart the members ``idx`` of a batch only (a vector environment's autoreset): the
+        plant's members from the states ``X0`` ``(len(idx), n)``, their sensor streams
+        (``seeds``: per member an int to reseed it, or :data:`CONTINUE` to let its generators
+        go on, the stages' state cleared either way), each observer's members from its initial
+        estimate. The loop's clock goes on; the others are untouched. A measurement already
+        drawn for the current instant (:meth:`sample`) is drawn again for these members only,
+        from their streams (the others' streams do not advance).
+
+        Raises
+        ------
+        DesignError
+            A plant, sensor stage or observer that cannot restart one member (see their
+            ``reset_members``)."""
+        rows = [int(b) for b in idx]
+        reset_members = getattr(self.plant, "reset_members", None)
+        if reset_members is None:
+            raise DesignError(f"{type(self.plant).__name__} cannot restart single members")
+        reset_members(rows, X0)
+        if self.sensor is not None:
+            self.sensor.reset_members(rows, [None if sd is CONTINUE else sd for sd in seeds])
+        for ob in self.observers.values():
+            ob.reset_members(rows)
+        pending, self._pending = self._pending, None
+        if pending is not None and pending[0] == self.k and rows:
+            Yc = np.asarray(self.plant.outputs(), dtype=np.float64).reshape(self.batch, 1, -1)
+            if self.sensor is None:
+                Ym = Yc.copy()
+            else:
+                others = sorted(set(range(self.batch)) - set(rows))
+                self.sensor.hold(others)
+                try:
+                    Ym = self.sensor._apply(np.array([self.t]), Yc)
+                finally:
+                    self.sensor.hold(())
+            fresh = pending[1].copy()
+            fresh[rows] = Ym[rows]
+            self._pending = (self.k, fresh)
+
     def estimates(self) -> dict[str, tuple[Array, Array, Array]]:
         """Each observer's current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)`` arrays."""
         return {name: _current(ob) for name, ob in self.observers.items()}

@@ -172,7 +172,7 @@ class _Streams:
     (about 8 ns a value, measured) than the strided read of one sample's draws.
     """
 
-    __slots__ = ("_block", "_buf", "_kind", "_pos", "_store", "gens")
+    __slots__ = ("_block", "_buf", "_carry", "_hold", "_kind", "_pos", "_store", "gens")
 
     def __init__(self, gens: Sequence[np.random.Generator], kind: str) -> None:
         self.gens = tuple(gens)
@@ -181,6 +181,10 @@ class _Streams:
         self._buf = self._store
         self._pos = 0
         self._block = _FIRST_BLOCK
+        #: streams that do not advance at the next takes (:meth:`SensorChain.hold`)
+        self._hold: tuple[int, ...] = ()
+        #: per stream, variates drawn from its generator that come before its next draws
+        self._carry: dict[int, Array] = {}
 
     def _refill(self, size: int) -> Array:
         """Draw the next ``size`` variates of every stream into the kept buffer, ``(B, size)``."""
@@ -191,9 +195,41 @@ class _Streams:
                 self._store = np.empty((len(self.gens), size))
             buf = self._store[:, :size]
         draw = self._kind
-        for row, g in zip(buf, self.gens):
-            getattr(g, draw)(size, out=row)
+        for b, (row, g) in enumerate(zip(buf, self.gens)):
+            carry = self._carry.pop(b, None) if self._carry else None
+            if carry is None:
+                getattr(g, draw)(size, out=row)
+            elif carry.size >= size:
+                row[:] = carry[:size]
+                if carry.size > size:
+                    self._carry[b] = carry[size:]
+            else:
+                row[:carry.size] = carry
+                getattr(g, draw)(size - carry.size, out=row[carry.size:])
         return buf
+
+    def _give_back(self, b: int, served: Array) -> None:
+        """Stream ``b`` did not use the variates ``served`` of the last take: they come again,
+        in order, before the rest of its sequence (the buffered ones, then the carried)."""
+        row = self._buf[b]
+        ahead = row[self._pos:]
+        seq = np.concatenate((served, ahead, self._carry.get(b, np.empty(0))))
+        k = ahead.size
+        row[self._pos:] = seq[:k]
+        if seq.size > k:
+            self._carry[b] = seq[k:]
+        else:
+            self._carry.pop(b, None)
+
+    def reseed(self, b: int, gen: np.random.Generator) -> None:
+        """Stream ``b`` draws from ``gen`` from now on (its buffered variates redrawn)."""
+        gens = list(self.gens)
+        gens[b] = gen
+        self.gens = tuple(gens)
+        self._carry.pop(b, None)
+        ahead = self._buf[b, self._pos:]
+        if ahead.size:
+            getattr(gen, self._kind)(ahead.size, out=ahead)
 
     def take(self, n: int) -> Array:
         """The next ``n`` variates of every stream, ``(B, n)`` (a view, valid until the next
@@ -201,14 +237,18 @@ class _Streams:
         buf, pos = self._buf, self._pos
         if pos + n <= buf.shape[1]:
             self._pos = pos + n
-            return buf[:, pos:pos + n]
-        rest = buf[:, pos:].copy()          # the kept buffer is about to be drawn into
-        need = n - rest.shape[1]
-        size = max(need, self._block)
-        self._block = min(2 * self._block, _MAX_BLOCK)
-        self._buf, self._pos = self._refill(size), need
-        head = self._buf[:, :need]
-        return np.concatenate((rest, head), axis=1) if rest.shape[1] else head
+            out = buf[:, pos:pos + n]
+        else:
+            rest = buf[:, pos:].copy()          # the kept buffer is about to be drawn into
+            need = n - rest.shape[1]
+            size = max(need, self._block)
+            self._block = min(2 * self._block, _MAX_BLOCK)
+            self._buf, self._pos = self._refill(size), need
+            head = self._buf[:, :need]
+            out = np.concatenate((rest, head), axis=1) if rest.shape[1] else head
+        for b in self._hold:   # held streams: what they were served comes again
+            self._give_back(b, out[b].copy())
+        return out
 
 
 class Stage:
@@ -232,6 +272,9 @@ class Stage:
     #: the kind of variates a random stage draws (``"standard_normal"`` or ``"random"``, a
     #: method of :class:`numpy.random.Generator`); None for a deterministic stage
     draws: ClassVar[str | None] = None
+    #: whether the stage keeps time across samples (held samples, delay lines, drift): its
+    #: streams must share one clock, so that one stream alone cannot be restarted
+    keeps_time: ClassVar[bool] = False
 
     def __init__(self) -> None:
         self._params: dict[str, Any] = {}
@@ -271,6 +314,21 @@ class Stage:
         :meth:`apply` starts fresh, for any number of streams. The generators are the chain's
         (:meth:`SensorChain.reset` reseeds them, :meth:`SensorChain.restart` does not)."""
         self._bstate = None
+
+    def restart_members(self, idx: Sequence[int]) -> None:
+        """Clear the state of the streams ``idx`` only (their counters), as :meth:`reset` does
+        for all; the others go on.
+
+        Raises
+        ------
+        DesignError
+            A stage that keeps time (:attr:`keeps_time`): its streams share one clock."""
+        if self.keeps_time:
+            raise DesignError(f"{type(self).__name__} keeps time across samples (its streams "
+                              f"share one clock): one stream alone cannot be restarted")
+        st = self._bstate
+        if st is not None and isinstance(st[1], np.ndarray):
+            st[1][list(idx)] = 0
 
     def apply(self, t: Array, Y: Array, draws: _Streams | None) -> Array:
         """The batched primitive: apply the stage to a block of samples of B streams.
@@ -469,6 +527,7 @@ class RandomWalkDrift(Stage):
         :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting).
     """
 
+    keeps_time = True
     name = "drift"
     summary = "random-walk bias: b += N(0, sigma^2 dt) each call, output y + b"
     draws = "standard_normal"
@@ -591,6 +650,7 @@ class SampleHold(Stage):
         Sampling period, seconds, > 0.
     """
 
+    keeps_time = True
     name = "sample_hold"
     summary = "sample every period= seconds and hold in between (zero-order hold)"
 
@@ -641,6 +701,7 @@ class Delay(Stage):
         :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting).
     """
 
+    keeps_time = True
     name = "delay"
     summary = "transport delay of delay= seconds (first input until the buffer fills)"
 
@@ -939,6 +1000,7 @@ class SensorChain:
         self._seed0 = _check_seed(seed)
         self._seed = self._seed0
         self._dropout_stages = tuple(s for s in stages if isinstance(s, Dropout))
+        self._held: tuple[int, ...] = ()
         self._start_streams((self._seed,), batched=False)
 
     def _start_streams(self, seeds: tuple[int | None, ...], batched: bool) -> None:
@@ -958,6 +1020,7 @@ class SensorChain:
         self._streams = tuple(streams)
         self._seeds = seeds
         self._batched = batched
+        self._held = ()
 
     @property
     def stages(self) -> tuple[Stage, ...]:
@@ -1053,8 +1116,15 @@ class SensorChain:
         float ``(B, T, p)`` with this chain's B, T >= 1): a new array."""
         if not self._stages:
             return Y.copy()
+        held = self._held
+        if held:   # the held streams' counters are kept as they are (their rows are not used)
+            kept = [(s._bstate[1], s._bstate[1][list(held)].copy()) for s in self._stages
+                    if s._bstate is not None and isinstance(s._bstate[1], np.ndarray)]
         for s, draws in zip(self._stages, self._streams):
             Y = s.apply(t, Y, draws)
+        if held:
+            for arr, rows in kept:
+                arr[list(held)] = rows
         return Y
 
     def __len__(self) -> int:
@@ -1089,6 +1159,43 @@ class SensorChain:
         generators continue where they are: Gymnasium's ``reset()`` without a seed."""
         for s in self._stages:
             s.reset()
+
+    def reset_members(self, idx: Sequence[int], seeds: Sequence[int | None]) -> None:
+        """Restart the streams ``idx`` only: their stages' state cleared, each reseeded with
+        its entry of ``seeds`` (an int: as :meth:`reset` with that seed gives the stream) or
+        left to continue (None: as :meth:`restart`). The other streams go on untouched.
+
+        Raises
+        ------
+        DesignError
+            A stage that keeps time (delay, sample-and-hold, drift), a bad seed, or ``seeds``
+            not one per member."""
+        if len(seeds) != len(idx):
+            raise DesignError(f"reset_members: one seed (or None) per member; found "
+                              f"{len(seeds)} for {len(idx)}")
+        checked = [_check_seed(sd) for sd in seeds]
+        for s in self._stages:
+            s.restart_members(idx)
+        random = [st for st in self._streams if st is not None]
+        seeds_now = list(self._seeds)
+        for b, sd in zip(idx, checked):
+            if sd is None:
+                continue
+            for st, g in zip(random, stream_generators(sd, len(random))):
+                st.reseed(int(b), g)
+            seeds_now[int(b)] = sd
+        self._seeds = tuple(seeds_now)
+
+    def hold(self, idx: Sequence[int]) -> None:
+        """The streams ``idx`` do not advance at the next blocks (until ``hold(())``): what
+        they are served then comes again, in order (their members' rows are not used)."""
+        rows = tuple(int(b) for b in idx)
+        if any(s.keeps_time for s in self._stages) and rows:
+            raise DesignError("a chain with a stage that keeps time cannot hold streams")
+        self._held = rows
+        for st in self._streams:
+            if st is not None:
+                st._hold = rows
 
     def describe(self) -> list[dict[str, Any]]:
         """The chain as JSON-friendly data: ``[{"stage": name, **params}, ...]``.

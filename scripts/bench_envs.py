@@ -13,6 +13,15 @@ not count; the load still slows every configuration alike through caches:
 * ``vector``: total environment steps per second of a ``SyncVectorEnv`` of 8 copies, zero
   actions, autoreset included.
 
+``--vector`` (also part of a full run, its own block ``bench_envs_vector``): at N = 64, total
+environment steps per second of the native vector environment
+(``gymnasium.make_vec(id, num_envs=64)``, the one loop at B = 64, MuJoCo's batched step on
+its thread pool) against Gymnasium's ``SyncVectorEnv`` of 64 of the same environment and of 64
+InvertedPendulum-v5, zero actions, autoresets included; interleaved bursts, the best of each.
+The native environment runs MuJoCo on two threads, so it is timed with the process's CPU
+clock (``time.process_time``: every thread's time counts, the second thread's included) and
+with the wall clock; the SyncVectorEnvs are single-threaded (the same clocks).
+
 PendulumSwingUp runs as registered (Gaussian sensor noise, the high-gain observer with the
 pendulum's model term, two Euler MuJoCo steps per ``step`` as InvertedPendulum-v5's
 ``frame_skip=2``), and in variants that show what each part costs.
@@ -21,6 +30,7 @@ Usage::
 
     python scripts/bench_envs.py                      # print the table
     python scripts/bench_envs.py --write BENCHMARKS.md  # also replace its block there
+    python scripts/bench_envs.py --vector --write BENCHMARKS.md  # only the N = 64 comparison
 """
 
 from __future__ import annotations
@@ -247,6 +257,84 @@ def run(rounds: int = 200, steps: int = 200) -> dict[str, dict[str, float]]:
     return out
 
 
+VEC_N = 64
+VEC_IDS = tuple(hgo_mj.envs.ENVIRONMENTS)
+VEC_REFERENCE = "InvertedPendulum-v5"
+
+
+def _vec_burst(venv: gym.vector.VectorEnv, n: int) -> tuple[float, float]:
+    """Environment steps per CPU second (every thread of the process) and per wall second."""
+    a = np.zeros(venv.action_space.shape, dtype=venv.action_space.dtype)
+    c0, w0 = time.process_time(), time.perf_counter()
+    for _ in range(n):
+        venv.step(a)
+    c1, w1 = time.process_time(), time.perf_counter()
+    return n * venv.num_envs / max(c1 - c0, 1e-9), n * venv.num_envs / (w1 - w0)
+
+
+def run_vector(rounds: int, steps: int) -> dict[str, tuple[float, float]]:
+    """``{label: (steps per CPU s, steps per wall s)}`` at N = 64, interleaved, best burst."""
+    venvs: dict[str, gym.vector.VectorEnv] = {
+        f"{VEC_REFERENCE} SyncVectorEnv": gym.make_vec(VEC_REFERENCE, num_envs=VEC_N,
+                                                       vectorization_mode="sync")}
+    for env_id in VEC_IDS:
+        venvs[f"{env_id} native"] = gym.make_vec(env_id, num_envs=VEC_N,
+                                                 vectorization_mode="vector_entry_point")
+        venvs[f"{env_id} SyncVectorEnv"] = gym.make_vec(env_id, num_envs=VEC_N,
+                                                        vectorization_mode="sync")
+    venvs[f"{TARGET_ID} native, nthread=1"] = gym.make_vec(
+        TARGET_ID, num_envs=VEC_N, vectorization_mode="vector_entry_point", nthread=1)
+    n = max(2, steps // 20)
+    for v in venvs.values():
+        v.reset(seed=0)
+        _vec_burst(v, n)  # warm up
+    best: dict[str, tuple[float, float]] = {k: (0.0, 0.0) for k in venvs}
+    for _ in range(rounds):
+        for k, v in venvs.items():
+            cpu, wall = _vec_burst(v, n)
+            best[k] = (max(best[k][0], cpu), max(best[k][1], wall))
+    for v in venvs.values():
+        v.close()
+    return best
+
+
+def vector_table(res: dict[str, tuple[float, float]], rounds: int, steps: int) -> str:
+    ref_cpu, ref_wall = res[f"{VEC_REFERENCE} SyncVectorEnv"]
+    lines = [
+        "## Native vector environment (issue 13), N = 64",
+        "",
+        *header(f"`python scripts/bench_envs.py --vector --rounds {rounds} --steps {steps}` "
+                f"(interleaved bursts of {max(2, steps // 20)} vector steps, best of {rounds}; "
+                f"steps = environment steps, all 64 members)"),
+        "",
+        "| environment | native steps / CPU s | SyncVectorEnv(64) steps / CPU s | native / sync "
+        "(CPU) | native / sync (wall) | native / SyncVectorEnv(64) of IPv5 (CPU) |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    ok = {}
+    for env_id in VEC_IDS:
+        nc, nw = res[f"{env_id} native"]
+        sc, sw = res[f"{env_id} SyncVectorEnv"]
+        ok[env_id] = nc / sc
+        lines.append(f"| {env_id} | {nc:,.0f} | {sc:,.0f} | {nc / sc:.1f}x | {nw / sw:.1f}x | "
+                     f"{nc / ref_cpu:.2f}x |")
+    one = res[f"{TARGET_ID} native, nthread=1"]
+    lines += [
+        f"| {VEC_REFERENCE} (Gymnasium), SyncVectorEnv(64) | | {ref_cpu:,.0f} | | | 1.00x |",
+        "",
+        f"{TARGET_ID} native with MuJoCo's batched step on one thread: {one[0]:,.0f} steps / "
+        f"CPU s, {one[1]:,.0f} / wall s (two threads: "
+        f"{res[f'{TARGET_ID} native'][0]:,.0f} / {res[f'{TARGET_ID} native'][1]:,.0f}).",
+        "",
+        "| target (native at N = 64 against SyncVectorEnv(64) of the same environment) | "
+        "status |",
+        "|---|---|",
+        *(f"| {env_id}: at least 10x | {'met' if r >= 10 else 'NOT met'} ({r:.1f}x CPU) |"
+          for env_id, r in ok.items()),
+    ]
+    return "\n".join(lines) + "\n"
+
+
 def plant_steps() -> int:
     """MuJoCo steps per sample of the registered environment (``mj_step``'s ``nstep``)."""
     env = gym.make(TARGET_ID).unwrapped
@@ -343,12 +431,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rounds", type=int, default=200)
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--write", type=Path, help="replace the bench_envs block of this markdown file")
+    ap.add_argument("--vector", action="store_true",
+                    help="only the native vector environment against SyncVectorEnv, N = 64")
     args = ap.parse_args(argv)
-    res = run(args.rounds, args.steps)
-    text = table(res, args.rounds, args.steps)
-    print(text)
+    if not args.vector:
+        res = run(args.rounds, args.steps)
+        text = table(res, args.rounds, args.steps)
+        print(text)
+        if args.write:
+            write_section(args.write, "bench_envs", text)
+    vtext = vector_table(run_vector(args.rounds, args.steps), args.rounds, args.steps)
+    print(vtext)
     if args.write:
-        write_section(args.write, "bench_envs", text)
+        write_section(args.write, "bench_envs_vector", vtext)
     return 0
 
 

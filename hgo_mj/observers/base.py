@@ -301,6 +301,47 @@ class Observer(ABC):
         self._x_held.fill(np.nan)  # np.full's values, without its Python-level wrapper
         self._reset(x0, z0, u)
 
+    def reset_members(self, idx: Sequence[int]) -> None:
+        """Restart the members ``idx`` of a batch from the constructor's initial estimate, as
+        :meth:`reset` starts every member (zero input); the others go on untouched.
+
+        Derived once for every family: a copy of this observer (kept for the next call) is
+        reset to ``len(idx)`` members, and each per-member array of the state (leading axis
+        B here, ``len(idx)`` in the copy, the rest of the shape the same; observers held by
+        this one, as a bank's, likewise) takes its rows from it. The member is then what a
+        fresh reset gives, bit for bit.
+
+        Raises
+        ------
+        DesignError
+            An unbatched observer, or a member index outside the batch."""
+        rows = [int(b) for b in idx]
+        if not self._batched:
+            raise DesignError(f"{self.name}: reset_members needs a batched observer (reset with "
+                              f"batch=B); this one is unbatched")
+        bad = [b for b in rows if not 0 <= b < self.batch]
+        if bad:
+            raise DesignError(f"{self.name}: member(s) {bad} outside the batch of {self.batch}")
+        if not rows:
+            return
+        if len(rows) == self.batch:
+            self.reset(batch=self.batch)
+            return
+        fresh = self.__dict__.get("_fresh_copy")
+        if fresh is None:
+            import copy
+
+            state = {k: v for k, v in self.__dict__.items() if k != "_fresh_copy"}
+            fresh = copy.copy(self)
+            fresh.__dict__ = copy.deepcopy(state)
+            self._fresh_copy = fresh
+        fresh.reset(batch=len(rows))
+        shared = _shared_clock(self, fresh)
+        if shared:
+            raise DesignError(f"{self.name}: its members share a clock or counter "
+                              f"({', '.join(shared)}): one member cannot be restarted alone")
+        _transplant(self, fresh, rows, self.batch, len(rows))
+
     def advance(self, Y: Any, U: Any, dt: float) -> Block:
         """Consume T samples of B members: ``Y`` ``(B, T, p)`` (every measured channel; the
         observer reads :attr:`outputs`), ``U`` ``(B, T, m)``; return the rows of the estimate
@@ -501,6 +542,44 @@ class Observer(ABC):
 
 
 ObserverT = TypeVar("ObserverT", bound=type[Observer])
+
+def _shared_clock(dst: Any, src: Any) -> list[str]:
+    """The numbers (ints, floats) of ``dst``'s state, and of the observers it holds, that are
+    not what a fresh reset (``src``) gives: a clock or a counter shared by the members."""
+    out = []
+    for key, d in vars(dst).items():
+        s = vars(src).get(key)
+        if isinstance(d, (int, float)) and not isinstance(d, bool) and key != "batch":
+            if not (d == s or (d != d and s != s)):
+                out.append(key)
+        elif isinstance(d, Observer) and isinstance(s, Observer):
+            out += _shared_clock(d, s)
+        elif isinstance(d, (list, tuple)) and isinstance(s, (list, tuple)) and len(d) == len(s):
+            for di, si in zip(d, s):
+                if isinstance(di, Observer) and isinstance(si, Observer):
+                    out += _shared_clock(di, si)
+    return out
+
+
+def _transplant(dst: Any, src: Any, rows: list[int], B: int, k: int) -> None:
+    """Copy the ``k`` members of ``src`` into the members ``rows`` of ``dst`` (B members):
+    every array attribute whose leading axis is B in ``dst`` and k in ``src`` (the rest of the
+    shape equal), in the observers they hold (attributes, lists and tuples) likewise."""
+    for key, d in vars(dst).items():
+        if key == "_fresh_copy":
+            continue
+        s = vars(src).get(key)
+        if isinstance(d, np.ndarray) and isinstance(s, np.ndarray):
+            if d.ndim and s.ndim == d.ndim and d.shape[0] == B and s.shape[0] == k \
+                    and d.shape[1:] == s.shape[1:]:
+                d[rows] = s
+        elif isinstance(d, Observer) and isinstance(s, Observer):
+            _transplant(d, s, rows, B, k)
+        elif isinstance(d, (list, tuple)) and isinstance(s, (list, tuple)) and len(d) == len(s):
+            for di, si in zip(d, s):
+                if isinstance(di, Observer) and isinstance(si, Observer):
+                    _transplant(di, si, rows, B, k)
+
 
 #: registry name -> observer class (filled by :func:`register`)
 OBSERVERS: dict[str, type[Observer]] = {}

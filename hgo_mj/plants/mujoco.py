@@ -29,11 +29,12 @@ from pathlib import Path
 from typing import Any
 
 import mujoco
+import mujoco.batch
 import mujoco.rollout
 import numpy as np
 
 from .._validate import finite_scalar, integer_multiple, vector
-from ..exceptions import DesignError, DivergenceError
+from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from .base import Array, Plant, check_block, divergence, initial_states
 
@@ -163,12 +164,13 @@ class MujocoPlant(Plant):
         if isinstance(nthread, bool) or not isinstance(nthread, (int, np.integer)) or nthread < 1:
             raise DesignError(f"nthread must be a positive integer; found {nthread!r}")
         self.nthread = int(nthread)
-        self._batch_layout()
         self._aid_arr = np.array(self._aid, dtype=np.intp)
+        self._batch_layout()
         #: the one actuator's ctrl index (-1: several, set through ``_aid_arr``)
         self._a0 = int(self._aid[0]) if len(self._aid) == 1 else -1
         self._rollout: Any = None
         self._rdata: list[Any] = []
+        self._mjbatch: Any = None
         self._cache()
         self.reset()
 
@@ -194,6 +196,37 @@ class MujocoPlant(Plant):
                 s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
                 stage = "acc" if int(m.sensor_needstage[s]) >= acc else "sensor"
                 self._batch_src.append((stage, a))
+        self._batch_map = self._batch_mapping() if self._rollout_ok else None
+        #: the outputs' columns in the full physics state where every output is a joint's
+        #: position or velocity (read from a batch's states at once); else None
+        self._state_cols = (np.array([a for _, a in self._batch_src], dtype=np.intp)
+                            if all(k == "state" for k, _ in self._batch_src) else None)
+
+    def _batch_mapping(self) -> tuple[Any, Any, Any] | None:
+        """Where the full physics state, the controls and the warm start lie in a
+        ``mujoco.batch`` state row (``mjSTATE_INTEGRATION``), found by writing distinct
+        values and reading them back; None unless every output is a joint's position or
+        velocity (the short-block path reads the outputs from the state rows)."""
+        m = self.model
+        if not all(k == "state" for k, _ in self._batch_src):
+            return None
+        d = mujoco.MjData(m)
+        full = np.arange(1.0, self._nstate + 1.0)
+        mujoco.mj_setState(m, d, full, _FULL)
+        d.ctrl[:] = -np.arange(1.0, m.nu + 1.0)
+        d.qacc_warmstart[:] = -1000.0 - np.arange(m.nv)
+        row = np.empty(mujoco.mj_stateSize(m, int(mujoco.mjtState.mjSTATE_INTEGRATION)))
+        mujoco.mj_getState(m, d, row, int(mujoco.mjtState.mjSTATE_INTEGRATION))
+
+        def where(vals: Array) -> Any:
+            return np.array([int(np.flatnonzero(row == v)[0]) for v in vals], dtype=np.intp)
+
+        F, C, W = where(full), where(np.array(d.ctrl)), where(np.array(d.qacc_warmstart))
+        ys = np.array([a for _, a in self._batch_src], dtype=np.intp)
+        self._batch_cols = (F[self._sq], F[self._sv], F[ys], C[self._aid_arr])
+        w = mujoco.mjtWarning
+        self._bad_lo, self._bad_hi = int(w.mjWARN_BADQPOS), int(w.mjWARN_BADQACC) + 1
+        return F, C, W
 
     @property
     def output_names(self) -> tuple[str, ...]:
@@ -244,6 +277,50 @@ class MujocoPlant(Plant):
             self._S[:, self._sv] = X0[:, self._nq:]
             self._C = np.zeros((B, m.nu))
             self._W = np.zeros((B, m.nv))
+            self._mjbatch = None  # made again on the model as it is now
+
+    def reset_members(self, idx: Any, X0: Any) -> None:
+        """Restart the members ``idx`` of a batch (B > 1) from the states ``X0``
+        ``(len(idx), n)``, as :meth:`reset` starts a member (MuJoCo's reset data with that
+        ``qpos`` and ``qvel``, zero controls and warm start); the others go on. The restarted
+        members keep the batch's clock (``time`` in their physics state), so that the batch
+        still runs as one rollout: no shipped model reads the time.
+
+        Raises
+        ------
+        DesignError
+            Not a batch of several members, or a state MuJoCo cannot take (see :meth:`reset`).
+        DimensionError
+            ``X0`` not one state per member."""
+        if self.batch < 2:
+            raise DesignError(f"reset_members needs a batch of several members; this plant has "
+                              f"{self.batch} (use reset)")
+        rows = [int(b) for b in idx]
+        X0 = np.asarray(X0, dtype=np.float64)
+        if X0.shape != (len(rows), 2 * self._nq):
+            raise DimensionError(f"X0 must have shape ({len(rows)}, {2 * self._nq}); found "
+                                 f"{X0.shape}")
+        m, d = self.model, self.data
+        s0 = np.empty(self._nstate)
+        for b, x in zip(rows, X0):
+            big = np.flatnonzero(~(np.abs(x) <= _MAX_CTRL))
+            if big.size:
+                i = int(big[0])
+                raise DesignError(f"x0[{b}]: {self.state_names[i]} = {x[i]:g} is a state "
+                                  f"MuJoCo cannot take (finite, |entry| <= {_MAX_CTRL:g})")
+            mujoco.mj_resetData(m, d)
+            d.qpos[self._qadr] = x[: self._nq]
+            d.qvel[self._vadr] = x[self._nq:]
+            mujoco.mj_forward(m, d)
+            if any(w.number for w in self._bad):
+                d.warning.number[:] = 0
+                raise DesignError(f"x0[{b}] = {x.tolist()} is a state MuJoCo cannot take: "
+                                  f"mj_forward flags a bad position, velocity or acceleration")
+            mujoco.mj_getState(m, d, s0, _FULL)
+            s0[0] = self._S[b, 0]
+            self._S[b] = s0
+            self._C[b] = 0.0
+            self._W[b] = 0.0
 
     def _cache(self) -> None:
         """What :meth:`_run_loop` needs, in one attribute each: MjData's arrays are views of
@@ -273,6 +350,7 @@ class MujocoPlant(Plant):
         for key in ("_bad", "_hot", "_out", "_xsrc"):
             state.pop(key, None)
         state["_rollout"], state["_rdata"] = None, []  # a thread pool: made again when needed
+        state["_mjbatch"] = None
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -312,6 +390,9 @@ class MujocoPlant(Plant):
 
     def outputs(self) -> Array:
         if self.batch > 1:
+            cols = self._state_cols
+            if cols is not None:  # every output a joint's position or velocity: the states
+                return self._S[:, cols]
             out = np.empty((self.batch, len(self._output_names)))
             for b in range(self.batch):
                 self._load(b)
@@ -372,7 +453,10 @@ class MujocoPlant(Plant):
         nstep = steps * self.substeps
         fails: list[tuple[int, int, float, str]] = []     # (sample, member, time, message)
         if jbad:
-            if self._rollout_ok and (B > 1 or jbad * nstep >= _ROLLOUT_MIN_STEPS):
+            if (B > 1 and self._batch_map is not None and jbad * nstep < _ROLLOUT_MIN_STEPS
+                    and self._run_batch(U[:, :jbad], nstep, X, Yc)):
+                pass  # a short block of a batch: mujoco.batch, done (no warning)
+            elif self._rollout_ok and (B > 1 or jbad * nstep >= _ROLLOUT_MIN_STEPS):
                 self._run_rollout(U[:, :jbad], nstep, X, Yc, fails)
             elif B == 1:  # one member lives in self.data
                 self._run_loop(0, U[0] if jbad == T else U[0, :jbad], nstep, X[0], Yc[0], fails)
@@ -436,6 +520,43 @@ class MujocoPlant(Plant):
                                        f"simulation (mjWARN_BAD{which[0]}); input was "
                                        f"{U[j].tolist()}"))
                 return
+
+    def _run_batch(self, U: Array, nstep: int, X: Array, Yc: Array) -> bool:
+        """A short block of every member (B > 1) through ``mujoco.batch.Batch``: one ``step``
+        of ``nstep`` physics steps per sample on its thread pool, the state and the outputs
+        (joint positions and velocities, :attr:`_state_cols`) read from its state rows at
+        each sample instant. ``mj_step`` on the same state gives the same bits. False (and
+        nothing changed) where a member raised a MuJoCo warning: the caller steps the block
+        again on its other path, which reports it."""
+        bt, (F, C, W) = self._mjbatch_pool()
+        st = bt.state
+        st[:, F] = self._S
+        st[:, C] = self._C
+        st[:, W] = self._W
+        iq, iv, iy, ic = self._batch_cols
+        nq = self._nq
+        for j in range(U.shape[1]):
+            X[:, j, :nq] = st[:, iq]
+            X[:, j, nq:] = st[:, iv]
+            Yc[:, j] = st[:, iy]
+            st[:, ic] = U[:, j]
+            bt.step(nstep=nstep)
+        if bt.warning[:, self._bad_lo:self._bad_hi, 0].any():
+            bt.warning[:] = 0
+            return False
+        self._S[:] = st[:, F]
+        self._C[:] = st[:, C]
+        self._W[:] = st[:, W]
+        return True
+
+    def _mjbatch_pool(self) -> tuple[Any, tuple[Any, Any, Any]]:
+        """The ``mujoco.batch.Batch`` of this batch's size (made at the first short block
+        after a reset, on the model as it is then) and where the full physics state, the
+        controls and the warm start lie in its state rows."""
+        if self._mjbatch is None or self._mjbatch.nsim != self.batch:
+            self._mjbatch = mujoco.batch.Batch(self.model, self.batch, nthread=self.nthread)
+        F, C, W = self._batch_map  # type: ignore[misc]
+        return self._mjbatch, (F, C, W)
 
     def _rollout_pool(self) -> tuple[Any, list[Any]]:
         if self._rollout is None:

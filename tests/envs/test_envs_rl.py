@@ -1,4 +1,6 @@
-"""scripts/train_rl.py without torch: cross-mode deployment by observation names, the report."""
+"""scripts/train_rl.py without torch: cross-mode deployment by observation names, the
+stable-baselines3 step over the native vector environment, the solved criterion, the report
+and its learning-curve figure."""
 
 from __future__ import annotations
 
@@ -9,6 +11,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import hgo_mj.envs  # noqa: F401
+import numpy as np
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "train_rl.py"
 spec = importlib.util.spec_from_file_location("train_rl", SCRIPT)
@@ -30,35 +33,83 @@ def test_policies_are_deployed_where_their_entries_exist():
         assert [true[i] for i in idx] == list(meas)
 
 
-def test_report_table_and_findings():
+def _runs(env_id: str = "hgo_mj/PendulumSwingUp-v0") -> list:
+    base = {"true": -400.0, "estimate": -600.0, "measurement": -1800.0,
+            "measurement+stack": -1000.0, "measurement+lstm": -1200.0}
     runs = []
-    for mode, base in (("true", -400.0), ("estimate", -600.0), ("measurement", -1800.0)):
+    for agent, b in base.items():
         for seed in range(3):
-            r = train_rl.Run("hgo_mj/PendulumSwingUp-v0", mode, seed, 1000, "sac", 10.0 + seed,
-                             20.0)
-            r.returns = {"true": base + seed, "estimate": base - 50.0 + seed,
-                         "measurement": None if mode != "measurement" else base + seed}
+            r = train_rl.Run(env_id, agent, seed, 1000, "ppo", 10.0 + seed, 20.0)
+            r.returns = {m: None for m in train_rl.MODES}
+            r.returns[train_rl.base_mode(agent)] = b + seed
+            if agent in ("true", "estimate"):
+                r.returns["true" if agent == "estimate" else "estimate"] = b - 50.0 + seed
+            r.solved = 1.0 if agent == "true" else 0.0
+            r.curve = [[500.0, b - 300.0 + seed], [1000.0, b + seed]]
             runs.append(r)
-    args = argparse.Namespace(algo="sac", full=False, steps=1000, eval_episodes=2,
-                              seed_list=[0, 1, 2], workers=2)
+    return runs
+
+
+def test_report_table_and_findings(tmp_path):
+    runs = _runs()
+    args = argparse.Namespace(full=False, steps=1000, eval_episodes=2, seed_list=[0, 1, 2],
+                              workers=2)
     text = train_rl.report(runs, args, 60.0)
-    assert "| true | -399.0 ± 0.8 | -449.0 ± 0.8 | n/a | 11 | 20 |" in text
-    assert "3.0 CPU minutes" in text
-    assert "returns -649.0, against -399.0 on the true state and -1799.0" in text
-    assert "the estimate recovers 82% of the return" in text
+    assert "**Budget: small** (1,000 environment steps per run; the small default" in text
+    assert "| true | -399.0 ± 0.8 | 100% | -399.0 ± 0.8 | -449.0 ± 0.8 | n/a | 11 | 20 |" in text
+    assert "| measurement+lstm | -1199.0 ± 0.8 | 0% | - | - | -1199.0 ± 0.8 | 11 | 20 |" in text
+    assert "5.0 CPU minutes" in text
+    # full run estimated from the CPU time per step: 15 runs x 20 s x (409600 / 1000) / 2 cores
+    assert f"about {15 * 20 * 409.6 / 60 / 2:.0f} min on 2 free cores (not run here)" in text
+    assert ("on PendulumSwingUp the agents rank true (-399.0, 100% solved), estimate (-599.0, "
+            "0% solved), measurement+stack (-999.0, 0% solved)") in text
+    # gap closed: (agent - measurement) / (true - measurement)
+    assert "estimate 86%, measurement+stack 57%, measurement+lstm 43%" in text
+    png = train_rl.figure(runs, tmp_path / "curves.png")
+    assert png.stat().st_size > 10_000
+
+
+def test_same_step_resets_ended_members_at_once():
+    """stable-baselines3's semantics over the NEXT_STEP vector environment: the observation
+    after an episode's end is the next episode's first, the last one is in the info."""
+    venv = gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=3, max_episode_steps=4)
+    singles = [gym.make("hgo_mj/PendulumSwingUp-v0", max_episode_steps=4) for _ in range(3)]
+    obs, _ = venv.reset(seed=[1, 2, 3])
+    for i, env in enumerate(singles):
+        env.reset(seed=i + 1)
+    a = np.full((3, 1), 0.3, dtype=np.float32)
+    for step in range(10):
+        obs, rew, dones, infos = train_rl.same_step(venv, a)
+        assert rew.dtype == np.float32 and dones.dtype == bool
+        for i, env in enumerate(singles):
+            o, r, term, trunc, _ = env.step(a[i])
+            assert np.float32(r) == rew[i]
+            if term or trunc:
+                assert dones[i] and infos[i]["TimeLimit.truncated"]
+                assert np.array_equal(infos[i]["terminal_observation"], o)
+                o, _ = env.reset()  # the generators go on, as the member's
+            else:
+                assert not dones[i] and infos[i] == {}
+            assert np.array_equal(obs[i], o), (step, i)
+
+
+def test_solved_criterion():
+    up = [[np.pi + 0.1, 0.0]] * 10
+    assert train_rl.solved("hgo_mj/PendulumSwingUp-v0", [[0.0, 0.0]] * 10 + up, ())
+    assert not train_rl.solved("hgo_mj/PendulumSwingUp-v0", up + [[0.0, 0.0]] * 10, ())
+    assert train_rl.solved("hgo_mj/ElasticJointReach-v0", [[0.5, 0, 0, 0]] * 4, (0.49,))
+    assert not train_rl.solved("hgo_mj/ElasticJointReach-v0", [[0.5, 0, 0, 0]] * 4, (0.4,))
 
 
 def test_report_is_rewritten_from_raw_results(tmp_path):
     import json
 
-    runs = [train_rl.Run("hgo_mj/ElasticJointReach-v0", m, 0, 500, "sac", 5.0, 6.0,
-                         {"true": -10.0, "estimate": -12.0,
-                          "measurement": -30.0 if m == "measurement" else None})
-            for m in train_rl.MODES]
-    raw = {"args": {"algo": "sac", "full": False, "steps": 500, "eval_episodes": 1,
-                    "seed_list": [0], "workers": 1},
+    runs = _runs("hgo_mj/ElasticJointReach-v0")
+    raw = {"args": {"full": False, "steps": 1000, "eval_episodes": 1, "seed_list": [0, 1, 2],
+                    "workers": 1},
            "wall": 20.0, "runs": [vars(r) for r in runs]}
     (tmp_path / "rl.json").write_text(json.dumps(raw))
     out = tmp_path / "rl.md"
     assert train_rl.main(["--report-from", str(tmp_path / "rl.json"), "--out", str(out)]) == 0
     assert "## hgo_mj/ElasticJointReach-v0" in out.read_text()
+    assert (tmp_path / "rl_curves.png").stat().st_size > 10_000

@@ -24,6 +24,8 @@ from hgo_mj.observers import OBSERVERS, make_observer
 from hgo_mj.systems import Pendulum
 
 PARAMS = [pytest.param(kind, make, p, m, id=f"{kind}-{cid}") for kind, cid, make, p, m in CASES]
+#: families whose members share a clock or counter (excitation windows, Gram windows)
+SHARED_CLOCK = {"besancon", "bastin_gevers", "jo_son"}
 STEPS = 12  # the dropout of ``signals`` is at sample 7
 
 
@@ -134,3 +136,42 @@ def test_the_contract_is_an_abstract_base():
         Observer(None, order=2)  # type: ignore[abstract]
     for cls in OBSERVERS.values():
         assert issubclass(cls, Observer) and not getattr(cls, "__abstractmethods__", None)
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_reset_members_restarts_only_those_members(kind, make, p, m):
+    """``reset_members([1])`` of a batch of 3: member 1 then runs as a fresh observer on its
+    samples (bit for bit), members 0 and 2 as if nothing happened."""
+    def block(k0: int, k1: int, shift: float) -> tuple[np.ndarray, np.ndarray]:
+        ys, us = zip(*(signals(k, p, m) for k in range(k0, k1)))
+        return np.array(ys)[None] + shift, np.array(us)[None]
+
+    def batch(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
+        parts = [block(k0, k1, 0.01 * b) for b in range(3)]
+        return np.concatenate([y for y, _ in parts]), np.concatenate([u for _, u in parts])
+
+    ob, ref, fresh = make(), make(), make()
+    ob.reset(batch=3)
+    ref.reset(batch=3)
+    for o in (ob, ref):
+        o.advance(*batch(0, 5), DT)
+    try:
+        ob.reset_members([1])
+    except DesignError as exc:  # a clock shared by the members: refused, named
+        assert "share a clock or counter" in str(exc)
+        assert kind in SHARED_CLOCK, exc
+        return
+    assert kind not in SHARED_CLOCK
+    out, want = ob.advance(*batch(5, STEPS), DT), ref.advance(*batch(5, STEPS), DT)
+    fresh.reset(batch=1)
+    alone = fresh.advance(*block(5, STEPS, 0.01), DT)
+    for b in (0, 2):
+        np.testing.assert_array_equal(out.x_hat[b], want.x_hat[b])
+        np.testing.assert_array_equal(out.diagnostics[b], want.diagnostics[b])
+    np.testing.assert_array_equal(out.x_hat[1], alone.x_hat[0])
+    np.testing.assert_array_equal(out.diagnostics[1], alone.diagnostics[0])
+    with pytest.raises(DesignError, match="outside the batch of 3"):
+        ob.reset_members([3])
+    single = make()
+    with pytest.raises(DesignError, match="needs a batched observer"):
+        single.reset_members([0])

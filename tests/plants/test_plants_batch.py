@@ -421,3 +421,44 @@ def test_mujoco_a_member_the_rollout_stopped_is_stepped_again(B_, monkeypatch):
     np.testing.assert_array_equal(got[0][0], ref[0][0])
     np.testing.assert_array_equal(got[0][1], ref[0][1])
     np.testing.assert_array_equal(got[1], ref[1])
+
+
+@pytest.mark.parametrize("name", ["pendulum", "elastic_joint_2link"])
+def test_short_blocks_and_member_restart_equal_the_plant_alone(name):
+    """Short blocks of a batch (``mujoco.batch``) and ``reset_members``: member 1, restarted
+    from a new state, runs as the plant reset alone from it; the others go on."""
+    plant, alone = make_plant(name, 0.002), make_plant(name, 0.002)
+    assert plant._batch_map is not None  # the short-block path serves these plants
+    n, m = len(plant.state_names), len(plant.input_names)
+    rng = np.random.default_rng(5)
+    X0 = rng.uniform(-0.3, 0.3, (3, n))
+    plant.reset(X0, batch=3)
+    U = rng.uniform(-0.5, 0.5, (3, 4, m))
+    X, Y = plant.run(U, 2)
+    alone.reset(X0[2])
+    Xa, Ya = alone.run(U[2:3], 2)
+    np.testing.assert_array_equal(X[2], Xa[0])
+    np.testing.assert_array_equal(Y[2], Ya[0])
+    others = plant.state[[0, 2]]
+    x_new = rng.uniform(-0.3, 0.3, n)
+    plant.reset_members([1], x_new[None])
+    np.testing.assert_array_equal(plant.state[[0, 2]], others)
+    alone.reset(x_new)
+    np.testing.assert_array_equal(plant.outputs()[1], alone.outputs())
+    U2 = rng.uniform(-0.5, 0.5, (3, 3, m))
+    X, Y = plant.run(U2, 2)
+    Xa, Ya = alone.run(U2[1:2], 2)
+    np.testing.assert_array_equal(X[1], Xa[0])
+    np.testing.assert_array_equal(Y[1], Ya[0])
+    np.testing.assert_array_equal(plant.state[1], alone.state)
+
+
+def test_reset_members_refuses_bad_input():
+    plant = make_plant("pendulum", 0.002)
+    with pytest.raises(DesignError, match="needs a batch of several members"):
+        plant.reset_members([0], np.zeros((1, 2)))
+    plant.reset(np.zeros((3, 2)), batch=3)
+    with pytest.raises(DimensionError, match=r"X0 must have shape \(1, 2\); found \(1, 3\)"):
+        plant.reset_members([0], np.zeros((1, 3)))
+    with pytest.raises(DesignError, match=r"x0\[2\]: .* = nan is a state MuJoCo cannot take"):
+        plant.reset_members([2], np.array([[np.nan, 0.0]]))

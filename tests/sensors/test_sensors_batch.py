@@ -314,3 +314,49 @@ def test_long_blocks_beyond_the_draw_block():
                           chain.apply(t[2500:], np.zeros((2, 500, 1)))], axis=1)
     for b, sd in enumerate((5, 6)):
         np.testing.assert_array_equal(out[b, :, 0], np.random.default_rng(sd).standard_normal(n))
+
+
+def test_held_and_restarted_streams_equal_the_stream_alone():
+    """``hold`` (a stream does not advance) and ``reset_members`` (one stream reseeded or
+    continued): the stream's measurements are those of the chain alone skipping the held
+    blocks, bit for bit, its counters restarted; the other streams are not touched."""
+    def chain():
+        return SensorChain([GaussianNoise(std=1.0), Outliers(p=0.2, magnitude=5.0),
+                            Dropout(0.1), Quantization(resolution=0.01)])
+
+    c, alone, other = chain(), chain(), chain()
+    c.reset([5, 6, 7])
+    alone.reset(6)
+    other.reset(7)
+    rng = np.random.default_rng(0)
+    held_blocks = 0
+    for k in range(300):
+        T = int(rng.integers(1, 40))  # across the buffer's refills
+        t = k + 0.001 * np.arange(T)
+        held = rng.random() < 0.3
+        c.hold([1] if held else [])
+        out = c._apply(t, np.zeros((3, T, 2)))
+        c.hold([])
+        np.testing.assert_array_equal(out[2], other._apply(t, np.zeros((1, T, 2)))[0])
+        if held:
+            held_blocks += 1
+        else:
+            np.testing.assert_array_equal(out[1], alone._apply(t, np.zeros((1, T, 2)))[0])
+        if k == 100:
+            c.reset_members([1], [99])
+            alone.reset(99)
+        if k == 200:
+            c.reset_members([1], [None])   # continue: the stages restart, the numbers go on
+            alone.restart()
+    assert held_blocks > 50
+    assert c.dropout_counts()[1] == alone.dropout_counts()[0]
+    assert c.dropout_counts()[2] == other.dropout_counts()[0]
+    assert c.seeds == (5, 99, 7)
+    with pytest.raises(DesignError, match="one seed"):
+        c.reset_members([0, 1], [1])
+    timed = SensorChain([Delay(0.01)])
+    timed.reset([1, 2])
+    with pytest.raises(DesignError, match="keeps time"):
+        timed.reset_members([0], [None])
+    with pytest.raises(DesignError, match="keeps time"):
+        timed.hold([0])
