@@ -103,6 +103,13 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
     sc.setdefault("run", {})
     if args.plant:
         sc["plant"]["name"] = args.plant
+    if args.model:  # --model replaces a scenario file's registered plant
+        if not args.plant:
+            sc["plant"].pop("name", None)
+        sc["plant"]["model"] = args.model
+    for key in ("outputs", "inputs"):
+        if getattr(args, key):
+            sc["plant"][key] = list(getattr(args, key))
     if args.observer:
         sc["observers"] = [parse_spec(s, "type") for s in args.observer]
     if args.sensor:
@@ -157,8 +164,13 @@ def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
 
     check_scenario(sc)
     pl = sc["plant"]
-    plant = make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
-                       **pl.get("params", {}))
+    if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
+        plant = make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),
+                           outputs=pl["outputs"], inputs=pl.get("inputs"),
+                           **pl.get("params", {}))
+    else:
+        plant = make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
+                           **pl.get("params", {}))
     run = sc["run"]
     seed = run.get("seed", 0)
     sensor = SensorChain.from_spec(sc.get("sensor", {}).get("stages", []), seed=seed)
@@ -188,6 +200,11 @@ def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
             "duration": run["duration"], "sample_period": run.get("sample_period"),
             "control_period": run.get("control_period"), "x0": pl.get("x0"),
             "metadata": {"scenario": sc.get("name", name), "scenario_spec": sc}}
+
+
+def plant_label(pl: dict[str, Any]) -> str:
+    """A scenario's plant for titles: its registered name, or its MJCF file's name."""
+    return str(pl.get("name") or Path(pl["model"]).name)
 
 
 def observer_system(system: Any, params: Any, label: str) -> Any:
@@ -297,7 +314,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
             rec.close()
     out.mkdir(parents=True, exist_ok=True)
     write_results(traj, metrics, out, formats)
-    save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {pl['name']}, seed {seed}"),
+    save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {plant_label(pl)}, seed {seed}"),
                 out / "figure.png")
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
@@ -375,7 +392,7 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     write_json(out / "metrics_mc.json", mc.to_json())
     write_text(out / "summary_mc.txt", mc.table() + "\n")
     units, _ = units_of(traj)
-    save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {sc['plant']['name']}, "
+    save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {plant_label(sc['plant'])}, "
                                  f"seeds {seeds[0]}..{seeds[-1]}", units=units), out / "mc.png")
     return traj, metrics, out, mc
 
@@ -459,6 +476,12 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run a scenario (TOML file and/or flags)")
     r.add_argument("scenario", nargs="?", help="TOML scenario file")
     r.add_argument("--plant", help="plant name (see `hgo-mj list`)")
+    r.add_argument("--model", metavar="FILE.xml",
+                   help="any MJCF file as the plant (plant.model), with --outputs")
+    r.add_argument("--outputs", nargs="+", metavar="NAME",
+                   help="with --model: the measured MJCF sensors, or joints (their position)")
+    r.add_argument("--inputs", nargs="+", metavar="NAME",
+                   help="with --model: the actuators driven by the input (default all)")
     r.add_argument("--dt", type=float, help="plant step (control hold), seconds")
     r.add_argument("--x0", metavar="[X1,X2,...]",
                    help="initial true state, one value per plant state (plant.x0; default the "

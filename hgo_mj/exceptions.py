@@ -21,3 +21,8 @@ class DesignError(HgoError, ValueError):
 
 class DivergenceError(HgoError, RuntimeError):
     """A simulation or an observer left the finite numbers."""
+
+
+class ModelError(DesignError):
+    """A model the user brought (an MJCF file, an ODE) cannot be used: it does not load, names
+    an element it does not have, or has a structure hgo_mj does not take."""

@@ -33,14 +33,16 @@ KINDS: dict[str, str] = {
     "tables": "a list of tables",
     "table_or_tables": "a table, or a list of tables (one per actuator)",
     "numbers": "a list of numbers",
+    "names": "a non-empty list of strings",
 }
 
 #: section -> key -> kind; ``None`` for a section means "a list of tables" (``observers``)
 SCHEMA: dict[str, dict[str, str]] = {
     "": {"name": "string", "plant": "table", "sensor": "table", "observers": "tables",
          "input": "table_or_tables", "controller": "table", "run": "table"},
-    "plant": {"name": "string", "dt": "positive", "physics_dt": "positive", "params": "table",
-              "x0": "numbers"},
+    # name = a registered plant, or model = an MJCF file with its outputs (and inputs)
+    "plant": {"name": "string", "model": "string", "outputs": "names", "inputs": "names",
+              "dt": "positive", "physics_dt": "positive", "params": "table", "x0": "numbers"},
     "sensor": {"stages": "tables"},
     "run": {"duration": "positive", "sample_period": "positive", "control_period": "positive",
             "seed": "seed", "seeds": "count", "out": "string", "t_transient": "nonneg",
@@ -68,6 +70,8 @@ def _ok(kind: str, value: Any) -> bool:
             isinstance(value, list) and all(isinstance(v, Mapping) for v in value))
     if kind == "numbers":
         return isinstance(value, list) and numbers_only(value)
+    if kind == "names":
+        return isinstance(value, list) and bool(value) and all(isinstance(v, str) for v in value)
     if kind in ("seed", "count"):
         return (is_real(value) and not isinstance(value, float) and int(value) == value
                 and value >= (1 if kind == "count" else 0))
@@ -120,10 +124,24 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
                               f"{sorted(map(str, ob))}")
     for i, st in enumerate(sc.get("sensor", {}).get("stages", [])):
         _check_table(f"sensor.stages[{i}]", "stages", st)
+    plant = sc.get("plant", {})
+    if "model" in plant:
+        if "name" in plant:
+            raise DesignError("[plant] has name (a registered plant) or model (an MJCF file), "
+                              f"not both; found name = {plant['name']!r}, model = "
+                              f"{plant['model']!r}")
+        if "outputs" not in plant:
+            raise DesignError("[plant] model = ... needs outputs = [MJCF sensor or joint names]")
+    elif required and ("outputs" in plant or "inputs" in plant):
+        raise DesignError("[plant] outputs and inputs go with model = \"robot.xml\" (an MJCF "
+                          "file); a registered plant's outputs are its own")
     for path in REQUIRED if required else ():
         section, key = path.split(".")
+        if path == "plant.name" and "model" in plant:
+            continue
         if key not in sc.get(section, {}):
-            hint = {"plant.name": "[plant] name = ... or --plant NAME (see `hgo-mj list`)",
+            hint = {"plant.name": "[plant] name = ... or --plant NAME (see `hgo-mj list`), or "
+                                      "[plant] model = \"robot.xml\" or --model FILE",
                     "run.duration": "[run] duration = SECONDS or --duration SECONDS"}[path]
             raise DesignError(f"scenario needs {path}: {hint}")
 

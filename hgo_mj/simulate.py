@@ -410,6 +410,7 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
             "observers": {name: {"type": type(ob).__name__, **ob.params()}
                           for name, ob in obs.items()},
             "input": drive.describe(), "versions": package_versions(),
+            **({"mjcf": mjcf} if (mjcf := getattr(type(plant.system), "mjcf", None)) else {}),
             **(dict(metadata) if metadata else {})}
     trajs = store.trajectories(meta, seeds, x0)
     for traj in trajs:

@@ -17,7 +17,11 @@ from typing import Any
 def system_of(traj: Any) -> Any:
     """The registered system class of a trajectory's plant (by its metadata), or ``None``."""
     from .systems import SYSTEMS
+    from .systems.mjcf import system_from_metadata
 
+    mjcf = system_from_metadata(traj.metadata)
+    if mjcf is not None:
+        return mjcf
     plant = str(traj.metadata.get("plant", ""))
     for cls in SYSTEMS.values():
         if plant in (cls.__name__, cls.name):

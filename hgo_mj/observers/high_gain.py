@@ -58,7 +58,7 @@ from numba import njit
 from .._validate import boolean, finite_scalar, one_of, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
 from ..exceptions import DesignError, DimensionError
-from ..systems.base import System
+from ..systems.base import System, derivative_names
 from .base import Array, Observer, batch_rows, register
 
 METHODS = ("exact", "euler", "rk4")
@@ -629,30 +629,6 @@ def _is_identity(system: System, n: int) -> bool:
         return False
 
 
-_DERIVATIVE_WORDS = {"_angle": ("_angle", "_velocity", "_acceleration", "_jerk"),
-                     "_position": ("_position", "_velocity", "_acceleration", "_jerk")}
-#: outputs named by the bare word: the plants' own names (pendulum: angle, angular_velocity)
-_BARE_DERIVATIVE_WORDS = {"angle": ("angle", "angular_velocity", "angular_acceleration", "angular_jerk"),
-                          "position": ("position", "velocity", "acceleration", "jerk")}
-
-
-def derivative_names(output: str, order: int) -> tuple[str, ...]:
-    """Names of ``(y, y', ..., y^(order-1))`` for an output named ``output``.
-
-    ``link1_angle`` gives ``link1_angle, link1_velocity, link1_acceleration, link1_jerk``
-    (``_position`` likewise), a bare ``angle`` gives ``angle, angular_velocity, ...`` (the
-    pendulums' state names); higher derivatives and other names get ``<name>_d<j>``.
-    """
-    if output in _BARE_DERIVATIVE_WORDS:
-        words = _BARE_DERIVATIVE_WORDS[output]
-        return tuple(words[j] if j < len(words) else f"{output}_d{j}" for j in range(order))
-    for suffix, words in _DERIVATIVE_WORDS.items():
-        if output.endswith(suffix):
-            base = output[: -len(suffix)]
-            return tuple(base + words[j] if j < len(words) else f"{base}_d{j}" for j in range(order))
-    return tuple(output if j == 0 else f"{output}_d{j}" for j in range(order))
-
-
 def _per_chain(name: str, value: Any, m: int) -> list[Any]:
     """A scalar (or None) for every chain, or a sequence with one entry per chain."""
     if value is None or np.ndim(value) == 0:
@@ -676,8 +652,9 @@ def _chain_orders(cls: str, system: Any, orders: Any) -> tuple[int, ...]:
             orders = (system.normal_form_order,)
     if orders is None:
         where = "" if system is None else f" for {type(system).__name__}"
+        problem = getattr(system, "normal_form_problem", None)
         raise DesignError(f"{cls} needs orders=[n_1, n_2, ...]{where} (one chain order per "
-                          f"output)")
+                          f"output)" + (f": {problem}" if problem else ""))
     orders = [orders] if np.ndim(orders) == 0 else list(orders)
     if not orders or any(isinstance(o, bool) or int(o) != o or o < 1 for o in orders):
         raise DesignError(f"orders must be positive integers, one per chain; found {orders!r}")
@@ -731,7 +708,11 @@ class MultiOutputHighGainObserver(_Chains, Observer):
         Hurwitz coefficients: ``None`` (binomial, ``(s + 1)^n_c``), one array used for every
         chain (all of that order), or one array (or ``None``) per chain.
     outputs : tuple of int, optional
-        Measured channel of each chain (default ``(0, 1, ...)``), distinct.
+        Measured channel of each chain (default: the system's ``normal_form_outputs`` where it
+        declares them, else ``(0, 1, ...)``), distinct.
+    model : bool
+        Use the system's model term ``chain_phi`` as ``phi`` (the MJCF systems of
+        :mod:`hgo_mj.systems.mjcf`: MuJoCo's forward dynamics at the estimate).
     phi : callable ``phi(z_hat, u) -> array`` of length ``len(orders)``, optional
         Model term: the chains' top derivatives, evaluated at the full ``z_hat`` (chains
         concatenated in order). With ``exact`` and ``euler`` it is held at its start-of-sample
@@ -774,13 +755,26 @@ class MultiOutputHighGainObserver(_Chains, Observer):
 
     def __init__(self, system: System | None = None, *, k: Any, orders: Any = None,
                  p: Any = None, outputs: Any = None,
-                 phi: Callable[[Array, Array], Any] | None = None, method: str = "exact",
-                 z_hat0: Any = None, x_hat0: Any = None, on_unstable: str = "raise") -> None:
+                 phi: Callable[[Array, Array], Any] | None = None, model: bool = False,
+                 method: str = "exact", z_hat0: Any = None, x_hat0: Any = None,
+                 on_unstable: str = "raise") -> None:
         self.orders = _chain_orders(type(self).__name__, system, orders)
         m = len(self.orders)
-        super().__init__(system, order=sum(self.orders),
-                         outputs=tuple(range(m)) if outputs is None else outputs,
+        if outputs is None:  # the system's chain outputs (MJCF systems), else 0, 1, ...
+            outputs = getattr(system, "normal_form_outputs", None) or tuple(range(m))
+        super().__init__(system, order=sum(self.orders), outputs=outputs,
                          on_unstable=on_unstable)
+        if not isinstance(model, bool):
+            raise DesignError(f"model must be true or false; found {model!r} "
+                              f"({type(model).__name__})")
+        if model:
+            if phi is not None:
+                raise DesignError("give phi= or model=true (the system's chain_phi), not both")
+            phi = getattr(system, "chain_phi", None)
+            if phi is None:
+                raise DesignError(f"model=true needs a system with chain_phi (an MJCF system "
+                                  f"whose joints are all measured); found "
+                                  f"{type(system).__name__}")
         if len(self.outputs) != m:
             raise DimensionError(f"outputs must name one channel per chain ({m}); found "
                                  f"{len(self.outputs)}")

@@ -1027,7 +1027,7 @@ class MujocoModel:
 
     def __init__(self, system: System, model: Any = None, estimate: Sequence[str] = (),
                  jacobian: str = "transition_fd") -> None:
-        from ..plants.mujoco import MujocoPlant, model_path
+        from ..plants.mujoco import MujocoPlant
 
         if not isinstance(system, System):
             raise DesignError(f"system must be a System instance; found {type(system).__name__}")
@@ -1035,7 +1035,7 @@ class MujocoModel:
             raise DesignError(f"{type(system).__name__} is not a MuJoCo system (model_file is None); "
                               f"use the System-based filter")
         if model is None:
-            model = mujoco.MjModel.from_xml_path(str(model_path(system.model_file)))
+            model = type(system).load_model()
         elif isinstance(model, MujocoPlant):
             model = model.model
         if not isinstance(model, mujoco.MjModel):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 from .._validate import check_call, reject_unknown
@@ -11,16 +12,28 @@ from .mujoco import MujocoPlant, model_path
 from .ode import OdePlant
 
 
-def make_plant(name: str, dt: float | None = None, *, physics_dt: float | None = None,
-               **params: Any) -> Plant:
-    """Build the plant of a registered system.
+def make_plant(name: str | os.PathLike[str], dt: float | None = None, *,
+               physics_dt: float | None = None, **params: Any) -> Plant:
+    """Build the plant of a registered system, or of any MJCF file.
 
     MuJoCo systems take their parameters from their MJCF (edit the file, or pass
     ``model_file=``; ``outputs=`` and the rollout's ``nthread=`` as :class:`MujocoPlant`);
-    ODE systems take parameter overrides as keywords.
+    ODE systems take parameter overrides as keywords. A path to an MJCF file (an
+    ``os.PathLike``, or a string ending in ``.xml``) builds the system of
+    :func:`hgo_mj.systems.mjcf.mjcf_system` with ``outputs=`` (sensor or joint names) and
+    ``inputs=`` (actuator names, default all); ``dt`` defaults to the MJCF's timestep.
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import make_plant, model_path
+    >>> plant = make_plant(model_path("pendulum.xml"), outputs=["hinge"])
+    >>> plant.state_names
+    ('hinge_angle', 'hinge_velocity')
     """
     from ..systems import SYSTEMS
 
+    if isinstance(name, os.PathLike) or (isinstance(name, str) and name.endswith(".xml")):
+        return _mjcf_plant(name, dt, physics_dt, params)
     if not isinstance(name, str) or name not in SYSTEMS:
         raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}")
     cls = SYSTEMS[name]
@@ -32,6 +45,19 @@ def make_plant(name: str, dt: float | None = None, *, physics_dt: float | None =
     system = cls(**params)
     return OdePlant(system, getattr(cls, "default_dt", 0.01) if dt is None else dt,
                     physics_dt=physics_dt)
+
+
+def _mjcf_plant(path: Any, dt: float | None, physics_dt: float | None,
+                params: dict[str, Any]) -> Plant:
+    from ..systems.mjcf import mjcf_system
+
+    reject_unknown(f"MJCF plant {str(path)!r}", params, ["outputs", "inputs", "nthread"])
+    if "outputs" not in params:
+        raise DesignError(f"MJCF plant {str(path)!r} needs outputs= (MJCF sensor or joint names)")
+    cls = mjcf_system(path, params["outputs"], params.get("inputs"))
+    if dt is None:
+        dt = physics_dt if physics_dt is not None else float(cls.load_model().opt.timestep)
+    return MujocoPlant(cls, dt, physics_dt=physics_dt, nthread=params.get("nthread"))
 
 
 __all__ = ["MujocoPlant", "OdePlant", "Plant", "make_plant", "model_path"]

@@ -76,6 +76,18 @@ def _constraint_free(m: Any) -> bool:
     return not (limits or equality or friction or contact)
 
 
+def sensor_channel(m: Any, name: str) -> tuple[str, int]:
+    """``(sensor name, channel)`` of an output: a sensor's name (channel 0), or
+    ``<name>[k]`` for channel ``k`` of a multi-dimensional sensor (``framepos``: 3)."""
+    if name.endswith("]") and "[" in name and mujoco.mj_name2id(
+            m, mujoco.mjtObj.mjOBJ_SENSOR, name) < 0:
+        base, _, k = name[:-1].rpartition("[")
+        s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, base)
+        if s >= 0 and k.isdigit() and int(k) < int(m.sensor_dim[s]):
+            return base, int(k)
+    return name, 0
+
+
 def model_path(name: str) -> Path:
     """Absolute path of an MJCF file shipped under ``models/`` (works from a wheel install)."""
     path = Path(str(resources.files("hgo_mj.models").joinpath(name)))
@@ -118,8 +130,9 @@ class MujocoPlant(Plant):
                  nthread: int | None = None) -> None:
         if system.model_file is None:
             raise DesignError(f"{system.__name__} is not a MuJoCo system; use OdePlant")
-        path = Path(model_file) if model_file is not None else model_path(system.model_file)
-        self.model = mujoco.MjModel.from_xml_path(str(path))
+        path = Path(model_file) if model_file is not None else Path(system.model_file)
+        self.model = (mujoco.MjModel.from_xml_path(str(path)) if model_file is not None
+                      else system.load_model())
         if physics_dt is not None:
             self.model.opt.timestep = finite_scalar("physics_dt", physics_dt, positive=True)
         self.physics_dt = float(self.model.opt.timestep)
@@ -149,14 +162,15 @@ class MujocoPlant(Plant):
         self._sensor_src: list[tuple[str, int]] = []
         self._needs_forward = False
         for name in self._output_names:
-            s = _id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
+            base, k = sensor_channel(m, name)
+            s = _id(mujoco.mjtObj.mjOBJ_SENSOR, base, "sensor")
             kind = _DIRECT_SENSORS.get(int(m.sensor_type[s]))
             if kind is not None and m.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_JOINT:
                 j = m.sensor_objid[s]
                 adr = m.jnt_qposadr[j] if kind == "qpos" else m.jnt_dofadr[j]
                 self._sensor_src.append((kind, int(adr)))
             else:
-                self._sensor_src.append(("sensordata", int(m.sensor_adr[s])))
+                self._sensor_src.append(("sensordata", int(m.sensor_adr[s]) + k))
                 self._needs_forward = True
         self._x0 = vector("system.default_x0", system.default_x0, 2 * self._nq)
         if nthread is None:
@@ -193,7 +207,7 @@ class MujocoPlant(Plant):
             elif kind == "qvel":
                 self._batch_src.append(("state", 1 + m.nq + a))
             else:
-                s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
+                s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, sensor_channel(m, name)[0])
                 stage = "acc" if int(m.sensor_needstage[s]) >= acc else "sensor"
                 self._batch_src.append((stage, a))
         self._batch_map = self._batch_mapping() if self._rollout_ok else None

@@ -234,7 +234,12 @@ def model_for(meta: Mapping[str, Any]) -> tuple[Any, tuple[str, ...]]:
     """The MJCF model and joints of the system a trajectory's metadata names (the scenario's
     ``model_file`` if it gives one), or ``(None, ())`` for an ODE system."""
     from ..systems import SYSTEMS
+    from ..systems.mjcf import system_from_metadata
 
+    mcls = system_from_metadata(meta)
+    if mcls is not None:  # any MJCF (hgo_mj.systems.mjcf): its edited, compiled model
+        return mcls.load_model(), tuple(mcls.joints)
+    spec = meta.get("scenario_spec") or {}
     cls = next((c for c in SYSTEMS.values() if c.__name__ == meta.get("plant")), None)
     if cls is None or cls.model_file is None:
         return None, ()
@@ -242,7 +247,6 @@ def model_for(meta: Mapping[str, Any]) -> tuple[Any, tuple[str, ...]]:
 
     from ..plants.mujoco import model_path
 
-    spec = meta.get("scenario_spec") or {}
     model_file = (spec.get("plant", {}).get("params", {}) or {}).get("model_file")
     path = Path(model_file) if model_file else model_path(cls.model_file)
     try:

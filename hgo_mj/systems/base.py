@@ -99,6 +99,31 @@ for _fn, _attr in ((model_dynamics, "dynamics"), (model_jacobian, "jacobian"),
     overload(_fn, inline="always")(_model_overload(_attr))
 
 
+_DERIVATIVE_WORDS = {"_angle": ("_angle", "_velocity", "_acceleration", "_jerk"),
+                     "_position": ("_position", "_velocity", "_acceleration", "_jerk")}
+#: outputs named by the bare word: the plants' own names (pendulum: angle, angular_velocity)
+_BARE_DERIVATIVE_WORDS = {"angle": ("angle", "angular_velocity", "angular_acceleration", "angular_jerk"),
+                          "position": ("position", "velocity", "acceleration", "jerk")}
+
+
+def derivative_names(output: str, order: int) -> tuple[str, ...]:
+    """Names of ``(y, y', ..., y^(order-1))`` for an output named ``output``.
+
+    ``link1_angle`` gives ``link1_angle, link1_velocity, link1_acceleration, link1_jerk``
+    (``_position`` likewise), a bare ``angle`` gives ``angle, angular_velocity, ...`` (the
+    pendulums' state names); higher derivatives and other names get ``<name>_d<j>``.
+    """
+    if output in _BARE_DERIVATIVE_WORDS:
+        words = _BARE_DERIVATIVE_WORDS[output]
+        return tuple(words[j] if j < len(words) else f"{output}_d{j}" for j in range(order))
+    for suffix, words in _DERIVATIVE_WORDS.items():
+        if output.endswith(suffix):
+            base = output[: -len(suffix)]
+            return tuple(base + words[j] if j < len(words) else f"{base}_d{j}" for j in range(order))
+    return tuple(output if j == 0 else f"{output}_d{j}" for j in range(order))
+
+
+
 class System:
     """Base class of the analytic models. Subclasses fill in the class attributes below."""
 
@@ -237,6 +262,23 @@ class System:
         return getattr(self, f"_form_{kind}")(**options)
 
     # ------------------------------------------------------------------ MuJoCo
+    @classmethod
+    def load_model(cls) -> Any:
+        """The compiled ``mujoco.MjModel`` of a MuJoCo system: its shipped MJCF (the MJCF
+        systems of :mod:`hgo_mj.systems.mjcf` compile their edited file).
+
+        Raises
+        ------
+        DesignError
+            The system is not a MuJoCo system (``model_file`` is None)."""
+        if cls.model_file is None:
+            raise DesignError(f"{cls.__name__} is not a MuJoCo system (model_file is None)")
+        import mujoco
+
+        from ..plants.mujoco import model_path
+
+        return mujoco.MjModel.from_xml_path(str(model_path(cls.model_file)))
+
     @classmethod
     def from_mjmodel(cls, model: Any) -> System:
         """Read the parameters from a compiled ``mujoco.MjModel``."""
