@@ -43,6 +43,7 @@ import gymnasium
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 from gymnasium.utils import EzPickle
 from numpy.typing import NDArray
 
@@ -349,9 +350,10 @@ class EnvConfig:
         if invalid_action not in INVALID_ACTION_MODES:
             raise DesignError(f"invalid_action must be one of {list(INVALID_ACTION_MODES)}; found "
                               f"{invalid_action!r}")
-        if render_mode is not None:
-            raise DesignError(f"{env_cls.__name__} does not render (headless); render_mode must "
-                              f"be None; found {render_mode!r}")
+        if render_mode is not None and render_mode not in env_cls.metadata["render_modes"]:
+            raise DesignError(f"unknown render mode {render_mode!r} for {env_cls.__name__}; "
+                              f"valid: {[None, *env_cls.metadata['render_modes']]} (\"human\" "
+                              f"is not offered: wrap the env in RecordVideo, or show the frames)")
         integ = task.integrator if integrator is None else integrator
         if integ is not None and integ not in _INTEGRATORS:
             raise DesignError(f"unknown integrator {integ!r}; valid: {sorted(_INTEGRATORS)}")
@@ -464,7 +466,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         Names of ``info["error"]``: the states the observer estimates, in plant order.
     """
 
-    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 50}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}
     task_class: ClassVar[type[Task] | None] = None
 
     def __init__(self, *, task: Task | None = None, observer: Any = "default",
@@ -487,7 +489,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                            info_level=info_level, render_mode=render_mode,
                            task_kwargs=task_kwargs)
         self.config, self.task = cfg, cfg.task
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._renderer: Any = None
         self.observation_mode = cfg.observation
         self.physics_dt, self.control_period, self.sample_period = (
             cfg.physics_dt, cfg.control_period, cfg.sample_period)
@@ -707,6 +710,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         DivergenceError
             The plant or the observer left the finite numbers.
         """
+        if not self._last:
+            raise ResetNeeded(f"{type(self).__name__}: call reset() before step()")
         u = self._action(action)
         try:  # u held over the control period's samples, (1, T, m)
             self.loop.segment(np.array([[u] * self._n_samples]))
@@ -798,6 +803,46 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             if self._goal:
                 info["goal"] = np.array(self._goal)
         return info
+
+    def render(self) -> NDArray[np.uint8] | None:
+        """The current frame (``render_mode="rgb_array"``): the true pose and a translucent
+        ghost posed from the observer's estimate (:class:`hgo_mj.envs.render.GhostRenderer`;
+        a joint position the observer does not estimate is drawn at its true value), shape
+        ``(480, 480, 3)`` uint8. ``None`` (with Gymnasium's warning) without a render mode.
+
+        Raises
+        ------
+        gymnasium.error.ResetNeeded
+            Before the first ``reset``.
+        hgo_mj.envs.render.RenderError
+            No OpenGL backend could be made (the message says which were tried)."""
+        if self.render_mode is None:
+            gymnasium.logger.warn(f"{type(self).__name__}.render() without a render_mode; "
+                                  f"make the environment with render_mode=\"rgb_array\"")
+            return None
+        if not self._last:
+            raise ResetNeeded(f"{type(self).__name__}: call reset() before render()")
+        if self._renderer is None:
+            from .render import GhostRenderer
+
+            self._renderer = GhostRenderer(self.plant.model, self.plant._qadr)
+        x, x_hat = self._last[1], self._last[5]
+        nq = len(self.plant._qadr)
+        q = np.array(x[:nq], dtype=float)
+        ghost = q.copy()
+        if x_hat is not None:
+            est = {name: i for i, name in enumerate(self.estimate_names)}
+            for i, name in enumerate(self.state_names[:nq]):
+                if name in est:
+                    ghost[i] = x_hat[est[name]]
+        return self._renderer.render(q, ghost)
+
+    def close(self) -> None:
+        """Free the renderer's buffers, if one was made."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()
 
     def current_row(self) -> dict[str, Any]:
         """The last reset's or step's row: time ``t``, true state ``x``, measurement ``y``,

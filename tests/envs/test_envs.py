@@ -442,7 +442,7 @@ def test_actions_outside_the_space_raise_when_asked():
     with pytest.raises(DesignError, match=r"action\[0\] = 1.5 is outside the action space"):
         env.step(np.array([1.5]))
     with pytest.raises(DesignError, match=r"action\[0\] is NaN"):
-        envs.PendulumSwingUpEnv().step(np.array([np.nan]))
+        env.step(np.array([np.nan]))
     with pytest.raises(DimensionError, match="action must have 1 entries; found 2"):
         env.step(np.zeros(2))
     with pytest.raises(DesignError, match="invalid_action must be one of"):
@@ -466,7 +466,8 @@ def test_other_bad_arguments():
     with pytest.raises(DesignError, match=r"unknown argument\(s\) \['torque'\]; valid: .*"
                                           r"'max_torque'"):
         envs.PendulumSwingUpEnv(torque=1.0)
-    with pytest.raises(DesignError, match="does not render"):
+    with pytest.raises(DesignError, match=r"unknown render mode 'human' for PendulumSwingUpEnv; "
+                                          r"valid: \[None, 'rgb_array'\]"):
         envs.PendulumSwingUpEnv(render_mode="human")
     with pytest.raises(DesignError, match="info_level must be one of"):
         envs.PendulumSwingUpEnv(info_level="all")
