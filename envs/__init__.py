@@ -7,6 +7,9 @@ id                                            class
 ``hgo_mj/CartPendulumBalance-v0``             :class:`CartPendulumBalanceEnv`
 ``hgo_mj/ElasticJointReach-v0``               :class:`ElasticJointReachEnv`
 ``hgo_mj/ElasticJoint2LinkReach-v0``          :class:`ElasticJoint2LinkReachEnv`
+``hgo_mj/FurutaSwingUp-v0``                   :class:`FurutaSwingUpEnv`
+``hgo_mj/AcrobotSwingUp-v0``                  :class:`AcrobotSwingUpEnv`
+``hgo_mj/CartPoleSwingUp-v0``                 :class:`CartPoleSwingUpEnv`
 ============================================  ==========================================
 
 Each is a MuJoCo plant, a sensor chain and an observer in the loop (:class:`HgoEnv`) under a
@@ -29,9 +32,12 @@ import gymnasium
 
 from .core import INFO_LEVELS, OBSERVATION_MODES, HgoEnv, Task, sensor_chain
 from .environments import (
+    AcrobotSwingUpEnv,
     CartPendulumBalanceEnv,
+    CartPoleSwingUpEnv,
     ElasticJoint2LinkReachEnv,
     ElasticJointReachEnv,
+    FurutaSwingUpEnv,
     PendulumSwingUpEnv,
 )
 from .vector import HgoVectorEnv, vector_entry_point
@@ -42,6 +48,9 @@ ENVIRONMENTS: dict[str, type[HgoEnv]] = {
     "hgo_mj/CartPendulumBalance-v0": CartPendulumBalanceEnv,
     "hgo_mj/ElasticJointReach-v0": ElasticJointReachEnv,
     "hgo_mj/ElasticJoint2LinkReach-v0": ElasticJoint2LinkReachEnv,
+    "hgo_mj/FurutaSwingUp-v0": FurutaSwingUpEnv,
+    "hgo_mj/AcrobotSwingUp-v0": AcrobotSwingUpEnv,
+    "hgo_mj/CartPoleSwingUp-v0": CartPoleSwingUpEnv,
 }
 
 
@@ -57,7 +66,8 @@ def register_all() -> None:
 
 register_all()
 
-__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "CartPendulumBalanceEnv",
+__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "AcrobotSwingUpEnv",
+           "CartPendulumBalanceEnv", "CartPoleSwingUpEnv", "FurutaSwingUpEnv",
            "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "HgoVectorEnv",
            "PendulumSwingUpEnv",
            "Task", "register_all", "sensor_chain"]

@@ -51,7 +51,7 @@ from hgo_mj._validate import finite_scalar, integer_multiple, numbers_only, vect
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
-from hgo_mj.plants import MujocoPlant, make_plant
+from hgo_mj.plants import MujocoPlant, make_plant, model_path
 from hgo_mj.sensors import SensorChain, Stage, make_stage
 
 Array = NDArray[np.float64]
@@ -141,6 +141,16 @@ def _accepted(cls: type[Any], params: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in params.items() if k in sig.parameters}
 
 
+def _system_key(system: Any) -> Any:
+    """What makes two systems the same plant: the class, or for a system read from an MJCF
+    (a class built per call by :func:`hgo_mj.systems.mjcf.mjcf_system`) the file and the
+    names of its state, outputs and inputs."""
+    cls = type(system)
+    if getattr(cls, "model_file", None) is None or not hasattr(cls, "normal_form_problem"):
+        return cls
+    return (cls.__name__, cls.model_file, cls.state_names, cls.output_names, cls.input_names)
+
+
 class Task:
     """Reward, termination and reset distribution of an environment, and its defaults.
 
@@ -151,7 +161,9 @@ class Task:
     Attributes
     ----------
     plant : str
-        Registry name of the plant (``hgo_mj.systems.SYSTEMS``).
+        Registry name of the plant (``hgo_mj.systems.SYSTEMS``), or an MJCF file under
+        ``models/`` (``"furuta.xml"``) read by the generic MJCF path with the task's
+        ``plant_outputs`` as outputs.
     max_action : tuple of float
         Input per unit action, one per plant input (``u = action * max_action``).
     """
@@ -521,7 +533,12 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
 
     # ------------------------------------------------------------------ construction
     def _make_plant(self, cfg: EnvConfig) -> MujocoPlant:
-        plant = make_plant(cfg.task.plant, dt=cfg.sample_period, physics_dt=cfg.physics_dt)
+        if cfg.task.plant.endswith(".xml"):  # a lab plant: its MJCF through the generic path
+            plant = make_plant(model_path(cfg.task.plant), dt=cfg.sample_period,
+                               physics_dt=cfg.physics_dt,
+                               outputs=list(getattr(cfg.task, "plant_outputs", ())))
+        else:
+            plant = make_plant(cfg.task.plant, dt=cfg.sample_period, physics_dt=cfg.physics_dt)
         if not isinstance(plant, MujocoPlant):
             raise DesignError(f"an hgo_mj environment needs a MuJoCo plant; task plant "
                               f"{cfg.task.plant!r} is {type(plant).__name__}")
@@ -611,7 +628,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         return make_observer(kind, system, **{**self.observer_params(kind), **params})
 
     def _check_instance(self, obs: Observer, system: Any) -> None:
-        if obs.system is not None and type(obs.system) is not type(system):
+        if obs.system is not None and _system_key(obs.system) != _system_key(system):
             raise DesignError(f"the observer was designed for {type(obs.system).__name__}; this "
                               f"environment's plant is {type(system).__name__}")
         m = len(self.output_names)

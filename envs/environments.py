@@ -1,4 +1,4 @@
-"""The four environments: a :class:`~envs.core.Task` each, in the loop of :class:`~envs.core.HgoEnv`.
+"""The environments: a :class:`~envs.core.Task` each, in the loop of :class:`~envs.core.HgoEnv`.
 
 The classes below carry only their documentation and their task; the loop, the arguments and
 the observation modes are :class:`~envs.core.HgoEnv`'s. Variants are made with
@@ -10,7 +10,15 @@ the observation modes are :class:`~envs.core.HgoEnv`'s. Variants are made with
 from __future__ import annotations
 
 from .core import HgoEnv
-from .tasks import BalanceTask, Reach2LinkTask, ReachTask, SwingUpTask
+from .tasks import (
+    AcrobotSwingUpTask,
+    BalanceTask,
+    CartPoleSwingUpTask,
+    FurutaSwingUpTask,
+    Reach2LinkTask,
+    ReachTask,
+    SwingUpTask,
+)
 
 _ARGUMENTS = """
     Common to every hgo_mj environment (:class:`~envs.core.HgoEnv`); pass them to
@@ -297,5 +305,183 @@ class ElasticJoint2LinkReachEnv(HgoEnv):
     task_class = Reach2LinkTask
 
 
-__all__ = ["CartPendulumBalanceEnv", "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv",
+class FurutaSwingUpEnv(HgoEnv):
+    __doc__ = """Swing the QUBE-Servo 2 rotary (Furuta) pendulum up by the motor voltage, on an estimate.
+
+    ## Description
+    The rotary inverted pendulum of ``models/furuta.xml``, with the published parameters of
+    the Quanser QUBE-Servo 2 and its pendulum module (QUBE-Servo 2 User Manual): a 0.085 m
+    arm turned by a DC motor (voltage input, +-10 V, back-emf as damping) carries a 0.129 m,
+    24 g pendulum. The agent swings the pendulum from hanging to upright and holds it there.
+    Both joints are read by 2048-count encoders.
+    The plant is the MJCF itself, read by the generic MJCF path
+    (:func:`hgo_mj.systems.mjcf.mjcf_system`): state `(qpos, qvel)`, outputs the encoder
+    sensors, quantized to the unit's counts (the default sensor chain); the default observer
+    is `high_gain_multi` with MuJoCo's forward dynamics as its model term (one chain of order 2
+    per joint, paper 001, eq. 5).
+
+    ## Action Space
+    `Box(-1, 1, (1,), float32)`: the input over `max_input`.
+
+    | Num | Action | Min | Max | Actuator (MJCF) | Unit |
+    |-----|--------|-----|-----|-----------------|------|
+    | 0   | motor voltage | -1 | 1 | `voltage` | V / `max_input` |
+
+    ## Observation Space
+    `Box(float64)`, shape `(6,)` for `observation="estimate"` (default) and `"true"`:
+    every angle enters as its cosine and sine, every position and velocity as it is (clipped
+    to +-50 m/s, rad/s), in the order of the estimate (chain after chain: each encoder's
+    coordinate, then its velocity) or of the true state (the coordinates, then the
+    velocities); `observation_names` lists them.
+
+    `observation="measurement"`: cos and sin of the two measured (quantized) angles, shape `(4,)`.
+    `"estimate+diagnostics"` appends the observer's run-time quantities.
+
+    ## Rewards
+    `-(d^2 + 0.01 (w_arm^2 + w_pend^2) + 0.001 a^2)`, `d` the pendulum angle from upright
+    wrapped to [-pi, pi) [rad], `w` the true velocities [rad/s], `a` the action; terms
+    `reward_target`, `reward_velocity`, `reward_control` in `info` with `info_level="full"`.
+
+    ## Starting State
+    Every state uniform in [-`start_noise`, `start_noise`]: hanging nearly still.
+
+    ## Episode End
+    No termination; truncated after 500 steps (5 s) by `TimeLimit` (registration).
+
+    ## Arguments
+    | Parameter     | Default | Description                              |
+    |---------------|---------|------------------------------------------|
+    | `max_input`   | `10.0`  | motor voltage per unit action [V]        |
+    | `start_noise` | `0.05`  | half width of the initial state draw     |
+""" + _ARGUMENTS + """
+    Defaults here: `physics_dt=0.001` (the MJCF's RK4), `sample_period=0.002`,
+    `control_period=0.01`; observer `high_gain_multi` with `k=40, model=True`; sensor
+    `[{"stage": "quantize", "counts_per_rev": [2048, 2048]}]`.
+
+    ## Version History
+    * v0: initial version.
+"""
+    task_class = FurutaSwingUpTask
+
+
+class AcrobotSwingUpEnv(HgoEnv):
+    __doc__ = """Swing Spong's acrobot up by the elbow torque alone, on an estimate.
+
+    ## Description
+    The acrobot of ``models/acrobot.xml`` (Spong 1995: two 1 kg links of 1 m and 2 m in the
+    vertical plane, no friction), actuated at the elbow only (+-20 N m). The agent brings
+    the first link from hanging to upright with the second link straight, and holds it.
+    Both joints are read by 4096-count encoders.
+    The plant is the MJCF itself, read by the generic MJCF path
+    (:func:`hgo_mj.systems.mjcf.mjcf_system`): state `(qpos, qvel)`, outputs the encoder
+    sensors, quantized to the unit's counts (the default sensor chain); the default observer
+    is `high_gain_multi` with MuJoCo's forward dynamics as its model term (one chain of order 2
+    per joint, paper 001, eq. 5).
+
+    ## Action Space
+    `Box(-1, 1, (1,), float32)`: the input over `max_input`.
+
+    | Num | Action | Min | Max | Actuator (MJCF) | Unit |
+    |-----|--------|-----|-----|-----------------|------|
+    | 0   | elbow torque | -1 | 1 | `elbow_torque` | N m / `max_input` |
+
+    ## Observation Space
+    `Box(float64)`, shape `(6,)` for `observation="estimate"` (default) and `"true"`:
+    every angle enters as its cosine and sine, every position and velocity as it is (clipped
+    to +-50 m/s, rad/s), in the order of the estimate (chain after chain: each encoder's
+    coordinate, then its velocity) or of the true state (the coordinates, then the
+    velocities); `observation_names` lists them.
+
+    `observation="measurement"`: cos and sin of the two measured (quantized) angles, shape `(4,)`.
+    `"estimate+diagnostics"` appends the observer's run-time quantities.
+
+    ## Rewards
+    `-(d1^2 + d2^2 + 0.01 (w1^2 + w2^2) + 0.001 a^2)`, `d1` the shoulder angle from upright
+    and `d2` the elbow angle, both wrapped to [-pi, pi) [rad], `w` the true velocities
+    [rad/s], `a` the action; terms `reward_target`, `reward_velocity`, `reward_control`.
+
+    ## Starting State
+    Every state uniform in [-`start_noise`, `start_noise`]: hanging nearly still.
+
+    ## Episode End
+    No termination; truncated after 500 steps (5 s) by `TimeLimit` (registration).
+
+    ## Arguments
+    | Parameter     | Default | Description                              |
+    |---------------|---------|------------------------------------------|
+    | `max_input`   | `20.0`  | elbow torque per unit action [N m]       |
+    | `start_noise` | `0.05`  | half width of the initial state draw     |
+""" + _ARGUMENTS + """
+    Defaults here: `physics_dt=0.001` (the MJCF's RK4), `sample_period=0.002`,
+    `control_period=0.01`; observer `high_gain_multi` with `k=30, model=True`; sensor
+    `[{"stage": "quantize", "counts_per_rev": [4096, 4096]}]`.
+
+    ## Version History
+    * v0: initial version.
+"""
+    task_class = AcrobotSwingUpTask
+
+
+class CartPoleSwingUpEnv(HgoEnv):
+    __doc__ = """Swing the cart-pole up by the force on the cart, on an estimate.
+
+    ## Description
+    The cart-pole of ``models/cart_pole.xml`` (Barto, Sutton and Anderson 1983: a 1 kg cart
+    on a slider, a 1 m, 0.1 kg pole), pushed by a force of up to 10 N. The agent swings the
+    pole from hanging to upright and balances it with the cart near the centre of its
+    track. The pole is read by a 4096-count encoder, the cart by a 4096-count encoder on a
+    pinion of radius 0.01482 m (2.27e-5 m per count).
+    The plant is the MJCF itself, read by the generic MJCF path
+    (:func:`hgo_mj.systems.mjcf.mjcf_system`): state `(qpos, qvel)`, outputs the encoder
+    sensors, quantized to the unit's counts (the default sensor chain); the default observer
+    is `high_gain_multi` with MuJoCo's forward dynamics as its model term (one chain of order 2
+    per joint, paper 001, eq. 5).
+
+    ## Action Space
+    `Box(-1, 1, (1,), float32)`: the input over `max_input`.
+
+    | Num | Action | Min | Max | Actuator (MJCF) | Unit |
+    |-----|--------|-----|-----|-----------------|------|
+    | 0   | force on the cart | -1 | 1 | `force` | N / `max_input` |
+
+    ## Observation Space
+    `Box(float64)`, shape `(5,)` for `observation="estimate"` (default) and `"true"`:
+    every angle enters as its cosine and sine, every position and velocity as it is (clipped
+    to +-50 m/s, rad/s), in the order of the estimate (chain after chain: each encoder's
+    coordinate, then its velocity) or of the true state (the coordinates, then the
+    velocities); `observation_names` lists them.
+
+    `observation="measurement"`: the measured cart position and cos, sin of the pole angle, shape `(3,)`.
+    `"estimate+diagnostics"` appends the observer's run-time quantities.
+
+    ## Rewards
+    `-(d^2 + x^2 + 0.01 (v^2 + w^2) + 0.001 a^2)`, `d` the pole angle from upright wrapped
+    to [-pi, pi) [rad], `x` the cart position [m], `v`, `w` the true velocities, `a` the
+    action; terms `reward_target`, `reward_velocity`, `reward_control`.
+
+    ## Starting State
+    Every state uniform in [-`start_noise`, `start_noise`]: centred, hanging nearly still.
+
+    ## Episode End
+    Terminated when the cart leaves its track (`|x| > 2.4` m); truncated after 500 steps
+    (5 s) by `TimeLimit` (registration).
+
+    ## Arguments
+    | Parameter     | Default | Description                              |
+    |---------------|---------|------------------------------------------|
+    | `max_input`   | `10.0`  | force per unit action [N]                |
+    | `start_noise` | `0.05`  | half width of the initial state draw     |
+""" + _ARGUMENTS + """
+    Defaults here: `physics_dt=0.001` (the MJCF's RK4), `sample_period=0.002`,
+    `control_period=0.01`; observer `high_gain_multi` with `k=30, model=True`; sensor
+    `[{"stage": "quantize", "resolution": [2.27e-5, 2 pi / 4096]}]`.
+
+    ## Version History
+    * v0: initial version.
+"""
+    task_class = CartPoleSwingUpTask
+
+
+__all__ = ["AcrobotSwingUpEnv", "CartPendulumBalanceEnv", "CartPoleSwingUpEnv",
+           "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "FurutaSwingUpEnv",
            "PendulumSwingUpEnv"]

@@ -306,4 +306,127 @@ class Reach2LinkTask(Task):
                 "start_noise": self.start_noise, "max_cost": self.max_cost}
 
 
-__all__ = ["BalanceTask", "Reach2LinkTask", "ReachTask", "SwingUpTask"]
+class LabSwingUpTask(Task):
+    """Swing a lab plant (an MJCF under ``models/``, run through the generic MJCF path) up
+    from hanging and balance it; subclasses name the plant, its encoders and the targets.
+
+    Reward per step ``-(sum_i e_i^2 + 0.01 sum_j v_j^2 + 0.001 sum a^2)``: ``e_i`` the error of
+    each target coordinate (angles wrapped to ``[-pi, pi)``), ``v_j`` the joint velocities,
+    ``a`` the action. The episode ends when a coordinate leaves its limit (the cart's track).
+    """
+
+    #: MJCF sensors read by the encoders (the plant's outputs)
+    plant_outputs: ClassVar[tuple[str, ...]] = ()
+    #: (state index, target value, wrapped angle?) of each target coordinate
+    targets: ClassVar[tuple[tuple[int, float, bool], ...]] = ()
+    #: (state index, limit): ``|x[index]| > limit`` ends the episode
+    limits: ClassVar[tuple[tuple[int, float], ...]] = ()
+    physics_dt = 0.001
+    control_period = 0.01
+    sample_period = 0.002
+    integrator = None
+    max_episode_steps = 500
+    default_observer = "high_gain_multi"
+    #: single-output observers get parameters, so that their own error says why they do not
+    #: apply (two outputs: no single-output normal form)
+    single_output_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        "high_gain": {"k": 30.0},
+        "adaptive_gain": {"lam": 0.004, "lam_hat": 0.008, "gamma": 1000.0, "k0": 30.0},
+        "riccati": {"gamma": 30.0},
+        "q_integral": {"gamma": 30.0, "q": 1},
+        "besancon": {"lam": 30.0},
+    }
+
+    def __init__(self, max_input: float, start_noise: float = 0.05) -> None:
+        super().__init__((max_input,))
+        self.max_input = self.max_action[0]
+        self.start_noise = _range("start_noise", start_noise)
+
+    def initial_state(self, rng: np.random.Generator) -> list[float]:
+        n = 2 * len(self.plant_outputs)
+        return rng.uniform(-self.start_noise, self.start_noise, n).tolist()
+
+    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
+        target = np.zeros(X.shape[0])
+        for i, value, wrapped in self.targets:
+            e = X[:, i] - value
+            if wrapped:
+                e = np.remainder(e + math.pi, _TWO_PI) - math.pi
+            target = target - e * e
+        nq = X.shape[1] // 2
+        velocity = -0.01 * np.sum(X[:, nq:] * X[:, nq:], axis=1)
+        a = U[:, 0] / self.max_input
+        control = -0.001 * a * a
+        return target + velocity + control, {"reward_target": target,
+                                             "reward_velocity": velocity,
+                                             "reward_control": control}
+
+    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
+               ) -> tuple[float, dict[str, float]]:
+        r, terms = self.rewards(np.array([x]), np.array([u]), np.zeros((1, 0)))
+        return float(r[0]), {k: float(v[0]) for k, v in terms.items()}
+
+    def terminations(self, X: Array) -> NDArray[np.bool_]:
+        out = np.zeros(X.shape[0], dtype=bool)
+        for i, limit in self.limits:
+            out |= ~(np.abs(X[:, i]) <= limit)
+        return out
+
+    def terminated(self, x: list[float]) -> bool:
+        return bool(self.terminations(np.array([x]))[0])
+
+    def params(self) -> dict[str, Any]:
+        return {"max_input": self.max_input, "start_noise": self.start_noise}
+
+
+class FurutaSwingUpTask(LabSwingUpTask):
+    """The QUBE-Servo 2 rotary pendulum (``models/furuta.xml``): pendulum to pi, by voltage."""
+
+    plant = "furuta.xml"
+    plant_outputs = ("arm_angle", "pendulum_angle")
+    targets = ((1, math.pi, True),)
+    observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        **LabSwingUpTask.single_output_defaults, "high_gain_multi": {"k": 40.0, "model": True}}
+    default_sensor = ({"stage": "quantize", "counts_per_rev": [2048, 2048]},)
+    periodic = frozenset({"arm_angle", "pendulum_angle"})
+
+    def __init__(self, max_input: float = 10.0, start_noise: float = 0.05) -> None:
+        super().__init__(max_input, start_noise)
+
+
+class AcrobotSwingUpTask(LabSwingUpTask):
+    """Spong's acrobot (``models/acrobot.xml``): shoulder to pi, elbow straight, by elbow torque."""
+
+    plant = "acrobot.xml"
+    plant_outputs = ("shoulder_angle", "elbow_angle")
+    targets = ((0, math.pi, True), (1, 0.0, True))
+    observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        **LabSwingUpTask.single_output_defaults, "high_gain_multi": {"k": 30.0, "model": True}}
+    default_sensor = ({"stage": "quantize", "counts_per_rev": [4096, 4096]},)
+    periodic = frozenset({"shoulder_angle", "elbow_angle"})
+
+    def __init__(self, max_input: float = 20.0, start_noise: float = 0.05) -> None:
+        super().__init__(max_input, start_noise)
+
+
+class CartPoleSwingUpTask(LabSwingUpTask):
+    """The cart-pole (``models/cart_pole.xml``): pole to pi, cart centred and on its track
+    (``|cart| <= 2.4 m``), by the force on the cart."""
+
+    plant = "cart_pole.xml"
+    plant_outputs = ("cart_position", "pole_angle")
+    targets = ((1, math.pi, True), (0, 0.0, False))
+    limits = ((0, 2.4),)
+    observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
+        **LabSwingUpTask.single_output_defaults, "high_gain_multi": {"k": 30.0, "model": True}}
+    #: cart: 4096 counts/rev on a pinion of radius 0.01482 m; pole: 4096 counts/rev
+    default_sensor = ({"stage": "quantize",
+                       "resolution": [_TWO_PI * 0.01482 / 4096, _TWO_PI / 4096]},)
+    periodic = frozenset({"pole_angle"})
+
+    def __init__(self, max_input: float = 10.0, start_noise: float = 0.05) -> None:
+        super().__init__(max_input, start_noise)
+
+
+__all__ = ["AcrobotSwingUpTask", "BalanceTask", "CartPoleSwingUpTask", "FurutaSwingUpTask",
+           "LabSwingUpTask", "Reach2LinkTask", "ReachTask", "SwingUpTask"]

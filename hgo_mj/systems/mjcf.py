@@ -83,6 +83,11 @@ class MjcfSystem(System):
         self._aid = np.array([m.actuator(a).id for a in self.actuators], dtype=np.intp)
         self._sadr = np.array(self._sensor_adr, dtype=np.intp)
 
+    def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]:
+        """Pickle as what built the class (the class itself is made per call): unpickling
+        rebuilds it with :func:`mjcf_system` from the file, outputs and inputs."""
+        return (_rebuilt, (dict(type(self).mjcf),))
+
     @classmethod
     def load_model(cls) -> Any:
         """The compiled ``MjModel``: the MJCF with the sensors and names this class added."""
@@ -262,6 +267,11 @@ def mjcf_system(path: Any, outputs: Any, inputs: Any = None) -> type[MjcfSystem]
                       tuple(added), measured)
     cls.mjcf = {"model": str(p), "outputs": list(outputs), "inputs": list(inputs)}
     return cls
+
+
+def _rebuilt(spec: dict[str, Any]) -> MjcfSystem:
+    """The system :meth:`MjcfSystem.__reduce__` pickled (its class rebuilt from the file)."""
+    return mjcf_system(spec["model"], spec["outputs"], spec.get("inputs"))()
 
 
 def system_from_metadata(meta: Any) -> type[MjcfSystem] | None:

@@ -59,6 +59,17 @@ _INCOMPATIBLE: dict[tuple[str, str], tuple[type[Exception], str]] = {
         DesignError, "provides no Jo-Son form .paper 003, eq. 10. for the sensors 'link_angle'"),
     ("hgo_mj/PendulumSwingUp-v0", "jo_son"): (
         DesignError, "the Jo-Son observer needs the adaptive observer canonical form"),
+    # the lab plants: two encoders, one chain per joint (high_gain_multi) and the filters
+    **{(f"hgo_mj/{env}-v0", kind): (DesignError, why)
+       for env in ("FurutaSwingUp", "AcrobotSwingUp", "CartPoleSwingUp")
+       for kind, why in (
+           ("adaptive_gain", "needs a single-output normal form"),
+           ("high_gain", "needs a single-output normal form"),
+           ("q_integral", "needs a single-output normal form"),
+           ("riccati", "needs a single-output normal form"),
+           ("besancon", "is not in the form of paper 001"),
+           ("bastin_gevers", "the Bastin-Gevers observer needs the adaptive observer canonical"),
+           ("jo_son", "the Jo-Son observer needs the adaptive observer canonical form"))},
 }
 
 
