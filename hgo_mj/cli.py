@@ -82,23 +82,26 @@ def parse_spec(spec: str, key: str) -> dict[str, Any]:
     return out
 
 
+def load_scenario_file(name: str) -> dict[str, Any]:
+    """A scenario TOML file, its sections checked as tables (not yet for required keys)."""
+    path = Path(name)
+    if not path.is_file():
+        raise DesignError(f"scenario file {str(path)!r} does not exist")
+    with open(path, "rb") as fh:
+        try:
+            sc = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise DesignError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
+        except RecursionError:
+            raise DesignError(f"scenario file {str(path)!r} is nested too deeply (arrays or "
+                              f"tables inside each other beyond Python's recursion limit)"
+                              ) from None
+    check_scenario(sc, required=False)  # its sections are tables before flags go in
+    return sc
+
+
 def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
-    if args.scenario:
-        path = Path(args.scenario)
-        if not path.is_file():
-            raise DesignError(f"scenario file {str(path)!r} does not exist")
-        with open(path, "rb") as fh:
-            try:
-                sc = tomllib.load(fh)
-            except tomllib.TOMLDecodeError as exc:
-                raise DesignError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
-            except RecursionError:
-                raise DesignError(f"scenario file {str(path)!r} is nested too deeply (arrays or "
-                                  f"tables inside each other beyond Python's recursion limit)"
-                                  ) from None
-        check_scenario(sc, required=False)  # its sections are tables before flags go in
-    else:
-        sc = {}
+    sc = load_scenario_file(args.scenario) if args.scenario else {}
     sc.setdefault("plant", {})
     sc.setdefault("run", {})
     if args.plant:
@@ -157,29 +160,14 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
 
 
 def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
+    from .check import refuse_inapplicable
     from .inputs import Controller, Signal, signal_from_spec
     from .observers import make_observer
-    from .plants import Plant, make_plant
     from .sensors import SensorChain
 
     check_scenario(sc)
     pl = sc["plant"]
-    plant: Plant
-    if "f" in pl:  # an ODE, its normal form derived (hgo_mj.systems.symbolic)
-        from .plants import OdePlant
-        from .systems.symbolic import ode_system
-
-        system = ode_system(pl["states"], pl["f"], pl["h"], inputs=pl.get("inputs", ()),
-                            params=pl.get("params"), x0=pl.get("x0"),
-                            name=str(sc.get("name", name)))()
-        plant = OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
-    elif "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
-        plant = make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),
-                           outputs=pl["outputs"], inputs=pl.get("inputs"),
-                           **pl.get("params", {}))
-    else:
-        plant = make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
-                           **pl.get("params", {}))
+    plant = build_plant(pl, str(sc.get("name", name)))
     run = sc["run"]
     seed = run.get("seed", 0)
     sensor = SensorChain.from_spec(sc.get("sensor", {}).get("stages", []), seed=seed)
@@ -192,6 +180,7 @@ def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
         label = spec.pop("name", f"{kind}_{i}")
         if label in observers:
             raise DesignError(f"two observers are named {label!r}; give each a distinct name")
+        refuse_inapplicable(kind, plant.system, label)
         observers[label] = make_observer(kind, observer_system(plant.system, spec.pop(
             "system_params", None), label), **spec)
     inputs: Signal | Controller
@@ -209,6 +198,25 @@ def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
             "duration": run["duration"], "sample_period": run.get("sample_period"),
             "control_period": run.get("control_period"), "x0": pl.get("x0"),
             "metadata": {"scenario": sc.get("name", name), "scenario_spec": sc}}
+
+
+def build_plant(pl: dict[str, Any], name: str = "run") -> Any:
+    """The plant of a scenario's ``[plant]`` table: a registered plant (``name``), any MJCF
+    file (``model``, :mod:`hgo_mj.systems.mjcf`) or an ODE given as text (``states``, ``f``,
+    ``h``, :mod:`hgo_mj.systems.symbolic`)."""
+    from .plants import OdePlant, make_plant
+
+    if "f" in pl:  # an ODE, its normal form derived (hgo_mj.systems.symbolic)
+        from .systems.symbolic import ode_system
+
+        system = ode_system(pl["states"], pl["f"], pl["h"], inputs=pl.get("inputs", ()),
+                            params=pl.get("params"), x0=pl.get("x0"), name=name)()
+        return OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
+    if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
+        return make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),
+                          outputs=pl["outputs"], inputs=pl.get("inputs"), **pl.get("params", {}))
+    return make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
+                      **pl.get("params", {}))
 
 
 def plant_label(pl: dict[str, Any]) -> str:
@@ -551,6 +559,9 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--yes", action="store_true",
                     help="run a study of more than 10 million runs")
     sw.add_argument("--quiet", action="store_true", help="no plan line and no progress")
+    c = sub.add_parser("check", help="which observer applies to a plant, and why")
+    c.add_argument("target", metavar="PLANT-OR-SCENARIO",
+                   help="a registered plant name (see `hgo-mj list`) or a scenario TOML file")
     sub.add_parser("list", help="plants, sensor stages, observers, inputs and reproductions")
     rp = sub.add_parser("reproduce", help="reproduce a paper's example (see `hgo-mj list`)")
     rp.add_argument("name", help="reproduction name")
@@ -608,6 +619,22 @@ def run_of(name: str) -> Any:
     return importlib.import_module(REPRODUCTIONS[name][0]).run
 
 
+def cmd_check(target: str) -> int:
+    """``hgo-mj check PLANT-OR-SCENARIO``: which observer applies to the plant, and why."""
+    from . import check
+
+    if target.endswith(".toml"):
+        sc = load_scenario_file(target)
+        pl = sc.get("plant", {})
+        if not any(k in pl for k in ("name", "model", "f")):
+            raise DesignError(f"scenario {target!r} has no plant ([plant] name, model or f)")
+        plant = build_plant(pl, str(sc.get("name", "run")))
+    else:
+        plant = build_plant({"name": target})
+    print(check.table(plant.system))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     rrd: Path | None = None
@@ -617,6 +644,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "sweep":
             return cmd_sweep(args)
+        if args.command == "check":
+            return cmd_check(args.target)
         if args.command == "reproduce":
             from .reproduce import run_reproduction
 

@@ -198,7 +198,7 @@ def test_every_flag_of_every_subcommand_has_help():
                 continue
             if not (action.help or "").strip() or action.help == argparse.SUPPRESS:
                 missing.append(f"{prog} {'/'.join(action.option_strings) or action.dest}")
-    assert seen == {"hgo-mj", *(f"hgo-mj {c}" for c in ("run", "sweep", "list", "reproduce",
+    assert seen == {"hgo-mj", *(f"hgo-mj {c}" for c in ("run", "sweep", "check", "list", "reproduce",
                                                        "demo"))}
     assert not missing, missing
 

@@ -202,6 +202,26 @@ class Observer(ABC):
         self.batch = 1
         self._batched = False
 
+    #: the observer form a system must declare (:meth:`System.form`), and the paper's words
+    #: for it; ``None``: none
+    required_form: ClassVar[tuple[str, str] | None] = None
+
+    @classmethod
+    def applicability(cls, system: System) -> str | None:
+        """``None`` where this family can design against ``system``, else why not, in the
+        paper's terms (one sentence). The base checks the single-output normal form
+        (paper 000, eq. 1) and :attr:`required_form`; families add their own conditions."""
+        if cls.needs_normal_form and system.normal_form_order is None:
+            problem = getattr(system, "normal_form_problem", None)
+            return problem or (f"needs a single-output observability normal form (paper 000, "
+                               f"eq. 1); {type(system).__name__} declares none (outputs: "
+                               f"{list(system.output_names)})")
+        if cls.required_form is not None and cls.required_form[0] not in system.forms:
+            kind, words = cls.required_form
+            return (f"needs {words}: the {kind!r} form, which {type(system).__name__} does not "
+                    f"declare (it declares {list(system.forms)})")
+        return None
+
     # ----------------------------------------------------------- construction
     def _order(self, system: System | None, order: int | None) -> int:
         """``n`` from the system's normal form or the explicit ``order`` (checked to agree)."""

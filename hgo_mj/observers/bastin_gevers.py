@@ -649,6 +649,8 @@ class BastinGeversObserver(Observer):
     """
 
     name = "bastin_gevers"
+    required_form = ("aocf", "the adaptive observer canonical form (paper 002, eq. 2.2), "
+                              "whose output reachability Theorem 4.2 then checks")
     summary = "Bastin-Gevers adaptive observer on the AOCF, auxiliary filter, PE diagnostic"
     reference = "paper 002 (Bastin, Gevers 1986), eq. 2.2, 3.1, 4.5, 4.11"
     needs_normal_form = False

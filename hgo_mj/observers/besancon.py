@@ -466,6 +466,8 @@ class BesanconObserver(Observer):
     """
 
     name = "besancon"
+    required_form = ("affine", "a linear parametrization in the unknown parameters "
+                              "(paper 001, eq. 9 / 21)")
     summary = "Besançon-Zhang-Hammouri adaptive high-gain observer (state + parameters), PE figure"
     reference = "paper 001 (Besançon, Zhang, Hammouri 2004), eq. 9-12, 21-24"
     needs_normal_form = False

@@ -748,6 +748,17 @@ class MultiOutputHighGainObserver(_Chains, Observer):
     """
 
     name = "high_gain_multi"
+
+    @classmethod
+    def applicability(cls, system: System) -> str | None:
+        """Applies where the system gives the chain orders: ``normal_form_orders`` (one chain
+        per measured output, paper 001, eq. 5) or a single-output normal form."""
+        if (getattr(system, "normal_form_orders", None) is None
+                and system.normal_form_order is None):
+            return getattr(system, "normal_form_problem", None) or (
+                f"needs the chain orders (paper 001, eq. 5): {type(system).__name__} declares "
+                f"no normal_form_orders and no single-output normal form; give orders=[...]")
+        return None
     summary = "one Tornambè chain per output (paper 001 eq. 5), per-chain order/k/p, optional coupling"
     reference = "paper 001 (Besançon et al. 2004), eq. 4-5; paper 000, eq. 2"
     family_diagnostics = ()

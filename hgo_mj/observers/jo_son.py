@@ -343,6 +343,8 @@ class JoSonObserver(Observer):
     """
 
     name = "jo_son"
+    required_form = ("jo_son", "the generalized observer canonical form with the SPR "
+                              "conditions of paper 003 (eq. 10, 25-27)")
     summary = "Jo-Son adaptive observer on the generalized observer canonical form, SPR gain"
     reference = "paper 003 (Jo, Son 2004), eq. 10, 25, 27"
     needs_normal_form = False

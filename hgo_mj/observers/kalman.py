@@ -1283,6 +1283,15 @@ class _KalmanFilter(Observer):
     backend = "system"
     needs_normal_form = False
 
+    @classmethod
+    def applicability(cls, system: System) -> str | None:
+        """Any system with dynamics; the MuJoCo filters need an MJCF model whose only degrees
+        of freedom are hinge/slide joints."""
+        if cls.backend == "mujoco" and system.model_file is None:
+            return (f"needs an MJCF model (its mean steps MuJoCo); {type(system).__name__} is "
+                    f"an ODE system: use ekf / ukf")
+        return None
+
     def __init__(self, system: System | None = None, *, estimate: Sequence[str] = (),
                  Q: Any = 1e-4, Q_theta: Any = 1e-6, R: Any = None, sensor: Any = None,
                  P0: Any = 1.0, P0_theta: Any = 1.0, x_hat0: Any = None, theta_hat0: Any = None,

@@ -1,0 +1,68 @@
+"""`hgo_mj.check` / `hgo-mj check`: which observer applies to a system and why, and `hgo-mj run`
+refusing one that does not."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hgo_mj import check
+from hgo_mj.cli import main
+from hgo_mj.exceptions import DesignError
+from hgo_mj.observers import registered
+from hgo_mj.plants import make_plant
+from hgo_mj.systems.symbolic import ode_system
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _rows(system):
+    return {r.observer: r for r in check.check(system)}
+
+
+def test_one_row_per_registered_observer_with_the_papers_reasons():
+    rows = _rows(make_plant("elastic_joint_2link").system)
+    assert list(rows) == list(registered())
+    assert rows["high_gain_multi"].applies and rows["besancon"].applies and rows["ekf"].applies
+    assert not rows["high_gain"].applies
+    assert rows["high_gain"].reason.startswith("needs a single-output observability normal "
+                                               "form (paper 000, eq. 1)")
+    assert "paper 002, eq. 2.2" in rows["bastin_gevers"].reason
+    assert "paper 003" in rows["jo_son"].reason
+    bio = _rows(make_plant("bioreactor_bastin_gevers").system)
+    assert bio["bastin_gevers"].applies and not bio["besancon"].applies
+    assert "paper 001, eq. 9 / 21" in bio["besancon"].reason
+    assert bio["ekf_mujoco"].reason.startswith("needs an MJCF model")
+
+
+def test_every_row_agrees_with_construction():
+    """Where check says an observer does not apply, building it fails; a derived system's
+    relative-degree problem is the reason given."""
+    rd = ode_system(["x1", "x2"], ["x2 + u", "-x1"], "x1", inputs=["u"])()
+    rows = _rows(rd)
+    assert not rows["high_gain"].applies and "relative degree 1" in rows["high_gain"].reason
+    assert rows["ekf"].applies
+    from hgo_mj.observers import make_observer
+
+    with pytest.raises(DesignError):
+        make_observer("high_gain", rd, k=10.0)
+
+
+def test_the_command_prints_the_table_and_run_refuses(tmp_path, capsys):
+    assert main(["check", str(ROOT / "scenarios" / "ode_pendulum.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "lipschitz: 9.81" in out and "\nhigh_gain        applies" in out
+    assert main(["check", "pendulum"]) == 0
+    assert "jo_son           no       needs the generalized observer canonical form" in (
+        capsys.readouterr().out)
+    assert main(["check", "nope"]) == 2
+    assert "unknown plant 'nope'" in capsys.readouterr().err
+    assert main(["run", "--plant", "elastic_joint_2link", "--observer", "high_gain:k=5",
+                 "--duration", "1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["hgo-mj: error: observer 'high_gain_0' (high_gain) does not apply to "
+                   "ElasticJoint2Link: needs a single-output observability normal form (paper "
+                   "000, eq. 1); ElasticJoint2Link declares none (outputs: ['link1_angle', "
+                   "'link2_angle'])"]
+    assert not (tmp_path / "o").exists()
