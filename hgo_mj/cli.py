@@ -159,12 +159,21 @@ def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
 def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
     from .inputs import Controller, Signal, signal_from_spec
     from .observers import make_observer
-    from .plants import make_plant
+    from .plants import Plant, make_plant
     from .sensors import SensorChain
 
     check_scenario(sc)
     pl = sc["plant"]
-    if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
+    plant: Plant
+    if "f" in pl:  # an ODE, its normal form derived (hgo_mj.systems.symbolic)
+        from .plants import OdePlant
+        from .systems.symbolic import ode_system
+
+        system = ode_system(pl["states"], pl["f"], pl["h"], inputs=pl.get("inputs", ()),
+                            params=pl.get("params"), x0=pl.get("x0"),
+                            name=str(sc.get("name", name)))()
+        plant = OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
+    elif "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
         plant = make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),
                            outputs=pl["outputs"], inputs=pl.get("inputs"),
                            **pl.get("params", {}))
@@ -204,6 +213,8 @@ def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
 
 def plant_label(pl: dict[str, Any]) -> str:
     """A scenario's plant for titles: its registered name, or its MJCF file's name."""
+    if "f" in pl:
+        return "ODE y = " + str(pl["h"])
     return str(pl.get("name") or Path(pl["model"]).name)
 
 

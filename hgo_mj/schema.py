@@ -40,8 +40,10 @@ KINDS: dict[str, str] = {
 SCHEMA: dict[str, dict[str, str]] = {
     "": {"name": "string", "plant": "table", "sensor": "table", "observers": "tables",
          "input": "table_or_tables", "controller": "table", "run": "table"},
-    # name = a registered plant, or model = an MJCF file with its outputs (and inputs)
+    # name = a registered plant, model = an MJCF file with its outputs (and inputs), or an ODE
+    # given by states, f and h (with inputs and params)
     "plant": {"name": "string", "model": "string", "outputs": "names", "inputs": "names",
+              "states": "names", "f": "names", "h": "string",
               "dt": "positive", "physics_dt": "positive", "params": "table", "x0": "numbers"},
     "sensor": {"stages": "tables"},
     "run": {"duration": "positive", "sample_period": "positive", "control_period": "positive",
@@ -96,6 +98,30 @@ def _check_table(where: str, section: str, table: Mapping[str, Any]) -> None:
             check_value(f"{where}.{key}" if where else key, keys[key], value)
 
 
+def _check_plant_kind(plant: Mapping[str, Any], required: bool) -> bool:
+    """Which kind of plant a ``[plant]`` table is: a registered plant (``name``), an MJCF file
+    (``model`` with ``outputs``) or an ODE (``states``, ``f``, ``h``); True for an ODE."""
+    ode = any(k in plant for k in ("states", "f", "h"))
+    if ode:
+        if "name" in plant or "model" in plant:
+            raise DesignError("[plant] is a registered plant (name), an MJCF file (model) or an "
+                              "ODE (states, f, h), one of them")
+        missing = [k for k in ("states", "f", "h") if k not in plant]
+        if missing:
+            raise DesignError(f"an ODE [plant] needs states, f and h; missing {missing}")
+    elif "model" in plant:
+        if "name" in plant:
+            raise DesignError("[plant] has name (a registered plant) or model (an MJCF file), "
+                              f"not both; found name = {plant['name']!r}, model = "
+                              f"{plant['model']!r}")
+        if "outputs" not in plant:
+            raise DesignError("[plant] model = ... needs outputs = [MJCF sensor or joint names]")
+    elif required and ("outputs" in plant or "inputs" in plant):
+        raise DesignError("[plant] outputs and inputs go with model = \"robot.xml\" (an MJCF "
+                          "file); a registered plant's outputs are its own")
+    return ode
+
+
 def check_scenario(sc: Any, *, required: bool = True) -> None:
     """Check a scenario document against :data:`SCHEMA` (types, unknown and missing keys;
     ``required=False``: a file whose missing keys the command line may still give).
@@ -125,19 +151,10 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
     for i, st in enumerate(sc.get("sensor", {}).get("stages", [])):
         _check_table(f"sensor.stages[{i}]", "stages", st)
     plant = sc.get("plant", {})
-    if "model" in plant:
-        if "name" in plant:
-            raise DesignError("[plant] has name (a registered plant) or model (an MJCF file), "
-                              f"not both; found name = {plant['name']!r}, model = "
-                              f"{plant['model']!r}")
-        if "outputs" not in plant:
-            raise DesignError("[plant] model = ... needs outputs = [MJCF sensor or joint names]")
-    elif required and ("outputs" in plant or "inputs" in plant):
-        raise DesignError("[plant] outputs and inputs go with model = \"robot.xml\" (an MJCF "
-                          "file); a registered plant's outputs are its own")
+    ode = _check_plant_kind(plant, required)
     for path in REQUIRED if required else ():
         section, key = path.split(".")
-        if path == "plant.name" and "model" in plant:
+        if path == "plant.name" and ("model" in plant or ode):
             continue
         if key not in sc.get(section, {}):
             hint = {"plant.name": "[plant] name = ... or --plant NAME (see `hgo-mj list`), or "
