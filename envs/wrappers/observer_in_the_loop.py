@@ -7,6 +7,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import gymnasium
+from gymnasium.error import ResetNeeded
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
@@ -89,7 +90,8 @@ class EnvPlant(Plant):
         return self._measure(self.obs)
 
 
-class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
+class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
+                        gymnasium.utils.RecordConstructorArgs):
     """Measure some signals of an environment, estimate its state with hgo_mj observers, and
     hand the agent the estimate instead of the environment's observation.
 
@@ -160,6 +162,9 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
                  layout: Sequence[int] | None = None,
                  input: Callable[[Any], Any] | None = None,  # noqa: A002 - the observer's u
                  init: str = "measurement", dt: float | None = None, bound: float = 1e6) -> None:
+        gymnasium.utils.RecordConstructorArgs.__init__(
+            self, measure=measure, observer=observer, observer_kwargs=observer_kwargs,
+            sensor=sensor, layout=layout, input=input, init=init, dt=dt, bound=bound)
         super().__init__(env)
         if callable(measure):
             self._measure_fn: Callable[..., Any] | None = measure
@@ -271,7 +276,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any]):
 
     def step(self, action: Any) -> tuple[Array, Any, bool, bool, dict[str, Any]]:
         if self.loop is None or self.plant.obs is None:
-            raise DesignError("call reset() before step()")
+            raise ResetNeeded("ObserverInTheLoop: call reset() before step()")
         self.plant.action = action
         try:
             self.loop.segment(self._u(action)[None, None])

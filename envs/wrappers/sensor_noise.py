@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from typing import Any, cast
 
 import gymnasium
+from gymnasium.error import ResetNeeded
 import numpy as np
 from numpy.typing import NDArray
 
@@ -15,7 +16,7 @@ from ._common import box_indices, env_dt, reset_chain
 Array = NDArray[np.floating]
 
 
-class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
+class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any], gymnasium.utils.RecordConstructorArgs):
     """Pass (some entries of) a ``Box`` observation through an hgo_mj sensor chain.
 
     The stages of :mod:`hgo_mj.sensors` (noise, bias, drift, quantization, sample-and-hold,
@@ -40,10 +41,12 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
 
     Notes
     -----
-    The observation space is unchanged: noise can take an entry past a finite bound, and a
-    dropout stage makes entries NaN (outside every space); put an observer after a lossy
-    sensor (:class:`ObserverInTheLoop`). ``info["clean_observation"]`` holds the observation
-    before the sensor.
+    The observation space is unchanged and the measured entries are clipped to its bounds
+    (noise would otherwise take ``cos``/``sin`` entries past 1), so every observation is in the
+    space; a dropout stage's NaN stays NaN (put an observer after a lossy sensor,
+    :class:`ObserverInTheLoop`). ``info["clean_observation"]`` holds the observation before the
+    sensor. The constructor's arguments are recorded (``gymnasium.utils.RecordConstructorArgs``);
+    stepping before ``reset`` raises ``gymnasium.error.ResetNeeded``.
 
     Examples
     --------
@@ -53,6 +56,8 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
 
     def __init__(self, env: gymnasium.Env, sensor: Any, *, indices: Sequence[int] | None = None,
                  dt: float | None = None) -> None:
+        gymnasium.utils.RecordConstructorArgs.__init__(self, sensor=sensor, indices=indices,
+                                                       dt=dt)
         super().__init__(env)
         idx = box_indices(env.observation_space, indices, owner="SensorNoise", name="indices")
         self.indices = np.array(idx, dtype=np.intp)
@@ -60,7 +65,9 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
         self._all = idx == list(range(shape[0]))
         self.sensor = sensor_chain(sensor)
         self.dt = env_dt(env, dt)
-        self._k = 0
+        self._k = -1  # no reset yet
+        space = cast(gymnasium.spaces.Box, env.observation_space)
+        self._low, self._high = np.asarray(space.low, float), np.asarray(space.high, float)
 
     def _measure(self, obs: Array) -> Array:
         t = self._k * self.dt
@@ -71,6 +78,7 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
         else:
             y = clean.copy()
             y[self.indices] = self.sensor.apply(tt, clean[self.indices][None, None])[0, 0]
+        y = np.clip(y, self._low, self._high)  # inside the space; NaN (a dropout) stays NaN
         return y.astype(self.observation_space.dtype, copy=False)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -83,6 +91,8 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any]):
         return self._measure(obs), info
 
     def step(self, action: Any) -> tuple[Array, Any, bool, bool, dict[str, Any]]:
+        if self._k < 0:
+            raise ResetNeeded("SensorNoise: call reset() before step()")
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._k += 1
         info = dict(info)

@@ -145,3 +145,38 @@ def test_sensor_noise_bad_input():
         SensorNoise(_ip(), NOISE, indices=[0, 0])
     with pytest.raises(DesignError, match="needs a 1-D Box observation space"):
         SensorNoise(gym.make("FrozenLake-v1"), NOISE)
+
+
+def test_wrappers_record_their_arguments_pass_check_env_and_need_a_reset():
+    """Both wrappers record their constructor arguments (so gym.make's spec can rebuild them)
+    and pass Gymnasium's checker; stepping before reset is Gymnasium's ResetNeeded."""
+    from gymnasium.error import ResetNeeded
+    from gymnasium.utils.env_checker import check_env
+
+    noisy = SensorNoise(gym.make("InvertedPendulum-v5"), [{"stage": "gaussian", "std": 0.01}],
+                        indices=[0, 1])
+    assert noisy._saved_kwargs["indices"] == [0, 1]
+    looped = ObserverInTheLoop(gym.make("InvertedPendulum-v5"), measure=(0, 1),
+                               observer="high_gain", observer_kwargs={"order": 2, "k": 40.0},
+                               sensor=[{"stage": "gaussian", "std": 1e-3}], layout=(0, 2, 1, 3))
+    assert looped._saved_kwargs["measure"] == (0, 1)
+    for env in (noisy, looped):
+        with pytest.raises(ResetNeeded, match=r"call reset\(\) before step\(\)"):
+            env.step(env.action_space.sample())
+        check_env(env, skip_render_check=True)
+
+
+def test_sensor_noise_keeps_observations_inside_the_space():
+    """Pendulum-v1's cos/sin entries under noise: clipped to the space (264 of 2000
+    observations left it before)."""
+    env = SensorNoise(gym.make("Pendulum-v1"), [{"stage": "gaussian", "std": 0.05}])
+    obs, _ = env.reset(seed=0)
+    outside = 0
+    clipped = 0
+    for _ in range(2000):
+        obs, _, term, trunc, info = env.step(env.action_space.sample())
+        outside += not env.observation_space.contains(obs)
+        clipped += bool(np.any(np.abs(obs[:2]) == 1.0))
+        if term or trunc:
+            obs, _ = env.reset()
+    assert outside == 0 and clipped > 0
