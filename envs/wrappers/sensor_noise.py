@@ -6,8 +6,8 @@ from collections.abc import Sequence
 from typing import Any, cast
 
 import gymnasium
-from gymnasium.error import ResetNeeded
 import numpy as np
+from gymnasium.error import ResetNeeded
 from numpy.typing import NDArray
 
 from ..core import sensor_chain
