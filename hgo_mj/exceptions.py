@@ -21,3 +21,8 @@ class DesignError(HgoError, ValueError):
 
 class DivergenceError(HgoError, RuntimeError):
     """A simulation or an observer left the finite numbers."""
+
+
+class RecordingError(HgoError, RuntimeError):
+    """A rerun recording could not be written or finalized (its file sink failed: a full disk,
+    an unwritable file); the message names the file and the reason."""
