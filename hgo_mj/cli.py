@@ -18,7 +18,10 @@ rows); the other files are the first seed's.
 Long jobs show their progress on stderr (:mod:`hgo_mj.progress`; ``--quiet``: none);
 ``hgo-mj reproduce`` prints the reproduction's report. ``hgo-mj demo``
 writes ``runs/demo/demo.rrd`` unless ``--no-rrd``. Bad input exits with status 2 and one line
-naming the parameter, what was expected and what was found.
+naming the parameter, what was expected and what was found; a fault of the machine (a
+recording or result that cannot be written: full disk) exits with status 1 and one line.
+Multi-run commands (``--seeds N --jobs J``, ``sweep --jobs J``) run their workers so that they
+die with the command (:mod:`hgo_mj.study.backends`).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ except ModuleNotFoundError:  # Python 3.10
 from ._io import atomic_path, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
-from .exceptions import DesignError, DivergenceError, HgoError
+from .exceptions import DesignError, DivergenceError, HgoError, RecordingError
 from .schema import SCHEMA, check_scenario
 
 #: the keys of each section (:data:`hgo_mj.schema.SCHEMA`; ``[input]`` also takes its signal's)
@@ -672,9 +675,16 @@ def main(argv: list[str] | None = None) -> int:
                 args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")
         _, metrics, out, mc = run_study(sc, name, rrd=rrd, jobs=jobs, formats=formats,
                                         quiet=quiet)
+    except RecordingError as exc:  # a fault of the machine (full disk), not of the input
+        print(f"hgo-mj: error: {exc}", file=sys.stderr)
+        return 1
     except (HgoError, ValueError) as exc:
         print(f"hgo-mj: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a result that could not be written (full disk, removed folder)
+        print(f"hgo-mj: error: cannot write {exc.filename or 'a result'}: "
+              f"{exc.strerror or exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("hgo-mj: interrupted" + (f"; {rrd} holds the run up to its last chunk"
                                        if rrd is not None else "")

@@ -26,3 +26,8 @@ class DivergenceError(HgoError, RuntimeError):
 class ModelError(DesignError):
     """A model the user brought (an MJCF file, an ODE) cannot be used: it does not load, names
     an element it does not have, or has a structure hgo_mj does not take."""
+
+
+class RecordingError(HgoError, RuntimeError):
+    """A rerun recording could not be written or finalized (its file sink failed: a full disk,
+    an unwritable file); the message names the file and the reason."""

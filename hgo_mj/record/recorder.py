@@ -20,6 +20,14 @@ real time) to keep files small and cheap; every sample with ``pose_rate=None``.
 
 A block is written whole: a SIGINT (Ctrl-C) during a block is held until the block is sent,
 so a run interrupted part-way leaves a readable file holding every block before the signal.
+
+A file that cannot be written is an error, not a log line: a sink that fails when it opens
+(an unwritable path, a full disk) raises :class:`~hgo_mj.exceptions.RecordingError` at once,
+and :meth:`Recorder.close` raises it when the file sink cannot write everything within
+:data:`CLOSE_TIMEOUT_S` or the closed file is not a finalized recording (no footer: the file
+``rerun rrd verify`` would reject). rerun itself only logs a failed write, and a flush that
+waits on a failed file sink never returns (rerun-sdk 0.41): after such a failure the stream is
+left open for the rest of the process (its shutdown would wait for ever).
 """
 
 from __future__ import annotations
@@ -38,7 +46,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from numpy.typing import NDArray
 
-from ..exceptions import DesignError, DimensionError
+from ..exceptions import DesignError, DimensionError, RecordingError
 from . import documents, layout
 from .layout import EPISODE, SIM_TIME, STEP, TRUE_ROOT, EstimateLayout
 from .poses import Poses, model_for, xyzw
@@ -55,6 +63,11 @@ _POSE_ROWS = 250
 #: the chunk batcher of a recorder's own stream (rerun's default holds chunks up to 200 ms or
 #: 2 MiB: the file writer would then encode a run's last blocks at close)
 _BATCHER = rr.ChunkBatcherConfig(flush_tick=0.01, flush_num_bytes=262144)
+#: seconds :meth:`Recorder.close` waits for the file sink to write what is queued (a healthy
+#: sink writes a block within milliseconds; one that failed never finishes)
+CLOSE_TIMEOUT_S = 20.0
+#: streams whose file sink failed, kept for the rest of the process (see the module docstring)
+_STUCK: list[Any] = []
 
 
 class _DeferSigint:
@@ -248,7 +261,12 @@ class Recorder:
             if self.path.suffix != ".rrd":
                 raise DesignError(f"a recording path must end in .rrd; found {str(self.path)!r}")
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            stream.save(self.path, write_footer=bool(footer))
+            try:
+                stream.save(self.path, write_footer=bool(footer))
+            except (RuntimeError, OSError) as exc:  # the header could not be written
+                raise RecordingError(f"cannot write the recording {str(self.path)!r}: "
+                                     f"{exc}") from None
+        self._footer = bool(footer)
         return stream
 
     # ------------------------------------------------------------------ constructors
@@ -737,15 +755,35 @@ class Recorder:
 
     def close(self) -> None:
         """Log what is pending, flush and close the file (idempotent). A stream handed in
-        without a path is flushed, not disconnected."""
+        without a path is flushed, not disconnected.
+
+        Raises
+        ------
+        RecordingError
+            The file sink did not write everything within :data:`CLOSE_TIMEOUT_S` seconds (a
+            failed write: full disk, file too large), or the closed file is not a finalized
+            recording (no footer; ``rerun rrd verify`` rejects it).
+        """
         if not self._closed:
             self._closed = True
             self._send_poses()
             self._send_pending()
-            if self._own_sink:  # flushes the batcher, then the file sink writes the rest,
-                self.stream.disconnect()  # its footer, and closes the file before returning
-            else:
+            if not self._own_sink:
                 self.stream.flush()
+                return
+            try:
+                self.stream.flush(timeout_sec=CLOSE_TIMEOUT_S)
+            except RuntimeError as exc:  # the sink failed: its shutdown would never return
+                import atexit
+
+                _STUCK.append(self.stream)
+                atexit.unregister(rr.rerun_shutdown)
+                raise RecordingError(f"the recording {str(self.path)!r} could not be written "
+                                     f"({exc}: is the disk full?); the file is incomplete"
+                                     ) from None
+            self.stream.disconnect()  # the file sink writes its footer and closes the file
+            if self._footer:
+                check_finalized(self.path)
 
     def __enter__(self) -> Recorder:
         return self
@@ -753,6 +791,24 @@ class Recorder:
     def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
                  tb: TracebackType | None) -> None:
         self.close()
+
+
+def check_finalized(path: Any) -> None:
+    """Raise :class:`RecordingError` unless ``path`` is a recording that ends in rerun's
+    footer (what ``rerun rrd verify`` checks first); the footer alone is read."""
+    import warnings
+
+    from rerun.chunk import RrdReader
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            RrdReader(path)
+        except Exception as exc:  # rerun's own errors: not a readable recording
+            raise RecordingError(f"the recording {str(path)!r} is not readable: {exc}") from None
+    if any("footer" in str(w.message) for w in caught):
+        raise RecordingError(f"the recording {str(path)!r} was not finalized (no rerun footer: "
+                             f"a write failed or the file was changed while it was written)")
 
 
 def record_trajectory(traj: Any, path: str | Path, *, model: Any = None,
@@ -763,4 +819,5 @@ def record_trajectory(traj: Any, path: str | Path, *, model: Any = None,
     return Path(path)
 
 
-__all__ = ["Recorder", "record_trajectory", "time_columns"]
+__all__ = ["CLOSE_TIMEOUT_S", "Recorder", "check_finalized", "record_trajectory",
+           "time_columns"]

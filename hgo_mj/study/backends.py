@@ -9,7 +9,9 @@ results do not depend on the backend or on the number of workers.
   ``jobs - 1`` worker processes (``spawn``: safe with MuJoCo and threads), when the plan
   estimates at least :data:`WORKERS_WORTH_S` seconds of single-core work (a shorter study is
   done before the workers would have started; the plants already run on MuJoCo's threads:
-  :func:`local_jobs`).
+  :func:`local_jobs`). The workers die with the parent (Linux: ``PR_SET_PDEATHSIG``, so a
+  killed command leaves no orphans computing) and ignore SIGINT: a Ctrl-C reaches the parent,
+  which stops them (:func:`worker_init`).
 * ``ray``: ``pip install "hgo_mj[ray]"``. Without ``address``, a local Ray instance with
   ``jobs`` CPUs bound to 127.0.0.1 without dashboard; with ``address`` (``ray start --head``
   on the head node prints it, e.g. ``192.168.1.10:6379``), that cluster: every node needs
@@ -19,6 +21,7 @@ results do not depend on the backend or on the number of workers.
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -61,33 +64,68 @@ def backend_for(name: Any, *, address: str | None = None, jobs: int = 1) -> Back
     return lambda chunks: _ray(chunks, jobs, address)
 
 
-def _local(chunks: list[Chunk], jobs: int) -> Iterator[tuple[Chunk, Rows]]:
-    """The chunks on ``jobs`` processes: this one and ``jobs - 1`` workers. This process
-    takes chunks from the front of the queue while the workers (which start in about a
-    second: an interpreter, hgo_mj, the compiled kernels from their cache) are fed from the
-    back, one chunk ahead each."""
+#: ``prctl`` option: the signal a process gets when its parent dies (``<sys/prctl.h>``)
+_PR_SET_PDEATHSIG = 1
+
+
+def worker_init(parent: int) -> None:
+    """Run in each local worker process as it starts: die with the parent ``parent`` (a pid)
+    and leave SIGINT to it.
+
+    On Linux, ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` makes the kernel kill the worker when the
+    process that started it dies, also by SIGKILL (elsewhere the executor's own pipe ends idle
+    workers). A parent that died before the call is found by the worker's parent pid. A Ctrl-C
+    in a terminal reaches the whole process group: the workers ignore it, so that the parent
+    alone reports it and stops them (no tracebacks, no broken pipes from workers).
+    """
+    import os
+    import signal
+    import sys
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before the call
+        os._exit(1)
+
+
+def _local(chunks: list[Any], jobs: int,
+           run: Callable[[Any], Rows] = run_chunk) -> Iterator[tuple[Any, Rows]]:
+    """The chunks on ``jobs`` processes: this one and ``jobs - 1`` workers (started with
+    :func:`worker_init`). This process takes chunks from the front of the queue while the
+    workers (which start in about a second: an interpreter, hgo_mj, the compiled kernels from
+    their cache) are fed from the back, one chunk ahead each. ``run`` (a module-level function,
+    :func:`~hgo_mj.study.engine.run_chunk`) computes a chunk's rows."""
     if jobs == 1 or len(chunks) <= 1:
         for c in chunks:
-            yield c, run_chunk(c)
+            yield c, run(c)
         return
     queue = deque(chunks)
     workers = min(jobs - 1, len(chunks) - 1)
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
-    pending: dict[Future[Rows], Chunk] = {}
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=worker_init, initargs=(os.getpid(),))
+    pending: dict[Future[Rows], Any] = {}
     try:
         while queue or pending:
             while queue and len(pending) < workers:
                 c = queue.pop()
-                pending[pool.submit(run_chunk, c)] = c
+                pending[pool.submit(run, c)] = c
             for f in [f for f in pending if f.done()]:
                 yield pending.pop(f), f.result()
             if queue:
                 c = queue.popleft()
-                yield c, run_chunk(c)
+                yield c, run(c)
             elif pending:
                 wait(pending, return_when=FIRST_COMPLETED)
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    except BaseException:  # Ctrl-C or an error: stop the workers now, not after their chunks
+        for proc in list(getattr(pool, "_processes", {}).values()):
+            proc.kill()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def ray_init(jobs: int, address: str | None) -> None:
@@ -142,4 +180,4 @@ def _ray(chunks: list[Chunk], jobs: int, address: str | None) -> Iterator[tuple[
             ray.cancel(ref, force=True)
 
 
-__all__ = ["BACKENDS", "backend_for", "ray_init"]
+__all__ = ["BACKENDS", "backend_for", "ray_init", "worker_init"]
