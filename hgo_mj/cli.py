@@ -622,6 +622,20 @@ def run_of(name: str) -> Any:
     return importlib.import_module(REPRODUCTIONS[name][0]).run
 
 
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    """``hgo-mj reproduce NAME``: run a paper reproduction and print its report."""
+    from .reproduce import run_reproduction
+
+    out = Path(args.out or f"runs/reproduce/{args.name}")
+    rrd = None if args.rrd is None else Path(args.rrd or out / f"{args.name}.rrd")
+    run_reproduction(args.name, out, **_reproduction_kwargs(args.name, rrd, args.quiet))
+    if (out / "report.txt").is_file():  # the readable report (summary.json: the data)
+        print((out / "report.txt").read_text().rstrip("\n"))
+    print(f"\nwrote {out}/summary.json, report.txt and figures"
+          + (f", {rrd}" if rrd is not None else ""))
+    return 0
+
+
 def cmd_check(target: str) -> int:
     """``hgo-mj check PLANT-OR-SCENARIO``: which observer applies to the plant, and why."""
     from . import check
@@ -650,16 +664,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "check":
             return cmd_check(args.target)
         if args.command == "reproduce":
-            from .reproduce import run_reproduction
-
-            out = Path(args.out or f"runs/reproduce/{args.name}")
-            rrd = None if args.rrd is None else Path(args.rrd or out / f"{args.name}.rrd")
-            run_reproduction(args.name, out, **_reproduction_kwargs(args.name, rrd, args.quiet))
-            if (out / "report.txt").is_file():  # the readable report (summary.json: the data)
-                print((out / "report.txt").read_text().rstrip("\n"))
-            print(f"\nwrote {out}/summary.json, report.txt and figures"
-                  + (f", {rrd}" if rrd is not None else ""))
-            return 0
+            return cmd_reproduce(args)
         if args.command == "demo":
             sc = json.loads(json.dumps(DEMO))
             jobs, formats, quiet = 1, DEFAULT_FORMATS, False
