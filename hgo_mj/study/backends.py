@@ -93,12 +93,15 @@ def worker_init(parent: int) -> None:
 
 
 def _local(chunks: list[Any], jobs: int,
-           run: Callable[[Any], Rows] = run_chunk) -> Iterator[tuple[Any, Rows]]:
+           run: Callable[[Any], Rows] | None = None) -> Iterator[tuple[Any, Rows]]:
     """The chunks on ``jobs`` processes: this one and ``jobs - 1`` workers (started with
     :func:`worker_init`). This process takes chunks from the front of the queue while the
     workers (which start in about a second: an interpreter, hgo_mj, the compiled kernels from
-    their cache) are fed from the back, one chunk ahead each. ``run`` (a module-level function,
-    :func:`~hgo_mj.study.engine.run_chunk`) computes a chunk's rows."""
+    their cache) are fed from the back, one chunk ahead each. ``run`` (a module-level function;
+    default :func:`~hgo_mj.study.engine.run_chunk`, looked up at the call) computes a chunk's
+    rows."""
+    if run is None:
+        run = run_chunk
     if jobs == 1 or len(chunks) <= 1:
         for c in chunks:
             yield c, run(c)
