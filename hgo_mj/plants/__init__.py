@@ -18,6 +18,38 @@ def make_plant(name: str, dt: float | None = None, *, physics_dt: float | None =
     MuJoCo systems take their parameters from their MJCF (edit the file, or pass
     ``model_file=``; ``outputs=`` and the rollout's ``nthread=`` as :class:`MujocoPlant`);
     ODE systems take parameter overrides as keywords.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`hgo_mj.systems.SYSTEMS` (``hgo-mj list`` names them).
+    dt : float, optional
+        Control period; default 0.001 s for MuJoCo plants, the system's ``default_dt``
+        (else 0.01) for ODE plants.
+    physics_dt : float, optional
+        Integration step (MuJoCo timestep, or the RK4 step); ``dt`` is a multiple of it.
+    **params
+        MuJoCo: ``model_file``, ``outputs``, ``nthread``; ODE: the system's parameters.
+
+    Returns
+    -------
+    Plant
+        A :class:`MujocoPlant` or an :class:`OdePlant`.
+
+    Raises
+    ------
+    DesignError
+        An unknown plant or keyword (the valid ones are listed), or a bad value.
+
+    Examples
+    --------
+    >>> plant = make_plant("pendulum", dt=0.002)
+    >>> type(plant).__name__, plant.dt, plant.system.output_names
+    ('MujocoPlant', 0.002, ('angle',))
+    >>> make_plant("pendulum", mass=2.0)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: plant 'pendulum' (MuJoCo: parameters come from ...
     """
     from ..systems import SYSTEMS
 
