@@ -112,7 +112,8 @@ def test_guide_has_every_page():
             "own_plant_observer"} <= names
 
 
-@pytest.mark.parametrize("page", [p for p in GUIDE if re.search(r"^>>> ", p.read_text(), re.M)], ids=lambda p: p.stem)
+@pytest.mark.parametrize("page", [p for p in GUIDE if re.search(r"^>>> ", p.read_text(), re.M)],
+                         ids=lambda p: p.stem)
 def test_guide_examples_run(page, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     result = doctest.testfile(str(page), module_relative=False,
