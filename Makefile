@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.hgo_mj-installed
 # tiny matrices: multi-threaded BLAS only adds contention on a small machine
 export OPENBLAS_NUM_THREADS ?= 1
 
-.PHONY: demo test bench lint clean
+.PHONY: demo test bench lint docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -26,8 +26,17 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) scripts/bench.py
 
+# the documentation site: Sphinx with numpydoc and the executed gallery, warnings as errors
+DOCS_STAMP := $(VENV)/.hgo_mj-docs-installed
+$(DOCS_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e ".[dev,docs]"
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(PY) -m sphinx -b html -W --keep-going docs docs/_build/html
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
 clean:
-	rm -rf $(VENV) build dist *.egg-info runs .pytest_cache
+	rm -rf $(VENV) build dist *.egg-info runs .pytest_cache docs/_build docs/auto_examples

@@ -656,6 +656,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             ``state`` and, with an observer, ``estimate`` and ``error`` (see
             :attr:`error_names`); with ``info_level="full"`` also ``time``, ``measurement``,
             ``diagnostics`` and, for the reach tasks, ``goal``.
+
         Raises
         ------
         DesignError

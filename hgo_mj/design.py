@@ -1,4 +1,4 @@
-"""Gain design as pure functions (testable alone).
+"""Gain design as pure functions (testable alone), from [000]_ and [004]_.
 
 References
 ----------

@@ -157,7 +157,33 @@ class Schedule(Signal):
 
 class Multisine(Signal):
     """``u(t) = offset + sum_i a_i sin(2 pi f_i t + phase_i)`` (one channel; paper 001's ``u``
-    ``sin 2t + 0.1 cos 10t`` is ``Multisine([1, .1], [2/(2pi), 10/(2pi)], [0, pi/2])``)."""
+    ``sin 2t + 0.1 cos 10t`` is ``Multisine([1, .1], [2/(2pi), 10/(2pi)], [0, pi/2])``).
+
+    Parameters
+    ----------
+    amplitudes : sequence of float
+        ``a_i``, in the input's unit.
+    frequencies : sequence of float
+        ``f_i`` in Hz (cycles per unit of time), one per amplitude.
+    phases : sequence of float, optional
+        ``phase_i`` in rad; default zeros.
+    offset : float
+        Constant added to the sum.
+
+    Raises
+    ------
+    DesignError
+        Lengths that differ, or values that are not finite numbers.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = Multisine(amplitudes=[1.0, 0.1], frequencies=[2 / (2 * np.pi), 10 / (2 * np.pi)],
+    ...               phases=[0.0, np.pi / 2])
+    >>> t = 0.3
+    >>> bool(np.isclose(u(t)[0], np.sin(2 * t) + 0.1 * np.cos(10 * t)))
+    True
+    """
 
     name = "multisine"
     summary = "sum of sinusoids (paper 001's input)"
@@ -368,7 +394,36 @@ SIGNALS: dict[str, type[Signal]] = {
 
 
 def make_signal(kind: str, **params: Any) -> Signal:
-    """Build an open-loop signal by registry name; unknown names and keywords are listed."""
+    """Build an open-loop signal by registry name; unknown names and keywords are listed.
+
+    Parameters
+    ----------
+    kind : str
+        ``"constant"``, ``"schedule"``, ``"multisine"``, ``"chirp"``, ``"prbs"`` or
+        ``"telegraph"`` (``hgo-mj list`` shows their parameters).
+    **params
+        The signal's constructor parameters.
+
+    Returns
+    -------
+    Signal
+        A callable ``u(t)`` returning the input at time ``t``.
+
+    Raises
+    ------
+    DesignError
+        An unknown kind or keyword (the valid ones are listed), or a bad value.
+
+    Examples
+    --------
+    >>> u = make_signal("constant", value=0.2)
+    >>> u(1.0)
+    array([0.2])
+    >>> make_signal("sine", amplitude=1.0)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: unknown input 'sine'; valid: [...]
+    """
     if not isinstance(kind, str) or kind not in SIGNALS:
         raise DesignError(f"unknown input {kind!r}; valid: {sorted(SIGNALS)}")
     import inspect

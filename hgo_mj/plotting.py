@@ -59,7 +59,38 @@ def subplots(*args: Any, figsize: tuple[float, float] | None = None, layout: Any
 def plot_trajectory(traj: Any, *, title: str = "") -> Any:
     """A figure of one run: one row per plant state, left the truth (black, drawn on top) and
     every estimate, right the estimation error; then one row per estimated quantity that is
-    not a plant state (estimates only). Returns a :class:`matplotlib.figure.Figure`."""
+    not a plant state (estimates only). Returns a :class:`matplotlib.figure.Figure`.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`hgo_mj.simulate.simulate`.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Not attached to pyplot: save it with ``fig.savefig(path)``, or leave it as a notebook
+        cell's value.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Multisine
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
+    ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
+    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.5,
+    ...                 x0=[0.5, 0.0], seed=0)
+    >>> fig = plot_trajectory(traj, title="pendulum")
+    >>> [ax.get_ylabel() for ax in fig.axes[:2]]
+    ['angle [rad]', 'error angle [rad]']
+    >>> fig.savefig("pendulum.png")
+    """
     from matplotlib.figure import Figure
 
     n = traj.x.shape[1]
@@ -140,7 +171,33 @@ def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | No
     y-axis (logarithmic where the RMSEs span a decade or more), the RMSE of every seed as a dot
     over the observer's box plot (quartiles, whiskers to 1.5 IQR, the mean as a triangle); runs
     with a NaN RMSE are left out (their count is noted). ``units``: ``{state: unit}`` for the
-    axis labels (``[?]`` where missing). Returns a :class:`matplotlib.figure.Figure`."""
+    axis labels (``[?]`` where missing). Returns a :class:`matplotlib.figure.Figure`.
+
+    Parameters
+    ----------
+    result : MonteCarloResult
+        What :func:`hgo_mj.study.monte_carlo` returns.
+    title : str
+        The figure's title.
+    units : dict of str to str, optional
+        ``{state: unit}``, e.g. :func:`hgo_mj.units.system_units` of the plant's system.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from hgo_mj.study import MonteCarloResult
+    >>> def run(rmse):
+    ...     return {"hgo": {"states": ["angle"], "estimated": [True], "rmse": [rmse],
+    ...                     "peak": [0.5], "settling_time": [1.0], "final": [0.01],
+    ...                     "update_time": 1e-6}}
+    >>> result = MonteCarloResult.from_runs([0, 1, 2], [run(0.1), run(0.2), run(0.15)], {})
+    >>> fig = plot_monte_carlo(result, units={"angle": "rad"})
+    >>> fig.axes[0].get_ylabel()
+    'RMSE angle [rad]'
+    """
     from matplotlib.figure import Figure
 
     runs, agg = result.runs, result.aggregate

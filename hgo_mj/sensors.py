@@ -39,7 +39,8 @@ chain from a JSON-like list with :meth:`SensorChain.from_spec`.
 
 Parameters marked *per channel* accept a scalar (the same for every output channel) or a 1-D
 sequence with one entry per channel; a length that does not match ``y`` raises
-:class:`~hgo_mj.exceptions.DimensionError` when the stage is called.
+:class:`~hgo_mj.exceptions.DimensionError` when the stage is called. Noise given as a power
+spectral density follows paper 000 [000]_.
 
 References
 ----------
@@ -394,6 +395,14 @@ class GaussianNoise(Stage):
         Noise power spectral density (height of the PSD), >= 0, per channel.
     sample_time : float, optional
         Sample time of the band-limited noise, > 0 (only with ``psd``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> chain = SensorChain([GaussianNoise(psd=0.25e-6, sample_time=0.01)], seed=0)
+    >>> y = chain.apply(np.arange(20000) * 0.01, np.zeros((1, 20000, 1)))
+    >>> round(float(y.std()), 4)            # sqrt(psd / sample_time) = 0.005
+    0.005
     """
 
     name = "gaussian"
@@ -591,6 +600,13 @@ class Quantization(Stage):
         Quantization step, > 0, per channel.
     counts_per_rev : int or array_like of int, optional
         Encoder counts per revolution, a positive integer, per channel.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> q = SensorChain([Quantization(resolution=0.1)])
+    >>> q.apply(np.zeros(3), np.array([[[0.04], [0.06], [-0.26]]]))[0, :, 0]
+    array([ 0. ,  0.1, -0.3])
     """
 
     name = "quantize"
@@ -891,6 +907,15 @@ def make_stage(name: str, /, **params: Any) -> Stage:
     DesignError
         Unknown name (the message lists the valid names), unknown or missing keyword (the
         message lists the valid keywords), or an invalid value.
+
+    Examples
+    --------
+    >>> make_stage("quantize", counts_per_rev=4096)
+    Quantization(counts_per_rev=4096)
+    >>> make_stage("gaussian", sigma=0.1)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: GaussianNoise ('gaussian'): unknown parameter(s) ['sigma']; valid: [...]
     """
     cls = STAGES.get(name) if isinstance(name, str) else None
     if cls is None:

@@ -64,7 +64,46 @@ class ObserverRecord:
 
 @dataclass
 class Trajectory:
-    """Numpy columns of one run; ``save``/``load`` use one ``.npz`` with JSON metadata."""
+    """Numpy columns of one run; ``save``/``load`` use one ``.npz`` with JSON metadata.
+
+    Made by :func:`simulate` (row ``k`` is the sample instant ``t[k]``); a user rarely builds
+    one directly.
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Sample instants.
+    x : ndarray, shape (T, n)
+        True state.
+    y_clean, y_meas : ndarray, shape (T, p)
+        Clean and measured outputs (NaN: a dropout).
+    u : ndarray, shape (T, m)
+        Input applied from each instant.
+    observers : dict of str to ObserverRecord
+        Each observer's ``x_hat``, ``z_hat``, diagnostics and state names.
+    state_names, output_names, input_names : tuple of str
+        Names of the columns of ``x``, ``y_*`` and ``u``.
+    metadata : dict
+        Scenario, seed, periods, package versions (strict JSON when saved).
+
+    Raises
+    ------
+    DimensionError
+        Columns whose lengths disagree with ``t``, or observer state names that do not name
+        its columns.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> plant = make_plant("pendulum", dt=0.01)
+    >>> traj = simulate(plant, None, {"k10": HighGainObserver(plant.system, k=10.0)},
+    ...                 lambda t: [0.0], duration=1.0, x0=[0.2, 0.0])
+    >>> len(traj), traj.state_names, traj.error("k10").shape
+    (101, ('angle', 'angular_velocity'), (101, 2))
+    >>> traj.save("run.npz").name, len(Trajectory.load("run.npz"))
+    ('run.npz', 101)
+    """
 
     t: Array
     x: Array
@@ -314,6 +353,8 @@ def simulate(plant: Plant, sensor: SensorChain | None,
         Initial true state (default ``plant.system.default_x0``).
     seed : int, optional
         Seed of the sensor chain's streams: the same seed gives a bit-identical run.
+    metadata : mapping, optional
+        Extra JSON-ready entries for the trajectory's metadata (e.g. the scenario).
     on_chunk : (seconds, callback), optional
         Hand the stored rows over as they are simulated: ``callback(first_row, chunk)`` with a
         :class:`Trajectory` of the rows ``first_row ...`` each time ``seconds`` of simulated
@@ -342,6 +383,22 @@ def simulate(plant: Plant, sensor: SensorChain | None,
         or the plant fails (a non-finite or too large input, MuJoCo's bad-state reset). The
         partial trajectory is ``exc.trajectory``. A ``DimensionError`` in an update and every
         error raised before the loop (argument validation, ``check_period``) propagate.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Multisine
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)]),
+    ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
+    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=1.0,
+    ...                 x0=[0.5, 0.0], seed=1)
+    >>> traj.t.shape, traj.x.shape, traj.observers["k40"].x_hat.shape
+    ((1001,), (1001, 2), (1001, 2))
+    >>> float(traj.t[1]), traj.metadata["seed"]
+    (0.001, 1)
     """
     if x0 is not None and np.ndim(x0) != 1:
         raise DimensionError(f"simulate runs one member: x0 must be a state (n,); found shape "
@@ -364,7 +421,47 @@ def simulate_batch(plant: Plant, sensor: SensorChain | None,
     """:func:`simulate` of B members at once, one per seed in ``seeds`` (and, if ``x0`` is
     ``(B, n)``, per initial state): the plants, the sensor streams and every observer advance
     as one batch. Member ``i`` equals ``simulate(..., x0=x0[i], seed=seeds[i])`` alone, bit
-    for bit. A failure (divergence) of any member stops the batch with a DivergenceError."""
+    for bit.
+
+    Parameters
+    ----------
+    plant, sensor, observers, inputs, duration
+        As in :func:`simulate`.
+    seeds : sequence of int or None
+        One sensor seed per member; its length is the batch size B.
+    x0 : array_like, optional
+        One initial state ``(n,)`` for every member, or one per member ``(B, n)``.
+    sample_period, control_period, metadata, store_every
+        As in :func:`simulate`.
+
+    Returns
+    -------
+    list of Trajectory
+        One per member, in the order of ``seeds``.
+
+    Raises
+    ------
+    DesignError
+        ``seeds`` is not a non-empty sequence (or any argument :func:`simulate` refuses).
+    DivergenceError
+        A failure (divergence) of any member stops the batch.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.inputs import Multisine
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> parts = (plant, SensorChain([GaussianNoise(std=1e-3)]),
+    ...          {"k40": HighGainObserver(plant.system, k=40.0)},
+    ...          Multisine(amplitudes=[0.3], frequencies=[0.5]), 0.5)
+    >>> runs = simulate_batch(*parts, seeds=[3, 4], x0=[[0.5, 0.0], [-0.5, 0.0]])
+    >>> alone = simulate(*parts, x0=[-0.5, 0.0], seed=4)
+    >>> len(runs), np.array_equal(runs[1].observers["k40"].x_hat, alone.observers["k40"].x_hat)
+    (2, True)
+    """
     if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Sequence) or not seeds:
         raise DesignError(f"seeds must be a non-empty sequence of seeds; found {seeds!r}")
     return _run(plant, sensor, observers, inputs, duration, sample_period=sample_period,

@@ -35,11 +35,35 @@ def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
     """Build a registered observer by name (a family of this package, or one registered by
     another package through the entry-point group ``hgo_mj.observers``).
 
+    Parameters
+    ----------
+    kind : str
+        A key of :data:`OBSERVERS` (``"high_gain"``, ``"ekf"``, ...).
+    system : System, optional
+        The model the observer designs against (None for an order-only observer).
+    **params
+        The observer's constructor parameters.
+
+    Returns
+    -------
+    Observer
+
     Raises
     ------
     DesignError
         An unknown name (the valid ones are listed), or a keyword the observer's constructor
         does not take (its valid keywords are listed).
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import SYSTEMS
+    >>> obs = make_observer("riccati", SYSTEMS["pendulum"](), gamma=20.0)
+    >>> type(obs).__name__, obs.state_names
+    ('RiccatiObserver', ('angle', 'angular_velocity'))
+    >>> make_observer("high_gian", None)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: unknown observer 'high_gian'; valid: [...]
     """
     known = registered()
     if not isinstance(kind, str) or kind not in known:

@@ -1,4 +1,4 @@
-"""The adaptive-gain high-gain observer of Bullinger, Ilchmann and Allgöwer (paper 000).
+"""The adaptive-gain high-gain observer of Bullinger, Ilchmann and Allgöwer (paper 000 [000]_).
 
 The high-gain observer of eq. 2 whose gain ``k`` grows by the dead-zone law of eq. 4-5:
 

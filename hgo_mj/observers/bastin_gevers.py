@@ -1,4 +1,5 @@
-"""The adaptive observer of Bastin and Gevers (paper 002) on the adaptive observer canonical form.
+"""The adaptive observer of Bastin and Gevers (paper 002 [002]_, after [LN74]_) on the adaptive
+observer canonical form.
 
 **Canonical form (AOCF), eq. 2.2-2.3.** A single-output system transformed to
 

@@ -1,4 +1,4 @@
-"""The adaptive high-gain observer of Besançon, Zhang and Hammouri (paper 001).
+"""The adaptive high-gain observer of Besançon, Zhang and Hammouri (paper 001 [001]_, after [Z02]_).
 
 **Form (eq. 9 / 21).** The observer is designed on a system
 

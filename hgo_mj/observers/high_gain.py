@@ -1,5 +1,6 @@
-"""The high-gain observer of Tornambè (paper 000, eq. 2), optionally with a model term, and the
-multi-output observer of paper 001 (eq. 4-5): one chain of integrators per measured output.
+"""The high-gain observer of Tornambè [T92]_ (paper 000 [000]_, eq. 2), optionally with a model
+term ([GHO92]_, [K]_), and the multi-output observer of paper 001 [001]_ (eq. 4-5): one chain of
+integrators per measured output.
 
 .. math::
 

@@ -1,4 +1,4 @@
-"""The adaptive observer of Jo and Son (paper 003) on the generalized observer canonical form.
+"""The adaptive observer of Jo and Son (paper 003 [003]_) on the generalized observer canonical form.
 
 **Canonical form, eq. 9-10.** A single-output system with unknown constant parameters
 :math:`\\theta \\in \\mathbb R^p`, in coordinates :math:`z = (z_o, z_{\\bar o})`,

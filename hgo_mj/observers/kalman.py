@@ -1,4 +1,5 @@
-"""Extended and unscented Kalman filters, continuous-discrete, with parameter augmentation.
+"""Extended and unscented Kalman filters, continuous-discrete, with parameter augmentation
+([J70]_, [JU97]_, [S06]_; MuJoCo finite differences [MJ]_).
 
 The baselines the adaptive observers of papers 001-003 measure themselves against. The state
 is the physical state of a :class:`~hgo_mj.systems.base.System` augmented with the

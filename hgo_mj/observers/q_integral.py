@@ -1,4 +1,4 @@
-"""The q-integral observer of Ibrir (paper 004, section 2.2, eq. 37-48).
+"""The q-integral observer of Ibrir (paper 004 [004]_, section 2.2, eq. 37-48).
 
 The plant is augmented with ``q`` integrators of the measured output ``y = x_1 + w``,
 

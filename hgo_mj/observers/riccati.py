@@ -1,4 +1,4 @@
-"""The Riccati-based high-gain observer of Ibrir (paper 004, Theorem 1), with the model term.
+"""The Riccati-based high-gain observer of Ibrir (paper 004 [004]_, Theorem 1), with the model term.
 
 .. math::
 

@@ -23,11 +23,40 @@ def make_plant(name: str | os.PathLike[str], dt: float | None = None, *,
     :func:`hgo_mj.systems.mjcf.mjcf_system` with ``outputs=`` (sensor or joint names) and
     ``inputs=`` (actuator names, default all); ``dt`` defaults to the MJCF's timestep.
 
+    Parameters
+    ----------
+    name : str or os.PathLike
+        A key of :data:`hgo_mj.systems.SYSTEMS` (``hgo-mj list`` names them), or an MJCF file.
+    dt : float, optional
+        Control period; default 0.001 s for registered MuJoCo plants, the MJCF's timestep for
+        an MJCF file, the system's ``default_dt`` (else 0.01) for ODE plants.
+    physics_dt : float, optional
+        Integration step (MuJoCo timestep, or the RK4 step); ``dt`` is a multiple of it.
+    **params
+        MuJoCo: ``model_file``, ``outputs``, ``nthread``; an MJCF file: ``outputs``,
+        ``inputs``, ``nthread``; ODE: the system's parameters.
+
+    Returns
+    -------
+    Plant
+        A :class:`MujocoPlant` or an :class:`OdePlant`.
+
+    Raises
+    ------
+    DesignError
+        An unknown plant or keyword (the valid ones are listed), or a bad value;
+        :class:`~hgo_mj.exceptions.ModelError` for an MJCF file that cannot be used.
+
     Examples
     --------
-    >>> from hgo_mj.plants import make_plant, model_path
-    >>> plant = make_plant(model_path("pendulum.xml"), outputs=["hinge"])
-    >>> plant.state_names
+    >>> plant = make_plant("pendulum", dt=0.002)
+    >>> type(plant).__name__, plant.dt, plant.system.output_names
+    ('MujocoPlant', 0.002, ('angle',))
+    >>> make_plant("pendulum", mass=2.0)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: plant 'pendulum' (MuJoCo: parameters come from ...
+    >>> make_plant(model_path("pendulum.xml"), outputs=["hinge"]).state_names
     ('hinge_angle', 'hinge_velocity')
     """
     from ..systems import SYSTEMS

@@ -123,6 +123,15 @@ class MujocoPlant(Plant):
     ``jointpos``/``jointvel`` sensors are read straight from ``qpos``/``qvel`` (exactly what
     MuJoCo's sensor computes, without a second ``mj_forward``); other sensor types trigger
     ``mj_forward`` before ``sensordata`` is read.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import SYSTEMS
+    >>> plant = MujocoPlant(SYSTEMS["pendulum"], dt=0.01)
+    >>> plant.reset([0.5, 0.0])
+    >>> plant.step([0.0])
+    >>> plant.state.shape, plant.outputs().shape, bool(plant.state[0] < 0.5)
+    ((2,), (1,), True)
     """
 
     def __init__(self, system: type[System], dt: float = 0.001, *, physics_dt: float | None = None,

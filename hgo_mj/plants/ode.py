@@ -50,6 +50,15 @@ class OdePlant(Plant):
         Control period; ``u`` is held over it.
     physics_dt : float, optional
         RK4 step; default ``dt / 10``. ``dt`` must be a multiple of it.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import SYSTEMS
+    >>> plant = OdePlant(SYSTEMS["jo_son"](), dt=0.01)
+    >>> plant.reset(plant.system.default_x0)
+    >>> plant.step([0.0])
+    >>> plant.state.shape, plant.system.output_names
+    ((3,), ('y',))
     """
 
     def __init__(self, system: System, dt: float, *, physics_dt: float | None = None) -> None:

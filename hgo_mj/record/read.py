@@ -37,6 +37,15 @@ def read(path: str | Path) -> Any:
     ``"rad"``; ``""`` dimensionless), for the series named with one.
     Poses (``Transform3D``) and other non-scalar components are not series and are left out.
 
+    Parameters
+    ----------
+    path : str or Path
+        A recording written by :class:`~hgo_mj.record.Recorder` (``.rrd``).
+
+    Returns
+    -------
+    pandas.DataFrame
+
     Raises
     ------
     DesignError
@@ -44,8 +53,22 @@ def read(path: str | Path) -> Any:
 
     Examples
     --------
-    >>> df = read("runs/demo/demo.rrd")                      # doctest: +SKIP
-    >>> df[["sim_time", "/state/link_angle[link_angle true]"]].head()  # doctest: +SKIP
+    >>> from hgo_mj.record import record_trajectory
+    >>> from hgo_mj.inputs import Multisine
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
+    ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
+    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.5,
+    ...                 x0=[0.5, 0.0], seed=0)
+    >>> df = read(record_trajectory(traj, "pendulum.rrd"))
+    >>> df[["sim_time", "/state/angle/true", "/state/angle/k40"]].shape
+    (501, 3)
+    >>> df.attrs["units"]["/state/angle/k40"]
+    'rad'
     """
     import pandas as pd
     from rerun.chunk import RrdReader

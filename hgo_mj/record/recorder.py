@@ -813,7 +813,44 @@ def check_finalized(path: Any) -> None:
 
 def record_trajectory(traj: Any, path: str | Path, *, model: Any = None,
                       metrics: bool | Mapping[str, Any] = True, **kw: Any) -> Path:
-    """Write ``traj`` to the recording ``path`` (see :class:`Recorder`); returns the path."""
+    """Write ``traj`` to the recording ``path`` (see :class:`Recorder`); returns the path.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`hgo_mj.simulate.simulate`.
+    path : str or Path
+        The ``.rrd`` file to write (``rerun FILE`` opens it).
+    model : mujoco.MjModel, optional
+        The model drawn in the 3D view; default the MJCF of the trajectory's plant (none for
+        ODE plants).
+    metrics : bool or mapping
+        True: the ``/metrics`` document from :func:`hgo_mj.metrics.all_metrics`; a mapping:
+        those metrics; False: none.
+    **kw
+        Passed to :meth:`Recorder.for_trajectory` (e.g. ``recording_name``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Multisine
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
+    ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
+    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.5,
+    ...                 x0=[0.5, 0.0], seed=0)
+    >>> path = record_trajectory(traj, "pendulum.rrd")
+    >>> path.name, path.stat().st_size > 0
+    ('pendulum.rrd', True)
+    """
     with Recorder.for_trajectory(path, traj, model=model, **kw) as rec:
         rec.record_trajectory(traj, metrics=metrics)
     return Path(path)

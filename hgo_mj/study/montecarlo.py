@@ -227,6 +227,22 @@ def monte_carlo(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int],
     ------
     DivergenceError
         If every run diverges; the message names the first (``seed S: ...``).
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Multisine
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> def make_run():
+    ...     plant = make_plant("pendulum", dt=0.001)
+    ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+    ...             "observers": {"k40": HighGainObserver(plant.system, k=40.0)},
+    ...             "inputs": Multisine(amplitudes=[0.3], frequencies=[0.5]),
+    ...             "duration": 1.0, "x0": [0.5, 0.0]}
+    >>> result = monte_carlo(make_run, seeds=range(4), t_transient=0.5)
+    >>> result.seeds, len(result.runs), result.aggregate["k40"]["runs"]
+    ([0, 1, 2, 3], 4, 4)
     """
     seeds = check_seeds(seeds)
     done, runs, failed = run_seeds(make_run, seeds, jobs=jobs, t_transient=t_transient,

@@ -99,6 +99,29 @@ class Study:
         Cells (``{path: value}``) whose runs also keep their trajectory (``.npz`` per run).
     max_runs : int or None
         Refuse a study with more runs (default 10 million; None: no limit).
+
+    Raises
+    ------
+    DesignError
+        A scenario or axis the schema refuses (the message names the path, what was expected
+        and what was found), or more runs than ``max_runs``.
+
+    Examples
+    --------
+    >>> scenario = {
+    ...     "plant": {"name": "pendulum", "dt": 0.001, "x0": [0.5, 0.0]},
+    ...     "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    ...     "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...     "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+    ...     "run": {"duration": 1.0, "t_transient": 0.5, "seed": 0},
+    ... }
+    >>> study = Study(scenario, axes={"observers.hgo.k": [20.0, 80.0]}, seeds=3)
+    >>> study.spec.n_cells, study.spec.n_runs
+    (2, 6)
+    >>> result = study.run("study_out", quiet=True)
+    >>> s = result.summary()
+    >>> s[s["state"] == "angle"][["observers.hgo.k", "runs"]].values.tolist()
+    [[20.0, 3.0], [80.0, 3.0]]
     """
 
     def __init__(self, scenario: Mapping[str, Any], axes: Mapping[str, Any] | None = None,

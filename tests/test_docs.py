@@ -1,0 +1,151 @@
+"""The documentation (docs/, built by ``make docs``): the API reference lists every public name,
+the public entry points carry numpydoc Parameters/Returns/Examples sections whose doctests
+pass, the user guide's examples run, and the gallery has its eight executed examples.
+
+The Sphinx build itself (warnings as errors, the gallery executed) is ``make docs`` in CI.
+"""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+import inspect
+import re
+import runpy
+from pathlib import Path
+
+import pytest
+from numpydoc.docscrape import ClassDoc, FunctionDoc
+
+import hgo_mj
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+API = (DOCS / "api.rst").read_text()
+
+
+def start_here() -> list[str]:
+    """The dotted names of the API reference's "Start here" autosummary."""
+    block = API.split(".. autosummary::", 1)[1].split("\n\n", 2)[1]
+    return [line.strip() for line in block.splitlines() if line.strip()]
+
+
+def resolve(dotted: str) -> object:
+    module, name = dotted.rsplit(".", 1)
+    return getattr(importlib.import_module(module), name)
+
+
+def test_api_reference_lists_every_name_of_all():
+    listed = start_here()
+    missing = [n for n in hgo_mj.__all__ if f"{hgo_mj._HOME[n]}.{n}" not in listed]
+    assert not missing, f"hgo_mj.__all__ names missing from docs/api.rst: {missing}"
+    # and each listed name is the object hgo_mj exports under that name
+    for name in hgo_mj.__all__:
+        assert getattr(hgo_mj, name) is resolve(f"{hgo_mj._HOME[name]}.{name}")
+
+
+def test_api_reference_documents_each_package_module():
+    documented = set(re.findall(r"^\.\. automodule:: (\S+)$", API, re.M))
+    for home in set(hgo_mj._HOME.values()):
+        assert home in documented, f"{home} has public names but no automodule in docs/api.rst"
+    for module in documented:  # and every documented module imports
+        importlib.import_module(module)
+
+
+def test_import_hgo_mj_lists_names_and_rejects_others():
+    assert sorted(dir(hgo_mj)) == sorted(set(dir(hgo_mj)))
+    assert set(hgo_mj.__all__) <= set(dir(hgo_mj))
+    with pytest.raises(AttributeError, match="no attribute 'simulatee'; public: "):
+        hgo_mj.simulatee  # noqa: B018
+
+
+def sections(obj: object) -> dict:
+    doc = ClassDoc(obj) if inspect.isclass(obj) else FunctionDoc(obj)
+    return {k: doc[k] for k in ("Parameters", "Returns", "Raises", "Examples")}
+
+
+def takes_parameters(obj: object) -> bool:
+    target = obj.__init__ if inspect.isclass(obj) else obj
+    params = [p for p in inspect.signature(target).parameters if p not in ("self", "cls")]
+    return bool(params)
+
+
+@pytest.mark.parametrize("dotted", start_here())
+def test_entry_point_has_numpydoc_sections(dotted):
+    obj = resolve(dotted)
+    found = sections(obj)
+    assert found["Examples"], f"{dotted}: no Examples section"
+    assert ">>>" in "\n".join(found["Examples"]), f"{dotted}: Examples without a doctest"
+    if takes_parameters(obj):
+        assert found["Parameters"], f"{dotted}: no Parameters section"
+        target = obj.__init__ if inspect.isclass(obj) else obj
+        named = {n.strip() for p in found["Parameters"] for n in p.name.split(",")}
+        named = {n.lstrip("*") for n in named}
+        sig = [p for p in inspect.signature(target).parameters if p not in ("self", "cls")]
+        undocumented = [p for p in sig if p not in named]
+        assert not undocumented, f"{dotted}: parameters without an entry: {undocumented}"
+    if not inspect.isclass(obj):
+        assert found["Returns"], f"{dotted}: no Returns section"
+
+
+@pytest.mark.parametrize("dotted", start_here())
+def test_entry_point_examples_run(dotted, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # examples that write files write them here
+    obj = resolve(dotted)
+    module = importlib.import_module(dotted.rsplit(".", 1)[0])
+    tests = doctest.DocTestFinder(recurse=False).find(obj, dotted, module=module,
+                                                      globs=dict(vars(module)))
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    ran = 0
+    for test in tests:
+        result = runner.run(test)
+        assert result.failed == 0, f"{dotted}: {result.failed} doctest example(s) failed"
+        ran += result.attempted
+    assert ran > 0, f"{dotted}: no doctest example ran"
+
+
+GUIDE = sorted((DOCS / "guide").glob("*.rst"))
+
+
+def test_guide_has_every_page():
+    names = {p.stem for p in GUIDE}
+    assert {"loop", "plants", "sensors", "observers", "studies", "environments", "recordings",
+            "own_plant_observer"} <= names
+
+
+@pytest.mark.parametrize("page", [p for p in GUIDE if re.search(r"^>>> ", p.read_text(), re.M)],
+                         ids=lambda p: p.stem)
+def test_guide_examples_run(page, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = doctest.testfile(str(page), module_relative=False,
+                              optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0, f"{page.name}: {result}"
+
+
+def test_own_plant_observer_example_runs(capsys):
+    runpy.run_path(str(DOCS / "guide" / "examples" / "own_plant_observer.py"), run_name="__main__")
+    out = capsys.readouterr().out
+    assert "luenberger" in out and "hgo" in out
+
+
+def test_gallery_has_eight_examples_each_ending_in_a_figure():
+    examples = sorted((DOCS / "gallery").glob("plot_*.py"))
+    assert len(examples) >= 8
+    for path in examples:
+        text = path.read_text()
+        assert text.startswith('"""\n') and "\n====" in text.split('"""')[1], path.name
+        # the example makes a Figure (hgo_mj.plotting's, or subplots'), which the build shows
+        assert re.search(r"^fig\b[^=\n]* = ", text, re.M), f"{path.name} makes no figure"
+
+
+def test_every_reproduction_has_a_page():
+    from hgo_mj.reproduce import REPRODUCTIONS
+
+    for name in REPRODUCTIONS:
+        page = DOCS / "reproductions" / f"{name}.rst"
+        assert page.exists(), f"no page for {name}: run scripts/docs_reproductions.py {name}"
+        text = page.read_text()
+        assert f".. automodule:: {REPRODUCTIONS[name][0]}" in text
+        assert (DOCS / "reproductions" / name / "report.txt").read_text().strip()
+        for fig in re.findall(r"\.\. figure:: (\S+)", text):
+            assert (DOCS / "reproductions" / fig).exists(), fig
+        assert re.findall(r"\.\. figure:: ", text), f"{name}: no figure"
