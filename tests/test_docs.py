@@ -122,7 +122,13 @@ def test_guide_examples_run(page, tmp_path, monkeypatch):
 
 
 def test_own_plant_observer_example_runs(capsys):
-    runpy.run_path(str(DOCS / "guide" / "examples" / "own_plant_observer.py"), run_name="__main__")
+    from hgo_mj.observers import OBSERVERS
+
+    try:
+        runpy.run_path(str(DOCS / "guide" / "examples" / "own_plant_observer.py"),
+                       run_name="__main__")
+    finally:  # the example registers its observer: leave the registry as it was
+        OBSERVERS.pop("euler_luenberger", None)
     out = capsys.readouterr().out
     assert "luenberger" in out and "hgo" in out
 
