@@ -16,12 +16,7 @@ An observer that fails inside a segment (a math error on a blown-up estimate, it
 divergence check) is found to the sample: the loop keeps a copy of each observer's state
 before a segment of more than one sample and, on a failure, replays that observer sample by
 sample from the copy. The :class:`LoopFailure` it raises names the observer, the sample and
-the cause, and carries the rows that are valid. A loop made with ``isolate=True`` does not
-stop for an observer: the failing observer stops alone at that sample (its estimate NaN from
-the sample on; :attr:`Loop.diverged` says when and why), and the plant, the sensor and the
-other observers go on. Such a loop also judges each block as it is made: an estimate that
-leaves the finite numbers (a non-finite ``z_hat``, an infinite ``x_hat``) is a failure at
-its first such sample, found when it happens, not after the run.
+the cause, and carries the rows that are valid.
 """
 
 from __future__ import annotations
@@ -149,15 +144,11 @@ class Loop:
         turns it off: a failure then stops at the segment, and the observers' rows of a
         :class:`Segment` are written again by the next segment of the same length (keep a
         copy to keep them).
-    isolate : bool
-        An observer that fails (or whose estimate leaves the finite numbers) stops alone, its
-        estimate NaN from then on, and the others go on (see the module docstring); default
-        ``False``: the loop raises :class:`LoopFailure`. Only with ``exact``.
     """
 
     def __init__(self, plant: Plant, sensor: SensorChain | None,
                  observers: Mapping[str, Observer], periods: Periods, *,
-                 exact: bool = True, isolate: bool = False) -> None:
+                 exact: bool = True) -> None:
         if not isinstance(plant, Plant):
             raise DesignError(f"plant must be a Plant; found {type(plant).__name__}")
         if sensor is not None and not isinstance(sensor, SensorChain):
@@ -170,12 +161,6 @@ class Loop:
         self.plant, self.sensor, self.periods = plant, sensor, periods
         self.observers = dict(observers)
         self.exact = bool(exact)
-        if not isinstance(isolate, bool) or (isolate and not self.exact):
-            raise DesignError(f"isolate must be a bool (True only with exact=True); found "
-                              f"{isolate!r} with exact={exact!r}")
-        self.isolate = isolate
-        #: observers stopped by a failure (``isolate``): name -> (sample row, time, cause)
-        self.diverged: dict[str, tuple[int, float, BaseException]] = {}
         self.batch = 1
         self.k = 0
         #: seconds spent in each observer's updates since the reset
@@ -213,7 +198,6 @@ class Loop:
             ob.check_period(self.periods.sample)
         self.batch, self.k = B, 0
         self.wall = dict.fromkeys(self.observers, 0.0)
-        self.diverged = {}
         self._pending = None
 
     def reset_members(self, idx: Any, X0: Any, seeds: Any) -> None:
@@ -257,10 +241,7 @@ class Loop:
 
     def estimates(self) -> dict[str, tuple[Array, Array, Array]]:
         """Each observer's current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)`` arrays."""
-        out = {name: _current(ob) for name, ob in self.observers.items()}
-        for name in self.diverged:  # stopped: NaN from its failure on
-            out[name] = tuple(np.full_like(v, np.nan) for v in out[name])  # type: ignore[assignment]
-        return out
+        return {name: _current(ob) for name, ob in self.observers.items()}
 
     def segment(self, U: Array) -> Segment:
         """Advance T samples with the inputs ``U`` ``(B, T, m)`` (the kernel; see the module
@@ -281,16 +262,9 @@ class Loop:
         Ym = self._measure(t, Yc)
         blocks: dict[str, Block] = {}
         for i, (name, ob) in enumerate(self.observers.items()):
-            if name in self.diverged:
-                blocks[name] = _nan_block(ob, Ym.shape[0], T)
-                continue
             try:
                 blocks[name] = self._advance(name, ob, Ym, U)
             except _Found as found:
-                if self.isolate:  # this observer stops here, alone
-                    self.diverged[name] = (self.k + found.row, float(t[found.row]), found.cause)
-                    blocks[name] = _pad(found.head, _nan_block(ob, Ym.shape[0], T))
-                    continue
                 items = list(self.observers.items())
                 j = found.row
                 blocks = {n: _head(b, j) for n, b in blocks.items()}
@@ -327,8 +301,6 @@ class Loop:
             ob.__dict__.update(snap)
             raise _replay(ob, Ym, U, self.periods.sample) from exc
         self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
-        if self.isolate:
-            _check_finite(name, blk)
         if not self.exact:
             self._blocks[name] = blk
         return blk
@@ -472,33 +444,6 @@ def _replay(ob: Observer, Ym: Array, U: Array, Ts: float) -> _Found:
 
 def _head(b: Block, j: int) -> Block:
     return Block(b.x_hat[:, :j], b.z_hat[:, :j], b.diagnostics[:, :j])
-
-
-def _nan_block(ob: Observer, B: int, T: int) -> Block:
-    """T rows of NaN: a stopped observer's estimates."""
-    nan = np.nan
-    return Block(np.full((B, T, len(ob.state_names)), nan), np.full((B, T, ob.n), nan),
-                 np.full((B, T, len(ob.diagnostic_names)), nan))
-
-
-def _pad(head: Block, nan: Block) -> Block:
-    """The rows of ``head``, then NaN up to the rows of ``nan``."""
-    j = head.x_hat.shape[1]
-    for part in ("x_hat", "z_hat", "diagnostics"):
-        getattr(nan, part)[:, :j] = getattr(head, part)
-    return nan
-
-
-def _check_finite(name: str, blk: Block) -> None:
-    """Raise :class:`_Found` at the first row of ``blk`` whose estimate left the finite
-    numbers (a non-finite ``z_hat`` or an infinite ``x_hat``; a NaN ``x_hat`` alone is an
-    undefined inverse map, allowed)."""
-    with np.errstate(invalid="ignore"):
-        bad = ~np.isfinite(blk.z_hat).all(axis=(0, 2)) | np.isinf(blk.x_hat).any(axis=(0, 2))
-    if bad.any():
-        j = int(np.argmax(bad))
-        raise _Found(j, DivergenceError(f"observer {name!r} estimate left the finite numbers: "
-                                        f"z_hat = {blk.z_hat[0, j].tolist()}"), _head(blk, j))
 
 
 __all__ = ["CONTINUE", "Drive", "Loop", "LoopFailure", "Periods", "Segment"]
