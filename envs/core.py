@@ -831,11 +831,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         nq = len(self.plant._qadr)
         q = np.array(x[:nq], dtype=float)
         ghost = q.copy()
-        if x_hat is not None:
-            est = {name: i for i, name in enumerate(self.estimate_names)}
-            for i, name in enumerate(self.state_names[:nq]):
-                if name in est:
-                    ghost[i] = x_hat[est[name]]
+        if x_hat is not None:  # the estimated joint positions (the states matched by name)
+            for j, e in self._err_pairs:
+                if j < nq:
+                    ghost[j] = x_hat[e]
         return self._renderer.render(q, ghost)
 
     def close(self) -> None:
