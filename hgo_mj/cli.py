@@ -213,7 +213,8 @@ def build_plant(pl: dict[str, Any], name: str = "run") -> Any:
         from .systems.symbolic import ode_system
 
         system = ode_system(pl["states"], pl["f"], pl["h"], inputs=pl.get("inputs", ()),
-                            params=pl.get("params"), x0=pl.get("x0"), name=name)()
+                            params=pl.get("params"), x0=pl.get("x0"), name=name,
+                            held_input=pl.get("held_input", False))()
         return OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
     if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
         return make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),

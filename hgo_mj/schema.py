@@ -34,6 +34,7 @@ KINDS: dict[str, str] = {
     "table_or_tables": "a table, or a list of tables (one per actuator)",
     "numbers": "a list of numbers",
     "names": "a non-empty list of strings",
+    "bool": "true or false",
 }
 
 #: section -> key -> kind; ``None`` for a section means "a list of tables" (``observers``)
@@ -43,7 +44,7 @@ SCHEMA: dict[str, dict[str, str]] = {
     # name = a registered plant, model = an MJCF file with its outputs (and inputs), or an ODE
     # given by states, f and h (with inputs and params)
     "plant": {"name": "string", "model": "string", "outputs": "names", "inputs": "names",
-              "states": "names", "f": "names", "h": "string",
+              "states": "names", "f": "names", "h": "string", "held_input": "bool",
               "dt": "positive", "physics_dt": "positive", "params": "table", "x0": "numbers"},
     "sensor": {"stages": "tables"},
     "run": {"duration": "positive", "sample_period": "positive", "control_period": "positive",
@@ -63,6 +64,8 @@ OPEN = ("observers", "input", "controller", "stages")
 
 
 def _ok(kind: str, value: Any) -> bool:
+    if kind == "bool":
+        return isinstance(value, bool)
     if kind == "string":
         return isinstance(value, str)
     if kind == "table_or_tables":

@@ -9,9 +9,11 @@ and gets a :class:`System` whose single-output normal form (paper 000, eq. 1) is
 
 * the Lie derivatives ``L_f^k h`` and the observability map
   ``Phi(x) = (h, L_f h, ..., L_f^(n-1) h)`` with its Jacobian;
-* the relative degree: where some ``L_f^k h`` with ``k < n`` depends on ``u``, the normal form
-  would need derivatives of ``u``: :attr:`SymbolicSystem.normal_form_problem` says so (the
-  EKF/UKF still apply);
+* the relative degree ``r`` (the first ``k`` with ``u`` in ``L_f^k h``): where ``r < n`` the
+  normal form would need derivatives of ``u``: :attr:`SymbolicSystem.normal_form_problem` says
+  so (the EKF/UKF still apply); with ``held_input=True``, ``Phi`` depends on ``u`` and ``phi``
+  holds for an input held between its steps (``u' = 0``), the construction of paper 000 for its
+  bioreactor (eq. 16), and :attr:`SymbolicSystem.normal_form_note` says so;
 * ``phi(z, u) = L_f^n h`` at ``x = Phi^-1(z)``, with ``z_n' = phi(z, u)``;
 * the inverse map, in closed form where each equation ``Phi_k(x) = z_k`` brings in one new
   unknown with a single solution (``sympy.solve``), else Newton's method on the Jacobian from the
@@ -27,8 +29,12 @@ builds the sympy expression node by node, allowing numbers, declared names, ``+ 
 unary signs and calls of :data:`FUNCTIONS`; anything else is a :class:`ModelError` naming it and
 its position.
 
-**Evaluation.** Each derived expression becomes a tree of numpy closures (:func:`numeric`): no
-generated source, no ``exec``; it evaluates on scalars or on arrays of B members alike.
+**Evaluation.** Every derived expression is compiled into a numba row function
+(:mod:`hgo_mj.systems._codegen`: sympy's code printer over the checked expression with its
+symbols renamed, so no user text reaches the generated source); :meth:`SymbolicSystem.phi_batch`
+is one kernel over the observers' rows, and :attr:`SymbolicSystem.compiled` hands ``f`` and its
+Jacobians to the Kalman filters' kernels. ``scripts/bench_symbolic.py`` measures a derived system
+against the hand-written one (BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -39,9 +45,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 import sympy
+from numba import njit
 
 from ..exceptions import ModelError
-from .base import Array, System
+from ._codegen import row_function
+from .base import Array, CompiledModel, System
 
 #: the functions an expression may call: name -> (sympy function, numpy function)
 FUNCTIONS: dict[str, tuple[Any, Callable[[Any], Any]]] = {
@@ -111,37 +119,6 @@ def _node(node: ast.AST, names: Mapping[str, sympy.Symbol], where: str, text: st
                      f"+ - * / **{allowed})")
 
 
-def numeric(expr: sympy.Expr) -> Callable[[Mapping[sympy.Symbol, Any]], Any]:
-    """A closure evaluating ``expr`` with numpy from ``{symbol: value}`` (scalars or arrays)."""
-    if expr.is_Symbol:
-        return lambda env: env[expr]
-    if expr.is_Number or expr in (sympy.pi, sympy.E):
-        c = float(expr)
-        return lambda env: c
-    args = [numeric(a) for a in expr.args]
-    if isinstance(expr, sympy.Add):
-        return lambda env: sum(a(env) for a in args)
-    if isinstance(expr, sympy.Mul):
-        def product(env: Mapping[sympy.Symbol, Any]) -> Any:
-            out = args[0](env)
-            for a in args[1:]:
-                out = out * a(env)
-            return out
-        return product
-    if isinstance(expr, sympy.Pow):
-        base, power = args
-        return lambda env: base(env) ** power(env)
-    if expr.func is sympy.DiracDelta:
-        first = args[0]
-        return lambda env: 0.0 * first(env)
-    fn = _NUMPY.get(expr.func)
-    if fn is not None and len(args) == 1:
-        (arg,) = args
-        return lambda env: fn(arg(env))
-    raise ModelError(f"the derived expression {expr} uses {expr.func}, which hgo_mj cannot "
-                     f"evaluate")
-
-
 def _names(what: str, value: Any, allow_empty: bool = False) -> tuple[str, ...]:
     ok = isinstance(value, (list, tuple)) and all(isinstance(v, str) and v.isidentifier()
                                                    for v in value)
@@ -152,97 +129,210 @@ def _names(what: str, value: Any, allow_empty: bool = False) -> tuple[str, ...]:
 
 
 class SymbolicSystem(System):
-    """A system derived from expressions by :func:`ode_system` (one subclass per model)."""
+    """A system derived from expressions by :func:`ode_system` (one subclass per model).
+
+    Every derived expression is compiled (:mod:`hgo_mj.systems._codegen`): ``dynamics``,
+    ``output``, the Jacobians the Kalman filters use (also as :attr:`compiled`, so their kernels
+    run it without returning to Python), ``Phi`` and its Jacobian, the inverse and ``phi``.
+    :meth:`phi_batch`, the high-gain observers' model term, is one kernel over the rows.
+    """
 
     reference = "normal form derived symbolically (paper 000, eq. 1)"
-    #: why the single-output normal form does not hold (relative degree), else None
-    normal_form_problem: ClassVar[str | None] = None
     #: a sampled point of the region where the observability rank drops, else None
     rank_problem: ClassVar[str | None] = None
     #: sampled Lipschitz bound of phi in z over the region
     lipschitz: ClassVar[float] = float("nan")
     #: whether the inverse map is in closed form (else Newton)
     closed_form_inverse: ClassVar[bool] = False
+    #: the first k with u in L_f^k h (None: u enters no L_f^k h, k <= n)
+    relative_degree: ClassVar[int | None] = None
+    #: why the single-output normal form does not hold (relative degree < n without
+    #: ``held_input``), else None
+    normal_form_problem: ClassVar[str | None] = None
+    #: where the normal form holds only for a held input (relative degree < n), why
+    normal_form_note: ClassVar[str | None] = None
     _sym: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         self.inverse_failures = 0
         self._last = np.array(self.default_x0, dtype=float)
+        self._rows_last = np.empty((0, len(self.state_names)))
+        self._cvec = np.array([self.params[k] for k in self.param_names], dtype=float)
 
-    def _env(self, x: Any, u: Any, p: Mapping[str, float] | None = None) -> dict[Any, Any]:
-        s = self._sym
-        env: dict[Any, Any] = {sym: (self.params if p is None else p)[name]
-                               for name, sym in s["params"].items()}
-        env.update(zip(s["x"], x))
-        env.update(zip(s["u"], u if u is not None else np.zeros(len(s["u"]))))
-        return env
+    def _c(self, p: Mapping[str, float] | None = None) -> Array:
+        if p is None or p is self.params:
+            return self._cvec
+        return np.array([p[k] for k in self.param_names], dtype=float)
+
+    def _u(self, u: Any) -> Array:
+        return (np.zeros(len(self.input_names)) if u is None
+                else np.asarray(u, dtype=float).reshape(len(self.input_names)))
 
     def dynamics(self, t: float, x: Array, u: Array, p: Any = None) -> Array:  # type: ignore[override]
-        env = self._env(x, u, p)
-        return np.array([np.asarray(fk(env), dtype=float) for fk in self._sym["f"]])
+        out = np.empty(len(self.state_names))
+        self._sym["f"](np.asarray(x, dtype=float), self._u(u), self._c(p), out)
+        return out
 
     def output(self, x: Array, p: Any = None) -> Array:  # type: ignore[override]
-        env = self._env(x, None, p)
-        return np.array([float(self._sym["h"](env))])
+        out = np.empty(1)
+        self._sym["h"](np.asarray(x, dtype=float), self._c(p), out)
+        return out
 
-    def to_normal(self, x: Any, u: Any = None) -> Array:
-        self._require()
-        env = self._env(np.asarray(x, dtype=float), u)
-        return np.array([float(k(env)) for k in self._sym["Phi"]])
+    def jacobian(self, t: float, x: Array, u: Array, p: Any = None) -> Array:
+        """:math:`\\partial f/\\partial x` at ``(x, u)``, shape ``(n, n)`` (derived)."""
+        n = len(self.state_names)
+        out = np.empty((n, n))
+        self._sym["jac"](np.asarray(x, dtype=float), self._u(u), self._c(p), out)
+        return out
 
-    def from_normal(self, z: Any, u: Any = None) -> Array:
-        self._require()
-        return self.from_normal_unchecked(np.asarray(z, dtype=float), u)
-
-    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
-        s = self._sym
-        if s["inverse"] is not None:
-            env = {**self._env(self._last, u), **dict(zip(s["z"], z))}
-            x = np.array([float(k(env)) for k in s["inverse"]])
-        else:
-            x = self._newton(z, u)
-        self._last = x
-        return x
-
-    def _newton(self, z: Array, u: Array) -> Array:
-        """``Phi(x) = z`` by Newton's method on the Jacobian, from the last inverse."""
-        x = self._last.copy() if np.all(np.isfinite(self._last)) else np.zeros(len(z))
-        s = self._sym
-        for _ in range(30):
-            env = self._env(x, u)
-            r = np.array([float(k(env)) for k in s["Phi"]]) - z
-            if np.max(np.abs(r)) <= 1e-12 * (1.0 + np.max(np.abs(z))):
-                return x
-            J = np.array([[float(c(env)) for c in row] for row in s["J"]])
-            try:
-                x = x - np.linalg.solve(J, r)
-            except np.linalg.LinAlgError:
-                break
-        self.inverse_failures += 1
-        return x
-
-    def phi(self, z: Any, u: Any = None) -> float:
-        self._require()
-        return self.phi_unchecked(np.asarray(z, dtype=float),
-                                  np.zeros(len(self.input_names)) if u is None else u)
-
-    def phi_unchecked(self, z: Array, u: Array) -> float:
-        x = self.from_normal_unchecked(z, u)
-        return float(self._sym["phi"](self._env(x, u)))
-
-    def phi_batch(self, Z: Array, U: Array) -> Array:
-        return np.array([self.phi_unchecked(z, u) for z, u in zip(Z, U)], dtype=float)
+    def param_jacobian(self, t: float, x: Array, u: Array, p: Any,
+                       names: Sequence[str]) -> Array:
+        """:math:`\\partial f/\\partial p` for the parameters ``names``, shape
+        ``(n, len(names))`` (derived)."""
+        out = np.empty((len(self.state_names), len(self.param_names)))
+        self._sym["pjac"](np.asarray(x, dtype=float), self._u(u), self._c(p), out)
+        return out[:, [self.param_names.index(k) for k in names]]
 
     def _require(self) -> None:
         if self.normal_form_problem is not None:
             raise ModelError(self.normal_form_problem)
 
+    def to_normal(self, x: Any, u: Any = None) -> Array:
+        self._require()
+        out = np.empty(len(self.state_names))
+        self._sym["Phi"](np.asarray(x, dtype=float), self._u(u), self._c(), out)
+        return out
+
+    def from_normal(self, z: Any, u: Any = None) -> Array:
+        self._require()
+        return self.from_normal_unchecked(np.asarray(z, dtype=float), self._u(u))
+
+    def from_normal_unchecked(self, z: Array, u: Array) -> Array:
+        if self._sym["identity"]:  # the normal form is the state: z back as it is
+            return z
+        X = self.from_normal_batch(np.asarray(z, dtype=float).reshape(1, -1),
+                                   np.asarray(u, dtype=float).reshape(1, -1),
+                                   start=self._last.reshape(1, -1))
+        self._last = X[0]
+        return X[0]
+
+    def from_normal_batch(self, Z: Array, U: Array, start: Array | None = None) -> Array:
+        """``Phi^-1`` of the rows ``Z`` ``(N, n)`` at inputs ``U`` ``(N, m)``: the closed form,
+        or Newton's method from ``start`` (default: the rows' last inverse), compiled."""
+        Z = np.ascontiguousarray(Z, dtype=float)
+        U = np.ascontiguousarray(U, dtype=float)
+        k = self._sym["kernels"]
+        if self._sym["identity"]:
+            return Z
+        if self.closed_form_inverse:
+            return k.inverse_rows(Z, U, self._cvec)  # type: ignore[no-any-return]
+        X = self._newton_start(Z) if start is None else np.array(start, dtype=float)
+        self.inverse_failures += int(k.newton_rows(Z, U, self._cvec, X))
+        if start is None:
+            self._rows_last = X
+        return X
+
+    def _newton_start(self, Z: Array) -> Array:
+        """Each row's last inverse (the default initial state where the batch is new), with
+        non-finite rows restarted at zero."""
+        if self._rows_last.shape != Z.shape:
+            self._rows_last = np.tile(np.asarray(self.default_x0, dtype=float), (len(Z), 1))
+        X = self._rows_last.copy()
+        X[~np.isfinite(X).all(axis=1)] = 0.0
+        return X
+
+    def phi(self, z: Any, u: Any = None) -> float:
+        self._require()
+        return self.phi_unchecked(np.asarray(z, dtype=float), self._u(u))
+
+    def phi_unchecked(self, z: Array, u: Array) -> float:
+        x = self.from_normal_unchecked(z, u)
+        out = np.empty(1)
+        self._sym["phi"](x, np.asarray(u, dtype=float), self._c(), out)
+        return float(out[0])
+
+    def phi_batch(self, Z: Array, U: Array) -> Array:
+        Z = np.ascontiguousarray(Z, dtype=float)
+        U = np.ascontiguousarray(U, dtype=float)
+        k = self._sym["kernels"]
+        if self.closed_form_inverse:
+            return k.phi_rows(Z, U, self._cvec)  # type: ignore[no-any-return]
+        X = self._newton_start(Z)
+        self.inverse_failures += int(k.newton_rows(Z, U, self._cvec, X))
+        self._rows_last = X
+        return k.phi_x_rows(X, U, self._cvec)  # type: ignore[no-any-return]
+
+
+class _Kernels:
+    """The row loops of one derived system, compiled with its row functions as constants (so
+    a call passes arrays only): ``inverse_rows(Z, U, c)`` (closed form), ``phi_rows(Z, U, c)``
+    (closed-form inverse, then ``phi``), ``newton_rows(Z, U, c, X)`` (``Phi(x) = z`` by
+    Newton's method from ``X``, overwritten with the solutions; returns the number of rows that
+    did not converge in 30 steps) and ``phi_x_rows(X, U, c)``."""
+
+    def __init__(self, n: int, Phi: Any, PhiJ: Any, phi: Any, inverse: Any) -> None:
+        @njit(error_model="numpy")
+        def phi_x_rows(X: Array, U: Array, c: Array) -> Array:
+            out = np.empty(X.shape[0])
+            v = np.empty(1)
+            for b in range(X.shape[0]):
+                phi(X[b], U[b], c, v)
+                out[b] = v[0]
+            return out
+
+        @njit(error_model="numpy")
+        def newton_rows(Z: Array, U: Array, c: Array, X: Array) -> int:
+            r = np.empty(n)
+            J = np.empty((n, n))
+            failures = 0
+            for b in range(Z.shape[0]):
+                x = X[b]
+                scale = 1.0 + np.max(np.abs(Z[b]))
+                ok = False
+                for _ in range(30):
+                    Phi(x, U[b], c, r)
+                    r -= Z[b]
+                    if np.max(np.abs(r)) <= 1e-12 * scale:
+                        ok = True
+                        break
+                    PhiJ(x, U[b], c, J)
+                    if not np.isfinite(J).all() or abs(np.linalg.det(J)) < 1e-300:
+                        break
+                    x -= np.linalg.solve(J, r)
+                if not ok:
+                    failures += 1
+            return failures
+
+        self.phi_x_rows, self.newton_rows = phi_x_rows, newton_rows
+        if inverse is None:
+            return
+
+        @njit(error_model="numpy")
+        def inverse_rows(Z: Array, U: Array, c: Array) -> Array:
+            X = np.empty_like(Z)
+            for b in range(Z.shape[0]):
+                inverse(Z[b], U[b], c, X[b])
+            return X
+
+        @njit(error_model="numpy")
+        def phi_rows(Z: Array, U: Array, c: Array) -> Array:
+            out = np.empty(Z.shape[0])
+            x = np.empty(n)
+            v = np.empty(1)
+            for b in range(Z.shape[0]):
+                inverse(Z[b], U[b], c, x)
+                phi(x, U[b], c, v)
+                out[b] = v[0]
+            return out
+
+        self.inverse_rows, self.phi_rows = inverse_rows, phi_rows
+
 
 def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Sequence[str] = (),
                params: Mapping[str, float] | None = None, x0: Sequence[float] | None = None,
                region: Sequence[Sequence[float]] | None = None, name: str = "ode",
-               samples: int = 256) -> type[SymbolicSystem]:
+               samples: int = 256, held_input: bool = False) -> type[SymbolicSystem]:
     """A :class:`SymbolicSystem` class for ``x' = f(x, u; params)``, ``y = h(x)``.
 
     Parameters
@@ -264,6 +354,10 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
         Registry-style name of the model.
     samples : int
         Points sampled in the region.
+    held_input : bool
+        Where the relative degree ``r`` is below ``n``: derive the input-dependent normal form
+        ``z = Phi(x, u)``, ``z_n' = phi(z, u)`` that holds while the input is held (``u' = 0``
+        between its steps, paper 000 eq. 16) instead of refusing the high-gain family.
 
     Returns
     -------
@@ -283,40 +377,67 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
     >>> sys = cls()
     >>> round(sys.phi([0.5, 0.2], [1.0]), 6) == round(-9.81 * np.sin(0.5) - 0.02 + 1.0, 6)
     True
-    >>> cls.closed_form_inverse, cls.normal_form_problem
-    (True, None)
+    >>> cls.closed_form_inverse, cls.relative_degree, cls.normal_form_note
+    (True, 2, None)
     """
     states = _names("states", states)
+    if not isinstance(held_input, bool):
+        raise ModelError(f"held_input must be true or false; found {held_input!r} "
+                         f"({type(held_input).__name__})")
     inputs = _names("inputs", inputs, allow_empty=True)
     params = dict(params or {})
     pnames = _names("params", list(params), allow_empty=True)
     n = len(states)
     X, U, P, fx, hx = _parse_model(states, inputs, pnames, f, h)
+    # Lie derivatives along f with the input held (u' = 0): L_f^k h, k = 0..n
     lie = [hx]
     for _ in range(n):
         lie.append(sympy.expand(sum(sympy.diff(lie[-1], xi) * fi for xi, fi in zip(X, fx))))
     Phi, phi_x = lie[:n], lie[n]
-    problem = None
-    dep = next((k for k in range(n) if any(Phi[k].has(u) for u in U)), None)
-    if dep is not None:
-        problem = (f"the input enters L_f^{dep} h (relative degree {dep} < n = {n}): the normal "
-                   f"form would need derivatives of u; the high-gain family does not apply, the "
-                   f"EKF/UKF still do")
+    rdeg = next((k for k in range(1, n + 1) if any(lie[k].has(u) for u in U)), None)
+    note = problem = None
+    if rdeg is not None and rdeg < n and held_input:
+        note = (f"the input enters L_f^{rdeg} h (relative degree {rdeg} < n = {n}): Phi depends "
+                f"on u, and phi is exact for an input held between its steps (u' = 0; the "
+                f"derivatives of u are left out), as paper 000 does for its bioreactor (eq. 16); "
+                f"the EKF/UKF need no such assumption")
+    elif rdeg is not None and rdeg < n:
+        problem = (f"the input enters L_f^{rdeg} h (relative degree {rdeg} < n = {n}): the "
+                   f"normal form would need derivatives of u; the high-gain family does not "
+                   f"apply (unless the input is held between steps: held_input = true, as "
+                   f"paper 000 eq. 16), the EKF/UKF still do")
     Z = sympy.symbols([f"z{i + 1}" for i in range(n)], real=True)
-    inverse = None if problem else _closed_inverse(Phi, X, Z)
+    inverse = _closed_inverse(Phi, X, Z)
     J = sympy.Matrix(Phi).jacobian(sympy.Matrix(X))
-    sym = {"x": X, "u": U, "z": Z, "params": P, "f": [numeric(e) for e in fx],
-           "h": numeric(hx), "Phi": [numeric(e) for e in Phi], "phi": numeric(phi_x),
-           "J": [[numeric(J[i, j]) for j in range(n)] for i in range(n)],
-           "inverse": None if inverse is None else [numeric(e) for e in inverse],
-           "exprs": {"Phi": Phi, "phi": phi_x, "f": fx, "h": hx, "inverse": inverse}}
+    Pl = list(P.values())
+    xuc = [("x", X), ("u", U), ("c", Pl)]
+    fm = sympy.Matrix(fx)
+    sym = {"x": X, "u": U, "z": Z, "params": P,
+           "f": row_function("f", fx, (n,), xuc),
+           "h": row_function("h", [hx], (1,), [("x", X), ("c", Pl)]),
+           "jac": row_function("jac", list(fm.jacobian(sympy.Matrix(X))), (n, n), xuc),
+           "pjac": row_function("pjac", list(fm.jacobian(sympy.Matrix(Pl))) if Pl else [],
+                                (n, len(Pl)), xuc),
+           "Phi": row_function("Phi", Phi, (n,), xuc),
+           "PhiJ": row_function("PhiJ", list(J), (n, n), xuc),
+           "phi": row_function("phi", [phi_x], (1,), xuc),
+           "inverse": None if inverse is None else row_function(
+               "inverse", inverse, (n,), [("z", Z), ("u", U), ("c", Pl)]),
+           "exprs": {"Phi": Phi, "phi": phi_x, "f": fx, "h": hx, "inverse": inverse, "J": J}}
+    sym["identity"] = inverse is not None and all(sympy.simplify(xi - zi) == 0
+                                                  for xi, zi in zip(inverse, Z))
+    sym["kernels"] = _Kernels(n, sym["Phi"], sym["PhiJ"], sym["phi"], sym["inverse"])
     x0t = tuple(float(v) for v in (x0 if x0 is not None else [0.0] * n))
     ns = {"name": name, "summary": f"ODE {name}: y = {h}", "state_names": states,
           "state_units": tuple("" for _ in states), "input_names": inputs,
           "input_units": tuple("" for _ in inputs), "output_names": ("y",),
           "param_names": pnames, "default_params": params, "default_x0": x0t,
-          "normal_form_order": None if problem else n, "normal_form_problem": problem,
-          "closed_form_inverse": inverse is not None, "_sym": sym}
+          "normal_form_order": None if problem else n, "relative_degree": rdeg,
+          "normal_form_problem": problem, "normal_form_note": note,
+          "closed_form_inverse": inverse is not None, "_sym": sym,
+          "compiled": type(f"Ode_{name}Model", (CompiledModel,), {
+              "__slots__": (), "dynamics": sym["f"], "jacobian": sym["jac"],
+              "param_jacobian": sym["pjac"]})()}
     cls: type[SymbolicSystem] = type(f"Ode_{name}", (SymbolicSystem,), ns)
     if len(x0t) != n:
         raise ModelError(f"x0 must have {n} entries, one per state; found {list(x0t)}")
@@ -373,23 +494,22 @@ def _check_region(cls: type[SymbolicSystem], region: Any, samples: int) -> None:
     if box.shape != (n, 2) or not np.all(box[:, 0] <= box[:, 1]):
         raise ModelError(f"region must be [[lo, hi], ...] with lo <= hi, one per state; "
                          f"found {region!r}")
-    if cls.normal_form_problem is not None:
-        return
-    system = cls()
     rng = np.random.default_rng(0)
     pts = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.random((samples, n))
     s = cls._sym
-    drops, bound = [], 0.0
+    dphi = row_function("dphi", [sympy.diff(s["exprs"]["phi"], xi) for xi in s["x"]], (n,),
+                        [("x", s["x"]), ("u", s["u"]), ("c", list(s["params"].values()))])
+    c = cls().param_vector()
     u0 = np.zeros(len(cls.input_names))
-    dphi = [numeric(sympy.diff(s["exprs"]["phi"], xi)) for xi in s["x"]]
+    J, g = np.empty((n, n)), np.empty(n)
+    drops, bound = [], 0.0
     for x in pts:
-        env = system._env(x, u0)
-        J = np.array([[float(c(env)) for c in row] for row in s["J"]])
+        s["PhiJ"](x, u0, c, J)
         if np.linalg.matrix_rank(J) < n:
             drops.append(x)
             continue
         # d phi / d z = (d phi / d x) (d Phi / d x)^-1 at x = Phi^-1(z)
-        g = np.array([float(d(env)) for d in dphi])
+        dphi(x, u0, c, g)
         bound = max(bound, float(np.linalg.norm(np.linalg.solve(J.T, g))))
     if len(drops) == len(pts):
         raise ModelError(f"{cls.name}: not observable from y = {s['exprs']['h']}: the "
@@ -402,4 +522,4 @@ def _check_region(cls: type[SymbolicSystem], region: Any, samples: int) -> None:
     cls.lipschitz = bound
 
 
-__all__ = ["FUNCTIONS", "SymbolicSystem", "numeric", "ode_system", "parse"]
+__all__ = ["FUNCTIONS", "SymbolicSystem", "ode_system", "parse"]

@@ -64,8 +64,114 @@ def test_elastic_joint_with_link_output_n4_round_trips():
         z = s.to_normal(x, u)
         np.testing.assert_allclose(s.from_normal(z, u), x, atol=1e-9)
         # phi = the fourth derivative of the link angle: d/dt of z4 along the dynamics
-        J = np.array([[float(c(s._env(x, u))) for c in row] for row in cls._sym["J"]])
+        J = np.empty((4, 4))
+        cls._sym["PhiJ"](x, u, s.param_vector(), J)
         assert s.phi(z, u) == pytest.approx(float(J[3] @ s.f(0.0, x, u)), rel=1e-9, abs=1e-9)
+
+
+ELASTIC_F = ["ql", "qm", "(-mass*g*com_distance*sin(q) - stiffness*(q - th) - link_damping*ql)"
+             "/link_inertia",
+             "(stiffness*(q - th) - motor_damping*qm + gear*u)/motor_inertia"]
+
+
+def test_derived_elastic_joint_with_link_output_equals_the_hand_written_one():
+    """n = 4 (Spong's elastic joint, y = link angle): Phi, its inverse, phi and the Jacobians
+    the Kalman filters use equal the hand-written ElasticJoint's to 1e-9."""
+    hand = _hand("elastic_joint")
+    cls = ode_system(["q", "th", "ql", "qm"], ELASTIC_F, "q", inputs=["u"],
+                     params=dict(hand.params), region=[[-1, 1]] * 4)
+    derived = cls()
+    assert cls.normal_form_order == 4 and cls.closed_form_inverse
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        x, u = rng.uniform(-1, 1, 4), rng.uniform(-1, 1, 1)
+        z = hand.to_normal(x, u)
+        np.testing.assert_allclose(derived.to_normal(x, u), z, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(derived.from_normal(z, u), hand.from_normal(z, u), atol=1e-9)
+        assert derived.phi(z, u) == pytest.approx(hand.phi(z, u), rel=1e-9, abs=1e-9)
+        np.testing.assert_allclose(derived.jacobian(0.0, x, u),
+                                   hand.jacobian(0.0, x, u, hand.params), atol=1e-9)
+    Z = np.array([hand.to_normal(x, [0.2]) for x in rng.uniform(-1, 1, (16, 4))])
+    U = np.full((16, 1), 0.2)
+    np.testing.assert_allclose(derived.phi_batch(Z, U), hand.phi_batch(Z, U), atol=1e-9)
+
+
+BULLINGER_F = ["a1*m*s/(a2*m + s) - u*m", "-a3*a1*m*s/(a2*m + s) - u*s + u*a4"]
+
+
+def test_derived_bullinger_bioreactor_equals_the_hand_written_one():
+    """Paper 000's bioreactor (eq. 15, y = m): the input enters m' (relative degree 1 < 2), so
+    the derived form is refused by default and, with held_input, is the paper's eq. 16:
+    Phi(x, u), its inverse and phi (u' = 0) equal the hand-written ones to 1e-9."""
+    hand = _hand("bioreactor_bullinger")
+    args = (["m", "s"], BULLINGER_F, "m")
+    kw = {"inputs": ["u"], "params": dict(hand.params), "region": [[0.05, 1], [0.0, 1]]}
+    refused = ode_system(*args, **kw)
+    assert refused.normal_form_problem.startswith("the input enters L_f^1 h (relative degree 1")
+    cls = ode_system(*args, **kw, held_input=True)
+    assert cls.normal_form_problem is None and "paper 000" in cls.normal_form_note
+    assert cls.relative_degree == 1 and cls.closed_form_inverse
+    derived = cls()
+    rng = np.random.default_rng(5)
+    for _ in range(100):
+        x = np.array([rng.uniform(0.05, 1.0), rng.uniform(0.0, 1.0)])
+        u = rng.uniform(0.0, hand.params["a4"], 1)
+        z = hand.to_normal(x, u)
+        np.testing.assert_allclose(derived.to_normal(x, u), z, atol=1e-9)
+        np.testing.assert_allclose(derived.from_normal(z, u), hand.from_normal(z, u), atol=1e-9)
+        assert derived.phi(z, u) == pytest.approx(hand.phi(z, u, 0.0), rel=1e-9, abs=1e-9)
+        np.testing.assert_allclose(derived.f(0.0, x, u), hand.f(0.0, x, u), atol=1e-12)
+
+
+BASTIN_GEVERS_F = ["-(mu_max/(K_m + K_c*z2 + z1)/p2)*z1*z2 - p3*z2 - z1 + u1",
+                   "(mu_max/(K_m + K_c*z2 + z1))*z1*z2 - z2 + u2"]
+
+
+def test_derived_bastin_gevers_bioreactor_agrees_with_its_aocf():
+    """Paper 002's bioreactor (eq. 6.1 corrected, y = z1) from text: f equals the hand-written
+    model; z2 = y' equals x2 + y theta1 + u1 of the hand-written AOCF (eq. 6.4-6.5); phi = y''
+    equals the derivative of y' along the hand-written flow (central difference, 1e-7)."""
+    hand = _hand("bioreactor_bastin_gevers")
+    cls = ode_system(["z1", "z2"], BASTIN_GEVERS_F, "z1", inputs=["u1", "u2"],
+                     params=dict(hand.params), region=[[0.1, 2], [0.1, 2]], held_input=True)
+    derived = cls()
+    # z1' = z2 is quadratic in z2 for a symbolic K_c (Contois): the inverse is Newton's
+    assert cls.relative_degree == 1 and not cls.closed_form_inverse
+    rng = np.random.default_rng(9)
+    for _ in range(50):
+        x, u = rng.uniform(0.1, 2.0, 2), rng.uniform(0.0, 2.0, 2)
+        np.testing.assert_allclose(derived.f(0.0, x, u), hand.f(0.0, x, u), atol=1e-12)
+        xa, theta = hand.to_aocf(x)
+        z = derived.to_normal(x, u)
+        assert z[1] == pytest.approx(xa[1] + x[0] * theta[0] + u[0], abs=1e-9)
+        np.testing.assert_allclose(derived.from_normal(z, u), x, atol=1e-9)
+        h = 1e-5
+        fx = hand.f(0.0, x, u)
+        ydd = (hand.f(0.0, x + h * fx, u)[0] - hand.f(0.0, x - h * fx, u)[0]) / (2 * h)
+        assert derived.phi(z, u) == pytest.approx(ydd, rel=1e-7, abs=1e-7)
+    assert derived.inverse_failures == 0
+
+
+JO_SON_F = ["x2 - x1**3 + u + theta*x1*u",
+            "-x1**2*x2 + x1*sin(x1)*u + 2*theta*x1*u - theta*x1**3*u",
+            "-x3 - x3**3 + x1*x2 + x1*u + theta*x1**2*u"]
+
+
+def test_derived_jo_son_example_is_found_not_observable():
+    """Paper 003's example (eq. 28) is, as the paper says, not observable from y = x1: the
+    derived observability map's Jacobian has rank 2 < 3 everywhere (x3 never reaches y), so
+    no high-gain normal form exists; its Jo-Son form (eq. 30-31) stays hand-written."""
+    with pytest.raises(ModelError, match="not observable from y = x1: the observability map's "
+                                         "Jacobian has rank < 3"):
+        ode_system(["x1", "x2", "x3"], JO_SON_F, "x1", inputs=["u"], params={"theta": 1.0})
+    # its observable part (x1, x2) alone has the normal form; f matches eq. 28 there
+    hand = _hand("jo_son")
+    part = ode_system(["x1", "x2"], JO_SON_F[:2], "x1", inputs=["u"], params={"theta": 1.0},
+                      held_input=True)()
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        x, u = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 1)
+        np.testing.assert_allclose(part.f(0.0, x[:2], u), hand.f(0.0, x, u)[:2], atol=1e-12)
 
 
 def test_newton_inverse_where_no_closed_form():
