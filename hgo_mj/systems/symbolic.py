@@ -194,6 +194,74 @@ class SymbolicSystem(System):
         self._sym["pjac"](np.asarray(x, dtype=float), self._u(u), self._c(p), out)
         return out[:, [self.param_names.index(k) for k in names]]
 
+    def _form_affine(self, unknown: Sequence[str] | None = None) -> Any:
+        """The derived normal form in paper 001's eq. 9: ``z_k' = z_(k+1)`` and
+        :math:`\\dot z_n = \\varphi_0(z, u) + \\psi(z, u)\\,\\theta`, with the regressor
+        :math:`\\psi_j = \\partial\\varphi/\\partial\\theta_j` (eq. 7) derived, for the parameters
+        ``unknown`` (default: the parameters in declaration order, each kept where ``phi``
+        stays jointly linear in those kept).
+
+        Parameters
+        ----------
+        unknown : sequence of str, optional
+            The parameters the Besançon observer estimates.
+
+        Returns
+        -------
+        AffineForm
+            Its ``terms`` compiled; the physical state from the estimate through the derived
+            inverse at the estimated parameters.
+
+        Raises
+        ------
+        DesignError
+            ``unknown`` names no parameter or an unknown one, or ``phi`` is not linear in it
+            (the regressor would depend on the parameters: no linear parametrization).
+        """
+        from ..exceptions import DesignError
+        from .affine_form import AffineForm
+
+        self._require()
+        s = self._sym
+        P = s["params"]
+        phi_z = _phi_z(s)
+        if phi_z is None:
+            raise DesignError(f"{type(self).__name__}: the affine form needs phi in normal-form "
+                              f"coordinates, which needs the inverse map in closed form (this "
+                              f"system's is Newton's)")
+        linear: list[str] = []
+        for k in self.param_names:  # greedily, in declaration order, while jointly linear
+            if _linear_in(phi_z, [P[j] for j in [*linear, k]]):
+                linear.append(k)
+        names = tuple(linear if unknown is None else unknown)
+        bad = [k for k in names if k not in P]
+        if not names or bad or len(set(names)) != len(names):
+            raise DesignError(f"unknown must be distinct parameter names of {list(P)}; found "
+                              f"{list(names)}")
+        if not _linear_in(phi_z, [P[k] for k in names]):
+            raise DesignError(f"phi = {phi_z} is not linear in {list(names)} (paper 001, eq. 9 "
+                              f"needs phi_0 + psi theta with psi free of theta); it is linear "
+                              f"in {linear}")
+        terms = _affine_terms(self, names)
+        idx = np.array([self.param_names.index(k) for k in names], dtype=np.int64)
+        kernels, c = s["kernels"], self._cvec
+
+        def to_physical(Z: Array, TH: Array, U: Array) -> Array:
+            C = np.tile(c, (len(Z), 1))
+            C[:, idx] = TH
+            return kernels.inverse_rows_p(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
+                                          np.ascontiguousarray(U, dtype=float), C)
+
+        n = len(self.state_names)
+        return AffineForm(orders=(n,), theta_names=names, terms=terms,
+                          label=f"{self.name}: z{n}' = phi0 + psi theta, unknown {list(names)}",
+                          theta=[self.params[k] for k in names],
+                          state_names=tuple(f"z{i + 1}" for i in range(n)),
+                          n_inputs=len(self.input_names),
+                          to_physical=None if s["identity"] else to_physical,
+                          physical_state_names=self.state_names,
+                          true_physical={k: self.params[k] for k in names})
+
     def _require(self) -> None:
         if self.normal_form_problem is not None:
             raise ModelError(self.normal_form_problem)
@@ -326,7 +394,67 @@ class _Kernels:
                 out[b] = v[0]
             return out
 
+        @njit(error_model="numpy")
+        def inverse_rows_p(Z: Array, U: Array, C: Array) -> Array:
+            X = np.empty_like(Z)
+            for b in range(Z.shape[0]):
+                inverse(Z[b], U[b], C[b], X[b])
+            return X
+
         self.inverse_rows, self.phi_rows = inverse_rows, phi_rows
+        self.inverse_rows_p = inverse_rows_p
+
+
+def _phi_z(s: dict[str, Any]) -> Any:
+    """``phi`` in normal-form coordinates, ``phi(Phi^-1(z, u), u)`` (closed-form inverse only;
+    else None), simplified once and kept."""
+    e = s["exprs"]
+    if "phi_z" not in e:
+        e["phi_z"] = None if e["inverse"] is None else sympy.simplify(
+            e["phi"].xreplace(dict(zip(s["x"], e["inverse"]))))
+    return e["phi_z"]
+
+
+def _linear_in(expr: Any, thetas: Sequence[Any]) -> bool:
+    """Whether ``expr`` is affine in the symbols ``thetas`` jointly: every derivative in them
+    is free of all of them."""
+    return bool(thetas) and all(not sympy.diff(expr, t).has(*thetas) for t in thetas)
+
+
+def _affine_terms(system: SymbolicSystem, names: tuple[str, ...]) -> Any:
+    """``terms(Z, U) -> (phi (N, n), psi (N, 1, q))`` of :meth:`SymbolicSystem._form_affine`:
+    ``phi`` zero but its last column ``phi_0`` (the unknowns set to 0), ``psi`` the regressor,
+    one compiled row function for both."""
+    s = system._sym
+    P = s["params"]
+    thetas = [P[k] for k in names]
+    phi_z = _phi_z(s)
+    exprs = [phi_z.xreplace({t: 0 for t in thetas})] + [sympy.diff(phi_z, t) for t in thetas]
+    row = row_function("affine", exprs, (1 + len(names),),
+                       [("z", s["z"]), ("u", s["u"]), ("c", list(P.values()))])
+    n, q = len(system.state_names), len(names)
+    kernel = _affine_kernel(row, n, q)
+    c = system._cvec
+
+    def terms(Z: Array, U: Array) -> tuple[Array, Array]:
+        return kernel(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
+                      np.ascontiguousarray(U, dtype=float), c)
+    return terms
+
+
+def _affine_kernel(row: Any, n: int, q: int) -> Any:
+    @njit(error_model="numpy")
+    def kernel(Z: Array, U: Array, c: Array) -> tuple[Array, Array]:
+        N = Z.shape[0]
+        phi = np.zeros((N, n))
+        psi = np.empty((N, 1, q))
+        v = np.empty(1 + q)
+        for b in range(N):
+            row(Z[b], U[b], c, v)
+            phi[b, n - 1] = v[0]
+            psi[b, 0, :] = v[1:]
+        return phi, psi
+    return kernel
 
 
 def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Sequence[str] = (),
@@ -435,6 +563,7 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
           "normal_form_order": None if problem else n, "relative_degree": rdeg,
           "normal_form_problem": problem, "normal_form_note": note,
           "closed_form_inverse": inverse is not None, "_sym": sym,
+          "forms": ("affine",) if P and inverse is not None and problem is None else (),
           "compiled": type(f"Ode_{name}Model", (CompiledModel,), {
               "__slots__": (), "dynamics": sym["f"], "jacobian": sym["jac"],
               "param_jacobian": sym["pjac"]})()}
