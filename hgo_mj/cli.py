@@ -566,6 +566,9 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="which observer applies to a plant, and why")
     c.add_argument("target", metavar="PLANT-OR-SCENARIO",
                    help="a registered plant name (see `hgo-mj list`) or a scenario TOML file")
+    c.add_argument("--sample-period", type=float, default=None, metavar="S",
+                   help="sample period [s] to check against paper 004's LMI bound (default: "
+                        "the scenario's run.sample_period, else the plant's step)")
     sub.add_parser("list", help="plants, sensor stages, observers, inputs and reproductions")
     rp = sub.add_parser("reproduce", help="reproduce a paper's example (see `hgo-mj list`)")
     rp.add_argument("name", help="reproduction name")
@@ -637,8 +640,10 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_check(target: str) -> int:
-    """``hgo-mj check PLANT-OR-SCENARIO``: which observer applies to the plant, and why."""
+def cmd_check(target: str, sample_period: float | None = None) -> int:
+    """``hgo-mj check PLANT-OR-SCENARIO [--sample-period S]``: which observer applies to the
+    plant, and why; the sample period (the flag, else the scenario's ``run.sample_period``, else
+    the plant's step) against paper 004's LMI bound."""
     from . import check
 
     if target.endswith(".toml"):
@@ -647,9 +652,13 @@ def cmd_check(target: str) -> int:
         if not any(k in pl for k in ("name", "model", "f")):
             raise DesignError(f"scenario {target!r} has no plant ([plant] name, model or f)")
         plant = build_plant(pl, str(sc.get("name", "run")))
+        if sample_period is None:
+            sample_period = sc.get("run", {}).get("sample_period")
     else:
         plant = build_plant({"name": target})
-    print(check.table(plant.system))
+    if sample_period is None:
+        sample_period = getattr(plant, "dt", None)
+    print(check.table(plant.system, sample_period))
     return 0
 
 
@@ -663,7 +672,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "sweep":
             return cmd_sweep(args)
         if args.command == "check":
-            return cmd_check(args.target)
+            return cmd_check(args.target, args.sample_period)
         if args.command == "reproduce":
             return cmd_reproduce(args)
         if args.command == "demo":

@@ -66,3 +66,23 @@ def test_the_command_prints_the_table_and_run_refuses(tmp_path, capsys):
                    "000, eq. 1); ElasticJoint2Link declares none (outputs: ['link1_angle', "
                    "'link2_angle'])"]
     assert not (tmp_path / "o").exists()
+
+
+def test_sample_period_against_the_lmi_bound_of_paper_004(capsys):
+    """The Riccati row notes the sample period against LMI (63)/(65) (Theorem 2) for the
+    derived system's Lipschitz bound: within at 1 ms, beyond at 50 ms (a note, not a refusal:
+    the bound is sufficient); the command takes the period from the flag or the scenario."""
+    system = ode_system(["x1", "x2"], ["x2", "-9.81*sin(x1)"], "x1")()
+    fine = {r.observer: r for r in check.check(system, 0.001)}
+    assert fine["riccati"].applies and fine["riccati"].note.startswith(
+        "sample period 0.001 s is within the bound delta_max = ")
+    coarse = {r.observer: r for r in check.check(system, 0.05)}
+    assert coarse["riccati"].applies and "exceeds the bound" in coarse["riccati"].note
+    assert "not certified" in coarse["riccati"].note
+    assert all(not r.note for name, r in coarse.items() if name != "riccati")
+    assert check.sampling_note(make_plant("pendulum").system, 0.01) == ""  # no rho stated
+    with pytest.raises(DesignError, match="sample_period must be"):
+        check.check(system, -1.0)
+    assert main(["check", str(ROOT / "scenarios" / "ode_pendulum.toml"), "--sample-period",
+                 "0.05"]) == 0
+    assert "riccati          applies  sample period 0.05 s exceeds" in capsys.readouterr().out
