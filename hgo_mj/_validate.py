@@ -6,12 +6,14 @@ import inspect
 import math
 import numbers
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .exceptions import DesignError, DimensionError
+
+_T = TypeVar("_T")
 
 
 def is_real(value: Any) -> bool:
@@ -216,3 +218,42 @@ def check_call(where: str, fn: Callable[..., Any], params: Mapping[str, Any],
                and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
     if missing:
         raise DesignError(f"{where}: missing required parameter(s) {missing}")
+
+
+def import_class(what: str, spec: Any, base: type[_T]) -> type[_T]:
+    """The class named by ``spec`` = ``"module:Class"`` (``module`` importable from
+    ``sys.path`` or the current folder), checked to subclass ``base``; every failure is one
+    :class:`DesignError` line naming ``what``, the spec and the cause (a module that does not
+    import gives its exception's first line)."""
+    import importlib
+    import os
+    import sys
+
+    if not isinstance(spec, str) or spec.count(":") != 1:
+        raise DesignError(f"{what} must be a registered name or 'module:Class'; found {spec!r}")
+    module, attr = spec.split(":")
+    if not all(p.isidentifier() for p in module.split(".")) or not all(
+            p.isidentifier() for p in attr.split(".")):
+        raise DesignError(f"{what} {spec!r} must be 'module:Class' (dotted Python names)")
+    here = os.getcwd()
+    added = here not in sys.path
+    if added:
+        sys.path.append(here)
+    try:
+        mod = importlib.import_module(module)
+    except Exception as exc:  # noqa: BLE001 - any failure of user code is reported, one line
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise DesignError(f"{what} {spec!r}: module {module!r} does not import "
+                          f"({type(exc).__name__}: {first})") from None
+    finally:
+        if added:
+            sys.path.remove(here)
+    obj: Any = mod
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise DesignError(f"{what} {spec!r}: module {module!r} has no {attr!r}")
+        obj = getattr(obj, part)
+    if not (isinstance(obj, type) and issubclass(obj, base)):
+        raise DesignError(f"{what} {spec!r} must name a subclass of {base.__name__}; found "
+                          f"{obj!r}")
+    return obj

@@ -211,9 +211,11 @@ def refuse_inapplicable(kind: str, system: Any, label: str) -> None:
     >>> from hgo_mj.plants import make_plant
     >>> refuse_inapplicable("ekf", make_plant("pendulum").system, "ekf_0")
     """
-    from .observers import registered
+    from ._validate import import_class
+    from .observers import Observer, registered
 
-    cls = registered().get(kind)
+    cls = (import_class("observer", kind, Observer) if isinstance(kind, str) and ":" in kind  # type: ignore[type-abstract]
+           else registered().get(kind))
     reason = None if cls is None else cls.applicability(system)
     if reason:
         raise DesignError(f"observer {label!r} ({kind}) does not apply to "

@@ -63,8 +63,12 @@ def parse_value(text: str) -> Any:
 
 
 def parse_spec(spec: str, key: str) -> dict[str, Any]:
-    """``"kind:a=1,b=[1,2]"`` -> ``{key: "kind", "a": 1, "b": [1, 2]}``."""
+    """``"kind:a=1,b=[1,2]"`` -> ``{key: "kind", "a": 1, "b": [1, 2]}``; the kind may be the
+    user's own class, ``"module:Class"`` (``"mymod:MyObserver:k=10"``)."""
     kind, _, rest = spec.partition(":")
+    head, colon, tail = rest.partition(":")
+    if head and "=" not in head and "," not in head:  # module:Class[:params]
+        kind, rest = f"{kind}:{head}", tail
     out: dict[str, Any] = {key: kind.strip()}
     depth, item, items = 0, "", []
     for ch in rest:
@@ -180,7 +184,8 @@ def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
         kind = spec.pop("type", None)
         if kind is None:
             raise DesignError(f"observer #{i + 1} needs type = ...")
-        label = spec.pop("name", f"{kind}_{i}")
+        short = kind.rsplit(":", 1)[-1].rsplit(".", 1)[-1] if isinstance(kind, str) else kind
+        label = spec.pop("name", f"{short}_{i}")
         if label in observers:
             raise DesignError(f"two observers are named {label!r}; give each a distinct name")
         refuse_inapplicable(kind, plant.system, label)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
-from .._validate import check_call
+from .._validate import check_call, import_class
 from ..exceptions import DesignError
 from .adaptive_gain import AdaptiveGainObserver
 from .bank import ObserverBank
@@ -66,9 +66,13 @@ def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
     hgo_mj.exceptions.DesignError: unknown observer 'high_gian'; valid: [...]
     """
     known = registered()
-    if not isinstance(kind, str) or kind not in known:
-        raise DesignError(f"unknown observer {kind!r}; valid: {sorted(known)}")
-    cls = known[kind]
+    if isinstance(kind, str) and ":" in kind:  # the user's own Observer subclass
+        cls = import_class("observer", kind, Observer)  # type: ignore[type-abstract]
+    elif not isinstance(kind, str) or kind not in known:
+        raise DesignError(f"unknown observer {kind!r}; valid: {sorted(known)}, or "
+                          f"'module:Class' (an Observer subclass)")
+    else:
+        cls = known[kind]
     sig = inspect.signature(cls.__init__)
     if not any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
         valid = [p for p in sig.parameters if p not in ("self", "system")]

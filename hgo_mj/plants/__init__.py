@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from .._validate import check_call, reject_unknown
+from .._validate import check_call, import_class, reject_unknown
 from ..exceptions import DesignError
 from .base import Plant
 from .mujoco import MujocoPlant, model_path
@@ -63,9 +63,15 @@ def make_plant(name: str | os.PathLike[str], dt: float | None = None, *,
 
     if isinstance(name, os.PathLike) or (isinstance(name, str) and name.endswith(".xml")):
         return _mjcf_plant(name, dt, physics_dt, params)
-    if not isinstance(name, str) or name not in SYSTEMS:
-        raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}")
-    cls = SYSTEMS[name]
+    if isinstance(name, str) and ":" in name:  # the user's own System subclass
+        from ..systems.base import System
+
+        cls = import_class("plant", name, System)
+    elif not isinstance(name, str) or name not in SYSTEMS:
+        raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}, an MJCF file, "
+                          f"or 'module:Class' (a System subclass)")
+    else:
+        cls = SYSTEMS[name]
     if cls.model_file is not None:
         reject_unknown(f"plant {name!r} (MuJoCo: parameters come from {cls.model_file})",
                        params, ["model_file", "outputs", "nthread"])
