@@ -10,7 +10,8 @@ Per step or update, best of ``R`` interleaved rounds:
 
 * the plant: ``MujocoPlant.run`` over a block of ``N`` physics steps of 1 ms;
 * the high-gain observer with its model term: ``high_gain`` (``model=True``, ``Pendulum.phi``)
-  against ``high_gain_multi`` (``model=True``, the MJCF's ``mj_forward`` at the estimate);
+  against ``high_gain_multi`` (``model=True``, the MJCF's ``mj_forward`` at the estimate), one
+  observer, and a batch of 64 per member (the MJCF's model term through ``mujoco.batch``);
 * the EKF: ``ekf`` on the hand-written compiled model, and ``ekf_mujoco`` (stepping the MJCF
   and ``mjd_transitionFD``) on each system.
 """
@@ -48,6 +49,17 @@ def _observer_case(obs, steps: int):
     return run, steps
 
 
+def _batch_case(obs, steps: int, B: int = 64):
+    """Per member and sample of a batch of ``B`` observers (``Observer.step``)."""
+    y, u = np.full((B, len(obs.outputs)), 0.1), np.full((B, 1), 0.2)
+    obs.reset(batch=B)
+
+    def run() -> None:
+        for _ in range(steps):
+            obs.step(y, u, DT)
+    return run, steps * B
+
+
 def cases(steps: int) -> dict[str, tuple]:
     hand = make_plant("pendulum", DT)
     mjcf = make_plant(model_path("pendulum.xml"), DT, outputs=["hinge"])
@@ -60,6 +72,10 @@ def cases(steps: int) -> dict[str, tuple]:
             make_observer("high_gain", hs, k=20.0, model=True), n_obs),
         "HGO + model term, MJCF (high_gain_multi)": _observer_case(
             make_observer("high_gain_multi", ms, k=20.0, model=True), n_obs),
+        "HGO + model term, hand-written, batch of 64, per member": _batch_case(
+            make_observer("high_gain", hs, k=20.0, model=True), max(n_obs // 10, 10)),
+        "HGO + model term, MJCF, batch of 64 (mujoco.batch), per member": _batch_case(
+            make_observer("high_gain_multi", ms, k=20.0, model=True), max(n_obs // 10, 10)),
         "EKF, hand-written compiled model (ekf)": _observer_case(
             make_observer("ekf", hs, R=1e-4), n_obs),
         "EKF, MuJoCo on the hand-written system (ekf_mujoco)": _observer_case(
@@ -87,6 +103,8 @@ def report(best: dict[str, float], command: str) -> str:
     pairs = [("plant run, MJCF", "plant run, hand-written"),
              ("HGO + model term, MJCF (high_gain_multi)",
               "HGO + model term, hand-written (high_gain)"),
+             ("HGO + model term, MJCF, batch of 64 (mujoco.batch), per member",
+              "HGO + model term, hand-written, batch of 64, per member"),
              ("EKF, MuJoCo on the MJCF system (ekf_mujoco)",
               "EKF, hand-written compiled model (ekf)"),
              ("EKF, MuJoCo on the MJCF system (ekf_mujoco)",

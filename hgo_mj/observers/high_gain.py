@@ -898,7 +898,13 @@ class MultiOutputHighGainObserver(_Chains, Observer):
         X[...] = Z
 
     def _phi_rows(self, Z: Array, U: Array) -> Array:
-        """``phi(z_hat, u)`` of every member ``(B, len(orders))`` (one Python call per row)."""
+        """``phi(z_hat, u)`` of every member ``(B, len(orders))``: one call of the system's
+        ``chain_phi_batch`` for a batch with the model term (MJCF systems), else one Python
+        call per row."""
+        batch_phi = getattr(self.system, "chain_phi_batch", None)
+        if Z.shape[0] > 1 and batch_phi is not None and self.phi == getattr(
+                self.system, "chain_phi", None):
+            return batch_phi(Z, U)  # type: ignore[no-any-return]
         out = np.empty((Z.shape[0], len(self.orders)))
         for b in range(Z.shape[0]):
             ph = np.asarray(self.phi(Z[b].copy(), U[b]), dtype=float).reshape(-1)  # type: ignore[misc,type-var]

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import mujoco
+import mujoco.batch
 import numpy as np
 
 from ..exceptions import ModelError
@@ -82,6 +83,7 @@ class MjcfSystem(System):
         self._vadr = np.array([m.jnt_dofadr[m.joint(j).id] for j in self.joints], dtype=np.intp)
         self._aid = np.array([m.actuator(a).id for a in self.actuators], dtype=np.intp)
         self._sadr = np.array(self._sensor_adr, dtype=np.intp)
+        self._batch: Any = None  # mujoco.batch.Batch of chain_phi_batch, made per batch size
 
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]:
         """Pickle as what built the class (the class itself is made per call): unpickling
@@ -131,6 +133,32 @@ class MjcfSystem(System):
         x = np.concatenate((z[0::2], z[1::2]))
         self._set(x, np.asarray(u, dtype=float))
         return np.array(self.data.qacc[self._vadr], dtype=float)
+
+    def chain_phi_batch(self, Z: Array, U: Array) -> Array:
+        """:meth:`chain_phi` of the rows ``Z`` ``(B, 2 n_joints)``, ``U`` ``(B, m)``, shape
+        ``(B, n_joints)``: one ``mj_forward`` per row on MuJoCo's batch
+        (``mujoco.batch.Batch``, one thread; the same bits as :meth:`chain_phi`, tested), so
+        that a batch of observers takes its model term in one call.
+
+        Raises
+        ------
+        ModelError
+            The normal form does not hold (:attr:`normal_form_problem`)."""
+        if self.normal_form_problem is not None:
+            raise ModelError(self.normal_form_problem)
+        Z = np.asarray(Z, dtype=float)
+        B = Z.shape[0]
+        if self._batch is None or self._batch[0].nsim != B:
+            bt = mujoco.batch.Batch(self.model, B, nthread=1)
+            self._batch = (bt, *(bt.bind(f) for f in ("qpos", "qvel", "ctrl", "qacc")))
+        bt, qpos, qvel, ctrl, qacc = self._batch
+        qpos[:, self._qadr] = Z[:, 0::2]
+        qvel[:, self._vadr] = Z[:, 1::2]
+        ctrl[:] = 0.0
+        if self._aid.size:
+            ctrl[:, self._aid] = U
+        bt.forward()
+        return np.array(qacc[:, self._vadr], dtype=float)
 
 
 def _path(path: Any) -> Path:
