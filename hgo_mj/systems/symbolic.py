@@ -151,6 +151,9 @@ class SymbolicSystem(System):
     normal_form_problem: ClassVar[str | None] = None
     #: where the normal form holds only for a held input (relative degree < n), why
     normal_form_note: ClassVar[str | None] = None
+    #: why the model is not in observer form (y = x_1, f = A w + r(y, u; theta)), so has no
+    #: derived AOCF (paper 002); None where it is
+    aocf_problem: ClassVar[str | None] = None
     _sym: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, **params: Any) -> None:
@@ -261,6 +264,117 @@ class SymbolicSystem(System):
                           to_physical=None if s["identity"] else to_physical,
                           physical_state_names=self.state_names,
                           true_physical={k: self.params[k] for k in names})
+
+    def _form_aocf(self, unknown: Sequence[str] | None = None, c2: float = 2.0) -> Any:
+        """The adaptive observer canonical form of paper 002 (eq. 2.2-2.3) where the model is
+        in observer form in its own coordinates: ``y = x_1`` and
+        ``f(x, u) = A w + r(y, u; theta)`` with ``w = (x_2, ..., x_n)``, ``A`` constant and
+        ``r`` linear in the unknowns (:attr:`aocf_problem` says why not otherwise).
+
+        With the pair ``(F_0, k^T)`` (``F_0 = A[1:]``, ``k^T = A[0]``), ``K`` places the
+        eigenvalues of ``F = F_0 - K k^T`` at ``-c2`` (Ackermann) and ``x = (y, w - K y)``:
+
+        .. math::
+
+            \\dot x = \\begin{bmatrix} 0 & k^T \\\\ 0 & F \\end{bmatrix} x
+            + \\begin{bmatrix} \\psi_1 \\\\ \\Psi_w - K \\psi_1 \\end{bmatrix} \\theta
+            + \\begin{bmatrix} k^T K y + r_{0,1} \\\\
+              (F_0 - K k^T) K y + r_{0,w} - K r_{0,1} \\end{bmatrix}
+
+        with ``psi = d r/d theta`` and ``r_0 = r`` at ``theta = 0`` (derived here; for the
+        pendulum it is the hand-written form of ``AOCF.second_order``, tested).
+
+        Parameters
+        ----------
+        unknown : sequence of str, optional
+            The parameters to estimate (default: in declaration order, each kept where ``r``
+            stays jointly linear in those kept and ``A`` is free of it).
+        c2 : float
+            The eigenvalues ``-c2`` of ``F`` (> 0).
+
+        Returns
+        -------
+        AOCF
+            On rows; ``theta_true`` the system's values of ``unknown``.
+
+        Raises
+        ------
+        DesignError
+            The model is not in observer form (:attr:`aocf_problem`), ``unknown`` is not a
+            set of parameters ``r`` is linear in and ``A`` is free of, or ``c2`` is not > 0.
+        """
+        from .._validate import finite_scalar
+        from ..exceptions import DesignError
+        from .aocf import AOCF
+
+        if self.aocf_problem is not None:
+            raise DesignError(f"{type(self).__name__} has no AOCF (paper 002, eq. 2.2): "
+                              f"{self.aocf_problem}")
+        c2 = finite_scalar("c2", c2, positive=True)
+        s = self._sym
+        P, (Aw, r) = s["params"], s["observer_form"]
+        X, U = s["x"], s["u"]
+        in_A = {k for k in self.param_names if any(e.has(P[k]) for row in Aw for e in row)}
+        ok = [k for k in self.param_names if k not in in_A]
+        linear: list[str] = []
+        for k in ok:
+            if all(_linear_in(e, [P[j] for j in [*linear, k]]) for e in r):
+                linear.append(k)
+        names = tuple(linear if unknown is None else unknown)
+        if (not names or len(set(names)) != len(names) or not set(names) <= set(linear)
+                or not all(_linear_in(e, [P[k] for k in names]) for e in r)):
+            raise DesignError(f"unknown must be distinct parameters that r(y, u) is jointly "
+                              f"linear in and the linear part A is free of: from {linear}; "
+                              f"found {list(names)}")
+        n, m = len(X), len(names)
+        subs = {P[k]: self.params[k] for k in self.param_names if k not in names}
+        A = np.array([[float(e.xreplace(subs)) for e in row] for row in Aw], dtype=float)
+        k_row, F0 = A[0], A[1:]
+        K = _ackermann(F0, k_row, c2)
+        thetas = [P[k] for k in names]
+        psi = [[sympy.diff(e, t) for t in thetas] for e in r]
+        r0 = [e.xreplace({t: 0 for t in thetas}) for e in r]
+        y = X[0]
+        Km = [sympy.Float(v) for v in K]
+        omega = list(psi[0]) + [psi[1 + i][j] - Km[i] * psi[0][j]
+                                for i in range(n - 1) for j in range(m)]
+        FK = (F0 - np.outer(K, k_row)) @ K
+        g = [sympy.Float(float(k_row @ K)) * y + r0[0]] + [
+            sympy.Float(float(FK[i])) * y + r0[1 + i] - Km[i] * r0[0] for i in range(n - 1)]
+        args = [("x", [y]), ("u", U), ("c", list(P.values()))]
+        omega_row = row_function("aocf_omega", [e.xreplace(subs) for e in omega], (n * m,), args)
+        g_row = row_function("aocf_g", [e.xreplace(subs) for e in g], (n,), args)
+        rows_kernel = _aocf_rows(omega_row, g_row, n * m, n)
+        c = self._cvec
+        alpha = np.eye(n * m).reshape(n, m, n * m)
+        R = np.zeros((n, n))
+        R[0, 1:] = k_row
+        R[1:, 1:] = F0 - np.outer(K, k_row)
+
+        def omega_fn(Y: Array, Uq: Array) -> Array:
+            return rows_kernel(np.ascontiguousarray(Y, dtype=float).reshape(-1),  # type: ignore[no-any-return]
+                               np.ascontiguousarray(Uq, dtype=float), c)[0]
+
+        def g_fn(Y: Array, Uq: Array) -> Array:
+            return rows_kernel(np.ascontiguousarray(Y, dtype=float).reshape(-1),  # type: ignore[no-any-return]
+                               np.ascontiguousarray(Uq, dtype=float), c)[1]
+
+        def to_physical(Xa: Array, TH: Array, Uq: Array) -> tuple[Array, Array]:
+            S = np.array(Xa, dtype=float)
+            S[:, 1:] += np.outer(S[:, 0], K)
+            return S, np.empty((len(S), 0))
+
+        def from_physical(S: Array, TH: Array, Uq: Array) -> Array:
+            Xa = np.array(S, dtype=float)
+            Xa[:, 1:] -= np.outer(Xa[:, 0], K)
+            return Xa
+
+        return AOCF(R, alpha, omega_fn, g=g_fn, theta_names=names,
+                    omega_names=[f"Omega[{i},{j}]" for i in range(n) for j in range(m)],
+                    to_physical=to_physical, from_physical=from_physical,
+                    state_names=self.state_names, rows=True,
+                    label=f"{self.name}: AOCF derived, c2={c2:g}, unknown {list(names)}",
+                    theta_true=[self.params[k] for k in names])
 
     def _require(self) -> None:
         if self.normal_form_problem is not None:
@@ -457,6 +571,63 @@ def _affine_kernel(row: Any, n: int, q: int) -> Any:
     return kernel
 
 
+def _ackermann(F0: Array, k: Array, c: float) -> Array:
+    """``K`` with the eigenvalues of ``F0 - K k^T`` all at ``-c`` (Ackermann's formula for the
+    observable pair ``(F0, k^T)``); empty for ``n = 1``.
+
+    Raises
+    ------
+    DesignError
+        ``(F0, k^T)`` is not observable (the poles cannot be placed)."""
+    from ..exceptions import DesignError
+
+    q = F0.shape[0]
+    if q == 0:
+        return np.zeros(0)
+    O = np.vstack([k @ np.linalg.matrix_power(F0, i) for i in range(q)])
+    if np.linalg.matrix_rank(O) < q:
+        raise DesignError(f"the AOCF's pair (F, k) = ({F0.tolist()}, {k.tolist()}) is not "
+                          f"observable: its poles cannot be placed")
+    coeffs = np.poly(np.full(q, -c))  # s^q + a_1 s^(q-1) + ... + a_q
+    pF = sum(a * np.linalg.matrix_power(F0, q - i) for i, a in enumerate(coeffs))
+    e = np.zeros(q)
+    e[-1] = 1.0
+    return np.asarray(pF @ np.linalg.solve(O, e), dtype=float)
+
+
+def _aocf_rows(omega_row: Any, g_row: Any, s: int, n: int) -> Any:
+    @njit(error_model="numpy")
+    def kernel(Y: Array, U: Array, c: Array) -> tuple[Array, Array]:
+        N = Y.shape[0]
+        W = np.empty((N, s))
+        G = np.empty((N, n))
+        y = np.empty(1)
+        for b in range(N):
+            y[0] = Y[b]
+            omega_row(y, U[b], c, W[b])
+            g_row(y, U[b], c, G[b])
+        return W, G
+    return kernel
+
+
+def _observer_form(X: Sequence[Any], fx: list[Any], hx: Any,
+                   U: Sequence[Any]) -> tuple[tuple[list[list[Any]], list[Any]] | None, str | None]:
+    """``(A, r)`` with ``f = A w + r(y, u)`` (``y = x_1``, ``w = x_2..x_n``, ``A`` free of the
+    state and the input), or ``(None, why not)``."""
+    if hx != X[0]:
+        return None, f"the output is h = {hx}, not the first state {X[0]}"
+    w = list(X[1:])
+    A = [[sympy.diff(fi, wj) for wj in w] for fi in fx]
+    for i, row in enumerate(A):
+        for j, e in enumerate(row):
+            if e.has(*X) or (U and e.has(*U)):
+                return None, (f"f[{i}] is not linear in {w[j]} with a constant coefficient "
+                              f"(d f[{i}]/d {w[j]} = {e}): the unmeasured states must enter "
+                              f"linearly (f = A w + r(y, u))")
+    r = [sympy.expand(fi - sum(a * wj for a, wj in zip(row, w))) for fi, row in zip(fx, A)]
+    return (A, r), None
+
+
 def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Sequence[str] = (),
                params: Mapping[str, float] | None = None, x0: Sequence[float] | None = None,
                region: Sequence[Sequence[float]] | None = None, name: str = "ode",
@@ -552,6 +723,7 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
            "inverse": None if inverse is None else row_function(
                "inverse", inverse, (n,), [("z", Z), ("u", U), ("c", Pl)]),
            "exprs": {"Phi": Phi, "phi": phi_x, "f": fx, "h": hx, "inverse": inverse, "J": J}}
+    sym["observer_form"], aocf_problem = _observer_form(X, fx, hx, U)
     sym["identity"] = inverse is not None and all(sympy.simplify(xi - zi) == 0
                                                   for xi, zi in zip(inverse, Z))
     sym["kernels"] = _Kernels(n, sym["Phi"], sym["PhiJ"], sym["phi"], sym["inverse"])
@@ -563,7 +735,9 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
           "normal_form_order": None if problem else n, "relative_degree": rdeg,
           "normal_form_problem": problem, "normal_form_note": note,
           "closed_form_inverse": inverse is not None, "_sym": sym,
-          "forms": ("affine",) if P and inverse is not None and problem is None else (),
+          "forms": (("affine",) if P and inverse is not None and problem is None else ())
+          + (("aocf",) if P and aocf_problem is None else ()),
+          "aocf_problem": aocf_problem,
           "compiled": type(f"Ode_{name}Model", (CompiledModel,), {
               "__slots__": (), "dynamics": sym["f"], "jacobian": sym["jac"],
               "param_jacobian": sym["pjac"]})()}
