@@ -154,6 +154,8 @@ class SymbolicSystem(System):
     #: why the model is not in observer form (y = x_1, f = A w + r(y, u; theta)), so has no
     #: derived AOCF (paper 002); None where it is
     aocf_problem: ClassVar[str | None] = None
+    #: why there is no derived Jo-Son form (paper 003, eq. 10) for the default unknowns
+    jo_son_problem: ClassVar[str | None] = None
     _sym: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, **params: Any) -> None:
@@ -314,20 +316,8 @@ class SymbolicSystem(System):
         s = self._sym
         P, (Aw, r) = s["params"], s["observer_form"]
         X, U = s["x"], s["u"]
-        in_A = {k for k in self.param_names if any(e.has(P[k]) for row in Aw for e in row)}
-        ok = [k for k in self.param_names if k not in in_A]
-        linear: list[str] = []
-        for k in ok:
-            if all(_linear_in(e, [P[j] for j in [*linear, k]]) for e in r):
-                linear.append(k)
-        names = tuple(linear if unknown is None else unknown)
-        if (not names or len(set(names)) != len(names) or not set(names) <= set(linear)
-                or not all(_linear_in(e, [P[k] for k in names]) for e in r)):
-            raise DesignError(f"unknown must be distinct parameters that r(y, u) is jointly "
-                              f"linear in and the linear part A is free of: from {linear}; "
-                              f"found {list(names)}")
+        names, subs = _aocf_unknowns(self, unknown)
         n, m = len(X), len(names)
-        subs = {P[k]: self.params[k] for k in self.param_names if k not in names}
         A = np.array([[float(e.xreplace(subs)) for e in row] for row in Aw], dtype=float)
         k_row, F0 = A[0], A[1:]
         K = _ackermann(F0, k_row, c2)
@@ -375,6 +365,77 @@ class SymbolicSystem(System):
                     state_names=self.state_names, rows=True,
                     label=f"{self.name}: AOCF derived, c2={c2:g}, unknown {list(names)}",
                     theta_true=[self.params[k] for k in names])
+
+    def _form_jo_son(self, unknown: Sequence[str] | None = None) -> Any:
+        """The canonical form of Jo and Son (paper 003, eq. 10, no unobservable part) where the
+        model is in observer form (``y = x_1``, ``f = A w + r(y, u)``, see
+        :meth:`_form_aocf`) and, in the observer canonical coordinates, the parameters enter
+        along one constant direction ``b``:
+
+        .. math::
+
+            z = T x, \\quad T^{-1} = [v, A v, \\dots, A^{n-1} v], \\quad
+            v = O^{-1} e_n, \\qquad
+            \\dot z = A_o z + \\gamma_o(y, u) + b\\, \\beta^T(y, u)\\, \\theta, \\quad y = z_n
+
+        with ``A`` the linear part (its first column moved into ``r``: output injection), ``O``
+        the observability matrix of ``(A, e_1^T)``, ``A_o`` the lower shift, ``b`` scaled to
+        ``b_n = 1`` and ``beta_j = (T psi)_{n j}``.
+
+        Parameters
+        ----------
+        unknown : sequence of str, optional
+            The parameters to estimate (default as :meth:`_form_aocf`).
+
+        Returns
+        -------
+        JoSonForm
+
+        Raises
+        ------
+        DesignError
+            Not in observer form, the parameters do not enter along one constant direction,
+            or ``b_n = 0`` (they do not reach the output's first derivative).
+        """
+        from ..exceptions import DesignError
+        from .jo_son_form import JoSonForm
+
+        if self.aocf_problem is not None:
+            raise DesignError(f"{type(self).__name__} has no Jo-Son form (paper 003, eq. 10): "
+                              f"{self.aocf_problem}")
+        names, T, b, gamma, beta = _jo_son_structure(self, unknown)
+        s = self._sym
+        n, m = len(self.state_names), len(self.input_names)
+        args = [("x", [s["x"][0]]), ("u", s["u"]), ("c", list(s["params"].values()))]
+        kernel = _aocf_rows(row_function("jo_son_gamma", gamma, (n,), args),
+                            row_function("jo_son_beta", beta, (len(names),), args),
+                            n, len(names))
+        c, Tinv = self._cvec, np.linalg.inv(T)
+
+        def rows(y: Any, u: Any) -> tuple[Array, Array, bool]:
+            one = np.ndim(y) == 0
+            Y = np.atleast_1d(np.asarray(y, dtype=float))
+            Uq = np.asarray(u, dtype=float).reshape(m, -1).T if m else np.zeros((len(Y), 0))
+            G, Bt = kernel(np.ascontiguousarray(Y), np.ascontiguousarray(Uq), c)
+            return G, Bt, one
+
+        def gamma_o(y: Any, u: Any) -> Sequence[Any]:
+            G, _, one = rows(y, u)
+            return [float(G[0, i]) if one else G[:, i] for i in range(n)]
+
+        def beta_fn(y: Any, u: Any) -> Sequence[Any]:
+            _, Bt, one = rows(y, u)
+            return [float(Bt[0, j]) if one else Bt[:, j] for j in range(len(names))]
+
+        def to_physical(z: Any) -> Sequence[Any]:
+            return list(Tinv @ np.asarray(z, dtype=float))
+
+        def from_physical(x: Any) -> Sequence[Any]:
+            return list(T @ np.asarray(x, dtype=float))
+
+        return JoSonForm(b, gamma_o, beta_fn, theta_names=names, to_physical=to_physical,
+                         from_physical=from_physical, state_names=self.state_names,
+                         label=f"{self.name}: Jo-Son form derived, unknown {list(names)}")
 
     def _require(self) -> None:
         if self.normal_form_problem is not None:
@@ -571,6 +632,91 @@ def _affine_kernel(row: Any, n: int, q: int) -> Any:
     return kernel
 
 
+def _jo_son_structure(system: SymbolicSystem, unknown: Sequence[str] | None
+                      ) -> tuple[tuple[str, ...], Array, Array, list[Any], list[Any]]:
+    """``(unknown, T, b, gamma_o, beta)`` of :meth:`SymbolicSystem._form_jo_son`
+    (``gamma_o`` and ``beta`` as expressions in ``y = x_1``, the inputs and the parameters).
+
+    Raises
+    ------
+    DesignError
+        As :meth:`SymbolicSystem._form_jo_son`."""
+    from ..exceptions import DesignError
+
+    s = system._sym
+    P, (Aw, r) = s["params"], s["observer_form"]
+    X = s["x"]
+    n = len(X)
+    names, subs = _aocf_unknowns(system, unknown)
+    A = np.zeros((n, n))
+    A[:, 1:] = [[float(e.xreplace(subs)) for e in row] for row in Aw]
+    C = np.zeros(n)
+    C[0] = 1.0
+    O = np.vstack([C @ np.linalg.matrix_power(A, i) for i in range(n)])
+    if np.linalg.matrix_rank(O) < n:
+        raise DesignError("the linear part (A, e_1) is not observable: no observer canonical form")
+    v = np.linalg.solve(O, np.eye(n)[-1])
+    Tinv = np.column_stack([np.linalg.matrix_power(A, i) @ v for i in range(n)])
+    T = np.linalg.inv(Tinv)
+    # z' = T A T^-1 z + T r: the last column of T A T^-1 (beyond the lower shift) is output
+    # injection, y = z_n
+    Ao = T @ A @ Tinv
+    inj = Ao[:, -1].copy()
+    thetas = [P[k] for k in names]
+    y = X[0]
+    Tr = [sum(sympy.Float(T[i, j]) * r[j].xreplace(subs) for j in range(n)) for i in range(n)]
+    psi = [[sympy.diff(e, t) for t in thetas] for e in Tr]
+    beta = psi[-1]
+    if all(sympy.simplify(e) == 0 for e in beta):
+        raise DesignError(f"the parameters {list(names)} do not enter the output's first "
+                          f"derivative (b_n = 0): paper 003's form needs b_r > 0")
+    b = np.zeros(n)
+    for i in range(n):
+        ratios = {sympy.simplify(psi[i][j] / beta[j]) for j in range(len(names))
+                  if sympy.simplify(beta[j]) != 0}
+        zero_where_beta_zero = all(sympy.simplify(psi[i][j]) == 0 for j in range(len(names))
+                                   if sympy.simplify(beta[j]) == 0)
+        if len(ratios) != 1 or not zero_where_beta_zero or not next(iter(ratios)).is_number:
+            raise DesignError(f"the parameters do not enter along one constant direction b in "
+                              f"the observer canonical coordinates (row {i + 1}: "
+                              f"{[str(e) for e in psi[i]]} against beta = "
+                              f"{[str(e) for e in beta]}): paper 003's form b beta(y, u)^T "
+                              f"theta does not hold")
+        b[i] = float(next(iter(ratios)))
+    gamma = [sympy.expand(Tr[i].xreplace({t: 0 for t in thetas}) + sympy.Float(inj[i]) * y)
+             for i in range(n)]
+    return names, T, b, gamma, beta
+
+
+def _aocf_unknowns(system: SymbolicSystem, unknown: Sequence[str] | None
+                   ) -> tuple[tuple[str, ...], dict[Any, float]]:
+    """The unknowns of the observer-form families (default: in declaration order, each kept
+    where ``r`` stays jointly linear in those kept and ``A`` is free of it) and the
+    substitution of the other parameters' values.
+
+    Raises
+    ------
+    DesignError
+        ``unknown`` is not such a set."""
+    from ..exceptions import DesignError
+
+    s = system._sym
+    P, (Aw, r) = s["params"], s["observer_form"]
+    in_A = {k for k in system.param_names if any(e.has(P[k]) for row in Aw for e in row)}
+    linear: list[str] = []
+    for k in system.param_names:
+        if k not in in_A and all(_linear_in(e, [P[j] for j in [*linear, k]]) for e in r):
+            linear.append(k)
+    names = tuple(linear if unknown is None else unknown)
+    if (not names or len(set(names)) != len(names) or not set(names) <= set(linear)
+            or not all(_linear_in(e, [P[k] for k in names]) for e in r)):
+        raise DesignError(f"unknown must be distinct parameters that r(y, u) is jointly "
+                          f"linear in and the linear part A is free of: from {linear}; "
+                          f"found {list(names)}")
+    subs = {P[k]: system.params[k] for k in system.param_names if k not in names}
+    return names, subs
+
+
 def _ackermann(F0: Array, k: Array, c: float) -> Array:
     """``K`` with the eigenvalues of ``F0 - K k^T`` all at ``-c`` (Ackermann's formula for the
     observable pair ``(F0, k^T)``); empty for ``n = 1``.
@@ -745,6 +891,14 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
     if len(x0t) != n:
         raise ModelError(f"x0 must have {n} entries, one per state; found {list(x0t)}")
     _check_region(cls, region, samples)
+    if aocf_problem is None and P:
+        from ..exceptions import DesignError
+
+        try:
+            _jo_son_structure(cls(), None)
+            cls.forms = (*cls.forms, "jo_son")
+        except DesignError as exc:
+            cls.jo_son_problem = str(exc)
     return cls
 
 
