@@ -86,3 +86,23 @@ def test_sample_period_against_the_lmi_bound_of_paper_004(capsys):
     assert main(["check", str(ROOT / "scenarios" / "ode_pendulum.toml"), "--sample-period",
                  "0.05"]) == 0
     assert "riccati          applies  sample period 0.05 s exceeds" in capsys.readouterr().out
+
+
+def test_reachability_and_spr_are_checked_on_the_forms():
+    """Bastin-Gevers needs the AOCF output reachable (paper 002, Theorem 4.2): two parameters
+    entering as a sum cannot be told apart. Jo-Son needs Corollary 3.3's conditions on b
+    (paper 003): b = (-3, 1) gives s - 3, not Hurwitz. Both are refused by hgo-mj run too."""
+    twins = ode_system(["x1", "x2"], ["x2", "-(a + b)*sin(x1) - 0.1*x2 + u"], "x1",
+                       inputs=["u"], params={"a": 4.0, "b": 5.81})()
+    rows = _rows(twins)
+    assert not rows["bastin_gevers"].applies
+    assert rows["bastin_gevers"].reason.startswith(
+        "its AOCF is not output reachable (paper 002, Theorem 4.2): rank S = 1 < m = 2")
+    unstable = ode_system(["y", "w"], ["w + th*y*u", "-y - 3*th*y*u"], "y", inputs=["u"],
+                          params={"th": 1.0})()
+    rows = _rows(unstable)
+    assert not rows["jo_son"].applies
+    assert rows["jo_son"].reason.startswith("the SPR condition of paper 003 fails for its form: "
+                                            "Corollary 3.3 needs b_r s^(r-1) + ... + b_1 Hurwitz")
+    with pytest.raises(DesignError, match="does not apply to Ode_ode: the SPR condition"):
+        check.refuse_inapplicable("jo_son", unstable, "js")

@@ -656,6 +656,26 @@ class BastinGeversObserver(Observer):
     reference = "paper 002 (Bastin, Gevers 1986), eq. 2.2, 3.1, 4.5, 4.11"
     needs_normal_form = False
 
+    @classmethod
+    def applicability(cls, system: System) -> str | None:
+        """The base's form check, then Theorem 4.2's structural output reachability of the
+        system's AOCF (with its default options): where ``S(omega)`` has rank below ``m``,
+        some parameter combination can never be excited. A form that needs options to be built
+        is left to construction."""
+        reason = super().applicability(system)
+        if reason is not None:
+            return reason
+        try:
+            form = system.form("aocf")
+        except DesignError:
+            return None
+        r = form.reachability()
+        if not r["reachable"]:
+            return (f"its AOCF is not output reachable (paper 002, Theorem 4.2): rank S = "
+                    f"{r['rank']} < m = {r['m']}; the parameter combinations {r['unreachable']} "
+                    f"are never excited")
+        return None
+
     def __init__(self, system: System | None = None, *, aocf: AOCF | None = None,
                  c1: float = 1.0, gamma: Any = 1.0, c2: float | None = None,
                  unknown: Sequence[str] | None = None, damping_known: str | None = None,

@@ -349,6 +349,25 @@ class JoSonObserver(Observer):
     reference = "paper 003 (Jo, Son 2004), eq. 10, 25, 27"
     needs_normal_form = False
 
+    @classmethod
+    def applicability(cls, system: System) -> str | None:
+        """The base's form check, then Corollary 3.3's conditions on the system's form (with
+        its default options): ``b_r > 0`` and ``b_r s^(r-1) + ... + b_1`` Hurwitz, under
+        which the gain eq. 25 makes the error system SPR (eq. 26). A form that needs options
+        to be built (e.g. the elastic joint's motor-side sensors) is left to construction."""
+        reason = super().applicability(system)
+        if reason is not None:
+            return reason
+        try:
+            form = system.form("jo_son")
+        except DesignError:
+            return None
+        try:
+            jo_son_gain(form.b, 1.0)
+        except DesignError as exc:
+            return f"the SPR condition of paper 003 fails for its form: {exc}"
+        return None
+
     def __init__(self, system: System | None = None, *, form: JoSonForm | None = None,
                  lam: float = 2.0, gamma: Any = 1.0, outputs: Any = (0,), theta_hat0: Any = None,
                  x_hat0: Any = None, z_hat0: Any = None, method: str = "rk4", substeps: int = 1,

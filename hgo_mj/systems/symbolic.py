@@ -332,11 +332,11 @@ class SymbolicSystem(System):
         g = [sympy.Float(float(k_row @ K)) * y + r0[0]] + [
             sympy.Float(float(FK[i])) * y + r0[1 + i] - Km[i] * r0[0] for i in range(n - 1)]
         args = [("x", [y]), ("u", U), ("c", list(P.values()))]
-        omega_row = row_function("aocf_omega", [e.xreplace(subs) for e in omega], (n * m,), args)
+        signals, alpha = _signals([e.xreplace(subs) for e in omega], n, m)
+        omega_row = row_function("aocf_omega", signals, (len(signals),), args)
         g_row = row_function("aocf_g", [e.xreplace(subs) for e in g], (n,), args)
-        rows_kernel = _aocf_rows(omega_row, g_row, n * m, n)
+        rows_kernel = _aocf_rows(omega_row, g_row, len(signals), n)
         c = self._cvec
-        alpha = np.eye(n * m).reshape(n, m, n * m)
         R = np.zeros((n, n))
         R[0, 1:] = k_row
         R[1:, 1:] = F0 - np.outer(K, k_row)
@@ -360,7 +360,7 @@ class SymbolicSystem(System):
             return Xa
 
         return AOCF(R, alpha, omega_fn, g=g_fn, theta_names=names,
-                    omega_names=[f"Omega[{i},{j}]" for i in range(n) for j in range(m)],
+                    omega_names=[str(e) for e in signals],
                     to_physical=to_physical, from_physical=from_physical,
                     state_names=self.state_names, rows=True,
                     label=f"{self.name}: AOCF derived, c2={c2:g}, unknown {list(names)}",
@@ -715,6 +715,41 @@ def _aocf_unknowns(system: SymbolicSystem, unknown: Sequence[str] | None
                           f"found {list(names)}")
     subs = {P[k]: system.params[k] for k in system.param_names if k not in names}
     return names, subs
+
+
+def _signals(entries: list[Any], n: int, m: int) -> tuple[list[Any], Array]:
+    """The distinct signals ``omega`` of the entries of ``Omega`` (``n * m``, row-major) and
+    ``alpha`` ``(n, m, s)`` with ``Omega_ij = alpha_ij^T omega`` (paper 002, eq. 2.2): zero
+    entries get a zero ``alpha_ij``, an entry proportional to a signal found before reuses it,
+    so that Theorem 4.2's rank (which takes the signals as independent) is not overstated.
+
+    Raises
+    ------
+    DesignError
+        Every entry is zero (no parameter enters)."""
+    from ..exceptions import DesignError
+
+    signals: list[Any] = []
+    coeff: list[tuple[int, float] | None] = []
+    for e in entries:
+        if sympy.simplify(e) == 0:
+            coeff.append(None)
+            continue
+        for k, sig in enumerate(signals):
+            ratio = sympy.simplify(e / sig)
+            if ratio.is_number:
+                coeff.append((k, float(ratio)))
+                break
+        else:
+            signals.append(e)
+            coeff.append((len(signals) - 1, 1.0))
+    if not signals:
+        raise DesignError("no parameter enters the model (Omega is zero)")
+    alpha = np.zeros((n * m, len(signals)))
+    for idx, cf in enumerate(coeff):
+        if cf is not None:
+            alpha[idx, cf[0]] = cf[1]
+    return signals, alpha.reshape(n, m, len(signals))
 
 
 def _ackermann(F0: Array, k: Array, c: float) -> Array:
