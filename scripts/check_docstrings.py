@@ -96,9 +96,10 @@ def raises_itself(func: Callable) -> bool:
 
 
 def signature_parameters(obj: object) -> list[str]:
-    target = obj.__init__ if inspect.isclass(obj) else obj  # type: ignore[misc]
+    """The parameters of a function, or of calling a class (its ``__init__`` or, for a named
+    tuple, its ``__new__``), without ``self``/``cls``."""
     try:
-        params = inspect.signature(target).parameters
+        params = inspect.signature(obj).parameters  # type: ignore[arg-type]
     except (TypeError, ValueError):
         return []
     return [p for p in params if p not in ("self", "cls")]

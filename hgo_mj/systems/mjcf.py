@@ -54,7 +54,22 @@ _JOINT = int(mujoco.mjtObj.mjOBJ_JOINT)
 class MjcfSystem(System):
     """A system read from an MJCF file by :func:`mjcf_system` (one subclass per file, outputs
     and inputs). Instances hold their own ``MjModel``/``MjData`` for :meth:`output` and
-    :meth:`chain_phi`."""
+    :meth:`chain_phi`.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel, optional
+        The compiled model to evaluate on (default: :meth:`load_model`, the file with the
+        sensors and names the class added).
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import model_path
+    >>> cls = mjcf_system(model_path("pendulum.xml"), ["hinge"])
+    >>> s = cls()
+    >>> s.state_names, s.normal_form_orders
+    (('hinge_angle', 'hinge_velocity'), (2,))
+    """
 
     reference = "MuJoCo forward dynamics of the MJCF; chains after paper 001, eq. 5"
     forms: ClassVar[tuple[str, ...]] = ()
@@ -123,10 +138,30 @@ class MjcfSystem(System):
         """The chains' top derivatives ``q''`` at ``z = (q_1, q_1', q_2, q_2', ...)`` (chain
         ``c`` is joint ``c``): the model term of ``high_gain_multi(model=True)``.
 
+        Parameters
+        ----------
+        z : array_like, shape (2 n_joints,)
+            Positions and velocities, interleaved per joint.
+        u : array_like, shape (m,)
+            The actuators' controls.
+
+        Returns
+        -------
+        ndarray, shape (n_joints,)
+            ``qacc`` of ``mj_forward`` at that state and control.
+
         Raises
         ------
         ModelError
-            The normal form does not hold (:attr:`normal_form_problem`)."""
+            The normal form does not hold (:attr:`normal_form_problem`).
+
+        Examples
+        --------
+        >>> from hgo_mj.plants import model_path
+        >>> s = mjcf_system(model_path("pendulum.xml"), ["hinge"])()
+        >>> s.chain_phi([0.0, 0.0], [0.0])
+        array([0.])
+        """
         if self.normal_form_problem is not None:
             raise ModelError(self.normal_form_problem)
         z = np.asarray(z, dtype=float)
@@ -140,10 +175,29 @@ class MjcfSystem(System):
         (``mujoco.batch.Batch``, one thread; the same bits as :meth:`chain_phi`, tested), so
         that a batch of observers takes its model term in one call.
 
+        Parameters
+        ----------
+        Z : array_like, shape (B, 2 n_joints)
+            One state per row, as :meth:`chain_phi`'s ``z``.
+        U : array_like, shape (B, m)
+            One control per row.
+
+        Returns
+        -------
+        ndarray, shape (B, n_joints)
+
         Raises
         ------
         ModelError
-            The normal form does not hold (:attr:`normal_form_problem`)."""
+            The normal form does not hold (:attr:`normal_form_problem`).
+
+        Examples
+        --------
+        >>> from hgo_mj.plants import model_path
+        >>> s = mjcf_system(model_path("pendulum.xml"), ["hinge"])()
+        >>> s.chain_phi_batch(np.zeros((3, 2)), np.zeros((3, 1))).shape
+        (3, 1)
+        """
         if self.normal_form_problem is not None:
             raise ModelError(self.normal_form_problem)
         Z = np.asarray(Z, dtype=float)
@@ -303,7 +357,27 @@ def _rebuilt(spec: dict[str, Any]) -> MjcfSystem:
 
 
 def system_from_metadata(meta: Any) -> type[MjcfSystem] | None:
-    """The MJCF system a trajectory's metadata names (its ``"mjcf"`` entry), or ``None``."""
+    """The MJCF system a trajectory's metadata names (its ``"mjcf"`` entry), or ``None``.
+
+    Parameters
+    ----------
+    meta : mapping
+        A trajectory's metadata.
+
+    Returns
+    -------
+    type[MjcfSystem] or None
+        The class rebuilt with :func:`mjcf_system` from the file, outputs and inputs stored.
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import model_path
+    >>> meta = {"mjcf": {"model": str(model_path("pendulum.xml")), "outputs": ["hinge"]}}
+    >>> system_from_metadata(meta).output_names
+    ('hinge_angle',)
+    >>> system_from_metadata({}) is None
+    True
+    """
     spec = meta.get("mjcf") if hasattr(meta, "get") else None
     if not spec:
         return None

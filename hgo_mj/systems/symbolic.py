@@ -72,11 +72,35 @@ _BINOPS: dict[type, Callable[[Any, Any], Any]] = {
 def parse(text: Any, names: Mapping[str, sympy.Symbol], where: str) -> sympy.Expr:
     """The sympy expression of ``text``, built from its Python ``ast`` (never ``eval``).
 
+    Parameters
+    ----------
+    text : str
+        The expression, e.g. ``"-a*sin(x1) + u"``.
+    names : mapping of str to sympy.Symbol
+        The declared names (states, inputs, parameters) and their symbols.
+    where : str
+        What the expression is (``"f[1]"``), for messages.
+
+    Returns
+    -------
+    sympy.Expr
+
     Raises
     ------
     ModelError
         Not a string, a syntax error (with its column), or a name, operator or call that is not
-        allowed (named, with its column)."""
+        allowed (named, with its column).
+
+    Examples
+    --------
+    >>> x = sympy.Symbol("x", real=True)
+    >>> parse("2*sin(x) + x**2", {"x": x}, "h")
+    x**2 + 2*sin(x)
+    >>> parse("__import__('os')", {"x": x}, "h")
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.ModelError: h = "__import__('os')", column 1: a call of '__import__' ...
+    """
     if not isinstance(text, str):
         raise ModelError(f"{where} must be an expression as a string; found {text!r} "
                          f"({type(text).__name__})")
@@ -135,6 +159,19 @@ class SymbolicSystem(System):
     ``output``, the Jacobians the Kalman filters use (also as :attr:`compiled`, so their kernels
     run it without returning to Python), ``Phi`` and its Jacobian, the inverse and ``phi``.
     :meth:`phi_batch`, the high-gain observers' model term, is one kernel over the rows.
+
+    Parameters
+    ----------
+    **params : float
+        Parameter values overriding the defaults given to :func:`ode_system`.
+
+    Examples
+    --------
+    >>> cls = ode_system(["x1", "x2"], ["x2", "-a*sin(x1) + u"], "x1", inputs=["u"],
+    ...                  params={"a": 9.81})
+    >>> s = cls(a=4.0)
+    >>> s.params, s.to_normal([0.5, 0.1], [0.0])
+    ({'a': 4.0}, array([0.5, 0.1]))
     """
 
     reference = "normal form derived symbolically (paper 000, eq. 1)"
@@ -185,7 +222,28 @@ class SymbolicSystem(System):
         return out
 
     def jacobian(self, t: float, x: Array, u: Array, p: Any = None) -> Array:
-        """:math:`\\partial f/\\partial x` at ``(x, u)``, shape ``(n, n)`` (derived)."""
+        """:math:`\\partial f/\\partial x` at ``(x, u)`` (derived, compiled).
+
+        Parameters
+        ----------
+        t : float
+            Time (unused: the model is autonomous).
+        x : array_like, shape (n,)
+        u : array_like, shape (m,)
+        p : mapping, optional
+            Parameter values (default the system's).
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+
+        Examples
+        --------
+        >>> s = ode_system(["x1", "x2"], ["x2", "-a*sin(x1)"], "x1", params={"a": 2.0})()
+        >>> s.jacobian(0.0, [0.0, 0.0], [])
+        array([[ 0.,  1.],
+               [-2.,  0.]])
+        """
         n = len(self.state_names)
         out = np.empty((n, n))
         self._sym["jac"](np.asarray(x, dtype=float), self._u(u), self._c(p), out)
@@ -193,8 +251,30 @@ class SymbolicSystem(System):
 
     def param_jacobian(self, t: float, x: Array, u: Array, p: Any,
                        names: Sequence[str]) -> Array:
-        """:math:`\\partial f/\\partial p` for the parameters ``names``, shape
-        ``(n, len(names))`` (derived)."""
+        """:math:`\\partial f/\\partial p` for the parameters ``names`` (derived, compiled).
+
+        Parameters
+        ----------
+        t : float
+            Time (unused).
+        x : array_like, shape (n,)
+        u : array_like, shape (m,)
+        p : mapping or None
+            Parameter values (None: the system's).
+        names : sequence of str
+            The parameters, columns in this order.
+
+        Returns
+        -------
+        ndarray, shape (n, len(names))
+
+        Examples
+        --------
+        >>> s = ode_system(["x1", "x2"], ["x2", "-a*sin(x1)"], "x1", params={"a": 2.0})()
+        >>> s.param_jacobian(0.0, [np.pi / 2, 0.0], [], None, ["a"])
+        array([[ 0.],
+               [-1.]])
+        """
         out = np.empty((len(self.state_names), len(self.param_names)))
         self._sym["pjac"](np.asarray(x, dtype=float), self._u(u), self._c(p), out)
         return out[:, [self.param_names.index(k) for k in names]]
@@ -461,8 +541,31 @@ class SymbolicSystem(System):
         return X[0]
 
     def from_normal_batch(self, Z: Array, U: Array, start: Array | None = None) -> Array:
-        """``Phi^-1`` of the rows ``Z`` ``(N, n)`` at inputs ``U`` ``(N, m)``: the closed form,
-        or Newton's method from ``start`` (default: the rows' last inverse), compiled."""
+        """``Phi^-1`` of the rows ``Z`` at inputs ``U``: the closed form, or Newton's method
+        from ``start`` (default: the rows' last inverse, failures counted in
+        :attr:`inverse_failures`), compiled.
+
+        Parameters
+        ----------
+        Z : array_like, shape (N, n)
+            Normal-form states.
+        U : array_like, shape (N, m)
+            Inputs.
+        start : array_like, shape (N, n), optional
+            Newton's initial guesses.
+
+        Returns
+        -------
+        ndarray, shape (N, n)
+            The states ``x`` with ``Phi(x, u) = z``.
+
+        Examples
+        --------
+        >>> s = ode_system(["x1", "x2"], ["x2", "-x1"], "x1 + x1**3/3")()
+        >>> X = s.from_normal_batch([[0.2 + 0.2**3 / 3, 0.0]], [[]])
+        >>> np.round(X, 12)
+        array([[0.2, 0. ]])
+        """
         Z = np.ascontiguousarray(Z, dtype=float)
         U = np.ascontiguousarray(U, dtype=float)
         k = self._sym["kernels"]
@@ -855,7 +958,7 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
     >>> cls = ode_system(["x1", "x2"], ["x2", "-a*sin(x1) - b*x2 + u"], "x1", inputs=["u"],
     ...                  params={"a": 9.81, "b": 0.1})
     >>> sys = cls()
-    >>> round(sys.phi([0.5, 0.2], [1.0]), 6) == round(-9.81 * np.sin(0.5) - 0.02 + 1.0, 6)
+    >>> bool(round(sys.phi([0.5, 0.2], [1.0]), 6) == round(-9.81 * np.sin(0.5) - 0.02 + 1.0, 6))
     True
     >>> cls.closed_form_inverse, cls.relative_degree, cls.normal_form_note
     (True, 2, None)
