@@ -20,10 +20,10 @@ def _load():
 def test_report_has_every_case_and_ratio(tmp_path):
     bench = _load()
     best = bench.measure(steps=20, rounds=1)
-    assert len(best) == 7 and all(math.isfinite(v) and v > 0 for v in best.values())
+    assert len(best) == 9 and all(math.isfinite(v) and v > 0 for v in best.values())
     text = bench.report(best, "test")
     ratios = [float(r) for r in re.findall(r"\| ([0-9.]+)x \|", text)]
-    assert len(ratios) == 4 and all(r > 0 for r in ratios)
+    assert len(ratios) == 5 and all(r > 0 for r in ratios)
     out = tmp_path / "B.md"
     assert bench.main(["--steps", "20", "--rounds", "1", "--write", str(out)]) == 0
     assert "<!-- bench_mjcf: begin -->" in out.read_text()
