@@ -63,7 +63,7 @@ def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
     >>> make_observer("high_gian", None)
     Traceback (most recent call last):
     ...
-    hgo_mj.exceptions.DesignError: unknown observer 'high_gian'; valid: [...]
+    hgo_mj.exceptions.DesignError: unknown observer 'high_gian'; valid: [...], or 'module:Class' ...)
     """
     known = registered()
     if isinstance(kind, str) and ":" in kind:  # the user's own Observer subclass
