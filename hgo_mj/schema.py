@@ -63,16 +63,17 @@ REQUIRED = ("plant.name", "run.duration")
 OPEN = ("observers", "input", "controller", "stages")
 
 
+#: the kinds whose test is one isinstance
+_TYPES: dict[str, type | tuple[type, ...]] = {"bool": bool, "string": str, "table": Mapping}
+
+
 def _ok(kind: str, value: Any) -> bool:
-    if kind == "bool":
-        return isinstance(value, bool)
-    if kind == "string":
-        return isinstance(value, str)
+    if kind in _TYPES:
+        return isinstance(value, _TYPES[kind])
     if kind == "table_or_tables":
         return _ok("table", value) or (_ok("tables", value) and bool(value))
-    if kind in ("table", "tables"):
-        return isinstance(value, Mapping) if kind == "table" else (
-            isinstance(value, list) and all(isinstance(v, Mapping) for v in value))
+    if kind == "tables":
+        return isinstance(value, list) and all(isinstance(v, Mapping) for v in value)
     if kind == "numbers":
         return isinstance(value, list) and numbers_only(value)
     if kind == "names":

@@ -972,23 +972,62 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
     pnames = _names("params", list(params), allow_empty=True)
     n = len(states)
     X, U, P, fx, hx = _parse_model(states, inputs, pnames, f, h)
+    x0t = tuple(float(v) for v in (x0 if x0 is not None else [0.0] * n))
+    if len(x0t) != n:
+        raise ModelError(f"x0 must have {n} entries, one per state; found {list(x0t)}")
     # Lie derivatives along f with the input held (u' = 0): L_f^k h, k = 0..n
     lie = [hx]
     for _ in range(n):
         lie.append(sympy.expand(sum(sympy.diff(lie[-1], xi) * fi for xi, fi in zip(X, fx))))
-    Phi, phi_x = lie[:n], lie[n]
+    rdeg, note, problem = _relative_degree(lie, U, held_input)
+    sym = _compile_model(X, U, P, fx, hx, lie)
+    inverse = sym["exprs"]["inverse"]
+    sym["observer_form"], aocf_problem = _observer_form(X, fx, hx, U)
+    ns = {"name": name, "summary": f"ODE {name}: y = {h}", "state_names": states,
+          "state_units": tuple("" for _ in states), "input_names": inputs,
+          "input_units": tuple("" for _ in inputs), "output_names": ("y",),
+          "param_names": pnames, "default_params": params, "default_x0": x0t,
+          "normal_form_order": None if problem else n, "relative_degree": rdeg,
+          "normal_form_problem": problem, "normal_form_note": note,
+          "closed_form_inverse": inverse is not None, "_sym": sym,
+          "forms": (("affine",) if P and inverse is not None and problem is None else ())
+          + (("aocf",) if P and aocf_problem is None else ()),
+          "aocf_problem": aocf_problem,
+          "compiled": type(f"Ode_{name}Model", (CompiledModel,), {
+              "__slots__": (), "dynamics": sym["f"], "jacobian": sym["jac"],
+              "param_jacobian": sym["pjac"]})()}
+    cls: type[SymbolicSystem] = type(f"Ode_{name}", (SymbolicSystem,), ns)
+    _check_region(cls, region, samples)
+    if aocf_problem is None and P:
+        _declare_jo_son(cls)
+    return cls
+
+
+def _relative_degree(lie: list[Any], U: Sequence[Any], held_input: bool
+                     ) -> tuple[int | None, str | None, str | None]:
+    """``(r, note, problem)`` from the Lie derivatives ``L_f^k h``, k = 0..n: ``r`` the first
+    k with u in ``L_f^k h``; below n, a note (``held_input``) or the problem."""
+    n = len(lie) - 1
     rdeg = next((k for k in range(1, n + 1) if any(lie[k].has(u) for u in U)), None)
-    note = problem = None
-    if rdeg is not None and rdeg < n and held_input:
-        note = (f"the input enters L_f^{rdeg} h (relative degree {rdeg} < n = {n}): Phi depends "
-                f"on u, and phi is exact for an input held between its steps (u' = 0; the "
-                f"derivatives of u are left out), as paper 000 does for its bioreactor (eq. 16); "
-                f"the EKF/UKF need no such assumption")
-    elif rdeg is not None and rdeg < n:
-        problem = (f"the input enters L_f^{rdeg} h (relative degree {rdeg} < n = {n}): the "
-                   f"normal form would need derivatives of u; the high-gain family does not "
-                   f"apply (unless the input is held between steps: held_input = true, as "
-                   f"paper 000 eq. 16), the EKF/UKF still do")
+    if rdeg is None or rdeg >= n:
+        return rdeg, None, None
+    if held_input:
+        return rdeg, (f"the input enters L_f^{rdeg} h (relative degree {rdeg} < n = {n}): Phi "
+                      f"depends on u, and phi is exact for an input held between its steps "
+                      f"(u' = 0; the derivatives of u are left out), as paper 000 does for its "
+                      f"bioreactor (eq. 16); the EKF/UKF need no such assumption"), None
+    return rdeg, None, (f"the input enters L_f^{rdeg} h (relative degree {rdeg} < n = {n}): "
+                        f"the normal form would need derivatives of u; the high-gain family "
+                        f"does not apply (unless the input is held between steps: held_input "
+                        f"= true, as paper 000 eq. 16), the EKF/UKF still do")
+
+
+def _compile_model(X: Sequence[Any], U: Sequence[Any], P: dict[str, Any], fx: list[Any],
+                   hx: Any, lie: list[Any]) -> dict[str, Any]:
+    """The derived expressions (``Phi``, ``phi``, the inverse, the Jacobians) and their
+    compiled row functions and kernels: the class's ``_sym``."""
+    n = len(X)
+    Phi, phi_x = lie[:n], lie[n]
     Z = sympy.symbols([f"z{i + 1}" for i in range(n)], real=True)
     inverse = _closed_inverse(Phi, X, Z)
     J = sympy.Matrix(Phi).jacobian(sympy.Matrix(X))
@@ -1007,37 +1046,22 @@ def ode_system(states: Sequence[str], f: Sequence[str], h: str, *, inputs: Seque
            "inverse": None if inverse is None else row_function(
                "inverse", inverse, (n,), [("z", Z), ("u", U), ("c", Pl)]),
            "exprs": {"Phi": Phi, "phi": phi_x, "f": fx, "h": hx, "inverse": inverse, "J": J}}
-    sym["observer_form"], aocf_problem = _observer_form(X, fx, hx, U)
     sym["identity"] = inverse is not None and all(sympy.simplify(xi - zi) == 0
                                                   for xi, zi in zip(inverse, Z))
     sym["kernels"] = _Kernels(n, sym["Phi"], sym["PhiJ"], sym["phi"], sym["inverse"])
-    x0t = tuple(float(v) for v in (x0 if x0 is not None else [0.0] * n))
-    ns = {"name": name, "summary": f"ODE {name}: y = {h}", "state_names": states,
-          "state_units": tuple("" for _ in states), "input_names": inputs,
-          "input_units": tuple("" for _ in inputs), "output_names": ("y",),
-          "param_names": pnames, "default_params": params, "default_x0": x0t,
-          "normal_form_order": None if problem else n, "relative_degree": rdeg,
-          "normal_form_problem": problem, "normal_form_note": note,
-          "closed_form_inverse": inverse is not None, "_sym": sym,
-          "forms": (("affine",) if P and inverse is not None and problem is None else ())
-          + (("aocf",) if P and aocf_problem is None else ()),
-          "aocf_problem": aocf_problem,
-          "compiled": type(f"Ode_{name}Model", (CompiledModel,), {
-              "__slots__": (), "dynamics": sym["f"], "jacobian": sym["jac"],
-              "param_jacobian": sym["pjac"]})()}
-    cls: type[SymbolicSystem] = type(f"Ode_{name}", (SymbolicSystem,), ns)
-    if len(x0t) != n:
-        raise ModelError(f"x0 must have {n} entries, one per state; found {list(x0t)}")
-    _check_region(cls, region, samples)
-    if aocf_problem is None and P:
-        from ..exceptions import DesignError
+    return sym
 
-        try:
-            _jo_son_structure(cls(), None)
-            cls.forms = (*cls.forms, "jo_son")
-        except DesignError as exc:
-            cls.jo_son_problem = str(exc)
-    return cls
+
+def _declare_jo_son(cls: type[SymbolicSystem]) -> None:
+    """Add ``"jo_son"`` to the class's forms where its default unknowns admit the form, else
+    say why in :attr:`SymbolicSystem.jo_son_problem`."""
+    from ..exceptions import DesignError
+
+    try:
+        _jo_son_structure(cls(), None)
+        cls.forms = (*cls.forms, "jo_son")
+    except DesignError as exc:
+        cls.jo_son_problem = str(exc)
 
 
 def _parse_model(states: tuple[str, ...], inputs: tuple[str, ...], pnames: tuple[str, ...],

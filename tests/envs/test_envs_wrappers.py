@@ -180,3 +180,104 @@ def test_sensor_noise_keeps_observations_inside_the_space():
         if term or trunc:
             obs, _ = env.reset()
     assert outside == 0 and clipped > 0
+
+
+HOPPER_JOINTS = ["rootx", "rootz", "rooty", "thigh_joint", "leg_joint", "foot_joint"]
+
+
+def _hopper(**kw) -> ObserverInTheLoop:
+    kw.setdefault("sensor", NOISE)
+    return ObserverInTheLoop(gym.make("Hopper-v5"), joints=HOPPER_JOINTS, **kw)
+
+
+def test_joints_mode_keeps_the_environments_observation_and_beats_a_backward_difference():
+    """Hopper-v5 with every joint's position measured (noise 1e-3): the agent's observation
+    is the environment's own (space, layout) with each joint position and velocity entry
+    replaced by the MuJoCo EKF's estimate at every physics step, named after the MJCF joints;
+    its velocity error is below the backward difference of the same noisy positions."""
+    env = _hopper(observer_kwargs={"Q": 0.01})
+    assert env.observation_space == env.env.observation_space
+    assert env.observation_names[:2] == ("rootz_position", "rooty_angle")
+    assert env.observation_names[5:] == tuple(f"{j}_velocity" for j in HOPPER_JOINTS)
+    obs, info = env.reset(seed=3)
+    assert obs in env.observation_space
+    rng = np.random.default_rng(0)
+    m = env.unwrapped.model
+    qadr = [m.jnt_qposadr[m.joint(j).id] for j in HOPPER_JOINTS]
+    prev = env.unwrapped.data.qpos[qadr] + 1e-3 * rng.standard_normal(6)
+    err_w, err_bd = [], []
+    for _ in range(40):
+        obs, _, term, trunc, info = env.step(np.zeros(3, dtype=np.float32))
+        v = info["true_observation"][5:]
+        err_w.append(obs[5:] - v)
+        y = env.unwrapped.data.qpos[qadr] + 1e-3 * rng.standard_normal(6)
+        err_bd.append((y - prev) / env.dt - v)
+        prev = y
+        assert obs in env.observation_space and not (term or trunc)
+    assert np.sqrt(np.mean(np.square(err_w))) < 0.5 * np.sqrt(np.mean(np.square(err_bd)))
+
+
+def test_joints_mode_replaces_only_what_it_estimates_and_samples_every_physics_step():
+    """Reacher-v5: cos/sin of the arm's angles and the fingertip's offset from the target are
+    not joint states and stay the environment's own; the target's position (two slide joints)
+    and the arm's velocities are replaced by the estimate. With substeps the observer takes
+    frame_skip samples per step, without them one."""
+    joints = ["joint0", "joint1", "target_x", "target_y"]
+    env = ObserverInTheLoop(gym.make("Reacher-v5"), joints=joints, observer="high_gain_multi",
+                            observer_kwargs={"k": 30.0}, sensor=NOISE)
+    assert set(env.tap.entries) == {4, 5, 6, 7}  # Reacher's layout: target qpos, arm qvel
+    obs, info = env.reset(seed=0)
+    true = info["true_observation"]
+    keep = [i for i in range(obs.size) if i not in env.tap.entries]
+    np.testing.assert_array_equal(obs[keep], true[keep])
+    calls = []
+    env.observer.update = (lambda f: lambda *a: (calls.append(a[2]), f(*a))[1])(
+        env.observer.update)
+    env.step(np.zeros(2, dtype=np.float32))
+    assert calls == [env.unwrapped.model.opt.timestep] * env.unwrapped.frame_skip
+    once = ObserverInTheLoop(gym.make("Reacher-v5"), joints=joints, substeps=False,
+                             observer="high_gain_multi", observer_kwargs={"k": 30.0})
+    once.reset(seed=0)
+    calls.clear()
+    once.observer.update = (lambda f: lambda *a: (calls.append(a[2]), f(*a))[1])(
+        once.observer.update)
+    once.step(np.zeros(2, dtype=np.float32))
+    assert calls == [pytest.approx(once.dt)] and once.dt == pytest.approx(0.02)
+    env.close()
+    assert "_step_mujoco_simulation" not in env.unwrapped.__dict__  # stepping restored
+
+
+def test_joints_mode_passes_check_env_and_needs_a_reset():
+    from gymnasium.error import ResetNeeded
+    from gymnasium.utils.env_checker import check_env
+
+    env = _hopper()
+    with pytest.raises(ResetNeeded, match="call reset"):
+        env.step(np.zeros(3, dtype=np.float32))
+    check_env(env, skip_render_check=True)
+    a, b = _hopper(), _hopper()
+    oa, ob = a.reset(seed=5)[0], b.reset(seed=5)[0]
+    np.testing.assert_array_equal(oa, ob)
+    for _ in range(3):
+        act = np.full(3, 0.3, dtype=np.float32)
+        np.testing.assert_array_equal(a.step(act)[0], b.step(act)[0])
+
+
+def test_joints_mode_bad_input():
+    from hgo_mj.exceptions import ModelError
+
+    with pytest.raises(DesignError, match="give measure= .* or joints= .*, one of them"):
+        ObserverInTheLoop(_ip())
+    with pytest.raises(DesignError, match="give measure= .* or joints= .*, one of them"):
+        ObserverInTheLoop(_ip(), measure=(0,), joints=["hinge"])
+    with pytest.raises(DesignError, match=r"joints= needs a Gymnasium MuJoCo environment; "
+                                          r"CartPoleEnv has no"):
+        ObserverInTheLoop(gym.make("CartPole-v1"), joints=["hinge"])
+    with pytest.raises(ModelError, match="'knee'"):
+        ObserverInTheLoop(gym.make("Hopper-v5"), joints=["knee"])
+    with pytest.raises(DesignError, match=r"\['layout'\] go with measure="):
+        _hopper(layout=(0, 1))
+    with pytest.raises(DesignError, match="does not apply to"):
+        _hopper(observer="high_gain", observer_kwargs={"k": 5.0})
+    with pytest.raises(DesignError, match="substeps must be true or false"):
+        _hopper(substeps=1)
