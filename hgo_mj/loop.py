@@ -43,7 +43,25 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class Periods:
     """The loop's periods: ``sample`` and ``control`` (seconds), ``steps`` plant steps per
-    sample and ``every`` samples per control period."""
+    sample and ``every`` samples per control period.
+
+    Parameters
+    ----------
+    sample : float
+        Sample period, seconds (a multiple of ``plant.dt``).
+    control : float
+        Control period, seconds (a multiple of ``sample``).
+    steps : int
+        Plant steps per sample (``sample / plant.dt``).
+    every : int
+        Samples per control period (``control / sample``).
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import make_plant
+    >>> Periods.of(make_plant("pendulum", dt=0.01), 0.02, 0.1)
+    Periods(sample=0.02, control=0.1, steps=2, every=5)
+    """
 
     sample: float
     control: float
@@ -53,7 +71,38 @@ class Periods:
     @classmethod
     def of(cls, plant: Plant, sample_period: Any = None, control_period: Any = None) -> Periods:
         """Validated periods: defaults ``plant.dt`` and ``sample_period``, each a positive
-        integer multiple of the one before."""
+        integer multiple of the one before.
+
+        Parameters
+        ----------
+        plant : Plant
+            The plant whose ``dt`` the sample period is a multiple of.
+        sample_period : float, optional
+            Seconds between samples (default ``plant.dt``).
+        control_period : float, optional
+            Seconds between control instants (default ``sample_period``).
+
+        Returns
+        -------
+        Periods
+            The periods with ``steps = sample_period / plant.dt`` and
+            ``every = control_period / sample_period``.
+
+        Raises
+        ------
+        DesignError
+            A period that is not a finite positive number, or not an integer multiple of
+            the one before it.
+
+        Examples
+        --------
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> Periods.of(plant)
+        Periods(sample=0.01, control=0.01, steps=1, every=1)
+        >>> Periods.of(plant, sample_period=0.05, control_period=0.2).every
+        4
+        """
         Ts = plant.dt if sample_period is None else finite_scalar(
             "sample_period", sample_period, positive=True)
         steps = integer_multiple("sample_period", Ts, plant.dt, "plant.dt")
@@ -70,7 +119,38 @@ class Segment:
     ``x``, ``y_clean``, ``y_meas``, ``u`` are the rows at the sample instants ``t`` (the state
     before the plant moved on); ``blocks[name]`` holds each observer's estimate *after* each
     sample (:class:`~hgo_mj.observers.base.Block`), ``before[name]`` its estimate before
-    sample 0 (``(B, n_x)``, ``(B, n)``, ``(B, d)``)."""
+    sample 0 (``(B, n_x)``, ``(B, n)``, ``(B, d)``).
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Sample instants, seconds.
+    x : ndarray, shape (B, T, n)
+        True state at each instant.
+    y_clean, y_meas : ndarray, shape (B, T, p)
+        Clean outputs and the sensor chain's measurements of them.
+    u : ndarray, shape (B, T, m)
+        Input held from each instant over one sample period.
+    blocks : dict of str to Block
+        Each observer's ``x_hat`` ``(B, T, n_x)``, ``z_hat`` ``(B, T, n)`` and
+        ``diagnostics`` ``(B, T, d)`` after each sample.
+    before : dict of str to tuple of ndarray
+        Each observer's ``(x_hat, z_hat, diagnostics)`` before sample 0, ``(B, ...)`` each
+        (empty for a loop built with ``exact=False``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> plant = make_plant("pendulum", dt=0.01)
+    >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+    ...             Periods.of(plant))
+    >>> loop.reset([0.2, 0.0])
+    >>> seg = loop.segment(np.zeros((1, 5, 1)))
+    >>> len(seg), seg.x.shape, seg.blocks["hgo"].x_hat.shape, seg.before["hgo"][0].shape
+    (5, (1, 5, 2), (1, 5, 2), (1, 2))
+    """
 
     t: Array
     x: Array
@@ -88,7 +168,29 @@ class LoopFailure(Exception):
     """An observer's update or the plant failed inside a segment at sample ``row`` (the run's
     sample index). ``segment`` holds the rows ``..row`` that are valid (the plant's and sensor's
     through ``row``; each observer's estimate before each of them), ``observer`` names the
-    observer (None: the plant)."""
+    observer (None: the plant).
+
+    Parameters
+    ----------
+    observer : str or None
+        Name of the observer that failed; ``None`` when the plant failed.
+    row : int
+        The run's sample index of the failure.
+    t : float
+        The sample instant of the failure, seconds.
+    cause : BaseException
+        The original error (also the exception's ``__cause__`` when raised by the loop).
+    segment : Segment
+        The valid rows of the segment up to ``row``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> seg = Segment(np.zeros(0), *(np.zeros((1, 0, 1)),) * 4, {}, {})
+    >>> exc = LoopFailure("hgo", 3, 0.03, ValueError("math domain error"), seg)
+    >>> str(exc), exc.observer, exc.row
+    ('hgo at t=0.03 (row 3): math domain error', 'hgo', 3)
+    """
 
     def __init__(self, observer: str | None, row: int, t: float, cause: BaseException,
                  segment: Segment) -> None:
@@ -137,6 +239,7 @@ class Loop:
     observers : mapping name -> Observer
         Every observer sees the same measurement stream and the same input.
     periods : Periods
+        The sample and control periods (:meth:`Periods.of`).
     exact : bool
         Keep what a stored run needs (default): each observer's estimate before a segment,
         and a copy of its state before a segment of several samples, so that a failure is
@@ -144,6 +247,26 @@ class Loop:
         turns it off: a failure then stops at the segment, and the observers' rows of a
         :class:`Segment` are written again by the next segment of the same length (keep a
         copy to keep them).
+
+    Raises
+    ------
+    DesignError
+        ``plant`` is not a Plant, ``sensor`` not a SensorChain or None, or an observer not
+        an Observer.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> plant = make_plant("pendulum", dt=0.01)
+    >>> loop = Loop(plant, SensorChain([GaussianNoise(std=1e-3)]),
+    ...             {"hgo": HighGainObserver(plant.system, k=10.0)}, Periods.of(plant))
+    >>> loop.reset([0.2, 0.0], seed=1)
+    >>> seg = loop.segment(np.zeros((1, 10, 1)))  # 10 samples, zero input
+    >>> loop.k, round(loop.t, 6), seg.y_meas.shape
+    (10, 0.1, (1, 10, 1))
     """
 
     def __init__(self, plant: Plant, sensor: SensorChain | None,
@@ -180,7 +303,37 @@ class Loop:
         system's), the sensor streams from ``seed`` (an int or None for one stream, a sequence
         of B seeds for B), each observer from its own initial estimate; check each observer's
         output channels and inputs against the plant and its sample period (a too-long period
-        for a high gain is refused here, before any work)."""
+        for a high gain is refused here, before any work).
+
+        Parameters
+        ----------
+        x0 : array_like, optional
+            Initial true state ``(n,)``, or ``(B, n)`` for B members (default
+            ``plant.system.default_x0``).
+        seed : int, sequence of int, CONTINUE or None
+            Seed(s) of the sensor chain's streams: one (or None) for one stream, B for B
+            members; :data:`CONTINUE` restarts the stages and lets their generators go on.
+        batch : int, optional
+            Number of members B (default: one unbatched member, or as many as ``x0`` rows).
+
+        Raises
+        ------
+        DimensionError
+            The sensor chain has a different number of streams than the plant has members,
+            or an observer's output channels or input width do not fit the plant.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([[0.2, 0.0], [0.1, 0.0]], batch=2)
+        >>> loop.batch, loop.k
+        (2, 0)
+        """
         self.plant.reset(x0, batch=batch)
         B = self.plant.batch
         if self.sensor is not None:
@@ -209,11 +362,36 @@ class Loop:
         drawn for the current instant (:meth:`sample`) is drawn again for these members only,
         from their streams (the others' streams do not advance).
 
+        Parameters
+        ----------
+        idx : sequence of int
+            The members to restart (rows of the batch).
+        X0 : array_like, shape (len(idx), n)
+            Their new initial states.
+        seeds : sequence
+            Per member in ``idx``: an int to reseed its sensor streams, ``None``, or
+            :data:`CONTINUE` (ignored without a sensor chain).
+
         Raises
         ------
         DesignError
             A plant, sensor stage or observer that cannot restart one member (see their
-            ``reset_members``)."""
+            ``reset_members``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([[0.2, 0.0], [0.1, 0.0]], batch=2)
+        >>> _ = loop.segment(np.zeros((2, 3, 1)))
+        >>> loop.reset_members([1], [[0.3, 0.0]], [None])
+        >>> loop.k, loop.plant.state[1].tolist()
+        (3, [0.3, 0.0])
+        """
         rows = [int(b) for b in idx]
         reset_members = getattr(self.plant, "reset_members", None)
         if reset_members is None:
@@ -240,12 +418,62 @@ class Loop:
             self._pending = (self.k, fresh)
 
     def estimates(self) -> dict[str, tuple[Array, Array, Array]]:
-        """Each observer's current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)`` arrays."""
+        """Each observer's current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)`` arrays.
+
+        Returns
+        -------
+        dict of str to tuple of ndarray
+            Per observer name: copies of ``x_hat`` ``(B, n_x)``, ``z_hat`` ``(B, n)`` and the
+            diagnostics ``(B, d)`` (the observer's family diagnostics, then its dropout count).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([0.2, 0.0])
+        >>> [v.shape for v in loop.estimates()["hgo"]]
+        [(1, 2), (1, 2), (1, 2)]
+        """
         return {name: _current(ob) for name, ob in self.observers.items()}
 
     def segment(self, U: Array) -> Segment:
         """Advance T samples with the inputs ``U`` ``(B, T, m)`` (the kernel; see the module
-        docstring). Raises :class:`LoopFailure` on a failure inside it."""
+        docstring). Raises :class:`LoopFailure` on a failure inside it.
+
+        Parameters
+        ----------
+        U : ndarray, shape (B, T, m)
+            The input held over each of the T samples.
+
+        Returns
+        -------
+        Segment
+            The T rows (true state, clean and measured outputs, inputs) and each observer's
+            estimates; the loop's clock ``k`` has moved on by T.
+
+        Raises
+        ------
+        LoopFailure
+            An observer's update (``ValueError``, ``ArithmeticError``, its divergence check)
+            or the plant failed; it carries the valid rows, and the loop's clock stays put.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([0.2, 0.0])
+        >>> seg = loop.segment(np.zeros((1, 4, 1)))
+        >>> seg.t.tolist(), loop.k
+        ([0.0, 0.01, 0.02, 0.03], 4)
+        """
         T = U.shape[1]
         Ts = self.periods.sample
         t = (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
@@ -309,7 +537,27 @@ class Loop:
         """The true state, clean and measured outputs at the current instant, ``(B, 1, ...)``
         each, without moving on (the last row of a run; an environment's newest measurement).
         The sensor draws for this instant once: the next :meth:`segment` consumes this
-        measurement as its first."""
+        measurement as its first.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``(X, Yc, Ym)``: the true state ``(B, 1, n)``, the clean outputs ``(B, 1, p)`` and
+            the measured outputs ``(B, 1, p)`` (a copy) at the current instant.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([0.2, 0.0])
+        >>> X, Yc, Ym = loop.sample()
+        >>> X.tolist(), Yc.tolist(), loop.k
+        ([[[0.2, 0.0]]], [[[0.2]]], 0)
+        """
         B = self.batch  # the plant's state and outputs are fresh arrays: no copies
         X = np.asarray(self.plant.state, dtype=np.float64).reshape(B, 1, -1)
         Yc = np.asarray(self.plant.outputs(), dtype=np.float64).reshape(B, 1, -1)
@@ -446,4 +694,4 @@ def _head(b: Block, j: int) -> Block:
     return Block(b.x_hat[:, :j], b.z_hat[:, :j], b.diagnostics[:, :j])
 
 
-__all__ = ["CONTINUE", "Drive", "Loop", "LoopFailure", "Periods", "Segment"]
+__all__ = ["CONTINUE", "Loop", "LoopFailure", "Periods", "Segment"]

@@ -51,6 +51,27 @@ class ObserverRecord:
     ``state_names`` names the columns of ``x_hat`` (the observer's ``state_names``); empty
     means "the plant's states", which :class:`Trajectory` fills in when the widths agree
     (``x_hat_1, x_hat_2, ...`` otherwise, as for files written before the names were saved).
+
+    Parameters
+    ----------
+    x_hat : ndarray, shape (T, n_hat)
+        The observer's estimate at each sample instant, in its own state layout.
+    z_hat : ndarray, shape (T, n_z)
+        The estimate in the observer's own coordinates (e.g. the normal form).
+    diagnostics : dict of str to ndarray, shape (T,)
+        Per-sample diagnostics named by the observer's ``diagnostic_names`` (default: none).
+    update_time : float
+        Mean wall time of one ``update`` call, seconds (default NaN: not measured).
+    state_names : tuple of str
+        Names of the columns of ``x_hat`` (default ``()``: the plant's states).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rec = ObserverRecord(x_hat=np.zeros((3, 2)), z_hat=np.zeros((3, 2)),
+    ...                      state_names=("angle", "angular_velocity"))
+    >>> rec.x_hat.shape, rec.state_names, rec.diagnostics
+    ((3, 2), ('angle', 'angular_velocity'), {})
     """
 
     x_hat: Array
@@ -101,7 +122,10 @@ class Trajectory:
     ...                 lambda t: [0.0], duration=1.0, x0=[0.2, 0.0])
     >>> len(traj), traj.state_names, traj.error("k10").shape
     (101, ('angle', 'angular_velocity'), (101, 2))
-    >>> traj.save("run.npz").name, len(Trajectory.load("run.npz"))
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = traj.save(f"{tmp}/run.npz")
+    ...     path.name, len(Trajectory.load(path))
     ('run.npz', 101)
     """
 
@@ -162,14 +186,67 @@ class Trajectory:
         return self.observers[observer]
 
     def estimated(self, observer: str) -> NDArray[np.bool_]:
-        """Which plant states (``state_names``) the observer estimates (by name), shape ``(n,)``."""
+        """Which plant states (``state_names``) the observer estimates (by name), shape ``(n,)``.
+
+        Parameters
+        ----------
+        observer : str
+            Name of the observer in :attr:`observers`.
+
+        Returns
+        -------
+        ndarray of bool, shape (n,)
+            ``True`` for each plant state that the observer has a column of the same name for.
+
+        Raises
+        ------
+        DesignError
+            No observer of that name in the trajectory.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import make_observer
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system,
+        ...                 k=20.0)}, lambda t: [0.0], duration=0.1, x0=[0.2, 0.0])
+        >>> traj.estimated("hgo")
+        array([ True,  True])
+        """
         own = set(self._record(observer).state_names)
         return np.array([s in own for s in self.state_names], dtype=bool)
 
     def estimate(self, observer: str) -> Array:
         """The observer's ``x_hat`` on the plant's state columns, shape ``(T, n)``: matched by
         name, NaN for a plant state it does not estimate. Its columns that are not plant states
-        (``extra_states``) are left out."""
+        (``extra_states``) are left out.
+
+        Parameters
+        ----------
+        observer : str
+            Name of the observer in :attr:`observers`.
+
+        Returns
+        -------
+        ndarray, shape (T, n)
+            The estimate on the plant's state columns (NaN where not estimated).
+
+        Raises
+        ------
+        DesignError
+            No observer of that name in the trajectory.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import make_observer
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system,
+        ...                 k=20.0)}, lambda t: [0.0], duration=0.1, x0=[0.2, 0.0])
+        >>> est = traj.estimate("hgo")
+        >>> est.shape, est[0].tolist() == traj.observers["hgo"].x_hat[0].tolist()
+        ((11, 2), True)
+        """
         rec = self._record(observer)
         cols = {s: j for j, s in enumerate(rec.state_names)}
         out = np.full(self.x.shape, np.nan)
@@ -181,14 +258,68 @@ class Trajectory:
 
     def extra_states(self, observer: str) -> tuple[str, ...]:
         """Names of the observer's columns that are not plant states (derivatives of an
-        output, parameter estimates, ...): they have no true value to compare with."""
+        output, parameter estimates, ...): they have no true value to compare with.
+
+        Parameters
+        ----------
+        observer : str
+            Name of the observer in :attr:`observers`.
+
+        Returns
+        -------
+        tuple of str
+            The observer's column names that are not in :attr:`state_names`, in its order
+            (empty when it estimates the plant's states only).
+
+        Raises
+        ------
+        DesignError
+            No observer of that name in the trajectory.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import make_observer
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system,
+        ...                 k=20.0)}, lambda t: [0.0], duration=0.1, x0=[0.2, 0.0])
+        >>> traj.extra_states("hgo")
+        ()
+        """
         plant = set(self.state_names)
         return tuple(s for s in self._record(observer).state_names if s not in plant)
 
     def error(self, observer: str) -> Array:
         """``x - x_hat`` of one observer, shape ``(T, n)`` (the plant's states), columns matched
         by name: NaN for a plant state the observer does not estimate, and where its estimate
-        is NaN (inverse map undefined)."""
+        is NaN (inverse map undefined).
+
+        Parameters
+        ----------
+        observer : str
+            Name of the observer in :attr:`observers`.
+
+        Returns
+        -------
+        ndarray, shape (T, n)
+            The estimation error on the plant's state columns.
+
+        Raises
+        ------
+        DesignError
+            No observer of that name in the trajectory.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import make_observer
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system,
+        ...                 k=20.0)}, lambda t: [0.0], duration=0.1, x0=[0.2, 0.0])
+        >>> err = traj.error("hgo")
+        >>> err.shape, bool(np.all(np.isfinite(err)))
+        ((11, 2), True)
+        """
         return self.x - self.estimate(observer)
 
     def to_pandas(self, form: str = "wide") -> Any:
@@ -198,6 +329,17 @@ class Trajectory:
         ``input/<input>``; ``attrs["units"]`` their units) or ``form="long"`` (one row per
         sample and column: ``t``, ``source``, ``name``, ``value``, ``unit``). See
         :mod:`hgo_mj.tidy`.
+
+        Parameters
+        ----------
+        form : {"wide", "long"}
+            The layout (default ``"wide"``).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The run's columns in that layout; ``attrs["units"]`` maps each column to its unit
+            in the wide form.
 
         Raises
         ------
@@ -232,6 +374,21 @@ class Trajectory:
         with :func:`pyarrow.parquet.write_table` keeps both (:func:`hgo_mj.tidy.write_table`
         does so atomically).
 
+        Parameters
+        ----------
+        form : {"wide", "long"}
+            The layout, as in :meth:`to_pandas` (default ``"wide"``).
+
+        Returns
+        -------
+        pyarrow.Table
+            The run's columns with their units and the run's metadata.
+
+        Raises
+        ------
+        DesignError
+            ``form`` is neither ``"wide"`` nor ``"long"`` (raised by :mod:`hgo_mj.tidy`).
+
         Examples
         --------
         >>> from hgo_mj.inputs import Constant
@@ -247,7 +404,32 @@ class Trajectory:
 
     def save(self, path: str | Path) -> Path:
         """Write the run to one ``.npz`` (numpy columns, no pickle) with its names and metadata
-        as JSON, atomically; :meth:`load` reads it back."""
+        as JSON, atomically; :meth:`load` reads it back.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write (conventionally ``*.npz``); missing parent folders are created,
+            an existing file is replaced only once the new one is complete.
+
+        Returns
+        -------
+        Path
+            ``path`` as a :class:`~pathlib.Path`.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from hgo_mj.observers import make_observer
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system,
+        ...                 k=20.0)}, lambda t: [0.0], duration=0.1, x0=[0.2, 0.0])
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     path = traj.save(f"{tmp}/runs/run.npz")
+        ...     path.name, path.exists()
+        ('run.npz', True)
+        """
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         cols: dict[str, Any] = {"t": self.t, "x": self.x, "y_clean": self.y_clean,
@@ -272,10 +454,33 @@ class Trajectory:
     def load(cls, path: str | Path) -> Trajectory:
         """Read a trajectory written by :meth:`save`.
 
+        Parameters
+        ----------
+        path : str or Path
+            A ``.npz`` file written by :meth:`save`.
+
+        Returns
+        -------
+        Trajectory
+            The run with its columns, names, observers and metadata as saved.
+
         Raises
         ------
         DimensionError
             Columns of different lengths (or a column missing its rows).
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from hgo_mj.observers import make_observer
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system,
+        ...                 k=20.0)}, lambda t: [0.0], duration=0.1, x0=[0.2, 0.0])
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     back = Trajectory.load(traj.save(f"{tmp}/run.npz"))
+        >>> len(back), back.state_names, np.array_equal(back.x, traj.x)
+        (11, ('angle', 'angular_velocity'), True)
         """
         with np.load(Path(path), allow_pickle=False) as z:
             meta = json.loads(str(z["__meta__"]))
@@ -294,7 +499,22 @@ class Trajectory:
 
 def package_versions() -> dict[str, str]:
     """Versions of the packages a result depends on, for its metadata (looked up once per
-    process: the lookup costs milliseconds; a fresh dict each call)."""
+    process: the lookup costs milliseconds; a fresh dict each call).
+
+    Returns
+    -------
+    dict of str to str
+        ``"python"`` and each of hgo_mj, mujoco, numpy, scipy, gymnasium and rerun-sdk mapped
+        to its installed version (``"not installed"`` where it is missing).
+
+    Examples
+    --------
+    >>> versions = package_versions()
+    >>> sorted(versions)
+    ['gymnasium', 'hgo_mj', 'mujoco', 'numpy', 'python', 'rerun-sdk', 'scipy']
+    >>> versions["numpy"] == np.__version__
+    True
+    """
     if not _VERSIONS:
         out = {"python": platform.python_version()}
         for pkg in ("hgo_mj", "mujoco", "numpy", "scipy", "gymnasium", "rerun-sdk"):
