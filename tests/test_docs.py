@@ -8,8 +8,8 @@ The Sphinx build itself (warnings as errors, the gallery executed) is ``make doc
 from __future__ import annotations
 
 import doctest
-import importlib.util
 import importlib
+import importlib.util
 import inspect
 import re
 import runpy
