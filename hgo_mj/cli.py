@@ -138,6 +138,8 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
         sc["plant"]["x0"] = parse_value(args.x0)
     if args.seeds is not None:
         sc["run"]["seeds"] = _flag_int(args.seeds, "--seeds")
+    if args.store_every is not None:
+        sc["run"]["store_every"] = _flag_int(args.store_every, "--store-every")
     return sc
 
 
@@ -330,7 +332,8 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
                               "scenario_spec": sc, "versions": package_versions()})
             ts = run.get("sample_period") or plant.dt
             on_chunk = (max(RRD_CHUNK_SECONDS, 200 * float(ts)), rec.write_chunk)
-        traj = simulate(**kw, seed=seed, on_chunk=on_chunk)
+        traj = simulate(**kw, seed=seed, on_chunk=on_chunk,
+                        store_every=run.get("store_every", 1))
         mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
         metrics = all_metrics(traj, **mkw)
         check_metrics(metrics)
@@ -402,6 +405,11 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
                           f"{n}: run that many as a study, `hgo-mj sweep STUDY.toml` with "
                           f"[sweep] seeds = {n} (and --yes beyond {MAX_RUNS} runs)")
     jobs = positive_int("--jobs", jobs, floats=False)
+    if n > 1 and "store_every" in run:
+        raise DesignError("run.store_every (--store-every) keeps every k-th row of one run's "
+                          "trajectory, and its metrics are computed from those rows; with "
+                          f"run.seeds = {n} the seeds' metrics would not be comparable: give "
+                          "one or the other")
     single = {**sc, "run": {k: v for k, v in run.items() if k != "seeds"}} if isinstance(
         run, dict) else sc
     traj, metrics, out = run_scenario(single, name, rrd=rrd, formats=formats)
@@ -534,6 +542,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--band", type=float, metavar="FRACTION",
                    help="settling band as a fraction of each true state's range (run.band, "
                    "default 0.05)")
+    r.add_argument("--store-every", dest="store_every", metavar="K",
+                   help="keep every K-th sample row of the trajectory (run.store_every, default "
+                   "1): memory and files K times smaller; the run itself and the observers "
+                   "still take every sample, the metrics are computed from the kept rows")
     r.add_argument("--seeds", metavar="N",
                    help="Monte Carlo: N runs at the seeds SEED, SEED+1, ..., SEED+N-1; also "
                    "writes metrics_mc.json, summary_mc.txt and mc.png (default 1: one run)")

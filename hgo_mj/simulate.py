@@ -908,7 +908,8 @@ def check_memory(nbytes: float, rows: int) -> None:
     if nbytes > avail:
         raise DesignError(f"the run would store {rows} rows, about {nbytes / 2**30:.3g} GiB; "
                           f"found {avail / 2**30:.3g} GiB of memory available: shorten the "
-                          f"duration or keep every k-th row (store_every)")
+                          f"duration or keep every k-th row (store_every=k; hgo-mj run "
+                          f"--store-every k, run.store_every)")
 
 
 def plant_x0_rows(plant: Plant, x0: Any) -> Array:

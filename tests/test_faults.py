@@ -14,10 +14,11 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hgo_mj.cli import main
-from hgo_mj.exceptions import RecordingError
+from hgo_mj.exceptions import DesignError, RecordingError
 from hgo_mj.record import Recorder
 
 RUN = ["run", "--plant", "pendulum", "--dt", "0.001", "--observer", "high_gain:k=20",
@@ -192,3 +193,35 @@ def test_ctrl_c_stops_the_workers_with_one_line(tmp_path):
         for p in workers:
             if _alive(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def test_store_every_thins_a_long_run_and_the_memory_refusal_names_it(tmp_path, capsys,
+                                                                     monkeypatch):
+    """--store-every K keeps every K-th row (the run still takes every sample); a run whose
+    rows would not fit in memory is refused before it starts, naming the estimate and the
+    flag; bad values, seeds with it and a study with it are one line each."""
+    from hgo_mj.simulate import Trajectory
+
+    assert main(["run", "--plant", "pendulum", "--observer", "high_gain:k=10", "--duration",
+                 "2", "--store-every", "10", "--out", str(tmp_path / "a"), "--quiet",
+                 "--format", "npz"]) == 0
+    tr = Trajectory.load(tmp_path / "a" / "trajectory.npz")
+    assert len(tr.t) == 201 and np.allclose(np.diff(tr.t), 0.01)
+    monkeypatch.setattr("hgo_mj.simulate.available_memory", lambda: 1e6)
+    capsys.readouterr()
+    assert main(["run", "--plant", "pendulum", "--duration", "100", "--out",
+                 str(tmp_path / "b"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "GiB" in err[0] and "--store-every k" in err[0], err
+    assert not (tmp_path / "b").exists()
+    for argv, message in [(["--store-every", "2.5"], "--store-every must be a positive integer"),
+                          (["--store-every", "2", "--seeds", "3"], "with run.seeds = 3")]:
+        assert main(["run", "--plant", "pendulum", "--duration", "1", "--out",
+                     str(tmp_path / "c"), "--quiet", *argv]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+    from hgo_mj.study.spec import parse_study
+
+    with pytest.raises(DesignError, match="run.store_every thins the trajectory"):
+        parse_study({"plant": {"name": "pendulum"}, "run": {"duration": 1.0, "store_every": 2},
+                     "sweep": {"seeds": 2}})

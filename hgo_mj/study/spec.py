@@ -341,6 +341,11 @@ def parse_study(doc: Mapping[str, Any], *, max_runs: int | None = MAX_RUNS) -> S
     if not isinstance(doc, Mapping):
         raise DesignError(f"a study must be a table; found {type(doc).__name__}")
     scenario = {k: copy.deepcopy(v) for k, v in doc.items() if k != "sweep"}
+    run = scenario.get("run")
+    if isinstance(run, Mapping) and "store_every" in run:
+        raise DesignError("run.store_every thins the trajectory of `hgo-mj run`; a study keeps "
+                          "metrics computed at every sample (and sweep.store's trajectories "
+                          "whole): leave it out")
     sweep = doc.get("sweep", {})
     if not isinstance(sweep, Mapping):
         raise DesignError(f"[sweep] must be a table; found {sweep!r}")
