@@ -33,6 +33,9 @@ Array = NDArray[np.float64]
 _F64 = np.dtype(np.float64)
 
 
+__all__ = ["Plant"]
+
+
 def initial_states(x0: Any, batch: Any, default: Array, n: int) -> tuple[Array, bool]:
     """The members' initial states ``(B, n)`` (a fresh float array) and whether the plant is
     batched, from :meth:`Plant.reset`'s ``x0`` (None: ``default``; ``(n,)``: every member;
@@ -126,6 +129,20 @@ class Plant(ABC):
         Control period, seconds (or the plant's own time unit).
     t : float
         Current time.
+
+    Examples
+    --------
+    A plant of a registered system (an :class:`~hgo_mj.plants.ode.OdePlant` here) driven
+    through the batched primitive:
+
+    >>> import numpy as np
+    >>> from hgo_mj.plants import make_plant
+    >>> plant = make_plant("jo_son", dt=0.01)
+    >>> isinstance(plant, Plant), plant.state_names, plant.batch, plant.batched
+    (True, ('x1', 'x2', 'x3'), 1, False)
+    >>> X, Yc = plant.run(np.zeros((1, 3, 1)), 2)  # 3 samples of 2 plant steps
+    >>> X.shape, Yc.shape, round(plant.t, 6)
+    ((1, 3, 3), (1, 3, 1), 0.06)
     """
 
     system: System
@@ -152,7 +169,33 @@ class Plant(ABC):
     @abstractmethod
     def reset(self, x0: Any = None, *, batch: int | None = None) -> None:
         """Set time to zero and the state to ``x0`` (default: ``system.default_x0``):
-        ``(n,)`` for every member or ``(B, n)``; ``batch`` the number of members."""
+        ``(n,)`` for every member or ``(B, n)``; ``batch`` the number of members.
+
+        Parameters
+        ----------
+        x0 : array_like, optional
+            Initial state ``(n,)`` (every member) or ``(B, n)`` (one per member); default
+            ``system.default_x0``. A 2-D ``x0`` makes the plant batched.
+        batch : int, optional
+            Number of members B; given, the plant is batched (also for B = 1) and a 2-D
+            ``x0`` must have B rows. Default: one member, or as many as ``x0`` rows.
+
+        Raises
+        ------
+        DimensionError
+            ``x0`` is neither ``(n,)`` nor ``(B, n)``, or its B differs from ``batch``
+            (raised by the implementations).
+        DesignError
+            ``batch`` is not a positive integer, or ``x0`` is not finite.
+
+        Examples
+        --------
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("jo_son", dt=0.01)
+        >>> plant.reset([0.5, 1.0, -1.0], batch=2)
+        >>> plant.batch, plant.batched, plant.state.shape, plant.t
+        (2, True, (2, 3), 0.0)
+        """
 
     @abstractmethod
     def run(self, U: Any, steps: int) -> tuple[Array, Array]:
@@ -179,6 +222,16 @@ class Plant(ABC):
         DivergenceError
             A member's input or state left the allowed numbers (message names the member and
             the time; attributes ``member``, ``t``, ``rows``, ``X``, ``Yc``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("jo_son", dt=0.01)
+        >>> plant.reset([[0.5, 1.0, -1.0], [0.0, 0.0, 0.0]])  # two members
+        >>> X, Yc = plant.run(np.zeros((2, 4, 1)), 1)
+        >>> X.shape, X[:, 0].tolist(), round(plant.t, 6)
+        ((2, 4, 3), [[0.5, 1.0, -1.0], [0.0, 0.0, 0.0]], 0.04)
         """
 
     @property
@@ -189,12 +242,32 @@ class Plant(ABC):
     @abstractmethod
     def outputs(self) -> Array:
         """The clean measured outputs at the current time (a fresh array): ``(p,)``
-        unbatched, ``(B, p)`` batched."""
+        unbatched, ``(B, p)`` batched.
+
+        Returns
+        -------
+        ndarray
+            ``(p,)`` for an unbatched plant, ``(B, p)`` for a batched one, in the order of
+            :attr:`output_names`.
+
+        Examples
+        --------
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("jo_son", dt=0.01)
+        >>> plant.output_names, plant.outputs().tolist()
+        (('y',), [0.5])
+        """
 
     def step(self, u: Any) -> None:
         """Advance one control period ``dt`` with the input ``u`` held: ``(m,)`` (a scalar
         for one input), or ``(B, m)`` for a batched plant: :meth:`run` of one sample of one
         plant step (what it records is dropped).
+
+        Parameters
+        ----------
+        u : array_like
+            The input held over ``dt``: ``(m,)`` (or a scalar for one input) for an unbatched
+            plant, ``(B, m)`` for a batched one.
 
         Raises
         ------
@@ -202,6 +275,14 @@ class Plant(ABC):
             ``u`` is not ``(m,)`` (unbatched) or ``(B, m)`` (batched).
         DivergenceError
             As :meth:`run`.
+
+        Examples
+        --------
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("jo_son", dt=0.01)
+        >>> plant.step([0.0])
+        >>> round(plant.t, 6), plant.state.shape
+        (0.01, (3,))
         """
         m = len(self.input_names)
         try:

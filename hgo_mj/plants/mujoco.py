@@ -58,6 +58,9 @@ _DIRECT_SENSORS = {
 }
 
 
+__all__ = ["MujocoPlant", "model_path"]
+
+
 def _constraint_free(m: Any) -> bool:
     """Whether the model can never hold a constraint that the solver's warm start affects
     (then a state without ``qacc_warmstart`` continues exactly)."""
@@ -89,7 +92,33 @@ def sensor_channel(m: Any, name: str) -> tuple[str, int]:
 
 
 def model_path(name: str) -> Path:
-    """Absolute path of an MJCF file shipped under ``models/`` (works from a wheel install)."""
+    """Absolute path of an MJCF file shipped under ``models/`` (works from a wheel install).
+
+    Parameters
+    ----------
+    name : str
+        File name of a shipped model, e.g. ``"pendulum.xml"``.
+
+    Returns
+    -------
+    Path
+        The absolute path of the file.
+
+    Raises
+    ------
+    DesignError
+        No shipped model of that name (the shipped ones are listed).
+
+    Examples
+    --------
+    >>> path = model_path("pendulum.xml")
+    >>> path.name, path.is_absolute()
+    ('pendulum.xml', True)
+    >>> model_path("nope.xml")
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: no MJCF model named 'nope.xml'; shipped models: [...]
+    """
     path = Path(str(resources.files("hgo_mj.models").joinpath(name)))
     if not path.is_file():
         shipped = sorted(p.name for p in Path(str(resources.files("hgo_mj.models"))).glob("*.xml"))
@@ -309,12 +338,30 @@ class MujocoPlant(Plant):
         members keep the batch's clock (``time`` in their physics state), so that the batch
         still runs as one rollout: no shipped model reads the time.
 
+        Parameters
+        ----------
+        idx : sequence of int
+            The members (rows of the batch) to restart.
+        X0 : array_like, shape (len(idx), n)
+            Their new states.
+
         Raises
         ------
         DesignError
             Not a batch of several members, or a state MuJoCo cannot take (see :meth:`reset`).
         DimensionError
-            ``X0`` not one state per member."""
+            ``X0`` not one state per member.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> plant = MujocoPlant(SYSTEMS["pendulum"], dt=0.01)
+        >>> plant.reset([[0.1, 0.0], [0.2, 0.0]])
+        >>> plant.step([[0.0], [0.0]])
+        >>> plant.reset_members([1], [[0.5, 0.0]])
+        >>> plant.state[1].tolist(), round(plant.t, 6)
+        ([0.5, 0.0], 0.01)
+        """
         if self.batch < 2:
             raise DesignError(f"reset_members needs a batch of several members; this plant has "
                               f"{self.batch} (use reset)")

@@ -23,6 +23,8 @@ from ..exceptions import DesignError
 from ..systems.base import System
 from .base import Array, Plant, check_block, divergence, initial_states
 
+__all__ = ["OdePlant"]
+
 
 def _rk4(f: Callable[..., Any], p: Mapping[str, float], x: Any, u: Any, t: float, h: float,
          substeps: int) -> tuple[Any, float]:

@@ -50,7 +50,33 @@ STATS = ("mean", "std", "min", "median", "max")
 
 
 def check_seeds(seeds: Iterable[Any]) -> list[int]:
-    """The seeds as a non-empty list of non-negative integers, or a :class:`DesignError`."""
+    """The seeds as a non-empty list of non-negative integers, or a :class:`DesignError`.
+
+    Parameters
+    ----------
+    seeds : iterable
+        The seeds to check (e.g. a list or a ``range``).
+
+    Returns
+    -------
+    list of int
+        The seeds as Python ints, in their order.
+
+    Raises
+    ------
+    DesignError
+        ``seeds`` is not iterable, is empty, or holds something other than a non-negative
+        integer (a bool included).
+
+    Examples
+    --------
+    >>> check_seeds(range(3))
+    [0, 1, 2]
+    >>> check_seeds([1, -2])
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: seeds must be non-negative integers; found -2
+    """
     try:
         out = list(seeds)
     except TypeError:
@@ -65,7 +91,47 @@ def check_seeds(seeds: Iterable[Any]) -> list[int]:
 
 def run_seed(make_run: Callable[[], Mapping[str, Any]], seed: int,
              metric_kw: Mapping[str, Any] | None = None) -> dict[str, dict[str, Any]]:
-    """One run of the study: ``simulate(**make_run(), seed=seed)`` and its metrics."""
+    """One run of the study: ``simulate(**make_run(), seed=seed)`` and its metrics.
+
+    Parameters
+    ----------
+    make_run : callable ``() -> mapping``
+        Builds the run: the keyword arguments of :func:`hgo_mj.simulate.simulate` except
+        ``seed`` (as in :func:`monte_carlo`).
+    seed : int
+        The sensor chain's seed.
+    metric_kw : mapping, optional
+        Keyword arguments of :func:`hgo_mj.metrics.all_metrics` (``t_transient``, ``band``,
+        ``relative``); default its defaults.
+
+    Returns
+    -------
+    dict
+        :func:`hgo_mj.metrics.all_metrics` of the run: per observer name, its ``states``,
+        ``estimated``, ``rmse``, ``peak``, ``settling_time``, ``final``, ... .
+
+    Raises
+    ------
+    DesignError
+        ``make_run()`` sets ``seed``.
+    DivergenceError
+        The run diverged; the message starts with ``seed S:`` and ``exc.trajectory`` holds
+        the rows up to the divergence.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> def make_run():
+    ...     plant = make_plant("pendulum", dt=0.01)
+    ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+    ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+    ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+    >>> m = run_seed(make_run, seed=3)
+    >>> m["hgo"]["states"], len(m["hgo"]["rmse"])
+    (['angle', 'angular_velocity'], 2)
+    """
     from ..metrics import all_metrics
     from ..simulate import simulate
 
@@ -93,7 +159,36 @@ def _run_seed_job(job: tuple[Callable[[], Mapping[str, Any]], int, dict[str, Any
 
 @dataclass
 class MonteCarloResult:
-    """Per-run metrics and their aggregate (see the module docstring)."""
+    """Per-run metrics and their aggregate (see the module docstring).
+
+    Made by :func:`monte_carlo` (or :meth:`from_runs`).
+
+    Parameters
+    ----------
+    seeds : list of int
+        The seeds of the runs that finished, in the order of ``runs``.
+    runs : list of dict
+        :func:`hgo_mj.metrics.all_metrics` of each run.
+    aggregate : dict
+        Per observer: ``states``, ``estimated``, ``runs`` and the statistics of each metric
+        (:func:`aggregate`).
+    failed : dict of int to str
+        Seed -> message, for the runs that diverged (not in ``seeds``/``runs``).
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> def make_run():
+    ...     plant = make_plant("pendulum", dt=0.01)
+    ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+    ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+    ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+    >>> result = monte_carlo(make_run, seeds=[1, 2])
+    >>> result.seeds, len(result.runs), result.aggregate["hgo"]["runs"], result.failed
+    ([1, 2], 2, 2, {})
+    """
 
     #: the seeds, in the order of ``runs``
     seeds: list[int]
@@ -107,14 +202,64 @@ class MonteCarloResult:
     @classmethod
     def from_runs(cls, seeds: Sequence[int], runs: Sequence[dict[str, dict[str, Any]]],
                   failed: Mapping[int, str]) -> MonteCarloResult:
-        """The result of the runs at ``seeds`` (and the ``failed`` ones), aggregated."""
+        """The result of the runs at ``seeds`` (and the ``failed`` ones), aggregated.
+
+        Parameters
+        ----------
+        seeds : sequence of int
+            The seeds of the runs that finished.
+        runs : sequence of dict
+            Their :func:`hgo_mj.metrics.all_metrics`, in the order of ``seeds``.
+        failed : mapping of int to str
+            Seed -> message of the runs that diverged.
+
+        Returns
+        -------
+        MonteCarloResult
+            With ``aggregate = aggregate(runs)``.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+        >>> def make_run():
+        ...     plant = make_plant("pendulum", dt=0.01)
+        ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+        ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+        ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+        >>> done, runs, failed = run_seeds(make_run, [1, 2])
+        >>> result = MonteCarloResult.from_runs(done, runs, {7: "seed 7: diverged"})
+        >>> result.seeds, sorted(result.aggregate), result.failed
+        ([1, 2], ['hgo'], {7: 'seed 7: diverged'})
+        """
         return cls(seeds=list(seeds), runs=list(runs), aggregate=aggregate(runs),
                    failed=dict(failed))
 
     def to_json(self) -> dict[str, Any]:
         """A JSON-ready dict: ``seeds``, ``runs`` (``[{"seed", "metrics"}]``), ``aggregate``,
         ``failed`` (``[{"seed", "error"}]``); strict JSON: ``inf`` and ``nan`` become ``None``
-        (a settling time: never; a statistic: undefined)."""
+        (a settling time: never; a statistic: undefined).
+
+        Returns
+        -------
+        dict
+            The keys ``seeds``, ``runs``, ``aggregate`` and ``failed``.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+        >>> def make_run():
+        ...     plant = make_plant("pendulum", dt=0.01)
+        ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+        ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+        ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+        >>> js = monte_carlo(make_run, seeds=[1]).to_json()
+        >>> sorted(js), js["runs"][0]["seed"], js["runs"][0]["metrics"]["hgo"]["settling_time"]
+        (['aggregate', 'failed', 'runs', 'seeds'], 1, [None, None])
+        """
         return strict_json({
             "seeds": list(self.seeds),
             "runs": [{"seed": s, "metrics": m} for s, m in zip(self.seeds, self.runs)],
@@ -123,7 +268,31 @@ class MonteCarloResult:
 
     def table(self) -> str:
         """The aggregate as a plain-text table (:func:`format_mc_table`), and the runs that
-        diverged."""
+        diverged.
+
+        Returns
+        -------
+        str
+            The table, followed by a line naming the diverged seeds where there are any.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+        >>> def make_run():
+        ...     plant = make_plant("pendulum", dt=0.01)
+        ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+        ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+        ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+        >>> done, runs, _ = run_seeds(make_run, [1, 2])
+        >>> print(MonteCarloResult.from_runs(done, runs, {7: "seed 7: diverged"}).table())
+        2 run(s) per observer
+        observer  state  rmse mean ± std  rmse med  rmse max  peak med  settled  settle med[s]
+        hgo       angle  ...
+        hgo       angular_velocity  ...
+        1 of 3 run(s) diverged and are left out of the statistics: seeds [7]
+        """
         text = format_mc_table(self.aggregate)
         if self.failed:
             total = len(self.seeds) + len(self.failed)
@@ -158,6 +327,37 @@ def aggregate(runs: Sequence[Mapping[str, Mapping[str, Any]]]) -> dict[str, dict
     "max": ...}``, lists over the plant's states, ``None`` where not estimated),
     ``settling_time`` (``{"settled_fraction", "median", "min", "max"}``, the last three over
     the runs that settled) and ``update_time`` (mean, seconds).
+
+    Parameters
+    ----------
+    runs : sequence of dict
+        :func:`hgo_mj.metrics.all_metrics` of each run; every run has the same observers,
+        and each observer the same states and estimated flags.
+
+    Returns
+    -------
+    dict
+        Per observer name, the statistics above.
+
+    Raises
+    ------
+    DesignError
+        No runs, or runs whose observers or states differ.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> def make_run():
+    ...     plant = make_plant("pendulum", dt=0.01)
+    ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+    ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+    ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+    >>> _, runs, _ = run_seeds(make_run, [1, 2])
+    >>> agg = aggregate(runs)["hgo"]
+    >>> agg["runs"], sorted(agg["rmse"]), agg["settling_time"]["settled_fraction"]
+    (2, ['max', 'mean', 'median', 'min', 'std'], [0.0, 0.0])
     """
     if not runs:
         raise DesignError("aggregate needs at least one run; found none")
@@ -258,7 +458,45 @@ def run_seeds(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *
               relative: bool = True
               ) -> tuple[list[int], list[dict[str, dict[str, Any]]], dict[int, str]]:
     """The runs of :func:`monte_carlo` without the aggregate: ``(seeds that finished, their
-    metrics, {seed: message} of those that diverged)``, in the order of ``seeds``."""
+    metrics, {seed: message} of those that diverged)``, in the order of ``seeds``.
+
+    Parameters
+    ----------
+    make_run : callable ``() -> mapping``
+        As in :func:`monte_carlo` (picklable for ``jobs > 1``).
+    seeds : iterable of int
+        The sensor chain's seeds (non-negative integers).
+    jobs : int
+        Worker processes (default 1: this process).
+    t_transient, band, relative
+        As in :func:`hgo_mj.metrics.observer_metrics`.
+
+    Returns
+    -------
+    tuple
+        ``(seeds that finished, their all_metrics, {seed: message} of those that
+        diverged)``.
+
+    Raises
+    ------
+    DesignError
+        Bad ``seeds`` or ``jobs``, ``make_run`` not callable, or not picklable for
+        ``jobs > 1``.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> def make_run():
+    ...     plant = make_plant("pendulum", dt=0.01)
+    ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+    ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+    ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+    >>> done, runs, failed = run_seeds(make_run, [1, 2])
+    >>> done, len(runs), failed
+    ([1, 2], 2, {})
+    """
     seeds = check_seeds(seeds)
     jobs = positive_int("jobs", jobs, floats=False)
     if not callable(make_run):
@@ -287,7 +525,36 @@ def run_seeds(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *
 def format_mc_table(agg: Mapping[str, Mapping[str, Any]]) -> str:
     """A plain-text table, one row per observer and state: RMSE mean ± std, median and max,
     the median peak error, the fraction of runs that settled and their median settling time
-    (``-``: not estimated)."""
+    (``-``: not estimated).
+
+    Parameters
+    ----------
+    agg : mapping
+        Per observer, :func:`aggregate`'s statistics.
+
+    Returns
+    -------
+    str
+        A header line with the number of runs, the column names, one line per observer and
+        state, and a note where a state is not estimated.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+    >>> def make_run():
+    ...     plant = make_plant("pendulum", dt=0.01)
+    ...     return {"plant": plant, "sensor": SensorChain([GaussianNoise(std=1e-3)]),
+    ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
+    ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
+    >>> _, runs, _ = run_seeds(make_run, [1, 2])
+    >>> print(format_mc_table(aggregate(runs)))
+    2 run(s) per observer
+    observer  state  rmse mean ± std  rmse med  rmse max  peak med  settled  settle med[s]
+    hgo       angle  ...
+    hgo       angular_velocity  ...
+    """
     n = max((a["runs"] for a in agg.values()), default=0)
     lines = [f"{n} run(s) per observer",
              f"{'observer':<16} {'state':<18} {'rmse mean ± std':>23} {'rmse med':>10} "

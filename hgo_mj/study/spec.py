@@ -52,7 +52,28 @@ MAX_RUNS = 10_000_000
 @dataclass(frozen=True)
 class Axis:
     """One swept dotted path and its values; axes of one ``group`` (a ``[[sweep.together]]``
-    table) advance together."""
+    table) advance together.
+
+    Parameters
+    ----------
+    path : str
+        The dotted path into the scenario (e.g. ``"observers.hgo.k"``).
+    values : tuple
+        The values the path takes, in order (numbers, strings, lists or tables).
+    group : int or None
+        Index of the ``[[sweep.together]]`` table the axis belongs to (default None: an axis
+        of its own).
+
+    Examples
+    --------
+    >>> doc = {"plant": {"name": "pendulum", "dt": 0.01},
+    ...        "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...        "run": {"duration": 0.2, "seed": 5},
+    ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
+    ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
+    >>> parse_study(doc).axes[0]
+    Axis(path='observers.hgo.k', values=(10.0, 40.0), group=None)
+    """
 
     path: str
     values: tuple[Any, ...]
@@ -61,7 +82,35 @@ class Axis:
 
 @dataclass
 class StudySpec:
-    """A validated study: the base scenario, its axes, the mode and the seeds."""
+    """A validated study: the base scenario, its axes, the mode and the seeds.
+
+    Made by :func:`parse_study` (or :class:`~hgo_mj.study.Study`, whose ``spec`` it is).
+
+    Parameters
+    ----------
+    scenario : dict
+        The base scenario (the study document without ``[sweep]``).
+    axes : tuple of Axis
+        The swept paths, in the order of the document (the last varies fastest).
+    seeds : tuple of int
+        The seeds each cell runs at.
+    mode : {"product", "zip"}
+        Every combination of the axes' values, or the axes advancing together (default
+        ``"product"``).
+    store : tuple of dict
+        Cell filters (``{path: value}``) whose runs keep their trajectories (default none).
+
+    Examples
+    --------
+    >>> doc = {"plant": {"name": "pendulum", "dt": 0.01},
+    ...        "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...        "run": {"duration": 0.2, "seed": 5},
+    ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
+    ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
+    >>> spec = parse_study(doc)
+    >>> spec.seeds, spec.mode, spec.n_cells, spec.n_runs
+    ((5, 6), 'product', 4, 8)
+    """
 
     scenario: dict[str, Any]
     axes: tuple[Axis, ...]
@@ -71,7 +120,25 @@ class StudySpec:
     store: tuple[dict[str, Any], ...] = field(default_factory=tuple)
 
     def units(self) -> list[list[Axis]]:
-        """What a product runs over: each axis alone, the axes of a group together."""
+        """What a product runs over: each axis alone, the axes of a group together.
+
+        Returns
+        -------
+        list of list of Axis
+            One entry per unit of the product: ``[axis]`` for an axis of its own, the axes of
+            a ``[[sweep.together]]`` group in one list (at the place of its first axis).
+
+        Examples
+        --------
+        >>> doc = {"plant": {"name": "pendulum", "dt": 0.01},
+        ...        "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...        "run": {"duration": 0.2, "seed": 5},
+        ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
+        ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
+        >>> doc["sweep"]["together"] = [{"run.duration": [0.2, 0.3], "run.seed": [1, 2]}]
+        >>> [[a.path for a in u] for u in parse_study(doc).units()]
+        [['observers.hgo.k'], ['plant.x0'], ['run.duration', 'run.seed']]
+        """
         out: list[list[Axis]] = []
         groups: dict[int, list[Axis]] = {}
         for a in self.axes:
@@ -97,7 +164,26 @@ class StudySpec:
         return self.n_cells * len(self.seeds)
 
     def cells(self) -> list[Cell]:
-        """Every cell, in order (the last axis varies fastest in a product)."""
+        """Every cell, in order (the last axis varies fastest in a product).
+
+        Returns
+        -------
+        list of Cell
+            :attr:`n_cells` cells, each with a deep copy of the scenario with its values set.
+
+        Examples
+        --------
+        >>> doc = {"plant": {"name": "pendulum", "dt": 0.01},
+        ...        "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...        "run": {"duration": 0.2, "seed": 5},
+        ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
+        ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
+        >>> cells = parse_study(doc).cells()
+        >>> [c.values["observers.hgo.k"] for c in cells]
+        [10.0, 10.0, 40.0, 40.0]
+        >>> cells[1].scenario["plant"]
+        {'name': 'pendulum', 'dt': 0.01, 'x0': [0.2, 0.0]}
+        """
         if not self.axes:
             picks: list[dict[str, Any]] = [{}]
         elif self.mode == "zip":
@@ -116,7 +202,25 @@ class StudySpec:
         return out
 
     def to_json(self) -> dict[str, Any]:
-        """The study as JSON data (what ``--resume`` compares)."""
+        """The study as JSON data (what ``--resume`` compares).
+
+        Returns
+        -------
+        dict
+            ``scenario``, ``axes`` (path -> list of values), ``groups`` (path -> group index,
+            for grouped axes), ``mode``, ``seeds`` (a list) and ``store``.
+
+        Examples
+        --------
+        >>> doc = {"plant": {"name": "pendulum", "dt": 0.01},
+        ...        "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...        "run": {"duration": 0.2, "seed": 5},
+        ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
+        ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
+        >>> js = parse_study(doc).to_json()
+        >>> sorted(js), js["seeds"], js["axes"]["observers.hgo.k"]
+        (['axes', 'groups', 'mode', 'scenario', 'seeds', 'store'], [5, 6], [10.0, 40.0])
+        """
         return {"scenario": self.scenario, "axes": {a.path: list(a.values) for a in self.axes},
                 "groups": {a.path: a.group for a in self.axes if a.group is not None},
                 "mode": self.mode, "seeds": list(self.seeds), "store": list(self.store)}
@@ -124,13 +228,49 @@ class StudySpec:
 
 @dataclass
 class Cell:
-    """One combination of axis values: ``index``, ``values`` (path -> value), ``scenario``."""
+    """One combination of axis values: ``index``, ``values`` (path -> value), ``scenario``.
+
+    Parameters
+    ----------
+    index : int
+        The cell's position in :meth:`StudySpec.cells` (the ``cell`` column of the results).
+    values : dict
+        Each axis's dotted path -> the value this cell sets.
+    scenario : dict
+        The scenario with those values set (what the cell's runs simulate).
+
+    Examples
+    --------
+    >>> doc = {"plant": {"name": "pendulum", "dt": 0.01},
+    ...        "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...        "run": {"duration": 0.2, "seed": 5},
+    ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
+    ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
+    >>> cell = parse_study(doc).cells()[2]
+    >>> cell.index, cell.values
+    (2, {'observers.hgo.k': 40.0, 'plant.x0': [0.1, 0.0]})
+    """
 
     index: int
     values: dict[str, Any]
     scenario: dict[str, Any]
 
     def label(self) -> str:
+        """The cell's values as text, for messages.
+
+        Returns
+        -------
+        str
+            ``"path = value, ..."`` with each value as JSON, or ``"the scenario"`` for a study
+            without axes.
+
+        Examples
+        --------
+        >>> Cell(0, {"observers.hgo.k": 40.0, "plant.x0": [0.1, 0.0]}, {}).label()
+        'observers.hgo.k = 40.0, plant.x0 = [0.1, 0.0]'
+        >>> Cell(0, {}, {}).label()
+        'the scenario'
+        """
         return ", ".join(f"{p} = {json.dumps(v)}" for p, v in self.values.items()) or "the scenario"
 
 
@@ -337,7 +477,51 @@ def _axis(scenario: Mapping[str, Any], path: str, values: Any, group: int | None
 def parse_study(doc: Mapping[str, Any], *, max_runs: int | None = MAX_RUNS) -> StudySpec:
     """A :class:`StudySpec` from a study document (a scenario with a ``[sweep]`` table),
     validated: every axis path, the values (non-empty lists, distinct), zip lengths, the seeds
-    and the study's size (at most ``max_runs`` runs; None: no limit)."""
+    and the study's size (at most ``max_runs`` runs; None: no limit).
+
+    Parameters
+    ----------
+    doc : mapping
+        A study document: the scenario's sections (``plant``, ``sensor``, ``observers``,
+        ``input``, ``controller``, ``run``) and an optional ``sweep`` table (module
+        docstring). It is not modified.
+    max_runs : int or None
+        Refuse a study of more runs (cells x seeds) than this (default :data:`MAX_RUNS`,
+        10 million; None: no limit).
+
+    Returns
+    -------
+    StudySpec
+        The scenario (a deep copy, without ``sweep``), the axes, seeds, mode and store.
+
+    Raises
+    ------
+    DesignError
+        ``doc`` or ``sweep`` is not a table; an unknown dotted path (the valid keys at that
+        level are listed); an axis that is not a non-empty list, repeats a value or is given
+        twice; bad ``seeds`` (or ``run.seed``, or a ``run.seeds``), ``mode``, ``store`` or
+        ``together``; zip axes (or a group's) of different lengths; more than ``max_runs``
+        runs.
+
+    Examples
+    --------
+    >>> doc = {"plant": {"name": "pendulum", "dt": 0.01},
+    ...        "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...        "run": {"duration": 0.2, "seed": 5},
+    ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
+    ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
+    >>> spec = parse_study(doc)
+    >>> [a.path for a in spec.axes], spec.seeds, spec.n_runs
+    (['observers.hgo.k', 'plant.x0'], (5, 6), 8)
+    >>> parse_study(doc, max_runs=4)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: the study has 8 runs (4 cells x 2 seeds), more than 4; ...
+    >>> parse_study({**doc, "sweep": {"observers.luenberger.k": [1.0]}})
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: unknown dotted path 'observers.luenberger': no observer ...
+    """
     if not isinstance(doc, Mapping):
         raise DesignError(f"a study must be a table; found {type(doc).__name__}")
     scenario = {k: copy.deepcopy(v) for k, v in doc.items() if k != "sweep"}
@@ -393,5 +577,4 @@ def column_value(v: Any, kind: str) -> Any:
     return json.dumps(v, sort_keys=True, separators=(",", ":"))
 
 
-__all__ = ["Axis", "Cell", "MAX_RUNS", "StudySpec", "axis_kind", "check_path", "column_value",
-           "parse_study", "set_path"]
+__all__ = ["Axis", "Cell", "MAX_RUNS", "StudySpec", "parse_study"]
