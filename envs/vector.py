@@ -37,7 +37,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import gymnasium
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -113,8 +115,11 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         self.single_action_space = env.action_space
         self.observation_space = batch_space(env.observation_space, N)
         self.action_space = batch_space(env.action_space, N)
-        self.metadata = {**type(self).metadata, "render_fps": env.metadata["render_fps"]}
-        self.render_mode = None
+        self.metadata = {**type(self).metadata, "render_fps": env.metadata["render_fps"],
+                         "render_modes": list(env.metadata["render_modes"])}
+        #: each member's frame (:meth:`render`), with ``render_mode="rgb_array"``
+        self.render_mode = env.render_mode
+        self._frame_state: tuple[Array, Array | None] | None = None
         self.observation_names = env.observation_names
         self._nu = len(env.plant.input_names)
         self._scale = np.array(env.task.max_action, dtype=np.float64)
@@ -303,6 +308,8 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
             np.copyto(self._y_held, Y, where=~np.isnan(Y))
             vals = self._y_held
         obs = env.encoder.batch(vals, self._goals, extra)
+        if self.render_mode is not None:  # what render() draws: copies, the rows move on
+            self._frame_state = (X.copy(), None if x_hat is None else np.array(x_hat))
         info: dict[str, Any] = {"state": X.copy()}
         if x_hat is not None:
             info["estimate"] = np.array(x_hat)
@@ -318,6 +325,57 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         for k in list(info):
             info["_" + k] = self._ones.copy()
         return obs, info, X
+
+    def render(self) -> tuple[NDArray[np.uint8], ...] | None:
+        """Every member's current frame (``render_mode="rgb_array"``), as the single
+        environment draws it (:meth:`hgo_mj.envs.core.HgoEnv.render`: the true pose and the
+        estimate's ghost), a tuple of ``num_envs`` arrays ``(480, 480, 3)``; ``None`` (with
+        Gymnasium's warning) without a render mode.
+
+        Returns
+        -------
+        tuple of ndarray or None
+
+        Raises
+        ------
+        gymnasium.error.ResetNeeded
+            Before the first ``reset``.
+        hgo_mj.envs.render.RenderError
+            No OpenGL backend could be made.
+
+        Examples
+        --------
+        >>> import gymnasium as gym
+        >>> import hgo_mj.envs
+        >>> venv = gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=2,
+        ...                     vectorization_mode="vector_entry_point", render_mode="rgb_array")
+        >>> _ = venv.reset(seed=0)
+        >>> [f.shape for f in venv.render()]  # doctest: +SKIP
+        [(480, 480, 3), (480, 480, 3)]
+        """
+        env = self.env
+        if self.render_mode is None:
+            gymnasium.logger.warn("HgoVectorEnv.render() without a render_mode; make the vector "
+                                  "environment with render_mode=\"rgb_array\"")
+            return None
+        if self._frame_state is None:
+            raise ResetNeeded("HgoVectorEnv: call reset() before render()")
+        if env._renderer is None:
+            from .render import GhostRenderer
+
+            env._renderer = GhostRenderer(env.plant.model, env.plant._qadr)
+        X, x_hat = self._frame_state
+        nq = len(env.plant._qadr)
+        frames = []
+        for b in range(self.num_envs):
+            q = np.array(X[b, :nq], dtype=float)
+            ghost = q.copy()
+            if x_hat is not None:
+                for j, e in env._err_pairs:
+                    if j < nq:
+                        ghost[j] = x_hat[b, e]
+            frames.append(env._renderer.render(q, ghost))
+        return tuple(frames)
 
     def close_extras(self, **kwargs: Any) -> None:
         self.env.close()

@@ -101,3 +101,31 @@ def test_no_usable_backend_is_one_clear_error(monkeypatch):
     monkeypatch.setenv("MUJOCO_GL", "wgl")
     with pytest.raises(render.RenderError, match=r"tried MUJOCO_GL = wgl \(not one of "):
         env.render()
+
+
+def test_the_native_vector_environment_renders_each_member_as_the_single_one():
+    """make_vec(..., render_mode="rgb_array"): one frame per member, each equal to the single
+    environment's frame at the same seed after the same actions; the errors as the single's."""
+    N = 2
+    venv = gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=N,
+                        vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    assert venv.metadata["render_modes"] == ["rgb_array"] and venv.render_mode == "rgb_array"
+    with pytest.raises(ResetNeeded, match="call reset"):
+        venv.render()
+    venv.reset(seed=[5, 6])
+    actions = np.full((N, 1), 0.4, dtype=np.float32)
+    for _ in range(3):
+        venv.step(actions)
+    frames = venv.render()
+    assert len(frames) == N and all(f.shape == (480, 480, 3) for f in frames)
+    for i, seed in enumerate([5, 6]):
+        single = gym.make("hgo_mj/PendulumSwingUp-v0", render_mode="rgb_array")
+        single.reset(seed=seed)
+        for _ in range(3):
+            single.step(actions[i])
+        np.testing.assert_array_equal(single.render(), frames[i])
+    plain = gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=N,
+                         vectorization_mode="vector_entry_point")
+    plain.reset(seed=0)
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert plain.render() is None
