@@ -680,6 +680,32 @@ def cmd_check(target: str, sample_period: float | None = None) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``hgo-mj`` console script: parse the command line and run the command (module
+    docstring); the results and reports go to stdout, errors to stderr as one line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program name, e.g. ``["run", "scenario.toml"]``; default
+        ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        The exit status: 0 done, 2 bad input (a scenario, flag or value refused), 1 a fault
+        of the machine (a result or recording that cannot be written), 130 interrupted by
+        Ctrl-C. ``argparse`` itself exits (``SystemExit``) on an unknown command or flag and
+        for ``--help``.
+
+    Examples
+    --------
+    >>> main(["list"])
+    PLANTS (hgo-mj run --plant NAME)
+      pendulum ...
+    0
+    >>> main(["run", "--plant", "pendulum"])  # no duration: bad input, one line on stderr
+    2
+    """
     args = build_parser().parse_args(argv)
     rrd: Path | None = None
     try:
@@ -735,6 +761,10 @@ def main(argv: list[str] | None = None) -> int:
           + (", metrics_mc.json, summary_mc.txt, mc.png" if mc is not None else "")
           + (f", {rrd}" if rrd is not None else ""))
     return 0
+
+
+#: the console script; the other functions are the command's internals
+__all__ = ["main"]
 
 
 if __name__ == "__main__":

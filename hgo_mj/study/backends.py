@@ -183,4 +183,6 @@ def _ray(chunks: list[Chunk], jobs: int, address: str | None) -> Iterator[tuple[
             ray.cancel(ref, force=True)
 
 
-__all__ = ["BACKENDS", "backend_for", "ray_init", "worker_init"]
+#: a backend is chosen by name (``Study.run(backend=...)``, ``--backend``); the functions
+#: that build and feed it are internal
+__all__ = ["BACKENDS", "WORKERS_WORTH_S"]

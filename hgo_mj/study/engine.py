@@ -632,5 +632,6 @@ def _rows(member: tuple[int, int], name: str, ob: Observer, states: Sequence[str
     return out
 
 
-__all__ = ["Chunk", "METRICS", "RUN_METRICS", "Metrics", "ReplayPlant", "SEGMENT", "plan", "plant_rows",
-           "run_chunk"]
+#: the engine is driven by :class:`hgo_mj.study.Study` (``plan``, ``run``); its planning and
+#: chunk-running functions are internal: public are the names of the result columns
+__all__ = ["METRICS", "RUN_METRICS"]

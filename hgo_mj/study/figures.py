@@ -212,7 +212,39 @@ def heatmap_figure(summary: Any, a: str, b: str, unit_of: Callable[[str], str], 
 
 
 def study_figures(result: Any, out: str | Path | None = None) -> list[Any]:
-    """Every figure of a study (module docstring); saved as PNG into ``out`` if given."""
+    """Every figure of a study (module docstring); saved as PNG into ``out`` if given.
+
+    :meth:`hgo_mj.study.StudyResult.plot` calls it.
+
+    Parameters
+    ----------
+    result : StudyResult
+        A finished study (its summary, table, axes and cells' scenarios are read).
+    out : str or Path, optional
+        A folder to save the figures in, as ``axis_<path>.png`` (one per unit of the
+        product) and, for two axes, ``heatmap_<a>__<b>.png``; default: not saved.
+
+    Returns
+    -------
+    list of matplotlib.figure.Figure
+        One figure per swept axis (a ``[[sweep.together]]`` group drawn against its first
+        path), and the heatmap for two axes.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from hgo_mj.study import Study
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "input": {"type": "constant", "value": 0.0},
+    ...             "run": {"duration": 0.2, "t_transient": 0.1}}
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     result = Study(scenario, {"observers.hgo.k": [20.0, 40.0]}).run(tmp, quiet=True)
+    ...     figs = study_figures(result, out=tmp)
+    ...     pngs = sorted(f for f in os.listdir(tmp) if f.endswith(".png"))
+    >>> len(figs), pngs
+    (1, ['axis_observers.hgo.k.png'])
+    """
     summary, table = result.summary(), result.table
     axes = result.plot_axes
     cells = result.study.cells
@@ -231,4 +263,6 @@ def study_figures(result: Any, out: str | Path | None = None) -> list[Any]:
     return [f for _, f in figs]
 
 
-__all__ = ["axis_figure", "heatmap_figure", "study_figures"]
+#: :func:`axis_figure` and :func:`heatmap_figure` take the study's unit lookup and are
+#: internal: the public entry is :func:`study_figures` (``StudyResult.plot``)
+__all__ = ["PANELS", "study_figures"]

@@ -175,7 +175,41 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
     ``settled_fraction`` (of the runs that finished; NaN where not estimated), and per metric
     in :data:`SUMMARY_METRICS` its median, quartiles ``q25``, ``q75``, IQR (their
     difference), mean, std (ddof=1; 0 for one run), min and max over the runs that finished
-    (a settling time of ``inf``, never settled, is left out of its statistics)."""
+    (a settling time of ``inf``, never settled, is left out of its statistics).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Result rows (module docstring; e.g. :attr:`hgo_mj.study.StudyResult.table` or
+        ``pandas.read_parquet(DIR / "results.parquet")``): at least the axis columns,
+        ``cell``, ``observer``, ``state``, ``estimated``, ``diverged`` and
+        ``settling_time``; each metric of :data:`SUMMARY_METRICS` present is summarized.
+        It is not modified.
+    axes : sequence of str
+        The swept paths (columns of ``df``) to carry into the summary.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per cell, observer and state (sorted by them): the axes, ``cell``,
+        ``observer``, ``state``, ``estimated``, ``runs``, ``diverged_fraction``,
+        ``settled_fraction`` and ``<metric>_<stat>`` for each metric and each statistic of
+        :data:`SUMMARY_STATS`.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> df = pd.DataFrame({"observers.hgo.k": [10.0, 10.0, 40.0, 40.0], "cell": [0, 0, 1, 1],
+    ...                    "seed": [0, 1, 0, 1], "observer": "hgo", "state": "angle",
+    ...                    "estimated": True, "rmse": [0.02, 0.04, 0.01, 0.03], "peak": 0.5,
+    ...                    "settling_time": [0.3, np.inf, 0.1, 0.2], "final": 0.001,
+    ...                    "diverged": False})
+    >>> s = summarize(df, ["observers.hgo.k"])
+    >>> s[["observers.hgo.k", "runs", "rmse_median", "settled_fraction"]].values.tolist()
+    [[10.0, 2.0, 0.03, 0.5], [40.0, 2.0, 0.02, 1.0]]
+    >>> s["settling_time_median"].tolist()  # the run that never settled is left out
+    [0.3, 0.15]
+    """
     import pandas as pd
 
     keys = ["cell", "observer", "state"]
@@ -206,7 +240,42 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
 
 def summary_markdown(summary: Any, axes: Sequence[str], title: str) -> str:
     """The summary as a Markdown table: the swept values, observer, state, RMSE median and
-    IQR, peak median, settled and diverged fractions."""
+    IQR, peak median, settled and diverged fractions.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        The output of :func:`summarize`; only its rows with ``estimated`` appear.
+    axes : sequence of str
+        The swept paths (its first columns).
+    title : str
+        The Markdown heading.
+
+    Returns
+    -------
+    str
+        The heading, the table (numbers to 4 significant digits, ``-`` for a non-finite
+        value) and a note on the columns, ending in a newline.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> df = pd.DataFrame({"observers.hgo.k": [10.0, 10.0, 40.0, 40.0], "cell": [0, 0, 1, 1],
+    ...                    "seed": [0, 1, 0, 1], "observer": "hgo", "state": "angle",
+    ...                    "estimated": True, "rmse": [0.02, 0.04, 0.01, 0.03], "peak": 0.5,
+    ...                    "settling_time": [0.3, np.inf, 0.1, 0.2], "final": 0.001,
+    ...                    "diverged": False})
+    >>> print(summary_markdown(summarize(df, ["observers.hgo.k"]), ["observers.hgo.k"],
+    ...                        "gain sweep"))
+    # gain sweep
+    <BLANKLINE>
+    | observers.hgo.k | observer | state | runs | rmse median | rmse IQR | peak median | settled | diverged |
+    |---|---|---|---|---|---|---|---|---|
+    | 10 | hgo | angle | 2 | 0.03 | 0.01 | 0.5 | 50% | 0% |
+    | 40 | hgo | angle | 2 | 0.02 | 0.01 | 0.5 | 100% | 0% |
+    <BLANKLINE>
+    Statistics over the seeds of each cell; ...
+    """
     def fmt(v: Any) -> str:
         if isinstance(v, float):
             return "-" if not np.isfinite(v) else f"{v:.4g}"
@@ -230,7 +299,40 @@ def summary_markdown(summary: Any, axes: Sequence[str], title: str) -> str:
 
 
 def write_summary(out: Path, df: Any, axes: Sequence[str], title: str) -> Any:
-    """``summary.parquet`` and ``summary.md`` (atomic); returns the summary DataFrame."""
+    """``summary.parquet`` and ``summary.md`` (atomic); returns the summary DataFrame.
+
+    Parameters
+    ----------
+    out : Path
+        The study's folder (it must exist).
+    df : pandas.DataFrame
+        The result rows, as for :func:`summarize`.
+    axes : sequence of str
+        The swept paths.
+    title : str
+        The heading of ``summary.md``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`summarize` of ``df``, as written to ``out / "summary.parquet"``.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np, pandas as pd
+    >>> df = pd.DataFrame({"observers.hgo.k": [10.0, 10.0, 40.0, 40.0], "cell": [0, 0, 1, 1],
+    ...                    "seed": [0, 1, 0, 1], "observer": "hgo", "state": "angle",
+    ...                    "estimated": True, "rmse": [0.02, 0.04, 0.01, 0.03], "peak": 0.5,
+    ...                    "settling_time": [0.3, np.inf, 0.1, 0.2], "final": 0.001,
+    ...                    "diverged": False})
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     summary = write_summary(Path(tmp), df, ["observers.hgo.k"], "gain sweep")
+    ...     files = sorted(os.listdir(tmp))
+    >>> files, summary.shape
+    (['summary.md', 'summary.parquet'], (2, 40))
+    """
     summary = summarize(df, axes)
     with atomic_path(out / "summary.parquet") as tmp:
         summary.to_parquet(tmp, index=False)
@@ -238,5 +340,7 @@ def write_summary(out: Path, df: Any, axes: Sequence[str], title: str) -> Any:
     return summary
 
 
-__all__ = ["ResultsDir", "SUMMARY_METRICS", "SUMMARY_STATS", "schema", "seed_metrics", "summarize",
-           "summary_markdown", "write_summary"]
+#: the folder's reading and writing (:class:`ResultsDir`, :func:`schema`,
+#: :func:`seed_metrics`) is internal: a study's results are read through
+#: :class:`hgo_mj.study.StudyResult` or pandas
+__all__ = ["SUMMARY_METRICS", "SUMMARY_STATS", "summarize", "summary_markdown", "write_summary"]

@@ -36,7 +36,55 @@ _SEGMENT_S = 1.5e-4
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
-    """A TOML file as a dict, or a DesignError naming the file and the problem."""
+    """A TOML file as a dict, or a DesignError naming the file and the problem.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to read (a scenario or study file).
+
+    Returns
+    -------
+    dict
+        The document's tables and values.
+
+    Raises
+    ------
+    DesignError
+        The file does not exist, is not valid TOML, or is nested too deeply to read.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> text = '''
+    ... [plant]
+    ... name = "pendulum"
+    ... x0 = [0.5, 0.0]
+    ...
+    ... [[observers]]
+    ... type = "high_gain"
+    ... name = "hgo"
+    ... k = 20.0
+    ...
+    ... [run]
+    ... duration = 0.2
+    ...
+    ... [sweep]
+    ... seeds = 2
+    ... "observers.hgo.k" = [20.0, 40.0]
+    ... '''
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = Path(tmp, "gains.toml")
+    ...     _ = path.write_text(text)
+    ...     doc = load_toml(path)
+    >>> doc["sweep"], doc["plant"]["name"]
+    ({'seeds': 2, 'observers.hgo.k': [20.0, 40.0]}, 'pendulum')
+    >>> load_toml("no_such_study.toml")
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: study file 'no_such_study.toml' does not exist
+    """
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
@@ -56,7 +104,41 @@ def load_toml(path: str | Path) -> dict[str, Any]:
 
 @dataclass
 class Plan:
-    """What a study will do: its chunks, and the figures printed before it runs."""
+    """What a study will do: its chunks, and the figures printed before it runs.
+
+    Made by :meth:`Study.plan`.
+
+    Parameters
+    ----------
+    chunks : list of Chunk
+        The pieces of work handed to the backend (:mod:`hgo_mj.study.engine`).
+    cells : int
+        Cells of the study.
+    runs : int
+        Runs of the study (cells x seeds).
+    todo : int
+        Runs left to do (fewer than ``runs`` when resuming).
+    trajectories : int
+        Distinct plant trajectories the runs left need (simulated once each).
+    estimate_s : float
+        Rough estimate of the wall time, seconds.
+    serial_s : float
+        The part of the estimate that runs on one core per process (sensors, observers,
+        metrics), seconds.
+    out : Path or None
+        The study's folder, if known.
+
+    Examples
+    --------
+    >>> from hgo_mj.study import Study
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "run": {"duration": 0.2}}
+    >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+    >>> plan = study.plan()
+    >>> plan.cells, plan.runs, plan.todo, plan.trajectories, len(plan.chunks)
+    (2, 2, 2, 1, 1)
+    """
 
     chunks: list[Chunk]
     cells: int
@@ -70,6 +152,24 @@ class Plan:
     out: Path | None
 
     def describe(self) -> str:
+        """The plan line a study prints before it runs.
+
+        Returns
+        -------
+        str
+            Cells, runs (and those done already), distinct plant trajectories, chunks, the
+            time estimate and the folder.
+
+        Examples
+        --------
+        >>> from hgo_mj.study import Study
+        >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+        ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...             "run": {"duration": 0.2}}
+        >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+        >>> study.plan(done={(0, 0)}).describe()
+        'study: 2 cells, 2 runs (1 done already), 1 distinct plant trajectory, 1 chunk, about ...'
+        """
         where = f" -> {self.out}" if self.out is not None else ""
         done = f" ({self.runs - self.todo} done already)" if self.todo != self.runs else ""
         return (f"study: {_n(self.cells, 'cell')}, {_n(self.runs, 'run')}{done}, "
@@ -90,9 +190,11 @@ class Study:
         A scenario as in a scenario file (``plant``, ``sensor``, ``observers``, ``input``,
         ``run``).
     axes : mapping dotted path -> list of values, optional
+        One axis per dotted path into the scenario (:mod:`hgo_mj.study.spec`); default none.
     seeds : int or list of int
         ``N``: the seeds ``run.seed ... run.seed + N - 1``; or the seeds themselves.
     mode : {"product", "zip"}
+        Every combination of the axes' values (default), or the axes advancing together.
     together : list of mappings, optional
         Groups of axes that advance together (each a mapping path -> list, one length).
     store : list of cell filters, optional
@@ -108,20 +210,22 @@ class Study:
 
     Examples
     --------
+    >>> import tempfile
     >>> scenario = {
-    ...     "plant": {"name": "pendulum", "dt": 0.001, "x0": [0.5, 0.0]},
+    ...     "plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
     ...     "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
     ...     "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
     ...     "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
-    ...     "run": {"duration": 1.0, "t_transient": 0.5, "seed": 0},
+    ...     "run": {"duration": 0.2, "t_transient": 0.1, "seed": 0},
     ... }
-    >>> study = Study(scenario, axes={"observers.hgo.k": [20.0, 80.0]}, seeds=3)
+    >>> study = Study(scenario, axes={"observers.hgo.k": [20.0, 80.0]}, seeds=1)
     >>> study.spec.n_cells, study.spec.n_runs
-    (2, 6)
-    >>> result = study.run("study_out", quiet=True)
-    >>> s = result.summary()
+    (2, 2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     result = study.run(tmp, quiet=True)
+    ...     s = result.summary()
     >>> s[s["state"] == "angle"][["observers.hgo.k", "runs"]].values.tolist()
-    [[20.0, 3.0], [80.0, 3.0]]
+    [[20.0, 1.0], [80.0, 1.0]]
     """
 
     def __init__(self, scenario: Mapping[str, Any], axes: Mapping[str, Any] | None = None,
@@ -141,7 +245,54 @@ class Study:
 
     @classmethod
     def from_toml(cls, path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Study:
-        """A study from a file: a scenario with a ``[sweep]`` table."""
+        """A study from a file: a scenario with a ``[sweep]`` table.
+
+        Parameters
+        ----------
+        path : str or Path
+            The study file (TOML); its stem names the study unless it sets ``name``.
+        max_runs : int or None
+            Refuse a study with more runs (default 10 million; None: no limit).
+
+        Returns
+        -------
+        Study
+            The study of the file's scenario, axes, seeds, mode, store and groups.
+
+        Raises
+        ------
+        DesignError
+            The file cannot be read (:func:`load_toml`), ``[sweep]`` is not a table or its
+            ``store``/``together`` not a list, or anything :class:`Study` refuses.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> text = '''
+        ... [plant]
+        ... name = "pendulum"
+        ... x0 = [0.5, 0.0]
+        ...
+        ... [[observers]]
+        ... type = "high_gain"
+        ... name = "hgo"
+        ... k = 20.0
+        ...
+        ... [run]
+        ... duration = 0.2
+        ...
+        ... [sweep]
+        ... seeds = 2
+        ... "observers.hgo.k" = [20.0, 40.0]
+        ... '''
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     path = Path(tmp, "gains.toml")
+        ...     _ = path.write_text(text)
+        ...     study = Study.from_toml(path)
+        >>> study.name, study.spec.n_cells, study.spec.seeds
+        ('gains', 2, (0, 1))
+        """
         doc = load_toml(path)
         sweep = doc.pop("sweep", {})
         if not isinstance(sweep, Mapping):
@@ -165,7 +316,33 @@ class Study:
     def validate(self) -> list[str]:
         """Build every distinct cell once (plant, sensor, observers, input), so that a bad
         value is refused before any run, naming the cell. Returns every diagnostic name of
-        the study's observers (the result columns ``diag.<name>``)."""
+        the study's observers (the result columns ``diag.<name>``).
+
+        Returns
+        -------
+        list of str
+            The diagnostic names, in the order first met.
+
+        Raises
+        ------
+        DesignError
+            A cell that cannot be built (a bad plant, sensor, observer or input value, an
+            ``x0`` of the wrong length, a ``run.t_transient`` outside ``[0, duration]``); the
+            message names the cell's index and values.
+
+        Examples
+        --------
+        >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+        ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...             "run": {"duration": 0.2}}
+        >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+        >>> study.validate()
+        ['k', 'dropouts']
+        >>> Study(scenario, {"observers.hgo.k": [20.0, -1.0]}).validate()
+        Traceback (most recent call last):
+        ...
+        hgo_mj.exceptions.DesignError: cell 1 (observers.hgo.k = -1.0): ...
+        """
         from ..cli import scenario_run
 
         names: list[str] = []
@@ -209,7 +386,33 @@ class Study:
 
     def plan(self, *, jobs: int = 1, done: set[tuple[int, int]] | None = None,
              out: str | Path | None = None) -> Plan:
-        """The chunks of the runs left, grouped by what they share, and the plan's figures."""
+        """The chunks of the runs left, grouped by what they share, and the plan's figures.
+
+        Parameters
+        ----------
+        jobs : int
+            Processes the estimate assumes (default 1).
+        done : set of (int, int), optional
+            ``(cell, seed)`` pairs already done, left out of the plan (a resumed study).
+        out : str or Path, optional
+            The study's folder, named by :meth:`Plan.describe`.
+
+        Returns
+        -------
+        Plan
+            The chunks and the figures (cells, runs, runs left, distinct plant trajectories,
+            time estimate).
+
+        Examples
+        --------
+        >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+        ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...             "run": {"duration": 0.2}}
+        >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+        >>> plan = study.plan(done={(1, 0)})
+        >>> plan.runs, plan.todo
+        (2, 1)
+        """
         cells = self.cells
         chunks = plan(cells, self.spec.seeds, done=done, jobs=jobs, metric_kw=self._metric_kw())
         trajectories, plant_steps, obs_steps, closed_steps = set(), 0.0, 0.0, 0.0
@@ -261,6 +464,34 @@ class Study:
             Skip the ``(cell, seed)`` pairs already in ``out``'s results (the same study only).
         quiet : bool
             No plan line and no progress on stderr.
+        echo : callable ``(str) -> None``, optional
+            Where the plan line and the progress go instead of stderr.
+
+        Returns
+        -------
+        StudyResult
+            The finished study's folder; ``summary.parquet`` and ``summary.md`` are written.
+
+        Raises
+        ------
+        DesignError
+            A bad ``jobs``, backend or address (Ray missing, the address unreachable), a
+            cell that cannot be built (:meth:`validate`), or an ``out`` that holds results of
+            another study (or any, without ``resume``).
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+        ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...             "run": {"duration": 0.2}}
+        >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+        >>> lines = []
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     result = study.run(tmp, echo=lines.append)
+        ...     rows = len(result.table)
+        >>> rows, lines[0]
+        (4, 'study: 2 cells, 2 runs, 1 distinct plant trajectory, 1 chunk, about ...')
         """
         from .._validate import positive_int
         from .backends import backend_for, local_jobs
@@ -313,7 +544,34 @@ class Study:
 
 
 class StudyResult:
-    """A finished study's folder: ``table`` (every row), :meth:`summary`, :meth:`plot`."""
+    """A finished study's folder: ``table`` (every row), :meth:`summary`, :meth:`plot`.
+
+    Returned by :meth:`Study.run`; the results are read from the folder when first asked for.
+
+    Parameters
+    ----------
+    study : Study
+        The study that wrote the folder.
+    out : Path
+        The study's folder.
+    seconds : float
+        Wall time of the run, seconds (default NaN: not measured).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "run": {"duration": 0.2}}
+    >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     _ = study.run(tmp, quiet=True)
+    ...     result = StudyResult(study, Path(tmp))  # the same folder, opened again
+    ...     table = result.table
+    >>> result.axes, table.shape
+    (['observers.hgo.k'], (4, 18))
+    """
 
     def __init__(self, study: Study, out: Path, seconds: float = float("nan")) -> None:
         self.study, self.out, self.seconds = study, Path(out), seconds
@@ -337,17 +595,83 @@ class StudyResult:
         return self._table
 
     def summary(self) -> Any:
-        """Per cell, observer and state: the statistics over the seeds (a DataFrame)."""
+        """Per cell, observer and state: the statistics over the seeds (a DataFrame).
+
+        Returns
+        -------
+        pandas.DataFrame
+            :func:`hgo_mj.study.results.summarize` of :attr:`table`.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+        ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...             "run": {"duration": 0.2}}
+        >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     s = study.run(tmp, quiet=True).summary()
+        >>> s["state"].tolist()
+        ['angle', 'angular_velocity', 'angle', 'angular_velocity']
+        >>> s[["observers.hgo.k", "runs"]].values.tolist()
+        [[20.0, 1.0], [20.0, 1.0], [40.0, 1.0], [40.0, 1.0]]
+        """
         from .results import summarize
 
         return summarize(self.table, self.axes)
 
     def write_summary(self) -> Any:
+        """Write ``summary.parquet`` and ``summary.md`` into the folder (:meth:`Study.run`
+        does so).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The summary written (:meth:`summary`).
+
+        Examples
+        --------
+        >>> import os, tempfile
+        >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+        ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...             "run": {"duration": 0.2}}
+        >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     result = study.run(tmp, quiet=True)
+        ...     os.remove(f"{tmp}/summary.md")
+        ...     n = len(result.write_summary())
+        ...     again = os.path.exists(f"{tmp}/summary.md")
+        >>> n, again
+        (4, True)
+        """
         return write_summary(self.out, self.table, self.axes, self.study.name)
 
     def plot(self, out: str | Path | None = None) -> list[Any]:
         """The study's figures (:mod:`hgo_mj.study.figures`); with ``out``, also saved there
-        as PNG files."""
+        as PNG files.
+
+        Parameters
+        ----------
+        out : str or Path, optional
+            A folder to save the figures in (default: not saved).
+
+        Returns
+        -------
+        list of matplotlib.figure.Figure
+            One figure per swept axis, and a heatmap for two axes.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+        ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...             "run": {"duration": 0.2}}
+        >>> study = Study(scenario, {"observers.hgo.k": [20.0, 40.0]})
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     figs = study.run(tmp, quiet=True).plot()
+        >>> [type(f).__name__ for f in figs]
+        ['Figure']
+        """
         from .figures import study_figures
 
         return study_figures(self, out)

@@ -30,6 +30,8 @@ from numpy.typing import NDArray
 from .._validate import check_params, vector
 from ..exceptions import DesignError
 
+__all__ = ["CompiledModel", "System", "derivative_names"]
+
 Array = NDArray[np.float64]
 
 
@@ -53,6 +55,26 @@ class CompiledModel(namedtuple("CompiledModel", ())):
     kernel is compiled (and cached) once per system, and :func:`model_dynamics`,
     :func:`model_jacobian` and :func:`model_param_jacobian` resolve to the subclass's
     functions at compile time.
+
+    Parameters
+    ----------
+    *args, **kwargs
+        None accepted: a model has no fields and is built as ``PendulumModel()``.
+
+    Examples
+    --------
+    The pendulum's compiled model evaluates one row from Python (the same function a numba
+    kernel calls):
+
+    >>> import numpy as np
+    >>> from hgo_mj.systems import Pendulum
+    >>> p = Pendulum()
+    >>> out = np.empty(2)
+    >>> p.compiled.dynamics(np.array([0.5, 0.0]), np.array([0.0]), p.param_vector(), out)
+    >>> out.round(4)
+    array([ 0.   , -9.759])
+    >>> p.compiled.jacobian is None, type(p.compiled).__name__
+    (False, 'PendulumModel')
     """
 
     __slots__ = ()
@@ -112,6 +134,28 @@ def derivative_names(output: str, order: int) -> tuple[str, ...]:
     ``link1_angle`` gives ``link1_angle, link1_velocity, link1_acceleration, link1_jerk``
     (``_position`` likewise), a bare ``angle`` gives ``angle, angular_velocity, ...`` (the
     pendulums' state names); higher derivatives and other names get ``<name>_d<j>``.
+
+    Parameters
+    ----------
+    output : str
+        Name of the measured output ``y`` (e.g. ``"link1_angle"``, ``"angle"``, ``"biomass"``).
+    order : int
+        Number of names to return: ``y`` and its first ``order - 1`` derivatives (the
+        normal-form order ``n``).
+
+    Returns
+    -------
+    tuple of str
+        ``order`` names, the first being ``output`` itself.
+
+    Examples
+    --------
+    >>> derivative_names("link1_angle", 3)
+    ('link1_angle', 'link1_velocity', 'link1_acceleration')
+    >>> derivative_names("angle", 2)
+    ('angle', 'angular_velocity')
+    >>> derivative_names("biomass", 3)
+    ('biomass', 'biomass_d1', 'biomass_d2')
     """
     if output in _BARE_DERIVATIVE_WORDS:
         words = _BARE_DERIVATIVE_WORDS[output]
@@ -125,7 +169,39 @@ def derivative_names(output: str, order: int) -> tuple[str, ...]:
 
 
 class System:
-    """Base class of the analytic models. Subclasses fill in the class attributes below."""
+    """Base class of the analytic models. Subclasses fill in the class attributes below.
+
+    A subclass implements :meth:`dynamics` and :meth:`output` (the fast paths), and, when
+    :attr:`normal_form_order` is set, :meth:`to_normal`, :meth:`from_normal` and :meth:`phi`;
+    it may override the ``*_unchecked`` and :meth:`phi_batch` fast paths and declare observer
+    forms (:meth:`form`).
+
+    Parameters
+    ----------
+    **params : float
+        Parameter values by name (keys of :attr:`param_names`); missing ones are taken from
+        :attr:`default_params` (MuJoCo systems: from the shipped MJCF).
+
+    Attributes
+    ----------
+    params : dict of str to float
+        The validated parameters, one entry per name of :attr:`param_names`.
+
+    Raises
+    ------
+    DesignError
+        A parameter is missing, unknown or not a finite number (MuJoCo systems also: a
+        parameter that must be positive is not).
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> p = Pendulum(damping=0.02)
+    >>> p.params["damping"], p.state_names, p.normal_form_order
+    (0.02, ('angle', 'angular_velocity'), 2)
+    >>> p.f(0.0, [0.5, 0.0], [0.0]).round(4)
+    array([ 0.   , -9.759])
+    """
 
     #: registry name, e.g. ``"pendulum"``
     name: ClassVar[str] = ""
@@ -165,7 +241,25 @@ class System:
 
     @classmethod
     def unit(cls, state: str) -> str:
-        """The unit of the state called ``state`` (``""`` when not declared)."""
+        """The unit of the state called ``state`` (``""`` when not declared).
+
+        Parameters
+        ----------
+        state : str
+            A name of :attr:`state_names`.
+
+        Returns
+        -------
+        str
+            Its unit from :attr:`state_units`; ``""`` when ``state`` is not a state name or
+            the system declares no units.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum.unit("angular_velocity"), Pendulum.unit("nope")
+        ('rad/s', '')
+        """
         if state in cls.state_names and len(cls.state_units) == len(cls.state_names):
             return cls.state_units[cls.state_names.index(state)]
         return ""
@@ -176,23 +270,136 @@ class System:
 
     def param_vector(self, params: Mapping[str, float] | None = None) -> Array:
         """The parameters (default :attr:`params`) as a vector in the order of
-        :attr:`param_names` (the ``c`` of :class:`CompiledModel`)."""
+        :attr:`param_names` (the ``c`` of :class:`CompiledModel`).
+
+        Parameters
+        ----------
+        params : mapping of str to float, optional
+            Parameter values containing every name of :attr:`param_names` (extra keys are
+            ignored); default: :attr:`params`.
+
+        Returns
+        -------
+        (P,) ndarray of float
+            The values in the order of :attr:`param_names` (``P = len(param_names)``).
+
+        Raises
+        ------
+        KeyError
+            ``params`` lacks a name of :attr:`param_names`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> p = Pendulum()
+        >>> p.param_names
+        ('mass', 'com_distance', 'inertia', 'damping', 'gear', 'g')
+        >>> p.param_vector().round(4)
+        array([0.25  , 0.45  , 0.0542, 0.01  , 1.    , 9.81  ])
+        """
         p = self.params if params is None else params
         return np.array([p[k] for k in self.param_names], dtype=float)
 
     # ---------------------------------------------------------------- dynamics
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
-        """Fast path of ``dx/dt``: no validation. Subclasses implement it."""
+        """Fast path of ``dx/dt``: no validation. Subclasses implement it.
+
+        Parameters
+        ----------
+        t : float
+            Time (in :attr:`time_unit`); autonomous systems ignore it.
+        x : (n,) ndarray of float
+            State, in the order of :attr:`state_names`.
+        u : (m,) ndarray of float
+            Input, in the order of :attr:`input_names` (``m = 0``: an empty array).
+        p : mapping of str to float
+            Parameters by name (all of :attr:`param_names`), not checked.
+
+        Returns
+        -------
+        (n,) ndarray of float
+            ``dx/dt``.
+
+        Raises
+        ------
+        NotImplementedError
+            Called on :class:`System` itself (a subclass does not implement it).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> p = Pendulum()
+        >>> Pendulum.dynamics(0.0, np.array([0.5, 0.0]), np.array([0.0]), p.params).round(4)
+        array([ 0.   , -9.759])
+        """
         raise NotImplementedError
 
     @staticmethod
     def output(x: Array, p: Mapping[str, float]) -> Array:
-        """Fast path of ``y = h(x)``. Subclasses implement it."""
+        """Fast path of ``y = h(x)``. Subclasses implement it.
+
+        Parameters
+        ----------
+        x : (n,) ndarray of float
+            State, in the order of :attr:`state_names`.
+        p : mapping of str to float
+            Parameters by name, not checked.
+
+        Returns
+        -------
+        (q,) ndarray of float
+            The clean outputs, in the order of :attr:`output_names`.
+
+        Raises
+        ------
+        NotImplementedError
+            Called on :class:`System` itself (a subclass does not implement it).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum.output(np.array([0.5, 0.0]), Pendulum().params)
+        array([0.5])
+        """
         raise NotImplementedError
 
     def f(self, t: float, x: Any, u: Any, params: Mapping[str, float] | None = None) -> Array:
-        """``dx/dt = f(t, x, u, params)`` with shapes and finiteness checked."""
+        """``dx/dt = f(t, x, u, params)`` with shapes and finiteness checked.
+
+        Parameters
+        ----------
+        t : float
+            Time (in :attr:`time_unit`).
+        x : array_like, shape (n,)
+            State, in the order of :attr:`state_names`.
+        u : array_like, shape (m,)
+            Input, in the order of :attr:`input_names` (``[]`` for a system without inputs).
+        params : mapping of str to float, optional
+            Parameters to use instead of :attr:`params` (all of :attr:`param_names`).
+
+        Returns
+        -------
+        (n,) ndarray of float
+            ``dx/dt``.
+
+        Raises
+        ------
+        DesignError
+            ``x`` or ``u`` has the wrong length or a non-finite entry, or ``params`` lacks,
+            adds or has a non-finite parameter (raised by the validators it calls).
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> p = Pendulum()
+        >>> p.f(0.0, [0.5, 0.0], [0.0]).round(4)
+        array([ 0.   , -9.759])
+        >>> p.f(0.0, [0.5, 0.0], [0.0], params={**p.params, "g": 0.0}).round(4)
+        array([0., 0.])
+        """
         x = vector("x", x, len(self.state_names))
         u = vector("u", u, len(self.input_names))
         p = self.params if params is None else check_params(
@@ -200,7 +407,29 @@ class System:
         return np.asarray(self.dynamics(float(t), x, u, p), dtype=float)
 
     def h(self, x: Any) -> Array:
-        """The clean measured outputs ``y = h(x)``."""
+        """The clean measured outputs ``y = h(x)``.
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            State, in the order of :attr:`state_names`.
+
+        Returns
+        -------
+        (q,) ndarray of float
+            The outputs, in the order of :attr:`output_names`, without noise.
+
+        Raises
+        ------
+        DesignError
+            ``x`` has the wrong length or a non-finite entry (raised by the validator).
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().h([0.5, 0.0])
+        array([0.5])
+        """
         x = vector("x", x, len(self.state_names))
         return np.asarray(self.output(x, self.params), dtype=float)
 
@@ -213,33 +442,174 @@ class System:
         return self.normal_form_order
 
     def to_normal(self, x: Any, u: Any = None) -> Array:
-        """Map the physical state to ``z = (y, y', ..., y^(n-1))``."""
+        """Map the physical state to ``z = (y, y', ..., y^(n-1))``.
+
+        Parameters
+        ----------
+        x : array_like, shape (n_x,)
+            Physical state, in the order of :attr:`state_names`.
+        u : array_like, shape (m,), optional
+            Input, for systems whose map depends on it; ``None``: not needed.
+
+        Returns
+        -------
+        (n,) ndarray of float
+            ``z``, ``n = normal_form_order``.
+
+        Raises
+        ------
+        DesignError
+            The system has no single-output normal form (:attr:`normal_form_order` is None),
+            or ``x``/``u`` fail validation.
+        NotImplementedError
+            The subclass declares a normal form but does not implement the map.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import ElasticJoint
+        >>> ElasticJoint().to_normal([0.1, 0.2, 0.0, 0.0]).round(3)
+        array([ 0.1  ,  0.   , 29.336, -1.95 ])
+        """
         self._require_normal_form()
         raise NotImplementedError
 
     def from_normal(self, z: Any, u: Any = None) -> Array:
-        """Inverse of :meth:`to_normal`."""
+        """Inverse of :meth:`to_normal`.
+
+        Parameters
+        ----------
+        z : array_like, shape (n,)
+            Normal-form coordinates ``(y, y', ..., y^(n-1))``.
+        u : array_like, shape (m,), optional
+            Input, for systems whose map depends on it; ``None``: not needed.
+
+        Returns
+        -------
+        (n_x,) ndarray of float
+            The physical state, in the order of :attr:`state_names`.
+
+        Raises
+        ------
+        DesignError
+            The system has no single-output normal form, or ``z``/``u`` fail validation.
+        NotImplementedError
+            The subclass declares a normal form but does not implement the map.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import ElasticJoint
+        >>> ej = ElasticJoint()
+        >>> ej.from_normal(ej.to_normal([0.1, 0.2, 0.0, 0.0])).round(6)
+        array([0.1, 0.2, 0. , 0. ])
+        """
         self._require_normal_form()
         raise NotImplementedError
 
     def phi(self, z: Any, u: Any = None) -> float:
-        """``y^(n) = phi(z, u)`` in normal-form coordinates."""
+        """``y^(n) = phi(z, u)`` in normal-form coordinates.
+
+        Parameters
+        ----------
+        z : array_like, shape (n,)
+            Normal-form coordinates ``(y, y', ..., y^(n-1))``.
+        u : array_like, shape (m,)
+            Input (systems with inputs require it; ``None`` raises).
+
+        Returns
+        -------
+        float
+            ``y^(n)``, the n-th time derivative of the output.
+
+        Raises
+        ------
+        DesignError
+            The system has no single-output normal form, ``u`` is missing, or ``z``/``u`` fail
+            validation.
+        NotImplementedError
+            The subclass declares a normal form but does not implement ``phi``.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> round(Pendulum().phi([0.5, 0.0], [0.0]), 4)
+        -9.759
+        """
         self._require_normal_form()
         raise NotImplementedError
 
     def from_normal_unchecked(self, z: Array, u: Array) -> Array:
         """:meth:`from_normal` without validation, for an observer's per-sample use (``z`` a
-        float array of length ``n``). Subclasses override it with a fast path."""
+        float array of length ``n``). Subclasses override it with a fast path.
+
+        Parameters
+        ----------
+        z : (n,) ndarray of float
+            Normal-form coordinates, not checked.
+        u : (m,) ndarray of float
+            Input, not checked.
+
+        Returns
+        -------
+        (n_x,) ndarray of float
+            The physical state (may be ``z`` itself when the map is the identity).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().from_normal_unchecked(np.array([0.5, 0.0]), np.array([0.0]))
+        array([0.5, 0. ])
+        """
         return self.from_normal(z, u)
 
     def phi_unchecked(self, z: Array, u: Array) -> float:
-        """:meth:`phi` without validation (the model term of observers). Overridable."""
+        """:meth:`phi` without validation (the model term of observers). Overridable.
+
+        Parameters
+        ----------
+        z : (n,) ndarray of float
+            Normal-form coordinates, not checked.
+        u : (m,) ndarray of float
+            Input, not checked.
+
+        Returns
+        -------
+        float
+            ``phi(z, u)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> round(float(Pendulum().phi_unchecked(np.array([0.5, 0.0]), np.array([0.0]))), 4)
+        -9.759
+        """
         return self.phi(z, u)
 
     def phi_batch(self, Z: Array, U: Array) -> Array:
         """:meth:`phi_unchecked` of the rows ``Z`` ``(N, n)`` with inputs ``U`` ``(N, m)``, shape
         ``(N,)``: the model term of a batch of observers. Default: one call per row; systems
-        override it with vectorized numpy."""
+        override it with vectorized numpy.
+
+        Parameters
+        ----------
+        Z : (N, n) ndarray of float
+            Normal-form coordinates, one row per observer.
+        U : (N, m) ndarray of float
+            Inputs, one row per observer.
+
+        Returns
+        -------
+        (N,) ndarray of float
+            ``phi(Z[i], U[i])`` for each row.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().phi_batch(np.array([[0.5, 0.0], [0.0, 1.0]]), np.zeros((2, 1))).round(4)
+        array([-9.759 , -0.1844])
+        """
         return np.array([float(self.phi_unchecked(z, u)) for z, u in zip(Z, U)], dtype=float)
 
     # ------------------------------------------------------------------- forms
@@ -251,10 +621,37 @@ class System:
         MJCF fields an augmented Kalman filter may estimate) by listing it in :attr:`forms`
         and implementing ``_form_<kind>(**options)``.
 
+        Parameters
+        ----------
+        kind : str
+            The form's name, one of :attr:`forms`.
+        **options
+            Keyword options of the system's ``_form_<kind>`` (e.g. ``unknown=`` for
+            ``"affine"``: the parameters to estimate).
+
+        Returns
+        -------
+        object
+            The form: an :class:`~hgo_mj.systems.affine_form.AffineForm` (``"affine"``), an
+            :class:`~hgo_mj.systems.aocf.AOCF` (``"aocf"``), a
+            :class:`~hgo_mj.systems.jo_son_form.JoSonForm` (``"jo_son"``) or a dict of MJCF
+            field names (``"kalman_fields"``).
+
         Raises
         ------
         DesignError
             The system does not declare ``kind``; the message lists the forms it declares.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> p = Pendulum()
+        >>> p.forms
+        ('affine', 'kalman_fields', 'aocf')
+        >>> p.form("kalman_fields")
+        {'gear': 'actuator_gear[torque]', 'damping': 'dof_damping[hinge]', 'g': 'opt.gravity'}
+        >>> p.form("affine").theta_names
+        ('g_over_l', 'b_over_J')
         """
         if kind not in self.forms:
             raise DesignError(f"{type(self).__name__} does not declare the {kind!r} form; it "
@@ -267,10 +664,23 @@ class System:
         """The compiled ``mujoco.MjModel`` of a MuJoCo system: its shipped MJCF (the MJCF
         systems of :mod:`hgo_mj.systems.mjcf` compile their edited file).
 
+        Returns
+        -------
+        mujoco.MjModel
+            The model compiled from ``models/<model_file>``.
+
         Raises
         ------
         DesignError
-            The system is not a MuJoCo system (``model_file`` is None)."""
+            The system is not a MuJoCo system (``model_file`` is None).
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> model = Pendulum.load_model()
+        >>> model.nq, model.nu
+        (1, 1)
+        """
         if cls.model_file is None:
             raise DesignError(f"{cls.__name__} is not a MuJoCo system (model_file is None)")
         import mujoco
@@ -281,7 +691,33 @@ class System:
 
     @classmethod
     def from_mjmodel(cls, model: Any) -> System:
-        """Read the parameters from a compiled ``mujoco.MjModel``."""
+        """Read the parameters from a compiled ``mujoco.MjModel``.
+
+        Parameters
+        ----------
+        model : mujoco.MjModel
+            A compiled model with the bodies, joints and actuators the system names
+            (:attr:`joints`, :attr:`actuators`).
+
+        Returns
+        -------
+        System
+            An instance of the class with the parameters read from ``model``.
+
+        Raises
+        ------
+        DesignError
+            The system is not a MuJoCo system (this base implementation), or ``model`` lacks
+            or mis-structures an element the system reads.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> model = Pendulum.load_model()
+        >>> model.dof_damping[0] = 0.05
+        >>> Pendulum.from_mjmodel(model).params["damping"]
+        0.05
+        """
         raise DesignError(f"{cls.__name__} is not a MuJoCo system (model_file is None)")
 
     def __repr__(self) -> str:

@@ -15,6 +15,8 @@ from ._mujoco import _TOL, _MjReader, _SecondOrderMujocoSystem
 from .aocf import AOCF, joint_aocf
 from .base import Array, CompiledModel
 
+__all__ = ["CartPendulum"]
+
 
 @register_jitable
 def _acceleration_row(q: float, v: float, u0: float, mass: float, length: float, g: float,
@@ -94,10 +96,35 @@ class CartPendulum(_SecondOrderMujocoSystem):
     ``damping``, ``accel_gain``; read by :meth:`from_mjmodel` from body ``pole``, joints
     ``hinge`` and ``slider``, actuator ``acceleration``.
 
+    Forms (:meth:`~hgo_mj.systems.base.System.form`): ``"aocf"`` (paper 002, eq. 2.2) and
+    ``"kalman_fields"``.
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (e.g. ``damping=0.1``); the others are read from
+        the shipped ``models/cart_pendulum.xml``.
+
+    Raises
+    ------
+    DesignError
+        An unknown or non-finite parameter, or ``length``, ``mass`` or ``inertia`` not
+        positive.
+
     References
     ----------
     .. [1] S. Ibrir, "On observer design for nonlinear systems", Int. J. Control (2007),
        Section 4.1, eq. (66).
+
+    Examples
+    --------
+    >>> cp = CartPendulum()
+    >>> cp
+    CartPendulum(g=1, length=1, mass=1, inertia=1, damping=0, accel_gain=1)
+    >>> round(cp.phi([0.1, 0.0], [0.5]), 6)  # sin(0.1) + 0.5 cos(0.1)
+    0.597335
+    >>> cp.form("aocf").theta_names
+    ('g_over_l', 'b_over_J')
     """
 
     name = "cart_pendulum"

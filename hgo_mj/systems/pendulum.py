@@ -15,6 +15,8 @@ from ._mujoco import _MjReader, _SecondOrderMujocoSystem
 from .aocf import AOCF, joint_aocf
 from .base import Array, CompiledModel
 
+__all__ = ["AFFINE_PARAMS", "Pendulum"]
+
 #: the parameters of the pendulum's affine form (paper 001, eq. 9), in the order of
 #: :func:`_affine_terms`' basis regressors
 AFFINE_PARAMS = ("g_over_l", "b_over_J", "d_over_J")
@@ -137,12 +139,37 @@ class Pendulum(_SecondOrderMujocoSystem):
     ``models/pendulum.xml`` by :meth:`from_mjmodel` (body ``pole``, joint ``hinge``,
     actuator ``torque``).
 
+    Forms (:meth:`~hgo_mj.systems.base.System.form`): ``"affine"`` (paper 001, eq. 9; unknowns
+    from :data:`AFFINE_PARAMS`), ``"aocf"`` (paper 002, eq. 2.2) and ``"kalman_fields"``.
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (e.g. ``damping=0.02``); the others are read from
+        the shipped ``models/pendulum.xml``.
+
+    Raises
+    ------
+    DesignError
+        An unknown or non-finite parameter, or ``mass``, ``com_distance`` or ``inertia`` not
+        positive.
+
     References
     ----------
     .. [1] H. K. Khalil, *Nonlinear Systems*, 3rd ed., Prentice Hall, 2002, Example 1.2.1
        (pendulum equation).
     .. [2] E. Bullinger, A. Ilchmann, F. Allgöwer, "A simple adaptive observer for nonlinear
        systems", NOLCOS 1998, eq. (1): the observability normal form.
+
+    Examples
+    --------
+    >>> p = Pendulum(damping=0.02)
+    >>> p
+    Pendulum(mass=0.25, com_distance=0.45, inertia=0.054217, damping=0.02, gear=1, g=9.81)
+    >>> round(p.phi([0.5, 0.0], [0.0]), 4)
+    -9.759
+    >>> p.form("affine", unknown=["g_over_l"]).theta_names
+    ('g_over_l',)
     """
 
     name = "pendulum"
@@ -219,7 +246,32 @@ class Pendulum(_SecondOrderMujocoSystem):
     @staticmethod
     def jacobian(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """:math:`\\partial f / \\partial x` of :meth:`dynamics`, shape (2, 2) (used by the
-        Kalman filters of :mod:`hgo_mj.observers.kalman`)."""
+        Kalman filters of :mod:`hgo_mj.observers.kalman`).
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (unused: the pendulum is autonomous).
+        x : (2,) ndarray of float
+            State ``(angle [rad], angular_velocity [rad/s])``.
+        u : (1,) ndarray of float
+            Input torque [N m] (the Jacobian does not depend on it).
+        p : mapping of str to float
+            Parameters by name (all of ``param_names``).
+
+        Returns
+        -------
+        (2, 2) ndarray of float
+            ``[[0, 1], [-m g l_c cos(theta) / J, -d / J]]``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> p = Pendulum(damping=0.02)
+        >>> p.jacobian(0.0, np.array([0.0, 0.0]), np.array([0.0]), p.params).round(3)
+        array([[  0.   ,   1.   ],
+               [-20.356,  -0.369]])
+        """
         out = np.empty((2, 2))
         _jacobian_row(x, u, _params(p), out)
         return out
@@ -228,7 +280,41 @@ class Pendulum(_SecondOrderMujocoSystem):
     def param_jacobian(t: float, x: Array, u: Array, p: Mapping[str, float],
                        names: tuple[str, ...]) -> Array:
         """:math:`\\partial f / \\partial p` of :meth:`dynamics` for the parameters ``names``,
-        shape (2, len(names))."""
+        shape (2, len(names)).
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (unused).
+        x : (2,) ndarray of float
+            State ``(angle [rad], angular_velocity [rad/s])``.
+        u : (1,) ndarray of float
+            Input torque [N m].
+        p : mapping of str to float
+            Parameters by name (all of ``param_names``).
+        names : tuple of str
+            The parameters to differentiate by, names of ``param_names``, in the column order
+            wanted.
+
+        Returns
+        -------
+        (2, len(names)) ndarray of float
+            Column ``k``: ``df/d names[k]`` (first row zero).
+
+        Raises
+        ------
+        ValueError
+            A name of ``names`` is not in ``param_names``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> p = Pendulum(damping=0.02)
+        >>> p.param_jacobian(0.0, np.array([0.5, 1.0]), np.array([0.2]), p.params,
+        ...                  ("damping", "gear")).round(3)
+        array([[  0.   ,   0.   ],
+               [-18.444,   3.689]])
+        """
         out = np.empty((2, len(Pendulum.param_names)))
         _param_jacobian_row(x, u, _params(p), out)
         return out[:, [Pendulum.param_names.index(nm) for nm in names]]
