@@ -168,8 +168,12 @@ def _checker():
 
 #: the modules whose every public name (``__all__``) has its numpydoc sections; the rest of the
 #: package is listed by ``python scripts/check_docstrings.py`` (issue 15 tracks the count)
-COMPLETE = ("hgo_mj.check", "hgo_mj.loop", "hgo_mj.simulate", "hgo_mj.systems.mjcf",
-            "hgo_mj.systems.symbolic")
+COMPLETE = ("hgo_mj", "hgo_mj.check", "hgo_mj.cli", "hgo_mj.loop", "hgo_mj.plants",
+            "hgo_mj.plants.base", "hgo_mj.plants.mujoco", "hgo_mj.plants.ode", "hgo_mj.simulate",
+            "hgo_mj.study", "hgo_mj.study.backends", "hgo_mj.study.engine", "hgo_mj.study.figures",
+            "hgo_mj.study.montecarlo", "hgo_mj.study.results", "hgo_mj.study.spec",
+            "hgo_mj.study.study", "hgo_mj.systems.base", "hgo_mj.systems.cart_pendulum",
+            "hgo_mj.systems.mjcf", "hgo_mj.systems.pendulum", "hgo_mj.systems.symbolic")
 
 
 @pytest.mark.parametrize("module", COMPLETE)
@@ -191,4 +195,4 @@ def test_complete_modules_have_every_section_and_their_doctests_pass(module, tmp
         result = runner.run(test)
         assert result.failed == 0, f"{test.name}: {result.failed} doctest example(s) failed"
         ran += result.attempted
-    assert ran > 0
+    assert ran > 0 or not list(checker.public_objects(mod))  # constants or re-exports only
