@@ -169,7 +169,8 @@ def _checker():
 #: the modules whose every public name (``__all__``) has its numpydoc sections; the rest of the
 #: package is listed by ``python scripts/check_docstrings.py`` (issue 15 tracks the count)
 COMPLETE = ("hgo_mj", "hgo_mj.check", "hgo_mj.cli", "hgo_mj.loop", "hgo_mj.plants",
-            "hgo_mj.plants.base", "hgo_mj.plants.mujoco", "hgo_mj.plants.ode", "hgo_mj.simulate",
+            "hgo_mj.plants.base", "hgo_mj.plants.mujoco", "hgo_mj.plants.ode", "hgo_mj.reproduce",
+            "hgo_mj.simulate",
             "hgo_mj.study", "hgo_mj.study.backends", "hgo_mj.study.engine", "hgo_mj.study.figures",
             "hgo_mj.study.montecarlo", "hgo_mj.study.results", "hgo_mj.study.spec",
             "hgo_mj.study.study", "hgo_mj.systems.base", "hgo_mj.systems.cart_pendulum",

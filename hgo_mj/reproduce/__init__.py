@@ -143,15 +143,65 @@ def _reject_constant(name: str) -> Any:
 
 def read_summary(out: str | Path) -> dict[str, Any]:
     """Read ``out/summary.json`` as strict JSON: ``NaN``/``Infinity`` (which Python's ``json``
-    accepts by default, ``jq`` does not) raise ``ValueError``."""
+    accepts by default, ``jq`` does not) raise ``ValueError``.
+
+    Parameters
+    ----------
+    out : str or Path
+        A reproduction's output folder.
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     _ = Path(d, "summary.json").write_text(json.dumps({"k_final": 0.27}))
+    ...     read_summary(d)
+    {'k_final': 0.27}
+    """
     return json.loads(Path(out, "summary.json").read_text(), parse_constant=_reject_constant)
 
 
 def run_reproduction(name: str, out: str | Path, **kw: Any) -> dict[str, Any]:
-    """Run a registered reproduction; unknown names list the valid ones."""
+    """Run a registered reproduction; unknown names list the valid ones.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`REPRODUCTIONS`.
+    out : str or Path
+        Output folder (created).
+    **kw
+        The reproduction's own options (``rrd``, ``quiet``, ...; see its ``run``).
+
+    Returns
+    -------
+    dict
+        Its summary (also ``out/summary.json``).
+
+    Raises
+    ------
+    DesignError
+        ``name`` is not a registered reproduction.
+
+    Examples
+    --------
+    >>> sorted(REPRODUCTIONS)[:2]
+    ['bastin_gevers1986', 'besancon2004']
+    >>> run_reproduction("nope", "runs/x")
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: unknown reproduction 'nope'; valid: [...]
+    """
     if name not in REPRODUCTIONS:
         raise DesignError(f"unknown reproduction {name!r}; valid: {sorted(REPRODUCTIONS)}")
     module = importlib.import_module(REPRODUCTIONS[name][0])
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     return module.run(out, **kw)
+
+
+__all__ = ["REPRODUCTIONS", "read_summary", "run_reproduction"]

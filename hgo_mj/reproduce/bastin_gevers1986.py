@@ -530,6 +530,21 @@ def run(out: Path, *, rrd: Path | None = None, sweep: bool = True,
         Include the small gain sweep of part (b) (three more runs).
     quiet : bool
         No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a part).
+
+    Returns
+    -------
+    dict
+        The summary, also written to ``out/summary.json`` (strict JSON); ``report.txt`` says
+        what it means against the paper.
+
+    Examples
+    --------
+    The reproduction (parts 0, (a), (b) and (c)) takes about a minute on two cores;
+    ``hgo-mj reproduce bastin_gevers1986`` runs it from the command line:
+
+    >>> from pathlib import Path
+    >>> from hgo_mj.reproduce.bastin_gevers1986 import run
+    >>> summary = run(Path("runs/reproduce/bastin_gevers1986"), quiet=True)  # doctest: +SKIP
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -558,6 +573,4 @@ def run(out: Path, *, rrd: Path | None = None, sweep: bool = True,
     return finish(out, summary, _report(summary))
 
 
-__all__ = ["FrozenAOCF65", "check_transformations", "frozen_input", "part_bioreactor",
-           "part_frozen", "part_pendulum", "run", "run_bioreactor"]
-
+__all__ = ["run"]

@@ -229,10 +229,35 @@ def run(out: Path, *, rrd: Path | None = None, dt: float = DT, continuous: bool 
         quiet: bool = False) -> dict[str, Any]:
     """Run both examples; write ``summary.json``, ``report.txt`` and the figures to ``out``.
 
-    ``rrd``: write the sampled run of example 1 to this rerun recording and that of example 2
-    next to it (``<stem>_ex2.rrd``; their states differ), both listed in the summary's
-    ``recordings`` (the continuous-time LSODA runs are not recorded). ``quiet``: no progress
-    on stderr (:class:`hgo_mj.progress.Progress`, one step a run).
+    Parameters
+    ----------
+    out : Path
+        Output folder (created).
+    rrd : Path, optional
+        Write the sampled run of example 1 to this rerun recording and that of example 2 next
+        to it (``<stem>_ex2.rrd``; their states differ), both listed in the summary's
+        ``recordings`` (the continuous-time LSODA runs are not recorded).
+    dt : float
+        Sample period of the sampled runs [s].
+    continuous : bool
+        Also run the continuous-time observer (LSODA) the sampled runs are compared with.
+    quiet : bool
+        No progress on stderr (:class:`hgo_mj.progress.Progress`, one step a run).
+
+    Returns
+    -------
+    dict
+        The summary, also written to ``out/summary.json`` (strict JSON); ``report.txt`` says
+        what it means against the paper.
+
+    Examples
+    --------
+    The reproduction (both examples, sampled and in continuous time) takes about a minute on two cores;
+    ``hgo-mj reproduce besancon2004`` runs it from the command line:
+
+    >>> from pathlib import Path
+    >>> from hgo_mj.reproduce.besancon2004 import run
+    >>> summary = run(Path("runs/reproduce/besancon2004"), quiet=True)  # doctest: +SKIP
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -399,3 +424,6 @@ def _report(s: dict[str, Any]) -> str:
     if s.get("recordings"):
         lines.append(f"Recordings (rerun): {', '.join(s['recordings'])}.")
     return "\n".join(lines) + "\n"
+
+
+__all__ = ["run"]

@@ -418,6 +418,20 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10,
         ``s_rmse`` (noisy, mean over the seeds), ``s_rmse_noise_free``,
         ``s_undefined_samples`` (summed over the seeds), ``m_rmse``; and
         ``initial_state_for_k_0_27``.
+
+    Raises
+    ------
+    DesignError
+        ``seeds`` is not a positive integer.
+
+    Examples
+    --------
+    The reproduction (the noise-free and noisy runs of Fig. 2) takes about half a minute on two cores;
+    ``hgo-mj reproduce bullinger1998`` runs it from the command line:
+
+    >>> from pathlib import Path
+    >>> from hgo_mj.reproduce.bullinger1998 import run
+    >>> summary = run(Path("runs/reproduce/bullinger1998"), quiet=True)  # doctest: +SKIP
     """
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         from ..exceptions import DesignError
@@ -480,3 +494,6 @@ def run(out: Path, *, rrd: Path | None = None, seeds: int = 10,
     })
     summary["runtime_s"] = time.perf_counter() - t0
     return finish(out, summary, _report(summary))
+
+
+__all__ = ["run"]
