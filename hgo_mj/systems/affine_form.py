@@ -51,6 +51,18 @@ Terms = Callable[[Array, Array], tuple[Array, Array]]
 def chain_structure(A: Any, C: Any) -> tuple[int, ...]:
     """Chain orders ``(n_1, ..., n_p)`` of ``A = diag(A_c)``, ``C = diag(C_c)`` (eq. 2, 21).
 
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+        Block diagonal of integrator chains (ones on the superdiagonal inside each chain).
+    C : array_like, shape (p, n)
+        Output matrix: row ``c`` a single 1 at the first state of chain ``c``.
+
+    Returns
+    -------
+    tuple of int
+        The chain orders ``(n_1, ..., n_p)``, summing to ``n``.
+
     Raises
     ------
     DimensionError
@@ -58,6 +70,11 @@ def chain_structure(A: Any, C: Any) -> tuple[int, ...]:
     DesignError
         ``C`` does not pick the first states of consecutive chains, or ``A`` is not the block
         diagonal of those chains.
+
+    Examples
+    --------
+    >>> chain_structure([[0, 1, 0], [0, 0, 0], [0, 0, 0]], [[1, 0, 0], [0, 0, 1]])
+    (2, 1)
     """
     A = np.asarray(A, dtype=float)
     C = np.asarray(C, dtype=float)
@@ -136,6 +153,15 @@ class AffineForm:
     param_block : sequence of int, optional
         Chain whose last row carries each parameter (for ``theta_exponents`` with unequal
         orders, see correction 3 of :mod:`hgo_mj.observers.besancon`).
+
+    Raises
+    ------
+    DesignError
+        ``orders`` is empty or has an entry < 1, ``theta_names`` is empty, or ``terms`` is
+        not callable.
+    DimensionError
+        ``state_names`` does not have ``n = sum(orders)`` entries, ``outputs`` not one per
+        chain, or ``theta`` not ``q`` entries.
 
     Examples
     --------
@@ -226,13 +252,54 @@ class AffineForm:
         return zr, ur
 
     def phi0(self, z: Any, u: Any) -> Array:
-        """:math:`\\varphi(z, u)` at one point, shape ``(n,)``."""
+        """:math:`\\varphi(z, u)` at one point, shape ``(n,)``.
+
+        Parameters
+        ----------
+        z : array_like, shape (n,)
+            Form state.
+        u : array_like, shape (m,) or float
+            Input.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            :math:`\\varphi(z, u)`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> f = Pendulum().form("affine")  # damping known: phi = (0, -d/J z2)
+        >>> f.phi0([0.5, 0.0], [0.2])
+        array([0., 0.])
+        """
         ph, _ = self.terms(*self._point(z, u))
         return np.array(ph[0], dtype=float)
 
     def regressor(self, z: Any, u: Any) -> Array:
         """:math:`\\psi(z, u)` at one point, shape ``(n, q)``, zero except the last row of each
-        chain."""
+        chain.
+
+        Parameters
+        ----------
+        z : array_like, shape (n,)
+            Form state.
+        u : array_like, shape (m,) or float
+            Input.
+
+        Returns
+        -------
+        ndarray, shape (n, q)
+            :math:`\\psi(z, u)`, columns in the order of :attr:`theta_names`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> f = Pendulum().form("affine")  # theta = (g_over_l, b_over_J)
+        >>> f.regressor([0.5, 1.0], [0.2]).round(6)  # last row: (-sin z1, u)
+        array([[ 0.      ,  0.      ],
+               [-0.479426,  0.2     ]])
+        """
         _, ps = self.terms(*self._point(z, u))
         out = np.zeros((self.n, self.q))
         for c, last in enumerate(self.lasts):
@@ -240,7 +307,30 @@ class AffineForm:
         return out
 
     def rhs(self, z: Any, u: Any, theta: Any) -> Array:
-        """:math:`A z + \\varphi(z, u) + \\psi(z, u) \\theta` (for checks)."""
+        """:math:`A z + \\varphi(z, u) + \\psi(z, u) \\theta` (for checks).
+
+        Parameters
+        ----------
+        z : array_like, shape (n,)
+            Form state.
+        u : array_like, shape (m,) or float
+            Input.
+        theta : array_like, shape (q,)
+            Parameter values, in the order of :attr:`theta_names`.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            :math:`\\dot z`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> p = Pendulum()
+        >>> f = p.form("affine")
+        >>> f.rhs([0.5, 0.0], [0.0], f.theta).round(4)  # equals p.f: z is the state
+        array([ 0.   , -9.759])
+        """
         z = vector("z", z, self.n)
         th = vector("theta", theta, self.q)
         return self.A @ z + self.phi0(z, u) + self.regressor(z, u) @ th
@@ -255,6 +345,22 @@ class AffineForm:
         a time; the rows are evaluated one by one: the slow, general path), and optionally
         ``theta`` (true values) and ``param_names``.
 
+        Parameters
+        ----------
+        obj : object
+            Has ``A`` ``(n, n)``, ``C`` ``(p, n)``, ``phi0(x, u) -> (n,)`` and
+            ``regressor(x, u) -> (n, q)``; ``param_names`` (``q`` names, else
+            ``theta1..thetaq``), ``theta``, ``state_names`` and ``input_names`` are used if
+            present.
+        n_inputs : int, optional
+            Width of ``u`` (default: ``len(obj.input_names)``, or 1).
+
+        Returns
+        -------
+        AffineForm
+            The form, its ``terms`` calling ``phi0`` and ``regressor`` row by row; it pickles
+            as this call.
+
         The regressor's shape and the structure of eq. 7 (zero except the last row of each
         chain) are checked at a probe point ``z = 0.1 (1, 2, ..., n)``, ``u = 0.3``.
 
@@ -265,6 +371,15 @@ class AffineForm:
             chains, or ``psi`` is not zero outside the last rows.
         DimensionError
             ``phi0`` or ``regressor`` return the wrong shape.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import BesanconExample1
+        >>> f = AffineForm.from_protocol(BesanconExample1())
+        >>> f
+        AffineForm('BesanconExample1 (paper 001 form)', orders=[2], theta=['theta1', 'theta2'])
+        >>> f.rhs([1.0, 1.0], [0.1], [1.0, 2.0]).round(6)
+        array([ 1.1     , -0.816939])
         """
         missing = [m for m in PROTOCOL if not hasattr(obj, m)]
         if missing:

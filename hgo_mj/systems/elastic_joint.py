@@ -14,6 +14,8 @@ from ..exceptions import DesignError
 from ._mujoco import _MjReader, _MujocoSystem
 from .base import Array, CompiledModel
 
+__all__ = ["AFFINE_PARAMS", "ElasticJoint", "jo_son_motor_side"]
+
 #: the parameters of the elastic joint's affine form (paper 001, eq. 9)
 AFFINE_PARAMS = ("MgL", "stiffness")
 
@@ -252,6 +254,22 @@ class ElasticJoint(_MujocoSystem):
     joints ``link`` and ``motor``, tendon ``spring``, actuator ``torque``. The fast paths
     ``_to_normal(x, p)``, ``_from_normal(z, p)`` and ``_phi(z, u, p)`` skip validation.
 
+    Forms (:meth:`~hgo_mj.systems.base.System.form`): ``"affine"`` (paper 001, eq. 9; unknowns
+    from :data:`AFFINE_PARAMS`), ``"jo_son"`` (paper 003, eq. 10, only with
+    ``sensors="motor_side"``: :func:`jo_son_motor_side`) and ``"kalman_fields"``.
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (e.g. ``stiffness=20.0``); the others are read from
+        the shipped ``models/elastic_joint.xml``.
+
+    Raises
+    ------
+    DesignError
+        An unknown or non-finite parameter, or ``link_inertia``, ``motor_inertia`` or
+        ``stiffness`` not positive.
+
     References
     ----------
     .. [1] M. W. Spong, "Modeling and control of elastic joint robots", ASME J. Dynamic
@@ -261,6 +279,19 @@ class ElasticJoint(_MujocoSystem):
     .. [2] S. Nicosia and A. Tornambè, "High-gain observers in the state and parameter
        estimation of robots having elastic joints", Systems & Control Letters 13(4) (1989),
        331-337.
+
+    Examples
+    --------
+    >>> ej = ElasticJoint()
+    >>> ej.params["stiffness"], ej.state_names
+    (10.0, ('link_angle', 'motor_angle', 'link_velocity', 'motor_velocity'))
+    >>> z = ej.to_normal([0.1, 0.2, 0.0, 0.0])
+    >>> z.round(3)
+    array([ 0.1  ,  0.   , 29.336, -1.95 ])
+    >>> ej.from_normal(z).round(6)
+    array([0.1, 0.2, 0. , 0. ])
+    >>> ej.form("affine").theta_names
+    ('MgL_direct', 'stiffness', 'stiffness_MgL')
     """
 
     name = "elastic_joint"
@@ -348,7 +379,32 @@ class ElasticJoint(_MujocoSystem):
     @staticmethod
     def jacobian(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:
         """:math:`\\partial f / \\partial x` of :meth:`dynamics`, shape (4, 4) (used by the
-        Kalman filters of :mod:`hgo_mj.observers.kalman`)."""
+        Kalman filters of :mod:`hgo_mj.observers.kalman`).
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (unused: the system is autonomous).
+        x : (4,) ndarray of float
+            State ``(link_angle, motor_angle, link_velocity, motor_velocity)`` [rad, rad/s].
+        u : (1,) ndarray of float
+            Motor torque [N m] (the Jacobian does not depend on it).
+        p : mapping of str to float
+            Parameters by name (all of ``param_names``).
+
+        Returns
+        -------
+        (4, 4) ndarray of float
+            ``df/dx``; the first two rows are ``[0, 0, 1, 0]`` and ``[0, 0, 0, 1]``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> ej = ElasticJoint()
+        >>> J = ej.jacobian(0.0, np.array([0.1, 0.2, 0.0, 0.0]), np.array([0.0]), ej.params)
+        >>> J[2:].round(2).tolist()
+        [[-371.36, 332.42, -0.07, 0.0], [2604.17, -2604.17, 0.0, -2.6]]
+        """
         out = np.empty((4, 4))
         _jacobian_row(x, u, _params(p), out)
         return out
@@ -357,7 +413,43 @@ class ElasticJoint(_MujocoSystem):
     def param_jacobian(t: float, x: Array, u: Array, p: Mapping[str, float],
                        names: tuple[str, ...]) -> Array:
         """:math:`\\partial f / \\partial p` of :meth:`dynamics` for the parameters ``names``,
-        shape (4, len(names))."""
+        shape (4, len(names)).
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (unused).
+        x : (4,) ndarray of float
+            State ``(link_angle, motor_angle, link_velocity, motor_velocity)``.
+        u : (1,) ndarray of float
+            Motor torque [N m].
+        p : mapping of str to float
+            Parameters by name (all of ``param_names``).
+        names : tuple of str
+            The parameters to differentiate by, names of ``param_names``, in the column order
+            wanted.
+
+        Returns
+        -------
+        (4, len(names)) ndarray of float
+            Column ``k``: ``df/d names[k]`` (first two rows zero).
+
+        Raises
+        ------
+        ValueError
+            A name of ``names`` is not in ``param_names``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> ej = ElasticJoint()
+        >>> ej.param_jacobian(0.0, np.array([0.1, 0.2, 0.0, 0.0]), np.array([0.0]), ej.params,
+        ...                   ("stiffness",)).round(3)
+        array([[  0.   ],
+               [  0.   ],
+               [  3.324],
+               [-26.042]])
+        """
         out = np.empty((4, len(ElasticJoint.param_names)))
         _param_jacobian_row(x, u, _params(p), out)
         return out[:, [ElasticJoint.param_names.index(nm) for nm in names]]
@@ -522,7 +614,29 @@ class ElasticJoint(_MujocoSystem):
 
     def from_normal_batch(self, Z: Array, U: Array) -> Array:
         """:meth:`from_normal_unchecked` of the rows ``Z`` ``(N, 4)``, compiled (equal to the
-        scalar path bit for bit; defined everywhere, the stiffness being > 0)."""
+        scalar path bit for bit; defined everywhere, the stiffness being > 0).
+
+        Parameters
+        ----------
+        Z : (N, 4) ndarray of float
+            Normal-form rows ``z = (y, y', y'', y^(3))``.
+        U : (N, 1) ndarray of float
+            Inputs (unused: the inverse map does not depend on the torque).
+
+        Returns
+        -------
+        (N, 4) ndarray of float
+            Physical states ``(q, theta, q', theta')``, one per row of ``Z``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> ej = ElasticJoint()
+        >>> Z = np.array([ej.to_normal([0.1, 0.2, 0.0, 0.0]), np.zeros(4)])
+        >>> ej.from_normal_batch(Z, np.zeros((2, 1))).round(6)
+        array([[0.1, 0.2, 0. , 0. ],
+               [0. , 0. , 0. , 0. ]])
+        """
         return _from_normal_rows(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
                                  self._row_constants()[:6])
 
@@ -578,10 +692,37 @@ def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
     unknown : sequence of str
         Must be ``("b_over_J", "dm_over_J", "K_over_J")``.
 
+    Returns
+    -------
+    JoSonForm
+        The :class:`~hgo_mj.systems.jo_son_form.JoSonForm` with ``r = n = 1``, ``b = (1,)``,
+        ``theta_names = unknown`` and state ``("motor_velocity",)``.
+
+    Raises
+    ------
+    DimensionError
+        ``aux_outputs`` does not have exactly two entries.
+    DesignError
+        ``unknown`` is not ``("b_over_J", "dm_over_J", "K_over_J")``.
+
     References
     ----------
     Paper 003, eq. 10, Corollary 3.3; docs/adaptive_canonical_forms.md (why the link-angle
     sensor does not qualify).
+
+    Examples
+    --------
+    >>> form = jo_son_motor_side()
+    >>> form
+    JoSonForm(elastic joint motor side: y = motor velocity, deflection measured: r=1, n=1,
+    b=[1.0], theta=['b_over_J', 'dm_over_J', 'K_over_J'])
+    >>> form.aux_outputs
+    (1, 2)
+
+    The same form through the system (the default link-angle sensor has none):
+
+    >>> ElasticJoint().form("jo_son", sensors="motor_side").theta_names
+    ('b_over_J', 'dm_over_J', 'K_over_J')
     """
     from ..exceptions import DimensionError
     from .jo_son_form import JoSonForm

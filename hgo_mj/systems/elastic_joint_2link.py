@@ -14,6 +14,8 @@ from ..exceptions import DesignError
 from ._mujoco import _MjReader, _MujocoSystem
 from .base import Array, CompiledModel
 
+__all__ = ["ElasticJoint2Link"]
+
 
 @njit(cache=True)
 def _affine_parts(z: Array, u0: float, u1: float, c: Array) -> tuple[float, ...]:
@@ -207,6 +209,21 @@ class ElasticJoint2Link(_MujocoSystem):
     ``motor1_damping`` dm1, ``motor2_damping`` dm2, ``gear1`` b1, ``gear2`` b2, ``g`` g0
     (SI units); read by :meth:`from_mjmodel`.
 
+    Forms (:meth:`~hgo_mj.systems.base.System.form`): ``"affine"`` (paper 001, eq. 21,
+    unknown ``stiffness1``, ``stiffness2``) and ``"kalman_fields"``.
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (e.g. ``stiffness2=8.0``); the others are read from
+        the shipped ``models/elastic_joint_2link.xml``.
+
+    Raises
+    ------
+    DesignError
+        An unknown or non-finite parameter, or a link or motor inertia (``link1_inertia``,
+        ``link2_inertia``, ``motor1_inertia``, ``motor2_inertia``) not positive.
+
     References
     ----------
     .. [1] M. W. Spong, "Modeling and control of elastic joint robots", ASME J. Dynamic
@@ -214,6 +231,18 @@ class ElasticJoint2Link(_MujocoSystem):
     .. [2] S. Nicosia and A. Tornambè, "High-gain observers in the state and parameter
        estimation of robots having elastic joints", Systems & Control Letters 13(4) (1989),
        331-337.
+
+    Examples
+    --------
+    >>> arm = ElasticJoint2Link()
+    >>> arm.params["stiffness1"], arm.params["stiffness2"], arm.normal_form_orders
+    (20.0, 6.0, (4, 4))
+    >>> arm.h(arm.default_x0)
+    array([ 0.3, -0.2])
+    >>> arm.f(0.0, arm.default_x0, [0.0, 0.0])[4:6].round(3)
+    array([-14.383,  30.573])
+    >>> arm.form("affine").theta_names
+    ('stiffness1', 'stiffness2')
     """
 
     name = "elastic_joint_2link"

@@ -95,6 +95,11 @@ def bullinger_input(t: float) -> Array:
     References
     ----------
     Paper 000, section 4 (input profile below eq. 16).
+
+    Examples
+    --------
+    >>> bullinger_input(10.0), bullinger_input(40.0)
+    (array([0.08]), array([0.02]))
     """
     t = _time(t)
     return np.array([0.02 if 30.0 <= t < 50.0 else 0.08])
@@ -218,6 +223,25 @@ class BioreactorBullinger(System):
     ----------
     Paper 000 (``000_76f8d44710f783d2.txt``), section 4, eq. 15 (model, parameters, initial
     state), eq. 16 (normal form :math:`\\Phi`), input profile below eq. 16.
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (``a1`` to ``a4``); the others take
+        ``default_params`` (the paper's values).
+
+    Examples
+    --------
+    >>> bio = BioreactorBullinger()
+    >>> bio
+    BioreactorBullinger(a1=1, a2=1, a3=1, a4=0.1)
+    >>> z = bio.to_normal(bio.default_x0, [0.08])
+    >>> z.round(6)
+    array([0.075   , 0.015429])
+    >>> bio.from_normal(z, [0.08]).round(6)
+    array([0.075, 0.03 ])
+    >>> round(bio.phi(z, [0.08]), 6)
+    -0.008051
     """
 
     name: ClassVar[str] = "bioreactor_bullinger"
@@ -307,7 +331,29 @@ class BioreactorBullinger(System):
     def from_normal_batch(self, Z: Array, U: Array) -> Array:
         """:meth:`from_normal` of the rows ``Z`` ``(N, 2)``, ``U`` ``(N, 1)``, compiled (equal to
         the scalar path bit for bit); NaN rows where it raises (outside the domain, a1 or
-        a2 not > 0, or a non-finite entry)."""
+        a2 not > 0, or a non-finite entry).
+
+        Parameters
+        ----------
+        Z : (N, 2) ndarray of float
+            Normal-form rows ``(m, m')``.
+        U : (N, 1) ndarray of float
+            Substrate inflow rates, one per row.
+
+        Returns
+        -------
+        (N, 2) ndarray of float
+            ``(m, s)`` per row; NaN rows where the inverse is not defined.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> bio = BioreactorBullinger()
+        >>> Z = np.array([bio.to_normal(bio.default_x0, [0.08]), [-1.0, 0.0]])
+        >>> bio.from_normal_batch(Z, np.full((2, 1), 0.08)).round(6)
+        array([[0.075, 0.03 ],
+               [  nan,   nan]])
+        """
         return _bullinger_from_normal_rows(  # type: ignore[no-any-return]
             np.ascontiguousarray(Z, dtype=float), np.ascontiguousarray(U, dtype=float),
             self.params["a1"], self.params["a2"])
@@ -376,6 +422,11 @@ def bastin_gevers_input(t: float) -> Array:
     :math:`u_{max} = 10`, so assumption F.4 holds; three incommensurate frequencies make
     :math:`\\omega = (y, u_1, u_2)` rich enough to identify the three :math:`\\theta`.
 
+    Parameters
+    ----------
+    t : float
+        Time in residence times.
+
     Returns
     -------
     ndarray, shape (2,)
@@ -384,6 +435,11 @@ def bastin_gevers_input(t: float) -> Array:
     References
     ----------
     Paper 002, section 6, assumption F.4.
+
+    Examples
+    --------
+    >>> bastin_gevers_input(0.0)
+    array([5. , 0.5])
     """
     t = _time(t)
     return np.array([5.0 + 2.0 * math.sin(0.5 * t) + math.sin(1.7 * t),
@@ -484,6 +540,24 @@ class BioreactorBastinGevers(System):
     ----------
     Paper 002 (``002_7adafa82055be9d3.txt``), section 6: eq. 6.1 (model), 6.2-6.3 (growth
     laws), F.1-F.4 (assumptions), 6.4 (map to AOCF), 6.5 (AOCF), 6.6 (inverse), C.1.
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (``mu_max``, ``K_m``, ``K_c``, ``p2``, ``p3``); the others take
+        ``default_params`` (Monod, ``mu_max = 3``, ``K_m = 1``,
+        ``K_c = 0``, ``p2 = 0.5``, ``p3 = 0.05``).
+
+    Examples
+    --------
+    >>> bg = BioreactorBastinGevers()
+    >>> bg
+    BioreactorBastinGevers(mu_max=3, K_m=1, K_c=0, p2=0.5, p3=0.05)
+    >>> bg.f(0.0, [1.0, 1.0], [5.0, 0.5])
+    array([0.95, 1.  ])
+    >>> x, theta = bg.to_aocf([1.0, 1.0])
+    >>> bg.aocf_rhs(x, theta, [5.0, 0.5])  # eq. 6.5 along 6.4: (z1', (1 - c2) z1' - p3 z2')
+    array([ 0.95, -1.  ])
     """
 
     name: ClassVar[str] = "bioreactor_bastin_gevers"
@@ -524,7 +598,23 @@ class BioreactorBastinGevers(System):
         return np.array([x[0]])
 
     def specific_growth_rate(self, z: Any) -> float:
-        """:math:`p_0 = p_1 z_1 = \\mu^* z_1/(K_m + K_c z_2 + z_1)` (eq. 6.2 / 6.3)."""
+        """:math:`p_0 = p_1 z_1 = \\mu^* z_1/(K_m + K_c z_2 + z_1)` (eq. 6.2 / 6.3).
+
+        Parameters
+        ----------
+        z : array_like, shape (2,)
+            ``(z1, z2)``: substrate and biomass concentrations.
+
+        Returns
+        -------
+        float
+            The specific growth rate :math:`p_0` (per residence time).
+
+        Examples
+        --------
+        >>> BioreactorBastinGevers().specific_growth_rate([1.0, 1.0])  # 3 * 1 / (1 + 0 + 1)
+        1.5
+        """
         z = vector("z", z, 2)
         return float(self._p1(z[0], z[1], self.params) * z[0])
 
@@ -549,6 +639,12 @@ class BioreactorBastinGevers(System):
         x : ndarray, shape (2,)
         theta : ndarray, shape (3,)
             Time-varying through :math:`p_1(z) z_2`.
+
+        Examples
+        --------
+        >>> x, theta = BioreactorBastinGevers().to_aocf([1.0, 1.0])
+        >>> x, theta
+        (array([ 1.  , -1.05]), array([-3.   ,  2.925, -0.05 ]))
         """
         z = vector("z", z, 2)
         c2 = self._c2(c2)
@@ -563,6 +659,16 @@ class BioreactorBastinGevers(System):
     def from_aocf(self, x: Any, theta: Any, c2: float | None = None) -> tuple[Array, Array]:
         """Eq. 6.6 (with the sign of 6.6b corrected): ``(x, theta) -> (z, (p1, p2, p3))``.
 
+        Parameters
+        ----------
+        x : array_like, shape (2,)
+            AOCF state ``(x1, x2)``, ``x1 = y = z1``.
+        theta : array_like, shape (3,)
+            AOCF parameters ``(theta1, theta2, theta3)``.
+        c2 : float, optional
+            Design constant ``> 0`` (default :attr:`default_c2`); the one used by
+            :meth:`to_aocf`.
+
         Returns
         -------
         z : ndarray, shape (2,)
@@ -575,6 +681,12 @@ class BioreactorBastinGevers(System):
         DesignError
             Where the inverse does not exist: ``theta3 == 0`` (no maintenance, ``z2`` not
             observable from ``x2``), ``z2 == 0`` or ``(c2 - 2) - theta1 == 0`` (``p1 z2 = 0``).
+
+        Examples
+        --------
+        >>> bg = BioreactorBastinGevers()
+        >>> bg.from_aocf(*bg.to_aocf([1.0, 1.0]))
+        (array([1., 1.]), array([1.5 , 0.5 , 0.05]))
         """
         x = vector("x", x, 2)
         th = vector("theta", theta, 3)
@@ -597,6 +709,15 @@ class BioreactorBastinGevers(System):
                        ) -> tuple[Array, Array, Array]:
         """``R``, ``Omega(omega)`` and ``g`` of the AOCF eq. 6.5 at output ``y`` and input ``u``.
 
+        Parameters
+        ----------
+        y : float
+            Output ``y = z1`` (substrate).
+        u : array_like, shape (2,)
+            Feed rates ``(u1, u2)``.
+        c2 : float, optional
+            Design constant ``> 0`` (default :attr:`default_c2`).
+
         Returns
         -------
         R : ndarray, shape (2, 2)
@@ -605,6 +726,18 @@ class BioreactorBastinGevers(System):
             ``[[y, 0, 0], [0, y, u2]]``.
         g : ndarray, shape (2,)
             ``[u1, (1 - c2) u1 - (1 - c2)^2 y]``.
+
+        Examples
+        --------
+        >>> R, Omega, g = BioreactorBastinGevers().aocf_structure(1.0, [5.0, 0.5])
+        >>> R
+        array([[ 0.,  1.],
+               [ 0., -2.]])
+        >>> Omega
+        array([[1. , 0. , 0. ],
+               [0. , 1. , 0.5]])
+        >>> g
+        array([ 5., -6.])
         """
         y = finite_scalar("y", y)
         u = vector("u", u, 2)
@@ -615,7 +748,31 @@ class BioreactorBastinGevers(System):
         return R, Omega, g
 
     def aocf_rhs(self, x: Any, theta: Any, u: Any, c2: float | None = None) -> Array:
-        """Right-hand side of the AOCF eq. 6.5, ``R x + Omega(y, u) theta + g``, ``y = x1``."""
+        """Right-hand side of the AOCF eq. 6.5, ``R x + Omega(y, u) theta + g``, ``y = x1``.
+
+        Parameters
+        ----------
+        x : array_like, shape (2,)
+            AOCF state.
+        theta : array_like, shape (3,)
+            AOCF parameters.
+        u : array_like, shape (2,)
+            Feed rates ``(u1, u2)``.
+        c2 : float, optional
+            Design constant ``> 0`` (default :attr:`default_c2`).
+
+        Returns
+        -------
+        ndarray, shape (2,)
+            ``dx/dt``.
+
+        Examples
+        --------
+        >>> bg = BioreactorBastinGevers()
+        >>> x, theta = bg.to_aocf([1.0, 1.0])
+        >>> bg.aocf_rhs(x, theta, [5.0, 0.5])
+        array([ 0.95, -1.  ])
+        """
         x = vector("x", x, 2)
         th = vector("theta", theta, 3)
         R, Omega, g = self.aocf_structure(x[0], u, c2)
@@ -707,6 +864,11 @@ class BioreactorBastinGevers(System):
 def besancon_ex1_input(t: float) -> Array:
     """Input of both examples of paper 001, section 4: ``[sin 2t + 0.1 cos 10t]``.
 
+    Parameters
+    ----------
+    t : float
+        Time (dimensionless, as in the paper).
+
     Returns
     -------
     ndarray, shape (1,)
@@ -714,6 +876,11 @@ def besancon_ex1_input(t: float) -> Array:
     References
     ----------
     Paper 001, section 4, first example.
+
+    Examples
+    --------
+    >>> besancon_ex1_input(0.0)
+    array([0.1])
     """
     t = _time(t)
     return np.array([math.sin(2.0 * t) + 0.1 * math.cos(10.0 * t)])
@@ -727,10 +894,20 @@ def besancon_ex2_signal(t: float) -> Array:
         u &= \\sin 2t + 0.1 \\cos 10t, \\qquad \\dot u = 2 \\cos 2t - \\sin 10t, \\\\
         \\ddot u &= -4 \\sin 2t - 10 \\cos 10t
 
+    Parameters
+    ----------
+    t : float
+        Time (dimensionless).
+
     Returns
     -------
     ndarray, shape (3,)
         ``[u(t), u'(t), u''(t)]``.
+
+    Examples
+    --------
+    >>> besancon_ex2_signal(0.0)
+    array([  0.1,   2. , -10. ])
     """
     t = _time(t)
     s2, c2, s10, c10 = math.sin(2 * t), math.cos(2 * t), math.sin(10 * t), math.cos(10 * t)
@@ -748,9 +925,20 @@ def besancon_ex2_input(t: float) -> Array:
     and ``x3`` drifts by ``5 dt t`` (about 0.9 at ``t = 9`` for ``dt = 0.02``), which changes
     the trajectory completely (``|y'|`` reaches 8 instead of 1.4).
 
+    Parameters
+    ----------
+    t : float
+        Time (dimensionless); mid-period when the input is held.
+
     Returns
     -------
     ndarray, shape (1,)
+        ``[u''(t)] = [-4 sin 2t - 10 cos 10t]``.
+
+    Examples
+    --------
+    >>> besancon_ex2_input(0.0)
+    array([-10.])
     """
     return besancon_ex2_signal(t)[2:]
 
@@ -855,6 +1043,22 @@ class BesanconExample1(System):
     ----------
     Paper 001 (``001_fa1af3b6b9a222a1.txt``), section 4 (first example), eq. 9 (form),
     eq. 2-3, 7 (structure), eq. 12 (observer).
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (``theta1``, ``theta2``); the others take
+        ``default_params`` (the paper's ``(1, 2)``).
+
+    Examples
+    --------
+    >>> ex = BesanconExample1()
+    >>> ex.theta
+    array([1., 2.])
+    >>> ex.f(0.0, [1.0, 1.0], [0.1]).round(6)
+    array([ 1.1     , -0.816939])
+    >>> ex.form("affine").theta_names
+    ('theta1', 'theta2')
     """
 
     name: ClassVar[str] = "besancon_ex1"
@@ -900,13 +1104,50 @@ class BesanconExample1(System):
         return np.array([[1.0, 0.0]])
 
     def phi0(self, x: Any, u: Any) -> Array:
-        """:math:`\\varphi(x, u) = (u, -x_1 - 2 \\sin x_2)` of eq. 9."""
+        """:math:`\\varphi(x, u) = (u, -x_1 - 2 \\sin x_2)` of eq. 9.
+
+        Parameters
+        ----------
+        x : array_like, shape (2,)
+            State ``(x1, x2)``.
+        u : array_like, shape (1,)
+            Input ``u``.
+
+        Returns
+        -------
+        ndarray, shape (2,)
+            :math:`\\varphi`.
+
+        Examples
+        --------
+        >>> BesanconExample1().phi0([1.0, 1.0], [0.1]).round(6)
+        array([ 0.1     , -2.682942])
+        """
         x = vector("x", x, 2)
         u = vector("u", u, 1)
         return np.array([u[0], -x[0] - 2.0 * math.sin(x[1])])
 
     def regressor(self, x: Any, u: Any) -> Array:
-        """:math:`\\psi(x, u)`, shape (2, 2), of eq. 9: ``[[0, 0], [atan x2, cos(x1 x2)]]``."""
+        """:math:`\\psi(x, u)`, shape (2, 2), of eq. 9: ``[[0, 0], [atan x2, cos(x1 x2)]]``.
+
+        Parameters
+        ----------
+        x : array_like, shape (2,)
+            State ``(x1, x2)``.
+        u : array_like, shape (1,)
+            Input ``u`` (checked, not used).
+
+        Returns
+        -------
+        ndarray, shape (2, 2)
+            :math:`\\psi`, columns in the order of ``(theta1, theta2)``.
+
+        Examples
+        --------
+        >>> BesanconExample1().regressor([1.0, 1.0], [0.1]).round(6)
+        array([[0.      , 0.      ],
+               [0.785398, 0.540302]])
+        """
         x = vector("x", x, 2)
         vector("u", u, 1)
         return np.array([[0.0, 0.0], [math.atan(x[1]), math.cos(x[0] * x[1])]])
@@ -984,6 +1225,20 @@ class BesanconExample2(System):
     ----------
     Paper 001 (``001_fa1af3b6b9a222a1.txt``), section 4 (second example), eq. 6, 8 (input-output
     model), eq. 21 (form), eq. 24 (observer).
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (``theta1``, ``theta2``); the others take
+        ``default_params`` (the paper's ``(10, -5)``).
+
+    Examples
+    --------
+    >>> ex = BesanconExample2()
+    >>> ex.h(ex.default_x0)
+    array([1. , 0.1])
+    >>> ex.form("affine")
+    AffineForm('paper 001 example 2 (eq. 21)', orders=[2, 2], theta=['theta1', 'theta2'])
     """
 
     name: ClassVar[str] = "besancon_ex2"
@@ -1034,13 +1289,49 @@ class BesanconExample2(System):
         return C
 
     def phi0(self, x: Any, u: Any) -> Array:
-        """:math:`\\varphi(x, v) = (0, \\sin(x_1 x_2), 0, v)` of eq. 21, ``v = u''``."""
+        """:math:`\\varphi(x, v) = (0, \\sin(x_1 x_2), 0, v)` of eq. 21, ``v = u''``.
+
+        Parameters
+        ----------
+        x : array_like, shape (4,)
+            State ``(y, y', u, u')``.
+        u : array_like, shape (1,)
+            Input ``v = u''`` of the input generator.
+
+        Returns
+        -------
+        ndarray, shape (4,)
+            :math:`\\varphi`.
+
+        Examples
+        --------
+        >>> BesanconExample2().phi0([1.0, 1.0, 0.1, 2.0], [0.5]).round(6)
+        array([0.      , 0.841471, 0.      , 0.5     ])
+        """
         x = vector("x", x, 4)
         u = vector("u", u, 1)
         return np.array([0.0, math.sin(x[0] * x[1]), 0.0, u[0]])
 
     def regressor(self, x: Any, u: Any) -> Array:
-        """:math:`\\psi(x, v)`, shape (4, 2), of eq. 21 (only row 2 is non-zero)."""
+        """:math:`\\psi(x, v)`, shape (4, 2), of eq. 21 (only row 2 is non-zero).
+
+        Parameters
+        ----------
+        x : array_like, shape (4,)
+            State ``(y, y', u, u')``.
+        u : array_like, shape (1,)
+            Input ``v = u''`` (checked, not used).
+
+        Returns
+        -------
+        ndarray, shape (4, 2)
+            :math:`\\psi`; row 2 is ``(cos(x1 x2), x4 x3^2)``.
+
+        Examples
+        --------
+        >>> BesanconExample2().regressor([1.0, 1.0, 0.1, 2.0], [0.5])[1].round(6)
+        array([0.540302, 0.02    ])
+        """
         x = vector("x", x, 4)
         vector("u", u, 1)
         psi = np.zeros((4, 2))
@@ -1061,9 +1352,19 @@ class BesanconExample2(System):
 def jo_son_input(t: float) -> Array:
     """Input of paper 003, section 4: ``[sin(pi t/3) sin(pi t/2)]``.
 
+    Parameters
+    ----------
+    t : float
+        Time [s].
+
     Returns
     -------
     ndarray, shape (1,)
+
+    Examples
+    --------
+    >>> jo_son_input(1.0).round(6)
+    array([0.866025])
     """
     t = _time(t)
     return np.array([math.sin(math.pi * t / 3.0) * math.sin(math.pi * t / 2.0)])
@@ -1179,6 +1480,20 @@ class JoSonExample(System):
     Paper 003 (``003_bd61d49996cbe973.txt``), section 4: eq. 28 (system), eq. 29 (condition
     of Theorem 3.1), eq. 30 (transformation), eq. 31 (canonical form); eq. 10 (form), eq. 25,
     27 (observer).
+
+    Parameters
+    ----------
+    **params : float
+        Values of some of ``param_names`` (``theta``); the others take
+        ``default_params`` (the paper's ``theta = 1``).
+
+    Examples
+    --------
+    >>> ex = JoSonExample()
+    >>> ex.f(0.0, ex.default_x0, [0.3]).round(6)
+    array([1.325   , 0.084414, 2.725   ])
+    >>> ex.form("jo_son")
+    JoSonForm(Jo-Son example eq. 31: r=2, n=3, b=[2.0, 1.0], theta=['theta'])
     """
 
     name: ClassVar[str] = "jo_son"
@@ -1211,11 +1526,44 @@ class JoSonExample(System):
         return np.array([x[0]])
 
     def to_canonical(self, x: Any) -> Array:
-        """Eq. 30: :math:`z = T(x) = (x_1^3/3 + x_2,\\ x_1,\\ x_3 - x_1^2/2)`."""
+        """Eq. 30: :math:`z = T(x) = (x_1^3/3 + x_2,\\ x_1,\\ x_3 - x_1^2/2)`.
+
+        Parameters
+        ----------
+        x : array_like, shape (3,)
+            Physical state ``(x1, x2, x3)``.
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            Canonical state ``z``.
+
+        Examples
+        --------
+        >>> JoSonExample().to_canonical([0.5, 1.0, -1.0]).round(6)
+        array([ 1.041667,  0.5     , -1.125   ])
+        """
         return np.array(jo_son_T(vector("x", x, 3)))
 
     def from_canonical(self, z: Any) -> Array:
-        """Inverse of eq. 30: :math:`x = (z_2,\\ z_1 - z_2^3/3,\\ z_3 + z_2^2/2)`."""
+        """Inverse of eq. 30: :math:`x = (z_2,\\ z_1 - z_2^3/3,\\ z_3 + z_2^2/2)`.
+
+        Parameters
+        ----------
+        z : array_like, shape (3,)
+            Canonical state ``(z1, z2, z3)``.
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            Physical state ``x``.
+
+        Examples
+        --------
+        >>> ex = JoSonExample()
+        >>> ex.from_canonical(ex.to_canonical([0.5, 1.0, -1.0])).round(12)
+        array([ 0.5,  1. , -1. ])
+        """
         return np.array(jo_son_T_inverse(vector("z", z, 3)))
 
     def _form_jo_son(self) -> Any:
@@ -1242,11 +1590,48 @@ class JoSonExample(System):
 
     @staticmethod
     def beta(y: float, u: float) -> float:
-        """:math:`\\beta(y, u) = y u` of eq. 10 / 31."""
+        """:math:`\\beta(y, u) = y u` of eq. 10 / 31.
+
+        Parameters
+        ----------
+        y : float
+            Output.
+        u : float
+            Input.
+
+        Returns
+        -------
+        float
+            ``y * u``.
+
+        Examples
+        --------
+        >>> JoSonExample.beta(0.5, 2.0)
+        1.0
+        """
         return float(y) * float(u)
 
     def canonical_rhs(self, z: Any, u: Any) -> Array:
-        """Right-hand side of eq. 31 at canonical state ``z`` (``y = z2``) and input ``u``."""
+        """Right-hand side of eq. 31 at canonical state ``z`` (``y = z2``) and input ``u``.
+
+        Parameters
+        ----------
+        z : array_like, shape (3,)
+            Canonical state.
+        u : array_like, shape (1,)
+            Input.
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            ``dz/dt``; equals ``dT/dx f(x, u)`` at ``z = T(x)``.
+
+        Examples
+        --------
+        >>> ex = JoSonExample()
+        >>> ex.canonical_rhs(ex.to_canonical(ex.default_x0), [0.3]).round(6)
+        array([0.415664, 1.325   , 2.0625  ])
+        """
         z = vector("z", z, 3)
         uu = float(vector("u", u, 1)[0])
         th = self.params["theta"]
