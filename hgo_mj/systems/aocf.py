@@ -51,7 +51,29 @@ def _call(factory: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, 
 
 
 def system_form(system: System, kind: str, **options: Any) -> Any:
-    """``system.form(kind, **options)``: the recipe a system's form records (:class:`Rebuildable`)."""
+    """``system.form(kind, **options)``: the recipe a system's form records (:class:`Rebuildable`).
+
+    Parameters
+    ----------
+    system : System
+        The system whose form to build.
+    kind : str
+        The form's name, one of ``system.forms`` (e.g. ``"aocf"``).
+    **options
+        The options of the system's ``_form_<kind>``.
+
+    Returns
+    -------
+    object
+        ``system.form(kind, **options)``.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> system_form(Pendulum(), "aocf", c2=3.0)
+    AOCF(pendulum: y'' = -d/J y' - a sin y + b u, c2=3: n=2, m=2, theta=['g_over_l', 'b_over_J'],
+    omega=['y', '-sin y', 'u'])
+    """
     return system.form(kind, **options)
 
 
@@ -62,7 +84,25 @@ class Rebuildable:
     """Base of the canonical forms: a form whose functions pickle cannot store (closures of
     its factory) pickles as the factory call that built it, which its factory records with
     :meth:`_made_by` (its arguments must pickle: a system, numbers, names). A form built by
-    hand pickles as usual, where its functions do (module-level ones)."""
+    hand pickles as usual, where its functions do (module-level ones).
+
+    Parameters
+    ----------
+    *args, **kwargs
+        None accepted by this base; a subclass documents its own (:class:`AOCF`).
+
+    Examples
+    --------
+    The pendulum's AOCF holds closures; it pickles as the call that built it:
+
+    >>> import pickle
+    >>> from hgo_mj.systems import Pendulum
+    >>> form = Pendulum().form("aocf")
+    >>> isinstance(form, Rebuildable)
+    True
+    >>> pickle.loads(pickle.dumps(form)).theta_true.round(4)
+    array([20.3557, 18.4444])
+    """
 
     _recipe: tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]] | None = None
 
@@ -170,9 +210,34 @@ class AOCF(Rebuildable):
     inverse_domain : str
         Where the inverse map exists, for the message of a start outside it.
 
+    Raises
+    ------
+    DimensionError
+        ``R`` is not square, ``alpha`` not ``(n, m, s)`` with ``m, s >= 1``, or a name list
+        has the wrong length.
+    DesignError
+        ``R`` or ``alpha`` is not finite, ``R`` has a non-zero first column, ``F`` is not
+        Hurwitz, a function is not callable, names repeat, or ``physical_param_names`` are
+        given without ``to_physical``.
+
     References
     ----------
     Paper 002, eq. 2.1-2.5.
+
+    Examples
+    --------
+    A hand-made form (one point at a time) with ``n = 2``, one parameter, ``F = -2`` and
+    :math:`\\Omega = (y, u)^T`:
+
+    >>> import numpy as np
+    >>> alpha = np.array([[[1.0, 0.0]], [[0.0, 1.0]]])  # (n, m, s) = (2, 1, 2)
+    >>> form = AOCF([[0.0, 1.0], [0.0, -2.0]], alpha, lambda y, u: np.array([y, u[0]]),
+    ...             theta_names=("a",))
+    >>> form
+    AOCF(AOCF: n=2, m=1, theta=['a'], omega=['w1', 'w2'])
+    >>> form.Omega(form.omega(0.5, [0.2]))
+    array([[0.5],
+           [0.2]])
     """
 
     def __init__(self, R: Any, alpha: Any, omega: Callable[..., Any], *,
@@ -245,13 +310,51 @@ class AOCF(Rebuildable):
 
     # ------------------------------------------------------------ one point
     def omega(self, y: float, u: Any) -> Array:
-        """:math:`\\omega(y, u)` at one point, shape ``(s,)``."""
+        """:math:`\\omega(y, u)` at one point, shape ``(s,)``.
+
+        Parameters
+        ----------
+        y : float
+            Measured output.
+        u : array_like, shape (mu,)
+            Input.
+
+        Returns
+        -------
+        ndarray, shape (s,)
+            The signals, in the order of :attr:`omega_names`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().form("aocf").omega(0.5, [0.2]).round(6)  # (y, -sin y, u)
+        array([ 0.5     , -0.479426,  0.2     ])
+        """
         if self.rows:
             return np.asarray(self._omega(np.array([float(y)]), _row(u)), dtype=float)[0]
         return np.asarray(self._omega(y, u), dtype=float).reshape(-1)
 
     def g(self, y: float, u: Any) -> Array:
-        """:math:`g(y, u)` at one point, shape ``(n,)`` (zero if the form has none)."""
+        """:math:`g(y, u)` at one point, shape ``(n,)`` (zero if the form has none).
+
+        Parameters
+        ----------
+        y : float
+            Measured output.
+        u : array_like, shape (mu,)
+            Input.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            The known term :math:`g(y, u)`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().form("aocf").g(0.5, [0.2]).round(6)  # ((c2 - delta) y, c2 (delta - c2) y)
+        array([ 0.907778, -1.815556])
+        """
         if self._g is None:
             return np.zeros(self.n)
         if self.rows:
@@ -261,10 +364,35 @@ class AOCF(Rebuildable):
     def to_physical(self, x: Any, theta: Any, u: Any) -> tuple[Array, dict[str, float]]:
         """The inverse map 2.4-2.5 at one point: ``(state, {name: value})``.
 
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            AOCF state.
+        theta : array_like, shape (m,)
+            AOCF parameters.
+        u : array_like, shape (mu,)
+            Input.
+
+        Returns
+        -------
+        state : ndarray, shape (n_x,)
+            The physical state.
+        params : dict of str to float
+            The physical parameters named by :attr:`physical_param_names` (empty when the form
+            recovers none).
+
         Raises
         ------
         DesignError
             Where the inverse does not exist (or the form has none).
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> form = Pendulum().form("aocf")
+        >>> x = form.from_physical([0.5, 1.0], form.theta_true, [0.0])
+        >>> form.to_physical(x, form.theta_true, [0.0])
+        (array([0.5, 1. ]), {})
         """
         if self._to_physical is None:
             raise DesignError(f"{self.label} has no map to physical coordinates (to_physical)")
@@ -280,7 +408,34 @@ class AOCF(Rebuildable):
         return state, {nm: float(v) for nm, v in zip(self.physical_param_names, P[0])}
 
     def from_physical(self, state: Any, theta: Any, u: Any) -> Array:
-        """The state part of the map 2.1 at ``theta``, one point, shape ``(n,)``."""
+        """The state part of the map 2.1 at ``theta``, one point, shape ``(n,)``.
+
+        Parameters
+        ----------
+        state : array_like, shape (n_x,)
+            Physical state.
+        theta : array_like, shape (m,)
+            AOCF parameters at which to map.
+        u : array_like, shape (mu,)
+            Input.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            AOCF state ``x``.
+
+        Raises
+        ------
+        DesignError
+            The form has no ``from_physical`` map.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> form = Pendulum().form("aocf")  # x2 = y_dot + (delta - c2) y
+        >>> form.from_physical([0.5, 1.0], form.theta_true, [0.0]).round(6)
+        array([0.5     , 0.092222])
+        """
         if self._from_physical is None:
             raise DesignError(f"{self.label} has no map from physical coordinates (from_physical)")
         if self.rows:
@@ -290,14 +445,57 @@ class AOCF(Rebuildable):
 
     # ------------------------------------------------------------ rows
     def omega_rows(self, Y: Array, U: Array) -> Array:
-        """:math:`\\omega` of the rows ``Y`` ``(N,)``, ``U`` ``(N, mu)``: ``(N, s)``."""
+        """:math:`\\omega` of the rows ``Y`` ``(N,)``, ``U`` ``(N, mu)``: ``(N, s)``.
+
+        Parameters
+        ----------
+        Y : ndarray, shape (N,)
+            Measured outputs, one per row.
+        U : ndarray, shape (N, mu)
+            Inputs, one row each.
+
+        Returns
+        -------
+        ndarray, shape (N, s)
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> form = Pendulum().form("aocf")
+        >>> form.omega_rows(np.array([0.5, 1.0]), np.array([[0.2], [0.0]])).round(6)
+        array([[ 0.5     , -0.479426,  0.2     ],
+               [ 1.      , -0.841471,  0.      ]])
+        """
         if self.rows:
             return np.asarray(self._omega(Y, U), dtype=float)
         return np.array([np.asarray(self._omega(float(y), u), dtype=float).reshape(-1)
                          for y, u in zip(Y, U)], dtype=float).reshape(len(Y), -1)
 
     def g_rows(self, Y: Array, U: Array) -> Array:
-        """:math:`g` of the rows, ``(N, n)``."""
+        """:math:`g` of the rows, ``(N, n)``.
+
+        Parameters
+        ----------
+        Y : ndarray, shape (N,)
+            Measured outputs, one per row.
+        U : ndarray, shape (N, mu)
+            Inputs, one row each.
+
+        Returns
+        -------
+        ndarray, shape (N, n)
+            Zero when the form has no ``g``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> form = Pendulum().form("aocf")
+        >>> form.g_rows(np.array([0.5, 1.0]), np.array([[0.2], [0.0]])).round(6)
+        array([[ 0.907778, -1.815556],
+               [ 1.815556, -3.631112]])
+        """
         if self._g is None:
             return np.zeros((len(Y), self.n))
         if self.rows:
@@ -307,7 +505,38 @@ class AOCF(Rebuildable):
 
     def to_physical_rows(self, X: Array, TH: Array, U: Array) -> tuple[Array, Array]:
         """The inverse map of the rows: physical states ``(N, n_x)`` and parameters
-        ``(N, len(physical_param_names))``, NaN rows where the inverse does not exist."""
+        ``(N, len(physical_param_names))``, NaN rows where the inverse does not exist.
+
+        Parameters
+        ----------
+        X : ndarray, shape (N, n)
+            AOCF states.
+        TH : ndarray, shape (N, m)
+            AOCF parameters, one row per state.
+        U : ndarray, shape (N, mu)
+            Inputs.
+
+        Returns
+        -------
+        states : ndarray, shape (N, n_x)
+        params : ndarray, shape (N, len(physical_param_names))
+
+        Raises
+        ------
+        DesignError
+            The form has no ``to_physical`` map.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> form = Pendulum().form("aocf")
+        >>> TH = np.tile(form.theta_true, (1, 1))
+        >>> X = form.from_physical_rows(np.array([[0.5, 1.0]]), TH, np.zeros((1, 1)))
+        >>> states, params = form.to_physical_rows(X, TH, np.zeros((1, 1)))
+        >>> states, params.shape
+        (array([[0.5, 1. ]]), (1, 0))
+        """
         if self._to_physical is None:
             raise DesignError(f"{self.label} has no map to physical coordinates (to_physical)")
         if self.rows:
@@ -325,7 +554,36 @@ class AOCF(Rebuildable):
         return states, params
 
     def from_physical_rows(self, S: Array, TH: Array, U: Array) -> Array:
-        """The map 2.1 of the rows, ``(N, n)``."""
+        """The map 2.1 of the rows, ``(N, n)``.
+
+        Parameters
+        ----------
+        S : ndarray, shape (N, n_x)
+            Physical states.
+        TH : ndarray, shape (N, m)
+            AOCF parameters at which to map, one row per state.
+        U : ndarray, shape (N, mu)
+            Inputs.
+
+        Returns
+        -------
+        ndarray, shape (N, n)
+            AOCF states.
+
+        Raises
+        ------
+        DesignError
+            The form has no ``from_physical`` map.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> form = Pendulum().form("aocf")
+        >>> form.from_physical_rows(np.array([[0.5, 1.0]]), form.theta_true[None],
+        ...                         np.zeros((1, 1))).round(6)
+        array([[0.5     , 0.092222]])
+        """
         if self._from_physical is None:
             raise DesignError(f"{self.label} has no map from physical coordinates (from_physical)")
         if self.rows:
@@ -335,14 +593,46 @@ class AOCF(Rebuildable):
 
     # ------------------------------------------------------------------ structure
     def Omega(self, omega: Any) -> Array:
-        """:math:`\\Omega(\\omega)`, shape ``(n, m)``."""
+        """:math:`\\Omega(\\omega)`, shape ``(n, m)``.
+
+        Parameters
+        ----------
+        omega : array_like, shape (s,)
+            A value of the signals :math:`\\omega` (e.g. from :meth:`omega`).
+
+        Returns
+        -------
+        ndarray, shape (n, m)
+            ``alpha @ omega``.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> form = Pendulum().form("aocf")
+        >>> form.Omega([0.5, -0.5, 0.2])  # second row: psi(y, u)^T
+        array([[ 0. ,  0. ],
+               [-0.5,  0.2]])
+        """
         w = vector("omega", omega, self.s)
         return self.alpha @ w
 
     def S_blocks(self) -> Array:
         """The constant blocks :math:`S_l` of :math:`S(\\omega) = \\sum_l \\omega_l S_l`
         (eq. 4.11), shape ``(s, n, m)``: row 1 is :math:`\\alpha_{1\\cdot l}`, row ``j`` is
-        :math:`k^T F^{j-2} \\bar\\alpha_{\\cdot\\cdot l}`, ``j = 2..n``."""
+        :math:`k^T F^{j-2} \\bar\\alpha_{\\cdot\\cdot l}`, ``j = 2..n``.
+
+        Returns
+        -------
+        ndarray, shape (s, n, m)
+            ``S_blocks()[l]`` is :math:`S_l`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().form("aocf").S_blocks()[2]  # the block of omega_3 = u
+        array([[0., 0.],
+               [0., 1.]])
+        """
         n = self.n
         out = np.zeros((self.s, n, self.m))
         for l in range(self.s):
@@ -355,7 +645,25 @@ class AOCF(Rebuildable):
         return out
 
     def S(self, omega: Any) -> Array:
-        """:math:`S(\\omega)` of eq. 4.11 at one value of :math:`\\omega`, shape ``(n, m)``."""
+        """:math:`S(\\omega)` of eq. 4.11 at one value of :math:`\\omega`, shape ``(n, m)``.
+
+        Parameters
+        ----------
+        omega : array_like, shape (s,)
+            A value of the signals :math:`\\omega`.
+
+        Returns
+        -------
+        ndarray, shape (n, m)
+            :math:`\\sum_l \\omega_l S_l`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().form("aocf").S([0.5, -0.5, 0.2])
+        array([[ 0. ,  0. ],
+               [-0.5,  0.2]])
+        """
         w = vector("omega", omega, self.s)
         return np.tensordot(w, self.S_blocks(), axes=1)
 
@@ -366,6 +674,12 @@ class AOCF(Rebuildable):
         stacked blocks :math:`[S_1; \\dots; S_s]` (exact when the components of
         :math:`\\omega` are linearly independent functions of time).
 
+        Parameters
+        ----------
+        tol : float, optional
+            Relative tolerance: singular values below ``tol`` times the largest count as
+            zero (default ``1e-9``).
+
         Returns
         -------
         dict
@@ -373,6 +687,12 @@ class AOCF(Rebuildable):
             basis (list of vectors) of the constant :math:`\\beta` with
             :math:`S(\\omega)\\beta \\equiv 0` -- the parameter combinations the filter
             cannot excite.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().form("aocf").reachability()
+        {'rank': 2, 'm': 2, 'reachable': True, 'unreachable': []}
         """
         M = self.S_blocks().reshape(-1, self.m)
         sv_full = np.linalg.svd(M, compute_uv=True)
@@ -392,10 +712,27 @@ class AOCF(Rebuildable):
     def from_system(cls, system: Any, **options: Any) -> AOCF:
         """``system.form("aocf", **options)``: the AOCF a system declares.
 
+        Parameters
+        ----------
+        system : System
+            A system that lists ``"aocf"`` in its ``forms``.
+        **options
+            The options of its ``_form_aocf`` (e.g. ``c2``, ``unknown``).
+
+        Returns
+        -------
+        AOCF
+
         Raises
         ------
         DesignError
             For a system that declares none, or options it does not take.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> AOCF.from_system(Pendulum(), c2=3.0).F
+        array([[-3.]])
         """
         if not isinstance(system, System) or "aocf" not in system.forms:
             declared = list(getattr(system, "forms", ()))
@@ -417,17 +754,78 @@ class AOCF(Rebuildable):
     # the names of the first port, kept as calls of the protocol (no plant knowledge here)
     @classmethod
     def bioreactor(cls, system: Any, c2: float | None = None) -> AOCF:
-        """``system.form("aocf", c2=c2)`` (the bioreactor's AOCF eq. 6.5)."""
+        """``system.form("aocf", c2=c2)`` (the bioreactor's AOCF eq. 6.5).
+
+        Parameters
+        ----------
+        system : BioreactorBastinGevers
+            The bioreactor (or another system whose ``_form_aocf`` takes ``c2``).
+        c2 : float, optional
+            Design constant ``> 0`` (default: the system's ``default_c2``).
+
+        Returns
+        -------
+        AOCF
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import BioreactorBastinGevers
+        >>> AOCF.bioreactor(BioreactorBastinGevers(), c2=1.5).omega_names
+        ('y', 'u1', 'u2')
+        """
         return cls.from_system(system, c2=c2)
 
     @classmethod
     def pendulum(cls, system: Any, **options: Any) -> AOCF:
-        """``system.form("aocf", **options)`` (the pendulum's AOCF, :func:`joint_aocf`)."""
+        """``system.form("aocf", **options)`` (the pendulum's AOCF, :func:`joint_aocf`).
+
+        Parameters
+        ----------
+        system : Pendulum
+            The pendulum (or another system that declares ``"aocf"``).
+        **options
+            ``c2``, ``unknown``, ``damping_known`` (see :func:`joint_aocf`).
+
+        Returns
+        -------
+        AOCF
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> AOCF.pendulum(Pendulum(), unknown=("d_over_J", "g_over_l", "b_over_J")).theta_names
+        ('d_over_J', 'g_over_l', 'b_over_J')
+        """
         return cls.from_system(system, **options)
 
     @staticmethod
     def pendulum_theta(system: Any, unknown: Sequence[str] | None = None) -> Array:
-        """The true :math:`\\theta` of a pendulum's AOCF (:attr:`theta_true`)."""
+        """The true :math:`\\theta` of a pendulum's AOCF (:attr:`theta_true`).
+
+        Parameters
+        ----------
+        system : Pendulum
+            The pendulum (or another system whose AOCF carries ``theta_true``).
+        unknown : sequence of str, optional
+            The parameters of the form (see :func:`joint_aocf`; default
+            ``("g_over_l", "b_over_J")``).
+
+        Returns
+        -------
+        ndarray, shape (m,)
+            :math:`\\theta` at the system's parameters, in the order of ``unknown``.
+
+        Raises
+        ------
+        DesignError
+            The system's AOCF carries no true :math:`\\theta`.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> AOCF.pendulum_theta(Pendulum()).round(4)  # (m g l_c / J, b / J)
+        array([20.3557, 18.4444])
+        """
         th = AOCF.from_system(system, unknown=unknown).theta_true
         if th is None:
             raise DesignError(f"the AOCF of {type(system).__name__} carries no true theta")
@@ -480,12 +878,43 @@ class AOCF(Rebuildable):
         damping_from : int, optional
             :math:`\\delta = \\kappa \\theta_j` with ``j = damping_from`` and
             :math:`\\kappa` = ``damping`` (exclusive with ``estimate_damping``).
+        damping_name : str
+            Name of :math:`\\delta` in :attr:`theta_names` when estimated (default
+            ``"d_over_J"``).
+        state_names : sequence of str
+            Names of the physical state (default ``("y", "y_dot")``).
+        label : str
+            What the form is of, for messages (default: ``"second-order joint, c2=..."``).
         theta_true : array_like, optional
             :attr:`AOCF.theta_true`.
+
+        Returns
+        -------
+        AOCF
+            ``n = 2``, ``R = [[0, 1], [0, -c2]]``, on rows, pickling as this call.
+
+        Raises
+        ------
+        DimensionError
+            ``feature_names`` and ``theta_names`` differ in length or are empty.
+        DesignError
+            ``damping_from`` is out of range or given with ``estimate_damping`` (also: ``c2``
+            not positive, or ``c2``/``damping`` not finite).
 
         References
         ----------
         Paper 002, eq. 2.2, 2.6-2.8 (the observer form this is an instance of).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> def psi(Y, U):
+        ...     return np.stack([-np.sin(Y), U[:, 0]], axis=1)
+        >>> form = AOCF.second_order(psi, ("-sin y", "u"), ("a", "b"), damping=0.1)
+        >>> form
+        AOCF(second-order joint, c2=2: n=2, m=2, theta=['a', 'b'], omega=['y', '-sin y', 'u'])
+        >>> form.g(0.5, [0.2])  # ((c2 - delta) y, c2 (delta - c2) y)
+        array([ 0.95, -1.9 ])
         """
         c2 = finite_scalar("c2", c2, positive=True)
         delta = finite_scalar("damping", damping)
@@ -570,6 +999,18 @@ def joint_aocf(system: System, features: Callable[[Array, Array], Any],
 
     Parameters
     ----------
+    system : System
+        The joint's system; its ``params`` must hold ``inertia``, ``damping`` and ``gear``.
+    features : callable ``(Y (N,), U (N, mu)) -> (N, 2)``
+        :math:`(\\psi_1(y), \\psi_2(y, u))` on rows.
+    feature_names : sequence of str
+        Two names, for messages (e.g. ``("-sin y", "u")``).
+    model : str
+        The model's equation, for the label.
+    ratios : (float, float)
+        The true :math:`(a, \\beta)` (``g_over_l``, ``b_over_J``).
+    c2 : float
+        Design pole ``-c2`` of ``F`` (> 0, default 2).
     unknown : sequence of str, optional
         ``("g_over_l", "b_over_J")`` (default; damping known, read from the system) or
         ``("d_over_J", "g_over_l", "b_over_J")`` (damping estimated too).
@@ -579,6 +1020,34 @@ def joint_aocf(system: System, features: Callable[[Array, Array], Any],
         gear :math:`b` but not the inertia, so :math:`\\delta = (d/b)\\,(b/J)` moves with
         the input-gain parameter (where ``coefficient``: systems whose input gain is
         ``gear / inertia``).
+    coefficient : bool
+        Whether ``damping_known="coefficient"`` is derived for this system (its input gain
+        is ``gear / inertia``; default True).
+
+    Returns
+    -------
+    AOCF
+        The form (:meth:`AOCF.second_order`), with :attr:`AOCF.theta_true` set; it pickles
+        as ``system.form("aocf", ...)``.
+
+    Raises
+    ------
+    DesignError
+        ``unknown`` is not one of the two allowed sets, ``damping_known`` is not
+        ``"ratio"`` or ``"coefficient"``, or ``"coefficient"`` is asked of a system with
+        ``coefficient=False``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.systems import Pendulum
+    >>> def psi(Y, U):
+    ...     return np.stack([-np.sin(Y), U[:, 0]], axis=1)
+    >>> form = joint_aocf(Pendulum(), psi, ("-sin y", "u"), "my pendulum", (10.0, 18.0))
+    >>> form
+    AOCF(my pendulum, c2=2: n=2, m=2, theta=['g_over_l', 'b_over_J'], omega=['y', '-sin y', 'u'])
+    >>> form.theta_true
+    array([10., 18.])
     """
     p = system.params
     base = ("g_over_l", "b_over_J")

@@ -101,6 +101,18 @@ class JoSonForm:
     label : str
         What the form is of, for messages.
 
+    Raises
+    ------
+    DimensionError
+        ``b`` is empty, ``A_obar_o`` has the wrong shape, ``p < 1``, ``theta_names`` or
+        ``state_names`` has the wrong length, or (without ``to_physical``) ``state_names``
+        does not have ``n`` entries.
+    DesignError
+        A function is not callable, ``n_unobservable`` is not a non-negative integer,
+        ``f_obar`` is missing for ``n_unobservable > 0`` (or ``f_obar``/``gamma_obar`` given
+        for 0), neither ``theta_names`` nor ``n_params`` is given, names repeat, or an
+        ``aux_outputs`` index is negative.
+
     Notes
     -----
     A form pickles when its functions do (module-level functions, bound methods of a system):
@@ -109,6 +121,23 @@ class JoSonForm:
     References
     ----------
     Paper 003, eq. 9-10; Theorem 3.1 (conditions for the coordinates to exist).
+
+    Examples
+    --------
+    A fully observable form with ``r = 2``, ``b = (2, 1)`` and one parameter,
+    :math:`\\gamma_o = (0, u)`, :math:`\\beta = y u`:
+
+    >>> form = JoSonForm([2.0, 1.0], lambda y, u: (0.0 * y, u[0]), lambda y, u: (y * u[0],),
+    ...                  n_params=1)
+    >>> form
+    JoSonForm(adaptive observer canonical form: r=2, n=2, b=[2.0, 1.0], theta=['1'])
+    >>> form.state_names
+    ('z1', 'z2')
+
+    The form of paper 003's example (eq. 31):
+
+    >>> JoSonForm.example()
+    JoSonForm(Jo-Son example eq. 31: r=2, n=3, b=[2.0, 1.0], theta=['theta'])
     """
 
     def __init__(self, b: Any, gamma_o: Rows, beta: Rows, *, n_unobservable: int = 0,
@@ -172,11 +201,39 @@ class JoSonForm:
     def rows(self, what: str, f: Rows, count: int, N: int, *args: Any) -> Array:
         """``f(*args)`` (component first) as a C-contiguous ``(N, count)`` float array.
 
+        Parameters
+        ----------
+        what : str
+            How ``f`` is called, for messages (e.g. ``"beta(y, u)"``).
+        f : callable
+            One of the form's functions (rows, component first).
+        count : int
+            Number of components ``f`` must return.
+        N : int
+            Number of members (rows).
+        *args
+            The arguments of ``f``, component first (``y`` ``(N,)``, ``u`` ``(m, N)``, ...).
+
+        Returns
+        -------
+        ndarray, shape (N, count)
+            Column ``i``: component ``i`` of ``f(*args)`` (a number is broadcast to ``N``
+            rows).
+
         Raises
         ------
         DimensionError
             ``f`` fails on the shapes given (an index past the input's width), returns a number
             of components other than ``count``, or components of another length than ``N``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> form = JoSonForm.example()
+        >>> y, u = np.array([0.5, 1.0]), np.array([[0.3, 0.0]])  # u component first: (m, N)
+        >>> form.rows("beta(y, u)", form.beta, 1, 2, y, u)
+        array([[0.15],
+               [0.  ]])
         """
         try:
             comps = f(*args)
@@ -200,7 +257,34 @@ class JoSonForm:
     def signals(self, y: Array, u: Array) -> tuple[Array, Array, Array]:
         """:math:`\\gamma_o(y, u)` ``(N, r)``, :math:`\\beta(y, u)` ``(N, p)`` and
         :math:`\\gamma_{\\bar o}(y, u)` ``(N, n - r)`` of the members ``y`` ``(N,)``, ``u``
-        ``(N, m)`` (rows; ``u`` includes the ``aux_outputs`` channels)."""
+        ``(N, m)`` (rows; ``u`` includes the ``aux_outputs`` channels).
+
+        Parameters
+        ----------
+        y : ndarray, shape (N,)
+            Measured outputs, one per member.
+        u : ndarray, shape (N, m)
+            Inputs (with the ``aux_outputs`` channels appended), one row per member.
+
+        Returns
+        -------
+        gamma_o : ndarray, shape (N, r)
+        beta : ndarray, shape (N, p)
+        gamma_obar : ndarray, shape (N, n - r)
+            Zero when the form has no ``gamma_obar``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> form = JoSonForm.example()  # beta = y u, gamma_obar = -y^2/2 + y^4
+        >>> go, be, gb = form.signals(np.array([0.5, 1.0]), np.array([[0.3], [0.0]]))
+        >>> be
+        array([[0.15],
+               [0.  ]])
+        >>> gb
+        array([[-0.0625],
+               [ 0.5   ]])
+        """
         N = y.shape[0]
         uc = np.ascontiguousarray(u.T)  # component first, each component contiguous
         go = self.rows("gamma_o(y, u)", self.gamma_o, self.r, N, y, uc)
@@ -213,13 +297,52 @@ class JoSonForm:
 
     def f_obar_rows(self, y: Array, z_obar: Array) -> Array:
         """:math:`f_{\\bar o}(y, \\hat z_{\\bar o})` ``(N, n - r)`` of the rows ``z_obar``
-        ``(N, n - r)``."""
+        ``(N, n - r)``.
+
+        Parameters
+        ----------
+        y : ndarray, shape (N,)
+            Measured outputs, one per member.
+        z_obar : ndarray, shape (N, n - r)
+            Unobservable-part estimates, one row per member.
+
+        Returns
+        -------
+        ndarray, shape (N, n - r)
+            :math:`f_{\\bar o}` of each row.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> form = JoSonForm.example()  # f_obar = -z3 - (z3 + y^2/2)^3
+        >>> form.f_obar_rows(np.array([0.5, 1.0]), np.array([[-1.125], [0.0]]))
+        array([[ 2.125],
+               [-0.125]])
+        """
         return self.rows("f_obar(y, z_obar)", self.f_obar, self.n_obar,  # type: ignore[arg-type]
                          y.shape[0], y, np.ascontiguousarray(z_obar.T))
 
     def physical_rows(self, Z: Array) -> Array:
         """:math:`T^{-1}` of the rows ``Z`` ``(N, n)``, ``(N, n_x)`` (``Z`` itself without a map);
-        non-finite where the map is undefined."""
+        non-finite where the map is undefined.
+
+        Parameters
+        ----------
+        Z : ndarray, shape (N, n)
+            Canonical-form rows.
+
+        Returns
+        -------
+        ndarray, shape (N, n_x)
+            Physical states (a copy of ``Z`` when the form has no ``to_physical``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> form = JoSonForm.example()
+        >>> form.physical_rows(np.array([[1.041666666666667, 0.5, -1.125]])).round(6)
+        array([[ 0.5,  1. , -1. ]])
+        """
         if self.to_physical is None:
             return np.array(Z, dtype=float)
         return self.rows("to_physical(z)", self.to_physical, len(self.state_names),
@@ -228,10 +351,27 @@ class JoSonForm:
     def normal_rows(self, X: Array) -> Array:
         """:math:`T` of the physical rows ``X`` ``(N, n_x)``, ``(N, n)``.
 
+        Parameters
+        ----------
+        X : ndarray, shape (N, n_x)
+            Physical states, one row per member.
+
+        Returns
+        -------
+        ndarray, shape (N, n)
+            Canonical-form rows.
+
         Raises
         ------
         DesignError
             The form has no ``from_physical`` map.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> form = JoSonForm.example()  # T(x) = (x1^3/3 + x2, x1, x3 - x1^2/2)
+        >>> form.normal_rows(np.array([[0.5, 1.0, -1.0]])).round(6)
+        array([[ 1.041667,  0.5     , -1.125   ]])
         """
         if self.from_physical is None:
             raise DesignError(f"x_hat0 in physical coordinates needs the form's from_physical "
@@ -243,7 +383,24 @@ class JoSonForm:
     @classmethod
     def example(cls, system: Any = None) -> JoSonForm:
         """The form eq. 31 of the example eq. 28: ``JoSonExample().form("jo_son")``
-        (:meth:`hgo_mj.systems.papers.JoSonExample._form_jo_son`)."""
+        (:meth:`hgo_mj.systems.papers.JoSonExample._form_jo_son`).
+
+        Parameters
+        ----------
+        system : JoSonExample, optional
+            The example system whose form to build (default ``JoSonExample()``,
+            ``theta = 1``).
+
+        Returns
+        -------
+        JoSonForm
+            ``r = 2``, ``n = 3``, ``b = (2, 1)``, one parameter ``theta``.
+
+        Examples
+        --------
+        >>> JoSonForm.example()
+        JoSonForm(Jo-Son example eq. 31: r=2, n=3, b=[2.0, 1.0], theta=['theta'])
+        """
         from .papers import JoSonExample
 
         sys_ = JoSonExample() if system is None else system
@@ -255,7 +412,26 @@ class JoSonForm:
                                  ) -> JoSonForm:
         """The motor side of the elastic joint, measured by a motor tachometer with the spring
         deflection as a known signal (:func:`hgo_mj.systems.elastic_joint.jo_son_motor_side`,
-        also ``ElasticJoint().form("jo_son", sensors="motor_side")``)."""
+        also ``ElasticJoint().form("jo_son", sensors="motor_side")``).
+
+        Parameters
+        ----------
+        aux_outputs : (int, int)
+            Channels of ``link_angle`` and ``motor_angle`` in the measurement vector.
+        unknown : sequence of str
+            Must be ``("b_over_J", "dm_over_J", "K_over_J")``.
+
+        Returns
+        -------
+        JoSonForm
+            ``r = n = 1``, ``b = (1,)``, the three parameters ``unknown``.
+
+        Examples
+        --------
+        >>> form = JoSonForm.elastic_joint_motor_side()
+        >>> form.theta_names, form.aux_outputs
+        (('b_over_J', 'dm_over_J', 'K_over_J'), (1, 2))
+        """
         from .elastic_joint import jo_son_motor_side
 
         return jo_son_motor_side(aux_outputs, unknown)
