@@ -173,8 +173,11 @@ COMPLETE = ("hgo_mj", "hgo_mj.check", "hgo_mj.cli", "hgo_mj.loop", "hgo_mj.plant
             "hgo_mj.simulate",
             "hgo_mj.study", "hgo_mj.study.backends", "hgo_mj.study.engine", "hgo_mj.study.figures",
             "hgo_mj.study.montecarlo", "hgo_mj.study.results", "hgo_mj.study.spec",
-            "hgo_mj.study.study", "hgo_mj.systems.base", "hgo_mj.systems.cart_pendulum",
-            "hgo_mj.systems.mjcf", "hgo_mj.systems.pendulum", "hgo_mj.systems.symbolic")
+            "hgo_mj.study.study", "hgo_mj.systems", "hgo_mj.systems.affine_form",
+            "hgo_mj.systems.aocf", "hgo_mj.systems.base", "hgo_mj.systems.cart_pendulum",
+            "hgo_mj.systems.elastic_joint", "hgo_mj.systems.elastic_joint_2link",
+            "hgo_mj.systems.jo_son_form", "hgo_mj.systems.mjcf", "hgo_mj.systems.papers",
+            "hgo_mj.systems.pendulum", "hgo_mj.systems.symbolic")
 
 
 @pytest.mark.parametrize("module", COMPLETE)
