@@ -156,6 +156,13 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
         _check_table(f"sensor.stages[{i}]", "stages", st)
     plant = sc.get("plant", {})
     ode = _check_plant_kind(plant, required)
+    name = plant.get("name")
+    if isinstance(name, str) and ":" not in name:  # a misspelt name before a missing key
+        from .systems import SYSTEMS
+
+        if name not in SYSTEMS:
+            raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}, an MJCF file, "
+                              f"or 'module:Class' (a System subclass)")
     for path in REQUIRED if required else ():
         section, key = path.split(".")
         if path == "plant.name" and ("model" in plant or ode):

@@ -352,3 +352,14 @@ def test_20000_jittered_periods_keep_the_caches_bounded(kind, kwargs):
     assert caches, "no per-period cache found"
     assert all(len(c) <= 64 for c in caches)
     assert grown < 1 << 20, f"{grown} bytes kept by 19,800 distinct periods"
+
+
+def test_a_misspelt_plant_is_named_before_a_missing_duration(capsys):
+    """`hgo-mj run --plant pendulumm` (no --duration): the unknown plant is the error, with
+    the valid names, not the missing run.duration."""
+    from hgo_mj.cli import main
+
+    assert main(["run", "--plant", "pendulumm"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        "hgo-mj: error: unknown plant 'pendulumm'; valid: ['besancon_ex1'"), err
