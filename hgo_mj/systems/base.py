@@ -20,7 +20,7 @@ Conventions: state vectors are 1-D ``(n,)``; ``dynamics`` is the fast private pa
 from __future__ import annotations
 
 from collections import namedtuple
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -267,6 +267,16 @@ class System:
     def __init__(self, **params: Any) -> None:
         merged = {**self.default_params, **params}
         self.params: dict[str, float] = check_params(type(self).__name__, merged, self.param_names)
+
+    @classmethod
+    def _param_columns(cls, names: Sequence[str]) -> list[int]:
+        """The indices of ``names`` in :attr:`param_names` (the columns of a parameter
+        Jacobian); an unknown name is a :class:`DesignError` listing the valid ones."""
+        bad = [nm for nm in names if nm not in cls.param_names]
+        if bad:
+            raise DesignError(f"{cls.__name__} has no parameter(s) {bad}; valid: "
+                              f"{list(cls.param_names)}")
+        return [cls.param_names.index(nm) for nm in names]
 
     def param_vector(self, params: Mapping[str, float] | None = None) -> Array:
         """The parameters (default :attr:`params`) as a vector in the order of

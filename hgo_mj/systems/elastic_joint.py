@@ -436,8 +436,8 @@ class ElasticJoint(_MujocoSystem):
 
         Raises
         ------
-        ValueError
-            A name of ``names`` is not in ``param_names``.
+        DesignError
+            A name of ``names`` is not in ``param_names`` (the valid ones listed).
 
         Examples
         --------
@@ -452,7 +452,7 @@ class ElasticJoint(_MujocoSystem):
         """
         out = np.empty((4, len(ElasticJoint.param_names)))
         _param_jacobian_row(x, u, _params(p), out)
-        return out[:, [ElasticJoint.param_names.index(nm) for nm in names]]
+        return out[:, ElasticJoint._param_columns(names)]
 
     # ------------------------------------------------------------- normal form (fast)
     @staticmethod

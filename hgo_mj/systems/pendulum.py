@@ -303,8 +303,8 @@ class Pendulum(_SecondOrderMujocoSystem):
 
         Raises
         ------
-        ValueError
-            A name of ``names`` is not in ``param_names``.
+        DesignError
+            A name of ``names`` is not in ``param_names`` (the valid ones listed).
 
         Examples
         --------
@@ -317,7 +317,7 @@ class Pendulum(_SecondOrderMujocoSystem):
         """
         out = np.empty((2, len(Pendulum.param_names)))
         _param_jacobian_row(x, u, _params(p), out)
-        return out[:, [Pendulum.param_names.index(nm) for nm in names]]
+        return out[:, Pendulum._param_columns(names)]
 
     # ------------------------------------------------------------------ forms
     def _form_affine(self, unknown: Any = None) -> Any:

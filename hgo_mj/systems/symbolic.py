@@ -107,7 +107,8 @@ def parse(text: Any, names: Mapping[str, sympy.Symbol], where: str) -> sympy.Exp
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
-        raise ModelError(f"{where} = {text!r}: syntax error at column {exc.offset}: "
+        col = exc.offset or len(text.strip()) + 1  # 0: the expression ended too early
+        raise ModelError(f"{where} = {text!r}: syntax error at column {col}: "
                          f"{exc.msg}") from None
     return _node(tree.body, names, where, text)
 
@@ -277,7 +278,7 @@ class SymbolicSystem(System):
         """
         out = np.empty((len(self.state_names), len(self.param_names)))
         self._sym["pjac"](np.asarray(x, dtype=float), self._u(u), self._c(p), out)
-        return out[:, [self.param_names.index(k) for k in names]]
+        return out[:, self._param_columns(names)]
 
     def _form_affine(self, unknown: Sequence[str] | None = None) -> Any:
         """The derived normal form in paper 001's eq. 9: ``z_k' = z_(k+1)`` and

@@ -381,3 +381,22 @@ def test_the_shipped_ode_scenario_runs(tmp_path):
                  "--quiet"]) == 0
     tr = Trajectory.load(tmp_path / "o" / "trajectory.npz")
     assert tr.state_names == ("x1", "x2") and set(tr.observers) == {"high_gain_0", "ekf_1"}
+
+
+def test_parameter_jacobians_name_an_unknown_parameter():
+    """param_jacobian of the hand-written and derived systems: an unknown parameter is a
+    DesignError listing the valid names (was a bare ValueError from list.index); a syntax
+    error at the end of an expression names a column inside it."""
+    from hgo_mj.exceptions import DesignError
+
+    x2, u1 = np.zeros(2), np.zeros(1)
+    with pytest.raises(DesignError, match=r"Pendulum has no parameter\(s\) \['mas'\]; valid: "):
+        Pendulum().param_jacobian(0.0, x2, u1, Pendulum().params, ["mas"])
+    ej = _hand("elastic_joint")
+    with pytest.raises(DesignError, match="ElasticJoint has no parameter"):
+        ej.param_jacobian(0.0, np.zeros(4), u1, ej.params, ["k"])
+    s = ode_system(["x1", "x2"], ["x2", "-a*x1"], "x1", params={"a": 1.0})()
+    with pytest.raises(DesignError, match=r"has no parameter\(s\) \['b'\]"):
+        s.param_jacobian(0.0, x2, [], None, ["b"])
+    with pytest.raises(ModelError, match=r"syntax error at column 6"):
+        ode_system(["x1", "x2"], ["x2", "-x1 +"], "x1")
