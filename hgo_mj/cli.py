@@ -333,7 +333,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
             ts = run.get("sample_period") or plant.dt
             on_chunk = (max(RRD_CHUNK_SECONDS, 200 * float(ts)), rec.write_chunk)
         traj = simulate(**kw, seed=seed, on_chunk=on_chunk,
-                        store_every=run.get("store_every", 1))
+                        store_every=run.get("store_every", 1), isolate=True)
         mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
         metrics = all_metrics(traj, **mkw)
         check_metrics(metrics)
@@ -349,6 +349,10 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
                 out / "figure.png")
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
+    for ob, d in traj.diverged.items():  # the run isolates a failing observer: say so
+        print(f"hgo-mj: observer {ob!r} diverged at t = {d['t']:g} s ({d['error']}); its "
+              f"estimate is NaN from there on, the other observers ran to the end",
+              file=sys.stderr)
     return traj, metrics, out
 
 

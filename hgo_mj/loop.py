@@ -247,6 +247,10 @@ class Loop:
         turns it off: a failure then stops at the segment, and the observers' rows of a
         :class:`Segment` are written again by the next segment of the same length (keep a
         copy to keep them).
+    isolate : bool
+        An observer whose update fails stops alone (:attr:`failed` records the sample, the
+        time and the error; its rows are NaN from then on) and the others run the segment to
+        its end; default False: :meth:`segment` raises :class:`LoopFailure`.
 
     Raises
     ------
@@ -271,7 +275,7 @@ class Loop:
 
     def __init__(self, plant: Plant, sensor: SensorChain | None,
                  observers: Mapping[str, Observer], periods: Periods, *,
-                 exact: bool = True) -> None:
+                 exact: bool = True, isolate: bool = False) -> None:
         if not isinstance(plant, Plant):
             raise DesignError(f"plant must be a Plant; found {type(plant).__name__}")
         if sensor is not None and not isinstance(sensor, SensorChain):
@@ -284,6 +288,12 @@ class Loop:
         self.plant, self.sensor, self.periods = plant, sensor, periods
         self.observers = dict(observers)
         self.exact = bool(exact)
+        if not isinstance(isolate, bool):
+            raise DesignError(f"isolate must be true or false; found {isolate!r}")
+        #: an observer that fails stops alone (its rows NaN from then on), the others go on
+        self.isolate = isolate
+        #: the observers stopped by a failure: name -> (sample index, time, the error)
+        self.failed: dict[str, tuple[int, float, BaseException]] = {}
         self.batch = 1
         self.k = 0
         #: seconds spent in each observer's updates since the reset
@@ -352,6 +362,7 @@ class Loop:
         self.batch, self.k = B, 0
         self.wall = dict.fromkeys(self.observers, 0.0)
         self._pending = None
+        self.failed = {}
 
     def reset_members(self, idx: Any, X0: Any, seeds: Any) -> None:
         """Restart the members ``idx`` of a batch only (a vector environment's autoreset): the
@@ -438,7 +449,8 @@ class Loop:
         >>> [v.shape for v in loop.estimates()["hgo"]]
         [(1, 2), (1, 2), (1, 2)]
         """
-        return {name: _current(ob) for name, ob in self.observers.items()}
+        return {name: _nan_current(ob, self.batch) if name in self.failed else _current(ob)
+                for name, ob in self.observers.items()}
 
     def segment(self, U: Array) -> Segment:
         """Advance T samples with the inputs ``U`` ``(B, T, m)`` (the kernel; see the module
@@ -490,9 +502,16 @@ class Loop:
         Ym = self._measure(t, Yc)
         blocks: dict[str, Block] = {}
         for i, (name, ob) in enumerate(self.observers.items()):
+            if name in self.failed:  # stopped by an earlier failure (isolate)
+                blocks[name] = _pad(_empty(ob, Ym.shape[0]), T)
+                continue
             try:
                 blocks[name] = self._advance(name, ob, Ym, U)
             except _Found as found:
+                if self.isolate:  # this observer stops here; the others run the segment
+                    self.failed[name] = (self.k + found.row, float(t[found.row]), found.cause)
+                    blocks[name] = _pad(found.head, T)
+                    continue
                 items = list(self.observers.items())
                 j = found.row
                 blocks = {n: _head(b, j) for n, b in blocks.items()}
@@ -688,6 +707,21 @@ def _replay(ob: Observer, Ym: Array, U: Array, Ts: float) -> _Found:
             return _Found(j, exc, head)
     raise DesignError(f"{type(ob).__name__} failed on a segment but not sample by sample: its "
                       f"update depends on more than its state")  # pragma: no cover
+
+
+def _pad(b: Block, T: int) -> Block:
+    """``b`` with NaN rows after its own up to ``T`` rows (an observer stopped by a failure)."""
+    def grow(a: Array) -> Array:
+        out = np.full((a.shape[0], T, a.shape[2]), np.nan)
+        out[:, :a.shape[1]] = a
+        return out
+    return Block(grow(b.x_hat), grow(b.z_hat), grow(b.diagnostics))
+
+
+def _nan_current(ob: Observer, B: int) -> tuple[Array, Array, Array]:
+    """:func:`_current`'s shapes, all NaN: the current estimate of a stopped observer."""
+    return (np.full((B, len(ob.state_names)), np.nan), np.full((B, ob.n), np.nan),
+            np.full((B, len(ob.diagnostic_names)), np.nan))
 
 
 def _head(b: Block, j: int) -> Block:

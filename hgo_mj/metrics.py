@@ -141,7 +141,10 @@ def all_metrics(traj: Any, **kw: Any) -> dict[str, dict[str, Any]]:
     >>> m["k30"]["rmse"][1] < m["k10"]["rmse"][1]      # noise-free: the higher gain wins
     True
     """
-    return {name: observer_metrics(traj, name, **kw) for name in traj.observers}
+    out = {name: observer_metrics(traj, name, **kw) for name in traj.observers}
+    for name, d in getattr(traj, "diverged", {}).items():  # stopped alone (isolate)
+        out[name]["diverged_at"] = d["t"]
+    return out
 
 
 #: the per-state metrics, the columns of :func:`metrics_frame` after ``observer``, ``state``
@@ -230,4 +233,9 @@ def format_table(metrics: dict[str, dict[str, Any]]) -> str:
                          f"{m['update_time'] * 1e6:>10.3g}")
     if missing:
         lines.append("- : not estimated (the observer has no estimate of that plant state)")
+    for name, m in metrics.items():
+        if m.get("diverged_at") is not None:
+            lines.append(f"{name}: diverged at t = {m['diverged_at']:g} s, its estimate NaN "
+                         f"from there on (its metrics use the rows before it; null where none is past "
+                         f"t_transient)")
     return "\n".join(lines)

@@ -179,6 +179,28 @@ class Trajectory:
     def __len__(self) -> int:
         return int(self.t.size)
 
+    @property
+    def diverged(self) -> dict[str, dict[str, Any]]:
+        """The observers stopped alone by a failure (``simulate(..., isolate=True)``): name ->
+        ``{"t": the instant of the sample whose update failed, "sample": its index, "row": the
+        first stored row that is NaN (rows hold the estimate before each sample's update),
+        "error": "Type: message"}``; empty when none did.
+
+        Returns
+        -------
+        dict of str to dict
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> simulate(plant, None, {"hgo": HighGainObserver(plant.system, k=5.0)},
+        ...          lambda t: [0.0], 0.1, isolate=True).diverged
+        {}
+        """
+        return dict(self.metadata.get("diverged", {}))
+
     def _record(self, observer: str) -> ObserverRecord:
         if observer not in self.observers:
             raise DesignError(f"no observer {observer!r} in the trajectory; found "
@@ -550,7 +572,7 @@ def simulate(plant: Plant, sensor: SensorChain | None,
              control_period: float | None = None, x0: Any = None, seed: int | None = None,
              metadata: Mapping[str, Any] | None = None,
              on_chunk: tuple[float, Callable[[int, Trajectory], None]] | None = None,
-             store_every: int = 1) -> Trajectory:
+             store_every: int = 1, isolate: bool = False) -> Trajectory:
     """Run plant, sensor chain and observers together and return the :class:`Trajectory`.
 
     Parameters
@@ -585,6 +607,12 @@ def simulate(plant: Plant, sensor: SensorChain | None,
     store_every : int
         Keep every ``store_every``-th sample row (rows ``0, s, 2s, ...``); the run itself
         advances at every sample.
+    isolate : bool
+        An observer that fails (its update raises, or its estimate leaves the finite numbers)
+        stops alone: its rows are NaN from the failing sample on, the plant and the other
+        observers run to the end, and the metadata's ``"diverged"`` names it, the time, the
+        sample and the error (:attr:`Trajectory.diverged`). Default False: the run stops and
+        raises (below). ``hgo-mj run`` isolates.
 
     Returns
     -------
@@ -628,7 +656,8 @@ def simulate(plant: Plant, sensor: SensorChain | None,
                           f"simulate_batch)")
     return _run(plant, sensor, observers, inputs, duration, sample_period=sample_period,
                 control_period=control_period, x0=x0, seeds=seed, batch=None,
-                metadata=metadata, on_chunk=on_chunk, store_every=store_every)[0]
+                metadata=metadata, on_chunk=on_chunk, store_every=store_every,
+                isolate=isolate)[0]
 
 
 def simulate_batch(plant: Plant, sensor: SensorChain | None,
@@ -637,7 +666,7 @@ def simulate_batch(plant: Plant, sensor: SensorChain | None,
                    x0: Any = None, sample_period: float | None = None,
                    control_period: float | None = None,
                    metadata: Mapping[str, Any] | None = None,
-                   store_every: int = 1) -> list[Trajectory]:
+                   store_every: int = 1, isolate: bool = False) -> list[Trajectory]:
     """:func:`simulate` of B members at once, one per seed in ``seeds`` (and, if ``x0`` is
     ``(B, n)``, per initial state): the plants, the sensor streams and every observer advance
     as one batch. Member ``i`` equals ``simulate(..., x0=x0[i], seed=seeds[i])`` alone, bit
@@ -651,8 +680,8 @@ def simulate_batch(plant: Plant, sensor: SensorChain | None,
         One sensor seed per member; its length is the batch size B.
     x0 : array_like, optional
         One initial state ``(n,)`` for every member, or one per member ``(B, n)``.
-    sample_period, control_period, metadata, store_every
-        As in :func:`simulate`.
+    sample_period, control_period, metadata, store_every, isolate
+        As in :func:`simulate` (an isolated failure stops that observer for every member).
 
     Returns
     -------
@@ -686,7 +715,7 @@ def simulate_batch(plant: Plant, sensor: SensorChain | None,
         raise DesignError(f"seeds must be a non-empty sequence of seeds; found {seeds!r}")
     return _run(plant, sensor, observers, inputs, duration, sample_period=sample_period,
                 control_period=control_period, x0=x0, seeds=list(seeds), batch=len(seeds),
-                metadata=metadata, on_chunk=None, store_every=store_every)
+                metadata=metadata, on_chunk=None, store_every=store_every, isolate=isolate)
 
 
 #: samples per segment of an open-loop run (a feedback law runs one control period at a time)
@@ -696,7 +725,7 @@ SEGMENT = 1024
 def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
          duration: float, *, sample_period: Any, control_period: Any, x0: Any, seeds: Any,
          batch: int | None, metadata: Mapping[str, Any] | None, on_chunk: Any,
-         store_every: Any) -> list[Trajectory]:
+         store_every: Any, isolate: bool = False) -> list[Trajectory]:
     periods = Periods.of(plant, sample_period, control_period)
     duration = finite_scalar("duration", duration, positive=True)
     if duration < periods.sample:
@@ -706,7 +735,7 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
     N = int(round(duration / periods.sample))
     obs = _named_observers(observers)
     drive = Drive.of(inputs, obs, plant, periods)
-    loop = Loop(plant, sensor, obs, periods)
+    loop = Loop(plant, sensor, obs, periods, isolate=isolate)
     store = Store(loop, N, every, on_chunk)
     loop.reset(x0, seed=seeds, batch=batch)
     store.start()
@@ -727,17 +756,25 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
             "observers": {name: {"type": type(ob).__name__, **ob.params()}
                           for name, ob in obs.items()},
             "input": drive.describe(), "versions": package_versions(),
+            **({"diverged": {name: {"t": t, "row": -(-(row + 1) // every), "sample": row,
+                                    "error": f"{type(cause).__name__}: {cause}"}
+                             for name, (row, t, cause) in loop.failed.items()}}
+               if loop.failed else {}),
             **({"mjcf": mjcf} if (mjcf := getattr(type(plant.system), "mjcf", None)) else {}),
             **(dict(metadata) if metadata else {})}
     trajs = store.trajectories(meta, seeds, x0)
     for traj in trajs:
-        _raise_on_divergence(traj, failure)
+        if isolate:
+            _isolate_nonfinite(traj, skip=loop.failed)
+        _raise_on_divergence(traj, failure, skip={**loop.failed, **traj.diverged})
     return trajs
 
 
-def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None) -> None:
+def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None,
+                         skip: Mapping[str, Any] = {}) -> None:  # noqa: B006 - read only
     """Raise the run's failure, or the first non-finite ``z_hat`` (an infinite ``x_hat``), as
-    a :class:`DivergenceError` carrying the trajectory."""
+    a :class:`DivergenceError` carrying the trajectory; observers in ``skip`` (stopped alone
+    by ``isolate``) are not scanned."""
     if failure is not None:
         cause = failure.cause
         if failure.observer is None:
@@ -749,6 +786,8 @@ def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None) -> None:
         exc.trajectory = traj  # type: ignore[attr-defined]
         raise exc from cause
     for name, r in traj.observers.items():
+        if name in skip:
+            continue
         # the observer's own coordinates decide; a NaN x_hat (inverse undefined) is allowed
         bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
         if bad.any():
@@ -758,6 +797,25 @@ def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None) -> None:
                                   f"x_hat = {r.x_hat[k].tolist()}")
             exc.trajectory = traj  # type: ignore[attr-defined]
             raise exc
+
+
+def _isolate_nonfinite(traj: Trajectory, skip: Mapping[str, Any]) -> None:
+    """With ``isolate``: an observer whose estimate left the finite numbers without its update
+    failing stops alone at that row (NaN from there on, recorded in ``"diverged"``), as one
+    whose update failed does."""
+    for name, r in traj.observers.items():
+        if name in skip:
+            continue
+        bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            r.x_hat[k:] = np.nan
+            r.z_hat[k:] = np.nan
+            for v in r.diagnostics.values():
+                v[k:] = np.nan
+            traj.metadata.setdefault("diverged", {})[name] = {
+                "t": float(traj.t[k]), "row": k, "sample": None,
+                "error": "DivergenceError: the estimate left the finite numbers"}
 
 
 class Store:

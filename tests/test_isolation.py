@@ -1,0 +1,122 @@
+"""A failing observer stops alone (issue 14): simulate(..., isolate=True) and `hgo-mj run`
+record where it failed, fill its rows with NaN from there, and run the plant and the other
+observers to the end, bit for bit as without it; isolate=False keeps raising."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from hgo_mj.cli import main
+from hgo_mj.exceptions import DesignError, DivergenceError
+from hgo_mj.inputs import Constant, Multisine
+from hgo_mj.loop import Loop, Periods
+from hgo_mj.metrics import all_metrics, format_table
+from hgo_mj.observers import HighGainObserver
+from hgo_mj.plants import make_plant
+from hgo_mj.sensors import GaussianNoise, SensorChain
+from hgo_mj.simulate import simulate, simulate_batch
+
+FRAG = '''
+from hgo_mj.exceptions import DivergenceError
+from hgo_mj.observers.high_gain import HighGainObserver
+
+
+class Frag(HighGainObserver):
+    """Fails in its update at its 31st sample."""
+
+    name = "frag"
+
+    def __init__(self, *args, **kw):
+        self.count = 0
+        super().__init__(*args, **kw)
+
+    def _advance(self, Y, U, dt, X, Z, D):
+        self.count += Y.shape[1]
+        if self.count > 30:
+            raise DivergenceError("the observer state left the finite numbers: [inf]")
+        super()._advance(Y, U, dt, X, Z, D)
+'''
+
+
+@pytest.fixture
+def frag(tmp_path, monkeypatch):
+    (tmp_path / "hgo_frag_mod.py").write_text(FRAG)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    import importlib
+
+    yield importlib.import_module("hgo_frag_mod").Frag
+    import sys
+
+    sys.modules.pop("hgo_frag_mod", None)
+
+
+def _parts():
+    plant = make_plant("pendulum", dt=0.01)
+    sensor = SensorChain([GaussianNoise(std=1e-3)])
+    u = Multisine([0.3], [0.5])
+    return plant, sensor, u
+
+
+def test_a_failing_observer_stops_alone_and_the_others_are_untouched(frag):
+    plant, sensor, u = _parts()
+    good = HighGainObserver(plant.system, k=10.0)
+    alone = simulate(plant, sensor, {"good": good}, u, 1.0, seed=4)
+    with pytest.raises(DivergenceError, match="observer 'frag' failed in its update"):
+        simulate(plant, sensor, {"good": good, "frag": frag(plant.system, k=5.0)}, u, 1.0,
+                 seed=4)
+    tr = simulate(plant, sensor, {"good": good, "frag": frag(plant.system, k=5.0)}, u, 1.0,
+                  seed=4, isolate=True)
+    d = tr.diverged["frag"]
+    assert d["t"] == pytest.approx(0.30) and d["sample"] == 30
+    assert d["error"] == ("DivergenceError: the observer state left the finite numbers: [inf]")
+    e = tr.estimate("frag")
+    assert np.isfinite(e[:d["row"]]).all() and np.isnan(e[d["row"]:]).all()
+    assert len(tr.t) == len(alone.t) == 101
+    np.testing.assert_array_equal(tr.estimate("good"), alone.estimate("good"))
+    np.testing.assert_array_equal(tr.x, alone.x)
+    m = all_metrics(tr, t_transient=0.1)
+    assert m["frag"]["diverged_at"] == d["t"] and "diverged_at" not in m["good"]
+    assert "frag: diverged at t = 0.3 s" in format_table(m)
+    batch = simulate_batch(plant, sensor, {"good": good, "frag": frag(plant.system, k=5.0)}, u,
+                           1.0, seeds=[4, 5], isolate=True)
+    assert all(t.diverged["frag"]["t"] == pytest.approx(0.30) for t in batch)
+    np.testing.assert_array_equal(batch[0].estimate("good"), alone.estimate("good"))
+
+
+def test_an_estimate_that_leaves_the_finite_numbers_stops_alone():
+    """No exception, an infinite estimate: with isolate it is NaN from that row on."""
+
+    class Runaway(HighGainObserver):
+        def _current(self):
+            x, z, d = super()._current()
+            return x, np.full_like(z, np.inf), d
+
+    plant, sensor, u = _parts()
+    tr = simulate(plant, None, {"ok": HighGainObserver(plant.system, k=10.0),
+                                "run": Runaway(plant.system, k=1.0)}, Constant([0.0]), 0.2,
+                  isolate=True)
+    assert tr.diverged["run"]["row"] == 0 and np.isnan(tr.observers["run"].z_hat).all()
+    assert np.isfinite(tr.estimate("ok")).all()
+
+
+def test_the_command_line_writes_the_healthy_observers_and_says_which_diverged(frag, capsys):
+    assert main(["run", "--plant", "pendulum", "--observer", "high_gain:k=10", "--observer",
+                 "hgo_frag_mod:Frag:k=5", "--duration", "1", "--out", "o", "--quiet",
+                 "--t-transient", "0.01"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["hgo-mj: observer 'Frag_1' diverged at t = 0.03 s (DivergenceError: the "
+                   "observer state left the finite numbers: [inf]); its estimate is NaN from "
+                   "there on, the other observers ran to the end"]
+    metrics = json.loads(open("o/metrics.json").read())
+    assert metrics["Frag_1"]["diverged_at"] == pytest.approx(0.03)
+    assert all(v is not None for v in metrics["high_gain_0"]["rmse"])
+
+
+def test_isolate_is_checked():
+    plant = make_plant("pendulum", dt=0.01)
+    with pytest.raises(DesignError, match="isolate must be true or false"):
+        Loop(plant, None, {}, Periods.of(plant), isolate=1)
