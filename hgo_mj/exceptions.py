@@ -6,28 +6,91 @@ errors a caller would catch anyway (``ValueError``, ``RuntimeError``).
 
 from __future__ import annotations
 
+__all__ = ["DesignError", "DimensionError", "DivergenceError", "HgoError", "ModelError",
+           "RecordingError"]
+
 
 class HgoError(Exception):
-    """Base class of every error raised on purpose by hgo_mj."""
+    """Base class of every error raised on purpose by hgo_mj.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import make_signal
+    >>> try:
+    ...     make_signal("sine")
+    ... except HgoError as err:
+    ...     print(type(err).__name__)
+    DesignError
+    """
 
 
 class DimensionError(HgoError, ValueError):
-    """An array has the wrong shape or length."""
+    """An array has the wrong shape or length.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.sensors import Bias, SensorChain
+    >>> SensorChain([Bias([0.1, 0.2])]).apply([0.0], np.zeros((1, 1, 3)))
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DimensionError: Bias.offset has 2 entries (one per channel) but y has 3 channels
+    >>> issubclass(DimensionError, ValueError)
+    True
+    """
 
 
 class DesignError(HgoError, ValueError):
-    """A parameter, gain or design choice is invalid (not Hurwitz, negative, NaN, unknown...)."""
+    """A parameter, gain or design choice is invalid (not Hurwitz, negative, NaN, unknown...).
+
+    Examples
+    --------
+    >>> from hgo_mj.sensors import GaussianNoise
+    >>> GaussianNoise(std=-1.0)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: GaussianNoise.std must be >= 0; found -1.0
+    """
 
 
 class DivergenceError(HgoError, RuntimeError):
-    """A simulation or an observer left the finite numbers."""
+    """A simulation or an observer left the finite numbers.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.systems import SYSTEMS
+    >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+    >>> obs.reset()
+    >>> obs.update([float("inf")], [0.0], 0.01)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DivergenceError: high_gain: measurement y[0] is inf (member 0, sample 0)
+    >>> issubclass(DivergenceError, RuntimeError)
+    True
+    """
 
 
 class ModelError(DesignError):
     """A model the user brought (an MJCF file, an ODE) cannot be used: it does not load, names
-    an element it does not have, or has a structure hgo_mj does not take."""
+    an element it does not have, or has a structure hgo_mj does not take.
+
+    Examples
+    --------
+    A subclass of :class:`DesignError`, so one ``except DesignError`` catches both:
+
+    >>> issubclass(ModelError, DesignError), issubclass(ModelError, ValueError)
+    (True, True)
+    """
 
 
 class RecordingError(HgoError, RuntimeError):
     """A rerun recording could not be written or finalized (its file sink failed: a full disk,
-    an unwritable file); the message names the file and the reason."""
+    an unwritable file); the message names the file and the reason.
+
+    Examples
+    --------
+    >>> err = RecordingError("run.rrd: No space left on device")
+    >>> isinstance(err, HgoError), isinstance(err, RuntimeError)
+    (True, True)
+    """

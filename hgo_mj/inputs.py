@@ -38,27 +38,90 @@ from .exceptions import DesignError, DimensionError
 
 Array = NDArray[np.float64]
 
+__all__ = ["SIGNALS", "Chirp", "Channels", "Constant", "Controller", "FunctionSignal",
+           "Multisine", "PRBS", "Schedule", "Signal", "Telegraph", "make_signal",
+           "signal_from_spec"]
+
 
 class Signal(ABC):
     """Base class of open-loop inputs. The one primitive is :meth:`values`, vectorized over
-    time; ``signal(t)`` (a fresh 1-D array) is derived from it."""
+    time; ``signal(t)`` (a fresh 1-D array) is derived from it.
+
+    A subclass sets ``name`` and ``summary`` and implements :meth:`values` (and
+    :meth:`params` where it has parameters).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> class Ramp(Signal):
+    ...     name = "ramp"
+    ...     def values(self, t):
+    ...         return np.asarray(t, dtype=float)[:, None]
+    >>> Ramp()(0.5)
+    array([0.5])
+    >>> Ramp().values(np.array([0.0, 1.0, 2.0])).shape
+    (3, 1)
+    """
 
     name = ""
     summary = ""
 
     @abstractmethod
     def values(self, t: Array) -> Array:
-        """``u`` at the instants ``t`` ``(T,)``, shape ``(T, m)``."""
+        """``u`` at the instants ``t`` ``(T,)``, shape ``(T, m)``.
+
+        Parameters
+        ----------
+        t : (T,) ndarray
+            Times, in the plant's time unit (seconds for the MuJoCo plants).
+
+        Returns
+        -------
+        (T, m) ndarray
+            The input at each instant, one column per channel.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Constant([0.1, 0.2]).values(np.array([0.0, 0.5]))
+        array([[0.1, 0.2],
+               [0.1, 0.2]])
+        """
 
     def __call__(self, t: float) -> Array:
         return self.values(np.array([float(t)]))[0]
 
     def params(self) -> dict[str, Any]:
+        """The signal's parameters, JSON-ready, for a trajectory's metadata.
+
+        Returns
+        -------
+        dict
+            Parameter name -> value (the base: empty).
+
+        Examples
+        --------
+        >>> Multisine([1.0], [0.5]).params()
+        {'amplitudes': [1.0], 'frequencies': [0.5], 'phases': [0.0], 'offset': 0.0}
+        """
         return {}
 
 
 class FunctionSignal(Signal):
-    """A plain function ``u(t) -> array`` used as a signal (called once per instant)."""
+    """A plain function ``u(t) -> array`` used as a signal (called once per instant).
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(t) -> u``: a float time to a number or a 1-D array (the same length every call).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> FunctionSignal(lambda t: [t, 2 * t]).values(np.array([0.0, 0.5]))
+    array([[0. , 0. ],
+           [0.5, 1. ]])
+    """
 
     name = "function"
     summary = "a user function u(t)"
@@ -109,7 +172,18 @@ def _channels(name: str, value: Any) -> Array:
 
 
 class Constant(Signal):
-    """``u(t) = value``."""
+    """``u(t) = value``.
+
+    Parameters
+    ----------
+    value : float or sequence of float, default 0.0
+        The input, one entry per channel (a number: one channel).
+
+    Examples
+    --------
+    >>> Constant([0.1, 0.2])(3.0)
+    array([0.1, 0.2])
+    """
 
     name = "constant"
     summary = "constant input"
@@ -128,6 +202,21 @@ class Schedule(Signal):
     """Piecewise-constant input: ``u = values[i]`` for ``times[i] <= t < times[i+1]``.
 
     Paper 000's substrate inflow is ``Schedule([0, 30, 50], [0.08, 0.02, 0.08])`` (hours).
+    Before ``times[0]`` the first value holds.
+
+    Parameters
+    ----------
+    times : sequence of float
+        Switching times, strictly increasing.
+    values : array_like
+        One value per time: ``(N,)`` for one channel or ``(N, m)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = Schedule([0, 30, 50], [0.08, 0.02, 0.08])
+    >>> u.values(np.array([0.0, 40.0, 60.0])).ravel()
+    array([0.08, 0.02, 0.08])
     """
 
     name = "schedule"
@@ -213,7 +302,27 @@ class Multisine(Signal):
 
 class Chirp(Signal):
     """Linear chirp from ``f0`` to ``f1`` Hz over ``duration``: ``a sin(2 pi (f0 t + (f1-f0)
-    t^2 / (2 T)))``, then held at ``f1``."""
+    t^2 / (2 T)))``, then held at ``f1``.
+
+    Parameters
+    ----------
+    amplitude : float
+        ``a``, in the input's unit.
+    f0, f1 : float
+        Start and end frequencies, Hz, >= 0.
+    duration : float
+        Sweep time ``T``, > 0.
+    offset : float, default 0.0
+        Constant added.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Chirp(1.0, f0=0.0, f1=2.0, duration=1.0).values(np.array([0.0, 0.25, 0.5])).round(4)
+    array([[0.    ],
+           [0.3827],
+           [1.    ]])
+    """
 
     name = "chirp"
     summary = "linear frequency sweep"
@@ -269,6 +378,28 @@ class PRBS(_Levels):
     autocorrelation of the +-1 levels is ``N`` at lag 0 and ``-1`` at every other lag, so its
     spectrum is flat (to within the ``sinc^2`` of the hold) up to about ``0.44 / period`` Hz.
     The random telegraph signal this name used to give is :class:`Telegraph` (``telegraph``).
+
+    Parameters
+    ----------
+    amplitude : float
+        Level ``+-amplitude`` around ``offset``.
+    period : float
+        Clock period (how long each level holds), > 0.
+    nbits : int, default 10
+        Shift-register length, 2..20 (sequence period ``2**nbits - 1`` clocks).
+    offset : float, default 0.0
+        Constant added.
+    shift : int, default 0
+        Index of the sequence element at ``t = 0``, >= 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = PRBS(0.5, period=0.1, nbits=3)
+    >>> u.length
+    7
+    >>> u.values(np.arange(8) * 0.1).ravel()
+    array([ 0.5,  0.5,  0.5, -0.5,  0.5, -0.5, -0.5,  0.5])
     """
 
     name = "prbs"
@@ -305,7 +436,27 @@ class Telegraph(_Levels):
     """Random telegraph signal: ``offset +- amplitude``, each ``period`` seconds the level drawn
     anew, high or low with probability 1/2, from ``seed`` (a fixed sequence of ``length``
     levels, repeated; independent of the run). What ``prbs`` gave before it became a true
-    m-sequence (:class:`PRBS`): the same numbers for the same parameters."""
+    m-sequence (:class:`PRBS`): the same numbers for the same parameters.
+
+    Parameters
+    ----------
+    amplitude : float
+        Level ``+-amplitude`` around ``offset``.
+    period : float
+        How long each level holds, > 0.
+    seed : int, default 0
+        Seed of the level sequence, >= 0.
+    offset : float, default 0.0
+        Constant added.
+    length : int, default 4096
+        Levels before the sequence repeats, at most ``2**22``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Telegraph(0.5, period=0.1).values(np.arange(5) * 0.1).ravel()
+    array([ 0.5, -0.5, -0.5, -0.5,  0.5])
+    """
 
     name = "telegraph"
     summary = "random telegraph signal (a level drawn each period)"
@@ -332,7 +483,18 @@ class Telegraph(_Levels):
 
 class Channels(Signal):
     """Signals side by side, one per actuator: ``u = (signals[0](t), signals[1](t), ...)``
-    (a signal of several channels gives several)."""
+    (a signal of several channels gives several).
+
+    Parameters
+    ----------
+    signals : sequence of Signal
+        One (or more channels) per actuator, in the plant's input order; non-empty.
+
+    Examples
+    --------
+    >>> Channels([Constant(1.0), Multisine([1.0], [0.25])])(1.0)
+    array([1., 1.])
+    """
 
     name = "channels"
     summary = "one signal per actuator"
@@ -362,6 +524,13 @@ class Controller:
         Feed the estimate of ``observer`` (default) or the true state (for comparison).
     observer : str, optional
         Name of the observer whose estimate is used; default the first one.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ctl = Controller(lambda t, x: -2.0 * x[:1])
+    >>> ctl(0.0, np.array([0.5, 0.0]))
+    array([-1.])
     """
 
     name = "controller"
@@ -381,10 +550,44 @@ class Controller:
     def act(self, t: float, X: Array) -> Array:
         """The inputs ``(B, m)`` of B members at time ``t`` from their states ``X``
         ``(B, n)`` (what the loop calls; here the law once per member, a batched law
-        overrides it)."""
+        overrides it).
+
+        Parameters
+        ----------
+        t : float
+            Time.
+        X : (B, n) ndarray
+            One state (estimate) per member.
+
+        Returns
+        -------
+        (B, m) ndarray
+            One input per member.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Controller(lambda t, x: -2.0 * x[:1]).act(0.0, np.array([[1.0, 0.0], [0.5, 0.0]]))
+        array([[-2.],
+               [-1.]])
+        """
         return np.stack([self(t, x) for x in X])
 
     def params(self) -> dict[str, Any]:
+        """The controller's settings, JSON-ready, for a trajectory's metadata.
+
+        Returns
+        -------
+        dict
+            ``source``, ``observer`` and the law's name.
+
+        Examples
+        --------
+        >>> def law(t, x):
+        ...     return -x[:1]
+        >>> Controller(law, source="true").params()
+        {'source': 'true', 'observer': None, 'law': 'law'}
+        """
         return {"source": self.source, "observer": self.observer,
                 "law": getattr(self.law, "__name__", repr(self.law))}
 
@@ -438,7 +641,35 @@ def signal_from_spec(spec: Any, n_inputs: int) -> Signal:
     """The open-loop signal of a scenario's ``input``: ``None`` (zero on every channel), one
     table ``{"type": KIND, ...}`` (:func:`make_signal`; ``constant`` without ``value`` is zero
     on all ``n_inputs`` channels), or a list of tables, one per actuator in the plant's input
-    order (:class:`Channels`; there a ``constant`` without ``value`` is one zero channel)."""
+    order (:class:`Channels`; there a ``constant`` without ``value`` is one zero channel).
+
+    Parameters
+    ----------
+    spec : None, dict or list of dict
+        The scenario's ``input`` (tables with a ``"type"`` key, default ``"constant"``, and
+        the signal's parameters).
+    n_inputs : int
+        The plant's number of inputs ``m`` (the width of a zero input).
+
+    Returns
+    -------
+    Signal
+
+    Raises
+    ------
+    DesignError
+        An empty list, an entry that is not a table, or an invalid signal (see
+        :func:`make_signal`).
+
+    Examples
+    --------
+    >>> signal_from_spec(None, 2)(0.0)
+    array([0., 0.])
+    >>> u = signal_from_spec([{"type": "constant", "value": 1.0},
+    ...                       {"type": "prbs", "amplitude": 0.1, "period": 0.05}], 2)
+    >>> type(u).__name__, u(0.0)
+    ('Channels', array([1. , 0.1]))
+    """
     if spec is None:
         return Constant([0.0] * n_inputs)
     if isinstance(spec, (list, tuple)):

@@ -266,6 +266,24 @@ class Stage:
         Registry key (see :data:`STAGES`).
     summary : str
         One-line description, for ``hgo-mj list``.
+
+    Examples
+    --------
+    A deterministic stage needs only ``apply`` (and its parameters in ``_params``):
+
+    >>> import numpy as np
+    >>> class Scale(Stage):
+    ...     name = "scale"
+    ...     def __init__(self, factor):
+    ...         super().__init__()
+    ...         self.factor = float(factor)
+    ...         self._params = {"factor": self.factor}
+    ...     def apply(self, t, Y, draws):
+    ...         return Y * self.factor
+    >>> SensorChain([Scale(2.0), Bias(1.0)]).apply([0.0, 0.1], np.ones((1, 2, 1))).ravel()
+    array([3., 3.])
+    >>> Scale(2.0)
+    Scale(factor=2.0)
     """
 
     name: ClassVar[str] = ""
@@ -313,17 +331,46 @@ class Stage:
     def reset(self) -> None:
         """Clear the per-stream state (delay lines, drift, held samples, counters): the next
         :meth:`apply` starts fresh, for any number of streams. The generators are the chain's
-        (:meth:`SensorChain.reset` reseeds them, :meth:`SensorChain.restart` does not)."""
+        (:meth:`SensorChain.reset` reseeds them, :meth:`SensorChain.restart` does not).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> delay = Delay(0.01)
+        >>> chain = SensorChain([delay])
+        >>> chain.apply([0.0, 0.01], np.array([[[1.0], [2.0]]])).ravel()
+        array([1., 1.])
+        >>> delay.reset()  # the delay line is empty again: time may start over
+        >>> chain.apply([0.0], np.array([[[5.0]]])).ravel()
+        array([5.])
+        """
         self._bstate = None
 
     def restart_members(self, idx: Sequence[int]) -> None:
         """Clear the state of the streams ``idx`` only (their counters), as :meth:`reset` does
         for all; the others go on.
 
+        Parameters
+        ----------
+        idx : sequence of int
+            The streams (members of the batch) to restart.
+
         Raises
         ------
         DesignError
-            A stage that keeps time (:attr:`keeps_time`): its streams share one clock."""
+            A stage that keeps time (:attr:`keeps_time`): its streams share one clock.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> drop = Dropout(1.0)
+        >>> chain = SensorChain([drop])
+        >>> chain.reset([0, 1])
+        >>> _ = chain.apply([0.0], np.zeros((2, 1, 1)))
+        >>> drop.restart_members([0])
+        >>> drop.counts
+        array([0, 1])
+        """
         if self.keeps_time:
             raise DesignError(f"{type(self).__name__} keeps time across samples (its streams "
                               f"share one clock): one stream alone cannot be restarted")
@@ -350,6 +397,19 @@ class Stage:
             A new array. Stateful stages (held samples, delay lines, drift, counters) keep one
             state per stream across blocks, cleared by :meth:`reset`; a block of ``T``
             samples gives what ``T`` blocks of one sample give.
+
+        Raises
+        ------
+        DesignError
+            (The base) a subclass that does not implement it.
+
+        Examples
+        --------
+        The chain calls it; deterministic stages take ``draws=None``:
+
+        >>> import numpy as np
+        >>> Bias(0.5).apply(np.array([0.0, 0.1]), np.zeros((1, 2, 1)), None).ravel()
+        array([0.5, 0.5])
         """
         raise DesignError(f"{type(self).__name__} has no batched apply(t, Y, draws); implement "
                           "it to use the stage in a batched chain")
@@ -366,13 +426,37 @@ class Stage:
         return st[1]
 
     def params(self) -> dict[str, Any]:
-        """The constructor parameters, as JSON-friendly values."""
+        """The constructor parameters, as JSON-friendly values.
+
+        Returns
+        -------
+        dict
+            Parameter name -> float, list of floats (per channel) or int.
+
+        Examples
+        --------
+        >>> GaussianNoise(std=[0.1, 0.2]).params()
+        {'std': [0.1, 0.2]}
+        """
         return {k: (list(v) if isinstance(v, list) else v) for k, v in self._params.items()}
 
     def noise_variance(self) -> float | Array | None:
         """Variance this stage adds as white noise (``None`` if it adds none).
 
         Used by :meth:`SensorChain.noise_variance` for a default measurement covariance.
+
+        Returns
+        -------
+        float, (p,) ndarray or None
+            Per-channel variance (a float: the same for every channel); None for a stage that
+            adds no white noise.
+
+        Examples
+        --------
+        >>> GaussianNoise(std=0.1).noise_variance()
+        0.010000000000000002
+        >>> Bias(0.5).noise_variance() is None
+        True
         """
         return None
 
@@ -464,6 +548,16 @@ class UniformNoise(Stage):
     ----------
     half_width : float or array_like
         Half width of the interval, >= 0, per channel.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> noise = UniformNoise(0.3)
+    >>> round(noise.variance, 6)
+    0.03
+    >>> y = SensorChain([noise], seed=0).apply(np.arange(1000) * 0.01, np.zeros((1, 1000, 1)))
+    >>> bool(np.all(np.abs(y) <= 0.3))
+    True
     """
 
     name = "uniform"
@@ -498,6 +592,13 @@ class Bias(Stage):
     ----------
     offset : float or array_like
         Offset, per channel.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, Y = np.arange(5) * 0.01, np.arange(5.0).reshape(1, 5, 1)
+    >>> SensorChain([Bias(0.5)]).apply(t, Y).ravel()
+    array([0.5, 1.5, 2.5, 3.5, 4.5])
     """
 
     name = "bias"
@@ -534,6 +635,16 @@ class RandomWalkDrift(Stage):
     DesignError
         When ``t`` decreases, within a block or from one block to the next (call
         :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, Y = np.arange(5) * 0.01, np.arange(5.0).reshape(1, 5, 1)
+    >>> drift = RandomWalkDrift(1.0, initial=0.5)
+    >>> SensorChain([drift], seed=0).apply(t, Y).ravel().round(3)
+    array([0.5  , 1.487, 2.551, 3.561, 4.508])
+    >>> drift.bias.round(3)                  # the current bias of each stream and channel
+    array([[0.508]])
     """
 
     keeps_time = True
@@ -664,6 +775,13 @@ class SampleHold(Stage):
     ----------
     period : float
         Sampling period, seconds, > 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, Y = np.arange(5) * 0.01, np.arange(5.0).reshape(1, 5, 1)
+    >>> SensorChain([SampleHold(0.02)]).apply(t, Y).ravel()
+    array([0., 0., 2., 2., 4.])
     """
 
     keeps_time = True
@@ -715,6 +833,13 @@ class Delay(Stage):
     DesignError
         When ``t`` decreases, within a block or from one block to the next (call
         :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, Y = np.arange(5) * 0.01, np.arange(5.0).reshape(1, 5, 1)
+    >>> SensorChain([Delay(0.02)]).apply(t, Y).ravel()  # two samples late
+    array([0., 0., 0., 1., 2.])
     """
 
     keeps_time = True
@@ -772,6 +897,16 @@ class Dropout(Stage):
     counts : ndarray of int, shape (B,), or None
         Samples dropped per stream since construction or :meth:`reset` (None before the
         first block); :attr:`SensorChain.dropouts` sums them over the stages and streams.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, Y = np.arange(5) * 0.01, np.arange(5.0).reshape(1, 5, 1)
+    >>> chain = SensorChain([Dropout(0.5)], seed=0)
+    >>> chain.apply(t, Y).ravel()
+    array([ 0., nan, nan, nan,  4.])
+    >>> chain.dropouts
+    3
     """
 
     name = "dropout"
@@ -819,6 +954,13 @@ class Outliers(Stage):
     counts : ndarray of int, shape (B,), or None
         Outliers added per stream since construction or :meth:`reset` (None before the first
         block).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, Y = np.arange(5) * 0.01, np.arange(5.0).reshape(1, 5, 1)
+    >>> SensorChain([Outliers(0.5, 10.0)], seed=0).apply(t, Y).ravel()
+    array([ 0., -9.,  2.,  3.,  4.])
     """
 
     name = "outliers"
@@ -858,6 +1000,13 @@ class Saturation(Stage):
     low, high : float or array_like
         Limits, per channel, ``low < high``; ``-inf`` / ``+inf`` give a one-sided clip.
         NaN samples stay NaN.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, Y = np.arange(5) * 0.01, np.arange(5.0).reshape(1, 5, 1)
+    >>> SensorChain([Saturation(-1.0, 2.5)]).apply(t, Y).ravel()
+    array([0. , 1. , 2. , 2.5, 2.5])
     """
 
     name = "saturate"
@@ -944,6 +1093,18 @@ def encoder(counts_per_rev: int, std: float = 0.0) -> list[Stage]:
     Returns
     -------
     list of Stage
+
+    Raises
+    ------
+    DesignError
+        ``std`` negative or not finite, or ``counts_per_rev`` not a positive integer.
+
+    Examples
+    --------
+    >>> encoder(4096)
+    [Quantization(counts_per_rev=4096)]
+    >>> encoder(4096, std=0.001)
+    [GaussianNoise(std=0.001), Quantization(counts_per_rev=4096)]
     """
     stages: list[Stage] = []
     if finite_scalar("encoder.std", std, nonnegative=True) > 0:
@@ -1085,7 +1246,22 @@ class SensorChain:
 
     def dropout_counts(self) -> NDArray[np.int64]:
         """Samples dropped per stream by the :class:`Dropout` stages since the reset, shape
-        ``(B,)``."""
+        ``(B,)``.
+
+        Returns
+        -------
+        (B,) int ndarray
+            Dropped channel samples of each stream (zeros without a Dropout stage).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> chain = SensorChain([Dropout(0.5)])
+        >>> chain.reset([0, 1])
+        >>> _ = chain.apply(np.arange(4) * 0.01, np.zeros((2, 4, 1)))
+        >>> chain.dropout_counts().shape
+        (2,)
+        """
         out = np.zeros(self.batch, dtype=np.int64)
         for s in self._dropout_stages:
             c = s.counts
@@ -1117,6 +1293,14 @@ class SensorChain:
             per-channel parameter.
         DesignError
             ``t`` not finite, or decreasing where a stage keeps time (drift, delay).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> chain = SensorChain([Bias([0.1, -0.1])])
+        >>> chain.apply([0.0, 0.01], np.ones((1, 2, 2)))
+        array([[[1.1, 0.9],
+                [1.1, 0.9]]])
         """
         try:
             tt = np.asarray(t, dtype=np.float64)
@@ -1167,6 +1351,23 @@ class SensorChain:
             New seed; ``None`` re-uses the constructor's seed (which, if itself ``None``,
             means fresh OS entropy). A sequence of B seeds starts B streams for
             :meth:`apply` (a ``None`` entry: fresh OS entropy for that stream).
+
+        Raises
+        ------
+        DesignError
+            An empty sequence of seeds, or a seed that is not a non-negative integer or None.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> chain = SensorChain([GaussianNoise(std=1.0)], seed=3)
+        >>> a = chain.apply([0.0], np.zeros((1, 1, 1)))
+        >>> chain.reset()                     # the constructor's seed again
+        >>> bool(np.array_equal(a, chain.apply([0.0], np.zeros((1, 1, 1)))))
+        True
+        >>> chain.reset([3, 4])
+        >>> chain.batch, chain.seeds
+        (2, (3, 4))
         """
         if _is_seed_sequence(seed):
             seeds = tuple(_check_seed(sd) for sd in seed)  # type: ignore[union-attr]
@@ -1181,7 +1382,18 @@ class SensorChain:
 
     def restart(self) -> None:
         """Reset every stage's state (held samples, delay lines, drifts, counters) and let the
-        generators continue where they are: Gymnasium's ``reset()`` without a seed."""
+        generators continue where they are: Gymnasium's ``reset()`` without a seed.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> chain = SensorChain([Delay(0.01), GaussianNoise(std=1.0)], seed=0)
+        >>> a = chain.apply([0.0, 0.01], np.zeros((1, 2, 1)))
+        >>> chain.restart()                  # time may start over; new noise draws
+        >>> b = chain.apply([0.0, 0.01], np.zeros((1, 2, 1)))
+        >>> bool(np.array_equal(a, b))
+        False
+        """
         for s in self._stages:
             s.reset()
 
@@ -1194,7 +1406,27 @@ class SensorChain:
         ------
         DesignError
             A stage that keeps time (delay, sample-and-hold, drift), a bad seed, or ``seeds``
-            not one per member."""
+            not one per member.
+
+        Parameters
+        ----------
+        idx : sequence of int
+            The streams to restart.
+        seeds : sequence of int or None
+            One per entry of ``idx``: a new seed, or None to let the stream's generators
+            continue.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> chain = SensorChain([GaussianNoise(std=1.0)])
+        >>> chain.reset([7, 8])
+        >>> first = chain.apply([0.0], np.zeros((2, 1, 1)))
+        >>> chain.reset_members([1], [8])        # stream 1 starts over with seed 8
+        >>> again = chain.apply([0.01], np.zeros((2, 1, 1)))
+        >>> bool(again[1, 0, 0] == first[1, 0, 0]), chain.seeds
+        (True, (7, 8))
+        """
         if len(seeds) != len(idx):
             raise DesignError(f"reset_members: one seed (or None) per member; found "
                               f"{len(seeds)} for {len(idx)}")
@@ -1213,7 +1445,30 @@ class SensorChain:
 
     def hold(self, idx: Sequence[int]) -> None:
         """The streams ``idx`` do not advance at the next blocks (until ``hold(())``): what
-        they are served then comes again, in order (their members' rows are not used)."""
+        they are served then comes again, in order (their members' rows are not used).
+
+        Parameters
+        ----------
+        idx : sequence of int
+            The streams to hold; ``()`` releases them all.
+
+        Raises
+        ------
+        DesignError
+            A chain with a stage that keeps time (delay, sample-and-hold, drift).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> chain = SensorChain([GaussianNoise(std=1.0)])
+        >>> chain.reset([5, 6])
+        >>> chain.hold([1])
+        >>> a = chain.apply([0.0], np.zeros((2, 1, 1)))
+        >>> chain.hold(())
+        >>> b = chain.apply([0.01], np.zeros((2, 1, 1)))
+        >>> bool(b[1, 0, 0] == a[1, 0, 0])     # stream 1 is served its held draw again
+        True
+        """
         rows = tuple(int(b) for b in idx)
         if any(s.keeps_time for s in self._stages) and rows:
             raise DesignError("a chain with a stage that keeps time cannot hold streams")
@@ -1226,6 +1481,17 @@ class SensorChain:
         """The chain as JSON-friendly data: ``[{"stage": name, **params}, ...]``.
 
         :meth:`from_spec` rebuilds an equivalent chain from it.
+
+        Returns
+        -------
+        list of dict
+            One dict per stage, in order: its registry name under ``"stage"`` and its
+            parameters.
+
+        Examples
+        --------
+        >>> SensorChain([Bias(0.1), GaussianNoise(std=0.01)]).describe()
+        [{'stage': 'bias', 'offset': 0.1}, {'stage': 'gaussian', 'std': 0.01}]
         """
         return [{"stage": s.name, **s.params()} for s in self._stages]
 
@@ -1242,11 +1508,21 @@ class SensorChain:
         seed : int or None, default None
             Seed of the chain.
 
+        Returns
+        -------
+        SensorChain
+
         Raises
         ------
         DesignError
             A malformed entry, a missing ``"stage"`` key, or an invalid stage (see
             :func:`make_stage`).
+
+        Examples
+        --------
+        >>> SensorChain.from_spec([{"stage": "gaussian", "std": 0.01},
+        ...                        {"stage": "quantize", "resolution": 0.001}], seed=0)
+        SensorChain([GaussianNoise(std=0.01), Quantization(resolution=0.001)], seed=0)
         """
         if isinstance(spec, (Mapping, str, bytes)) or not isinstance(spec, Sequence):
             raise DesignError("sensor spec must be a list of dicts like "
@@ -1284,6 +1560,14 @@ class SensorChain:
         ------
         DimensionError
             A per-channel parameter whose length is not ``n_outputs``.
+        DesignError
+            ``n_outputs`` not a positive integer.
+
+        Examples
+        --------
+        >>> chain = SensorChain([GaussianNoise(std=0.1), Quantization(resolution=0.01)])
+        >>> chain.noise_variance(2).round(8)         # 0.1**2 + 0.01**2 / 12
+        array([0.01000833, 0.01000833])
         """
         if (isinstance(n_outputs, bool) or not isinstance(n_outputs, (int, np.integer))
                 or n_outputs < 1):

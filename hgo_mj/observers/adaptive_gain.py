@@ -68,6 +68,25 @@ def dead_zone(e: ArrayLike, lam: float, lam_hat: float) -> Array:
 
     ``0`` inside ``|e| <= lam``, ``|e| - lam`` up to ``lam_hat``, then constant ``lam_hat - lam``:
     the adaptation rate ``gamma d^2`` is bounded by ``gamma (lam_hat - lam)^2``.
+
+    Parameters
+    ----------
+    e : array_like
+        Output error(s) ``e_1 = y - z_hat_1``, any shape.
+    lam : float
+        Dead-zone half width ``lambda > 0``.
+    lam_hat : float
+        Saturation level ``lambda_hat > lambda``.
+
+    Returns
+    -------
+    ndarray
+        ``d(e)``, the shape of ``e``, in ``[0, lam_hat - lam]``.
+
+    Examples
+    --------
+    >>> dead_zone([0.0, 0.15, 0.5, -2.0], lam=0.1, lam_hat=0.3)
+    array([0.  , 0.05, 0.2 , 0.2 ])
     """
     return np.clip(np.abs(np.asarray(e, dtype=float)) - lam, 0.0, lam_hat - lam)
 
@@ -501,6 +520,18 @@ class AdaptiveGainObserver(Observer):
     ----------
     Paper 000 (Bullinger, Ilchmann, Allgöwer 1998): eq. 2, eq. 4-5, Theorems 2 and 3 (eq. 14),
     section 4 (bioreactor example, reproduced by ``hgo-mj reproduce bullinger1998``).
+
+    Examples
+    --------
+    A sample with ``|e_1| = 1 > lam_hat`` raises ``k`` by ``dt gamma (lam_hat - lam)^2``:
+
+    >>> import numpy as np
+    >>> obs = AdaptiveGainObserver(order=2, lam=0.1, lam_hat=0.3, gamma=100.0, k0=5.0,
+    ...                            method="euler")
+    >>> obs.update([1.0], np.zeros(0), 0.01).round(4)
+    array([0.1 , 0.25])
+    >>> obs.diagnostics()
+    {'k': 5.04, 'dropouts': 0.0}
     """
 
     name = "adaptive_gain"
@@ -579,12 +610,58 @@ class AdaptiveGainObserver(Observer):
     # ------------------------------------------------------------------ setup
     def max_stable_gain(self, dt: float) -> float:
         """Largest ``k`` at which the linear part's one-step map (``method``) at period ``dt``
-        is stable: ``tau_max / dt``, ``tau_max`` depending on ``p`` and ``method`` only."""
+        is stable: ``tau_max / dt``, ``tau_max`` depending on ``p`` and ``method`` only.
+
+        Parameters
+        ----------
+        dt : float
+            Sample period, seconds, > 0.
+
+        Returns
+        -------
+        float
+            The gain limit (``inf`` for ``method="exact"``).
+
+        Raises
+        ------
+        DesignError
+            ``dt`` not a positive finite number.
+
+        Examples
+        --------
+        >>> obs = AdaptiveGainObserver(order=2, lam=0.1, lam_hat=0.3, gamma=100.0, k0=5.0,
+        ...                            method="euler")
+        >>> round(obs.max_stable_gain(0.01), 3)
+        200.0
+        """
         return self._tau_max / finite_scalar("dt", dt, positive=True)
 
     def max_stable_period(self, k: float | None = None) -> float:
         """Largest stable sample period at gain ``k`` (default: the current ``k``, the largest
-        over the members)."""
+        over the members).
+
+        Parameters
+        ----------
+        k : float, optional
+            The gain, > 0; default the current one.
+
+        Returns
+        -------
+        float
+            Seconds (``inf`` for ``method="exact"``).
+
+        Raises
+        ------
+        DesignError
+            ``k`` not a positive finite number.
+
+        Examples
+        --------
+        >>> obs = AdaptiveGainObserver(order=2, lam=0.1, lam_hat=0.3, gamma=100.0, k0=5.0,
+        ...                            method="euler")
+        >>> round(obs.max_stable_period(), 6), round(obs.max_stable_period(10.0), 6)
+        (0.4, 0.2)
+        """
         k = float(self._S[:, 0].max()) if k is None else finite_scalar("k", k, positive=True)
         return self._tau_max / k
 

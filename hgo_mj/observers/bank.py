@@ -17,6 +17,8 @@ from ..exceptions import DesignError, DimensionError
 from .base import Array, Observer
 from .high_gain import derivative_names
 
+__all__ = ["ObserverBank"]
+
 
 class ObserverBank(Observer):
     """Several observers on the same measurement stream, advanced together; the estimate is

@@ -79,6 +79,25 @@ class Block:
 
     ``x_hat`` ``(B, T, len(state_names))``, ``z_hat`` ``(B, T, n)``, ``diagnostics``
     ``(B, T, len(diagnostic_names))`` in the order of ``diagnostic_names``.
+
+    Parameters
+    ----------
+    x_hat : (B, T, n_x) ndarray
+        Estimate in the layout of :attr:`Observer.state_names` after each sample.
+    z_hat : (B, T, n) ndarray
+        Estimate in observer coordinates after each sample.
+    diagnostics : (B, T, d) ndarray
+        The values of :attr:`Observer.diagnostic_names` after each sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.systems import SYSTEMS
+    >>> rows = HighGainObserver(SYSTEMS["pendulum"](), k=10.0).run(
+    ...     np.full((3, 1), 0.2), np.zeros((3, 1)), 0.01)
+    >>> isinstance(rows, Block), rows.x_hat.shape, rows.diagnostics[0, -1].tolist()
+    (True, (1, 3, 2), [10.0, 0.0])
     """
 
     x_hat: Array
@@ -167,6 +186,27 @@ class Observer(ABC):
         NaN samples consumed (per member).
     inverse_failures_ : int or (B,) int array
         Failed evaluations of the inverse normal-form map (per member).
+
+    Raises
+    ------
+    DesignError
+        ``system`` is neither a System nor None, ``outputs`` is not a sequence of distinct
+        non-negative channel indices, ``on_unstable`` is not one of its values, or neither a
+        system with a normal form nor ``order`` gives ``n``.
+    DimensionError
+        A channel of ``outputs`` the system does not have, or an ``order`` that differs from
+        the system's normal-form order.
+
+    Examples
+    --------
+    A family subclasses Observer; a user builds one through its class or
+    :func:`~hgo_mj.observers.make_observer`:
+
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.systems import SYSTEMS
+    >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+    >>> isinstance(obs, Observer), obs.n, obs.outputs, obs.state_names
+    (True, 2, (0,), ('angle', 'angular_velocity'))
     """
 
     #: registry name, e.g. ``"high_gain"``
@@ -210,7 +250,25 @@ class Observer(ABC):
     def applicability(cls, system: System) -> str | None:
         """``None`` where this family can design against ``system``, else why not, in the
         paper's terms (one sentence). The base checks the single-output normal form
-        (paper 000, eq. 1) and :attr:`required_form`; families add their own conditions."""
+        (paper 000, eq. 1) and :attr:`required_form`; families add their own conditions.
+
+        Parameters
+        ----------
+        system : System
+            The model to design against.
+
+        Returns
+        -------
+        str or None
+            None where the family applies, else one sentence saying why it does not.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> HighGainObserver.applicability(SYSTEMS["pendulum"]()) is None
+        True
+        """
         if cls.needs_normal_form and system.normal_form_order is None:
             problem = getattr(system, "normal_form_problem", None)
             return problem or (f"needs a single-output observability normal form (paper 000, "
@@ -282,10 +340,42 @@ class Observer(ABC):
     def check_period(self, dt: float) -> None:  # noqa: B027 - optional, default: no check
         """Check that the update is stable at the sample period ``dt`` (the loop calls this
         before a run) and react as ``on_unstable`` says, naming the largest stable period.
-        Default: nothing to check (an update stable for every period)."""
+        Default: nothing to check (an update stable for every period).
+
+        Parameters
+        ----------
+        dt : float
+            The sample period, in seconds.
+
+        Raises
+        ------
+        DesignError
+            (In a family that checks, with ``on_unstable="raise"``) the update is unstable at
+            ``dt``; ``on_unstable="warn"`` warns instead, ``"ignore"`` does nothing.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> HighGainObserver(SYSTEMS["pendulum"](), k=10.0).check_period(0.01)  # stable: silent
+        """
 
     def params(self) -> dict[str, Any]:
-        """Constructor parameters, JSON-ready, for a trajectory's metadata."""
+        """Constructor parameters, JSON-ready, for a trajectory's metadata.
+
+        Returns
+        -------
+        dict
+            Parameter name -> JSON-ready value (lists, floats, strings, None).
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> HighGainObserver(SYSTEMS["pendulum"](), k=10.0).params()
+        {'k': 10.0, 'p': [2.0, 1.0], 'order': 2, 'outputs': [0], 'model': False,
+         'method': 'exact', 'z_bounds': None}
+        """
         return {"outputs": list(self.outputs)}
 
     # --------------------------------------------------------------- derived
@@ -295,7 +385,42 @@ class Observer(ABC):
         unbatched copy) from ``x_hat0`` (the layout of :attr:`state_names`) or ``z_hat0``
         (``(n,)`` for every member, or ``(B, n)``); neither: the constructor's initial
         estimate. ``u0`` (``(m,)`` or ``(B, m)``) is the input the maps ``to_normal`` and
-        ``from_normal`` read at the start (default zero)."""
+        ``from_normal`` read at the start (default zero).
+
+        Parameters
+        ----------
+        x_hat0 : array_like, optional
+            Initial estimate in the layout of :attr:`state_names`: ``(n_x,)`` for every member
+            or ``(B, n_x)`` (which makes the observer batched).
+        z_hat0 : array_like, optional
+            Initial estimate in observer coordinates, ``(n,)`` or ``(B, n)``; not together
+            with ``x_hat0``.
+        u0 : array_like, optional
+            Input at the start, ``(m,)`` or ``(B, m)``; default zero.
+        batch : int, optional
+            Number of members B; given, the observer is batched (public arrays keep the
+            leading B axis).
+
+        Raises
+        ------
+        DesignError
+            Both ``x_hat0`` and ``z_hat0`` given, ``batch`` not a positive integer, or a
+            non-finite initial value.
+        DimensionError
+            An initial value or ``u0`` of the wrong shape.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.reset([0.1, 0.0])
+        >>> obs.x_hat
+        array([0.1, 0. ])
+        >>> obs.reset(batch=3)
+        >>> obs.x_hat.shape
+        (3, 2)
+        """
         if x_hat0 is not None and z_hat0 is not None:
             raise DesignError("give x_hat0 or z_hat0, not both")
         if batch is not None and (isinstance(batch, (bool, np.bool_))
@@ -331,10 +456,31 @@ class Observer(ABC):
         this one, as a bank's, likewise) takes its rows from it. The member is then what a
         fresh reset gives, bit for bit.
 
+        Parameters
+        ----------
+        idx : sequence of int
+            The members to restart, each in ``0 .. batch - 1``.
+
         Raises
         ------
         DesignError
-            An unbatched observer, or a member index outside the batch."""
+            An unbatched observer, or a member index outside the batch, or members that share
+            a clock or counter (one member cannot be restarted alone).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.reset(batch=3)
+        >>> obs.step(np.full((3, 1), 0.2), np.zeros((3, 1)), 0.01)
+        >>> obs.reset_members([1])
+        >>> obs.x_hat.round(3)
+        array([[0.038, 0.181],
+               [0.   , 0.   ],
+               [0.038, 0.181]])
+        """
         rows = [int(b) for b in idx]
         if not self._batched:
             raise DesignError(f"{self.name}: reset_members needs a batched observer (reset with "
@@ -366,7 +512,43 @@ class Observer(ABC):
         """Consume T samples of B members: ``Y`` ``(B, T, p)`` (every measured channel; the
         observer reads :attr:`outputs`), ``U`` ``(B, T, m)``; return the rows of the estimate
         after each sample (:class:`Block`). The validating entry; the loop calls
-        :meth:`_advance_checked` on arrays it has already checked."""
+        :meth:`_advance_checked` on arrays it has already checked.
+
+        Parameters
+        ----------
+        Y : array_like
+            Measurements ``(B, T, p)``, every measured channel; NaN is a dropout.
+        U : array_like
+            Inputs ``(B, T, m)``, finite.
+        dt : float
+            Sample period in seconds, positive.
+
+        Returns
+        -------
+        Block
+            ``x_hat`` ``(B, T, n_x)``, ``z_hat`` ``(B, T, n)`` and ``diagnostics``
+            ``(B, T, len(diagnostic_names))`` after each sample.
+
+        Raises
+        ------
+        DimensionError
+            ``Y`` or ``U`` of the wrong shape for this batch, or not real numbers.
+        DesignError
+            ``dt`` not a positive finite number, or a non-finite input.
+        DivergenceError
+            An infinite measurement, or (from the family) a state that blows up.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.reset(batch=3)
+        >>> rows = obs.advance(np.full((3, 4, 1), 0.2), np.zeros((3, 4, 1)), 0.01)
+        >>> rows.x_hat.shape, rows.z_hat.shape, rows.diagnostics.shape
+        ((3, 4, 2), (3, 4, 2), (3, 4, 2))
+        """
         Y, U = self._floats("y", Y), self._inputs(U)
         if Y.ndim != 3 or Y.shape[0] != self.batch or Y.shape[2] <= self._max_col:
             raise DimensionError(f"{self.name}: y must have shape (B={self.batch}, T, p) with "
@@ -419,12 +601,63 @@ class Observer(ABC):
         return out
 
     def step(self, y: Any, u: Any, dt: float) -> None:
-        """One sample of every member: ``y`` ``(B, p)``, ``u`` ``(B, m)``."""
+        """One sample of every member: ``y`` ``(B, p)``, ``u`` ``(B, m)``.
+
+        Parameters
+        ----------
+        y : array_like
+            Measurements ``(B, p)``; NaN is a dropout.
+        u : array_like
+            Inputs ``(B, m)``.
+        dt : float
+            Sample period in seconds.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.reset(batch=2)
+        >>> obs.step(np.full((2, 1), 0.2), np.zeros((2, 1)), 0.01)
+        >>> obs.x_hat.round(3)
+        array([[0.038, 0.181],
+               [0.038, 0.181]])
+        """
         self.advance(np.asarray(y, dtype=float)[:, None], np.asarray(u, dtype=float)[:, None], dt)
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """One sample of an unbatched observer: ``y`` ``(p,)``, ``u`` ``(m,)``; returns
-        ``x_hat`` after it, ``(n_x,)``."""
+        ``x_hat`` after it, ``(n_x,)``.
+
+        Parameters
+        ----------
+        y : array_like
+            Measurement ``(p,)``; NaN is a dropout.
+        u : array_like
+            Input ``(m,)``.
+        dt : float
+            Sample period in seconds.
+
+        Returns
+        -------
+        (n_x,) ndarray
+            The estimate after the sample, in the layout of :attr:`state_names`.
+
+        Raises
+        ------
+        DimensionError
+            A batched observer, or ``y``/``u`` not vectors of the needed widths.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.reset([0.1, 0.0])
+        >>> obs.update([0.2], [0.0], 0.01).round(4)
+        array([0.119 , 0.0906])
+        """
         if self._batched:
             raise DimensionError(f"{self.name}: update() is for an unbatched observer; this one "
                                  f"holds a batch of {self.batch} (use step or advance)")
@@ -445,7 +678,34 @@ class Observer(ABC):
     def run(self, ys: Any, us: Any, dt: float, *, x_hat0: Any = None) -> Block:
         """Offline driver over recorded data (filterpy's ``batch_filter``): reset (unbatched,
         or batched when ``ys`` is ``(B, T, p)``), then advance over ``ys`` ``(T, p)`` with
-        ``us`` ``(T, m)``. The returned rows are the estimate *after* each sample."""
+        ``us`` ``(T, m)``. The returned rows are the estimate *after* each sample.
+
+        Parameters
+        ----------
+        ys : array_like
+            Measurements ``(T, p)``, or ``(B, T, p)`` for a batch.
+        us : array_like
+            Inputs ``(T, m)``, or ``(B, T, m)``.
+        dt : float
+            Sample period in seconds.
+        x_hat0 : array_like, optional
+            Initial estimate (as in :meth:`reset`); default: the constructor's.
+
+        Returns
+        -------
+        Block
+            The rows after each sample, with a leading batch axis (1 for ``(T, p)`` data).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> rows = obs.run(np.full((5, 1), 0.2), np.zeros((5, 1)), 0.01)
+        >>> rows.x_hat.shape
+        (1, 5, 2)
+        """
         ya, ua = self._floats("ys", ys), self._inputs(us, "us")
         if ya.ndim == 2:
             self.reset(x_hat0)
@@ -480,7 +740,22 @@ class Observer(ABC):
 
     def diagnostics(self) -> dict[str, Any]:
         """The current run-time quantities named in :attr:`diagnostic_names` (floats, or
-        ``(B,)`` arrays for a batched observer)."""
+        ``(B,)`` arrays for a batched observer).
+
+        Returns
+        -------
+        dict
+            :attr:`diagnostic_names` -> float, or ``(B,)`` array when batched.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.reset()
+        >>> obs.diagnostics()
+        {'k': 10.0, 'dropouts': 0.0}
+        """
         d = self._current()[2]
         out = {name: self._public(d[:, j].astype(float)) for j, name in
                enumerate(self.family_diagnostics)}
@@ -563,6 +838,8 @@ class Observer(ABC):
 
 ObserverT = TypeVar("ObserverT", bound=type[Observer])
 
+__all__ = ["ON_UNSTABLE", "OBSERVERS", "Block", "Observer", "register", "registered"]
+
 def _shared_clock(dst: Any, src: Any) -> list[str]:
     """The numbers (ints, floats) of ``dst``'s state, and of the observers it holds, that are
     not what a fresh reset (``src``) gives: a clock or a counter shared by the members."""
@@ -606,7 +883,34 @@ OBSERVERS: dict[str, type[Observer]] = {}
 
 
 def register(cls: ObserverT) -> ObserverT:
-    """Class decorator: add an observer family to :data:`OBSERVERS` under its ``name``."""
+    """Class decorator: add an observer family to :data:`OBSERVERS` under its ``name``.
+
+    Parameters
+    ----------
+    cls : type
+        An :class:`Observer` subclass with a non-empty class attribute ``name``.
+
+    Returns
+    -------
+    type
+        ``cls`` itself (so it works as a decorator).
+
+    Raises
+    ------
+    DesignError
+        ``cls`` is not an Observer subclass, has no ``name``, or another class is registered
+        under that name already.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> register(HighGainObserver) is HighGainObserver  # registering again is a no-op
+    True
+    >>> register(int)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: register takes an Observer subclass; found <class 'int'>
+    """
     if not (isinstance(cls, type) and issubclass(cls, Observer)):
         raise DesignError(f"register takes an Observer subclass; found {cls!r}")
     if not cls.name:
@@ -624,7 +928,25 @@ _ENTRY_POINTS_LOADED = False
 def registered() -> dict[str, type[Observer]]:
     """:data:`OBSERVERS`, after loading the entry-point group ``hgo_mj.observers`` once (each
     entry point names an :class:`Observer` subclass; one that fails to import is an error
-    naming it)."""
+    naming it).
+
+    Returns
+    -------
+    dict
+        Registry name -> Observer subclass (the same object as :data:`OBSERVERS`).
+
+    Raises
+    ------
+    DesignError
+        An entry point of the group that fails to import, or names no Observer subclass.
+
+    Examples
+    --------
+    >>> import hgo_mj.observers
+    >>> reg = registered()
+    >>> reg["high_gain"].__name__, reg is OBSERVERS
+    ('HighGainObserver', True)
+    """
     global _ENTRY_POINTS_LOADED
     if not _ENTRY_POINTS_LOADED:
         from importlib.metadata import entry_points

@@ -123,7 +123,27 @@ def _rk_gain(z: complex, method: str) -> float:
 def rk_stable_period(eigenvalues: Any, method: str) -> float:
     """Largest step ``h`` for which ``method`` (``"rk4"``, ``"rk2"`` or ``"euler"``) is stable on the
     linear modes ``eigenvalues`` (all in the open left half-plane): every ``h * lambda`` inside
-    the method's region of absolute stability. ``inf`` if there are no modes."""
+    the method's region of absolute stability. ``inf`` if there are no modes.
+
+    Parameters
+    ----------
+    eigenvalues : array_like of complex
+        The linear modes (zeros are ignored).
+    method : {"rk4", "rk2", "euler"}
+        The explicit Runge-Kutta method.
+
+    Returns
+    -------
+    float
+        The step limit (found by bisection to about 1e-16 relative), ``inf`` without modes.
+
+    Examples
+    --------
+    >>> round(rk_stable_period([-1.0], "euler"), 6), round(rk_stable_period([-1.0], "rk4"), 4)
+    (2.0, 2.7853)
+    >>> rk_stable_period([], "rk4")
+    inf
+    """
     lam = np.asarray(eigenvalues, dtype=complex).reshape(-1)
     lam = lam[lam != 0]
     if lam.size == 0:
@@ -145,7 +165,35 @@ def rk_stable_period(eigenvalues: Any, method: str) -> float:
 def check_rk_period(what: str, poles: Any, dt: float, method: str, substeps: int) -> None:
     """Raise :class:`DesignError` if ``substeps`` steps of ``method`` per sample period ``dt``
     are unstable on the linear modes ``poles`` of ``what`` (e.g. "the Jo-Son observer"),
-    naming the largest stable step and the substeps it takes (:func:`rk_stable_period`)."""
+    naming the largest stable step and the substeps it takes (:func:`rk_stable_period`).
+
+    Parameters
+    ----------
+    what : str
+        The integrated system, for the message (e.g. "the Jo-Son observer").
+    poles : array_like of complex
+        Its linear modes.
+    dt : float
+        Sample period, > 0.
+    method : {"rk4", "rk2", "euler"}
+        The integration method.
+    substeps : int
+        Steps per sample period.
+
+    Raises
+    ------
+    DesignError
+        ``dt`` not a positive finite number, or ``dt / substeps`` not below the stable step.
+
+    Examples
+    --------
+    >>> check_rk_period("the test observer", [-1.0], 0.1, "euler", 1)  # stable: silent
+    >>> check_rk_period("the test observer", [-100.0], 0.1, "euler", 1)
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: euler integration of the test observer with step 0.1 ...
+    the largest stable step is 0.02: raise substeps to at least 6
+    """
     dt = finite_scalar("dt", dt, positive=True)
     h = rk_stable_period(poles, method)
     if dt / substeps >= h:
@@ -163,6 +211,25 @@ class SlidingGram:
 
     The last ``W = round(window / dt)`` vectors are kept in a ring buffer (one row write per
     sample); the matrix and its smallest eigenvalue are computed when asked for.
+
+    Parameters
+    ----------
+    m : int
+        Length of the vectors ``v``.
+    window : float
+        Window length, in the time unit of ``dt``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> gram = SlidingGram(2, window=0.05)
+    >>> for i in range(10):
+    ...     gram.add(np.array([1.0, float(i % 2)]), 0.01)
+    >>> gram.matrix                          # the last 5 samples
+    array([[0.05, 0.03],
+           [0.03, 0.03]])
+    >>> round(gram.min_eig, 6)
+    0.008377
     """
 
     def __init__(self, m: int, window: float) -> None:
@@ -171,6 +238,18 @@ class SlidingGram:
         self.reset()
 
     def reset(self) -> None:
+        """Empty the window (the matrix is zero until the next :meth:`add`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> gram = SlidingGram(2, window=0.05)
+        >>> gram.add(np.ones(2), 0.01)
+        >>> gram.reset()
+        >>> gram.matrix
+        array([[0., 0.],
+               [0., 0.]])
+        """
         self._buf: Array | None = None
         self._dt = math.nan
         self._i = 0
@@ -178,6 +257,24 @@ class SlidingGram:
         self._min_eig: float | None = 0.0
 
     def add(self, v: Array, dt: float) -> None:
+        """Push one sample ``v`` taken over ``dt`` into the window (the oldest drops out once
+        ``round(window / dt)`` are held; a new ``dt`` starts the window over).
+
+        Parameters
+        ----------
+        v : (m,) ndarray
+            The sample.
+        dt : float
+            Its sample period.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> gram = SlidingGram(1, window=1.0)
+        >>> gram.add(np.array([2.0]), 0.5)
+        >>> gram.matrix
+        array([[2.]])
+        """
         buf = self._buf
         if buf is None or dt != self._dt:
             self._dt = dt
@@ -647,6 +744,22 @@ class BastinGeversObserver(Observer):
     References
     ----------
     Paper 002, eq. 2.2, 3.1-3.2, 4.1-4.5, 4.11, Theorems 4.1-4.4.
+
+    Examples
+    --------
+    Paper 002's bioreactor (eq. 6.1), started from the canonical coordinates of a wrong guess
+    of its parameters:
+
+    >>> import numpy as np
+    >>> from hgo_mj.systems.papers import BioreactorBastinGevers
+    >>> guess = BioreactorBastinGevers(mu_max=2.0, p2=1.0, p3=0.1)
+    >>> x0, th0 = guess.to_aocf([1.0, 2.0], 1.0)
+    >>> ob = BastinGeversObserver(BioreactorBastinGevers(), c1=5.0, gamma=2.0, c2=1.0,
+    ...                           theta_hat0=th0, z_hat0=x0)
+    >>> ob.state_names, ob.theta_hat_.shape
+    (('z1', 'z2'), (3,))
+    >>> ob.update([1.1], [0.1, 0.5], 0.01).round(4)
+    array([0.9717, 2.0071])
     """
 
     name = "bastin_gevers"
@@ -923,7 +1036,43 @@ class BastinGeversObserver(Observer):
     def rhs(self, s: Array, y: float, omega: Array, g: Array, correct: bool = True) -> Array:
         """Right-hand side of eq. 3.1 (:func:`rhs_3_1`) for the flat state
         ``s = (x_hat, theta_hat, vec V)`` with ``omega`` and ``g`` given (public for
-        continuous-time checks). ``correct=False`` drops the output injection (a dropout)."""
+        continuous-time checks). ``correct=False`` drops the output injection (a dropout).
+
+        Parameters
+        ----------
+        s : (n + m + (n - 1) m,) ndarray
+            The flat state ``(x_hat, theta_hat, vec V)`` of one member.
+        y : float
+            The measurement.
+        omega : (s,) ndarray
+            :math:`\\omega(y, u)` (:meth:`omega_g`).
+        g : (n,) ndarray
+            :math:`g(y, u)` (:meth:`omega_g`).
+        correct : bool, default True
+            With the output injection.
+
+        Returns
+        -------
+        ndarray
+            ``ds/dt``, the shape of ``s``.
+
+        Raises
+        ------
+        DimensionError
+            ``s``, ``omega`` or ``g`` of the wrong shape.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems.papers import BioreactorBastinGevers
+        >>> guess = BioreactorBastinGevers(mu_max=2.0, p2=1.0, p3=0.1)
+        >>> x0, th0 = guess.to_aocf([1.0, 2.0], 1.0)
+        >>> ob = BastinGeversObserver(BioreactorBastinGevers(), c1=5.0, gamma=2.0, c2=1.0,
+        ...                           theta_hat0=th0, z_hat0=x0)
+        >>> w, g = ob.omega_g(1.0, [0.1, 0.5])
+        >>> s = np.concatenate([x0, th0, np.zeros(3)])
+        >>> ob.rhs(s, 1.0, w, g).shape
+        (8,)
+        """
         f = self.form
         sa, w, ga = (np.ascontiguousarray(v, dtype=float) for v in (s, omega, g))
         for name, v, k in (("s", sa, self._S.shape[1]), ("omega", w, f.s), ("g", ga, f.n)):
@@ -933,7 +1082,33 @@ class BastinGeversObserver(Observer):
                        self.gamma, self.c1)
 
     def omega_g(self, y: float, u: Any) -> tuple[Array, Array]:
-        """:math:`\\omega(y, u)` and :math:`g(y, u)` at one point, shape-checked."""
+        """:math:`\\omega(y, u)` and :math:`g(y, u)` at one point, shape-checked.
+
+        Parameters
+        ----------
+        y : float
+            The measurement.
+        u : array_like
+            The input, ``(m_u,)``.
+
+        Returns
+        -------
+        omega : (s,) ndarray
+            The regressor signals of the AOCF.
+        g : (n,) ndarray
+            The known input term.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems.papers import BioreactorBastinGevers
+        >>> guess = BioreactorBastinGevers(mu_max=2.0, p2=1.0, p3=0.1)
+        >>> x0, th0 = guess.to_aocf([1.0, 2.0], 1.0)
+        >>> ob = BastinGeversObserver(BioreactorBastinGevers(), c1=5.0, gamma=2.0, c2=1.0,
+        ...                           theta_hat0=th0, z_hat0=x0)
+        >>> w, g = ob.omega_g(1.0, [0.1, 0.5])
+        >>> w, g
+        (array([1. , 0.1, 0.5]), array([0.1, 0. ]))
+        """
         W, G = self._signals(np.array([float(y)]), np.asarray(u, dtype=float).reshape(1, -1))
         return W[0], G[0]
 

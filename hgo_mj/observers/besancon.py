@@ -123,11 +123,33 @@ def affine_form(system: Any, unknown: Sequence[str] | None = None) -> AffineForm
     unknown=...)``), or its protocol members wrapped (:meth:`AffineForm.from_protocol`); an
     :class:`AffineForm` is returned as it is.
 
+    Parameters
+    ----------
+    system : System or AffineForm or object
+        A system declaring the ``"affine"`` form, an object with the protocol members of
+        :meth:`AffineForm.from_protocol`, or an AffineForm.
+    unknown : sequence of str, optional
+        The parameters to estimate, for a system whose form lets the caller choose them
+        (default: the form's own choice).
+
+    Returns
+    -------
+    AffineForm
+
     Raises
     ------
     DesignError
         The system declares no affine form and lacks the protocol (the missing members are
         named), or ``unknown`` is given for a form that fixes its parameters.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import BesanconExample1
+    >>> form = affine_form(BesanconExample1())
+    >>> form
+    AffineForm('paper 001 example 1 (eq. 9)', orders=[2], theta=['theta1', 'theta2'])
+    >>> affine_form(form) is form
+    True
     """
     if isinstance(system, AffineForm):
         if unknown is not None:
@@ -801,7 +823,23 @@ class BesanconObserver(Observer):
 
     def excitation_matrix_rows(self) -> Array:
         """The windowed :math:`\\int \\hat\\Gamma^T C^T C \\hat\\Gamma d\\tau` of every member
-        over the complete sub-windows, ``(B, q, q)`` (NaN before the first)."""
+        over the complete sub-windows, ``(B, q, q)`` (NaN before the first).
+
+        Returns
+        -------
+        (B, q, q) ndarray
+            One symmetric matrix per member (all NaN before a first sub-window is complete).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import BesanconExample1
+        >>> ob = BesanconObserver(BesanconExample1(), lam=10.0, X=10.0, Theta=10.0,
+        ...                       excitation_window=0.1)
+        >>> ob.reset(batch=3)
+        >>> ob.excitation_matrix_rows().shape
+        (3, 2, 2)
+        """
         k = self._nblocks
         if k == 0:
             return np.full((self.batch, self.q, self.q), np.nan)
@@ -812,7 +850,26 @@ class BesanconObserver(Observer):
         return W
 
     def excitation_matrix(self) -> Array:
-        """:meth:`excitation_matrix_rows`, ``(q, q)`` for an unbatched observer (eq. 11)."""
+        """:meth:`excitation_matrix_rows`, ``(q, q)`` for an unbatched observer (eq. 11).
+
+        Returns
+        -------
+        ndarray
+            ``(q, q)`` unbatched, ``(B, q, q)`` batched.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import BesanconExample1
+        >>> ob = BesanconObserver(BesanconExample1(), lam=10.0, X=10.0, Theta=10.0,
+        ...                       excitation_window=0.1)
+        >>> ob.reset()
+        >>> for t in np.arange(20) * 0.01:
+        ...     _ = ob.update(np.array([np.sin(5 * t)]), np.array([np.cos(3 * t)]), 0.01)
+        >>> ob.excitation_matrix().round(4)
+        array([[0.0036, 0.0078],
+               [0.0078, 0.0185]])
+        """
         return self._public(self.excitation_matrix_rows())  # type: ignore[no-any-return]
 
     # ------------------------------------------------------------------ checks

@@ -62,6 +62,10 @@ from ..exceptions import DesignError, DimensionError
 from ..systems.base import System, derivative_names
 from .base import Array, Observer, batch_rows, register
 
+__all__ = ["METHODS", "HighGainObserver", "MultiOutputHighGainObserver", "matched_gain",
+           "one_step_map"]
+
+#: the integration methods of a sample: the sampled-data observer, forward Euler, RK4
 METHODS = ("exact", "euler", "rk4")
 #: at most this many sample periods keep their one-step maps (jittered periods do not grow memory)
 MAP_CACHE = 8
@@ -217,6 +221,26 @@ def matched_gain(p: Array, k: float, dt: float) -> Array:
     sampled chain does not depend on ``dt``, applied to ``Phi - I`` so that the tiny
     ``(k dt)^n`` terms are not lost to cancellation near ``z = 1``.
     As ``k dt -> 0``, ``Ld / dt -> (p_i k^i)``: the continuous gains of paper 000, eq. 2.
+
+    Parameters
+    ----------
+    p : (n,) ndarray
+        Hurwitz coefficients ``p_1..p_n``.
+    k : float
+        High-gain parameter, > 0.
+    dt : float
+        Sample period, > 0.
+
+    Returns
+    -------
+    (n,) ndarray
+        The discrete correction gain ``Ld``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> matched_gain(np.array([2.0, 1.0]), 10.0, 0.01).round(4)
+    array([0.1903, 0.9056])
     """
     n = p.size
     # Pole placement for N = Phi - I (nilpotent; scaled: N_ij = 1/(j-i)! for j > i) with the
@@ -247,6 +271,39 @@ def one_step_map(p: Array, k: float, dt: float, method: str,
       degree-4 Taylor polynomial of ``e^{(A - L C) dt}``; unstable for long ``dt``.
 
     ``closed=False`` gives the open-loop prediction (no correction), used over a dropout.
+
+    Parameters
+    ----------
+    p : (n,) ndarray
+        Hurwitz coefficients ``p_1..p_n``.
+    k : float
+        High-gain parameter, > 0.
+    dt : float
+        Sample period, > 0.
+    method : {"exact", "euler", "rk4"}
+        How the sample is advanced (above).
+    closed : bool, default True
+        With the output correction (False: the open-loop prediction, ``b = 0``).
+
+    Returns
+    -------
+    M : (n, n) ndarray
+        The error (state) transition over one sample.
+    b : (n,) ndarray
+        The gain on the held measurement ``y``.
+    g : (n,) ndarray
+        The gain on the held model term ``w``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, b, g = one_step_map(np.array([2.0, 1.0]), 10.0, 0.01, "euler")
+    >>> M, b, g
+    (array([[ 0.8 ,  0.01],
+           [-1.  ,  1.  ]]), array([0.2, 1. ]), array([0.  , 0.01]))
+    >>> M, b, g = one_step_map(np.array([2.0, 1.0]), 10.0, 0.01, "exact")
+    >>> np.abs(np.linalg.eigvals(M)).round(6)       # exp(-k dt), twice
+    array([0.904837, 0.904837])
     """
     n = p.size
     Phi, S = sampled_chain(n, dt)
@@ -504,7 +561,20 @@ class HighGainObserver(_Chains, Observer):
 
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
-        """Largest sample period for which ``method``'s one-step error map is stable."""
+        """Largest sample period for which ``method``'s one-step error map is stable.
+
+        Returns
+        -------
+        float
+            Seconds; ``inf`` for ``method="exact"`` (stable for every period).
+
+        Examples
+        --------
+        >>> round(HighGainObserver(order=2, k=10.0, method="euler").max_stable_period(), 6)
+        0.2
+        >>> HighGainObserver(order=2, k=10.0).max_stable_period()
+        inf
+        """
         if self.method == "exact":
             return float("inf")
         return largest_stable_step(lambda dt: one_step_map(self.p, self.k_, dt, self.method)[0],
@@ -723,6 +793,8 @@ class MultiOutputHighGainObserver(_Chains, Observer):
     z_hat0 : array_like, optional
         Initial estimate, length ``sum(orders)`` (default zero); ``x_hat0`` is the same thing
         (``x_hat = z_hat``); give one of them.
+    x_hat0 : array_like, optional
+        The same as ``z_hat0`` (the estimate is ``z_hat`` itself); not together with it.
     on_unstable : {"raise", "warn", "ignore"}
         What to do when a chain's one-step map at the sample period is unstable.
 
@@ -746,6 +818,17 @@ class MultiOutputHighGainObserver(_Chains, Observer):
     Paper 001 (Besançon, Zhang, Hammouri 2004), eq. 4 (high-gain observer) and eq. 5
     (two-output block structure, after Besançon and Hammouri 1998); paper 000, eq. 2 (gains
     ``p_i k^i``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> obs = MultiOutputHighGainObserver(k=[10.0, 20.0], orders=(2, 1))
+    >>> obs.state_names
+    ('y1', 'y1_d1', 'y2')
+    >>> obs.update(np.array([1.0, np.nan]), np.zeros(0), 0.01).round(4)  # chain 2: dropout
+    array([0.1903, 0.9056, 0.    ])
+    >>> obs.channel_dropouts_
+    [0, 1]
     """
 
     name = "high_gain_multi"
@@ -844,7 +927,19 @@ class MultiOutputHighGainObserver(_Chains, Observer):
 
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
-        """Largest sample period at which every chain's one-step map is stable."""
+        """Largest sample period at which every chain's one-step map is stable.
+
+        Returns
+        -------
+        float
+            Seconds, the smallest over the chains; ``inf`` for ``method="exact"``.
+
+        Examples
+        --------
+        >>> obs = MultiOutputHighGainObserver(k=10.0, orders=(2, 2), method="euler")
+        >>> round(obs.max_stable_period(), 6)
+        0.2
+        """
         return min(HighGainObserver(order=n, k=kc, p=pc, method=self.method,
                                     on_unstable="ignore").max_stable_period()
                    for n, kc, pc in zip(self.orders, self.ks, self.ps))

@@ -107,10 +107,17 @@ def jo_son_gain(b: Any, lam: float) -> Array:
     DesignError
         If :math:`b_r \\le 0`, :math:`b_r s^{r-1} + \\dots + b_1` is not Hurwitz (roots listed)
         or :math:`\\lambda \\le 0`: the conditions of Corollary 3.3.
+    DimensionError
+        ``b`` is empty.
 
     References
     ----------
     Paper 003, Corollary 3.3, eq. 25-26.
+
+    Examples
+    --------
+    >>> jo_son_gain([1.0, 1.0], lam=2.0)       # k_1 = 2 * 1 / 1, k_2 = (1 + 2 * 1) / 1
+    array([2., 3.])
     """
     b = vector("b", b)
     if b.size < 1:
@@ -475,7 +482,29 @@ class JoSonObserver(Observer):
     def signals(self, y: Any, u: Any) -> tuple[Array, Array, Array]:
         """:math:`\\gamma_o(y, u)` ``(N, r)``, :math:`\\beta(y, u)` ``(N, p)`` and
         :math:`\\gamma_{\\bar o}(y, u)` ``(N, n - r)`` of the rows ``y`` ``(N,)``, ``u``
-        ``(N, m + a)`` (``u`` with the ``aux_outputs`` channels appended)."""
+        ``(N, m + a)`` (``u`` with the ``aux_outputs`` channels appended).
+
+        Parameters
+        ----------
+        y : array_like
+            Measurements ``(N,)``.
+        u : array_like
+            Inputs ``(N, m + a)``.
+
+        Returns
+        -------
+        gamma_o : (N, r) ndarray
+        beta : (N, p) ndarray
+        gamma_obar : (N, n - r) ndarray
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems.papers import JoSonExample
+        >>> ob = JoSonObserver(JoSonExample(), lam=2.0, gamma=5.0)
+        >>> [a.shape for a in ob.signals(np.array([0.5, 1.0]), np.zeros((2, 1)))]
+        [(2, 2), (2, 1), (2, 1)]
+        """
         return self.form.signals(np.asarray(y, dtype=float), np.asarray(u, dtype=float))
 
     def _eq27(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
@@ -490,7 +519,33 @@ class JoSonObserver(Observer):
     def rhs(self, S: Any, y: Any, u: Any, c: Any = 1.0) -> Array:
         """Right-hand side of eq. 27 at the rows ``S`` ``(N, n + p)`` ``= (z_hat, theta_hat)``
         with ``y`` ``(N,)`` and ``u`` ``(N, m + a)``: the same arithmetic as the sampled
-        update, for continuous-time checks. ``c = 0`` drops the output injection."""
+        update, for continuous-time checks. ``c = 0`` drops the output injection.
+
+        Parameters
+        ----------
+        S : array_like
+            Rows ``(N, n + p)``: the estimate and the parameter estimate.
+        y : array_like
+            Measurements ``(N,)``.
+        u : array_like
+            Inputs ``(N, m + a)``.
+        c : float or array_like, default 1.0
+            Weight of the output injection, per row (1: corrected, 0: a dropout).
+
+        Returns
+        -------
+        (N, n + p) ndarray
+            The time derivative of the rows.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems.papers import JoSonExample
+        >>> ob = JoSonObserver(JoSonExample(), lam=2.0, gamma=5.0)
+        >>> ob.rhs(np.zeros((2, 4)), [0.5, 1.0], np.zeros((2, 1))).round(3)
+        array([[ 1.969,  1.833, -0.064,  0.   ],
+               [ 3.   ,  2.667,  0.375,  0.   ]])
+        """
         S = np.ascontiguousarray(S, dtype=float)
         y = np.ascontiguousarray(y, dtype=float)
         go, be, gb = self.signals(y, u)

@@ -85,6 +85,35 @@ def q_integral_matrices(gain: Array, q: int, closed: bool = True) -> tuple[Array
 
     ``closed=False``: the prediction without correction (over a dropout): ``l = 0`` and the
     missing ``y`` replaced by the prediction ``x_hat_1``, so that ``eps' = (shift) eps``.
+
+    Parameters
+    ----------
+    gain : (N,) ndarray
+        The gains ``l_i = alpha_i gamma^i`` of the augmented chain, ``N = n + q``.
+    q : int
+        Number of integrals of the output, >= 1.
+    closed : bool, default True
+        With the output correction (False: the prediction over a dropout).
+
+    Returns
+    -------
+    F : (N, N) ndarray
+        The state matrix.
+    b : (N,) ndarray
+        The input vector of the measurement ``y``.
+    g : (N,) ndarray
+        The input vector of the model term ``phi`` (the last entry 1).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> F, b, g = q_integral_matrices(np.array([3.0, 3.0, 1.0]), q=1)
+    >>> F
+    array([[-3., -1.,  0.],
+           [ 3.,  0.,  1.],
+           [ 1.,  0.,  0.]])
+    >>> b, g
+    (array([1., 0., 0.]), array([0., 0., 1.]))
     """
     N = gain.size
     F = np.diag(np.ones(N - 1), 1)
@@ -113,6 +142,37 @@ def q_integral_step_map(alpha: Array, gamma: float, q: int, dt: float, method: s
       pole-matched gain ``Ld`` (:func:`~hgo_mj.observers.high_gain.matched_gain`), and the
       integrals of the held ``y`` exact; the error map has eigenvalues ``exp(gamma r_i dt)``,
       stable for every period.
+
+    Parameters
+    ----------
+    alpha : (N,) ndarray
+        Hurwitz coefficients of the augmented chain, ``N = n + q``.
+    gamma : float
+        High-gain parameter, > 0.
+    q : int
+        Number of integrals of the output, >= 1.
+    dt : float
+        Sample period, > 0.
+    method : {"exact", "euler", "rk4"}
+        How the sample is advanced (above).
+    closed : bool, default True
+        With the output correction (False: the prediction over a dropout).
+
+    Returns
+    -------
+    M : (N, N) ndarray
+        The transition of ``w`` over one sample.
+    b : (N,) ndarray
+        The gain on the held measurement ``y_k``.
+    g : (N,) ndarray
+        The gain on the held model term ``phi_k``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, b, g = q_integral_step_map(np.array([3.0, 3.0, 1.0]), 10.0, 1, 0.01, "exact")
+    >>> np.abs(np.linalg.eigvals(M)).round(5)      # exp(-gamma dt) = 0.90484
+    array([0.90484, 0.90484, 0.90483])
     """
     N = alpha.size
     if method == "exact":
@@ -270,7 +330,19 @@ class QIntegralObserver(AffineObserver):
 
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
-        """Largest sample period for which ``method``'s one-step error map is stable."""
+        """Largest sample period for which ``method``'s one-step error map is stable.
+
+        Returns
+        -------
+        float
+            Seconds; ``inf`` for ``method="exact"`` (stable for every period).
+
+        Examples
+        --------
+        >>> obs = QIntegralObserver(order=2, q=1, gamma=10.0, model=False, method="euler")
+        >>> round(obs.max_stable_period(), 4)
+        0.2
+        """
         if self.method == "exact":
             return float("inf")
         return largest_stable_step(

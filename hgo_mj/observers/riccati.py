@@ -484,7 +484,21 @@ class RiccatiObserver(AffineObserver):
         self.reset()
 
     def max_stable_period(self) -> float:
-        """Largest sample period for which ``method``'s one-step error map is stable."""
+        """Largest sample period for which ``method``'s one-step error map is stable.
+
+        Returns
+        -------
+        float
+            Seconds; ``inf`` for ``method="exact"`` (stable for every period).
+
+        Examples
+        --------
+        >>> obs = RiccatiObserver(order=2, gamma=10.0, model=False, method="euler")
+        >>> round(obs.max_stable_period(), 6)
+        0.2
+        >>> RiccatiObserver(order=2, gamma=10.0, model=False).max_stable_period()
+        inf
+        """
         if self.method == "exact":
             return float("inf")
         return largest_stable_step(
@@ -511,4 +525,4 @@ class RiccatiObserver(AffineObserver):
                 "z_bounds": None if self.z_bounds is None else [b.tolist() for b in self.z_bounds]}
 
 
-__all__ = ["RiccatiObserver", "affine_run", "chain_rhs", "design_gamma", "rk4_combine"]
+__all__ = ["RiccatiObserver", "affine_run", "chain_rhs", "rk4_combine"]

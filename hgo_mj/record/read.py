@@ -15,6 +15,8 @@ import numpy as np
 from ..exceptions import DesignError
 from .layout import EPISODE, SIM_TIME, STEP
 
+__all__ = ["read"]
+
 #: the component holding a scalar series' values
 SCALARS = "Scalars:scalars"
 #: static components that name the series of an entity, in order
@@ -45,6 +47,10 @@ def read(path: str | Path) -> Any:
     Returns
     -------
     pandas.DataFrame
+        Indexed by ``step``; columns ``sim_time`` (s), ``episode`` (environment recordings
+        only) and one float column per series, NaN where a series was not logged; its
+        ``attrs`` hold ``"static"`` (entity path -> component -> value) and ``"units"``
+        (column -> unit string).
 
     Raises
     ------
@@ -53,22 +59,29 @@ def read(path: str | Path) -> Any:
 
     Examples
     --------
+    >>> import tempfile
+    >>> from pathlib import Path
     >>> from hgo_mj.record import record_trajectory
     >>> from hgo_mj.inputs import Multisine
     >>> from hgo_mj.observers import HighGainObserver
     >>> from hgo_mj.plants import make_plant
     >>> from hgo_mj.sensors import GaussianNoise, SensorChain
     >>> from hgo_mj.simulate import simulate
-    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> plant = make_plant("pendulum", dt=0.01)
     >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
     ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
-    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.5,
+    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.1,
     ...                 x0=[0.5, 0.0], seed=0)
-    >>> df = read(record_trajectory(traj, "pendulum.rrd"))
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     df = read(record_trajectory(traj, Path(tmp) / "pendulum.rrd"))
     >>> df[["sim_time", "/state/angle/true", "/state/angle/k40"]].shape
-    (501, 3)
+    (11, 3)
+    >>> float(df["sim_time"].iloc[-1])
+    0.1
     >>> df.attrs["units"]["/state/angle/k40"]
     'rad'
+    >>> "/scenario" in df.attrs["static"]
+    True
     """
     import pandas as pd
     from rerun.chunk import RrdReader

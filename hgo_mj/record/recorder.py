@@ -175,10 +175,41 @@ class Recorder:
         stream (the viewer, ``RrdReader(...).stream()``) but that ``rerun rrd verify``
         rejects ("Missing RRD footer"); ``rerun rrd optimize`` adds the footer later.
 
+    Raises
+    ------
+    DesignError
+        Repeated observer names, an observer named ``true``, ``observer_states`` naming an
+        unknown observer, ``pose_rate`` not positive, ``model`` without ``joints``, neither
+        ``path`` nor ``stream``, a ``stream`` that is not a :class:`rerun.RecordingStream`, or
+        a ``path`` not ending in ``.rrd``.
+    DimensionError
+        ``state_names`` too short to hold the positions and velocities of ``joints``.
+    RecordingError
+        The file cannot be opened for writing.
+
     Examples
     --------
-    >>> with Recorder.for_trajectory("run.rrd", traj) as rec:   # doctest: +SKIP
-    ...     rec.record_trajectory(traj)
+    A block of rows from numpy arrays (an environment or a custom loop), read back:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from hgo_mj.record import read
+    >>> t = np.linspace(0.0, 0.1, 11)
+    >>> x = np.c_[np.cos(t), -np.sin(t)]
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     with Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+    ...                   output_names=["angle"], input_names=["torque"], observers=["hgo"],
+    ...                   units={"angle": "rad", "angular_velocity": "rad/s"}) as rec:
+    ...         rec.record(t, x, x[:, :1], x[:, :1], np.zeros((11, 1)), {"hgo": x + 0.01},
+    ...                    {"hgo": {"gain": np.full(11, 40.0)}})
+    ...     df = read(Path(tmp) / "run.rrd")
+    >>> df.shape
+    (11, 11)
+    >>> round(float(df["/error/angle/hgo"].iloc[-1]), 3)
+    -0.01
+    >>> df.attrs["units"]["/state/angular_velocity/hgo"]
+    'rad/s'
     """
 
     def __init__(self, path: str | Path | None, *, state_names: Sequence[str],
@@ -274,7 +305,38 @@ class Recorder:
     def for_plant(cls, path: str | Path | None, plant: Any, observers: Sequence[str] = (),
                   **kw: Any) -> Recorder:
         """A recorder for runs of ``plant`` (a :class:`~hgo_mj.plants.base.Plant`); MuJoCo
-        plants get the 3D view from their model and ``system.joints``."""
+        plants get the 3D view from their model and ``system.joints``.
+
+        Parameters
+        ----------
+        path : str or Path or None
+            The ``.rrd`` file to write (``None`` only with ``stream=`` in ``kw``).
+        plant : Plant
+            Gives the state, output and input names, the model (MuJoCo plants), the joints,
+            the system's parameters and units.
+        observers : sequence of str
+            Names of the observers whose estimates will be recorded, in order.
+        **kw
+            Further :class:`Recorder` arguments; ``params``, ``units`` and ``joints`` override
+            the plant's.
+
+        Returns
+        -------
+        Recorder
+            A new recorder with its file open.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hgo_mj.plants import make_plant
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder.for_plant(Path(tmp) / "run.rrd", make_plant("pendulum"),
+        ...                             ["k40"]) as rec:
+        ...         names = rec.state_names, rec.observers, rec.scene is not None
+        >>> names
+        (('angle', 'angular_velocity'), ('k40',), True)
+        """
         from ..units import system_units
 
         model = getattr(plant, "model", None)
@@ -291,7 +353,51 @@ class Recorder:
         ``traj.metadata["plant"]`` is loaded (the scenario's ``model_file`` if it names one);
         ODE systems get no 3D view. The units are the system's (:func:`hgo_mj.units.units_of`);
         the observers' ``dropouts`` are left out when ``traj.metadata["sensor"]`` (the chain's
-        stages) has no dropout stage."""
+        stages) has no dropout stage.
+
+        Parameters
+        ----------
+        path : str or Path or None
+            The ``.rrd`` file to write (``None`` only with ``stream=`` in ``kw``).
+        traj : Trajectory
+            A run of :func:`hgo_mj.simulate.simulate`: its names, observers (with their
+            ``state_names``) and metadata set up the recorder; no rows are written.
+        model : mujoco.MjModel, optional
+            The model drawn in the 3D view; default the MJCF of the trajectory's plant.
+        joints : sequence of str, optional
+            The joints of ``model`` leading ``x``; default the system's ``joints`` (with the
+            default model).
+        **kw
+            Further :class:`Recorder` arguments; they override ``units``, ``dropouts``,
+            ``params``, ``recording_name`` and ``observer_states`` taken from ``traj``.
+
+        Returns
+        -------
+        Recorder
+            A new recorder with its file open; write the rows with
+            :meth:`record_trajectory` or :meth:`write_chunk`.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hgo_mj.inputs import Multisine
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+        >>> from hgo_mj.simulate import simulate
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
+        ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
+        ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.1,
+        ...                 x0=[0.5, 0.0], seed=0)
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder.for_trajectory(Path(tmp) / "run.rrd", traj) as rec:
+        ...         rec.record_trajectory(traj)
+        ...     size = (Path(tmp) / "run.rrd").stat().st_size
+        >>> rec.observers, rec.units["angle"], size > 0
+        (('k40',), 'rad', True)
+        """
         from ..units import units_of
 
         meta = traj.metadata or {}
@@ -318,21 +424,85 @@ class Recorder:
     def log_metadata(self, metadata: Mapping[str, Any]) -> None:
         """Log a run's metadata (scenario, seed, observer parameters, versions, ...) as the
         text document ``/scenario`` (:func:`~hgo_mj.record.documents.scenario_document`) and
-        as recording properties."""
+        as recording properties.
+
+        Parameters
+        ----------
+        metadata : mapping
+            A run's metadata (``Trajectory.metadata``); its ``scenario``, ``plant``, ``seed``,
+            ``observers`` and ``versions`` also become the ``hgo_mj`` recording properties.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hgo_mj.record import read
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+        ...                   output_names=["angle"], input_names=["torque"]) as rec:
+        ...         rec.log_metadata({"scenario": "demo", "plant": "Pendulum", "seed": 3})
+        ...     doc = read(Path(tmp) / "run.rrd").attrs["static"]["/scenario"]
+        >>> doc["TextDocument:text"][0].splitlines()[:3]
+        ['# demo', '', '- **plant**: `"Pendulum"`']
+        """
         props: dict[str, Any] = dict(documents.scenario_properties(metadata))
         if props:
             self.stream.send_property("hgo_mj", rr.AnyValues(**props))
         self._document("/scenario", documents.scenario_document(metadata))
 
     def log_metrics(self, metrics: Mapping[str, Mapping[str, Any]]) -> None:
-        """Log the metrics table (:func:`hgo_mj.metrics.format_table`) as ``/metrics``."""
+        """Log the metrics table (:func:`hgo_mj.metrics.format_table`) as ``/metrics``.
+
+        Parameters
+        ----------
+        metrics : mapping observer -> mapping metric -> value
+            As :func:`hgo_mj.metrics.all_metrics` returns them.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hgo_mj.record import read
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+        ...                   output_names=["angle"], input_names=["torque"]) as rec:
+        ...         rec.log_metrics({"k40": {"states": ["angle"], "estimated": [True],
+        ...                                  "rmse": [0.1], "peak": [0.5],
+        ...                                  "settling_time": [1.0], "final": [0.01],
+        ...                                  "update_time": 2e-6}})
+        ...     doc = read(Path(tmp) / "run.rrd").attrs["static"]["/metrics"]
+        >>> print(doc["TextDocument:text"][0].splitlines()[6])
+        k40              angle                      0.1         0.5          1        0.01          2
+        """
         self._document("/metrics", documents.metrics_document(metrics))
 
     def log_episode_metrics(self, episodes: Sequence[Mapping[str, Any]]) -> None:
         """Log the metrics of an environment's episodes as ``/metrics``
         (:func:`~hgo_mj.record.documents.episode_metrics_document`). Called at the end of
         every episode with all the episodes so far (the document is static: the last one
-        logged is the file's)."""
+        logged is the file's).
+
+        Parameters
+        ----------
+        episodes : sequence of mapping
+            One mapping per episode with the keys ``episode``, ``seed``, ``steps``,
+            ``return``, ``terminated`` (each optional) and ``rmse`` (state -> value).
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hgo_mj.record import read
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+        ...                   output_names=["angle"], input_names=["torque"]) as rec:
+        ...         rec.log_episode_metrics([{"episode": 0, "seed": 1, "steps": 200,
+        ...                                   "return": -3.5, "terminated": False,
+        ...                                   "rmse": {"angle": 0.01}}])
+        ...     doc = read(Path(tmp) / "run.rrd").attrs["static"]["/metrics"]
+        >>> doc["TextDocument:text"][0].splitlines()[6]
+        '| 0 | 1 | 200 | -3.5 | False | 0.01 |'
+        """
         self._document("/metrics", documents.episode_metrics_document(episodes))
 
     # ------------------------------------------------------------------ data
@@ -373,6 +543,37 @@ class Recorder:
             Log the diagnostics (which are logged where they change) at the block's last row
             too, so their lines reach it; ``False`` leaves that row to the next block or to
             :meth:`close`.
+
+        Raises
+        ------
+        DimensionError
+            An array whose shape does not match ``(T, width)`` of its names.
+        DesignError
+            Estimates or diagnostics of an unknown observer, estimate names that disagree
+            with the layout fixed at the first block, or steps that do not follow the last
+            block's.
+
+        Examples
+        --------
+        Two blocks of a run; the second continues the ``step`` timeline:
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> from hgo_mj.record import read
+        >>> t = np.linspace(0.0, 0.2, 21)
+        >>> x = np.c_[np.cos(t), -np.sin(t)]
+        >>> u = np.zeros((21, 1))
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+        ...                   output_names=["angle"], input_names=["torque"],
+        ...                   observers=["hgo"]) as rec:
+        ...         for rows in (slice(0, 10), slice(10, 21)):
+        ...             rec.record(t[rows], x[rows], None, x[rows, :1], u[rows],
+        ...                        {"hgo": x[rows]})
+        ...     df = read(Path(tmp) / "run.rrd")
+        >>> df.index[[0, -1]].tolist(), float(df["/error/angle/hgo"].abs().max())
+        ([0, 20], 0.0)
         """
         t = np.asarray(t, dtype=float).reshape(-1)
         if t.size == 0:
@@ -666,7 +867,26 @@ class Recorder:
     # ------------------------------------------------------------------ layout
     def blueprint(self) -> rrb.Blueprint:
         """The default layout (:func:`hgo_mj.record.layout.blueprint`) of what has been
-        recorded so far."""
+        recorded so far.
+
+        Returns
+        -------
+        rerun.blueprint.Blueprint
+            The views of the states, errors, sensor, input, diagnostics, extras and (with a
+            model) the 3D scene; sent to the file as its default blueprint.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+        ...                   output_names=["angle"], input_names=["torque"],
+        ...                   observers=["hgo"]) as rec:
+        ...         bp = rec.blueprint()
+        >>> type(bp).__name__
+        'Blueprint'
+        """
         lay = self.layout or layout.estimate_layout(  # before the first block: the names given
             self.state_names, self.observers, {o: self._names.get(o, ()) for o in self.observers})
         return layout.blueprint(lay, list(self._diag.values()), self.params,
@@ -687,7 +907,46 @@ class Recorder:
                           chunk_seconds: float | None = None) -> None:
         """Record a whole :class:`~hgo_mj.simulate.Trajectory`: its rows (in blocks of
         ``chunk_seconds`` of simulated time, default one block), its metadata and its metrics
-        (computed with :func:`hgo_mj.metrics.all_metrics` when ``metrics=True``)."""
+        (computed with :func:`hgo_mj.metrics.all_metrics` when ``metrics=True``).
+
+        Parameters
+        ----------
+        traj : Trajectory
+            A run of :func:`hgo_mj.simulate.simulate` with every observer of the recorder.
+        metrics : bool or mapping
+            True: the ``/metrics`` document from :func:`hgo_mj.metrics.all_metrics` (when the
+            run has observers); a mapping: those metrics; False: none.
+        chunk_seconds : float, optional
+            Simulated seconds per block (a long run in several ``send_columns`` calls);
+            default the whole run in one block.
+
+        Raises
+        ------
+        DesignError
+            (from :meth:`write_chunk`) ``traj`` lacks one of the recorder's observers.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hgo_mj.record import read
+        >>> from hgo_mj.inputs import Multisine
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+        >>> from hgo_mj.simulate import simulate
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
+        ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
+        ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.1,
+        ...                 x0=[0.5, 0.0], seed=0)
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder.for_trajectory(Path(tmp) / "run.rrd", traj) as rec:
+        ...         rec.record_trajectory(traj, chunk_seconds=0.05)
+        ...     df = read(Path(tmp) / "run.rrd")
+        >>> len(df), "/scenario" in df.attrs["static"], "/metrics" in df.attrs["static"]
+        (11, True, True)
+        """
         rows = len(traj)
         block = rows
         if chunk_seconds is not None and rows > 1:
@@ -708,7 +967,48 @@ class Recorder:
         """Record rows of a :class:`~hgo_mj.simulate.Trajectory` whose first row is the run's
         row ``first_row`` (the ``step`` timeline). This is the ``simulate(on_chunk=...)``
         callback: ``simulate(..., on_chunk=(1.0, recorder.write_chunk))``; the diagnostics'
-        last row waits for the next chunk or :meth:`close` (see :meth:`record`)."""
+        last row waits for the next chunk or :meth:`close` (see :meth:`record`).
+
+        Parameters
+        ----------
+        first_row : int
+            The run's row index (``step``) of ``chunk``'s first row.
+        chunk : Trajectory
+            Rows of a run, holding every observer of the recorder.
+        rows : slice
+            The rows of ``chunk`` to record (default all).
+        mark_end : bool
+            Log the diagnostics at the last row too (see :meth:`record`); True for a run's
+            last chunk.
+
+        Raises
+        ------
+        DesignError
+            ``chunk`` lacks one of the recorder's observers.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hgo_mj.record import read
+        >>> from hgo_mj.inputs import Multisine
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.sensors import GaussianNoise, SensorChain
+        >>> from hgo_mj.simulate import simulate
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
+        ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
+        ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.1,
+        ...                 x0=[0.5, 0.0], seed=0)
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder.for_trajectory(Path(tmp) / "run.rrd", traj) as rec:
+        ...         rec.write_chunk(0, traj, slice(0, 6))
+        ...         rec.write_chunk(0, traj, slice(6, 11), mark_end=True)
+        ...     df = read(Path(tmp) / "run.rrd")
+        >>> df.index[[0, -1]].tolist()
+        [0, 10]
+        """
         obs = chunk.observers
         missing = [o for o in self.observers if o not in obs]
         if missing:
@@ -729,6 +1029,50 @@ class Recorder:
         Episodes follow each other on ``sim_time`` and ``step`` (each placed after the last,
         whatever its own ``t`` starts at); the ``episode`` timeline holds ``episode``. Arrays
         as in :meth:`record`; ``extra`` (reward, ...) goes under ``/env/<name>``.
+
+        Parameters
+        ----------
+        episode : int
+            The episode's number (the ``episode`` timeline).
+        t : array_like, shape (T,)
+            The episode's times, s; only their differences matter.
+        x, y_meas, u : array_like, shapes (T, n), (T, m), (T, p)
+            True state, measured output and input.
+        y_clean : array_like, shape (T, m), optional
+            Clean output.
+        estimates : mapping observer -> array (T, k), optional
+            The observers' estimates.
+        diagnostics : mapping observer -> mapping key -> array (T,), optional
+            Run-time quantities of the observers.
+        extra : mapping name -> array (T,) or (T, k), optional
+            More series (reward, ...), under ``/env/<name>``.
+
+        Raises
+        ------
+        DimensionError, DesignError
+            As :meth:`record`.
+
+        Examples
+        --------
+        Two episodes of 5 rows each, the second placed after the first:
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> from hgo_mj.record import read
+        >>> t = np.linspace(0.0, 0.04, 5)
+        >>> x = np.zeros((5, 2))
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     with Recorder(Path(tmp) / "env.rrd", state_names=["angle", "angular_velocity"],
+        ...                   output_names=["angle"], input_names=["torque"]) as rec:
+        ...         for ep in range(2):
+        ...             rec.record_episode(ep, t, x, x[:, :1], np.zeros((5, 1)),
+        ...                                extra={"reward": -np.ones(5)})
+        ...     df = read(Path(tmp) / "env.rrd")
+        >>> df["episode"].tolist()
+        [0, 0, 0, 0, 0, 1, 1, 1, 1, 1]
+        >>> float(df["/env/reward"].sum())
+        -10.0
         """
         t = np.asarray(t, dtype=float).reshape(-1)
         if t.size == 0:
@@ -748,7 +1092,30 @@ class Recorder:
             self.stream.flush(timeout_sec=0.0)
 
     def flush(self) -> None:
-        """Send the queued poses and wait until everything recorded so far is written."""
+        """Send the queued poses and wait until everything recorded so far is written.
+
+        Examples
+        --------
+        A file readable while the recorder is still open:
+
+        >>> import tempfile
+        >>> import warnings
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> from hgo_mj.record import read
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     rec = Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+        ...                    output_names=["angle"], input_names=["torque"], footer=False)
+        ...     rec.record(np.arange(3) * 0.01, np.zeros((3, 2)), None, np.zeros((3, 1)),
+        ...                np.zeros((3, 1)))
+        ...     rec.flush()
+        ...     with warnings.catch_warnings():  # no footer yet: rerun warns
+        ...         warnings.simplefilter("ignore")
+        ...         rows = len(read(Path(tmp) / "run.rrd"))
+        ...     rec.close()
+        >>> rows
+        3
+        """
         with _DeferSigint():
             self._send_poses()
         self.stream.flush()
@@ -763,6 +1130,20 @@ class Recorder:
             The file sink did not write everything within :data:`CLOSE_TIMEOUT_S` seconds (a
             failed write: full disk, file too large), or the closed file is not a finalized
             recording (no footer; ``rerun rrd verify`` rejects it).
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     rec = Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+        ...                    output_names=["angle"], input_names=["torque"])
+        ...     rec.record(np.arange(3) * 0.01, np.zeros((3, 2)), None, np.zeros((3, 1)),
+        ...                np.zeros((3, 1)))
+        ...     rec.close()
+        ...     rec.close()  # a second close does nothing
+        ...     check_finalized(rec.path)
         """
         if not self._closed:
             self._closed = True
@@ -795,7 +1176,35 @@ class Recorder:
 
 def check_finalized(path: Any) -> None:
     """Raise :class:`RecordingError` unless ``path`` is a recording that ends in rerun's
-    footer (what ``rerun rrd verify`` checks first); the footer alone is read."""
+    footer (what ``rerun rrd verify`` checks first); the footer alone is read.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.rrd`` file to check.
+
+    Raises
+    ------
+    RecordingError
+        ``path`` is not a readable rerun recording, or it has no footer (a write failed, the
+        file was changed while it was written, or it was written with ``footer=False``).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     with Recorder(Path(tmp) / "run.rrd", state_names=["angle", "angular_velocity"],
+    ...                   output_names=["angle"], input_names=["torque"]) as rec:
+    ...         rec.record([0.0], np.zeros((1, 2)), None, np.zeros((1, 1)), np.zeros((1, 1)))
+    ...     check_finalized(rec.path)  # passes: returns None
+    ...     (Path(tmp) / "torn.rrd").write_bytes(rec.path.read_bytes()[:-8])
+    ...     check_finalized(Path(tmp) / "torn.rrd")
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.RecordingError: the recording ... was not finalized ...
+    """
     import warnings
 
     from rerun.chunk import RrdReader
@@ -842,13 +1251,17 @@ def record_trajectory(traj: Any, path: str | Path, *, model: Any = None,
     >>> from hgo_mj.plants import make_plant
     >>> from hgo_mj.sensors import GaussianNoise, SensorChain
     >>> from hgo_mj.simulate import simulate
-    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> plant = make_plant("pendulum", dt=0.01)
     >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
     ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
-    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.5,
+    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.1,
     ...                 x0=[0.5, 0.0], seed=0)
-    >>> path = record_trajectory(traj, "pendulum.rrd")
-    >>> path.name, path.stat().st_size > 0
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = record_trajectory(traj, Path(tmp) / "pendulum.rrd")
+    ...     size = path.stat().st_size
+    >>> path.name, size > 0
     ('pendulum.rrd', True)
     """
     with Recorder.for_trajectory(path, traj, model=model, **kw) as rec:
@@ -856,5 +1269,4 @@ def record_trajectory(traj: Any, path: str | Path, *, model: Any = None,
     return Path(path)
 
 
-__all__ = ["CLOSE_TIMEOUT_S", "Recorder", "check_finalized", "record_trajectory",
-           "time_columns"]
+__all__ = ["CLOSE_TIMEOUT_S", "Recorder", "check_finalized", "record_trajectory"]
