@@ -52,9 +52,10 @@ def linearize(system: System, x_eq: Any = None, u_eq: Any = None, eps: float = 1
 
     Raises
     ------
-    ValidationError
-        ``x_eq`` or ``u_eq`` not a finite vector of length ``n`` or ``m`` (raised by the
-        shared vector check).
+    DimensionError
+        ``x_eq`` or ``u_eq`` not a vector of length ``n`` or ``m``.
+    DesignError
+        ``x_eq`` or ``u_eq`` with a non-finite entry.
 
     Examples
     --------
@@ -125,9 +126,11 @@ class LinearFeedback(Controller):
     Raises
     ------
     DesignError
-        ``K`` not a finite matrix, or ``saturate`` not a bool (and, from
-        :class:`~hgo_mj.inputs.Controller`, a ``source`` other than ``"estimate"`` or
-        ``"true"``).
+        ``K`` not a finite matrix, ``saturate`` not a bool, or (from
+        :class:`~hgo_mj.inputs.Controller`) a ``source`` other than ``"estimate"`` or
+        ``"true"``.
+    DimensionError
+        ``x_eq``, ``u_eq``, ``x_max`` not of length ``n`` or ``m``, or ``u_max`` not 1-D.
 
     Examples
     --------
@@ -298,9 +301,8 @@ def make_controller(spec: dict[str, Any], system: System) -> LinearFeedback:
     Raises
     ------
     DesignError
-        A ``type`` other than ``"lqr"``, or (from :func:`lqr`) weights it cannot use.
-    ValidationError
-        An unknown key, or a ``u_max`` that is not positive and finite.
+        A ``type`` other than ``"lqr"``, an unknown key, a ``u_max`` that is not positive
+        and finite, or (from :func:`lqr`) weights it cannot use.
 
     Examples
     --------
