@@ -30,7 +30,42 @@ Array = NDArray[np.float64]
 def linearize(system: System, x_eq: Any = None, u_eq: Any = None, eps: float = 1e-6
               ) -> tuple[Array, Array]:
     """``(A, B)``: the Jacobians of ``system.f(0, x, u)`` at ``(x_eq, u_eq)`` by central
-    differences of step ``eps`` (default point: the origin)."""
+    differences of step ``eps`` (default point: the origin).
+
+    Parameters
+    ----------
+    system : System
+        The plant; its ``f(t, x, u)`` is differentiated at ``t = 0``.
+    x_eq : array_like, shape (n,), optional
+        The state of the operating point (default: zeros).
+    u_eq : array_like, shape (m,), optional
+        The input of the operating point (default: zeros).
+    eps : float
+        Step of the central differences (default ``1e-6``).
+
+    Returns
+    -------
+    A : (n, n) ndarray
+        ``df/dx`` at the operating point.
+    B : (n, m) ndarray
+        ``df/du`` at the operating point.
+
+    Raises
+    ------
+    DimensionError
+        ``x_eq`` or ``u_eq`` not a vector of length ``n`` or ``m``.
+    DesignError
+        ``x_eq`` or ``u_eq`` with a non-finite entry.
+
+    Examples
+    --------
+    The pendulum on a cart, linearized at the upright position:
+
+    >>> from hgo_mj.systems import CartPendulum
+    >>> A, B = linearize(CartPendulum())
+    >>> A.round(3).tolist(), B.round(3).tolist()
+    ([[0.0, 1.0], [1.0, 0.0]], [[0.0], [1.0]])
+    """
     n, m = len(system.state_names), len(system.input_names)
     x0 = np.zeros(n) if x_eq is None else vector("x_eq", x_eq, n)
     u0 = np.zeros(m) if u_eq is None else vector("u_eq", u_eq, m)
@@ -80,6 +115,32 @@ class LinearFeedback(Controller):
         Whether ``x_max`` applies (default true; false: the same law unsaturated, to compare).
     source, observer
         As :class:`~hgo_mj.inputs.Controller`.
+
+    Attributes
+    ----------
+    K : (m, n) ndarray
+        The gain.
+    Q, R : ndarray
+        The weights of the cost ``x'Qx + u'Ru`` (identity unless designed by :func:`lqr`).
+
+    Raises
+    ------
+    DesignError
+        ``K`` not a finite matrix, ``saturate`` not a bool, or (from
+        :class:`~hgo_mj.inputs.Controller`) a ``source`` other than ``"estimate"`` or
+        ``"true"``.
+    DimensionError
+        ``x_eq``, ``u_eq``, ``x_max`` not of length ``n`` or ``m``, or ``u_max`` not 1-D.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> law = LinearFeedback([[2.0, 1.0]], u_max=1.0)
+    >>> law.act(0.0, np.array([[0.1, 0.2], [1.0, 1.0]]))
+    array([[-0.4],
+           [-1. ]])
+    >>> law(0.0, np.array([0.1, 0.2]))
+    array([-0.4])
     """
 
     def __init__(self, K: Any, *, x_eq: Any = None, u_eq: Any = None, u_max: Any = None,
@@ -133,11 +194,39 @@ def lqr(system: System, Q: Any = 1.0, R: Any = 1.0, *, x_eq: Any = None, u_eq: A
     with ``P`` the stabilizing solution of ``A'P + PA - P B R^-1 B' P + Q = 0``
     (``scipy.linalg.solve_continuous_are``).
 
+    Parameters
+    ----------
+    system : System
+        The plant, linearized by :func:`linearize`.
+    Q : float or array_like
+        State weight: a number (times the identity), ``n`` diagonal entries or an ``(n, n)``
+        symmetric positive semidefinite matrix (default 1).
+    R : float or array_like
+        Input weight, likewise of size ``m``; positive definite (default 1).
+    x_eq, u_eq : array_like, optional
+        The operating point (default: the origin).
+    u_max, x_max, saturate, source, observer
+        As :class:`LinearFeedback`.
+
+    Returns
+    -------
+    LinearFeedback
+        The law, with the weights ``Q``, ``R`` as matrices in its ``Q`` and ``R`` attributes.
+
     Raises
     ------
     DesignError
         Weights of the wrong shape, or a linearization that LQR cannot stabilize (not
         stabilizable, or ``R`` not positive definite).
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import CartPendulum
+    >>> law = lqr(CartPendulum(), Q=[1.0, 1.0], R=1.0, u_max=1.0)
+    >>> law.K.round(3).tolist()
+    [[2.414, 2.414]]
+    >>> law.R.tolist()
+    [[1.0]]
     """
     from scipy.linalg import solve_continuous_are
 
@@ -163,13 +252,66 @@ def lqr(system: System, Q: Any = 1.0, R: Any = 1.0, *, x_eq: Any = None, u_eq: A
 
 def quadratic_cost(x: Array, u: Array, Q: Array, R: Array, dt: float) -> float:
     """``dt * sum_k (x_k' Q x_k + u_k' R u_k)`` over the rows of ``x`` ``(T, n)`` and ``u``
-    ``(T, m)``: the closed loop's cost by the rectangle rule on the samples."""
+    ``(T, m)``: the closed loop's cost by the rectangle rule on the samples.
+
+    Parameters
+    ----------
+    x : (T, n) ndarray
+        The states, one row per sample.
+    u : (T, m) ndarray
+        The inputs, one row per sample.
+    Q : (n, n) ndarray
+        State weight.
+    R : (m, m) ndarray
+        Input weight.
+    dt : float
+        Sampling period, s.
+
+    Returns
+    -------
+    float
+        The cost.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> quadratic_cost(np.ones((10, 2)), np.zeros((10, 1)), np.eye(2), np.eye(1), dt=0.01)
+    0.2
+    """
     return float(dt * (np.einsum("ti,ij,tj->", x, Q, x) + np.einsum("ti,ij,tj->", u, R, u)))
 
 
 def make_controller(spec: dict[str, Any], system: System) -> LinearFeedback:
     """A controller from a scenario's ``[controller]`` table: ``type = "lqr"`` with ``Q``,
-    ``R``, ``x_eq``, ``u_eq``, ``u_max``, ``x_max``, ``saturate``, ``source``, ``observer``."""
+    ``R``, ``x_eq``, ``u_eq``, ``u_max``, ``x_max``, ``saturate``, ``source``, ``observer``.
+
+    Parameters
+    ----------
+    spec : dict
+        The table's entries (as read from TOML); ``type`` defaults to ``"lqr"``, the other
+        keys are :func:`lqr`'s arguments. The mapping itself is not modified.
+    system : System
+        The plant the law is designed for.
+
+    Returns
+    -------
+    LinearFeedback
+        The law designed by :func:`lqr`.
+
+    Raises
+    ------
+    DesignError
+        A ``type`` other than ``"lqr"``, an unknown key, a ``u_max`` that is not positive
+        and finite, or (from :func:`lqr`) weights it cannot use.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import CartPendulum
+    >>> law = make_controller({"type": "lqr", "Q": [1.0, 1.0], "R": 1.0, "u_max": 5.0},
+    ...                       CartPendulum())
+    >>> law.K.round(3).tolist(), law.u_max.tolist()
+    ([[2.414, 2.414]], [5.0])
+    """
     from ._validate import reject_unknown
 
     spec = dict(spec)

@@ -21,9 +21,35 @@ from .exceptions import DesignError, DimensionError
 
 Array = NDArray[np.float64]
 
+__all__ = ["binomial_coefficients", "bullinger_theorem3_bound", "check_hurwitz",
+           "check_riccati_alpha", "hgo_gains", "lipschitz_condition", "max_sampling_period",
+           "min_gamma", "observer_matrix", "riccati_P", "riccati_Q", "riccati_gains",
+           "riccati_weights", "riccati_weights_as_printed", "sampling_lmi_62", "sampling_lmi_63"]
+
 
 def binomial_coefficients(n: int) -> Array:
-    """``p_i = C(n, i)``: the polynomial ``(s + 1)^n``, all observer poles at ``-k`` (paper 000, eq. 3)."""
+    """``p_i = C(n, i)``: the polynomial ``(s + 1)^n``, all observer poles at ``-k`` (paper 000, eq. 3).
+
+    Parameters
+    ----------
+    n : int
+        The order, >= 1.
+
+    Returns
+    -------
+    (n,) ndarray
+        ``p_1 .. p_n``.
+
+    Raises
+    ------
+    DesignError
+        ``n`` not a positive integer.
+
+    Examples
+    --------
+    >>> binomial_coefficients(3)
+    array([3., 3., 1.])
+    """
     if int(n) != n or n < 1:
         raise DesignError(f"order n must be a positive integer; found {n!r}")
     return np.array([comb(int(n), i) for i in range(1, int(n) + 1)], dtype=float)
@@ -32,10 +58,32 @@ def binomial_coefficients(n: int) -> Array:
 def check_hurwitz(p: Any, name: str = "p") -> Array:
     """Validate that ``s^n + p_1 s^(n-1) + ... + p_n`` is Hurwitz and return ``p`` as an array.
 
+    Parameters
+    ----------
+    p : array_like, shape (n,)
+        The coefficients ``p_1 .. p_n``.
+    name : str, default "p"
+        The parameter's name, for the messages.
+
+    Returns
+    -------
+    (n,) ndarray
+        ``p`` as floats.
+
     Raises
     ------
     DesignError
-        If a root has a non-negative real part; the message lists the offending roots.
+        If a root has a non-negative real part; the message lists the offending roots; or
+        ``p`` is empty or not finite.
+
+    Examples
+    --------
+    >>> check_hurwitz([2.0, 1.0])
+    array([2., 1.])
+    >>> check_hurwitz([-1.0, 1.0])
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: p must give a Hurwitz polynomial ... have non-negative real part
     """
     p = vector(name, p)
     if p.size == 0:
@@ -60,6 +108,21 @@ def hgo_gains(p: Any, k: float) -> Array:
         Coefficients of a Hurwitz polynomial ``s^n + p_1 s^{n-1} + ... + p_n``.
     k : float
         High-gain parameter, ``k > 0``; the observer poles are ``k`` times the roots of ``p``.
+
+    Returns
+    -------
+    (n,) ndarray
+        ``L = (p_1 k, p_2 k^2, ..., p_n k^n)``.
+
+    Raises
+    ------
+    DesignError
+        ``p`` not Hurwitz, ``k`` not positive, or gains that overflow the floats.
+
+    Examples
+    --------
+    >>> hgo_gains([2.0, 1.0], k=10.0)
+    array([ 20., 100.])
     """
     p = check_hurwitz(p)
     k = finite_scalar("k", k, positive=True)
@@ -72,7 +135,26 @@ def hgo_gains(p: Any, k: float) -> Array:
 
 
 def observer_matrix(p: Any, k: float) -> Array:
-    """The error-dynamics matrix ``A_k = A - L C`` (paper 000, eq. 6: ``A_k = k K Abar K^-1``)."""
+    """The error-dynamics matrix ``A_k = A - L C`` (paper 000, eq. 6: ``A_k = k K Abar K^-1``).
+
+    Parameters
+    ----------
+    p : array_like, shape (n,)
+        Hurwitz coefficients.
+    k : float
+        High-gain parameter, > 0.
+
+    Returns
+    -------
+    (n, n) ndarray
+        The chain of integrators with ``-L`` (:func:`hgo_gains`) in its first column.
+
+    Examples
+    --------
+    >>> observer_matrix([2.0, 1.0], k=10.0)
+    array([[ -20.,    1.],
+           [-100.,    0.]])
+    """
     L = hgo_gains(p, k)
     n = L.size
     A = np.diag(np.ones(n - 1), 1)
@@ -113,9 +195,24 @@ def riccati_weights(alpha: Any) -> Array:
     ``(alpha_i gamma^i)`` (``alpha = (4, 6, 4, 1)``: printed ``q_22 = 16``, the gain becomes
     ``(4.27, 7.10, 4.27, 1)``). :func:`riccati_weights_as_printed` evaluates the printed form.
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        The coefficients ``alpha_1 .. alpha_n`` of (9).
+
+    Returns
+    -------
+    (n,) ndarray
+        ``q_1 .. q_n`` (the weights at ``gamma = 1``).
+
     References
     ----------
     Paper 004 (Ibrir 2007), eq. 8, 10, 17 (Lemma 4).
+
+    Examples
+    --------
+    >>> riccati_weights([4, 6, 4, 1])
+    array([4., 6., 4., 1.])
     """
     a = vector("alpha", alpha)
     n = a.size
@@ -135,6 +232,21 @@ def riccati_weights_as_printed(alpha: Any) -> Array:
         \\ (2 \\le i \\le n-1), \\quad q_{n,n} = \\alpha_n^2.
 
     See :func:`riccati_weights` for the correct weights (eq. 17).
+
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        The coefficients ``alpha_1 .. alpha_n`` of (9).
+
+    Returns
+    -------
+    (n,) ndarray
+        The printed ``q_ii(1)``.
+
+    Examples
+    --------
+    >>> riccati_weights_as_printed([4, 6, 4, 1])    # q_22 = 16, not 6 (eq. 17)
+    array([ 4., 16.,  4.,  1.])
     """
     a = vector("alpha", alpha)
     n = a.size
@@ -157,6 +269,18 @@ def check_riccati_alpha(alpha: Any, name: str = "alpha") -> Array:
     Condition (10) is checked in its corrected form, the positivity of the weights of eq. 17
     (:func:`riccati_weights`): ``Q(gamma) > 0``, which Lemma 3 needs.
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        The coefficients ``alpha_1 .. alpha_n``.
+    name : str, default "alpha"
+        The parameter's name, for the messages.
+
+    Returns
+    -------
+    (n,) ndarray
+        ``alpha`` as floats.
+
     Raises
     ------
     DesignError
@@ -165,6 +289,11 @@ def check_riccati_alpha(alpha: Any, name: str = "alpha") -> Array:
     References
     ----------
     Paper 004 (Ibrir 2007), eq. 9, 10, 17.
+
+    Examples
+    --------
+    >>> check_riccati_alpha([2.0, 1.0])
+    array([2., 1.])
     """
     a = check_hurwitz(alpha, name)
     q = riccati_weights(a)
@@ -179,9 +308,27 @@ def check_riccati_alpha(alpha: Any, name: str = "alpha") -> Array:
 def riccati_Q(alpha: Any, gamma: float) -> Array:
     """``Q(gamma) = diag(q_i gamma^(2i))`` of eq. 8 (weights of eq. 17, see :func:`riccati_weights`).
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        Hurwitz coefficients meeting condition (10).
+    gamma : float
+        High-gain parameter, > 0.
+
+    Returns
+    -------
+    (n, n) ndarray
+        The diagonal weight matrix.
+
     References
     ----------
     Paper 004 (Ibrir 2007), eq. 8, 17.
+
+    Examples
+    --------
+    >>> riccati_Q([2.0, 1.0], gamma=10.0)
+    array([[  200.,     0.],
+           [    0., 10000.]])
     """
     a = check_riccati_alpha(alpha)
     g = finite_scalar("gamma", gamma, positive=True)
@@ -210,6 +357,11 @@ def riccati_P(alpha: Any, gamma: float, *, scaled: bool = True) -> Array:
         ``False``: solve the ARE at ``gamma`` directly (entries spanning ``gamma`` to
         ``gamma^(2n-1)``).
 
+    Returns
+    -------
+    (n, n) ndarray
+        The symmetric positive definite ``P(gamma)``.
+
     Raises
     ------
     DesignError
@@ -219,6 +371,12 @@ def riccati_P(alpha: Any, gamma: float, *, scaled: bool = True) -> Array:
     References
     ----------
     Paper 004 (Ibrir 2007), Theorem 1 (eq. 6-8), Lemma 4 (eq. 15-21), eq. 46.
+
+    Examples
+    --------
+    >>> riccati_P([2.0, 1.0], gamma=10.0).round(6)
+    array([[  20.,  100.],
+           [ 100., 2000.]])
     """
     from scipy.linalg import solve_continuous_are
 
@@ -252,9 +410,28 @@ def riccati_gains(alpha: Any, gamma: float, *, scaled: bool = True) -> Array:
     Computed as the first column of :func:`riccati_P`, not from the closed form; the closed
     form is what Lemma 4 proves and what the tests hold it against.
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        Hurwitz coefficients meeting condition (10).
+    gamma : float
+        High-gain parameter, > 0.
+    scaled : bool, default True
+        As :func:`riccati_P`.
+
+    Returns
+    -------
+    (n,) ndarray
+        The gain ``P(gamma) C'``.
+
     References
     ----------
     Paper 004 (Ibrir 2007), Theorem 1 (eq. 6), Lemma 4 (eq. 15).
+
+    Examples
+    --------
+    >>> riccati_gains([2.0, 1.0], gamma=10.0).round(6)     # (alpha_1 gamma, alpha_2 gamma^2)
+    array([ 20., 100.])
     """
     return riccati_P(alpha, gamma, scaled=scaled)[:, 0].copy()
 
@@ -323,6 +500,15 @@ def lipschitz_condition(alpha: Any, gamma: float, rho: float | None = None) -> d
     (tested against an exact-arithmetic reference up to ``gamma = 1e4``), where the direct
     evaluation loses ``P(gamma) > 0`` from ``gamma ~ 10^3`` (n = 4) or ``gamma ~ 1`` (n = 6).
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        Hurwitz coefficients meeting condition (10).
+    gamma : float
+        High-gain parameter, > 0.
+    rho : float, optional
+        A Lipschitz constant to test against the bound, > 0.
+
     Returns
     -------
     dict
@@ -339,6 +525,12 @@ def lipschitz_condition(alpha: Any, gamma: float, rho: float | None = None) -> d
     References
     ----------
     Paper 004 (Ibrir 2007), Theorem 1, eq. 5, 20, 24, 25.
+
+    Examples
+    --------
+    >>> c = lipschitz_condition([2.0, 1.0], gamma=10.0, rho=1.0)
+    >>> round(c["rho_bound"], 4), c["satisfied"]
+    (1.8278, True)
     """
     a = check_riccati_alpha(alpha)
     g = finite_scalar("gamma", gamma, positive=True)
@@ -359,9 +551,34 @@ def min_gamma(alpha: Any, rho: float, *, rtol: float = 1e-10) -> float:
     end of the final bracket, so it meets (5). Condition (5) is evaluated in rescaled
     coordinates (:func:`_condition5_sides`, ``P(1)`` computed once), accurate for any ``gamma``.
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        Hurwitz coefficients meeting condition (10).
+    rho : float
+        The Lipschitz constant of ``phi``, > 0.
+    rtol : float, default 1e-10
+        Relative width of the final bisection bracket.
+
+    Returns
+    -------
+    float
+        The smallest ``gamma`` (to ``rtol``) with ``rho <= rho_bound(gamma)``.
+
+    Raises
+    ------
+    DesignError
+        ``alpha`` fails :func:`check_riccati_alpha`, or no ``gamma <= 1e12`` meets (5).
+
     References
     ----------
     Paper 004 (Ibrir 2007), Theorem 1, eq. 5 and its proof (eq. 20, 25-31).
+
+    Examples
+    --------
+    >>> g = min_gamma([2.0, 1.0], rho=1.0)
+    >>> round(g, 4), lipschitz_condition([2.0, 1.0], g, rho=1.0)["satisfied"]
+    (5.4873, True)
     """
     a = check_riccati_alpha(alpha)
     r = finite_scalar("rho", rho, positive=True)
@@ -463,6 +680,21 @@ def sampling_lmi_63(alpha: Any, gamma: float, M: Any, N: Any, delta: float,
     check a published pair ``(delta, tau)``); otherwise ``tau`` is chosen by cvxpy/Clarabel to
     make the largest eigenvalue of the (Jacobi-scaled) matrix as negative as possible.
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        Hurwitz coefficients meeting condition (10).
+    gamma : float
+        High-gain parameter, > 0.
+    M : array_like, shape (n, m1)
+        Left factor of the Lipschitz structure (55).
+    N : array_like, shape (m2, n)
+        Right factor of the Lipschitz structure (55).
+    delta : float
+        Sampling period, > 0.
+    tau : float, optional
+        The multiplier, >= 0; default chosen by the solver.
+
     Returns
     -------
     dict
@@ -471,6 +703,13 @@ def sampling_lmi_63(alpha: Any, gamma: float, M: Any, N: Any, delta: float,
     References
     ----------
     Paper 004 (Ibrir 2007), Theorem 2, eq. 63.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, N = np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]])  # phi with |dphi/dx_1| < 1
+    >>> sampling_lmi_63([3, 2], 6.0, M, N, delta=0.05, tau=0.014)["feasible"]
+    True
     """
     d = finite_scalar("delta", delta, positive=True)
     P = riccati_P(alpha, gamma)
@@ -525,15 +764,49 @@ def sampling_lmi_62(M: Any, N: Any, delta: float, *, order: int | None = None,
     ``t`` (matrix ``<= -t I``, ``X >= t I``, ``epsilon >= t``, ``trace X <= x_bound``):
     feasible when ``t > 0``. With ``X`` and ``epsilon`` given, they are only checked.
 
+    Parameters
+    ----------
+    M : array_like, shape (n, m1)
+        Left factor of the Lipschitz structure (55).
+    N : array_like, shape (m2, n)
+        Right factor of the Lipschitz structure (55).
+    delta : float
+        Sampling period, > 0.
+    order : int, optional
+        ``n``; default the number of rows of ``M``.
+    X : array_like, shape (n, n), optional
+        A candidate ``X`` to check (with ``epsilon``) instead of solving.
+    epsilon : float, optional
+        The candidate ``epsilon > 0`` that goes with ``X``.
+    x_bound : float, default 1e4
+        Bound on ``trace X`` when solving.
+
     Returns
     -------
     dict
         ``feasible``, ``margin`` (``t``, or minus the largest eigenvalue when checking),
         ``X``, ``epsilon``, ``gain`` (``X^{-1} C'``), ``status``.
 
+    Raises
+    ------
+    DimensionError
+        ``M``, ``N`` or ``X`` of the wrong shape.
+    DesignError
+        A non-finite ``M`` or ``N``, or a bad ``delta`` or ``epsilon``.
+
     References
     ----------
     Paper 004 (Ibrir 2007), section 3, eq. 51, 54-62.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, N = np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]])  # phi with |dphi/dx_1| < 1
+    >>> r = sampling_lmi_62(M, N, delta=0.01)
+    >>> r["feasible"], r["gain"].shape
+    (True, (2,))
+    >>> sampling_lmi_62(M, N, 0.01, X=r["X"], epsilon=r["epsilon"])["status"]
+    'given'
     """
     d = finite_scalar("delta", delta, positive=True)
     Marr = np.asarray(M, dtype=float)
@@ -612,6 +885,21 @@ def max_sampling_period(alpha: Any, gamma: float, M: Any, N: Any, *, lmi: str = 
     Solved with cvxpy and the Clarabel solver; (65) with a small margin (``<= -1e-9 I`` on the
     Jacobi-scaled matrix), so the bound is strict.
 
+    Parameters
+    ----------
+    alpha : array_like, shape (n,)
+        Hurwitz coefficients meeting condition (10).
+    gamma : float
+        High-gain parameter, > 0.
+    M : array_like, shape (n, m1)
+        Left factor of the Lipschitz structure (55).
+    N : array_like, shape (m2, n)
+        Right factor of the Lipschitz structure (55).
+    lmi : {"63", "62"}, default "63"
+        Which certificate (above).
+    rtol : float, default 1e-5
+        Relative tolerance of the bisection (``lmi="62"``).
+
     Returns
     -------
     dict
@@ -626,6 +914,14 @@ def max_sampling_period(alpha: Any, gamma: float, M: Any, N: Any, *, lmi: str = 
     References
     ----------
     Paper 004 (Ibrir 2007), section 3: eq. 53, 55, 62, 63 (Theorem 2), 65.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, N = np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]])  # phi with |dphi/dx_1| < 1
+    >>> r = max_sampling_period([3, 2], 6.0, M, N)
+    >>> round(r["delta_max"], 3), r["status"]
+    (0.092, 'optimal')
     """
     import time
 
@@ -721,6 +1017,11 @@ def bullinger_theorem3_bound(p: Any, mu: float, k0: float) -> Array:
     References
     ----------
     Paper 000 (Bullinger, Ilchmann, Allgöwer 1998), Theorem 3, eq. 14; eq. 6 and 7.
+
+    Examples
+    --------
+    >>> bullinger_theorem3_bound([2.0, 1.0], mu=1.0, k0=10.0).round(5)
+    array([0.03414, 0.34142])
     """
     from scipy.linalg import solve_continuous_lyapunov
 

@@ -36,9 +36,35 @@ from .exceptions import DesignError
 
 Array = NDArray[np.float64]
 
+__all__ = ["PER_STATE", "all_metrics", "format_table", "metrics_frame", "observer_metrics",
+           "settling_time"]
+
 
 def settling_time(t: Array, err: Array, band: float | Array) -> Array:
-    """First time after which ``|err|`` stays within ``band``, per column (``inf``: never)."""
+    """First time after which ``|err|`` stays within ``band``, per column (``inf``: never).
+
+    Parameters
+    ----------
+    t : (T,) ndarray
+        Sample times, increasing.
+    err : (T, n) ndarray
+        Errors, one column per state (NaN or inf count as outside).
+    band : float or (n,) ndarray
+        Absolute tolerance, one for all columns or one per column.
+
+    Returns
+    -------
+    (n,) ndarray
+        Per column the time of the first sample from which ``|err| <= band`` holds to the
+        end: ``t[0]`` if always inside, ``inf`` if the last sample is outside.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> err = np.array([[1.0, 0.0], [0.5, 0.0], [0.01, 0.2], [0.02, 0.0], [0.0, 0.0]])
+    >>> settling_time(np.arange(5) * 0.1, err, 0.05)
+    array([0.2, 0.3])
+    """
     inside = np.abs(err) <= np.asarray(band)
     out = np.full(err.shape[1], np.inf)
     for j in range(err.shape[1]):
@@ -52,7 +78,48 @@ def settling_time(t: Array, err: Array, band: float | Array) -> Array:
 
 def observer_metrics(traj: Any, observer: str, *, t_transient: float | None = None,
                      band: float = 0.05, relative: bool = True) -> dict[str, Any]:
-    """Metrics of one observer (see the module docstring); values are lists over states."""
+    """Metrics of one observer (see the module docstring); values are lists over states.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`hgo_mj.simulate.simulate`.
+    observer : str
+        The observer's name in ``traj.observers``.
+    t_transient : float, optional
+        Start of the ``rmse`` window, in the run's time unit, >= 0; default the first 20 % of
+        the run.
+    band : float, default 0.05
+        Settling band, > 0.
+    relative : bool, default True
+        The band is relative to each true state's range (``ptp``); False: absolute.
+
+    Returns
+    -------
+    dict
+        ``states``, ``estimated``, ``rmse``, ``peak``, ``settling_time``, ``final``,
+        ``undefined_samples`` (lists over the plant's states, ``None`` where not estimated),
+        ``extra_states``, ``update_time`` (s), ``t_transient``, ``band`` and
+        ``band_relative_to_range``.
+
+    Raises
+    ------
+    DesignError
+        An observer the trajectory does not have, a bad ``t_transient`` or ``band``, or a
+        ``t_transient`` that leaves no samples.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", dt=0.01)
+    >>> traj = simulate(plant, None, {"hgo": HighGainObserver(plant.system, k=30.0)},
+    ...                 lambda t: [0.0], duration=0.5, x0=[0.2, 0.0])
+    >>> m = observer_metrics(traj, "hgo", t_transient=0.25)
+    >>> m["states"], m["estimated"], m["settling_time"]
+    (['angle', 'angular_velocity'], [True, True], [0.15, inf])
+    """
     if observer not in traj.observers:
         raise DesignError(f"no observer {observer!r} in the trajectory; found "
                           f"{sorted(traj.observers)}")

@@ -29,6 +29,8 @@ from .units import bracket, units_of
 
 TRUE_COLOR = "black"
 
+__all__ = ["plot_monte_carlo", "plot_trajectory", "subplots"]
+
 
 def _finite_range(*arrays: Any) -> tuple[float, float] | None:
     """``(min, max)`` over the finite values of the arrays, or ``None`` if there are none."""
@@ -49,7 +51,34 @@ def _colors() -> list[str]:
 def subplots(*args: Any, figsize: tuple[float, float] | None = None, layout: Any = None,
              **kw: Any) -> tuple[Any, Any]:
     """``pyplot.subplots`` without pyplot: a :class:`~matplotlib.figure.Figure` (no backend,
-    no global state) and its axes (``Figure.subplots(*args, **kw)``)."""
+    no global state) and its axes (``Figure.subplots(*args, **kw)``).
+
+    Parameters
+    ----------
+    *args
+        ``nrows, ncols`` of the grid (default ``1, 1``), as :meth:`matplotlib.figure.Figure.
+        subplots`.
+    figsize : tuple of float, optional
+        ``(width, height)`` in inches; default matplotlib's ``figure.figsize``.
+    layout : str or LayoutEngine, optional
+        The figure's layout engine (``"constrained"``, ``"tight"``); default none.
+    **kw
+        Passed to :meth:`matplotlib.figure.Figure.subplots` (``sharex``, ``squeeze``, ...).
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+        Not attached to pyplot (save it with ``fig.savefig(path)``).
+    axes : matplotlib.axes.Axes or numpy.ndarray of Axes
+        One axes, or the ``(nrows, ncols)`` array of them (squeezed as by pyplot).
+
+    Examples
+    --------
+    >>> fig, axes = subplots(2, 1, figsize=(4, 3), sharex=True)
+    >>> axes.shape, fig.get_size_inches().tolist()
+    ((2,), [4.0, 3.0])
+    >>> line, = axes[0].plot([0.0, 1.0], [0.0, 2.0])
+    """
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=figsize, layout=layout)
@@ -81,15 +110,18 @@ def plot_trajectory(traj: Any, *, title: str = "") -> Any:
     >>> from hgo_mj.plants import make_plant
     >>> from hgo_mj.sensors import GaussianNoise, SensorChain
     >>> from hgo_mj.simulate import simulate
-    >>> plant = make_plant("pendulum", dt=0.001)
+    >>> plant = make_plant("pendulum", dt=0.01)
     >>> traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
     ...                 {"k40": HighGainObserver(plant.system, k=40.0)},
-    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.5,
+    ...                 Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=0.1,
     ...                 x0=[0.5, 0.0], seed=0)
     >>> fig = plot_trajectory(traj, title="pendulum")
     >>> [ax.get_ylabel() for ax in fig.axes[:2]]
     ['angle [rad]', 'error angle [rad]']
-    >>> fig.savefig("pendulum.png")
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     fig.savefig(Path(tmp) / "pendulum.png")
     """
     from matplotlib.figure import Figure
 
@@ -185,6 +217,7 @@ def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | No
     Returns
     -------
     matplotlib.figure.Figure
+        One panel per estimated state (at most 4 a row); not attached to pyplot.
 
     Examples
     --------

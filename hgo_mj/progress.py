@@ -29,7 +29,23 @@ T = TypeVar("T")
 
 
 def seconds(s: float) -> str:
-    """A duration for people: ``"12 s"``, ``"3.5 min"``, ``"1.2 h"`` (at least ``"1 s"``)."""
+    """A duration for people: ``"12 s"``, ``"3.5 min"``, ``"1.2 h"`` (at least ``"1 s"``).
+
+    Parameters
+    ----------
+    s : float
+        A duration in seconds.
+
+    Returns
+    -------
+    str
+        Whole seconds below a minute, minutes with one decimal below an hour, else hours.
+
+    Examples
+    --------
+    >>> [seconds(v) for v in (0.2, 12.4, 90.0, 7200.0)]
+    ['1 s', '12 s', '1.5 min', '2.0 h']
+    """
     if s < 60:
         return f"{s:.0f} s" if s >= 1 else "1 s"
     if s < 3600:
@@ -55,6 +71,19 @@ class Progress:
     echo : callable, optional
         Where the lines go instead of stderr (one string a call); with ``echo`` there is never
         a bar.
+
+    Examples
+    --------
+    >>> lines = []
+    >>> with Progress(20, unit="case", desc="grid", echo=lines.append) as p:
+    ...     for _ in range(20):
+    ...         p.add()
+    >>> len(lines), lines[0].split(",")[0], lines[-1].split(",")[0]
+    (10, 'grid:  10% 2/20 cases', 'grid: 100% 20/20 cases')
+    >>> with Progress(5, quiet=True) as p:  # nothing shown
+    ...     p.add(5)
+    >>> p.done
+    5
     """
 
     def __init__(self, total: int, *, unit: str = "run", desc: str = "", quiet: bool = False,
@@ -72,7 +101,22 @@ class Progress:
                             dynamic_ncols=True)
 
     def add(self, n: int = 1) -> None:
-        """``n`` more units done."""
+        """``n`` more units done.
+
+        Parameters
+        ----------
+        n : int
+            Units just finished; a step that crosses several tenths of the work writes one
+            line.
+
+        Examples
+        --------
+        >>> lines = []
+        >>> p = Progress(4, echo=lines.append)
+        >>> p.add(3)
+        >>> p.done, lines[0].split(",")[0]
+        (3, ' 75% 3/4 runs')
+        """
         self.done += n
         if self.quiet:
             return
@@ -92,7 +136,17 @@ class Progress:
             self.next_tenth = tenth + 1
 
     def close(self) -> None:
-        """End the bar (the lines need no end)."""
+        """End the bar (the lines need no end).
+
+        Examples
+        --------
+        >>> p = Progress(2, echo=print)
+        >>> p.add(2)  # doctest: +ELLIPSIS
+        100% 2/2 runs, ... elapsed, ETA 1 s
+        >>> p.close()
+        >>> p.bar is None
+        True
+        """
         if self.bar is not None:
             self.bar.close()
             self.bar = None
@@ -107,7 +161,31 @@ class Progress:
 def track(items: Iterable[T], *, total: int | None = None, unit: str = "run", desc: str = "",
           quiet: bool = False) -> Iterator[T]:
     """Iterate over ``items``, showing a :class:`Progress` of them (``total`` defaults to
-    ``len(items)``)."""
+    ``len(items)``).
+
+    Parameters
+    ----------
+    items : iterable
+        What to iterate over; an iterable without ``len`` is read into a list first unless
+        ``total`` is given.
+    total : int, optional
+        Units of work; default ``len(items)``.
+    unit, desc, quiet
+        As :class:`Progress`.
+
+    Yields
+    ------
+    object
+        Each item of ``items``, in order; the progress advances after the caller's work on
+        it.
+
+    Examples
+    --------
+    >>> [x * x for x in track(range(4), unit="part", quiet=True)]
+    [0, 1, 4, 9]
+    >>> sum(track((i for i in range(10)), total=10, quiet=True))
+    45
+    """
     items = list(items) if total is None and not hasattr(items, "__len__") else items
     n = len(items) if total is None else total  # type: ignore[arg-type]
     with Progress(n, unit=unit, desc=desc, quiet=quiet) as progress:

@@ -130,12 +130,48 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
     """Check a scenario document against :data:`SCHEMA` (types, unknown and missing keys;
     ``required=False``: a file whose missing keys the command line may still give).
 
+    Parameters
+    ----------
+    sc : mapping
+        The scenario document: top-level keys ``name``, ``plant``, ``sensor``, ``observers``,
+        ``input``, ``controller``, ``run`` (a parsed TOML file, ``tomllib.loads(text)``).
+    required : bool
+        Require the keys of :data:`REQUIRED` (``plant.name`` unless the plant is an MJCF
+        file or an ODE, and ``run.duration``) and reject ``outputs``/``inputs`` beside a
+        registered plant's ``name``; ``False`` for a file the command line completes.
+
     Raises
     ------
     DesignError
         The first key whose value is not of its type, an unknown key (the valid ones
         listed) or a missing required key; the message names the key (``run.duration``,
-        ``observers[1].type``), what was expected and what was found.
+        ``observers[1].type``), what was expected and what was found. Also: ``sc`` is not a
+        table; an observer without ``type``; a ``[plant]`` that mixes a registered name, an
+        MJCF ``model`` and an ODE (``states``, ``f``, ``h``) or lacks part of one; an unknown
+        plant name (the valid ones listed).
+
+    Examples
+    --------
+    >>> import tomllib
+    >>> sc = tomllib.loads('''
+    ... [plant]
+    ... name = "pendulum"
+    ... [[observers]]
+    ... type = "high_gain"
+    ... k = 40.0
+    ... [run]
+    ... duration = 2.0
+    ... ''')
+    >>> check_scenario(sc)  # valid: returns None
+    >>> check_scenario({"plant": {"name": "pendulum"}, "run": {"duration": "1"}})
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: run.duration must be a real number > 0; found '1' (str)
+    >>> check_scenario({"plant": {"name": "pendulum"}})
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: scenario needs run.duration: [run] duration = SECONDS or --duration SECONDS
+    >>> check_scenario({"plant": {"name": "pendulum"}}, required=False)
     """
     if not isinstance(sc, Mapping):
         raise DesignError(f"a scenario must be a table; found {sc!r}")
@@ -174,4 +210,4 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
             raise DesignError(f"scenario needs {path}: {hint}")
 
 
-__all__ = ["KINDS", "OPEN", "REQUIRED", "SCHEMA", "check_scenario", "check_value"]
+__all__ = ["KINDS", "OPEN", "REQUIRED", "SCHEMA", "check_scenario"]

@@ -122,11 +122,41 @@ def to_pandas(traj: Any, form: str = "wide") -> Any:
     docstring); ``attrs["units"]`` maps each wide column to its unit, ``attrs["hgo_mj"]`` is
     the schema metadata.
 
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`hgo_mj.simulate.simulate` (``traj.to_pandas(form)`` calls this).
+    form : {"wide", "long"}
+        Wide: one row per sample, ``T`` rows; long: one row per sample and wide column
+        (``t`` excepted), columns ``t``, ``source``, ``name``, ``value``, ``unit``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The table; ``attrs["units"]`` is ``{wide column: unit or None}``, ``attrs["hgo_mj"]``
+        the strict-JSON schema metadata (form, units, time unit, names, run metadata).
+
     Raises
     ------
     DesignError
         ``form`` is not ``"wide"`` or ``"long"``; an observer's name would collide with the
         reserved column sources or contains ``/``.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Constant
+    >>> from hgo_mj.observers import make_observer
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", 0.01)
+    >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system, k=20.0)},
+    ...                 Constant(0.0), duration=0.05)
+    >>> df = to_pandas(traj)
+    >>> df.shape, list(df.columns[-3:])
+    ((6, 10), ['measured/angle', 'clean/angle', 'input/torque'])
+    >>> long = to_pandas(traj, "long")
+    >>> len(long) == 6 * 9, long.loc[0, ["source", "name", "unit"]].tolist()
+    (True, ['true', 'angle', 'rad'])
     """
     import pandas as pd
 
@@ -152,7 +182,41 @@ def to_pandas(traj: Any, form: str = "wide") -> Any:
 def to_arrow(traj: Any, form: str = "wide") -> Any:
     """The trajectory as a :class:`pyarrow.Table` in the wide or long form; in the wide form
     every field with a known unit carries it in its metadata (``field.metadata[b"unit"]``),
-    and the schema metadata ``b"hgo_mj"`` holds :func:`schema_metadata` as JSON."""
+    and the schema metadata ``b"hgo_mj"`` holds ``schema_metadata`` as JSON.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`hgo_mj.simulate.simulate` (``traj.to_arrow(form)`` calls this).
+    form : {"wide", "long"}
+        The table's form (see :func:`to_pandas`).
+
+    Returns
+    -------
+    pyarrow.Table
+        float64 columns (``source``, ``name`` and ``unit`` of the long form are strings).
+
+    Raises
+    ------
+    DesignError
+        As :func:`to_pandas`: an unknown ``form`` or an observer name unfit for a column.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Constant
+    >>> from hgo_mj.observers import make_observer
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", 0.01)
+    >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system, k=20.0)},
+    ...                 Constant(0.0), duration=0.05)
+    >>> table = to_arrow(traj)
+    >>> table.num_rows, table.schema.field("true/angular_velocity").metadata
+    (6, {b'unit': b'rad/s'})
+    >>> import json
+    >>> json.loads(table.schema.metadata[b"hgo_mj"])["time_unit"]
+    's'
+    """
     import pyarrow as pa
     from pandas.api.types import is_numeric_dtype
 
@@ -171,7 +235,52 @@ def write_table(traj: Any, path: str | Path, fmt: str = "parquet", form: str = "
     """Write the trajectory's table to ``path`` atomically: ``fmt`` ``"parquet"`` (units and
     metadata in the schema) or ``"csv"`` (the columns only; the units in a ``# units:`` line
     would break plain readers, so a CSV carries none: read them from the Parquet file or
-    :attr:`~hgo_mj.systems.base.System.state_units`)."""
+    :attr:`~hgo_mj.systems.base.System.state_units`).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`hgo_mj.simulate.simulate`.
+    path : str or Path
+        The file to write (its folder is created; replaced whole, never left half-written).
+    fmt : {"parquet", "csv"}
+        The file format (:data:`FILE_FORMATS`).
+    form : {"wide", "long"}
+        The table's form (see :func:`to_pandas`).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    DesignError
+        ``fmt`` is not ``"parquet"`` or ``"csv"``; or, from :func:`to_pandas`, an unknown
+        ``form`` or an observer name unfit for a column.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import pandas as pd
+    >>> from hgo_mj.inputs import Constant
+    >>> from hgo_mj.observers import make_observer
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", 0.01)
+    >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system, k=20.0)},
+    ...                 Constant(0.0), duration=0.05)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = write_table(traj, Path(tmp) / "run.parquet")
+    ...     df = pd.read_parquet(path)
+    ...     units = read_units(path)
+    ...     csv = write_table(traj, Path(tmp) / "run.csv", fmt="csv").read_text()
+    >>> path.name, df.shape, units["hgo/angle"]
+    ('run.parquet', (6, 10), 'rad')
+    >>> csv.splitlines()[0].split(",")[:3]
+    ['t', 'true/angle', 'true/angular_velocity']
+    """
     if fmt not in FILE_FORMATS:
         raise DesignError(f"table format must be one of {list(FILE_FORMATS)}; found {fmt!r}")
     path = Path(path)
@@ -187,7 +296,41 @@ def write_table(traj: Any, path: str | Path, fmt: str = "parquet", form: str = "
 
 
 def read_units(path: str | Path) -> dict[str, str | None]:
-    """The units a Parquet file written by :func:`write_table` declares, ``{column: unit}``."""
+    """The units a Parquet file written by :func:`write_table` declares, ``{column: unit}``.
+
+    Parameters
+    ----------
+    path : str or Path
+        A Parquet file written by :func:`write_table` (or :meth:`Trajectory.to_arrow` with
+        :func:`pyarrow.parquet.write_table`).
+
+    Returns
+    -------
+    dict of str to (str or None)
+        Each wide column's unit (``""`` dimensionless, ``None`` unknown; the wide columns'
+        units for a long-form file too).
+
+    Raises
+    ------
+    DesignError
+        The file's schema has no ``hgo_mj`` metadata (not written by this package).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from hgo_mj.inputs import Constant
+    >>> from hgo_mj.observers import make_observer
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", 0.01)
+    >>> traj = simulate(plant, None, {"hgo": make_observer("high_gain", plant.system, k=20.0)},
+    ...                 Constant(0.0), duration=0.05)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     units = read_units(write_table(traj, Path(tmp) / "run.parquet"))
+    >>> units["t"], units["true/angle"], units["input/torque"]
+    ('s', 'rad', 'N m')
+    """
     import pyarrow.parquet as pq
 
     meta = pq.read_schema(str(path)).metadata or {}
@@ -197,5 +340,5 @@ def read_units(path: str | Path) -> dict[str, str | None]:
     return dict(json.loads(meta[b"hgo_mj"])["units"])
 
 
-__all__ = ["FILE_FORMATS", "FORMS", "RESERVED", "read_units", "schema_metadata", "to_arrow",
-           "to_pandas", "wide_columns", "write_table"]
+__all__ = ["FILE_FORMATS", "FORMS", "RESERVED", "read_units", "to_arrow", "to_pandas",
+           "write_table"]

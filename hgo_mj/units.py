@@ -15,7 +15,33 @@ from typing import Any
 
 
 def system_of(traj: Any) -> Any:
-    """The registered system class of a trajectory's plant (by its metadata), or ``None``."""
+    """The registered system class of a trajectory's plant (by its metadata), or ``None``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run whose ``metadata["plant"]`` names the plant's system (its class name or its
+        :data:`~hgo_mj.systems.SYSTEMS` key), or whose metadata describes an MJCF system.
+
+    Returns
+    -------
+    type or None
+        The :class:`~hgo_mj.systems.base.System` subclass (for an MJCF plant, the class built
+        from its model file); ``None`` when no system matches.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Constant
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> traj = simulate(make_plant("pendulum", 0.01), None, {}, Constant(0.0), duration=0.02)
+    >>> system_of(traj).__name__
+    'Pendulum'
+    >>> traj.metadata.pop("plant")
+    'Pendulum'
+    >>> system_of(traj) is None
+    True
+    """
     from .systems import SYSTEMS
     from .systems.mjcf import system_from_metadata
 
@@ -30,13 +56,49 @@ def system_of(traj: Any) -> Any:
 
 
 def bracket(unit: str | None) -> str:
-    """``"[rad]"``; ``"[-]"`` for a dimensionless quantity, ``"[?]"`` for an unknown unit."""
+    """``"[rad]"``; ``"[-]"`` for a dimensionless quantity, ``"[?]"`` for an unknown unit.
+
+    Parameters
+    ----------
+    unit : str or None
+        A unit (``""``: dimensionless; ``None``: not known).
+
+    Returns
+    -------
+    str
+        The unit in brackets, for an axis label.
+
+    Examples
+    --------
+    >>> bracket("rad"), bracket(""), bracket(None)
+    ('[rad]', '[-]', '[?]')
+    """
     return "[?]" if unit is None else f"[{unit or '-'}]"
 
 
 def per_time(unit: str, order: int, time_unit: str = "s") -> str:
     """The unit of the ``order``-th time derivative of a quantity in ``unit``
-    (``per_time("rad", 2)`` is ``"rad/s^2"``; a dimensionless time gives ``unit`` back)."""
+    (``per_time("rad", 2)`` is ``"rad/s^2"``; a dimensionless time gives ``unit`` back).
+
+    Parameters
+    ----------
+    unit : str
+        The quantity's unit (``""``: dimensionless).
+    order : int
+        The order of the derivative (0: the quantity itself).
+    time_unit : str
+        The unit of time (``System.time_unit``; ``""``: dimensionless time).
+
+    Returns
+    -------
+    str
+        ``unit/time_unit^order`` (``1/...`` for a dimensionless quantity).
+
+    Examples
+    --------
+    >>> per_time("rad", 2), per_time("m", 1), per_time("", 1, "h"), per_time("rad", 3, "")
+    ('rad/s^2', 'm/s', '1/h', 'rad')
+    """
     if order == 0 or not time_unit:
         return unit
     tail = time_unit if order == 1 else f"{time_unit}^{order}"
@@ -47,7 +109,28 @@ def system_units(cls: Any, output_names: tuple[str, ...] | list[str] = ()) -> di
     """``{name: unit}`` for a system class: its states, its inputs, and the derivatives of its
     outputs named as an observer names them (``link1_acceleration``: ``rad/s^2``; an observer
     without a system calls output ``i``'s derivatives ``y<i>_d<j>``). ``output_names``
-    defaults to the system's. Names whose unit is not declared are missing."""
+    defaults to the system's. Names whose unit is not declared are missing.
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`~hgo_mj.systems.base.System` subclass (``type(plant.system)``).
+    output_names : sequence of str
+        The plant's output names (``plant.output_names``); default the system's.
+
+    Returns
+    -------
+    dict of str to str
+        ``{name: unit}`` of the states, the inputs and the output derivatives up to order 5
+        (under their own names and ``y<i>_d<j>``).
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import SYSTEMS
+    >>> units = system_units(SYSTEMS["pendulum"])
+    >>> units["angle"], units["torque"], units["angular_acceleration"], units["y1_d2"]
+    ('rad', 'N m', 'rad/s^2', 'rad/s^2')
+    """
     from .observers.high_gain import derivative_names
 
     units: dict[str, str] = {}
@@ -68,7 +151,30 @@ def system_units(cls: Any, output_names: tuple[str, ...] | list[str] = ()) -> di
 def units_of(traj: Any) -> tuple[dict[str, str], str | None]:
     """The units the plant's system declares for a trajectory: ``({name: unit}, time unit)``
     (:func:`system_units` with the trajectory's output names). ``({}, None)`` when the plant's
-    system is not known (a trajectory without the ``plant`` metadata)."""
+    system is not known (a trajectory without the ``plant`` metadata).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`hgo_mj.simulate.simulate` (its metadata names the plant).
+
+    Returns
+    -------
+    units : dict of str to str
+        ``{name: unit}`` as :func:`system_units`.
+    time_unit : str or None
+        The system's time unit (``"s"``, ``"h"``); ``None`` when the system is not known.
+
+    Examples
+    --------
+    >>> from hgo_mj.inputs import Constant
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> traj = simulate(make_plant("pendulum", 0.01), None, {}, Constant(0.0), duration=0.02)
+    >>> units, t_unit = units_of(traj)
+    >>> units["angular_velocity"], t_unit
+    ('rad/s', 's')
+    """
     cls = system_of(traj)
     if cls is None:
         return {}, None

@@ -107,8 +107,9 @@ from .base import Array, Observer, batch_rows, register
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
-__all__ = ["ExtendedKalmanFilter", "MujocoExtendedKalmanFilter", "MujocoModel",
-           "MujocoUnscentedKalmanFilter", "SystemModel", "UnscentedKalmanFilter"]
+# the filters' process models (SystemModel, MujocoModel) are plumbing: a user builds a filter
+__all__ = ["ExtendedKalmanFilter", "MujocoExtendedKalmanFilter", "MujocoUnscentedKalmanFilter",
+           "UnscentedKalmanFilter"]
 
 METHODS = ("rk4", "euler")
 JACOBIANS = ("auto", "analytic", "fd")
@@ -1532,6 +1533,8 @@ class ExtendedKalmanFilter(_KalmanFilter):
         Time-update steps per sample.
     jacobian : {"auto", "analytic", "fd"}
         How :math:`F` is obtained (see :class:`SystemModel`).
+    model : None
+        Only for the MuJoCo filters (:class:`MujocoExtendedKalmanFilter`); must be None here.
     on_unstable : {"raise", "warn", "ignore"}
         Kept for the contract: the filter is stable at every period.
 
@@ -1550,6 +1553,12 @@ class ExtendedKalmanFilter(_KalmanFilter):
     >>> f = ExtendedKalmanFilter(Pendulum(), R=1e-4, x_hat0=[0.1, 0.0])
     >>> f.update([0.1], [0.0], 0.01).shape
     (2,)
+
+    Estimating the pendulum's damping by augmentation:
+
+    >>> f = ExtendedKalmanFilter(Pendulum(), estimate=["damping"], theta_hat0=[0.05], R=1e-4)
+    >>> f.diagnostic_names, f.theta_hat_, f.P_.shape
+    (('theta_damping', 'dropouts'), array([0.05]), (3, 3))
 
     References
     ----------
@@ -1627,10 +1636,20 @@ class UnscentedKalmanFilter(_KalmanFilter):
         :math:`\\pm\\sqrt{N} L_i`, zero mean weight on the centre).
     **kw
         As :class:`ExtendedKalmanFilter` (``jacobian`` is not used).
+    system, estimate, Q, Q_theta, R, sensor, P0, P0_theta, x_hat0, theta_hat0, outputs, \
+method, substeps, jacobian, model, on_unstable
+        The keywords of :class:`ExtendedKalmanFilter`, the same meaning.
 
     References
     ----------
     Julier and Uhlmann (1997); Wan and van der Merwe (2000); Simon (2006), sec. 14.3.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> f = UnscentedKalmanFilter(Pendulum(), R=1e-4, x_hat0=[0.1, 0.0])
+    >>> f.update([0.1], [0.0], 0.01).round(4)
+    array([ 0.0999, -0.0203])
     """
 
     name = "ukf"
@@ -1716,6 +1735,38 @@ class MujocoExtendedKalmanFilter(ExtendedKalmanFilter):
     default) or central differences of the step (``"fd"``); ``estimate`` names model fields or
     the system's aliases (its ``"kalman_fields"`` form). The update period must be a multiple
     of the model timestep. MuJoCo is called once per member (a loop over the batch).
+
+    Parameters
+    ----------
+    system : System
+        An MJCF system (``model_file`` set) whose degrees of freedom are hinge/slide joints;
+        it names the state (``qpos`` then ``qvel``), the inputs and the outputs (a selection
+        of the state).
+    model : mujoco.MjModel, MujocoPlant or None
+        The model (copied: the filter never touches the plant's); default the system's
+        shipped MJCF. A deliberately wrong copy models a parameter error.
+    estimate : sequence of str
+        Parameters to estimate, each a model field ``"tendon_stiffness[spring]"``,
+        ``"actuator_gear[torque]"``, ``"dof_damping[joint]"``, ``"dof_armature[joint]"``,
+        ``"body_mass[body]"`` or ``"opt.gravity"`` (the magnitude :math:`g`), or a name the
+        system aliases to one in its ``"kalman_fields"`` form (elastic joint: ``stiffness``,
+        ``gear``, ``link_damping``, ``motor_damping``, ``g``).
+    jacobian : {"auto", "transition_fd", "fd"}
+        ``auto`` (default) is ``transition_fd``: ``mujoco.mjd_transitionFD``; ``fd``: central
+        differences of the model's own step.
+    Q, Q_theta, R, sensor, P0, P0_theta, x_hat0, theta_hat0, outputs, method, substeps, \
+on_unstable
+        As :class:`ExtendedKalmanFilter`.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> f = MujocoExtendedKalmanFilter(Pendulum(), estimate=["dof_damping[hinge]"],
+    ...                                theta_hat0=[0.05], R=1e-4, x_hat0=[0.1, 0.0])
+    >>> f.diagnostic_names
+    ('theta_dof_damping[hinge]', 'dropouts')
+    >>> f.update([0.1], [0.0], 0.01).round(4)
+    array([ 0.0999, -0.0203])
     """
 
     name = "ekf_mujoco"
@@ -1727,7 +1778,25 @@ class MujocoExtendedKalmanFilter(ExtendedKalmanFilter):
 @register
 class MujocoUnscentedKalmanFilter(UnscentedKalmanFilter):
     """:class:`UnscentedKalmanFilter` whose sigma points are stepped by MuJoCo (see
-    :class:`MujocoModel`; one call per sigma point and member)."""
+    :class:`MujocoModel`; one call per sigma point and member).
+
+    Parameters
+    ----------
+    system, model, estimate, jacobian
+        As :class:`MujocoExtendedKalmanFilter` (``jacobian`` is not used).
+    alpha, beta, kappa
+        As :class:`UnscentedKalmanFilter`.
+    Q, Q_theta, R, sensor, P0, P0_theta, x_hat0, theta_hat0, outputs, method, substeps, \
+on_unstable
+        As :class:`ExtendedKalmanFilter`.
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> f = MujocoUnscentedKalmanFilter(Pendulum(), R=1e-4, x_hat0=[0.1, 0.0])
+    >>> f.update([0.1], [0.0], 0.01).round(4)
+    array([ 0.0999, -0.0203])
+    """
 
     name = "ukf_mujoco"
     summary = "UKF whose sigma points are stepped by the MuJoCo plant"

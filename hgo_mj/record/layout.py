@@ -79,7 +79,24 @@ def part(name: object) -> str:
 
 
 def observer_color(i: int) -> tuple[int, int, int]:
-    """Colour of the ``i``-th observer of a recording (the same in every view)."""
+    """Colour of the ``i``-th observer of a recording (the same in every view).
+
+    Parameters
+    ----------
+    i : int
+        The observer's position in the recorder's ``observers`` (0 first).
+
+    Returns
+    -------
+    tuple of int
+        ``(r, g, b)`` in 0-255, from :data:`OBSERVER_COLORS` (tab10 without its grey),
+        repeating after 9 observers.
+
+    Examples
+    --------
+    >>> observer_color(0), observer_color(1), observer_color(9) == observer_color(0)
+    ((31, 119, 180), (255, 127, 14), True)
+    """
     return OBSERVER_COLORS[i % len(OBSERVER_COLORS)]
 
 
@@ -101,7 +118,27 @@ def state_root(state: str) -> str:
 
 
 def state_path(state: str, who: str = TRUE) -> str:
-    """The truth (``who="true"``) or one observer's estimate of a plant state."""
+    """The truth (``who="true"``) or one observer's estimate of a plant state.
+
+    Parameters
+    ----------
+    state : str
+        A plant state's name (escaped as one path part).
+    who : str
+        ``"true"`` (:data:`TRUE`), or an observer's name.
+
+    Returns
+    -------
+    str
+        ``/state/<state>/<who>``: a column of :func:`hgo_mj.record.read`'s DataFrame.
+
+    Examples
+    --------
+    >>> state_path("angle"), state_path("angle", "k40")
+    ('/state/angle/true', '/state/angle/k40')
+    >>> print(state_path("x/y"))  # escaped: one part
+    /state/x\\/y/true
+    """
     return f"{state_root(state)}/{part(who)}"
 
 
@@ -110,21 +147,93 @@ def error_root(state: str) -> str:
 
 
 def error_path(state: str, observer: str) -> str:
-    """``x - x_hat`` of one observer for one plant state."""
+    """``x - x_hat`` of one observer for one plant state.
+
+    Parameters
+    ----------
+    state : str
+        A plant state's name.
+    observer : str
+        An observer that estimates it.
+
+    Returns
+    -------
+    str
+        ``/error/<state>/<observer>``.
+
+    Examples
+    --------
+    >>> error_path("angle", "k40")
+    '/error/angle/k40'
+    """
     return f"{error_root(state)}/{part(observer)}"
 
 
 def own_estimate_path(observer: str, name: str) -> str:
-    """An estimate of ``observer`` that is not a plant state."""
+    """An estimate of ``observer`` that is not a plant state.
+
+    Parameters
+    ----------
+    observer : str
+        The observer's name.
+    name : str
+        The estimate's name in the observer's ``state_names`` (``z1``, ``angle_d2``, ...).
+
+    Returns
+    -------
+    str
+        ``/observer/<observer>/estimate/<name>``.
+
+    Examples
+    --------
+    >>> own_estimate_path("hgo", "z1")
+    '/observer/hgo/estimate/z1'
+    """
     return f"/observer/{part(observer)}/estimate/{part(name)}"
 
 
 def sensor_path(output: str, which: str = MEASURED) -> str:
-    """The clean (``which="clean"``) or measured output."""
+    """The clean (``which="clean"``) or measured output.
+
+    Parameters
+    ----------
+    output : str
+        An output's name (``plant.output_names``).
+    which : str
+        ``"measured"`` (:data:`MEASURED`, what the observers saw) or ``"clean"``
+        (:data:`CLEAN`, before the sensor chain).
+
+    Returns
+    -------
+    str
+        ``/sensor/<output>/<which>``.
+
+    Examples
+    --------
+    >>> sensor_path("angle"), sensor_path("angle", CLEAN)
+    ('/sensor/angle/measured', '/sensor/angle/clean')
+    """
     return f"/sensor/{part(output)}/{which}"
 
 
 def input_path(name: str) -> str:
+    """The input ``name`` (scalar ``u``).
+
+    Parameters
+    ----------
+    name : str
+        An input's name (``plant.input_names``).
+
+    Returns
+    -------
+    str
+        ``/input/<name>``.
+
+    Examples
+    --------
+    >>> input_path("torque")
+    '/input/torque'
+    """
     return f"/input/{part(name)}"
 
 
@@ -157,6 +266,33 @@ def diagnostic_path(observer: str, key: str, param_names: Sequence[str] = ()) ->
     that is a parameter name of the system, or starts with ``theta`` (``theta_hat_<p>``,
     ``theta_<p>``, ``theta<p>``), to ``/observer/<obs>/theta/<p>``; anything else to
     ``/observer/<obs>/diagnostics/<key>``.
+
+    Parameters
+    ----------
+    observer : str
+        The observer's name.
+    key : str
+        A key of its diagnostics (``ObserverRecord.diagnostics``).
+    param_names : sequence of str
+        The system's parameter names: a key among them is a parameter estimate.
+
+    Returns
+    -------
+    path : str
+        The diagnostic's entity path.
+    kind : str
+        ``"gain"``, ``"theta"`` or ``"other"`` (which view of the blueprint shows it).
+
+    Examples
+    --------
+    >>> diagnostic_path("k40", "k")
+    ('/observer/k40/gain', 'gain')
+    >>> diagnostic_path("adaptive", "theta_hat_mass")
+    ('/observer/adaptive/theta/mass', 'theta')
+    >>> diagnostic_path("adaptive", "mass", ["mass"])
+    ('/observer/adaptive/theta/mass', 'theta')
+    >>> diagnostic_path("k40", "dropouts")
+    ('/observer/k40/diagnostics/dropouts', 'other')
     """
     o = part(observer)
     low = key.lower().rstrip("_")
@@ -391,7 +527,6 @@ def blueprint(layout: EstimateLayout, diagnostics: Sequence[tuple[str, str]] = (
     return rrb.Blueprint(rrb.Horizontal(*columns), rrb.TimePanel(timeline=SIM_TIME))
 
 
-__all__ = ["CLEAN", "EPISODE", "MEASURED", "SIM_TIME", "STEP", "TRUE", "EstimateLayout",
-           "blueprint", "diagnostic_path", "diagnostic_styles", "error_path", "error_root",
-           "estimate_layout", "extra_style", "has_dropout_stage", "label", "observer_color",
-           "part", "sensor_path", "signal_styles", "state_path", "state_root"]
+__all__ = ["CLEAN", "EPISODE", "MEASURED", "SIM_TIME", "STEP", "TRUE", "diagnostic_path",
+           "error_path", "input_path", "observer_color", "own_estimate_path", "sensor_path",
+           "state_path"]

@@ -38,7 +38,30 @@ def xyzw(q: Any) -> Array:
 @dataclass(frozen=True)
 class Geom:
     """A drawn geom: its index, body, entity name, colour (RGBA in 0..1) and pose in the body
-    frame (``quat`` as ``w, x, y, z``)."""
+    frame (``quat`` as ``w, x, y, z``).
+
+    Parameters
+    ----------
+    index : int
+        The geom's id in the model.
+    body : int
+        The id of the body it belongs to.
+    name : str
+        Its entity name (the MJCF name, ``geom<i>`` for an unnamed one).
+    rgba : ndarray, shape (4,)
+        The colour MuJoCo draws it in, 0..1.
+    pos : ndarray, shape (3,)
+        Position in the body frame (model units, m).
+    quat : ndarray, shape (4,)
+        Orientation in the body frame, ``w, x, y, z``.
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import make_plant
+    >>> geom = Poses(make_plant("pendulum", 0.01).model, ["hinge"]).geoms[0]
+    >>> geom.index, geom.body, geom.name, geom.quat.tolist()
+    (0, 0, 'mount', [1.0, 0.0, 0.0, 0.0])
+    """
 
     index: int
     body: int
@@ -142,6 +165,23 @@ class Poses:
         The drawn geoms (:func:`drawn_geoms`).
     body_names : list of str
         Entity names of the bodies (``body<i>`` for an unnamed one).
+
+    Raises
+    ------
+    DesignError
+        ``model`` has no joint of one of the names, or one of them is neither a hinge nor a
+        slide joint.
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import make_plant
+    >>> scene = Poses(make_plant("pendulum", 0.01).model, ["hinge"])
+    >>> scene.body_names, scene.moving.tolist(), [g.name for g in scene.geoms]
+    (['world', 'pole'], [False, True], ['mount', 'rod', 'bob'])
+    >>> Poses(make_plant("pendulum", 0.01).model, ["elbow"])
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: the model has no joint named 'elbow'; joints: ['hinge']
     """
 
     def __init__(self, model: Any, joints: Sequence[str]) -> None:
@@ -177,7 +217,33 @@ class Poses:
     def poses(self, q: Any) -> tuple[Array, Array]:
         """World positions ``(T, nbody, 3)`` and quaternions ``(T, nbody, 4)`` (``w, x, y,
         z``) of every body for the joint positions ``q`` of shape ``(T, len(joints))``: each
-        row set into the ``qpos`` of an ``MjData`` and posed by ``mujoco.mj_kinematics``."""
+        row set into the ``qpos`` of an ``MjData`` and posed by ``mujoco.mj_kinematics``.
+
+        Parameters
+        ----------
+        q : array_like, shape (T, len(joints))
+            Joint positions (rad for a hinge, m for a slide), one row per pose; any shape
+            that reshapes to it.
+
+        Returns
+        -------
+        pos : ndarray, shape (T, nbody, 3)
+            World positions of the bodies' frames (``xpos``).
+        quat : ndarray, shape (T, nbody, 4)
+            World orientations (``xquat``, ``w, x, y, z``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> scene = Poses(plant.model, plant.system.joints)
+        >>> pos, quat = scene.poses([[0.0], [np.pi / 2]])
+        >>> pos.shape, quat.shape
+        ((2, 2, 3), (2, 2, 4))
+        >>> np.round(quat[1, 1], 3).tolist()  # the pole turned a quarter about y
+        [0.707, 0.0, 0.707, 0.0]
+        """
         import mujoco
 
         q = np.asarray(q, dtype=float).reshape(-1, self.njoints)
@@ -194,7 +260,22 @@ class Poses:
         return pos, quat
 
     def posed_bodies(self) -> NDArray[np.intp]:
-        """The bodies logged per pose row: drawn and moved by the joints."""
+        """The bodies logged per pose row: drawn and moved by the joints.
+
+        Returns
+        -------
+        ndarray of intp
+            Their body ids, ascending.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> scene = Poses(plant.model, plant.system.joints)
+        >>> scene.posed_bodies().tolist()
+        [1]
+        """
         return np.flatnonzero(self.moving & self.drawn)
 
     def geometry(self, root: str = TRUE_ROOT, color: Sequence[int] | None = None
@@ -204,6 +285,33 @@ class Poses:
         ``color=None``: the true robot, solid in the model's colours, with the bodies the
         joints do not move posed once. Else a translucent ghost in ``color`` (RGB) of the
         bodies the joints move only (a ghost of what does not move would sit on the truth).
+
+        Parameters
+        ----------
+        root : str
+            The entity path the geometry goes under (default ``/world/true``; a ghost's is
+            ``/world/estimate/<obs>``).
+        color : sequence of int, optional
+            ``(r, g, b)`` in 0..255 of a ghost (drawn with alpha ``GHOST_ALPHA``); ``None``:
+            the true robot.
+
+        Returns
+        -------
+        list of (str, list)
+            ``(entity path, [rr.Transform3D, shape archetype])`` per drawn geom (a geom whose
+            type is not drawn is left out), after ``(body path, [rr.Transform3D])`` of each
+            drawn body the joints do not move (true robot only).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", 0.01)
+        >>> scene = Poses(plant.model, plant.system.joints)
+        >>> [path for path, _ in scene.geometry()]
+        ['/world/true/world', '/world/true/world/mount', '/world/true/pole/rod', '/world/true/pole/bob']
+        >>> [path for path, _ in scene.geometry("/world/estimate/k40", (31, 119, 180))]
+        ['/world/estimate/k40/pole/rod', '/world/estimate/k40/pole/bob']
         """
         out: list[tuple[str, list[Any]]] = []
         m = self.model
@@ -232,7 +340,31 @@ _MODELS: dict[tuple[str, int, int], Any] = {}
 
 def model_for(meta: Mapping[str, Any]) -> tuple[Any, tuple[str, ...]]:
     """The MJCF model and joints of the system a trajectory's metadata names (the scenario's
-    ``model_file`` if it gives one), or ``(None, ())`` for an ODE system."""
+    ``model_file`` if it gives one), or ``(None, ())`` for an ODE system.
+
+    Parameters
+    ----------
+    meta : mapping
+        A trajectory's metadata (``Trajectory.metadata``): ``plant`` names the system's
+        class; ``scenario_spec`` may give ``[plant.params] model_file``; an MJCF plant's
+        metadata names its file.
+
+    Returns
+    -------
+    model : mujoco.MjModel or None
+        The compiled model (cached per file, modification time and size); ``None`` for an
+        ODE system or an unknown plant.
+    joints : tuple of str
+        The system's ``joints`` (empty with ``None``).
+
+    Examples
+    --------
+    >>> model, joints = model_for({"plant": "Pendulum"})
+    >>> model.nbody, joints
+    (2, ('hinge',))
+    >>> model_for({"plant": "BioreactorBullinger"})
+    (None, ())
+    """
     from ..systems import SYSTEMS
     from ..systems.mjcf import system_from_metadata
 
@@ -262,5 +394,4 @@ def model_for(meta: Mapping[str, Any]) -> tuple[Any, tuple[str, ...]]:
     return model, tuple(cls.joints)
 
 
-__all__ = ["Geom", "Poses", "drawn_geoms", "geom_color", "geom_shape", "model_for", "transform",
-           "xyzw"]
+__all__ = ["Geom", "Poses", "model_for"]

@@ -547,11 +547,11 @@ class Recorder:
         Raises
         ------
         DimensionError
-            An array whose shape does not match ``(T, width)`` of its names.
+            An array whose shape does not match ``(T, width)`` of its names (an estimate,
+            an extra, a diagnostic), or a ``step`` array without ``T`` entries.
         DesignError
-            Estimates or diagnostics of an unknown observer, estimate names that disagree
-            with the layout fixed at the first block, or steps that do not follow the last
-            block's.
+            Estimates, diagnostics or ``estimate_names`` of an unknown observer, or
+            ``estimate_names`` that change an observer's names given before.
 
         Examples
         --------
