@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._validate import finite_scalar, symmetric_matrix, vector
-from .exceptions import DesignError
+from .exceptions import DesignError, DimensionError
 from .inputs import Controller
 from .systems.base import System
 
@@ -130,7 +130,8 @@ class LinearFeedback(Controller):
         :class:`~hgo_mj.inputs.Controller`) a ``source`` other than ``"estimate"`` or
         ``"true"``.
     DimensionError
-        ``x_eq``, ``u_eq``, ``x_max`` not of length ``n`` or ``m``, or ``u_max`` not 1-D.
+        ``x_eq``, ``u_eq``, ``x_max`` not of length ``n`` or ``m``, or ``u_max`` neither one
+        number nor one per input.
 
     Examples
     --------
@@ -153,8 +154,13 @@ class LinearFeedback(Controller):
         self.K = Km
         self.x_eq = np.zeros(n) if x_eq is None else vector("x_eq", x_eq, n)
         self.u_eq = np.zeros(m) if u_eq is None else vector("u_eq", u_eq, m)
-        self.u_max = (None if u_max is None else np.broadcast_to(
-            np.abs(vector("u_max", np.atleast_1d(u_max))), (m,)).copy())
+        if u_max is not None:
+            um = np.abs(vector("u_max", np.atleast_1d(u_max)))
+            if um.size not in (1, m):
+                raise DimensionError(f"u_max must be one number or one per input ({m}); found "
+                                     f"{um.size} entries")
+            u_max = np.broadcast_to(um, (m,)).copy()
+        self.u_max = u_max
         if not isinstance(saturate, bool):
             raise DesignError(f"saturate must be true or false; found {saturate!r}")
         self.x_max = None if x_max is None else np.abs(vector("x_max", x_max, n))

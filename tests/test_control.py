@@ -59,3 +59,16 @@ def test_the_estimate_is_saturated_only_when_asked():
     assert off.act(0.0, np.array([[3.0, -9.0]]))[0, 0] == pytest.approx(6.0)
     with pytest.raises(DesignError, match="saturate must be true or false"):
         LinearFeedback([[1.0, 1.0]], saturate="yes")
+
+
+def test_u_max_of_the_wrong_length_is_a_dimension_error():
+    """One bound per input, or one for all (found by a docs helper: numpy's broadcast error
+    came through before)."""
+    from hgo_mj.control import LinearFeedback
+    from hgo_mj.exceptions import DimensionError
+
+    K = np.zeros((3, 2))
+    with pytest.raises(DimensionError, match=r"u_max must be one number or one per input \(3\); "
+                                             r"found 2 entries"):
+        LinearFeedback(K, u_max=[1.0, 2.0])
+    assert LinearFeedback(K, u_max=2.0).u_max.tolist() == [2.0, 2.0, 2.0]
