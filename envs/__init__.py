@@ -55,7 +55,23 @@ ENVIRONMENTS: dict[str, type[HgoEnv]] = {
 
 
 def register_all() -> None:
-    """Register every environment with Gymnasium (done on import; idempotent)."""
+    """Register every environment with Gymnasium (done on import; idempotent).
+
+    Each id of :data:`ENVIRONMENTS` gets its class as entry point, the task's
+    ``max_episode_steps`` (Gymnasium's ``TimeLimit``) and :func:`vector_entry_point` (the
+    native :class:`HgoVectorEnv` of ``gymnasium.make_vec``); an id already registered is left
+    as it is.
+
+    Examples
+    --------
+    >>> import gymnasium
+    >>> import hgo_mj.envs
+    >>> hgo_mj.envs.register_all()
+    >>> "hgo_mj/PendulumSwingUp-v0" in gymnasium.registry
+    True
+    >>> gymnasium.spec("hgo_mj/PendulumSwingUp-v0").max_episode_steps
+    250
+    """
     for env_id, cls in ENVIRONMENTS.items():
         if env_id in gymnasium.registry:
             continue

@@ -71,7 +71,27 @@ INFO_LEVELS = ("basic", "full")
 
 def chain_seed(seed: int) -> int:
     """The sensor chain's seed derived from an environment's ``reset(seed=...)``: a stream
-    independent of the environment's own ``np_random`` (which the same integer also seeds)."""
+    independent of the environment's own ``np_random`` (which the same integer also seeds).
+
+    Parameters
+    ----------
+    seed : int
+        The seed given to ``reset(seed=...)``.
+
+    Returns
+    -------
+    int
+        A non-negative 63-bit seed for :meth:`hgo_mj.sensors.SensorChain.reset`; the same
+        ``seed`` always gives the same value.
+
+    Examples
+    --------
+    >>> from hgo_mj.envs.core import chain_seed
+    >>> chain_seed(0)
+    4246322151728509
+    >>> chain_seed(0) == chain_seed(0) != chain_seed(1)
+    True
+    """
     ss = np.random.SeedSequence([int(seed), 0x5E4503])
     return int(ss.generate_state(1, np.uint64)[0] >> np.uint64(1))
 
@@ -79,7 +99,28 @@ def chain_seed(seed: int) -> int:
 def env_seed(seed: int | None) -> Any:
     """What an environment's ``reset(seed=...)`` gives its sensor chain: a stream seeded from
     :func:`chain_seed` on a seeded reset; otherwise :data:`~hgo_mj.loop.CONTINUE` (the stages
-    restart, the generators continue: Gymnasium's convention for ``reset()`` without a seed)."""
+    restart, the generators continue: Gymnasium's convention for ``reset()`` without a seed).
+
+    Parameters
+    ----------
+    seed : int or None
+        The seed given to ``reset(seed=...)``.
+
+    Returns
+    -------
+    int or CONTINUE
+        ``chain_seed(seed)``, or :data:`~hgo_mj.loop.CONTINUE` for ``seed=None``: what
+        :meth:`hgo_mj.loop.Loop.reset` takes as ``seed``.
+
+    Examples
+    --------
+    >>> from hgo_mj.envs.core import env_seed
+    >>> from hgo_mj.loop import CONTINUE
+    >>> env_seed(None) is CONTINUE
+    True
+    >>> env_seed(0)
+    4246322151728509
+    """
     return CONTINUE if seed is None else chain_seed(seed)
 
 
@@ -102,12 +143,26 @@ def sensor_chain(spec: Any, seed: int | None = None) -> SensorChain:
         a sequence of such stages, applied in order; ``None`` or ``[]`` for exact
         measurements.
     seed : int, optional
-        Seed of a new chain.
+        Seed of a new chain (ignored when ``spec`` is a chain, which is returned as is).
+
+    Returns
+    -------
+    SensorChain
+        The chain, its stages in the order given.
 
     Raises
     ------
     DesignError
-        Unknown stage names (the message lists the valid ones), unknown or missing parameters.
+        Unknown stage names (the message lists the valid ones), unknown or missing parameters,
+        a mapping without a ``"stage"`` key, or an entry of another type.
+
+    Examples
+    --------
+    >>> from hgo_mj.envs import sensor_chain
+    >>> sensor_chain([{"stage": "gaussian", "std": 0.01}], seed=0)
+    SensorChain([GaussianNoise(std=0.01)], seed=0)
+    >>> sensor_chain(None).describe()
+    []
     """
     if isinstance(spec, SensorChain):
         return spec
@@ -166,6 +221,24 @@ class Task:
         ``plant_outputs`` as outputs.
     max_action : tuple of float
         Input per unit action, one per plant input (``u = action * max_action``).
+
+    Parameters
+    ----------
+    max_action : sequence of float
+        Input per unit action, one positive finite value per plant input.
+
+    Examples
+    --------
+    A task of the pendulum: reward and reset distribution use only the true state.
+
+    >>> import numpy as np
+    >>> from hgo_mj.envs.tasks import SwingUpTask
+    >>> task = SwingUpTask()
+    >>> task.max_action, task.params()
+    ((0.5,), {'max_torque': 0.5, 'start_noise': 0.1})
+    >>> x0 = task.initial_state(np.random.default_rng(0))
+    >>> [round(v, 3) for v in x0]
+    [0.027, -0.046]
     """
 
     plant: ClassVar[str] = ""
@@ -194,35 +267,165 @@ class Task:
                                 for i, v in enumerate(max_action))
 
     def bound(self, name: str) -> float:
-        """Observation bound of an entry named ``name``."""
+        """Observation bound of an entry named ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A state, output or diagnostic name.
+
+        Returns
+        -------
+        float
+            The bound of the first suffix of :attr:`bounds` that ``name`` ends with, else
+            :attr:`default_bound`; the entry is clipped to ``[-bound, bound]``.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> task = SwingUpTask()
+        >>> task.bound("angular_velocity"), task.bound("gain")
+        (50.0, 1000000.0)
+        """
         for suffix, b in self.bounds:
             if name.endswith(suffix):
                 return b
         return self.default_bound
 
     def initial_state(self, rng: np.random.Generator) -> list[float]:
-        """Draw the true initial state."""
+        """Draw the true initial state.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The environment's ``np_random`` (seeded by ``reset(seed=...)``).
+
+        Returns
+        -------
+        list of float
+            The true state, one entry per plant state.
+
+        Raises
+        ------
+        NotImplementedError
+            Always, here: a subclass implements it.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> len(SwingUpTask().initial_state(np.random.default_rng(0)))
+        2
+        """
         raise NotImplementedError
 
     def sample_goal(self, rng: np.random.Generator) -> tuple[float, ...]:
-        """Draw the goal shown to the agent (default: none)."""
+        """Draw the goal shown to the agent (default: none).
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The environment's ``np_random``, drawn after :meth:`initial_state`.
+
+        Returns
+        -------
+        tuple of float
+            One entry per name of :attr:`goal_names` (empty here).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> SwingUpTask().sample_goal(np.random.default_rng(0))
+        ()
+        """
         return ()
 
     def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
                ) -> tuple[float, dict[str, float]]:
         """Reward of the step that ended in the true state ``x`` under input ``u``, and its
-        terms, keyed ``reward_<term>`` (they go into ``info`` as they are)."""
+        terms, keyed ``reward_<term>`` (they go into ``info`` as they are).
+
+        Parameters
+        ----------
+        x : list of float
+            True state at the end of the step.
+        u : list of float
+            Input held over the step (``action * max_action``, plant units).
+        goal : tuple of float
+            The episode's goal (empty for a task without one).
+
+        Returns
+        -------
+        reward : float
+        terms : dict of str to float
+            The reward's terms, keyed ``reward_<term>``.
+
+        Raises
+        ------
+        NotImplementedError
+            Always, here: a subclass implements it.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> reward, terms = SwingUpTask().reward([3.0, 0.0], [0.1], ())
+        >>> round(reward, 4), sorted(terms)
+        (-0.0201, ['reward_control', 'reward_upright', 'reward_velocity'])
+        """
         raise NotImplementedError
 
     def terminated(self, x: list[float]) -> bool:
-        """Whether the true state ``x`` ends the episode (default: never)."""
+        """Whether the true state ``x`` ends the episode (default: never).
+
+        Parameters
+        ----------
+        x : list of float
+            True state at the end of a step.
+
+        Returns
+        -------
+        bool
+            True if the episode ends (``terminated`` of ``step``).
+
+        Examples
+        --------
+        >>> from hgo_mj.envs.tasks import BalanceTask
+        >>> BalanceTask().terminated([0.1, 0.0]), BalanceTask().terminated([0.6, 0.0])
+        (False, True)
+        """
         return False
 
     def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
         """:meth:`reward` of B members at once (a vector environment): true states ``X``
         ``(B, n)``, inputs ``U`` ``(B, m)``, goals ``G`` ``(B, g)``; the rewards ``(B,)`` and
         the terms as ``(B,)`` arrays. Default: :meth:`reward` row by row; a task may give a
-        vectorized form, which must give the same numbers bit for bit (tested)."""
+        vectorized form, which must give the same numbers bit for bit (tested).
+
+        Parameters
+        ----------
+        X : (B, n) array
+            True states at the end of the step.
+        U : (B, m) array
+            Inputs held over the step.
+        G : (B, g) array
+            Goals (``g = 0`` for a task without one).
+
+        Returns
+        -------
+        rewards : (B,) array
+        terms : dict of str to (B,) array
+            The reward terms, keyed ``reward_<term>``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> r, terms = SwingUpTask().rewards(np.array([[3.0, 0.0], [0.0, 0.0]]),
+        ...                                  np.zeros((2, 1)), np.zeros((2, 0)))
+        >>> r.round(2)
+        array([-0.02, -9.87])
+        """
         out = [self.reward(x, u, tuple(g)) for x, u, g in zip(X.tolist(), U.tolist(),
                                                                G.tolist())]
         terms = {k: np.array([t[k] for _, t in out]) for k in (out[0][1] if out else {})}
@@ -230,16 +433,67 @@ class Task:
 
     def terminations(self, X: Array) -> NDArray[np.bool_]:
         """:meth:`terminated` of B members at once, ``(B,)`` (default: row by row; none
-        where the task never terminates)."""
+        where the task never terminates).
+
+        Parameters
+        ----------
+        X : (B, n) array
+            True states.
+
+        Returns
+        -------
+        (B,) bool array
+            :meth:`terminated` of each row.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.envs.tasks import BalanceTask
+        >>> BalanceTask().terminations(np.array([[0.1, 0.0], [0.6, 0.0]]))
+        array([False,  True])
+        """
         if type(self).terminated is Task.terminated:
             return np.zeros(X.shape[0], dtype=bool)
         return np.array([self.terminated(x) for x in X.tolist()], dtype=bool)
 
     def fallback_observer(self, system: Any, sample_period: float) -> Observer | None:
-        """The observer to use when ``default_observer`` is not registered (default: none)."""
+        """The observer to use when ``default_observer`` is not registered (default: none).
+
+        Parameters
+        ----------
+        system : System
+            The environment's plant system.
+        sample_period : float
+            The environment's sample period [s].
+
+        Returns
+        -------
+        Observer or None
+            An observer for ``system``; ``None`` (here) makes ``observer="default"`` raise
+            :class:`~hgo_mj.exceptions.DesignError` as an unknown observer.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> SwingUpTask().fallback_observer(None, 0.04) is None
+        True
+        """
         return None
 
     def params(self) -> dict[str, Any]:
+        """The task's constructor arguments, as a recording's ``/scenario`` stores them.
+
+        Returns
+        -------
+        dict
+            Here ``{"max_action": [...]}``; a task overrides it with its own arguments.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs.core import Task
+        >>> Task([0.5, 2.0]).params()
+        {'max_action': [0.5, 2.0]}
+        """
         return {"max_action": list(self.max_action)}
 
 
@@ -255,6 +509,26 @@ class Encoder:
         Name of every entry.
     low : ndarray
         Lower bound of every entry (the upper is ``-low``).
+
+    Parameters
+    ----------
+    task : Task
+        Gives the periodic names, the bounds and the goal names.
+    names : sequence of str
+        Names of the values encoded (state, output or estimate names), in their order.
+    diagnostics : sequence of str
+        Names of the observer's run-time quantities appended after the goal (default none).
+
+    Examples
+    --------
+    >>> import math
+    >>> from hgo_mj.envs.core import Encoder
+    >>> from hgo_mj.envs.tasks import SwingUpTask
+    >>> enc = Encoder(SwingUpTask(), ("angle", "angular_velocity"))
+    >>> enc.labels
+    ('cos(angle)', 'sin(angle)', 'angular_velocity')
+    >>> enc([math.pi, 60.0], ()).round(3)
+    array([-1.,  0., 50.])
     """
 
     def __init__(self, task: Task, names: Sequence[str], diagnostics: Sequence[str] = ()) -> None:
@@ -280,7 +554,32 @@ class Encoder:
 
     def batch(self, vals: Array, goal: Array, diag: Array | None = None) -> Array:
         """The observations of B members at once, ``(B, len(labels))``: ``vals`` ``(B, k)``,
-        ``goal`` ``(B, g)``, ``diag`` ``(B, d)`` (what :meth:`__call__` gives row by row)."""
+        ``goal`` ``(B, g)``, ``diag`` ``(B, d)`` (what :meth:`__call__` gives row by row).
+
+        Parameters
+        ----------
+        vals : (B, k) array
+            The named values, one row per member.
+        goal : (B, g) array
+            The goals (``g = 0`` for a task without one).
+        diag : (B, d) array, optional
+            The diagnostics (NaN enters as 0); ignored without diagnostic names.
+
+        Returns
+        -------
+        (B, len(labels)) array
+            The observations.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.envs.core import Encoder
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> enc = Encoder(SwingUpTask(), ("angle", "angular_velocity"))
+        >>> enc.batch(np.array([[0.0, 1.0], [np.pi, -60.0]]), np.zeros((2, 0))).round(3)
+        array([[  1.,   0.,   1.],
+               [ -1.,   0., -50.]])
+        """
         B = vals.shape[0]
         out = np.empty((B, len(self.labels)))
         c = 0
@@ -320,7 +619,34 @@ class Encoder:
 @dataclass(frozen=True)
 class EnvConfig:
     """An environment's validated arguments (see :class:`HgoEnv`): built by :meth:`of`, which
-    checks every argument before anything is made."""
+    checks every argument before anything is made.
+
+    Parameters
+    ----------
+    task : Task
+        The task (made from the environment class's ``task_class`` unless given).
+    observer : str, mapping, Observer, "default" or None
+        As given to the environment.
+    observer_kwargs : mapping or None
+        As given to the environment.
+    sensor : SensorChain, stage spec(s), "default" or None
+        As given to the environment.
+    observation : str
+        One of :data:`OBSERVATION_MODES`.
+    physics_dt, control_period, sample_period : float
+        The periods in use [s] (the task's defaults filled in).
+    integrator : str or None
+        The integrator to set (``None``: keep the MJCF's).
+    invalid_action : {"clip", "raise"}
+    info_level : {"basic", "full"}
+
+    Examples
+    --------
+    >>> from hgo_mj.envs import PendulumSwingUpEnv
+    >>> cfg = PendulumSwingUpEnv().config
+    >>> cfg.physics_dt, cfg.control_period, cfg.sample_period, cfg.integrator
+    (0.02, 0.04, 0.04, 'Euler')
+    """
 
     task: Task
     observer: Any
@@ -341,6 +667,52 @@ class EnvConfig:
            sample_period: float | None, integrator: str | None, invalid_action: str,
            info_level: str, render_mode: str | None,
            task_kwargs: Mapping[str, Any]) -> EnvConfig:
+        """Check an environment's arguments and fill in the task's defaults.
+
+        Parameters
+        ----------
+        env_cls : type of HgoEnv
+            The environment class (its ``task_class`` and ``metadata["render_modes"]``).
+        task, observer, observer_kwargs, sensor, observation
+            The arguments of :class:`HgoEnv` (``task=None``: made from ``task_kwargs``).
+        physics_dt, control_period, sample_period : float or None
+            The periods [s]; ``None``: the task's (``sample_period``: the task's, else the
+            control period).
+        integrator : str or None
+            ``None``: the task's (``None`` there too keeps the MJCF's).
+        invalid_action, info_level : str
+            As for :class:`HgoEnv`.
+        render_mode : str or None
+            ``None`` or one of ``env_cls.metadata["render_modes"]``.
+        task_kwargs : mapping
+            Arguments of ``env_cls.task_class`` (none with an explicit ``task``).
+
+        Returns
+        -------
+        EnvConfig
+            The validated arguments.
+
+        Raises
+        ------
+        DesignError
+            An unknown observation mode, info level, ``invalid_action``, render mode or
+            integrator; a period that is not a positive finite number or not an integer
+            multiple as required (``control_period`` of ``sample_period`` and of
+            ``physics_dt``, ``sample_period`` of ``physics_dt``); a ``task`` that is not a
+            Task, task arguments beside it, unknown task arguments, or no task at all.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs.core import EnvConfig
+        >>> from hgo_mj.envs import PendulumSwingUpEnv
+        >>> cfg = EnvConfig.of(PendulumSwingUpEnv, task=None, observer="default",
+        ...                    observer_kwargs=None, sensor="default", observation="true",
+        ...                    physics_dt=None, control_period=0.08, sample_period=None,
+        ...                    integrator=None, invalid_action="clip", info_level="basic",
+        ...                    render_mode=None, task_kwargs={"max_torque": 1.0})
+        >>> cfg.control_period, cfg.sample_period, cfg.task.max_action
+        (0.08, 0.08, (1.0,))
+        """
         task = _make_task(env_cls, task, task_kwargs)
         if observation not in OBSERVATION_MODES:
             raise DesignError(f"unknown observation mode {observation!r}; valid: "
@@ -442,8 +814,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         estimate, for the states the observer estimates: :attr:`error_names`). ``"full"``
         adds ``"time"``, ``"measurement"`` (NaN for a dropout), ``"diagnostics"`` (the
         observer's run-time quantities), ``"goal"`` and the reward terms ``"reward_<term>"``.
-    render_mode : None
-        No rendering (headless testbed); any other value raises.
+    render_mode : {None, "rgb_array"}
+        ``None`` (default): no rendering (headless testbed); ``"rgb_array"``: :meth:`render`
+        returns the true pose with a ghost posed from the estimate. Any other value raises
+        :class:`~hgo_mj.exceptions.DesignError`.
     **task_kwargs
         Parameters of the task (see the environment class).
 
@@ -464,6 +838,18 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         Names of the observer's estimate (``info["estimate"]``).
     error_names : tuple of str
         Names of ``info["error"]``: the states the observer estimates, in plant order.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.envs import PendulumSwingUpEnv
+    >>> env = PendulumSwingUpEnv(observation="measurement", info_level="full")
+    >>> obs, info = env.reset(seed=0)
+    >>> env.observation_names, env.estimate_names
+    (('cos(angle)', 'sin(angle)'), ('angle', 'angular_velocity'))
+    >>> obs, reward, terminated, truncated, info = env.step(np.array([1.0], dtype=np.float32))
+    >>> info["time"], sorted(info)[:4]
+    (0.04, ['diagnostics', 'error', 'estimate', 'measurement'])
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}
@@ -611,18 +997,82 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         return self.build_observer(kind, system, params)
 
     def default_observer_kind(self) -> str:
-        """The observer used by ``observer="default"`` (the task's, if registered)."""
+        """The observer used by ``observer="default"`` (the task's, if registered).
+
+        Returns
+        -------
+        str
+            The task's ``default_observer`` (when it is not registered, the environment uses
+            the task's :meth:`Task.fallback_observer`).
+
+        Examples
+        --------
+        >>> from hgo_mj.envs import PendulumSwingUpEnv
+        >>> PendulumSwingUpEnv().default_observer_kind()
+        'high_gain'
+        """
         return self.task.default_observer
 
     def observer_params(self, kind: str) -> dict[str, Any]:
         """The task's default parameters for a registered observer ``kind``, restricted to the
-        ones its constructor accepts (empty if the task has none for it)."""
+        ones its constructor accepts (empty if the task has none for it).
+
+        Parameters
+        ----------
+        kind : str
+            A registered observer name (``hgo_mj.observers.OBSERVERS``).
+
+        Returns
+        -------
+        dict
+            Parameter name -> default value.
+
+        Raises
+        ------
+        DesignError
+            ``kind`` is not registered (the message lists the valid names).
+
+        Examples
+        --------
+        >>> from hgo_mj.envs import PendulumSwingUpEnv
+        >>> PendulumSwingUpEnv().observer_params("high_gain")
+        {'k': 10.0, 'model': True}
+        """
         if kind not in OBSERVERS:
             raise DesignError(f"unknown observer {kind!r}; valid: {sorted(OBSERVERS)}")
         return _accepted(OBSERVERS[kind], self.task.observer_defaults.get(kind, {}))
 
     def build_observer(self, kind: str, system: Any, params: Mapping[str, Any]) -> Observer:
-        """``make_observer(kind, system, **params)`` over the task's defaults for ``kind``."""
+        """``make_observer(kind, system, **params)`` over the task's defaults for ``kind``.
+
+        Parameters
+        ----------
+        kind : str
+            A registered observer name.
+        system : System
+            The plant's system (``env.plant.system``).
+        params : mapping
+            Parameters of the observer; they override :meth:`observer_params`.
+
+        Returns
+        -------
+        Observer
+            A new observer (not the environment's running one).
+
+        Raises
+        ------
+        DesignError
+            ``kind`` is not a registered name (the message lists the valid ones); the
+            observer's own constructor raises for bad parameters.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs import PendulumSwingUpEnv
+        >>> env = PendulumSwingUpEnv()
+        >>> obs = env.build_observer("high_gain", env.plant.system, {"k": 5.0})
+        >>> type(obs).__name__, obs.params()["k"]
+        ('HighGainObserver', 5.0)
+        """
         if not isinstance(kind, str) or kind not in OBSERVERS:
             raise DesignError(f"unknown observer {kind!r}; valid: {sorted(OBSERVERS)}")
         return make_observer(kind, system, **{**self.observer_params(kind), **params})
@@ -847,7 +1297,24 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
     def current_row(self) -> dict[str, Any]:
         """The last reset's or step's row: time ``t``, true state ``x``, measurement ``y``,
         clean outputs ``y_clean``, input ``u``, estimate ``x_hat`` and ``diagnostics`` (None
-        without an observer), ``reward`` (0 at a reset); what a recording wrapper writes."""
+        without an observer), ``reward`` (0 at a reset); what a recording wrapper writes.
+
+        Returns
+        -------
+        dict
+            Keys ``"t"`` (float, s), ``"x"``, ``"y"``, ``"y_clean"``, ``"u"`` (lists of
+            float), ``"x_hat"`` (list or None), ``"diagnostics"`` (dict or None),
+            ``"reward"`` (float).
+
+        Examples
+        --------
+        >>> from hgo_mj.envs import PendulumSwingUpEnv
+        >>> env = PendulumSwingUpEnv()
+        >>> _ = env.reset(seed=0)
+        >>> row = env.current_row()
+        >>> row["t"], row["x_hat"], row["reward"], sorted(row)
+        (0.0, [0.0, 0.0], 0.0, ['diagnostics', 'reward', 't', 'u', 'x', 'x_hat', 'y', 'y_clean'])
+        """
         t, x, y, Yc, u, x_hat, diag = self._last
         if diag is None and self.observer is not None:
             diag = self.observer.diagnostics()  # the state has not moved since
@@ -858,7 +1325,23 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
     def recording_metadata(self) -> dict[str, Any]:
         """What a recording's ``/scenario`` document holds: the environment (registered id,
         class), task, observation, periods, integrator, plant, sensor chain, observer (name,
-        type, parameters) and package versions."""
+        type, parameters) and package versions.
+
+        Returns
+        -------
+        dict
+            JSON-serializable; keys ``"scenario"`` (the registered id, else the class name),
+            ``"environment"``, ``"task"``, ``"plant"``, ``"system_params"``,
+            ``"observation"``, ``"physics_dt"``, ``"sample_period"``, ``"control_period"``,
+            ``"integrator"``, ``"sensor"``, ``"observers"``, ``"versions"``.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs import PendulumSwingUpEnv
+        >>> meta = PendulumSwingUpEnv().recording_metadata()
+        >>> meta["scenario"], meta["task"]
+        ('hgo_mj/PendulumSwingUp-v0', {'class': 'SwingUpTask', 'max_torque': 0.5, 'start_noise': 0.1})
+        """
         from hgo_mj.simulate import package_versions
 
         from . import ENVIRONMENTS

@@ -51,6 +51,53 @@ _ARGUMENTS = """
 """
 
 
+def _sections(env_id: str, task_params: str, obs_shape: str, reward: str) -> str:
+    """The numpydoc Parameters and Examples sections of an environment class."""
+    return f"""
+    Parameters
+    ----------
+    task : Task, optional
+        A task instance instead of the class's ``task_class(**task_kwargs)``.
+    observer : str, mapping, Observer, "default" or None
+        The observer in the loop (default ``"default"``: the task's); see
+        :class:`~envs.core.HgoEnv`.
+    observer_kwargs : mapping, optional
+        Parameters of a named observer, merged over the task's defaults for it.
+    sensor : SensorChain, stage spec, sequence of stage specs, "default" or None
+        The sensor chain (default ``"default"``: the task's, given above).
+    observation : {{"estimate", "measurement", "true", "estimate+diagnostics"}}
+        What the agent sees (default ``"estimate"``).
+    physics_dt, control_period, sample_period : float, optional
+        MuJoCo timestep, action hold and sensor/observer period [s]; defaults above.
+    integrator : {{"Euler", "RK4", "implicit", "implicitfast"}}, optional
+        MuJoCo integrator (default above).
+    invalid_action : {{"clip", "raise"}}
+        What an action outside [-1, 1] does (default ``"clip"``).
+    info_level : {{"basic", "full"}}
+        What ``info`` carries (default ``"basic"``).
+    render_mode : {{None, "rgb_array"}}
+        ``"rgb_array"``: ``render()`` returns the true pose with the estimate's ghost.
+    **task_kwargs
+        Parameters of the task (below; the ``## Arguments`` table above).
+{task_params}
+
+    Examples
+    --------
+    >>> import gymnasium
+    >>> import numpy as np
+    >>> import hgo_mj.envs
+    >>> env = gymnasium.make("{env_id}")
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.shape
+    {obs_shape}
+    >>> action = np.zeros(env.action_space.shape, dtype=np.float32)
+    >>> obs, reward, terminated, truncated, info = env.step(action)
+    >>> round(reward, 2), terminated, truncated
+    ({reward}, False, False)
+    >>> env.close()
+"""
+
+
 class PendulumSwingUpEnv(HgoEnv):
     __doc__ = """Swing a torque-limited pendulum up and balance it, acting on an observer's estimate.
 
@@ -114,7 +161,12 @@ class PendulumSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-"""
+""" + _sections(
+        "hgo_mj/PendulumSwingUp-v0", """\
+    max_torque : float, default 0.5
+        Torque per unit action [N m].
+    start_noise : float, default 0.1
+        Half width of the initial state draw [rad, rad/s].""", "(3,)", "-9.71")
     task_class = SwingUpTask
 
 
@@ -169,7 +221,14 @@ class CartPendulumBalanceEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-"""
+""" + _sections(
+        "hgo_mj/CartPendulumBalance-v0", """\
+    max_acceleration : float, default 2.0
+        Pivot acceleration per unit action [g].
+    max_angle : float, default 0.5
+        Termination angle [rad].
+    start_noise : float, default 0.2
+        Half width of the initial state draw.""", "(2,)", "1.0")
     task_class = BalanceTask
 
 
@@ -234,7 +293,16 @@ class ElasticJointReachEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-"""
+""" + _sections(
+        "hgo_mj/ElasticJointReach-v0", """\
+    max_torque : float, default 2.0
+        Torque per unit action [N m].
+    target_range : float, default 1.0
+        Half width of the target draw [rad].
+    start_noise : float, default 0.1
+        Half width of the initial angle draw [rad].
+    max_cost : float, default 10.0
+        Bound of the per-step cost.""", "(5,)", "-0.24")
     task_class = ReachTask
 
 
@@ -301,7 +369,16 @@ class ElasticJoint2LinkReachEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-"""
+""" + _sections(
+        "hgo_mj/ElasticJoint2LinkReach-v0", """\
+    max_torque : tuple of float, default (6.0, 2.0)
+        Torques per unit action [N m].
+    target_range : float, default 0.8
+        Half width of each target draw [rad].
+    start_noise : float, default 0.1
+        Half width of the initial angle draw [rad].
+    max_cost : float, default 10.0
+        Bound of the per-step cost.""", "(10,)", "-1.11")
     task_class = Reach2LinkTask
 
 
@@ -360,7 +437,12 @@ class FurutaSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-"""
+""" + _sections(
+        "hgo_mj/FurutaSwingUp-v0", """\
+    max_input : float, default 10.0
+        Motor voltage per unit action [V].
+    start_noise : float, default 0.05
+        Half width of the initial state draw.""", "(6,)", "-9.72")
     task_class = FurutaSwingUpTask
 
 
@@ -418,7 +500,12 @@ class AcrobotSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-"""
+""" + _sections(
+        "hgo_mj/AcrobotSwingUp-v0", """\
+    max_input : float, default 20.0
+        Elbow torque per unit action [N m].
+    start_noise : float, default 0.05
+        Half width of the initial state draw.""", "(6,)", "-9.79")
     task_class = AcrobotSwingUpTask
 
 
@@ -478,7 +565,12 @@ class CartPoleSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-"""
+""" + _sections(
+        "hgo_mj/CartPoleSwingUp-v0", """\
+    max_input : float, default 10.0
+        Force per unit action [N].
+    start_noise : float, default 0.05
+        Half width of the initial state draw.""", "(5,)", "-9.72")
     task_class = CartPoleSwingUpTask
 
 

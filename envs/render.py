@@ -37,7 +37,20 @@ _ALL = int(mujoco.mjtCatBit.mjCAT_ALL)
 
 
 class RenderError(HgoError, RuntimeError):
-    """No OpenGL backend could be made for rendering."""
+    """No OpenGL backend could be made for rendering.
+
+    Also raised by :class:`GhostRenderer` for a model that is not a ``mujoco.MjModel``.
+    A :class:`~hgo_mj.exceptions.HgoError` and a ``RuntimeError``.
+
+    Examples
+    --------
+    >>> from hgo_mj.envs.render import GhostRenderer, RenderError
+    >>> try:
+    ...     GhostRenderer("pendulum.xml", [0])
+    ... except RenderError as exc:
+    ...     print(exc)
+    model must be a mujoco.MjModel; found str
+    """
 
 
 #: the process's one OpenGL context and its backend (made on first use, never freed: freeing
@@ -49,10 +62,27 @@ def gl_context() -> tuple[Any, str]:
     """The process's offscreen OpenGL context, made current, and its backend's name. Every
     renderer draws into its own offscreen framebuffer (``mjr_setBuffer``) in this context.
 
+    Returns
+    -------
+    context : mujoco.egl.GLContext, mujoco.osmesa.GLContext or mujoco.glfw.GLContext
+        The context, current on the calling thread; made once per process, never freed.
+    backend : {"egl", "osmesa", "glfw"}
+        The backend that made it.
+
     Raises
     ------
     RenderError
-        No backend could be made: the message lists each one tried with its error."""
+        No backend could be made: the message lists each one tried with its error.
+
+    Examples
+    --------
+    Skipped here: it needs an OpenGL backend.
+
+    >>> from hgo_mj.envs.render import gl_context
+    >>> ctx, backend = gl_context()  # doctest: +SKIP
+    >>> backend  # doctest: +SKIP
+    'egl'
+    """
     if _CONTEXT:
         _CONTEXT[0][0].make_current()
         return _CONTEXT[0]
@@ -81,7 +111,27 @@ def framing_camera(model: Any) -> Any:
     hinges of the planar mechanisms), far enough that every moving geom stays in view
     whatever the joint angles: the reach ``R`` (largest distance of a moving geom's bounding
     sphere from the anchor at ``qpos0``) fills about 80 % of the half-height at 45 degrees of
-    field of view."""
+    field of view.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+        The model to frame (only read).
+
+    Returns
+    -------
+    mujoco.MjvCamera
+        A free camera: ``lookat`` the first joint's anchor (the model's centre without
+        joints), ``distance`` 2.6 times the reach [m], azimuth 90 and elevation -10 degrees.
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.envs.render import framing_camera
+    >>> cam = framing_camera(make_plant("pendulum").model)
+    >>> cam.lookat.tolist(), round(cam.distance, 3), cam.azimuth, cam.elevation
+    ([0.0, 0.0, 0.0], 1.365, 90.0, -10.0)
+    """
     d = mujoco.MjData(model)
     mujoco.mj_kinematics(model, d)
     root = np.array(d.xanchor[0] if model.njnt else model.stat.center, dtype=float)
@@ -108,13 +158,21 @@ class GhostRenderer:
     width, height : int
         Frame size in pixels (at most the model's offscreen buffer, 640 x 480 by default).
 
+    Raises
+    ------
+    RenderError
+        ``model`` is not a ``mujoco.MjModel``, or no OpenGL backend could be made
+        (:func:`gl_context`).
+
     Examples
     --------
+    Rendering needs an OpenGL backend, so the lines that make the renderer are skipped here.
+
     >>> import numpy as np
     >>> from hgo_mj.plants import make_plant
     >>> plant = make_plant("pendulum")
-    >>> r = GhostRenderer(plant.model, [0], width=64, height=48)
-    >>> r.render(np.array([0.5]), np.array([0.1])).shape
+    >>> r = GhostRenderer(plant.model, [0], width=64, height=48)  # doctest: +SKIP
+    >>> r.render(np.array([0.5]), np.array([0.1])).shape  # doctest: +SKIP
     (48, 64, 3)
     """
 
@@ -142,7 +200,31 @@ class GhostRenderer:
 
     def render(self, q_true: NDArray[np.float64], q_ghost: NDArray[np.float64]) -> NDArray[np.uint8]:
         """One ``(height, width, 3)`` uint8 frame: the model at the joint positions ``q_true``
-        and its ghost at ``q_ghost`` (both in state order)."""
+        and its ghost at ``q_ghost`` (both in state order).
+
+        Parameters
+        ----------
+        q_true : (k,) array
+            True joint positions, one per ``qpos_adr`` entry [rad or m].
+        q_ghost : (k,) array
+            Joint positions of the ghost (the estimate), the same layout.
+
+        Returns
+        -------
+        (height, width, 3) uint8 array
+            The frame, a new array, top row first.
+
+        Examples
+        --------
+        Skipped here: it needs an OpenGL backend.
+
+        >>> import numpy as np
+        >>> from hgo_mj.plants import make_plant
+        >>> r = GhostRenderer(make_plant("pendulum").model, [0])  # doctest: +SKIP
+        >>> frame = r.render(np.array([3.0]), np.array([2.8]))  # doctest: +SKIP
+        >>> frame.shape, frame.dtype  # doctest: +SKIP
+        ((480, 480, 3), dtype('uint8'))
+        """
         m = self.model
         self._ctx.make_current()
         for d, q in ((self._true, q_true), (self._ghost, q_ghost)):
@@ -159,7 +241,19 @@ class GhostRenderer:
         return np.flipud(self._rgb).copy()
 
     def close(self) -> None:
-        """Free this renderer's GPU buffers (the shared context stays)."""
+        """Free this renderer's GPU buffers (the shared context stays).
+
+        Idempotent; the renderer cannot render afterwards.
+
+        Examples
+        --------
+        Skipped here: it needs an OpenGL backend.
+
+        >>> from hgo_mj.plants import make_plant
+        >>> r = GhostRenderer(make_plant("pendulum").model, [0])  # doctest: +SKIP
+        >>> r.close()  # doctest: +SKIP
+        >>> r.close()  # doctest: +SKIP
+        """
         if getattr(self, "_con", None) is not None:
             self._ctx.make_current()
             self._con.free()

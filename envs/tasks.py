@@ -49,6 +49,29 @@ class SwingUpTask(Task):
     Reward per step ``-(d^2 + 0.1 w^2 + 0.001 a^2)`` with ``d`` the angle from upright wrapped
     to ``[-pi, pi)``, ``w`` the angular velocity [rad/s] and ``a`` the action (torque over
     ``max_torque``); range about ``[-16, 0]``.
+
+    Parameters
+    ----------
+    max_torque : float, default 0.5
+        Torque per unit action [N m], positive.
+    start_noise : float, default 0.1
+        Half width of the uniform draw of the initial angle [rad] and velocity [rad/s].
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.envs.tasks import SwingUpTask
+    >>> task = SwingUpTask(max_torque=0.5)
+    >>> x0 = task.initial_state(np.random.default_rng(0))
+    >>> reward, terms = task.reward(x0, [0.0], ())
+    >>> round(reward, 3), sorted(terms)
+    (-9.698, ['reward_control', 'reward_upright', 'reward_velocity'])
     """
 
     plant = "pendulum"
@@ -106,6 +129,29 @@ class BalanceTask(Task):
 
     Reward per step ``1 - x1^2 - 0.01 a^2`` while ``|x1| <= max_angle``; the episode ends when
     ``|x1| > max_angle``.
+
+    Parameters
+    ----------
+    max_acceleration : float, default 2.0
+        Pivot acceleration per unit action [g], positive.
+    max_angle : float, default 0.5
+        Termination angle [rad], positive.
+    start_noise : float, default 0.2
+        Half width of the uniform draw of the initial angle and angular velocity; at most
+        ``max_angle``.
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite, or larger than ``max_angle``.
+
+    Examples
+    --------
+    >>> from hgo_mj.envs.tasks import BalanceTask
+    >>> task = BalanceTask(max_angle=0.5)
+    >>> round(task.reward([0.1, 0.0], [0.0], ())[0], 3), task.terminated([0.6, 0.0])
+    (0.99, True)
     """
 
     plant = "cart_pendulum"
@@ -168,6 +214,34 @@ class ReachTask(Task):
     with ``e`` the link angle error [rad], ``q'`` the link velocity and ``q' - theta'`` the
     deflection rate of the spring [rad/s] (residual vibration), ``a`` the action; the bound
     keeps a runaway (the link whirling) from dominating returns.
+
+    Parameters
+    ----------
+    max_torque : float, default 2.0
+        Motor torque per unit action [N m], positive.
+    target_range : float, default 1.0
+        Half width of the uniform target draw [rad], at most pi.
+    start_noise : float, default 0.1
+        Half width of the uniform draw of the initial link (and motor) angle [rad].
+    max_cost : float, default 10.0
+        Bound of the per-step cost, positive.
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite, or a ``target_range`` above pi.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.envs.tasks import ReachTask
+    >>> task = ReachTask()
+    >>> goal = task.sample_goal(np.random.default_rng(0))
+    >>> [round(g, 3) for g in goal], task.goal_names
+    ([0.274], ('target_link_angle',))
+    >>> round(task.reward([0.0, 0.0, 0.0, 0.0], [0.0], goal)[0], 3)
+    -0.075
     """
 
     plant = "elastic_joint"
@@ -232,6 +306,33 @@ class Reach2LinkTask(Task):
 
     Reward per step ``-min(sum_i (e_i^2 + 0.01 q_i'^2 + 0.01 (q_i' - theta_i')^2
     + 0.001 a_i^2), max_cost)``.
+
+    Parameters
+    ----------
+    max_torque : tuple of float, default (6.0, 2.0)
+        Torques of motors 1 and 2 per unit action [N m], positive.
+    target_range : float, default 0.8
+        Half width of each uniform target draw [rad], at most pi.
+    start_noise : float, default 0.1
+        Half width of the uniform draw of each initial link (and motor) angle [rad].
+    max_cost : float, default 10.0
+        Bound of the per-step cost, positive.
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite, a ``target_range`` above pi, or a ``max_torque`` that is not two numbers.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.envs.tasks import Reach2LinkTask
+    >>> task = Reach2LinkTask()
+    >>> task.max_action, task.goal_names
+    ((6.0, 2.0), ('target_link1_angle', 'target_link2_angle'))
+    >>> [round(g, 3) for g in task.sample_goal(np.random.default_rng(0))]
+    [0.219, -0.368]
     """
 
     plant = "elastic_joint_2link"
@@ -313,6 +414,29 @@ class LabSwingUpTask(Task):
     Reward per step ``-(sum_i e_i^2 + 0.01 sum_j v_j^2 + 0.001 sum a^2)``: ``e_i`` the error of
     each target coordinate (angles wrapped to ``[-pi, pi)``), ``v_j`` the joint velocities,
     ``a`` the action. The episode ends when a coordinate leaves its limit (the cart's track).
+
+    Parameters
+    ----------
+    max_input : float
+        Input per unit action (plant units: V, N m or N), positive.
+    start_noise : float, default 0.05
+        Half width of the uniform draw of every initial state entry.
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite.
+
+    Examples
+    --------
+    A subclass names the plant, its encoders and the targets (here the cart-pole's):
+
+    >>> from hgo_mj.envs.tasks import CartPoleSwingUpTask, LabSwingUpTask
+    >>> issubclass(CartPoleSwingUpTask, LabSwingUpTask)
+    True
+    >>> CartPoleSwingUpTask.plant_outputs, CartPoleSwingUpTask.limits
+    (('cart_position', 'pole_angle'), ((0, 2.4),))
     """
 
     #: MJCF sensors read by the encoders (the plant's outputs)
@@ -380,7 +504,32 @@ class LabSwingUpTask(Task):
 
 
 class FurutaSwingUpTask(LabSwingUpTask):
-    """The QUBE-Servo 2 rotary pendulum (``models/furuta.xml``): pendulum to pi, by voltage."""
+    """The QUBE-Servo 2 rotary pendulum (``models/furuta.xml``): pendulum to pi, by voltage.
+
+    Parameters
+    ----------
+    max_input : float, default 10.0
+        Motor voltage per unit action [V], positive.
+    start_noise : float, default 0.05
+        Half width of the uniform draw of every initial state entry.
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.envs.tasks import FurutaSwingUpTask
+    >>> task = FurutaSwingUpTask()
+    >>> task.plant_outputs, task.max_action
+    (('arm_angle', 'pendulum_angle'), (10.0,))
+    >>> x0 = task.initial_state(np.random.default_rng(0))
+    >>> round(task.reward(x0, [0.0], ())[0], 2)
+    -9.73
+    """
 
     plant = "furuta.xml"
     plant_outputs = ("arm_angle", "pendulum_angle")
@@ -395,7 +544,32 @@ class FurutaSwingUpTask(LabSwingUpTask):
 
 
 class AcrobotSwingUpTask(LabSwingUpTask):
-    """Spong's acrobot (``models/acrobot.xml``): shoulder to pi, elbow straight, by elbow torque."""
+    """Spong's acrobot (``models/acrobot.xml``): shoulder to pi, elbow straight, by elbow torque.
+
+    Parameters
+    ----------
+    max_input : float, default 20.0
+        Elbow torque per unit action [N m], positive.
+    start_noise : float, default 0.05
+        Half width of the uniform draw of every initial state entry.
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.envs.tasks import AcrobotSwingUpTask
+    >>> task = AcrobotSwingUpTask()
+    >>> task.plant_outputs, task.max_action
+    (('shoulder_angle', 'elbow_angle'), (20.0,))
+    >>> x0 = task.initial_state(np.random.default_rng(0))
+    >>> round(task.reward(x0, [0.0], ())[0], 2)
+    -9.78
+    """
 
     plant = "acrobot.xml"
     plant_outputs = ("shoulder_angle", "elbow_angle")
@@ -411,7 +585,32 @@ class AcrobotSwingUpTask(LabSwingUpTask):
 
 class CartPoleSwingUpTask(LabSwingUpTask):
     """The cart-pole (``models/cart_pole.xml``): pole to pi, cart centred and on its track
-    (``|cart| <= 2.4 m``), by the force on the cart."""
+    (``|cart| <= 2.4 m``), by the force on the cart.
+
+    Parameters
+    ----------
+    max_input : float, default 10.0
+        Force on the cart per unit action [N], positive.
+    start_noise : float, default 0.05
+        Half width of the uniform draw of every initial state entry.
+
+    Raises
+    ------
+    DesignError
+        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
+        finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hgo_mj.envs.tasks import CartPoleSwingUpTask
+    >>> task = CartPoleSwingUpTask()
+    >>> task.plant_outputs, task.max_action
+    (('cart_position', 'pole_angle'), (10.0,))
+    >>> x0 = task.initial_state(np.random.default_rng(0))
+    >>> round(task.reward(x0, [0.0], ())[0], 2)
+    -9.73
+    """
 
     plant = "cart_pole.xml"
     plant_outputs = ("cart_position", "pole_angle")

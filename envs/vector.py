@@ -85,6 +85,22 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         ``num_envs`` not an integer >= 1, ``max_episode_steps`` or ``nthread`` not a positive
         integer, a
         sensor stage that keeps time, or any argument the environment refuses.
+
+    Examples
+    --------
+    >>> import gymnasium
+    >>> import numpy as np
+    >>> import hgo_mj.envs
+    >>> envs = gymnasium.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=4)
+    >>> envs
+    HgoVectorEnv(PendulumSwingUpEnv, num_envs=4)
+    >>> obs, info = envs.reset(seed=0)
+    >>> obs.shape, info["state"].shape
+    ((4, 3), (4, 2))
+    >>> obs, rewards, terminated, truncated, info = envs.step(np.zeros((4, 1), np.float32))
+    >>> rewards.round(2)
+    array([-9.71, -9.83, -9.57, -9.36])
+    >>> envs.close()
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -386,12 +402,33 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
 
 def vector_entry_point(env_class: type[HgoEnv]) -> Any:
     """The ``vector_entry_point`` registered for ``env_class`` (``make_vec`` calls it with
-    ``num_envs``, ``max_episode_steps`` and the environment's arguments)."""
+    ``num_envs``, ``max_episode_steps`` and the environment's arguments).
+
+    Parameters
+    ----------
+    env_class : type of HgoEnv
+        The environment class.
+
+    Returns
+    -------
+    callable
+        ``make(num_envs=1, **kwargs)`` returning ``HgoVectorEnv(env_class, num_envs,
+        **kwargs)``, named ``make_<EnvClass>_vector``.
+
+    Examples
+    --------
+    >>> from hgo_mj.envs import PendulumSwingUpEnv, vector_entry_point
+    >>> make = vector_entry_point(PendulumSwingUpEnv)
+    >>> make.__name__
+    'make_PendulumSwingUpEnv_vector'
+    >>> make(num_envs=2, observation="true")
+    HgoVectorEnv(PendulumSwingUpEnv, num_envs=2)
+    """
     def make(num_envs: int = 1, **kwargs: Any) -> HgoVectorEnv:
         return HgoVectorEnv(env_class, num_envs, **kwargs)
     make.__qualname__ = make.__name__ = f"make_{env_class.__name__}_vector"
     return make
 
 
-__all__ = ["HgoVectorEnv", "check_num_envs", "vector_entry_point"]
+__all__ = ["HgoVectorEnv", "vector_entry_point"]
 

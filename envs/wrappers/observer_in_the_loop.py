@@ -554,3 +554,6 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         if self.tap is not None:  # the environment steps its own way again
             self.tap.env.__dict__.pop("_step_mujoco_simulation", None)
         super().close()
+
+
+__all__ = ["ObserverInTheLoop"]

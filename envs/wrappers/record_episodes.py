@@ -42,10 +42,42 @@ class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArg
     path : str or Path
         The ``.rrd`` file to write.
 
+    Attributes
+    ----------
+    episodes : list of dict
+        Per finished episode: ``episode``, ``seed``, ``steps``, ``return``, ``terminated`` and,
+        with an observer, ``rmse`` and ``final_error`` by estimated state name.
+
+    Raises
+    ------
+    DesignError
+        ``env`` is not an hgo_mj environment (its unwrapped environment lacks
+        ``current_row`` and ``loop``).
+
     Examples
     --------
     >>> import gymnasium, hgo_mj.envs  # doctest: +SKIP
     >>> env = RecordEpisodes(gymnasium.make("hgo_mj/PendulumSwingUp-v0"), "episodes.rrd")  # doctest: +SKIP
+
+    Two episodes into a temporary file; the first is written at the second ``reset``:
+
+    >>> import os
+    >>> import tempfile
+    >>> import gymnasium
+    >>> import numpy as np
+    >>> import hgo_mj.envs
+    >>> from hgo_mj.envs.wrappers import RecordEpisodes
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "episodes.rrd")
+    ...     env = RecordEpisodes(gymnasium.make("hgo_mj/PendulumSwingUp-v0"), path)
+    ...     _ = env.reset(seed=0)
+    ...     for _ in range(3):
+    ...         _ = env.step(np.zeros(1, dtype=np.float32))
+    ...     _ = env.reset(seed=1)
+    ...     env.close()
+    ...     written = os.path.getsize(path) > 0
+    >>> written, env.episodes[0]["steps"], round(env.episodes[0]["return"], 2)
+    (True, 3, -29.21)
     """
 
     def __init__(self, env: gymnasium.Env, path: str | Path) -> None:
@@ -103,7 +135,32 @@ class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArg
             self._rows[k].append(row[k])
 
     def metadata_document(self) -> dict[str, Any]:
-        """The environment's ``recording_metadata()`` with the seed of every episode."""
+        """The environment's ``recording_metadata()`` with the seed of every episode.
+
+        Returns
+        -------
+        dict
+            :meth:`~hgo_mj.envs.HgoEnv.recording_metadata` plus ``"seed"`` (the first
+            episode's, else the current one's) and ``"seeds"`` (episode number as str -> seed,
+            finished episodes only); what the ``/scenario`` document holds.
+
+        Examples
+        --------
+        >>> import os
+        >>> import tempfile
+        >>> import gymnasium
+        >>> import hgo_mj.envs
+        >>> from hgo_mj.envs.wrappers import RecordEpisodes
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     env = RecordEpisodes(gymnasium.make("hgo_mj/PendulumSwingUp-v0"),
+        ...                          os.path.join(tmp, "episodes.rrd"))
+        ...     _ = env.reset(seed=0)
+        ...     _ = env.reset(seed=1)
+        ...     meta = env.metadata_document()
+        ...     env.close()
+        >>> meta["scenario"], meta["seed"], meta["seeds"]
+        ('hgo_mj/PendulumSwingUp-v0', 0, {'0': 0})
+        """
         meta = self._base.recording_metadata()
         seeds = [e["seed"] for e in self.episodes]
         meta["seed"] = seeds[0] if seeds else self._seed
@@ -151,3 +208,6 @@ class RecordEpisodes(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArg
         rec.log_episode_metrics(self.episodes)
         for v in rows.values():
             v.clear()
+
+
+__all__ = ["RecordEpisodes"]

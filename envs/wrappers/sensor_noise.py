@@ -52,6 +52,18 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any], gymnasium.utils.Rec
     --------
     >>> env = SensorNoise(gymnasium.make("InvertedPendulum-v5"),  # doctest: +SKIP
     ...                   [{"stage": "gaussian", "std": 0.01}], indices=[0, 1])
+
+    The same on an hgo_mj environment shown its true state: only the angle is noisy.
+
+    >>> import hgo_mj.envs
+    >>> from hgo_mj.envs.wrappers import SensorNoise
+    >>> env = SensorNoise(gymnasium.make("hgo_mj/CartPendulumBalance-v0", observation="true"),
+    ...                   [{"stage": "gaussian", "std": 0.01}], indices=[0])
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.round(3), info["clean_observation"].round(3)
+    (array([ 0.048, -0.092]), array([ 0.055, -0.092]))
+    >>> env.dt
+    0.05
     """
 
     def __init__(self, env: gymnasium.Env, sensor: Any, *, indices: Sequence[int] | None = None,
@@ -98,3 +110,6 @@ class SensorNoise(gymnasium.Wrapper[Array, Any, Array, Any], gymnasium.utils.Rec
         info = dict(info)
         info["clean_observation"] = np.array(obs)
         return self._measure(obs), reward, terminated, truncated, info
+
+
+__all__ = ["SensorNoise"]
