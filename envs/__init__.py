@@ -20,7 +20,7 @@ task; the agent acts on the observer's estimate by default. Use them after
 
 (Gymnasium 1.x loads no plugins by entry point; the ``module:id`` form imports the module.)
 ``gymnasium.make_vec(id, num_envs=N)`` gives the native vector environment
-(:class:`~envs.vector.HgoVectorEnv`: the one loop at B = N, one process);
+(:class:`~hgo_mj.envs.vector.HgoVectorEnv`: the one loop at B = N, one process);
 ``vectorization_mode="sync"`` Gymnasium's ``SyncVectorEnv`` of single environments.
 The time limit is Gymnasium's ``TimeLimit``, added by ``gymnasium.make`` from
 ``max_episode_steps``. Wrappers for other environments are in :mod:`hgo_mj.envs.wrappers`.

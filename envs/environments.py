@@ -1,7 +1,7 @@
-"""The environments: a :class:`~envs.core.Task` each, in the loop of :class:`~envs.core.HgoEnv`.
+"""The environments: a :class:`~hgo_mj.envs.core.Task` each, in the loop of :class:`~hgo_mj.envs.core.HgoEnv`.
 
 The classes below carry only their documentation and their task; the loop, the arguments and
-the observation modes are :class:`~envs.core.HgoEnv`'s. Variants are made with
+the observation modes are :class:`~hgo_mj.envs.core.HgoEnv`'s. Variants are made with
 :func:`functools.partial` or registration keywords, never by copying a class::
 
     PendulumSwingUpTrue = functools.partial(PendulumSwingUpEnv, observation="true")
@@ -21,7 +21,7 @@ from .tasks import (
 )
 
 _ARGUMENTS = """
-    Common to every hgo_mj environment (:class:`~envs.core.HgoEnv`); pass them to
+    Common to every hgo_mj environment (:class:`~hgo_mj.envs.core.HgoEnv`); pass them to
     ``gymnasium.make``:
 
     | Parameter         | Default      | Description                                          |
@@ -60,7 +60,7 @@ def _sections(env_id: str, task_params: str, obs_shape: str, reward: str) -> str
         A task instance instead of the class's ``task_class(**task_kwargs)``.
     observer : str, mapping, Observer, "default" or None
         The observer in the loop (default ``"default"``: the task's); see
-        :class:`~envs.core.HgoEnv`.
+        :class:`~hgo_mj.envs.core.HgoEnv`.
     observer_kwargs : mapping, optional
         Parameters of a named observer, merged over the task's defaults for it.
     sensor : SensorChain, stage spec, sequence of stage specs, "default" or None
@@ -156,7 +156,8 @@ class PendulumSwingUpEnv(HgoEnv):
     | `start_noise` | `0.1`   | half width of the initial state draw     |
 """ + _ARGUMENTS + """
     Defaults here: `physics_dt=0.02` with the `"Euler"` integrator and `control_period=0.04`
-    (two MuJoCo steps per `step`, as Gymnasium's InvertedPendulum-v5), `sample_period=0.04`;
+    (two MuJoCo steps per `step`, as Gymnasium's InvertedPendulum-v5), the sample period the
+    control period (one measurement per `step`);
     observer `high_gain` with `k=10, model=True`; sensor `[{"stage": "gaussian", "std": 0.01}]`.
 
     ## Version History

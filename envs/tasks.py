@@ -2,7 +2,7 @@
 
 Each task is small: it never sees the observer, and its reward and termination use the true
 state only. The numbers (episode lengths, torque limits, observer gains, sensor noise) are the
-defaults of the environment classes in :mod:`envs.environments`, where they are documented.
+defaults of the environment classes in :mod:`hgo_mj.envs.environments`, where they are documented.
 """
 
 from __future__ import annotations

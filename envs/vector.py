@@ -5,13 +5,13 @@
 :class:`~hgo_mj.loop.Loop` of N members. A step is one ``Loop.segment`` of the control period
 for every member at once (the N plants through ``mujoco.rollout`` in MuJoCo's thread pool, N
 seeded sensor streams, each observer's N copies in one kernel call), then the observations
-(:meth:`envs.core.Encoder.batch`), the rewards and terminations (:meth:`envs.core.Task.rewards`,
-:meth:`envs.core.Task.terminations`) as arrays.
+(:meth:`hgo_mj.envs.core.Encoder.batch`), the rewards and terminations (:meth:`hgo_mj.envs.core.Task.rewards`,
+:meth:`hgo_mj.envs.core.Task.terminations`) as arrays.
 
 Member ``i`` is the single environment (``gymnasium.make(id, **kwargs)``) reset with the seed
 ``seed + i`` (or the ``i``-th of a list of seeds), step for step and bit for bit, across
 autoresets too: a member's reset draws its state and goal from its own ``np_random``, reseeds
-its sensor stream from the same derived seed (:func:`envs.core.chain_seed`) or lets it go on
+its sensor stream from the same derived seed (:func:`hgo_mj.envs.core.chain_seed`) or lets it go on
 (a reset without a seed, as an autoreset), and restarts its observer copy from the initial
 estimate; the plant member keeps the batch's MuJoCo clock (no shipped model reads it).
 
@@ -77,14 +77,13 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
     nthread : int, optional
         Threads of MuJoCo's batched step (default: the plant's, ``min(2, cpu count)``).
     **kwargs
-        The environment's arguments (:class:`~envs.core.HgoEnv`), the same for every member.
+        The environment's arguments (:class:`~hgo_mj.envs.core.HgoEnv`), the same for every member.
 
     Raises
     ------
     DesignError
         ``num_envs`` not an integer >= 1, ``max_episode_steps`` or ``nthread`` not a positive
-        integer, a
-        sensor stage that keeps time, or any argument the environment refuses.
+        integer, a sensor stage that keeps time, or any argument the environment refuses.
 
     Examples
     --------

@@ -235,7 +235,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     observer_kwargs : mapping, optional
         Parameters of a named observer.
     sensor : sensor spec, optional
-        The sensor chain on the measured signals (see :func:`envs.core.sensor_chain`);
+        The sensor chain on the measured signals (see :func:`hgo_mj.envs.core.sensor_chain`);
         default exact measurement. Seeded by ``reset(seed=...)``.
     layout : sequence of int, optional
         The agent's observation as indices into the concatenated estimate (default: the
