@@ -18,8 +18,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     ends without an error, removed otherwise. The folder is created if missing."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    tmp = temporary_beside(path)
     try:
         yield Path(tmp)
         os.replace(tmp, path)
@@ -27,6 +26,19 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def temporary_beside(path: Path) -> str:
+    """A new empty file beside ``path`` (same folder, hidden name), with the permissions a
+    plain ``open`` would give (``mkstemp``'s 0600 would follow it onto ``path``)."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
+    finally:
+        os.close(fd)
+    return tmp
 
 
 def check_writable(name: str, path: str | Path, *, folder: bool) -> Path:

@@ -140,6 +140,8 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
         sc["run"]["seeds"] = _flag_int(args.seeds, "--seeds")
     if args.store_every is not None:
         sc["run"]["store_every"] = _flag_int(args.store_every, "--store-every")
+    if args.stream:
+        sc["run"]["stream"] = True
     return sc
 
 
@@ -254,6 +256,8 @@ def observer_system(system: Any, params: Any, label: str) -> Any:
 FORMATS = ("npz", "parquet", "csv")
 #: written when ``--format`` is not given: the npz and Parquet beside it
 DEFAULT_FORMATS = ("npz", "parquet")
+#: the formats of a streamed run (``--stream``): its table is written chunk by chunk
+STREAM_FORMATS = ("parquet",)
 
 
 def check_formats(formats: Any) -> tuple[str, ...]:
@@ -269,23 +273,27 @@ def check_formats(formats: Any) -> tuple[str, ...]:
 
 
 def write_results(traj: Any, metrics: dict[str, Any], out: Path,
-                  formats: tuple[str, ...]) -> list[str]:
+                  formats: tuple[str, ...], table: bool = True) -> list[str]:
     """Write the run's trajectory and metrics in ``formats`` into ``out``; ``metrics.json``
-    always. Returns the names of the files written."""
-    from .metrics import metrics_frame
-    from .tidy import write_table
-    from .units import units_of
-
+    always. ``table=False``: the trajectory's table is there already (a streamed run).
+    Returns the names of the files written."""
     written = []
     if "npz" in formats:
         traj.save(out / "trajectory.npz")
         written.append("trajectory.npz")
     write_json(out / "metrics.json", metrics)
     written.append("metrics.json")
+    if not {"parquet", "csv"} & set(formats):
+        return written  # pandas is not loaded for an npz run
+    from .metrics import metrics_frame
+    from .tidy import write_table
+    from .units import units_of
+
     frame = metrics_frame(metrics, units_of(traj)[0])
     for fmt in ("parquet", "csv"):
         if fmt in formats:
-            write_table(traj, out / f"trajectory.{fmt}", fmt)
+            if table:
+                write_table(traj, out / f"trajectory.{fmt}", fmt)
             if fmt == "parquet":
                 with atomic_path(out / "metrics.parquet") as tmp:
                     frame.to_parquet(tmp, index=False)
@@ -296,7 +304,7 @@ def write_results(traj: Any, metrics: dict[str, Any], out: Path,
 
 
 def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
-                 formats: Any = DEFAULT_FORMATS) -> tuple[Any, dict[str, Any], Path]:
+                 formats: Any = None) -> tuple[Any, dict[str, Any], Path]:
     """Build everything a scenario names, simulate, and write the results. Returns
     ``(trajectory, metrics, out_dir)``. ``formats`` (:data:`FORMATS`) chooses the files of the
     trajectory and metrics (:func:`write_results`); ``metrics.json``, ``figure.png`` and
@@ -309,9 +317,14 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
     from .plotting import plot_trajectory
     from .simulate import simulate
 
-    formats = check_formats(formats)
     kw = scenario_run(sc, name)
     plant, observers, pl, run = kw["plant"], kw["observers"], sc["plant"], sc["run"]
+    stream = run.get("stream", False)
+    formats = check_formats(formats if formats is not None
+                            else STREAM_FORMATS if stream else DEFAULT_FORMATS)
+    if stream and formats != STREAM_FORMATS:
+        raise DesignError(f"--stream (run.stream) writes the trajectory as Parquet only; found "
+                          f"--format {' '.join(formats)}: leave --format out or give parquet")
     seed = run.get("seed", 0)
     out = check_writable("--out (run.out)", run.get("out", f"runs/{name}"), folder=True)
     if rrd is not None:
@@ -324,18 +337,26 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         rec = Recorder.for_plant(rrd, plant, list(observers),
                                  recording_name=str(sc.get("name", name)),
                                  dropouts=kw["sensor"].has_dropouts)
+    chunk_s = max(RRD_CHUNK_SECONDS, 200 * float(run.get("sample_period") or plant.dt))
+    mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
     try:
         on_chunk = None
         if rec is not None:
             # what is known before the run, in case it is cut short; replaced at the end
             rec.log_metadata({"scenario": sc.get("name", name), "seed": seed,
                               "scenario_spec": sc, "versions": package_versions()})
-            ts = run.get("sample_period") or plant.dt
-            on_chunk = (max(RRD_CHUNK_SECONDS, 200 * float(ts)), rec.write_chunk)
-        traj = simulate(**kw, seed=seed, on_chunk=on_chunk,
-                        store_every=run.get("store_every", 1), isolate=True)
-        mkw = {k: run[k] for k in ("t_transient", "band") if k in run}
-        metrics = all_metrics(traj, **mkw)
+            on_chunk = (chunk_s, rec.write_chunk)
+        if stream:
+            from .stream import stream_run
+
+            traj, metrics = stream_run({**kw, "store_every": run.get("store_every", 1)},
+                                       out / "trajectory.parquet", seed=seed,
+                                       chunk_seconds=chunk_s, **mkw,
+                                       also=None if rec is None else rec.write_chunk)
+        else:
+            traj = simulate(**kw, seed=seed, on_chunk=on_chunk,
+                            store_every=run.get("store_every", 1), isolate=True)
+            metrics = all_metrics(traj, **mkw)
         check_metrics(metrics)
         if rec is not None:
             rec.log_metadata(traj.metadata)
@@ -344,8 +365,10 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         if rec is not None:
             rec.close()
     out.mkdir(parents=True, exist_ok=True)
-    write_results(traj, metrics, out, formats)
-    save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {plant_label(pl)}, seed {seed}"),
+    write_results(traj, metrics, out, formats, table=not stream)
+    every = traj.metadata.get("figure_every", 1)
+    save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {plant_label(pl)}, seed {seed}"
+                                + (f" (every {every}th sample shown)" if every > 1 else "")),
                 out / "figure.png")
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
@@ -383,7 +406,7 @@ def _flag_int(value: Any, where: str) -> int:
 
 
 def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
-              jobs: int = 1, formats: Any = DEFAULT_FORMATS,
+              jobs: int = 1, formats: Any = None,
               quiet: bool = False) -> tuple[Any, dict[str, Any], Path, Any]:
     """:func:`run_scenario` at ``run.seed``, then, when ``run.seeds`` = N > 1, a Monte Carlo
     over the seeds ``seed, seed + 1, ..., seed + N - 1``: the other seeds as a study of the
@@ -396,15 +419,11 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     The first seed's files (and ``rrd``) are exactly those of a single run at that seed."""
     import shutil
 
-    from .plotting import plot_monte_carlo
-    from .study import MonteCarloResult, Study
-    from .study.results import seed_metrics
-    from .study.spec import MAX_RUNS
-    from .units import units_of
-
     run = sc.get("run", {})
     n = positive_int("run.seeds", run.get("seeds", 1), floats=False) if isinstance(run, dict) else 1
     if n > MAX_SEEDS:
+        from .study.spec import MAX_RUNS
+
         raise DesignError(f"run.seeds (--seeds) must be at most {MAX_SEEDS} for `hgo-mj run`; found "
                           f"{n}: run that many as a study, `hgo-mj sweep STUDY.toml` with "
                           f"[sweep] seeds = {n} (and --yes beyond {MAX_RUNS} runs)")
@@ -419,6 +438,13 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     traj, metrics, out = run_scenario(single, name, rrd=rrd, formats=formats)
     if n == 1:
         return traj, metrics, out, None
+    from .plotting import plot_monte_carlo
+    from .study import MonteCarloResult, Study
+    from .study.results import seed_metrics
+    from .units import units_of
+
+    # the other seeds' metrics only: nothing of theirs is streamed
+    single = {**single, "run": {k: v for k, v in single["run"].items() if k != "stream"}}
     seed = single["run"].get("seed", 0)
     seeds = list(range(seed, seed + n))
     # the other seeds as a study (hgo_mj.study): one plant run, the seeds as one batch; its
@@ -550,6 +576,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep every K-th sample row of the trajectory (run.store_every, default "
                    "1): memory and files K times smaller; the run itself and the observers "
                    "still take every sample, the metrics are computed from the kept rows")
+    r.add_argument("--stream", action="store_true",
+                   help="write the trajectory to OUT/trajectory.parquet chunk by chunk as the "
+                   "run goes (run.stream): memory stays flat with the duration; metrics from "
+                   "every row, the figure from every k-th (at most 20,000 rows); Parquet only")
     r.add_argument("--seeds", metavar="N",
                    help="Monte Carlo: N runs at the seeds SEED, SEED+1, ..., SEED+N-1; also "
                    "writes metrics_mc.json, summary_mc.txt and mc.png (default 1: one run)")
@@ -563,7 +593,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--format", dest="formats", action="append", choices=FORMATS,
                    help="files of the trajectory and metrics (repeatable): npz "
                    "(trajectory.npz), parquet (trajectory.parquet and metrics.parquet, units in "
-                   "the schema) or csv (trajectory.csv, metrics.csv); default npz and parquet")
+                   "the schema) or csv (trajectory.csv, metrics.csv); default npz and parquet "
+                   "(with --stream: parquet only)")
     r.add_argument("--quiet", action="store_true",
                    help="no progress on stderr (the --seeds study's plan line and progress)")
     sw = sub.add_parser("sweep", help="run a study: a scenario file with a [sweep] table of axes "
@@ -731,7 +762,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             sc = scenario_from_args(args)
             jobs = _flag_int(args.jobs, "--jobs")
-            formats, quiet = args.formats or DEFAULT_FORMATS, args.quiet
+            formats, quiet = args.formats, args.quiet
             name = "run"
             rrd = None if args.rrd is None else Path(
                 args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")
@@ -759,6 +790,8 @@ def main(argv: list[str] | None = None) -> int:
     if mc is not None:
         print(f"\nMonte Carlo over the seeds {mc.seeds[0]}..{mc.seeds[-1]} (the table above: seed "
               f"{mc.seeds[0]})\n" + mc.table())
+    if formats is None:
+        formats = STREAM_FORMATS if sc["run"].get("stream") else DEFAULT_FORMATS
     files = [f for f in ("trajectory.npz", "trajectory.parquet", "metrics.parquet",
                          "trajectory.csv", "metrics.csv") if f.split(".")[1] in formats]
     print(f"\nwrote {out}/" + ", ".join([*files, "metrics.json", "figure.png", "summary.txt"])

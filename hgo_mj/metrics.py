@@ -36,8 +36,8 @@ from .exceptions import DesignError
 
 Array = NDArray[np.float64]
 
-__all__ = ["PER_STATE", "all_metrics", "format_table", "metrics_frame", "observer_metrics",
-           "settling_time"]
+__all__ = ["PER_STATE", "RunningMetrics", "all_metrics", "format_table", "metrics_frame",
+           "observer_metrics", "settling_time"]
 
 
 def settling_time(t: Array, err: Array, band: float | Array) -> Array:
@@ -123,51 +123,246 @@ def observer_metrics(traj: Any, observer: str, *, t_transient: float | None = No
     if observer not in traj.observers:
         raise DesignError(f"no observer {observer!r} in the trajectory; found "
                           f"{sorted(traj.observers)}")
-    t = traj.t
     if t_transient is None:
-        t_transient = 0.2 * float(t[-1])
-    t_transient = finite_scalar("t_transient", t_transient, nonnegative=True)
-    band = finite_scalar("band", band, positive=True)
-    e = traj.error(observer)
-    est = traj.estimated(observer)
-    win = t >= t_transient
-    if not win.any():
-        raise DesignError(f"t_transient = {t_transient:g} leaves no samples (run ends at "
-                          f"{t[-1]:g})")
-    with np.errstate(over="ignore", invalid="ignore"):  # inf - inf, huge**2: honest inf/NaN
-        scale = np.ptp(traj.x, axis=0) if relative else np.ones(e.shape[1])
-        scale = np.where(scale > 0, scale, 1.0)
-        finite = np.isfinite(e)
-        ae = np.abs(e)
-        settle = settling_time(t, np.where(finite, e, np.inf), band * scale)
-        rmse: list[float | None] = []
-        peak: list[float | None] = []
-        final: list[float | None] = []
-        undefined: list[int | None] = []
-        for j in range(e.shape[1]):
-            if not est[j]:
-                for col in (rmse, peak, final, undefined):
-                    col.append(None)
-                continue
-            fw = finite[win, j]
-            rmse.append(float(np.sqrt(np.mean(e[win, j][fw] ** 2))) if fw.any() else math.nan)
-            peak.append(float(ae[finite[:, j], j].max()) if finite[:, j].any() else math.nan)
-            final.append(float(ae[-1, j]))
-            undefined.append(int(np.count_nonzero(~finite[:, j])))
-    return {
-        "states": list(traj.state_names),
-        "estimated": est.tolist(),
-        "rmse": rmse,
-        "peak": peak,
-        "settling_time": [float(v) if ok else None for v, ok in zip(settle, est)],
-        "final": final,
-        "undefined_samples": undefined,
-        "extra_states": list(traj.extra_states(observer)),
-        "update_time": traj.observers[observer].update_time,
-        "t_transient": t_transient,
-        "band": band,
-        "band_relative_to_range": relative,
-    }
+        t_transient = 0.2 * float(traj.t[-1])
+    acc = RunningMetrics(traj, t_transient=t_transient, band=band, relative=relative,
+                         observers=[observer])
+    acc.add(traj)
+    acc.settle(traj.t, {observer: traj.error(observer)})
+    return acc.result(traj)[observer]
+
+
+class RunningMetrics:
+    """:func:`observer_metrics` of a run handed over in chunks, in bounded memory (a streamed
+    run, ``simulate(keep=False)``): :meth:`add` each chunk in order, then :meth:`settle` with
+    the chunks' errors from the last chunk back (the settling band is relative to the whole
+    run's range, known only at the end), then :meth:`result`. :func:`observer_metrics` is this
+    with one chunk, the whole trajectory: the equations are written here once.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A trajectory (or a chunk) of the run: its names only.
+    t_transient : float
+        Start of the ``rmse`` window, >= 0 (the run's time unit).
+    band : float, default 0.05
+        Settling band, > 0.
+    relative : bool, default True
+        The band is relative to each true state's range over the run.
+    observers : sequence of str, optional
+        The observers to measure (default all of ``traj``'s).
+
+    Raises
+    ------
+    DesignError
+        A bad ``t_transient`` or ``band``, or an observer ``traj`` does not have.
+
+    Examples
+    --------
+    >>> from hgo_mj.observers import HighGainObserver
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.simulate import simulate
+    >>> plant = make_plant("pendulum", dt=0.01)
+    >>> run = (plant, None, {"hgo": HighGainObserver(plant.system, k=30.0)}, lambda t: [0.0])
+    >>> chunks = []
+    >>> traj = simulate(*run, duration=2.0, x0=[0.2, 0.0], keep=False,
+    ...                 on_chunk=(0.5, lambda row, chunk: chunks.append(chunk)))
+    >>> acc = RunningMetrics(traj, t_transient=0.4)
+    >>> for chunk in chunks:
+    ...     acc.add(chunk)
+    >>> for chunk in reversed(chunks):
+    ...     if acc.settle(chunk.t, {"hgo": chunk.error("hgo")}):
+    ...         break
+    >>> m = acc.result(traj)["hgo"]
+    >>> kept = all_metrics(simulate(*run, duration=2.0, x0=[0.2, 0.0]), t_transient=0.4)
+    >>> m["settling_time"] == kept["hgo"]["settling_time"], len(chunks)
+    (True, 4)
+    """
+
+    def __init__(self, traj: Any, *, t_transient: float, band: float = 0.05,
+                 relative: bool = True, observers: Any = None) -> None:
+        self.t_transient = finite_scalar("t_transient", t_transient, nonnegative=True)
+        self.band = finite_scalar("band", band, positive=True)
+        if not isinstance(relative, bool):
+            raise DesignError(f"relative must be a bool; found {relative!r}")
+        self.relative = relative
+        names = list(traj.observers) if observers is None else list(observers)
+        for name in names:
+            if name not in traj.observers:
+                raise DesignError(f"no observer {name!r} in the trajectory; found "
+                                  f"{sorted(traj.observers)}")
+        n = len(traj.state_names)
+        self.est = {name: traj.estimated(name) for name in names}
+        self.lo, self.hi = np.full(n, np.inf), np.full(n, -np.inf)
+        self.sumsq = {name: np.zeros(n) for name in names}
+        self.count = {name: np.zeros(n, dtype=np.int64) for name in names}
+        self.peak = {name: np.full(n, -np.inf) for name in names}
+        self.undefined = {name: np.zeros(n, dtype=np.int64) for name in names}
+        self.final = {name: np.full(n, np.nan) for name in names}
+        self.t_end = -np.inf
+        #: settling: the time found per state (NaN: not yet), and the first time of the chunk
+        #: after the one being scanned (inf before the last chunk)
+        self.settled = {name: np.full(n, np.nan) for name in names}
+        self._after = np.inf
+
+    def add(self, chunk: Any) -> None:
+        """Take the next chunk of the run (a :class:`~hgo_mj.simulate.Trajectory` of rows
+        following the last one taken).
+
+        Parameters
+        ----------
+        chunk : Trajectory
+            The rows, in order; an empty chunk is ignored.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.simulate import simulate
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> traj = simulate(plant, None, {"hgo": HighGainObserver(plant.system, k=30.0)},
+        ...                 lambda t: [0.0], duration=0.5, x0=[0.2, 0.0])
+        >>> acc = RunningMetrics(traj, t_transient=0.1)
+        >>> acc.add(traj)
+        >>> int(acc.count["hgo"][0])
+        41
+        """
+        if len(chunk) == 0:
+            return
+        t = chunk.t
+        win = t >= self.t_transient
+        self.t_end = float(t[-1])
+        with np.errstate(over="ignore", invalid="ignore"):  # inf - inf, huge**2: honest inf/NaN
+            self.lo = np.fmin(self.lo, chunk.x.min(axis=0))
+            self.hi = np.fmax(self.hi, chunk.x.max(axis=0))
+            for name in self.est:
+                e = chunk.error(name)
+                finite = np.isfinite(e)
+                self.sumsq[name] += np.sum(np.where(finite & win[:, None], e, 0.0) ** 2, axis=0)
+                self.count[name] += np.count_nonzero(finite & win[:, None], axis=0)
+                self.peak[name] = np.fmax(self.peak[name],
+                                          np.max(np.where(finite, np.abs(e), -np.inf), axis=0))
+                self.undefined[name] += np.count_nonzero(~finite, axis=0)
+                self.final[name] = np.abs(e[-1])
+
+    def _scale(self) -> Any:
+        if not self.relative:
+            return np.ones_like(self.lo)
+        with np.errstate(invalid="ignore"):
+            scale = self.hi - self.lo
+        return np.where(scale > 0, scale, 1.0)
+
+    def settle(self, t: Any, errors: Any) -> bool:
+        """Scan a chunk's errors for the settling time, from the last chunk back.
+
+        Parameters
+        ----------
+        t : (T,) ndarray
+            The chunk's times.
+        errors : mapping str -> (T, n) ndarray
+            Each observer's error ``x - x_hat`` on the plant's states
+            (:meth:`~hgo_mj.simulate.Trajectory.error`) over the chunk.
+
+        Returns
+        -------
+        bool
+            True when every settling time is found (the earlier chunks need no scan).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.simulate import simulate
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> traj = simulate(plant, None, {"hgo": HighGainObserver(plant.system, k=30.0)},
+        ...                 lambda t: [0.0], duration=0.5, x0=[0.2, 0.0])
+        >>> acc = RunningMetrics(traj, t_transient=0.1)
+        >>> acc.add(traj)
+        >>> acc.settle(traj.t, {"hgo": traj.error("hgo")})
+        True
+        """
+        scale = self._scale()
+        for name, e in errors.items():
+            done = ~np.isnan(self.settled[name])
+            with np.errstate(invalid="ignore"):
+                found = settling_time(t, np.where(np.isfinite(e), e, np.inf),
+                                      self.band * scale)
+            # a state inside over the whole chunk settled at or before its first time; one
+            # outside at its last sample settled where the chunk after it starts
+            here = np.where(found == t[0], np.nan, np.where(np.isinf(found), self._after, found))
+            self.settled[name] = np.where(done, self.settled[name], here)
+        self._after = float(t[0])
+        return all(not np.isnan(v).any() for v in self.settled.values())
+
+    def result(self, traj: Any) -> dict[str, dict[str, Any]]:
+        """The metrics, as :func:`observer_metrics` gives them, per observer.
+
+        Parameters
+        ----------
+        traj : Trajectory
+            The run's trajectory (its names and each observer's ``update_time``; a streamed
+            run's has no rows).
+
+        Returns
+        -------
+        dict of str to dict
+            Observer name -> :func:`observer_metrics`'s dictionary.
+
+        Raises
+        ------
+        DesignError
+            ``t_transient`` left no samples.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> from hgo_mj.simulate import simulate
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> traj = simulate(plant, None, {"hgo": HighGainObserver(plant.system, k=30.0)},
+        ...                 lambda t: [0.0], duration=0.5, x0=[0.2, 0.0])
+        >>> acc = RunningMetrics(traj, t_transient=0.1)
+        >>> acc.add(traj)
+        >>> _ = acc.settle(traj.t, {"hgo": traj.error("hgo")})
+        >>> acc.result(traj)["hgo"]["states"]
+        ['angle', 'angular_velocity']
+        """
+        if self.t_end < self.t_transient:
+            raise DesignError(f"t_transient = {self.t_transient:g} leaves no samples (run ends "
+                              f"at {self.t_end:g})")
+        out = {}
+        for name, est in self.est.items():
+            with np.errstate(invalid="ignore"):
+                rmse = np.sqrt(self.sumsq[name] / self.count[name])
+            settle = np.where(np.isnan(self.settled[name]), self._after, self.settled[name])
+            per_state = _PerState(est)
+            out[name] = {
+                "states": list(traj.state_names),
+                "estimated": est.tolist(),
+                "rmse": per_state(np.where(self.count[name] > 0, rmse, math.nan), float),
+                "peak": per_state(np.where(np.isfinite(self.peak[name]), self.peak[name],
+                                           math.nan), float),
+                "settling_time": per_state(settle, float),
+                "final": per_state(self.final[name], float),
+                "undefined_samples": per_state(self.undefined[name], int),
+                "extra_states": list(traj.extra_states(name)),
+                "update_time": traj.observers[name].update_time,
+                "t_transient": self.t_transient,
+                "band": self.band,
+                "band_relative_to_range": self.relative,
+            }
+        return out
+
+
+class _PerState:
+    """A list over the plant's states of metric values: ``None`` where not estimated."""
+
+    def __init__(self, estimated: Any) -> None:
+        self.estimated = estimated
+
+    def __call__(self, values: Any, cast: Any) -> list[Any]:
+        return [cast(v) if ok else None for v, ok in zip(values, self.estimated)]
 
 
 def all_metrics(traj: Any, **kw: Any) -> dict[str, dict[str, Any]]:

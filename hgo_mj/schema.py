@@ -49,7 +49,7 @@ SCHEMA: dict[str, dict[str, str]] = {
     "sensor": {"stages": "tables"},
     "run": {"duration": "positive", "sample_period": "positive", "control_period": "positive",
             "seed": "seed", "seeds": "count", "out": "string", "t_transient": "nonneg",
-            "band": "positive", "store_every": "count"},
+            "band": "positive", "store_every": "count", "stream": "bool"},
     # the tables below take their family's own parameters beside these keys
     "observers": {"type": "string", "name": "string", "system_params": "table"},
     "input": {"type": "string"},

@@ -572,7 +572,7 @@ def simulate(plant: Plant, sensor: SensorChain | None,
              control_period: float | None = None, x0: Any = None, seed: int | None = None,
              metadata: Mapping[str, Any] | None = None,
              on_chunk: tuple[float, Callable[[int, Trajectory], None]] | None = None,
-             store_every: int = 1, isolate: bool = False) -> Trajectory:
+             store_every: int = 1, isolate: bool = False, keep: bool = True) -> Trajectory:
     """Run plant, sensor chain and observers together and return the :class:`Trajectory`.
 
     Parameters
@@ -613,6 +613,13 @@ def simulate(plant: Plant, sensor: SensorChain | None,
         observers run to the end, and the metadata's ``"diverged"`` names it, the time, the
         sample and the error (:attr:`Trajectory.diverged`). Default False: the run stops and
         raises (below). ``hgo-mj run`` isolates.
+    keep : bool
+        Default True. False **streams** the run: the rows are handed to ``on_chunk`` (which
+        must be given) and not kept, so memory stays flat with the duration (a buffer of
+        about 1.5 chunks); the returned trajectory has no rows but its complete metadata.
+        With ``isolate``, an estimate that leaves the finite numbers is NaN from there on in
+        the chunks handed out; without it, the run raises at the end as it would keeping.
+        ``hgo-mj run --stream`` writes the chunks to Parquet this way (:mod:`hgo_mj.stream`).
 
     Returns
     -------
@@ -631,6 +638,8 @@ def simulate(plant: Plant, sensor: SensorChain | None,
         or the plant fails (a non-finite or too large input, MuJoCo's bad-state reset). The
         partial trajectory is ``exc.trajectory``. A ``DimensionError`` in an update and every
         error raised before the loop (argument validation, ``check_period``) propagate.
+    DesignError
+        ``keep=False`` without ``on_chunk`` (or any other argument refused before the run).
 
     Examples
     --------
@@ -647,6 +656,21 @@ def simulate(plant: Plant, sensor: SensorChain | None,
     ((1001,), (1001, 2), (1001, 2))
     >>> float(traj.t[1]), traj.metadata["seed"]
     (0.001, 1)
+
+    Streamed (``keep=False``): the chunks hold the rows, the trajectory returned none.
+
+    >>> chunks = []
+    >>> streamed = simulate(plant, SensorChain([GaussianNoise(std=1e-3)]),
+    ...                     {"k40": HighGainObserver(plant.system, k=40.0)},
+    ...                     Multisine(amplitudes=[0.3], frequencies=[0.5]), duration=1.0,
+    ...                     x0=[0.5, 0.0], seed=1, keep=False,
+    ...                     on_chunk=(0.25, lambda row, chunk: chunks.append(chunk)))
+    >>> len(streamed), [len(c) for c in chunks]
+    (0, [250, 250, 250, 251])
+    >>> import numpy as np
+    >>> np.array_equal(np.concatenate([c.observers["k40"].x_hat for c in chunks]),
+    ...                traj.observers["k40"].x_hat)
+    True
     """
     if x0 is not None and np.ndim(x0) != 1:
         raise DimensionError(f"simulate runs one member: x0 must be a state (n,); found shape "
@@ -657,7 +681,7 @@ def simulate(plant: Plant, sensor: SensorChain | None,
     return _run(plant, sensor, observers, inputs, duration, sample_period=sample_period,
                 control_period=control_period, x0=x0, seeds=seed, batch=None,
                 metadata=metadata, on_chunk=on_chunk, store_every=store_every,
-                isolate=isolate)[0]
+                isolate=isolate, keep=keep)[0]
 
 
 def simulate_batch(plant: Plant, sensor: SensorChain | None,
@@ -725,7 +749,7 @@ SEGMENT = 1024
 def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
          duration: float, *, sample_period: Any, control_period: Any, x0: Any, seeds: Any,
          batch: int | None, metadata: Mapping[str, Any] | None, on_chunk: Any,
-         store_every: Any, isolate: bool = False) -> list[Trajectory]:
+         store_every: Any, isolate: bool = False, keep: bool = True) -> list[Trajectory]:
     periods = Periods.of(plant, sample_period, control_period)
     duration = finite_scalar("duration", duration, positive=True)
     if duration < periods.sample:
@@ -736,7 +760,7 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
     obs = _named_observers(observers)
     drive = Drive.of(inputs, obs, plant, periods)
     loop = Loop(plant, sensor, obs, periods, isolate=isolate)
-    store = Store(loop, N, every, on_chunk)
+    store = Store(loop, N, every, on_chunk, keep=keep, isolate=isolate)
     loop.reset(x0, seed=seeds, batch=batch)
     store.start()
     failure: LoopFailure | None = None
@@ -756,16 +780,23 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
             "observers": {name: {"type": type(ob).__name__, **ob.params()}
                           for name, ob in obs.items()},
             "input": drive.describe(), "versions": package_versions(),
-            **({"diverged": {name: {"t": t, "row": -(-(row + 1) // every), "sample": row,
-                                    "error": f"{type(cause).__name__}: {cause}"}
-                             for name, (row, t, cause) in loop.failed.items()}}
-               if loop.failed else {}),
+            **({"diverged": {**{name: {"t": t, "row": -(-(row + 1) // every), "sample": row,
+                                       "error": f"{type(cause).__name__}: {cause}"}
+                                for name, (row, t, cause) in loop.failed.items()},
+                             **store.nonfinite}}
+               if loop.failed or store.nonfinite else {}),
             **({"mjcf": mjcf} if (mjcf := getattr(type(plant.system), "mjcf", None)) else {}),
             **(dict(metadata) if metadata else {})}
     trajs = store.trajectories(meta, seeds, x0)
     for traj in trajs:
-        if isolate:
-            _isolate_nonfinite(traj, skip=loop.failed)
+        if isolate and keep and (found := _isolate_nonfinite(traj, skip=loop.failed)):
+            traj.metadata["diverged"] = {**traj.metadata.get("diverged", {}), **found}
+        if not keep and not isolate and store.nonfinite:  # found in a chunk handed out
+            name, d = next(iter(store.nonfinite.items()))
+            err = DivergenceError(f"observer {name!r} estimate left the finite numbers at "
+                                  f"t={d['t']:g} (row {d['row']})")
+            err.trajectory = traj  # type: ignore[attr-defined]
+            raise err
         _raise_on_divergence(traj, failure, skip={**loop.failed, **traj.diverged})
     return trajs
 
@@ -799,32 +830,50 @@ def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None,
             raise exc
 
 
-def _isolate_nonfinite(traj: Trajectory, skip: Mapping[str, Any]) -> None:
+def _isolate_nonfinite(traj: Trajectory, skip: Mapping[str, Any], first_row: int = 0,
+                       stopped: Sequence[str] = (), nan: bool = True) -> dict[str, Any]:
     """With ``isolate``: an observer whose estimate left the finite numbers without its update
-    failing stops alone at that row (NaN from there on, recorded in ``"diverged"``), as one
-    whose update failed does."""
+    failing stops alone at that row (NaN from there on, as one whose update failed), and the
+    ``"diverged"`` records of those found are returned. ``traj`` may be a chunk whose first
+    row is the run's ``first_row``; observers in ``stopped`` (found in an earlier chunk) are
+    NaN throughout it. ``nan=False`` only finds them."""
+    found = {}
     for name, r in traj.observers.items():
         if name in skip:
             continue
         bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
-        if bad.any():
-            k = int(np.argmax(bad))
+        if name not in stopped and not bad.any():
+            continue
+        k = 0 if name in stopped else int(np.argmax(bad))
+        if nan:
             r.x_hat[k:] = np.nan
             r.z_hat[k:] = np.nan
             for v in r.diagnostics.values():
                 v[k:] = np.nan
-            traj.metadata.setdefault("diverged", {})[name] = {
-                "t": float(traj.t[k]), "row": k, "sample": None,
-                "error": "DivergenceError: the estimate left the finite numbers"}
+        if name not in stopped:
+            found[name] = {"t": float(traj.t[k]), "row": first_row + k, "sample": None,
+                           "error": "DivergenceError: the estimate left the finite numbers"}
+    return found
 
 
 class Store:
     """The stored rows of a run (every ``every``-th sample), filled segment by segment, handed
-    out in chunks (``on_chunk``) and returned as one :class:`Trajectory` per member."""
+    out in chunks (``on_chunk``) and returned as one :class:`Trajectory` per member; with
+    ``keep=False`` only the rows not yet handed out are held (a buffer of about 1.5 chunks and
+    a segment: a streamed run's memory does not grow with its duration)."""
 
-    def __init__(self, loop: Loop, N: int, every: int, on_chunk: Any) -> None:
-        self.loop, self.N, self.every = loop, N, every
+    def __init__(self, loop: Loop, N: int, every: int, on_chunk: Any, keep: bool = True,
+                 isolate: bool = False) -> None:
+        if not isinstance(keep, bool):
+            raise DesignError(f"keep must be a bool; found {keep!r}")
+        if not keep and on_chunk is None:
+            raise DesignError("keep=False streams the rows to on_chunk, which is missing: give "
+                              "on_chunk=(seconds, callback)")
+        self.loop, self.N, self.every, self.keep, self.isolate = loop, N, every, keep, isolate
         self.rows = N // every + 1
+        self.base = 0  # the run's row held in row 0 of the columns
+        #: observers whose estimate left the finite numbers in a chunk handed out (streaming)
+        self.nonfinite: dict[str, Any] = {}
         self.chunk_rows, self.chunk_cb = -1, None
         if on_chunk is not None:
             if not (isinstance(on_chunk, tuple) and len(on_chunk) == 2 and callable(on_chunk[1])):
@@ -837,6 +886,8 @@ class Store:
     def start(self) -> None:
         """Allocate the columns (after the loop's reset: the batch and widths are known)."""
         lp, B, R = self.loop, self.loop.batch, self.rows
+        if not self.keep:  # unsent rows: < 1.5 chunks held back, plus one segment
+            R = min(R, self.chunk_rows + self.chunk_rows // 2 + SEGMENT // self.every + 2)
         n, p, m = (len(lp.plant.state_names), len(lp.plant.output_names),
                    len(lp.plant.input_names))
         width = n + 2 * p + m + sum(x.shape[1] + z.shape[1] + d.shape[1]
@@ -859,7 +910,7 @@ class Store:
         count = len(range(first, T, self.every))
         if count == 0:
             return
-        dst = slice(self.done, self.done + count)
+        dst = slice(self.done - self.base, self.done - self.base + count)
         for key, v in cols.items():
             self.cols[key][:, dst] = v[:, sel]
         for name, parts in est.items():
@@ -913,21 +964,30 @@ class Store:
         chunk = self._trajectory(0, a, b, {"sample_period": self.loop.periods.sample *
                                            self.every, "first_row": a}, None)
         self.sent = b
+        if not self.keep:  # the rows handed out leave the buffer; in-place views are gone
+            self.nonfinite.update(_isolate_nonfinite(
+                chunk, skip=self.loop.failed, first_row=a, stopped=list(self.nonfinite),
+                nan=self.isolate))
+            held = slice(b - self.base, self.done - self.base)
+            for v in (*self.cols.values(), *(c for parts in self.est.values() for c in parts)):
+                v[:, :held.stop - held.start] = v[:, held]
+            self.base = b
         self.chunk_cb(a, chunk)  # type: ignore[misc]
 
     def _trajectory(self, member: int, a: int, b: int, meta: dict[str, Any],
                     update_time: dict[str, float] | None) -> Trajectory:
         lp = self.loop
         records = {}
+        a0, b0 = a - self.base, b - self.base
         for name, ob in lp.observers.items():
-            xh, zh, dg = (v[member, a:b] for v in self.est[name])
+            xh, zh, dg = (v[member, a0:b0] for v in self.est[name])
             records[name] = ObserverRecord(
                 x_hat=xh.copy(), z_hat=zh.copy(),
                 diagnostics={d: dg[:, j].copy() for j, d in enumerate(ob.diagnostic_names)},
                 update_time=float("nan") if update_time is None else update_time[name],
                 state_names=tuple(str(s) for s in ob.state_names))
         t = np.asarray(np.arange(a, b) * (lp.periods.sample * self.every), dtype=np.float64)
-        return Trajectory(t=t, **{k: v[member, a:b].copy() for k, v in self.cols.items()},
+        return Trajectory(t=t, **{k: v[member, a0:b0].copy() for k, v in self.cols.items()},
                           observers=records, state_names=tuple(lp.plant.state_names),
                           output_names=tuple(lp.plant.output_names),
                           input_names=tuple(lp.plant.input_names), metadata=meta)
@@ -945,7 +1005,7 @@ class Store:
             inv = {name: int(np.reshape(ob._inverse_failures, -1)[b])
                    for name, ob in lp.observers.items()}
             m = {**meta, "seed": seed, "x0": x0s[b].tolist(), "inverse_failures": inv}
-            out.append(self._trajectory(b, 0, self.done, m, update_time))
+            out.append(self._trajectory(b, self.base, self.done, m, update_time))
         return out
 
 

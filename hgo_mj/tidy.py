@@ -313,7 +313,7 @@ def read_units(path: str | Path) -> dict[str, str | None]:
     Raises
     ------
     DesignError
-        The file's schema has no ``hgo_mj`` metadata (not written by this package).
+        The file's key-value metadata has no ``hgo_mj`` entry (not written by this package).
 
     Examples
     --------
@@ -333,10 +333,12 @@ def read_units(path: str | Path) -> dict[str, str | None]:
     """
     import pyarrow.parquet as pq
 
-    meta = pq.read_schema(str(path)).metadata or {}
+    # the file's key-value metadata: a streamed file (hgo_mj.stream) has it there only, one
+    # written whole also in the Arrow schema
+    meta = pq.read_metadata(str(path)).metadata or {}
     if b"hgo_mj" not in meta:
-        raise DesignError(f"{str(path)!r} is no hgo_mj table: its schema has no 'hgo_mj' "
-                          f"metadata")
+        raise DesignError(f"{str(path)!r} is no hgo_mj table: its metadata has no 'hgo_mj' "
+                          f"entry")
     return dict(json.loads(meta[b"hgo_mj"])["units"])
 
 

@@ -6,6 +6,7 @@ Ctrl-C of such a command."""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -152,8 +153,9 @@ def _start_pool(tmp_path: Path, jobs: int) -> tuple[subprocess.Popen[str], list[
     while len(workers) < jobs - 1:  # the workers announce themselves as they start a chunk
         line = proc.stdout.readline()
         assert line, proc.stderr.read() if proc.stderr else "no output"
-        if line.startswith("worker") and int(line.split()[1]) != proc.pid:
-            workers.append(int(line.split()[1]))
+        # two workers writing at once may share a line: "worker 12worker 13\n"
+        workers += [int(p) for p in re.findall(r"worker (\d+)", line)
+                    if int(p) != proc.pid and int(p) not in workers]
     return proc, workers
 
 

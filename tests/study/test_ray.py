@@ -57,3 +57,95 @@ def test_an_unreachable_ray_address_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
     assert "cannot start or reach Ray at '127.0.0.1:1'" in err
+
+
+RAY_DRIVER = """
+import os, time
+import ray
+from hgo_mj.study.backends import ray_init
+
+ray_init(2, None)
+
+
+@ray.remote(num_cpus=1)
+def slow():
+    time.sleep(300)
+
+
+refs = [slow.remote() for _ in range(2)]
+print("driver", os.getpid(), flush=True)
+time.sleep(600)
+"""
+
+
+def _descendants(pid: int) -> dict[int, str]:
+    """Every live descendant of ``pid`` and its command line (from /proc)."""
+    import os
+
+    kids: dict[int, list[int]] = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as fh:
+                    ppid = int(fh.read().rsplit(") ", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            kids.setdefault(ppid, []).append(int(d))
+    out, todo = {}, [pid]
+    while todo:
+        for c in kids.get(todo.pop(), []):
+            try:
+                with open(f"/proc/{c}/cmdline") as fh:
+                    out[c] = fh.read().replace("\0", " ")
+            except OSError:
+                continue
+            todo.append(c)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(") ", 1)[1][0] != "Z"
+    except OSError:
+        return False
+
+
+def test_a_killed_driver_leaves_no_ray_processes(tmp_path):
+    """SIGKILL of the process that started the local Ray instance (ray_init): its GCS,
+    raylet, workers and agents all exit (Ray fate-shares them with the driver; its agents
+    notice the raylet's death and exit about a minute later), none is left computing."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    (tmp_path / "driver.py").write_text(RAY_DRIVER)
+    proc = subprocess.Popen([sys.executable, str(tmp_path / "driver.py")],
+                            stdout=subprocess.PIPE, text=True, start_new_session=True,
+                            cwd=tmp_path)
+    ray_procs: dict[int, str] = {}
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().startswith("driver")
+        end = time.monotonic() + 120
+        while time.monotonic() < end:  # both tasks running, the agents started
+            ray_procs = _descendants(proc.pid)
+            names = " ".join(ray_procs.values())
+            if names.count("ray::slow") >= 2 and "raylet" in names:
+                break
+            time.sleep(0.5)
+        assert names.count("ray::slow") >= 2, ray_procs
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        end = time.monotonic() + 180
+        while time.monotonic() < end and any(_alive(p) for p in ray_procs):
+            time.sleep(1.0)
+        left = {p: c[:60] for p, c in ray_procs.items() if _alive(p)}
+        assert not left, f"left running after the driver was killed: {left}"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for p in ray_procs:
+            if _alive(p):
+                os.kill(p, signal.SIGKILL)
