@@ -406,8 +406,8 @@ def _flag_int(value: Any, where: str) -> int:
 
 
 def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
-              jobs: int = 1, formats: Any = None,
-              quiet: bool = False) -> tuple[Any, dict[str, Any], Path, Any]:
+              jobs: int = 1, formats: Any = None, quiet: bool = False,
+              resume: bool = False) -> tuple[Any, dict[str, Any], Path, Any]:
     """:func:`run_scenario` at ``run.seed``, then, when ``run.seeds`` = N > 1, a Monte Carlo
     over the seeds ``seed, seed + 1, ..., seed + N - 1``: the other seeds as a study of the
     same scenario (:class:`hgo_mj.study.Study`, up to ``jobs`` processes; its rows in
@@ -416,7 +416,9 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     Returns ``(trajectory, metrics, out_dir, mc)``: the first seed's run, and the
     :class:`~hgo_mj.study.MonteCarloResult` of all seeds (``None`` for one seed).
 
-    The first seed's files (and ``rrd``) are exactly those of a single run at that seed."""
+    The first seed's files (and ``rrd``) are exactly those of a single run at that seed.
+    ``resume`` keeps the other seeds' finished chunks in ``OUT/seeds`` (an interrupted run)
+    and runs only the rest; without it that folder is replaced."""
     import shutil
 
     run = sc.get("run", {})
@@ -428,6 +430,9 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
                           f"{n}: run that many as a study, `hgo-mj sweep STUDY.toml` with "
                           f"[sweep] seeds = {n} (and --yes beyond {MAX_RUNS} runs)")
     jobs = positive_int("--jobs", jobs, floats=False)
+    if resume and n == 1:
+        raise DesignError("--resume goes on with the seeds of an interrupted --seeds N run; "
+                          "found one seed (give --seeds N, N > 1)")
     if n > 1 and "store_every" in run:
         raise DesignError("run.store_every (--store-every) keeps every k-th row of one run's "
                           "trajectory, and its metrics are computed from those rows; with "
@@ -450,9 +455,10 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     # the other seeds as a study (hgo_mj.study): one plant run, the seeds as one batch; its
     # rows (results.parquet) in OUT/seeds/, replaced by each run as the other files are
     folder = out / "seeds"
-    if folder.is_dir():
+    if folder.is_dir() and not resume:
         shutil.rmtree(folder)
-    table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=quiet).table
+    table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=quiet,
+                                               resume=resume and folder.is_dir()).table
     done, runs, failed = seed_metrics(table, metrics)
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
@@ -583,6 +589,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seeds", metavar="N",
                    help="Monte Carlo: N runs at the seeds SEED, SEED+1, ..., SEED+N-1; also "
                    "writes metrics_mc.json, summary_mc.txt and mc.png (default 1: one run)")
+    r.add_argument("--resume", action="store_true",
+                   help="with --seeds: keep the seeds finished by an interrupted run of the same "
+                   "scenario (OUT/seeds) and run only the rest")
     r.add_argument("--jobs", metavar="J", default="1",
                    help="processes for the --seeds runs (default 1; the seeds after the first "
                    "run as one batch, so workers start only for 10 s of work or more; results "
@@ -755,19 +764,19 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_reproduce(args)
         if args.command == "demo":
             sc = json.loads(json.dumps(DEMO))
-            jobs, formats, quiet = 1, DEFAULT_FORMATS, False
+            jobs, formats, quiet, resume = 1, DEFAULT_FORMATS, False, False
             sc["run"]["out"] = args.out
             name = "demo"
             rrd = None if args.no_rrd else Path(args.rrd or Path(args.out) / "demo.rrd")
         else:
             sc = scenario_from_args(args)
             jobs = _flag_int(args.jobs, "--jobs")
-            formats, quiet = args.formats, args.quiet
+            formats, quiet, resume = args.formats, args.quiet, args.resume
             name = "run"
             rrd = None if args.rrd is None else Path(
                 args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")
         _, metrics, out, mc = run_study(sc, name, rrd=rrd, jobs=jobs, formats=formats,
-                                        quiet=quiet)
+                                        quiet=quiet, resume=resume)
     except RecordingError as exc:  # a fault of the machine (full disk), not of the input
         print(f"hgo-mj: error: {exc}", file=sys.stderr)
         return 1
@@ -782,7 +791,8 @@ def main(argv: list[str] | None = None) -> int:
         print("hgo-mj: interrupted" + (f"; {rrd} holds the run up to its last chunk"
                                        if rrd is not None else "")
               + ("; the finished runs are kept: rerun with --resume to go on"
-                 if args.command == "sweep" else ""), file=sys.stderr)
+                 if args.command == "sweep" or getattr(args, "seeds", None) else ""),
+              file=sys.stderr)
         return 130
     from .metrics import format_table
 

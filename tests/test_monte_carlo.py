@@ -252,3 +252,44 @@ def test_a_diverging_seed_is_listed_and_left_out_not_fatal():
         expected_failed)
     with pytest.raises(DivergenceError, match=r"every run diverged \(2 of 2\); seed"):
         monte_carlo(make_fragile_run, sorted(expected_failed)[:2])
+
+
+def test_cli_seeds_resume_keeps_what_finished(tmp_path, capsys, monkeypatch):
+    """An interrupted --seeds run keeps its finished chunks (OUT/seeds); --resume runs only
+    the rest and gives the result of an uninterrupted run; --resume of a finished run runs
+    no seed again; without --resume the seeds' folder is replaced."""
+    from hgo_mj.study import backends, engine
+
+    real, calls = engine.run_chunk, []
+    out = str(tmp_path / "mc")
+    args = [*FLAGS, "--seed", "7", "--seeds", "4", "--out", out, "--quiet"]
+
+    def interrupted(chunk):
+        calls.append(chunk.id)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(backends, "run_chunk", interrupted)
+    assert main(args) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["hgo-mj: interrupted; the finished runs are kept: rerun with --resume to go "
+                   "on"]
+    monkeypatch.setattr(backends, "run_chunk", real)
+    assert main([*args, "--resume"]) == 0
+    resumed = json.loads((tmp_path / "mc" / "metrics_mc.json").read_text())
+
+    def never(chunk):
+        raise AssertionError("a finished seed ran again")
+
+    monkeypatch.setattr(backends, "run_chunk", never)
+    assert main([*args, "--resume"]) == 0
+    again = json.loads((tmp_path / "mc" / "metrics_mc.json").read_text())
+    monkeypatch.setattr(backends, "run_chunk", real)
+    assert main([*FLAGS, "--seed", "7", "--seeds", "4", "--out", str(tmp_path / "whole"),
+                 "--quiet"]) == 0
+    whole = json.loads((tmp_path / "whole" / "metrics_mc.json").read_text())
+    assert _strip(resumed["aggregate"]) == _strip(whole["aggregate"]) == _strip(again["aggregate"])
+    assert [r["seed"] for r in resumed["runs"]] == [7, 8, 9, 10]
+    capsys.readouterr()
+    assert main([*FLAGS, "--out", str(tmp_path / "one"), "--resume", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--resume goes on with the seeds of an interrupted --seeds N run" in err[0]
