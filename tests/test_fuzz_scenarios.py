@@ -206,3 +206,63 @@ def test_each_run_key_refuses_every_wrong_type(kind):
             code, err = cli(doc, Path(d) / "o")
             assert code == 2, value
             assert f"run.{kind} must be" in err and len(err.strip().splitlines()) == 1, err
+
+
+# ---------------------------------------------------------------- study documents
+#: a small valid study: the scenario above with a [sweep] table
+VALID_STUDY: dict[str, Any] = {**VALID, "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 30.0]}}
+#: sweep keys: the table's own, axis paths that exist, and ones that do not
+SWEEP_KEYS = ["seeds", "mode", "observers.hgo.k", "sensor.stages.0.std", "plant.x0",
+              "run.duration", "plant.name", "observers.hgo", "observers.nobody.k",
+              "plant.nokey", "sensor.stages.5.std", "run", ""]
+
+
+@st.composite
+def sweep_mutation(draw: Any) -> tuple[str, str, Any]:
+    op = draw(st.sampled_from(["set", "set", "list", "drop"]))
+    key = draw(st.sampled_from(SWEEP_KEYS))
+    value = draw(st.sampled_from(POOL))
+    if op == "list":  # an axis whose values are of any kind
+        value = draw(st.lists(st.sampled_from(POOL), min_size=0, max_size=3))
+    return op, key, value
+
+
+def run_sweep(doc: dict[str, Any]) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        path, out = Path(d) / "s.toml", Path(d) / "out"
+        text = to_toml({k: v for k, v in doc.items() if k != "sweep"})
+        sweep = doc.get("sweep")
+        text += ("[sweep]\n" + "".join(f"{json.dumps(k)} = {_toml(v)}\n" for k, v in
+                                       sweep.items())) if isinstance(sweep, dict) else ""
+        path.write_text(text)
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            code = main(["sweep", str(path), "--out", str(out), "--quiet"])
+        err_text = err.getvalue()
+        if code == 0:
+            assert {"results.parquet", "summary.md", "study.json"} <= {
+                p.name for p in out.iterdir()}
+            return
+        assert code == 2, (code, err_text)
+        assert err_text.startswith("hgo-mj: error:") and "Traceback" not in err_text, err_text
+        assert len(err_text.strip().splitlines()) == 1, err_text
+        assert not out.exists() or not any(out.iterdir()), sorted(out.iterdir())
+
+
+def test_the_valid_study_runs():
+    run_sweep(VALID_STUDY)
+
+
+@settings(FUZZ, max_examples=80)
+@given(st.lists(sweep_mutation(), min_size=1, max_size=3))
+def test_malformed_studies_are_a_study_or_one_line(mutations):
+    """Malformed [sweep] tables (wrong types, axes into keys that do not exist, empty or
+    mixed axes, seeds out of range): ``hgo-mj sweep`` runs the study or refuses in one line
+    with no results folder left."""
+    doc = copy.deepcopy(VALID_STUDY)
+    for op, key, value in mutations:
+        if op == "drop":
+            doc["sweep"].pop(key, None)
+        else:
+            doc["sweep"][key] = copy.deepcopy(value)
+    run_sweep(doc)

@@ -406,8 +406,8 @@ def _seeds(value: Any, base: int) -> tuple[int, ...]:
         raise DesignError(f"sweep.seeds must be a positive integer or a list of seeds; found "
                           f"{value!r}")
     if isinstance(value, int):
-        if value < 1:
-            raise DesignError(f"sweep.seeds must be at least 1; found {value}")
+        if not 1 <= value <= MAX_RUNS:
+            raise DesignError(f"sweep.seeds must be between 1 and {MAX_RUNS:,}; found {value:,}")
         return tuple(range(base, base + value))
     if isinstance(value, list) and value:
         for s in value:
@@ -460,6 +460,17 @@ def _axes(scenario: Mapping[str, Any], sweep: Mapping[str, Any]) -> list[Axis]:
     return axes
 
 
+def _plain(v: Any) -> bool:
+    """Whether ``v`` is a value a scenario holds (no TOML date or time)."""
+    if isinstance(v, (bool, int, float, str)):
+        return True
+    if isinstance(v, list):
+        return all(_plain(x) for x in v)
+    if isinstance(v, Mapping):
+        return all(isinstance(k, str) and _plain(x) for k, x in v.items())
+    return False
+
+
 def _axis(scenario: Mapping[str, Any], path: str, values: Any, group: int | None = None) -> Axis:
     """One axis, checked: its path names a value of the scenario, its values are a non-empty
     list (without repeats, unless it advances with others in a group)."""
@@ -468,6 +479,10 @@ def _axis(scenario: Mapping[str, Any], path: str, values: Any, group: int | None
         raise DesignError(f"sweep axis {path!r} must be a list of values; found {values!r}")
     if not values:
         raise DesignError(f"sweep axis {path!r} is empty: give at least one value")
+    for v in values:
+        if not _plain(v):
+            raise DesignError(f"sweep axis {path!r}: values must be numbers, strings, booleans "
+                              f"or lists and tables of them; found {v!r}")
     keys = [_value_key(v) for v in values]
     if len(set(keys)) != len(keys) and group is None:
         raise DesignError(f"sweep axis {path!r} repeats a value: {values}")

@@ -358,6 +358,7 @@ class Study:
                     continue
                 kw = built[key] = scenario_run(cell.scenario, self.name)
                 self._check_x0(cell.scenario["plant"].get("x0"), kw["plant"])
+                self._check_memory(kw)
                 if "t_transient" in cell.scenario.get("run", {}):
                     t_tr = cell.scenario["run"]["t_transient"]
                     if isinstance(t_tr, bool) or not isinstance(t_tr, (int, float)) or not (
@@ -374,6 +375,23 @@ class Study:
                         names.append(d)
         self._validated = True
         return names
+
+    @staticmethod
+    def _check_memory(kw: dict[str, Any]) -> None:
+        """Refuse a cell whose one plant trajectory (the rows every run of it shares) would
+        not fit in the memory available."""
+        from ..simulate import available_memory
+
+        plant = kw["plant"]
+        ts = float(kw.get("sample_period") or plant.dt)
+        rows = kw["duration"] / ts + 1
+        nbytes = 8 * rows * (len(plant.state_names) + len(plant.output_names))
+        avail = available_memory()
+        if nbytes > avail:
+            raise DesignError(f"a run of run.duration = {kw['duration']:g} s sampled every "
+                              f"{ts:g} s holds {rows:.3g} rows of the plant, about "
+                              f"{nbytes / 2**30:.3g} GiB; found {avail / 2**30:.3g} GiB of memory "
+                              f"available: shorten run.duration or sample less often")
 
     @staticmethod
     def _check_x0(x0: Any, plant: Any) -> None:

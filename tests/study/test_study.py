@@ -245,7 +245,7 @@ def test_model_mismatch_through_the_observers_system_params(tmp_path):
     ({"observers.hgo.k": 5}, 1, "product", "must be a list of values"),
     ({"observers.hgo.k": [1.0, 2.0], "sensor.stages.0.std": [1.0]}, 1, "zip",
      "zip axes must have the same length; found observers.hgo.k: 2, sensor.stages.0.std: 1"),
-    ({}, 0, "product", "sweep.seeds must be at least 1"),
+    ({}, 0, "product", "sweep.seeds must be between 1 and 10,000,000; found 0"),
     ({}, True, "product", "sweep.seeds must be a positive integer"),
     ({}, 1, "grid", "sweep.mode must be 'product' or 'zip'"),
     ({"observers.hgo.k": list(range(1, 101))}, 200_000, "product", "more than 10,000,000"),
@@ -429,6 +429,13 @@ def test_an_interrupted_study_keeps_its_finished_chunks_and_resumes(tmp_path, mo
      '\n"run.duration" = ' + str([0.1 + i for i in range(2)]), [], "confirm with --yes"),
     ('"observers.hgo.k" = [1.0]', ["--backend", "ray", "--address", "nowhere"],
      "--address must be HOST:PORT"),
+    # found by the study fuzz (tests/test_fuzz_scenarios.py): a MemoryError, an array of
+    # 1.4 PiB, a study.json that could not be written
+    ("seeds = 1000000000000", [], "sweep.seeds must be between 1 and 10,000,000; found "
+                                  "1,000,000,000,000"),
+    ('"run.duration" = [1000000000000.0]', [], "holds 1e+15 rows of the plant, about"),
+    ('"observers.hgo.k" = [1979-05-27]', [], "values must be numbers, strings, booleans or "
+                                             "lists and tables of them; found datetime.date"),
 ])
 def test_bad_studies_on_the_command_line_are_one_line_and_leave_nothing(
         sweep, extra, message, tmp_path, capsys):
