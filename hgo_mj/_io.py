@@ -71,6 +71,25 @@ def check_writable(name: str, path: str | Path, *, folder: bool) -> Path:
     return path
 
 
+def check_disk(name: str, path: str | Path, nbytes: float) -> None:
+    """Raise :class:`~hgo_mj.exceptions.DesignError` before a run whose files (an estimate of
+    ``nbytes``) would not fit on the disk of ``path`` (its nearest existing folder); ``name``
+    names the option in the message."""
+    import shutil
+
+    from .exceptions import DesignError
+
+    probe = Path(path).absolute()
+    while not probe.exists():
+        probe = probe.parent
+    free = shutil.disk_usage(probe).free
+    if nbytes > free:
+        raise DesignError(f"the run's files would take about {nbytes / 2**20:,.0f} MiB; "
+                          f"{name} {str(path)!r} has {free / 2**20:,.0f} MiB free: free space, "
+                          f"write elsewhere, shorten the run or keep every k-th row "
+                          f"(--store-every k)")
+
+
 def write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically; returns ``path``."""
     with atomic_path(path) as tmp:

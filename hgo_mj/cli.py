@@ -38,7 +38,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-from ._io import atomic_path, check_writable, save_figure, write_text
+from ._io import atomic_path, check_disk, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
 from .exceptions import DesignError, DivergenceError, HgoError, RecordingError
@@ -327,6 +327,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
                           f"--format {' '.join(formats)}: leave --format out or give parquet")
     seed = run.get("seed", 0)
     out = check_writable("--out (run.out)", run.get("out", f"runs/{name}"), folder=True)
+    check_disk("--out (run.out)", out, output_bytes(kw, run.get("store_every", 1), formats))
     if rrd is not None:
         check_writable("--rrd", rrd, folder=False)
     rec = None
@@ -377,6 +378,23 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
               f"estimate is NaN from there on, the other observers ran to the end",
               file=sys.stderr)
     return traj, metrics, out
+
+
+#: bytes a stored value takes in each trajectory format (CSV: its text, about 20 characters)
+BYTES_PER_VALUE = {"npz": 8, "parquet": 8, "csv": 20}
+
+
+def output_bytes(kw: dict[str, Any], every: int, formats: tuple[str, ...]) -> float:
+    """An upper estimate of the bytes the trajectory files of a run take: rows x columns x
+    :data:`BYTES_PER_VALUE` per format (an observer's ``x_hat``, ``z_hat`` and diagnostics
+    counted as columns)."""
+    plant = kw["plant"]
+    ts = float(kw.get("sample_period") or plant.dt)
+    rows = float(kw["duration"]) / ts / every + 1
+    width = len(plant.state_names) + 2 * len(plant.output_names) + len(plant.input_names) + 1
+    width += sum(2 * len(ob.state_names) + len(ob.diagnostic_names)
+                 for ob in kw["observers"].values())
+    return rows * width * sum(BYTES_PER_VALUE[f] for f in formats)
 
 
 def check_metrics(metrics: dict[str, Any]) -> None:

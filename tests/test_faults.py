@@ -227,3 +227,25 @@ def test_store_every_thins_a_long_run_and_the_memory_refusal_names_it(tmp_path, 
     with pytest.raises(DesignError, match="run.store_every thins the trajectory"):
         parse_study({"plant": {"name": "pendulum"}, "run": {"duration": 1.0, "store_every": 2},
                      "sweep": {"seeds": 2}})
+
+
+def test_a_run_whose_files_would_not_fit_on_the_disk_is_refused_before_it_starts(
+        tmp_path, capsys, monkeypatch):
+    """The files' size is estimated before the run (rows x columns x bytes per value and
+    format) and compared with the free space of --out's disk: one line, nothing written."""
+    import collections
+    import shutil as sh
+
+
+    usage = collections.namedtuple("usage", "total used free")
+    monkeypatch.setattr(sh, "disk_usage", lambda p: usage(2**40, 2**40 - 2**20, 2**20))
+    out = tmp_path / "o"
+    argv = ["run", "--plant", "pendulum", "--dt", "0.001", "--observer", "high_gain:k=20",
+            "--duration", "60", "--quiet", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the run's files would take about 11 MiB" in err[0], err
+    assert "has 1 MiB free" in err[0] and "--store-every k" in err[0]
+    assert not out.exists()
+    # every 100th row: a tenth of a MiB, the run goes on
+    assert main([*argv, "--store-every", "100", "--format", "npz"]) == 0
