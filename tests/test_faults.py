@@ -236,7 +236,6 @@ def test_a_run_whose_files_would_not_fit_on_the_disk_is_refused_before_it_starts
     import collections
     import shutil as sh
 
-
     usage = collections.namedtuple("usage", "total used free")
     monkeypatch.setattr(sh, "disk_usage", lambda p: usage(2**40, 2**40 - 2**20, 2**20))
     out = tmp_path / "o"
