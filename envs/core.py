@@ -724,8 +724,11 @@ class EnvConfig:
                               f"{invalid_action!r}")
         if render_mode is not None and render_mode not in env_cls.metadata["render_modes"]:
             raise DesignError(f"unknown render mode {render_mode!r} for {env_cls.__name__}; "
-                              f"valid: {[None, *env_cls.metadata['render_modes']]} (\"human\" "
-                              f"is not offered: wrap the env in RecordVideo, or show the frames)")
+                              f"valid: {[None, *env_cls.metadata['render_modes']]}")
+        if render_mode == "human":
+            from .render import check_display
+
+            check_display()
         integ = task.integrator if integrator is None else integrator
         if integ is not None and integ not in _INTEGRATORS:
             raise DesignError(f"unknown integrator {integ!r}; valid: {sorted(_INTEGRATORS)}")
@@ -814,10 +817,12 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         estimate, for the states the observer estimates: :attr:`error_names`). ``"full"``
         adds ``"time"``, ``"measurement"`` (NaN for a dropout), ``"diagnostics"`` (the
         observer's run-time quantities), ``"goal"`` and the reward terms ``"reward_<term>"``.
-    render_mode : {None, "rgb_array"}
+    render_mode : {None, "rgb_array", "human"}
         ``None`` (default): no rendering (headless testbed); ``"rgb_array"``: :meth:`render`
-        returns the true pose with a ghost posed from the estimate. Any other value raises
-        :class:`~hgo_mj.exceptions.DesignError`.
+        returns the true pose with a ghost posed from the estimate; ``"human"``: the same
+        scene in MuJoCo's interactive viewer, drawn at every reset and step at ``render_fps``
+        (needs a display: :class:`~hgo_mj.envs.render.RenderError` otherwise). Any other value
+        raises :class:`~hgo_mj.exceptions.DesignError`.
     **task_kwargs
         Parameters of the task (see the environment class).
 
@@ -852,7 +857,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
     (0.04, ['diagnostics', 'error', 'estimate', 'measurement'])
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 50}
     task_class: ClassVar[type[Task] | None] = None
 
     def __init__(self, *, task: Task | None = None, observer: Any = "default",
@@ -1127,6 +1132,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         self.loop.reset(x0, seed=env_seed(seed))
         self._y_held = [0.0] * len(self.output_names)
         obs, info, _ = self._observe([0.0] * self._nu, 0.0)
+        if self.render_mode == "human":
+            self.render()
         return obs, info
 
     def _options(self, options: Mapping[str, Any], x0: list[float], goal: tuple[float, ...]
@@ -1173,6 +1180,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         if self._full_info:
             info.update(terms)
         self._reward = reward
+        if self.render_mode == "human":
+            self.render()
         return obs, reward, self.task.terminated(x), False, info
 
     def _action(self, action: Any) -> list[float]:
@@ -1260,6 +1269,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         ghost posed from the observer's estimate (:class:`hgo_mj.envs.render.GhostRenderer`;
         a joint position the observer does not estimate is drawn at its true value), shape
         ``(480, 480, 3)`` uint8. ``None`` (with Gymnasium's warning) without a render mode.
+        With ``render_mode="human"`` the scene goes to MuJoCo's viewer
+        (:class:`hgo_mj.envs.render.HumanViewer`; ``reset`` and ``step`` call this) and
+        ``None`` is returned.
 
         Raises
         ------
@@ -1274,9 +1286,12 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         if not self._last:
             raise ResetNeeded(f"{type(self).__name__}: call reset() before render()")
         if self._renderer is None:
-            from .render import GhostRenderer
+            from .render import GhostRenderer, HumanViewer
 
-            self._renderer = GhostRenderer(self.plant.model, self.plant._qadr)
+            self._renderer = (GhostRenderer(self.plant.model, self.plant._qadr)
+                              if self.render_mode == "rgb_array" else
+                              HumanViewer(self.plant.model, self.plant._qadr,
+                                          fps=self.metadata["render_fps"]))
         x, x_hat = self._last[1], self._last[5]
         nq = len(self.plant._qadr)
         q = np.array(x[:nq], dtype=float)
@@ -1285,6 +1300,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             for j, e in self._err_pairs:
                 if j < nq:
                     ghost[j] = x_hat[e]
+        if self.render_mode == "human":
+            self._renderer.show(q, ghost)
+            return None
         return self._renderer.render(q, ghost)
 
     def close(self) -> None:

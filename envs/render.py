@@ -12,13 +12,21 @@ it is set; otherwise EGL, then OSMesa, then GLFW are tried in turn, so that rend
 headless machine without setting anything (``.ci/run`` installs Debian's ``libegl1``,
 ``libegl-mesa0``, ``libopengl0`` and ``libgl1-mesa-dri``). When none can be made,
 :class:`RenderError` says which were tried, why each failed, and what to install.
+
+**On screen** (``render_mode="human"``), :class:`HumanViewer` shows the same scene in MuJoCo's
+own interactive viewer (``mujoco.viewer.launch_passive``: GLFW on the X or Wayland display),
+the ghost in the viewer's user scene, one frame per environment step at ``render_fps``. It
+needs a display (``DISPLAY`` or ``WAYLAND_DISPLAY``; ``xvfb-run`` gives a virtual one).
 """
 
 from __future__ import annotations
 
+import atexit
 import copy
 import importlib
 import os
+import threading
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -260,4 +268,159 @@ class GhostRenderer:
             self._con = None
 
 
-__all__ = ["GHOST_RGBA", "GhostRenderer", "RenderError", "framing_camera", "gl_context"]
+
+
+def check_display() -> None:
+    """Raise :class:`RenderError` unless a display is named (``DISPLAY`` or
+    ``WAYLAND_DISPLAY``): ``render_mode="human"`` opens a window on it.
+
+    Raises
+    ------
+    RenderError
+        Neither variable is set.
+
+    Examples
+    --------
+    >>> import os
+    >>> saved = {k: os.environ.pop(k) for k in ("DISPLAY", "WAYLAND_DISPLAY") if k in os.environ}
+    >>> try:
+    ...     check_display()
+    ... except RenderError as exc:
+    ...     print(str(exc)[:62])
+    render_mode="human" opens a window, and there is no display: D
+    >>> os.environ.update(saved)
+    """
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise RenderError('render_mode="human" opens a window, and there is no display: DISPLAY '
+                          'and WAYLAND_DISPLAY are unset. Use render_mode="rgb_array" (frames '
+                          'as arrays; gymnasium.wrappers.RecordVideo writes them to a video), '
+                          'or run under a virtual display (xvfb-run, Debian package xvfb)')
+
+
+class HumanViewer:
+    """MuJoCo's interactive viewer showing the true pose and the estimate's ghost
+    (``render_mode="human"``), paced at ``fps`` frames per second of wall time.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+        The plant's model (only read; the viewer shows a copy).
+    qpos_adr : sequence of int
+        ``qpos`` address of each joint whose position is a plant state, in state order.
+    fps : float
+        Frames per second: :meth:`show` waits so that frames are ``1 / fps`` apart.
+
+    Raises
+    ------
+    RenderError
+        No display (:func:`check_display`), or the viewer's window could not be opened.
+
+    Examples
+    --------
+    Skipped here: it needs a display (tests/envs/test_render.py runs it under xvfb-run).
+
+    >>> import numpy as np
+    >>> from hgo_mj.plants import make_plant
+    >>> viewer = HumanViewer(make_plant("pendulum").model, [0], fps=50)  # doctest: +SKIP
+    >>> viewer.show(np.array([3.0]), np.array([2.8]))  # doctest: +SKIP
+    >>> viewer.close()  # doctest: +SKIP
+    """
+
+    def __init__(self, model: Any, qpos_adr: Sequence[int] | NDArray[np.intp], *,
+                 fps: float) -> None:
+        check_display()
+        import mujoco.viewer
+
+        self.model = copy.deepcopy(model)
+        self._adr = np.asarray(qpos_adr, dtype=np.intp)
+        self._true, self._ghost = mujoco.MjData(self.model), mujoco.MjData(self.model)
+        self._opt, self._pert = mujoco.MjvOption(), mujoco.MjvPerturb()
+        before = set(threading.enumerate())
+        try:
+            self.viewer = mujoco.viewer.launch_passive(self.model, self._true,
+                                                       show_left_ui=False, show_right_ui=False)
+        except Exception as exc:  # GLFW: no usable display or GL
+            raise RenderError(f'render_mode="human": the viewer could not open a window on '
+                              f'{os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")!r}'
+                              f': {exc}') from None
+        # the viewer's thread: close() waits for it to free its window before the model and
+        # data it draws are freed (a daemon thread still drawing them crashed the process)
+        self._threads = [t for t in threading.enumerate() if t not in before]
+        atexit.register(self.close)  # a process ending with the window open: close it first
+        cam, view = framing_camera(self.model), self.viewer.cam
+        view.lookat[:], view.distance = cam.lookat, cam.distance
+        view.azimuth, view.elevation = cam.azimuth, cam.elevation
+        self.period, self._last = 1.0 / float(fps), 0.0
+
+    @property
+    def is_running(self) -> bool:
+        """Whether the window is open (the user may close it).
+
+        Examples
+        --------
+        Skipped here: it needs a display.
+
+        >>> from hgo_mj.plants import make_plant
+        >>> HumanViewer(make_plant("pendulum").model, [0], fps=50).is_running  # doctest: +SKIP
+        True
+        """
+        return self.viewer is not None and self.viewer.is_running()
+
+    def show(self, q_true: NDArray[np.float64], q_ghost: NDArray[np.float64]) -> None:
+        """Show the model at ``q_true`` and its ghost at ``q_ghost`` (a closed window stays
+        closed: nothing is shown).
+
+        Parameters
+        ----------
+        q_true : (k,) array
+            True joint positions, one per ``qpos_adr`` entry.
+        q_ghost : (k,) array
+            Joint positions of the ghost (the estimate).
+
+        Examples
+        --------
+        Skipped here: it needs a display.
+
+        >>> import numpy as np
+        >>> from hgo_mj.plants import make_plant
+        >>> viewer = HumanViewer(make_plant("pendulum").model, [0], fps=50)  # doctest: +SKIP
+        >>> viewer.show(np.array([3.0]), np.array([2.8]))  # doctest: +SKIP
+        """
+        if not self.is_running:
+            return
+        m, v = self.model, self.viewer
+        with v.lock():
+            for d, q in ((self._true, q_true), (self._ghost, q_ghost)):
+                d.qpos[self._adr] = q
+                mujoco.mj_kinematics(m, d)
+            scn = v.user_scn
+            scn.ngeom = 0
+            mujoco.mjv_addGeoms(m, self._ghost, self._opt, self._pert, _DYNAMIC, scn)
+            for i in range(scn.ngeom):
+                scn.geoms[i].rgba[:] = GHOST_RGBA
+        wait = self._last + self.period - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        v.sync()
+        self._last = time.monotonic()
+
+    def close(self) -> None:
+        """Close the window (idempotent).
+
+        Examples
+        --------
+        Skipped here: it needs a display.
+
+        >>> from hgo_mj.plants import make_plant
+        >>> HumanViewer(make_plant("pendulum").model, [0], fps=50).close()  # doctest: +SKIP
+        """
+        if self.viewer is not None:
+            self.viewer.close()
+            for t in self._threads:
+                t.join(timeout=10.0)
+            self.viewer = None
+            atexit.unregister(self.close)
+
+
+__all__ = ["GHOST_RGBA", "GhostRenderer", "HumanViewer", "RenderError", "check_display",
+           "framing_camera", "gl_context"]

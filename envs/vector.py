@@ -113,6 +113,11 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
             raise DesignError(f"nthread must be a positive integer; found {nthread!r}")
         if not (isinstance(env_class, type) and issubclass(env_class, HgoEnv)):
             raise DesignError(f"env_class must be an HgoEnv subclass; found {env_class!r}")
+        if kwargs.get("render_mode") not in (None, "rgb_array"):
+            raise DesignError(f"the native vector environment renders each member's frame as an "
+                              f"array: render_mode must be None or 'rgb_array'; found "
+                              f"{kwargs['render_mode']!r} (show one member with "
+                              f"gymnasium.make(..., render_mode='human'))")
         env = env_class(**kwargs)
         limit = (env.task.max_episode_steps if max_episode_steps is None else max_episode_steps)
         if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
@@ -131,7 +136,7 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         self.observation_space = batch_space(env.observation_space, N)
         self.action_space = batch_space(env.action_space, N)
         self.metadata = {**type(self).metadata, "render_fps": env.metadata["render_fps"],
-                         "render_modes": list(env.metadata["render_modes"])}
+                         "render_modes": ["rgb_array"]}
         #: each member's frame (:meth:`render`), with ``render_mode="rgb_array"``
         self.render_mode = env.render_mode
         self._frame_state: tuple[Array, Array | None] | None = None
