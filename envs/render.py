@@ -235,6 +235,9 @@ class GhostRenderer:
         """
         m = self.model
         self._ctx.make_current()
+        # every renderer has its own offscreen buffer: bind this one (another renderer made
+        # since bound its own, and this one's frames were read from it)
+        mujoco.mjr_setBuffer(int(mujoco.mjtFramebuffer.mjFB_OFFSCREEN), self._con)
         for d, q in ((self._true, q_true), (self._ghost, q_ghost)):
             d.qpos[self._adr] = q
             mujoco.mj_kinematics(m, d)

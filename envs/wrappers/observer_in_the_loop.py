@@ -314,6 +314,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         self.loop: Loop | None = None
         self.plant: EnvPlant = None  # type: ignore[assignment]
         self.tap: MujocoTap | None = None
+        self._renderer: Any = None
         if joints is not None:
             self._setup_joints(env, joints, observer, observer_kwargs, substeps,
                                layout=layout, input=input, dt=dt)
@@ -550,9 +551,63 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
                     true_observation=np.array(obs))
         return out, info
 
+    def render(self) -> Any:
+        """With ``joints=`` and the environment's ``render_mode="rgb_array"``: the true pose and
+        the estimate's translucent ghost in one frame (:class:`hgo_mj.envs.render.
+        GhostRenderer`, its camera set from the environment's own ``default_cam_config`` as
+        Gymnasium's renderer sets it); otherwise the environment's own ``render()``.
+
+        Returns
+        -------
+        (480, 480, 3) uint8 array, or what the environment's ``render()`` returns
+
+        Raises
+        ------
+        gymnasium.error.ResetNeeded
+            A ghost frame before the first ``reset``.
+        hgo_mj.envs.render.RenderError
+            No OpenGL backend could be made.
+
+        Examples
+        --------
+        Skipped here: it needs an OpenGL backend.
+
+        >>> env = ObserverInTheLoop(gymnasium.make("Hopper-v5", render_mode="rgb_array"),
+        ...                         joints=["rootz", "rooty", "thigh_joint"])  # doctest: +SKIP
+        >>> _ = env.reset(seed=0)  # doctest: +SKIP
+        >>> env.render().shape  # doctest: +SKIP
+        (480, 480, 3)
+        """
+        if self.tap is None or self.env.render_mode != "rgb_array":
+            return self.env.render()
+        if not self._ready:
+            raise ResetNeeded("ObserverInTheLoop: call reset() before render()")
+        tap = self.tap
+        m = tap.env.model
+        adr = [m.jnt_qposadr[m.joint(j).id] for j in tap.system.joints]
+        if self._renderer is None:
+            from ..render import GhostRenderer
+
+            self._renderer = GhostRenderer(m, adr)
+            config = getattr(getattr(tap.env, "mujoco_renderer", None), "default_cam_config",
+                             None) or {}
+            cam = self._renderer.camera
+            for key, value in config.items():  # as Gymnasium's own renderer applies it
+                if isinstance(value, np.ndarray):
+                    getattr(cam, key)[:] = value
+                else:
+                    setattr(cam, key, value)
+        nj = len(tap.system.joints)
+        q = np.array(tap.env.data.qpos[adr], dtype=float)
+        ghost = np.array(self.observer.x_hat, dtype=float)[self._perm][:nj]
+        return self._renderer.render(q, ghost)
+
     def close(self) -> None:
         if self.tap is not None:  # the environment steps its own way again
             self.tap.env.__dict__.pop("_step_mujoco_simulation", None)
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
         super().close()
 
 

@@ -189,3 +189,52 @@ def test_human_mode_without_a_display_is_one_clear_error(monkeypatch):
                                           "'human'"):
         gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=2,
                      vectorization_mode="vector_entry_point", render_mode="human")
+
+
+@pytest.mark.parametrize("env_id,joints", [
+    ("Hopper-v5", ["rootz", "rooty", "thigh_joint", "leg_joint", "foot_joint"]),
+    ("InvertedDoublePendulum-v5", ["slider", "hinge", "hinge2"]),
+])
+def test_the_wrapper_renders_a_gymnasium_mujoco_environment_with_the_ghost(env_id, joints):
+    from hgo_mj.envs.wrappers import ObserverInTheLoop
+
+    def make():
+        return ObserverInTheLoop(gym.make(env_id, render_mode="rgb_array"), joints=joints,
+                                 sensor=[{"stage": "gaussian", "std": 1e-3}])
+
+    env = make()
+    with pytest.raises(ResetNeeded, match=r"call reset\(\) before render\(\)"):
+        env.render()
+    env.reset(seed=2)
+    for _ in range(5):
+        env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    frame = env.render()
+    assert frame.shape == (480, 480, 3) and frame.dtype == np.uint8 and frame.std() > 5.0
+    other = make()
+    other.reset(seed=2)
+    for _ in range(5):
+        other.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    np.testing.assert_array_equal(other.render(), frame)  # the same seed, the same frame
+    # an estimate far off: its ghost shows
+    x = np.array(env.observer.x_hat, dtype=float)
+    x[:len(joints)] += 0.6
+    env.observer.reset(x_hat0=x)
+    off = env.render()
+    assert np.abs(off.astype(int) - frame.astype(int)).max() > 60
+    env.close()
+    other.close()
+
+
+def test_two_renderers_interleaved_each_draw_their_own_frame():
+    """Each renderer binds its own offscreen buffer at every frame (a second renderer once
+    made the first read the second's frames)."""
+    a = gym.make("hgo_mj/PendulumSwingUp-v0", render_mode="rgb_array")
+    b = gym.make("hgo_mj/PendulumSwingUp-v0", render_mode="rgb_array")
+    a.reset(seed=0, options={"x0": [0.3, 0.0]})
+    first = a.render()
+    b.reset(seed=0, options={"x0": [2.5, 0.0]})
+    other = b.render()
+    assert np.abs(other.astype(int) - first.astype(int)).max() > 60
+    np.testing.assert_array_equal(a.render(), first)
+    a.close()
+    b.close()
