@@ -369,7 +369,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
     write_results(traj, metrics, out, formats, table=not stream)
     every = traj.metadata.get("figure_every", 1)
     save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {plant_label(pl)}, seed {seed}"
-                                + (f" (every {every}th sample shown)" if every > 1 else "")),
+                                + (f" (every {every}-th sample shown)" if every > 1 else "")),
                 out / "figure.png")
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
