@@ -18,7 +18,9 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/hgo-mj demo
 
+# the Debian packages the rendering tests need (EGL, Xvfb), installed where missing
 test: $(STAMP)
+	scripts/system_deps.sh
 	$(PY) -m mypy
 	$(PY) scripts/check_complexity.py
 	$(PY) -m pytest -q -ra

@@ -9,7 +9,7 @@ camera frames the whole model (``mjv_defaultFreeCamera``: the model's centre and
 
 **OpenGL backend.** The backend named by ``MUJOCO_GL`` (``egl``, ``osmesa`` or ``glfw``) when
 it is set; otherwise EGL, then OSMesa, then GLFW are tried in turn, so that rendering works on a
-headless machine without setting anything (``.ci/run`` installs Debian's ``libegl1``,
+headless machine without setting anything (``make test`` installs Debian's ``libegl1``,
 ``libegl-mesa0``, ``libopengl0`` and ``libgl1-mesa-dri``). When none can be made,
 :class:`RenderError` says which were tried, why each failed, and what to install.
 

@@ -155,7 +155,7 @@ print(ghost, elapsed >= 19 / fps, viewer.viewer is None)
 
 
 def test_human_mode_shows_the_viewer_with_the_ghost_on_a_display(tmp_path):
-    """Under a virtual display (xvfb-run, installed by .ci/run): Gymnasium's checker passes
+    """Under a virtual display (xvfb-run, installed by `make test`): Gymnasium's checker passes
     with rendering in every declared mode; MuJoCo's viewer opens at reset, reset and step draw
     (render() returns None) at render_fps, the ghost is in its user scene, close() closes the
     window."""
@@ -164,7 +164,7 @@ def test_human_mode_shows_the_viewer_with_the_ghost_on_a_display(tmp_path):
     import sys
 
     xvfb = shutil.which("xvfb-run")
-    assert xvfb, "xvfb-run is missing: install Debian's xvfb and xauth (as .ci/run does)"
+    assert xvfb, "xvfb-run is missing: install Debian's xvfb and xauth (scripts/system_deps.sh, run by make test)"
     (tmp_path / "human.py").write_text(HUMAN)
     out = subprocess.run([xvfb, "-a", "-s", "-screen 0 800x600x24", sys.executable,
                           str(tmp_path / "human.py")], capture_output=True, text=True,
