@@ -93,14 +93,39 @@ def soak(steps: int, names: list[str] | None = None) -> dict[str, dict]:
     return {name: _child(SOAK, name, str(steps)) for name in (names or sorted(ENVIRONMENTS))}
 
 
-def suites() -> dict[str, str]:
-    out = {}
-    for path in ("tests/test_fuzz_scenarios.py", "tests/test_bad_inputs.py",
-                 "tests/test_faults.py", "tests/test_isolation.py", "tests/test_stream.py"):
-        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                            path], capture_output=True, text=True, cwd=ROOT)
-        out[path] = r.stdout.strip().splitlines()[-1]
-    return out
+#: the suites whose counts the page gives; the fault suites' tests are listed one by one
+SUITES = ("tests/test_fuzz_scenarios.py", "tests/test_bad_inputs.py", "tests/test_faults.py",
+          "tests/test_isolation.py", "tests/test_stream.py")
+FAULT_SUITES = ("tests/test_faults.py", "tests/test_isolation.py", "tests/test_stream.py")
+
+
+def suites() -> tuple[dict[str, str], list[dict[str, str]]]:
+    """pytest's summary line of each suite, and every fault test: its name, the first line
+    of its docstring (what it injects and asserts) and its outcome (from JUnit XML)."""
+    import ast
+    import xml.etree.ElementTree as ET
+
+    counts, faults = {}, []
+    with tempfile.TemporaryDirectory() as tmp:
+        for path in SUITES:
+            xml = Path(tmp) / "r.xml"
+            r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                                f"--junitxml={xml}", path], capture_output=True, text=True,
+                               cwd=ROOT)
+            counts[path] = r.stdout.strip().splitlines()[-1]
+            if path not in FAULT_SUITES:
+                continue
+            docs = {n.name: (ast.get_docstring(n) or "").split("\n")[0]
+                    for n in ast.parse((ROOT / path).read_text()).body
+                    if isinstance(n, ast.FunctionDef) and n.name.startswith("test_")}
+            for case in ET.parse(xml).getroot().iter("testcase"):
+                name = case.get("name", "")
+                outcome = ("failed" if case.find("failure") is not None
+                           or case.find("error") is not None else
+                           "skipped" if case.find("skipped") is not None else "passed")
+                faults.append({"suite": path, "test": name, "outcome": outcome,
+                               "what": docs.get(name.split("[")[0], "")})
+    return counts, faults
 
 
 def figure(rows: list[dict], path: Path) -> None:
@@ -127,7 +152,7 @@ def figure(rows: list[dict], path: Path) -> None:
 
 
 def page(rows: list[dict], soaks: dict[str, dict], steps: int, counts: dict[str, str],
-         cmd: str) -> str:
+         cmd: str, faults: list[dict[str, str]] | None = None) -> str:
     from hgo_mj._bench import header
 
     lines = ["# Reliability: memory, soak, bad inputs, faults", "",
@@ -171,6 +196,13 @@ def page(rows: list[dict], soaks: dict[str, dict], steps: int, counts: dict[str,
               "under a recording, kill and Ctrl-C multi-run commands, stop a streamed run, and "
               "make an observer fail in a run.", "", "| suite | pytest |", "|---|---|"]
     lines += [f"| `{k}` | {v} |" for k, v in counts.items()]
+    if faults:
+        lines += ["", "### Faults injected, one test each", "",
+                  "| test | what it injects and asserts | result |", "|---|---|---|"]
+        lines += [f"| `{f['test']}` | {f['what'] or '-'} | {f['outcome']} |" for f in faults]
+        bad = [f for f in faults if f["outcome"] != "passed"]
+        lines += ["", f"{len(faults) - len(bad)} of {len(faults)} fault tests passed"
+                  + (": " + ", ".join(f["test"] for f in bad) if bad else "") + "."]
     return "\n".join(lines) + "\n"
 
 
@@ -178,24 +210,37 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--durations", nargs="+", type=float, default=[60.0, 600.0, 3600.0])
     ap.add_argument("--soak-steps", type=int, default=1_000_000)
-    ap.add_argument("--out", default=None, help="folder for reliability.md and its figure")
+    ap.add_argument("--out", default=None, help="folder for reliability.md, its figure and "
+                    "the raw numbers (reliability.json)")
+    ap.add_argument("--page-from", metavar="JSON", help="rewrite the page and figure from the "
+                    "raw numbers of an earlier run (no measurement)")
     a = ap.parse_args(argv)
     if a.soak_steps < 1001 or any(not d > 0 for d in a.durations):
         print("--soak-steps must be > 1000 and --durations positive", file=sys.stderr)
         return 2
     cmd = ("python scripts/reliability.py --durations "
            + " ".join(f"{d:g}" for d in a.durations) + f" --soak-steps {a.soak_steps}")
-    rows = memory(a.durations)
-    soaks = soak(a.soak_steps)
-    counts = suites()
-    text = page(rows, soaks, a.soak_steps, counts, cmd)
+    if a.page_from:
+        raw = json.loads(Path(a.page_from).read_text())
+        rows, soaks, counts, faults, cmd = (raw[k] for k in ("memory", "soak", "suites",
+                                                              "faults", "command"))
+        steps = raw["soak_steps"]
+    else:
+        rows, soaks, (counts, faults) = memory(a.durations), soak(a.soak_steps), suites()
+        steps = a.soak_steps
+    text = page(rows, soaks, steps, counts, cmd, faults)
     print(text)
     if a.out:
         from hgo_mj._io import write_text
+        from hgo_mj._json import write_json
 
         out = Path(a.out)
         figure(rows, out / "reliability_memory.png")
         write_text(out / "reliability.md", text)
+        if not a.page_from:
+            write_json(out / "reliability.json", {
+                "command": cmd, "soak_steps": steps, "memory": rows, "soak": soaks,
+                "suites": counts, "faults": faults})
     return 0
 
 

@@ -19,7 +19,11 @@ def test_memory_soak_and_page(tmp_path):
     assert all(r["rc"] == 0 and r["rss_mb"] > 0 for r in rows)
     soaks = rel.soak(1001, ["hgo_mj/PendulumSwingUp-v0"])
     assert soaks["hgo_mj/PendulumSwingUp-v0"]["finite"] is True
-    text = rel.page(rows, soaks, 1001, {"tests/x.py": "1 passed"}, "cmd")
+    faults = [{"suite": "tests/x.py", "test": "test_kill", "outcome": "passed",
+               "what": "A kill during a save."}]
+    text = rel.page(rows, soaks, 1001, {"tests/x.py": "1 passed"}, "cmd", faults)
+    assert "| `test_kill` | A kill during a save. | passed |" in text
+    assert "1 of 1 fault tests passed." in text
     assert "| 2 | stream | 2001 |" in text and "flat with the duration" in text and "| hgo_mj/PendulumSwingUp-v0 |" in text
     rel.figure(rows, tmp_path / "m.png")
     assert (tmp_path / "m.png").stat().st_size > 10_000
