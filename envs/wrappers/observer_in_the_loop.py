@@ -421,7 +421,16 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
             kw = dict(kwargs or {})
             if "outputs" in kw:
                 raise DesignError("outputs are set per channel by the wrapper; do not give them")
-            members = [make_observer(observer, None, outputs=(i,), **kw) for i in range(m)]
+            try:
+                members = [make_observer(observer, None, outputs=(i,), **kw) for i in range(m)]
+            except DesignError as exc:
+                if observer not in OBSERVERS:  # misspelt: make_observer lists the valid ones
+                    raise
+                raise DesignError(
+                    f"observer {observer!r} cannot run model-free, one per measured channel, as "
+                    f"measure= needs ({exc}): give a model-free one (e.g. 'high_gain'), joints= "
+                    f"on a Gymnasium MuJoCo environment (the observer then models its MJCF), "
+                    f"or an Observer instance designed against your system") from None
             names = [f"y{i + 1}" for i in range(m)]
             return ObserverBank(members, output_names=names)
         members = list(observer)

@@ -121,6 +121,10 @@ def test_observer_in_the_loop_bad_input():
                                                                 "outputs": (1,)})
     with pytest.raises(DesignError, match=r"unknown sensor stage 'sonar'"):
         _estimated_ip(sensor=[{"stage": "sonar"}])
+    with pytest.raises(DesignError, match=r"observer 'ekf_mujoco' cannot run model-free, one per "
+                                          r"measured channel.*give a model-free one \(e.g. "
+                                          r"'high_gain'\), joints= on a Gymnasium MuJoCo"):
+        ObserverInTheLoop(gym.make("Pendulum-v1"), measure=(0, 1), observer="ekf_mujoco")
 
 
 def test_sensor_noise_on_inverted_pendulum():
