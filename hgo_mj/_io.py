@@ -71,6 +71,11 @@ def check_writable(name: str, path: str | Path, *, folder: bool) -> Path:
     return path
 
 
+def _size(nbytes: float) -> str:
+    """A size in MiB below one GiB, else in GiB."""
+    return (f"{nbytes / 2**20:,.0f} MiB" if nbytes < 2**30 else f"{nbytes / 2**30:,.3g} GiB")
+
+
 def check_disk(name: str, path: str | Path, nbytes: float) -> None:
     """Raise :class:`~hgo_mj.exceptions.DesignError` before a run whose files (an estimate of
     ``nbytes``) would not fit on the disk of ``path`` (its nearest existing folder); ``name``
@@ -84,8 +89,8 @@ def check_disk(name: str, path: str | Path, nbytes: float) -> None:
         probe = probe.parent
     free = shutil.disk_usage(probe).free
     if nbytes > free:
-        raise DesignError(f"the run's files would take about {nbytes / 2**20:,.0f} MiB; "
-                          f"{name} {str(path)!r} has {free / 2**20:,.0f} MiB free: free space, "
+        raise DesignError(f"the run's files would take about {_size(nbytes)}; "
+                          f"{name} {str(path)!r} has {_size(free)} free: free space, "
                           f"write elsewhere, shorten the run or keep every k-th row "
                           f"(--store-every k)")
 

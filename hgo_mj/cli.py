@@ -327,7 +327,13 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
                           f"--format {' '.join(formats)}: leave --format out or give parquet")
     seed = run.get("seed", 0)
     out = check_writable("--out (run.out)", run.get("out", f"runs/{name}"), folder=True)
-    check_disk("--out (run.out)", out, output_bytes(kw, run.get("store_every", 1), formats))
+    every = run.get("store_every", 1)
+    if not stream:  # the rows a kept run holds in memory (simulate checks it again)
+        from .simulate import check_memory
+
+        rows, width = output_shape(kw, every)
+        check_memory(8 * rows * width, int(rows))
+    check_disk("--out (run.out)", out, output_bytes(kw, every, formats))
     if rrd is not None:
         check_writable("--rrd", rrd, folder=False)
     rec = None
@@ -384,16 +390,22 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
 BYTES_PER_VALUE = {"npz": 8, "parquet": 8, "csv": 20}
 
 
-def output_bytes(kw: dict[str, Any], every: int, formats: tuple[str, ...]) -> float:
-    """An upper estimate of the bytes the trajectory files of a run take: rows x columns x
-    :data:`BYTES_PER_VALUE` per format (an observer's ``x_hat``, ``z_hat`` and diagnostics
-    counted as columns)."""
+def output_shape(kw: dict[str, Any], every: int) -> tuple[float, int]:
+    """The rows a run stores and its columns (an observer's ``x_hat``, ``z_hat`` and
+    diagnostics counted as columns)."""
     plant = kw["plant"]
     ts = float(kw.get("sample_period") or plant.dt)
     rows = float(kw["duration"]) / ts / every + 1
     width = len(plant.state_names) + 2 * len(plant.output_names) + len(plant.input_names) + 1
     width += sum(2 * len(ob.state_names) + len(ob.diagnostic_names)
                  for ob in kw["observers"].values())
+    return rows, width
+
+
+def output_bytes(kw: dict[str, Any], every: int, formats: tuple[str, ...]) -> float:
+    """An upper estimate of the bytes the trajectory files of a run take: rows x columns x
+    :data:`BYTES_PER_VALUE` per format (:func:`output_shape`)."""
+    rows, width = output_shape(kw, every)
     return rows * width * sum(BYTES_PER_VALUE[f] for f in formats)
 
 
