@@ -132,7 +132,7 @@ def figure(rows: list[dict], path: Path) -> None:
     from hgo_mj._io import save_figure
     from hgo_mj.plotting import subplots
 
-    fig, ax = subplots(1, 1, figsize=(7, 4))
+    fig, ax = subplots(1, 1, figsize=(10, 4))
     floor = rows[0]["rss_mb"]
     for mode, style in zip(MODES, ("o-", "s-", "^-")):
         pts = [(r["duration"], r["rss_mb"]) for r in rows[1:] if r["mode"] == mode]
@@ -146,7 +146,7 @@ def figure(rows: list[dict], path: Path) -> None:
     ax.set_xlabel("simulated duration [s] (1 kHz)")
     ax.set_ylabel("peak RSS [MB]")
     ax.set_title("hgo-mj run, pendulum + high-gain observer: peak memory")
-    ax.legend()
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9)
     fig.tight_layout()
     save_figure(fig, path)
 
