@@ -386,15 +386,17 @@ def findings(runs: list[Run]) -> str:
                 v = tab[a]["own"]
                 assert v is not None
                 gap = (v - m) / (t - m) if t > m else float("nan")
-                close.append(f"{a} {gap:.0%}" if gap == gap else f"{a} n/a")
+                close.append(f"{a} {gap + 0.0:.0%}".replace("-0%", "0%") if gap == gap
+                             else f"{a} n/a")
         spread = max(_spread(runs, env_id, a) for a in have)
         verdicts.append(f"on {name} the share of the gap from raw measurements to the true "
                         f"state that each closes is " + ", ".join(close)
                         + f" (seeds spread up to {spread:.1f})")
     if not parts:
         return ""
+    tail = "; ".join(verdicts)
     return ("Under the same sensor noise, " + "; ".join(parts) + ". "
-            + "; ".join(verdicts).capitalize() + ".")
+            + tail[:1].upper() + tail[1:] + ".")
 
 
 def figure(runs: list[Run], path: Path) -> Path:
