@@ -824,20 +824,28 @@ def main(argv: list[str] | None = None) -> int:
                  if args.command == "sweep" or getattr(args, "seeds", None) else ""),
               file=sys.stderr)
         return 130
+    print(_report(metrics, mc, out, rrd, formats, sc["run"].get("stream", False)))
+    return 0
+
+
+def _report(metrics: dict[str, Any], mc: Any, out: Path, rrd: Path | None, formats: Any,
+            stream: bool) -> str:
+    """What ``hgo-mj run`` prints at the end: the metrics table (and the Monte Carlo one), and
+    the files written."""
     from .metrics import format_table
 
-    print(format_table(metrics))
+    text = format_table(metrics)
     if mc is not None:
-        print(f"\nMonte Carlo over the seeds {mc.seeds[0]}..{mc.seeds[-1]} (the table above: seed "
-              f"{mc.seeds[0]})\n" + mc.table())
+        text += (f"\n\nMonte Carlo over the seeds {mc.seeds[0]}..{mc.seeds[-1]} (the table "
+                 f"above: seed {mc.seeds[0]})\n" + mc.table())
     if formats is None:
-        formats = STREAM_FORMATS if sc["run"].get("stream") else DEFAULT_FORMATS
+        formats = STREAM_FORMATS if stream else DEFAULT_FORMATS
     files = [f for f in ("trajectory.npz", "trajectory.parquet", "metrics.parquet",
                          "trajectory.csv", "metrics.csv") if f.split(".")[1] in formats]
-    print(f"\nwrote {out}/" + ", ".join([*files, "metrics.json", "figure.png", "summary.txt"])
-          + (", metrics_mc.json, summary_mc.txt, mc.png" if mc is not None else "")
-          + (f", {rrd}" if rrd is not None else ""))
-    return 0
+    return (text + f"\n\nwrote {out}/"
+            + ", ".join([*files, "metrics.json", "figure.png", "summary.txt"])
+            + (", metrics_mc.json, summary_mc.txt, mc.png" if mc is not None else "")
+            + (f", {rrd}" if rrd is not None else ""))
 
 
 #: the console script; the other functions are the command's internals
