@@ -511,13 +511,21 @@ def test_sigint_waits_for_the_block():
     from hgo_mj.record.recorder import _DeferSigint
 
     done = []
-    with pytest.raises(KeyboardInterrupt):
-        with _DeferSigint():
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.01)
-            done.append(True)
-    assert done == [True]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    # Python's own Ctrl-C handler, whatever a library imported earlier installed (the block
+    # defers only that one); the signal may reach another thread first: wait until it is seen
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with _DeferSigint() as block:
+                os.kill(os.getpid(), signal.SIGINT)
+                end = time.monotonic() + 5.0
+                while not block._hit and time.monotonic() < end:
+                    time.sleep(0.001)
+                done.append(True)
+        assert done == [True]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def test_simulate_on_chunk_validation():
