@@ -12,8 +12,8 @@ import pandas as pd
 import pytest
 
 from hgo_mj.cli import main
-from hgo_mj.exceptions import DesignError, DivergenceError
 from hgo_mj.control import LinearFeedback
+from hgo_mj.exceptions import DesignError, DivergenceError
 from hgo_mj.inputs import Constant, Multisine
 from hgo_mj.metrics import RunningMetrics, all_metrics
 from hgo_mj.observers import HighGainObserver, make_observer

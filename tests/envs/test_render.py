@@ -8,7 +8,6 @@ import hgo_mj.envs as envs
 import numpy as np
 import pytest
 from gymnasium.error import ResetNeeded
-from gymnasium.utils.env_checker import check_env
 from hgo_mj.envs import ENVIRONMENTS
 
 
@@ -164,7 +163,8 @@ def test_human_mode_shows_the_viewer_with_the_ghost_on_a_display(tmp_path):
     import sys
 
     xvfb = shutil.which("xvfb-run")
-    assert xvfb, "xvfb-run is missing: install Debian's xvfb and xauth (scripts/system_deps.sh, run by make test)"
+    assert xvfb, ("xvfb-run is missing: install Debian's xvfb and xauth (scripts/system_deps.sh, "
+                  "run by make test)")
     (tmp_path / "human.py").write_text(HUMAN)
     out = subprocess.run([xvfb, "-a", "-s", "-screen 0 800x600x24", sys.executable,
                           str(tmp_path / "human.py")], capture_output=True, text=True,
