@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import copy
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -214,17 +214,19 @@ CONTINUE = _Continue()
 _FAILURES = (DivergenceError, ValueError, ArithmeticError)
 
 
-def check_fits(name: str, ob: Observer, plant: Plant) -> None:
+def check_fits(name: str, ob: Observer, output_names: Sequence[str],
+               input_names: Sequence[str]) -> None:
     """Raise :class:`DimensionError` unless the observer's output channels and input width are
-    the plant's (checked before a run, not found deep in an update)."""
-    p, m = len(plant.output_names), len(plant.input_names)
+    those of the plant with these outputs and inputs (checked before a run, not found deep in
+    an update)."""
+    p, m = len(output_names), len(input_names)
     bad = [o for o in ob.outputs if o >= p]
     if bad:
         raise DimensionError(f"observer {name!r} reads output channel(s) {bad}; the plant has "
-                             f"{p} output(s) {list(plant.output_names)} (channels 0..{p - 1})")
+                             f"{p} output(s) {list(output_names)} (channels 0..{p - 1})")
     if ob.n_inputs is not None and ob.n_inputs != m:
         raise DimensionError(f"observer {name!r} takes {ob.n_inputs} input(s); the plant has {m} "
-                             f"{list(plant.input_names)}")
+                             f"{list(input_names)}")
 
 
 class Loop:
@@ -356,7 +358,7 @@ class Loop:
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
         for name, ob in self.observers.items():  # as many copies as plants (B initial states)
-            check_fits(name, ob, self.plant)
+            check_fits(name, ob, self.plant.output_names, self.plant.input_names)
             ob.reset(batch=B if batched else None)
             ob.check_period(self.periods.sample)
         self.batch, self.k = B, 0

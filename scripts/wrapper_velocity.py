@@ -15,7 +15,12 @@ the joint velocities at the end of each environment step against the environment
   0.01``);
 * the same at the environment step only (``substeps=False``, ``Q = 1``);
 * ``observer="high_gain_multi"`` with the MuJoCo model term (``model=True``, ``k = 60``) at
-  every physics step.
+  every physics step;
+
+each with ``estimate="current"`` (the default: the estimate that has used the newest
+measurement) and ``estimate="prediction"``. A second table does the same for ``measure=``
+(observation entries) with model-free high-gain chains of order 2 (``k = 1 / dt``) on the
+environments whose observation holds the joint positions as they are.
 """
 
 from __future__ import annotations
@@ -32,7 +37,8 @@ from hgo_mj._bench import header
 from hgo_mj._io import write_text
 from hgo_mj.sensors import GaussianNoise, SensorChain
 
-ENVS = ("InvertedDoublePendulum-v5", "Reacher-v5", "Hopper-v5", "Walker2d-v5", "HalfCheetah-v5")
+ENVS = ("InvertedPendulum-v5", "InvertedDoublePendulum-v5", "Reacher-v5", "Hopper-v5",
+        "Walker2d-v5", "HalfCheetah-v5")
 
 
 def joints_of(name: str) -> list[str]:
@@ -40,17 +46,42 @@ def joints_of(name: str) -> list[str]:
     return [m.joint(i).name for i in range(m.njnt) if m.jnt_type[i] in (2, 3)]
 
 
+#: environments whose observation starts with the joint positions qpos[offset:] as they are
+#: (measure= mode) -> offset
+MEASURE_ENVS = {"InvertedPendulum-v5": 0, "Hopper-v5": 1, "Walker2d-v5": 1, "HalfCheetah-v5": 1}
+
+
+def measured_env(name: str, config: dict, std: float) -> tuple[ObserverInTheLoop, list[int]]:
+    """The wrapper of ``name`` (``joints=`` every joint, or with ``"measure"`` in ``config``
+    the observation's position entries) and the measured ``qpos`` indices."""
+    sensor = [{"stage": "gaussian", "std": std}]
+    if config.get("measure"):
+        env = gym.make(name)
+        m = env.unwrapped.model
+        off = MEASURE_ENVS[name]
+        n = m.nq - off
+        k = round(1.0 / env.unwrapped.dt)
+        cfg = {k_: v for k_, v in config.items() if k_ != "measure"}
+        wrapped = ObserverInTheLoop(env, measure=tuple(range(n)), observer="high_gain",
+                                    observer_kwargs={"order": 2, "k": float(k)}, sensor=sensor,
+                                    **cfg)
+        return wrapped, list(range(off, m.nq))
+    joints = joints_of(name)
+    wrapped = ObserverInTheLoop(gym.make(name), joints=joints, sensor=sensor, **config)
+    m = wrapped.unwrapped.model
+    return wrapped, [m.jnt_qposadr[m.joint(j).id] for j in joints]
+
+
 def run(name: str, config: dict, steps: int, std: float, seed: int = 0
         ) -> tuple[float, float, float]:
     """(RMS velocity error of the wrapper, of the backward difference, us per env step)."""
-    joints = joints_of(name)
-    env = ObserverInTheLoop(gym.make(name), joints=joints,
-                            sensor=[{"stage": "gaussian", "std": std}], **config)
+    env, qadr = measured_env(name, config, std)
     u = env.unwrapped
-    m = u.model
-    vadr = [m.jnt_dofadr[m.joint(j).id] for j in joints]
-    qadr = [m.jnt_qposadr[m.joint(j).id] for j in joints]
-    nj = len(joints)
+    vadr = qadr  # hinge and slide joints only: the same index in qvel
+    nj = len(qadr)
+    # the velocities in the wrapper's estimate: after the positions (joints=), or every second
+    # entry (chains of order 2 per measured entry, measure=)
+    vel = slice(1, None, 2) if config.get("measure") else slice(nj, None)
     bd_sensor = SensorChain([GaussianNoise(std=std)], seed=seed + 1)
     env.action_space.seed(seed)
     err_w, err_bd = [], []
@@ -65,7 +96,7 @@ def run(name: str, config: dict, steps: int, std: float, seed: int = 0
         done = term or trunc
         k += 1
         v = np.array(u.data.qvel[vadr])
-        err_w.append(info["estimate"][nj:] - v)
+        err_w.append(info["estimate"][vel] - v)
         y = bd_sensor.apply(np.array([k * env.dt]), u.data.qpos[qadr][None, None])[0, 0]
         err_bd.append((y - prev) / env.dt - v)
         prev = y
@@ -75,7 +106,7 @@ def run(name: str, config: dict, steps: int, std: float, seed: int = 0
     return rms(err_w), rms(err_bd), elapsed
 
 
-CONFIGS = {
+_JOINTS = {
     "ekf_mujoco, every physics step": {"observer": "ekf_mujoco",
                                        "observer_kwargs": {"Q": 0.01}},
     "ekf_mujoco, every env step": {"observer": "ekf_mujoco", "observer_kwargs": {"Q": 1.0},
@@ -83,6 +114,30 @@ CONFIGS = {
     "high_gain_multi + MuJoCo model term, every physics step": {
         "observer": "high_gain_multi", "observer_kwargs": {"k": 60.0, "model": True}},
 }
+#: joints= configurations, each with the current estimate and the prediction
+CONFIGS = {f"{label}, {est}": {**cfg, "estimate": est}
+           for label, cfg in _JOINTS.items() for est in ("current", "prediction")}
+#: measure= configurations
+MEASURE_CONFIGS = {f"high_gain chains, k = 1/dt, {est}": {"measure": True, "estimate": est}
+                   for est in ("current", "prediction")}
+
+
+def table(envs: list[str], configs: dict[str, dict], steps: int, std: float) -> list[str]:
+    """The markdown rows of one table: per environment the backward difference and each
+    configuration's error (its ratio to the difference, its time per step)."""
+    lines = ["| environment | joints | backward difference | " + " | ".join(configs) + " |",
+             "|---|---|---|" + "---|" * len(configs)]
+    for name in envs:
+        bd, cells, nj = None, [], 0
+        for cfg in configs.values():
+            w, b, us = run(name, cfg, steps, std)
+            bd = b if bd is None else bd
+            cells.append((w, us))
+            nj = len(measured_env(name, cfg, std)[1])
+        assert bd is not None
+        lines.append(f"| {name} | {nj} | {bd:.4g} | " + " | ".join(
+            f"{w:.4g} ({w / bd:.2f}x, {us:.0f} us/step)" for w, us in cells) + " |")
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -96,25 +151,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--steps must be >= 2 and --std > 0; found {a.steps}, {a.std}", file=sys.stderr)
         return 2
     cmd = f"python scripts/wrapper_velocity.py --steps {a.steps} --std {a.std:g}"
-    rows = []
-    for name in a.envs:
-        bd = None
-        cells = []
-        for label, cfg in CONFIGS.items():
-            w, b, us = run(name, cfg, a.steps, a.std)
-            bd = b if bd is None else bd
-            cells.append((label, w, us))
-        rows.append((name, len(joints_of(name)), bd, cells))
-    lines = [*header(cmd), "",
-             "| environment | joints | backward difference | " + " | ".join(CONFIGS) + " |",
-             "|---|---|---|" + "---|" * len(CONFIGS)]
-    for name, nj, bd, cells in rows:
-        lines.append(f"| {name} | {nj} | {bd:.4g} | " + " | ".join(
-            f"{w:.4g} ({w / bd:.2f}x, {us:.0f} us/step)" for _, w, us in cells) + " |")
-    text = "\n".join(lines)
-    print(text)
+    joints = "\n".join([*header(cmd), "", *table(a.envs, CONFIGS, a.steps, a.std)])
+    measure = "\n".join(table([e for e in a.envs if e in MEASURE_ENVS], MEASURE_CONFIGS,
+                              a.steps, a.std))
+    print(joints, measure, sep="\n\n")
     if a.out:
-        write_text(a.out, PAGE.format(table=text, std=a.std, steps=a.steps))
+        write_text(a.out, PAGE.format(table=joints, measure=measure, std=a.std, steps=a.steps))
     return 0
 
 
@@ -140,6 +182,26 @@ estimate (names from the MJCF joints, bounds from the environment's space). With
 estimate at the end of a step has used every measurement up to one physics step before it (the
 observer's prediction over that physics step); without, up to one environment step before it.
 The EKF's process noise `Q` is per sample, hence smaller at the physics rate.
+
+`estimate="current"` (the default) hands the estimate that has used the newest measurement:
+a continuous-time observer (the high-gain ones) integrates over each step, or physics step,
+with the measurement at its end held, and the Kalman filters hand their measurement update
+with the newest sample (`x_k|k`); `estimate="prediction"` hands the prediction made before the
+newest measurement (every sample a step, or physics step, late). The Kalman filters' current
+estimate is the better one in every row; the high-gain observer with MuJoCo's model term is
+better off with the prediction: holding the newest sample over a physics step pushes its own
+model-based prediction ahead.
+
+## measure=: observation entries and model-free chains
+
+The same comparison through `measure=` (any environment: the measured entries of its
+observation), on the environments whose observation holds the joint positions as they are
+(Hopper, Walker2d and HalfCheetah leave out the root's x): `ObserverInTheLoop(env,
+measure=(0, ..., n-1), observer="high_gain", observer_kwargs={{"order": 2, "k": 1/dt}},
+sensor=...)`, one model-free chain of order 2 per measured position, blind to the actions and
+the model; the velocities are the chains' second entries.
+
+{measure}
 """
 
 

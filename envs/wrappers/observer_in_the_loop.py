@@ -13,82 +13,20 @@ from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 from numpy.typing import NDArray
 
+from hgo_mj._validate import one_of
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
-from hgo_mj.loop import Loop, LoopFailure, Periods
+from hgo_mj.loop import check_fits
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
 from hgo_mj.observers.bank import ObserverBank
-from hgo_mj.plants.base import Plant
 
-from ..core import env_seed, sensor_chain
-from ._common import box_indices, env_dt
+from ..core import sensor_chain
+from ._common import box_indices, env_dt, reset_chain
 
 Array = NDArray[np.float64]
 
-
-class EnvPlant(Plant):
-    """A Gymnasium environment as the plant of :class:`hgo_mj.loop.Loop`: its state is the
-    environment's observation, its outputs the measured signals, and ``run`` steps the
-    environment with the action the wrapper set (:attr:`action`), one step per sample.
-
-    The environment itself is reset by the wrapper (with its seed and options) before the
-    loop is; :meth:`reset` only reads its first observation.
-    """
-
-    batch = 1
-
-    def __init__(self, env: gymnasium.Env, measure: Callable[[Any], Array], dt: float,
-                 n_inputs: int) -> None:
-        self.env, self._measure, self.dt = env, measure, dt
-        self.system = None  # type: ignore[assignment]
-        self.obs: Any = None
-        self.action: Any = None
-        #: what the last environment step returned: (observation, reward, terminated,
-        #: truncated, info)
-        self.result: tuple[Any, ...] | None = None
-        self._n_inputs = n_inputs
-        self.t = 0.0
-
-    @property
-    def state_names(self) -> tuple[str, ...]:
-        return tuple(f"observation_{i}" for i in range(np.size(self.state)))
-
-    @property
-    def input_names(self) -> tuple[str, ...]:
-        return tuple(f"u{i + 1}" for i in range(self._n_inputs))
-
-    @property
-    def output_names(self) -> tuple[str, ...]:
-        return tuple(f"y{i + 1}" for i in range(np.size(self.outputs())))
-
-    def start(self, obs: Any) -> None:
-        """The environment was reset and observes ``obs``."""
-        self.obs, self.result, self.t = obs, None, 0.0
-
-    def reset(self, x0: Any = None, *, batch: int | None = None) -> None:
-        if x0 is not None or (batch is not None and batch != 1):
-            raise DesignError("an environment plant is reset through its environment (one copy)")
-
-    def run(self, U: Array, steps: int) -> tuple[Array, Array]:
-        """Record the observation and the measured signals, then step the environment with
-        :attr:`action`, ``steps`` times per sample (the observer's input ``U`` is not the
-        environment's action)."""
-        T = U.shape[1]
-        X = np.empty((1, T, np.size(self.state)))
-        Y = np.empty((1, T, np.size(self.outputs())))
-        for j in range(T):
-            X[0, j], Y[0, j] = self.state, self.outputs()
-            for _ in range(steps):
-                self.result = self.env.step(self.action)
-                self.obs = self.result[0]
-                self.t += self.dt
-        return X, Y
-
-    @property
-    def state(self) -> Array:
-        return np.array(self.obs, dtype=float).reshape(-1)  # a copy, as Plant.state promises
-
-    def outputs(self) -> Array:
-        return self._measure(self.obs)
+#: what the agent is handed: the estimate that has used the newest measurement, or the
+#: prediction made before it
+ESTIMATES = ("current", "prediction")
 
 
 class MujocoTap:
@@ -141,6 +79,8 @@ class MujocoTap:
         self.entries = self._probe()
         self.on_frame: Callable[[Array, float], None] | None = None
         self.substeps = True
+        #: hand over each physics step after it (the sample at its end) instead of before it
+        self.lead = False
 
     def _probe(self) -> dict[int, int]:
         """Observation entry -> index in the system's state (joint positions, then velocities)
@@ -179,16 +119,22 @@ class MujocoTap:
         return np.array(self.env.data.qpos[self.qadr], dtype=np.float64)
 
     def _step(self, ctrl: Any, n_frames: int) -> None:
-        """Gymnasium's ``_step_mujoco_simulation``, one physics step at a time: before each,
-        (or before the first, without substeps) the observer gets the measurement and steps
-        over the time to the next one."""
+        """Gymnasium's ``_step_mujoco_simulation``, one physics step at a time, each handed to
+        :attr:`on_frame` (without substeps, the whole frame skip at once): before it (the
+        observer takes the sample at its start) or, with :attr:`lead`, after it (the sample
+        at its end)."""
         m, d = self.env.model, self.env.data
         d.ctrl[:] = ctrl
         u = np.array(ctrl, dtype=float).reshape(-1)
+        dt = self.h if self.substeps else self.h * n_frames
         for f in range(n_frames):
-            if self.on_frame is not None and (self.substeps or f == 0):
-                self.on_frame(u, self.h if self.substeps else self.h * n_frames)
+            hand = self.on_frame is not None and (self.substeps or f == (
+                n_frames - 1 if self.lead else 0))
+            if hand and not self.lead:
+                self.on_frame(u, dt)  # type: ignore[misc]
             mujoco.mj_step(m, d)
+            if hand and self.lead:
+                self.on_frame(u, dt)  # type: ignore[misc]
         mujoco.mj_rnePostConstraint(m, d)
 
 
@@ -197,12 +143,24 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     """Measure some signals of an environment, estimate its state with hgo_mj observers, and
     hand the agent the estimate instead of the environment's observation.
 
-    The environment is the plant of hgo_mj's loop (:class:`hgo_mj.loop.Loop`, through
-    :class:`EnvPlant`): at every step the observer consumes the current measurement ``y_k``
-    (the measured signals through the sensor chain) and the input ``u_k`` (the action, or
-    ``input(action)``) and predicts the estimate at the next step; the environment steps, and
-    its new observation is measured for the next step. The agent's observation is that
-    estimate, rearranged by ``layout``.
+    The agent steps the environment, so the wrapper feeds its observer sample by sample as
+    the environment steps (hgo_mj's loop kernel, :class:`hgo_mj.loop.Loop`, drives hgo_mj's own
+    plants). A step with the action ``a_k`` takes the environment from ``t_k`` to ``t_k+1``; its
+    new observation is measured (the measured signals through the sensor chain) as
+    ``y_k+1``, and the observer integrates over the step with the input ``u_k`` (the action,
+    or ``input(action)``) held. What the agent is handed (``estimate=``):
+
+    * ``"current"`` (default): the estimate at ``t_k+1`` that has used ``y_k+1``, the newest
+      measurement. A continuous-time observer (every family but the Kalman filters)
+      integrates over the step with ``y_k+1`` held (the measurement at the step's end, in
+      place of the one at its start: no sample of delay); a Kalman filter predicts with
+      ``y_k`` and hands ``x_k+1|k+1``, its measurement update with ``y_k+1``
+      (:meth:`~hgo_mj.observers.Observer.filtered`).
+    * ``"prediction"``: the observer integrates over the step with ``y_k`` held and hands
+      its prediction of ``x(t_k+1)`` made before ``y_k+1`` (every sample a step late, as a
+      sampled observer runs in hgo_mj's loop).
+
+    The agent's observation is that estimate, rearranged by ``layout``.
 
     **On Gymnasium's MuJoCo environments** give ``joints=`` instead of ``measure=``: the
     named joints' positions are measured (through the sensor chain) inside the environment's
@@ -255,13 +213,17 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         the unclipped value). With ``joints=`` the environment's own space is kept.
     substeps : bool
         With ``joints=``: sample at every physics step (default) or once per step.
+    estimate : {"current", "prediction"}
+        The estimate that has used the newest measurement (default), or the prediction made
+        before it (see above). With ``joints=`` and substeps, the same per physics step.
 
     Notes
     -----
     ``info`` gains ``"estimate"`` (the agent's estimate before ``layout`` and clipping),
-    ``"measurement"`` (the sensor's reading of the new observation, which the observer
-    consumes at the next step) and ``"true_observation"`` (the environment's own
-    observation).
+    ``"measurement"`` (the sensor's reading of the new observation) and
+    ``"true_observation"`` (the environment's own observation).
+    ``docs/results/wrappers.md`` measures ``"current"`` against ``"prediction"`` and a
+    backward difference of the same measurements.
 
     Examples
     --------
@@ -295,11 +257,11 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
                  layout: Sequence[int] | None = None,
                  input: Callable[[Any], Any] | None = None,  # noqa: A002 - the observer's u
                  init: str = "measurement", dt: float | None = None, bound: float = 1e6,
-                 substeps: bool = True) -> None:
+                 substeps: bool = True, estimate: str = "current") -> None:
         gymnasium.utils.RecordConstructorArgs.__init__(
             self, measure=measure, joints=joints, observer=observer,
             observer_kwargs=observer_kwargs, sensor=sensor, layout=layout, input=input,
-            init=init, dt=dt, bound=bound, substeps=substeps)
+            init=init, dt=dt, bound=bound, substeps=substeps, estimate=estimate)
         super().__init__(env)
         if (measure is None) == (joints is None):
             raise DesignError("give measure= (observation entries, or a function of the "
@@ -308,16 +270,23 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
             raise DesignError(f"init must be 'measurement' or 'zero'; found {init!r}")
         if not isinstance(substeps, bool):
             raise DesignError(f"substeps must be true or false; found {substeps!r}")
+        self.estimate = one_of("estimate", estimate, ESTIMATES)
         self.sensor = sensor_chain(sensor)
         self._input = input
         self._init = init
-        self.loop: Loop | None = None
-        self.plant: EnvPlant = None  # type: ignore[assignment]
         self.tap: MujocoTap | None = None
         self._renderer: Any = None
+        #: the sensor's clock, the newest measurement, whether the observer has yet to consume
+        #: it (it was taken at this instant) and whether the environment was reset
+        self._t, self._y, self._fresh, self._ready = 0.0, np.empty(0), False, False
+        #: how a step feeds the observer (:meth:`_order`)
+        self._lead, self._filter = False, False
         if joints is not None:
             self._setup_joints(env, joints, observer, observer_kwargs, substeps,
                                layout=layout, input=input, dt=dt)
+            self._order()
+            assert self.tap is not None
+            self.tap.lead = self._lead
             return
         if callable(measure):
             self._measure_fn: Callable[..., Any] | None = measure
@@ -348,6 +317,21 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         self.bound = float(bound)
         self.observation_space = spaces.Box(-self.bound, self.bound, shape=(len(lay),),
                                             dtype=np.float64)
+        self._order()
+
+    def _order(self) -> None:
+        """How a step feeds the observer for :attr:`estimate`: ``_lead`` (a continuous-time
+        observer integrates over the step with the sample at its end) or ``_filter`` (a Kalman
+        filter hands its measurement update with the newest sample)."""
+        members = getattr(self.observer, "members", (self.observer,))
+        kinds = {bool(o.measurement_update) for o in members}
+        current = self.estimate == "current"
+        if current and len(kinds) > 1:
+            raise DesignError("estimate='current' needs observers of one kind: Kalman filters "
+                              "(a measurement update) or continuous-time observers; this bank "
+                              "mixes them (give estimate='prediction', or one kind)")
+        self._filter = current and kinds == {True}
+        self._lead = current and not self._filter
 
     def _setup_joints(self, env: gymnasium.Env, joints: Sequence[str], observer: Any,
                       observer_kwargs: Mapping[str, Any] | None, substeps: bool,
@@ -395,18 +379,37 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         self.observation_names = tuple(
             system.state_names[tap.entries[i]] if i in tap.entries else f"observation_{i}"
             for i in range(space.shape[0]))
-        self._t, self._y = 0.0, np.full(len(joints), np.nan)
-        self._ready = False
         tap.on_frame = self._frame
         tap.attach()
 
     def _frame(self, u: Array, dt: float) -> None:
-        """One observer update in the MuJoCo tap: the measured joints now, through the sensor
-        chain, then the step over ``dt`` with the controls ``u``."""
+        """One observer update over ``dt`` with the controls ``u`` in the MuJoCo tap: with the
+        measurement of the measured joints at its start (taken now unless already taken at
+        this instant) or, leading (:attr:`MujocoTap.lead`, called after the physics step), at
+        its end."""
         assert self.tap is not None
-        self._y = self.sensor.apply(np.array([self._t]), self.tap.measure()[None, None])[0, 0]
+        if self._lead:
+            self._t += dt
+            self._sample(self.tap.measure())
+        elif not self._fresh:
+            self._sample(self.tap.measure())
+        self._fresh = False
         self.observer.update(self._y, u, dt)
-        self._t += dt
+        if not self._lead:
+            self._t += dt
+
+    def _sample(self, signals: Array) -> None:
+        """The measurement of ``signals`` at the sensor's clock, through the sensor chain:
+        the newest, not yet consumed."""
+        self._y = self.sensor.apply(np.array([self._t]), signals[None, None])[0, 0]
+        self._fresh = True
+
+    def _current(self) -> Array:
+        """What the agent is handed before ``layout``: the observer's estimate, or a Kalman
+        filter's measurement update with the newest sample (``estimate="current"``)."""
+        if self._filter:
+            return np.array(self.observer.filtered(self._y), dtype=float)
+        return np.array(self.observer.x_hat, dtype=float)
 
     def _make(self, observer: Any, kwargs: Mapping[str, Any] | None, m: int | None) -> Observer:
         if isinstance(observer, Observer):
@@ -453,74 +456,64 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
 
     def _observation(self, x_hat: Array) -> Array:
         if not np.all(np.isfinite(x_hat)):
-            k = self.loop.k if self.loop is not None else 0
-            raise DivergenceError(f"the observer's estimate left the finite numbers at step "
-                                  f"{k}: {x_hat.tolist()}")
+            raise DivergenceError(f"the observer's estimate left the finite numbers at t = "
+                                  f"{self._t:.6g} s: {x_hat.tolist()}")
         return np.clip(x_hat[self.layout], -self.bound, self.bound)
-
-    def _build_loop(self, action: Any) -> Loop:
-        """The loop around the environment, made at the first reset (when the width of the
-        observer's input is known from the action space)."""
-        m = self._u(action).size
-        self.plant = EnvPlant(self.env, self._signals, self.dt, m)
-        self.loop = Loop(self.plant, self.sensor, {"observer": self.observer},
-                         Periods(self.dt, self.dt, 1, 1), exact=False)
-        return self.loop
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Array, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
+        reset_chain(self.sensor, seed)
+        self._t = 0.0
         if self.tap is not None:
-            return self._reset_joints(obs, info, seed)
-        loop = self.loop
-        if loop is None:
-            loop = self._build_loop(self.env.action_space.sample() * 0)
-        self.plant.start(obs)
-        loop.reset(seed=env_seed(seed))
-        _, _, Ym = loop.sample()
-        y = Ym[0, 0]
-        ob = self.observer
+            return self._reset_joints(obs, info)
+        self._sample(self._signals(obs))
+        y, ob = self._y, self.observer
+        if not self._ready:  # the widths are known now: the observer's channels and input
+            n_u = self._u(self.env.action_space.sample() * 0).size
+            check_fits("observer", ob, [f"y{i + 1}" for i in range(y.size)],
+                       [f"u{i + 1}" for i in range(n_u)])
         if self._built and self._init == "measurement" and isinstance(ob, ObserverBank):
             z0: list[float] = []
             for o in ob.members:
                 yi = float(y[o.outputs[0]])
                 z0 += [yi if yi == yi else 0.0] + [0.0] * (len(o.state_names) - 1)
             ob.reset(z_hat0=z0)
-        x_hat = np.array(ob.x_hat, dtype=float)
+        else:
+            ob.reset()
+        self._ready = True
+        x_hat = self._current()
         info = dict(info)
         info.update(estimate=x_hat.copy(), measurement=y.copy(), true_observation=np.array(obs))
         return self._observation(x_hat), info
 
     def step(self, action: Any) -> tuple[Array, Any, bool, bool, dict[str, Any]]:
+        if not self._ready:
+            raise ResetNeeded("ObserverInTheLoop: call reset() before step()")
         if self.tap is not None:
             return self._step_joints(action)
-        if self.loop is None or self.plant.obs is None:
-            raise ResetNeeded("ObserverInTheLoop: call reset() before step()")
-        self.plant.action = action
-        try:
-            self.loop.segment(self._u(action)[None, None])
-        except LoopFailure as exc:
-            raise DivergenceError(str(exc)) from exc.cause
-        obs, reward, terminated, truncated, info = self.plant.result  # type: ignore[misc]
-        x_hat = np.array(self.observer.x_hat, dtype=float)
-        _, _, Ym = self.loop.sample()
+        u = self._u(action)
+        if not self._lead:  # the sample at the step's start
+            self.observer.update(self._y, u, self.dt)
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._t += self.dt
+        self._sample(self._signals(obs))
+        if self._lead:  # the sample at its end
+            self.observer.update(self._y, u, self.dt)
+            self._fresh = False
+        x_hat = self._current()
         info = dict(info)
-        info.update(estimate=x_hat.copy(), measurement=Ym[0, 0].copy(),
+        info.update(estimate=x_hat.copy(), measurement=self._y.copy(),
                     true_observation=np.array(obs))
         return self._observation(x_hat), reward, terminated, truncated, info
 
     # ------------------------------------------------------------ joints= (MuJoCo tap)
-    def _reset_joints(self, obs: Any, info: dict[str, Any], seed: int | None
-                      ) -> tuple[Array, dict[str, Any]]:
+    def _reset_joints(self, obs: Any, info: dict[str, Any]) -> tuple[Array, dict[str, Any]]:
         """The observer restarts from the first measurement of the joints' positions (the
         model's ``qpos0`` for the unmeasured ones, zero velocities)."""
-        from ..core import reset_chain
-
         tap = self.tap
         assert tap is not None
-        reset_chain(self.sensor, seed)
-        self._t = 0.0
-        self._y = self.sensor.apply(np.array([0.0]), tap.measure()[None, None])[0, 0]
+        self._sample(tap.measure())
         m = tap.env.model
         system = tap.system
         nj = len(system.joints)
@@ -536,9 +529,10 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         return self._joint_result(obs, info)
 
     def _step_joints(self, action: Any) -> tuple[Array, Any, bool, bool, dict[str, Any]]:
-        if not self._ready:
-            raise ResetNeeded("ObserverInTheLoop: call reset() before step()")
         obs, reward, terminated, truncated, info = self.env.step(action)
+        if not self._lead:  # the sample at the step's end, consumed first by the next step
+            assert self.tap is not None
+            self._sample(self.tap.measure())
         out, info = self._joint_result(obs, info)
         return out, reward, terminated, truncated, info
 
@@ -546,7 +540,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         """The environment's observation with the entries that are a joint's position or
         velocity replaced by the estimate, inside the observation space."""
         assert self.tap is not None
-        x_hat = np.array(self.observer.x_hat, dtype=float)[self._perm]
+        x_hat = self._current()[self._perm]
         if not np.all(np.isfinite(x_hat)):
             raise DivergenceError(f"the observer's estimate left the finite numbers at t = "
                                   f"{self._t:.6g} s: {x_hat.tolist()}")

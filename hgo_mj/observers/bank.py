@@ -146,6 +146,14 @@ class ObserverBank(Observer):
             D[:, :, idg:idg + nd] = blk.diagnostics[:, :, :nd]
             ix, iz, idg = ix + nx, iz + nz, idg + nd
 
+    @property
+    def measurement_update(self) -> bool:  # type: ignore[override]
+        """Whether any member has a discrete measurement update (:meth:`filtered`)."""
+        return any(o.measurement_update for o in self.members)
+
+    def _filtered(self, Y: Array) -> Array:
+        return np.concatenate([o._filtered(Y) for o in self.members], axis=1)
+
     def _current(self) -> tuple[Array, Array, Array]:
         parts = [o._current() for o in self.members]
         return tuple(np.concatenate([p[j] for p in parts], axis=1)  # type: ignore[return-value]

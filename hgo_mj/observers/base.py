@@ -218,6 +218,9 @@ class Observer(ABC):
     family_diagnostics: tuple[str, ...] = ()
     #: whether ``system`` needs a single-output normal form (``normal_form_order``)
     needs_normal_form: ClassVar[bool] = True
+    #: whether a sample moves the estimate at its own instant (a discrete measurement update:
+    #: the Kalman filters; see :meth:`filtered`)
+    measurement_update: ClassVar[bool] = False
 
     def __init__(self, system: System | None, *, order: int | None = None,
                  outputs: Any = (0,), on_unstable: str = "raise") -> None:
@@ -336,6 +339,12 @@ class Observer(ABC):
     @abstractmethod
     def _current(self) -> tuple[Array, Array, Array]:
         """The current ``(x_hat (B, n_x), z_hat (B, n), family diagnostics (B, d))``."""
+
+    def _filtered(self, Y: Array) -> Array:
+        """The estimate ``(B, n_x)`` given also ``Y`` ``(B, p)`` (every measured channel) at
+        the present instant, the state unchanged (:meth:`filtered`); a family with a discrete
+        measurement update (:attr:`measurement_update`) overrides it."""
+        return self._current()[0]
 
     def check_period(self, dt: float) -> None:  # noqa: B027 - optional, default: no check
         """Check that the update is stable at the sample period ``dt`` (the loop calls this
@@ -674,6 +683,53 @@ class Observer(ABC):
             dt = _positive_dt(dt)
         return self._advance_checked(ya.reshape(1, 1, -1), ua.reshape(1, 1, -1),
                                      dt).x_hat[0, 0]
+
+    def filtered(self, y: Any) -> Array:
+        """The estimate at the present instant given also ``y``, measured at this instant,
+        without consuming it: the observer's state is unchanged and the next :meth:`advance`
+        consumes that sample as usual (the *current* estimate, where :attr:`x_hat` is the
+        prediction made before the sample; Franklin, Powell and Workman's current and
+        prediction estimators).
+
+        Only an observer with a discrete measurement update (:attr:`measurement_update`: the
+        Kalman filters, :math:`\\hat x_{k|k}` against :math:`\\hat x_{k|k-1}`) has one that
+        differs from :attr:`x_hat`. The continuous-time observers (every other family) take a
+        sample through their output injection over the sample period after it: a sample moves
+        nothing at its own instant, and their current estimate is :attr:`x_hat`.
+
+        Parameters
+        ----------
+        y : array_like
+            The measurement at this instant, ``(p,)`` (unbatched) or ``(B, p)``, every
+            measured channel; NaN is a lost channel.
+
+        Returns
+        -------
+        (n_x,) or (B, n_x) ndarray
+            The estimate in the layout of :attr:`state_names`.
+
+        Raises
+        ------
+        DimensionError
+            ``y`` of the wrong shape or not real numbers.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.reset([0.1, 0.0])
+        >>> obs.filtered([0.3]).tolist() == obs.x_hat.tolist()  # continuous-time: the same
+        True
+        """
+        Y = self._floats("y", y)
+        if Y.ndim == 1 and not self._batched:
+            Y = Y.reshape(1, -1)
+        if Y.ndim != 2 or Y.shape[0] != self.batch or Y.shape[1] <= self._max_col:
+            want = f"({self.batch}, p)" if self._batched else "(p,)"
+            raise DimensionError(f"{self.name}: y must have shape {want} with channel(s) "
+                                 f"{list(self.outputs)}; found shape {Y.shape}")
+        return self._public(np.array(self._filtered(Y), dtype=np.float64))  # type: ignore[no-any-return]
 
     def run(self, ys: Any, us: Any, dt: float, *, x_hat0: Any = None) -> Block:
         """Offline driver over recorded data (filterpy's ``batch_filter``): reset (unbatched,

@@ -1284,6 +1284,7 @@ class _KalmanFilter(Observer):
 
     backend = "system"
     needs_normal_form = False
+    measurement_update = True
 
     @classmethod
     def applicability(cls, system: System) -> str | None:
@@ -1453,6 +1454,16 @@ class _KalmanFilter(Observer):
     def _condition_general(self, Y: Array) -> None:
         """The measurement update for a general output map ``h`` (filter-specific)."""
         raise NotImplementedError
+
+    def _filtered(self, Y: Array) -> Array:
+        """``x_{k|k}``: the measurement update of a copy of the state with ``Y`` (every
+        channel; the filter's own read), the filter left as it was."""
+        x, P = self._x.copy(), self._P.copy()
+        try:
+            self._condition_on(np.ascontiguousarray(Y[:, self._cols_index]))
+            return self._x[:, :self.n].copy()
+        finally:
+            self._x, self._P = x, P
 
     def _present(self, y: Array) -> list[int]:
         return [c for c in range(y.shape[0]) if y[c] == y[c]]

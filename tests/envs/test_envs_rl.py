@@ -99,6 +99,11 @@ def test_solved_criterion():
     assert not train_rl.solved("hgo_mj/PendulumSwingUp-v0", up + [[0.0, 0.0]] * 10, ())
     assert train_rl.solved("hgo_mj/ElasticJointReach-v0", [[0.5, 0, 0, 0]] * 4, (0.49,))
     assert not train_rl.solved("hgo_mj/ElasticJointReach-v0", [[0.5, 0, 0, 0]] * 4, (0.4,))
+    # the Furuta pendulum: its task's target coordinate (the pendulum, x[1]) at pi, wrapped;
+    # the arm's angle is free
+    up = [[5.0, -np.pi + 0.2, 0.0, 0.0]] * 4
+    assert train_rl.solved("hgo_mj/FurutaSwingUp-v0", [[0.0] * 4] * 4 + up, ())
+    assert not train_rl.solved("hgo_mj/FurutaSwingUp-v0", [[np.pi, 0.0, 0.0, 0.0]] * 8, ())
 
 
 def test_report_is_rewritten_from_raw_results(tmp_path):

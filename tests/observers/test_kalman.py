@@ -382,3 +382,57 @@ def test_filterpy_side_by_side():
         ref.F = np.eye(2) + dt * s.jacobian(0, ref.x, u, p)
         ref.predict(u)
         np.testing.assert_allclose(got, ref.x, rtol=1e-10, atol=1e-13)
+
+
+def test_filtered_is_the_measurement_update_and_leaves_the_filter_alone():
+    """``filtered(y)`` is x_k|k: filterpy's estimate right after its ``update(y)``, from the
+    same Euler EKF; the filter's own state (estimate, covariance) is not moved, so the next
+    ``update`` consumes the sample as if ``filtered`` had not been called. The UKF's update
+    with a selection output is the same formula; a batch gives its rows; the continuous-time
+    observers' current estimate is their ``x_hat``."""
+    fp = pytest.importorskip("filterpy.kalman")
+    s = Pendulum()
+    p = s.params
+    dt = 1e-3
+    ours = ExtendedKalmanFilter(s, Q=1e-4, R=1e-4, P0=0.1, x_hat0=[0.2, 0.0], method="euler")
+    ukf = UnscentedKalmanFilter(s, Q=1e-4, R=1e-4, P0=0.1, x_hat0=[0.2, 0.0], method="euler")
+
+    class EKF(fp.ExtendedKalmanFilter):
+        def predict_x(self, u=0):
+            self.x = self.x + dt * s.dynamics(0, self.x, u, p)
+
+    ref = EKF(2, 1)
+    ref.x = np.array([0.2, 0.0])
+    ref.P = np.eye(2) * 0.1
+    ref.R = np.array([[1e-4]])
+    ref.Q = np.eye(2) * 1e-4 * dt
+    H = np.array([[1.0, 0.0]])
+    moved = 0.0
+    for k in range(100):
+        u = np.array([0.2 * math.sin(k * dt * 4)])
+        y = np.array([0.25 + 0.05 * math.sin(k * dt * 7)])
+        before, P = ours.x_hat.copy(), ours.P_.copy()
+        current = ours.filtered(y)
+        np.testing.assert_array_equal(ours.x_hat, before)
+        np.testing.assert_array_equal(ours.P_, P)
+        ref.update(y, lambda x: H, lambda x: x[:1])
+        np.testing.assert_allclose(current, ref.x, rtol=1e-10, atol=1e-13)
+        Pu, xu = ukf.P_, ukf.x_hat  # the UKF's update with y = x[0]: the Kalman formula
+        gain = Pu[:, 0] / (Pu[0, 0] + 1e-4)
+        np.testing.assert_allclose(ukf.filtered(y), xu + gain * (y[0] - xu[0]), rtol=1e-9,
+                                   atol=1e-12)
+        moved = max(moved, float(np.abs(current - before).max()))
+        ours.update(y, u, dt)
+        ukf.update(y, u, dt)
+        ref.F = np.eye(2) + dt * s.jacobian(0, ref.x, u, p)
+        ref.predict(u)
+    assert moved > 1e-3  # the update did move the estimate
+    ours.reset([[0.1, 0.0], [0.3, 0.0]])
+    rows = ours.filtered([[0.2], [0.2]])
+    assert rows.shape == (2, 2) and rows[0, 0] > 0.1 and rows[1, 0] < 0.3  # toward y
+    with pytest.raises(DimensionError, match=r"y must have shape \(2, p\)"):
+        ours.filtered([0.2])
+    hgo = make_observer("high_gain", s, k=10.0)
+    hgo.reset([0.1, 0.0])
+    assert not hgo.measurement_update and ours.measurement_update
+    np.testing.assert_array_equal(hgo.filtered([0.5]), hgo.x_hat)
