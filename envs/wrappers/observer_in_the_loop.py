@@ -500,7 +500,6 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         self._sample(self._signals(obs))
         if self._lead:  # the sample at its end
             self.observer.update(self._y, u, self.dt)
-            self._fresh = False
         x_hat = self._current()
         info = dict(info)
         info.update(estimate=x_hat.copy(), measurement=self._y.copy(),

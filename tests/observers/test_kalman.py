@@ -355,14 +355,13 @@ def test_registry():
         assert f.x_hat.shape == (2,) and f.diagnostics() == {"dropouts": 0.0}
 
 
-def test_filterpy_side_by_side():
-    """The same Euler EKF as filterpy's ExtendedKalmanFilter (predict with F = I + h J,
-    update with H = [1, 0]) gives the same estimates."""
+def _filterpy_pendulum_ekf(R: float, dt: float):
+    """filterpy's ExtendedKalmanFilter on the pendulum as our Euler EKF runs it (x0 = (0.2, 0),
+    P0 = 0.1 I, Q = 1e-4 per second, measurement H = [1, 0]); ``F`` is set before each
+    ``predict``. Returns the filter and H."""
     fp = pytest.importorskip("filterpy.kalman")
     s = Pendulum()
     p = s.params
-    dt = 1e-3
-    ours = ExtendedKalmanFilter(s, Q=1e-4, R=1e-6, P0=0.1, x_hat0=[0.2, 0.0], method="euler")
 
     class EKF(fp.ExtendedKalmanFilter):
         def predict_x(self, u=0):
@@ -371,9 +370,17 @@ def test_filterpy_side_by_side():
     ref = EKF(2, 1)
     ref.x = np.array([0.2, 0.0])
     ref.P = np.eye(2) * 0.1
-    ref.R = np.array([[1e-6]])
+    ref.R = np.array([[R]])
     ref.Q = np.eye(2) * 1e-4 * dt
-    H = np.array([[1.0, 0.0]])
+    return ref, np.array([[1.0, 0.0]])
+
+
+def test_filterpy_side_by_side():
+    """The same Euler EKF as filterpy's ExtendedKalmanFilter (predict with F = I + h J,
+    update with H = [1, 0]) gives the same estimates."""
+    s, p, dt = Pendulum(), Pendulum().params, 1e-3
+    ours = ExtendedKalmanFilter(s, Q=1e-4, R=1e-6, P0=0.1, x_hat0=[0.2, 0.0], method="euler")
+    ref, H = _filterpy_pendulum_ekf(R=1e-6, dt=dt)
     for k in range(300):
         u = np.array([0.2 * math.sin(k * dt * 4)])
         y = np.array([0.2 + 0.05 * math.sin(k * dt * 7)])
@@ -390,23 +397,10 @@ def test_filtered_is_the_measurement_update_and_leaves_the_filter_alone():
     ``update`` consumes the sample as if ``filtered`` had not been called. The UKF's update
     with a selection output is the same formula; a batch gives its rows; the continuous-time
     observers' current estimate is their ``x_hat``."""
-    fp = pytest.importorskip("filterpy.kalman")
-    s = Pendulum()
-    p = s.params
-    dt = 1e-3
+    s, p, dt = Pendulum(), Pendulum().params, 1e-3
     ours = ExtendedKalmanFilter(s, Q=1e-4, R=1e-4, P0=0.1, x_hat0=[0.2, 0.0], method="euler")
     ukf = UnscentedKalmanFilter(s, Q=1e-4, R=1e-4, P0=0.1, x_hat0=[0.2, 0.0], method="euler")
-
-    class EKF(fp.ExtendedKalmanFilter):
-        def predict_x(self, u=0):
-            self.x = self.x + dt * s.dynamics(0, self.x, u, p)
-
-    ref = EKF(2, 1)
-    ref.x = np.array([0.2, 0.0])
-    ref.P = np.eye(2) * 0.1
-    ref.R = np.array([[1e-4]])
-    ref.Q = np.eye(2) * 1e-4 * dt
-    H = np.array([[1.0, 0.0]])
+    ref, H = _filterpy_pendulum_ekf(R=1e-4, dt=dt)
     moved = 0.0
     for k in range(100):
         u = np.array([0.2 * math.sin(k * dt * 4)])
