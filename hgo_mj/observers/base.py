@@ -688,8 +688,9 @@ class Observer(ABC):
         """The estimate at the present instant given also ``y``, measured at this instant,
         without consuming it: the observer's state is unchanged and the next :meth:`advance`
         consumes that sample as usual (the *current* estimate, where :attr:`x_hat` is the
-        prediction made before the sample; Franklin, Powell and Workman's current and
-        prediction estimators).
+        prediction made before the sample: the current and prediction estimators of G. F.
+        Franklin, J. D. Powell, M. L. Workman, *Digital Control of Dynamic Systems*, 3rd ed.,
+        sec. 8.2).
 
         Only an observer with a discrete measurement update (:attr:`measurement_update`: the
         Kalman filters, :math:`\\hat x_{k|k}` against :math:`\\hat x_{k|k-1}`) has one that
