@@ -8,20 +8,21 @@ Timing (all periods exact integer multiples of each other)::
 consecutive samples with the inputs ``U`` (B, T, m) it records the true state and the clean
 outputs at each sample instant while the plant holds ``U[:, j]`` for one sample period
 (``plant.run``), passes the clean outputs through the sensor chain (``sensor.apply``, B seeded
-streams) and advances every observer over the T measurements (``Observer.advance``). The
+streams) and advances every observer over the T measurements (``Observer.step``). The
 callers choose T: :func:`hgo_mj.simulate.simulate` runs an open-loop input in long segments and
 a feedback law one control period at a time, an environment one control period per ``step``.
 
-An observer that fails inside a segment (a math error on a blown-up estimate, its own
-divergence check) is found to the sample: the loop keeps a copy of each observer's state
-before a segment of more than one sample and, on a failure, replays that observer sample by
-sample from the copy. The :class:`LoopFailure` it raises names the observer, the sample and
+The loop holds each observer's state and parameters as data (:attr:`Loop.states`,
+:attr:`Loop.params`; :meth:`Observer.init`, :meth:`Observer.parameters`): one batch may hold
+members with different parameters (``params=``), each member its own single run. An observer
+that fails inside a segment (a math error on a blown-up estimate, its own divergence check) is
+found to the sample: the step is pure, so the state before a segment of more than one sample
+is still there and, on a failure, the loop replays that observer sample by sample from it. The :class:`LoopFailure` it raises names the observer, the sample and
 the cause, and carries the rows that are valid.
 """
 
 from __future__ import annotations
 
-import copy
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ from numpy.typing import NDArray
 from ._validate import finite_scalar, integer_multiple
 from .exceptions import DesignError, DimensionError, DivergenceError
 from .inputs import Controller, FunctionSignal, Signal
-from .observers.base import Block, Observer
+from .observers.base import Block, Observer, Params, State
 from .plants.base import Plant
 from .sensors import SensorChain
 
@@ -253,12 +254,24 @@ class Loop:
         An observer whose update fails stops alone (:attr:`failed` records the sample, the
         time and the error; its rows are NaN from then on) and the others run the segment to
         its end; default False: :meth:`segment` raises :class:`LoopFailure`.
+    params : mapping name -> dict, optional
+        Per observer, parameter values for :meth:`Observer.parameters` (one value for every
+        member, or one per member with a leading B: many tunings in one batch); default each
+        observer's own.
+
+    Attributes
+    ----------
+    states : dict of str to State
+        Each observer's state (the loop holds it; the observer's own :attr:`Observer.state`
+        follows it, so ``observer.x_hat`` reads the last estimate of a run).
+    params : dict of str to Params
+        Each observer's parameters of the current batch.
 
     Raises
     ------
     DesignError
-        ``plant`` is not a Plant, ``sensor`` not a SensorChain or None, or an observer not
-        an Observer.
+        ``plant`` is not a Plant, ``sensor`` not a SensorChain or None, an observer not an
+        Observer, or ``params`` naming an observer the loop does not have.
 
     Examples
     --------
@@ -277,7 +290,8 @@ class Loop:
 
     def __init__(self, plant: Plant, sensor: SensorChain | None,
                  observers: Mapping[str, Observer], periods: Periods, *,
-                 exact: bool = True, isolate: bool = False) -> None:
+                 exact: bool = True, isolate: bool = False,
+                 params: Mapping[str, Mapping[str, Any]] | None = None) -> None:
         if not isinstance(plant, Plant):
             raise DesignError(f"plant must be a Plant; found {type(plant).__name__}")
         if sensor is not None and not isinstance(sensor, SensorChain):
@@ -289,6 +303,15 @@ class Loop:
                                   f"{type(ob).__name__}")
         self.plant, self.sensor, self.periods = plant, sensor, periods
         self.observers = dict(observers)
+        values = dict(params or {})
+        unknown = sorted(set(values) - set(self.observers))
+        if unknown:
+            raise DesignError(f"params names observer(s) {unknown} the loop does not have; it "
+                              f"has {list(self.observers)}")
+        #: per observer, the parameter values given (``Observer.parameters(B, **values)``)
+        self._values = {name: dict(v) for name, v in values.items()}
+        self.states: dict[str, State] = {}
+        self.params: dict[str, Params] = {}
         self.exact = bool(exact)
         if not isinstance(isolate, bool):
             raise DesignError(f"isolate must be true or false; found {isolate!r}")
@@ -357,10 +380,12 @@ class Loop:
                 raise DimensionError(f"the sensor chain has {self.sensor.batch} stream(s) for "
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
-        for name, ob in self.observers.items():  # as many copies as plants (B initial states)
+        for name, ob in self.observers.items():  # as many members as plants
             check_fits(name, ob, self.plant.output_names, self.plant.input_names)
-            ob.reset(batch=B if batched else None)
-            ob.check_period(self.periods.sample)
+            p = ob.parameters(B, **self._values.get(name, {}))
+            ob.check_period(self.periods.sample, p)
+            self.params[name], self.states[name] = p, ob.init(B, params=p)
+            ob._hold(p, self.states[name], batched)
         self.batch, self.k = B, 0
         self.wall = dict.fromkeys(self.observers, 0.0)
         self._pending = None
@@ -412,8 +437,8 @@ class Loop:
         reset_members(rows, X0)
         if self.sensor is not None:
             self.sensor.reset_members(rows, [None if sd is CONTINUE else sd for sd in seeds])
-        for ob in self.observers.values():
-            ob.reset_members(rows)
+        for name, ob in self.observers.items():
+            ob._restart(self.params[name], self.states[name], rows)
         pending, self._pending = self._pending, None
         if pending is not None and pending[0] == self.k and rows:
             Yc = np.asarray(self.plant.outputs(), dtype=np.float64).reshape(self.batch, 1, -1)
@@ -451,8 +476,36 @@ class Loop:
         >>> [v.shape for v in loop.estimates()["hgo"]]
         [(1, 2), (1, 2), (1, 2)]
         """
-        return {name: _nan_current(ob, self.batch) if name in self.failed else _current(ob)
-                for name, ob in self.observers.items()}
+        return {name: self.current(name) for name in self.observers}
+
+    def current(self, name: str) -> tuple[Array, Array, Array]:
+        """The observer ``name``'s current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)``
+        arrays (:meth:`estimates` of one observer).
+
+        Parameters
+        ----------
+        name : str
+            One of the loop's observers.
+
+        Returns
+        -------
+        tuple of ndarray
+            Copies of ``x_hat`` ``(B, n_x)``, ``z_hat`` ``(B, n)`` and the diagnostics.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([0.2, 0.0])
+        >>> loop.current("hgo")[2].tolist()
+        [[10.0, 0.0]]
+        """
+        if name in self.failed:
+            return _nan_current(self.observers[name], self.batch)
+        return self.observers[name].current(self.params[name], self.states[name])
 
     def segment(self, U: Array) -> Segment:
         """Advance T samples with the inputs ``U`` ``(B, T, m)`` (the kernel; see the module
@@ -534,22 +587,28 @@ class Loop:
 
     def _advance(self, name: str, ob: Observer, Ym: Array, U: Array) -> Block:
         """One observer over the segment, timed; on a failure, the failing sample found by a
-        replay from the state before the segment (:class:`_Found`)."""
+        replay from the state before the segment (:class:`_Found`). The step is pure where a
+        replay may be needed (a stored run, several samples): the state before is kept as it
+        is; an environment (``exact=False``) steps the state in place."""
         T = Ym.shape[1]
-        snap = copy.deepcopy(ob.__dict__) if T > 1 and self.exact else None
+        p, before = self.params[name], self.states[name]
+        keep = T > 1 and self.exact
+        state = before.copy() if keep else before
         t0 = time.perf_counter()
         try:
             # a loop that keeps no rows (exact=False) reuses each observer's block
-            blk = ob._advance_checked(Ym, U, self.periods.sample,
-                                      None if self.exact else self._blocks.get(name))
+            blk = ob._step_checked(p, state, Ym, U, self.periods.sample,
+                                   None if self.exact else self._blocks.get(name))
         except DimensionError:
             raise  # a shape mistake, not a divergence
         except _FAILURES as exc:
-            if snap is None:
+            if not keep:
                 raise _Found(0, exc, _head(_empty(ob, Ym.shape[0]), 0)) from exc
-            ob.__dict__.update(snap)
-            raise _replay(ob, Ym, U, self.periods.sample) from exc
+            raise _replay(ob, p, before.copy(), Ym, U, self.periods.sample) from exc
         self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
+        if keep:
+            self.states[name] = state
+            ob._hold(p, state)
         if not self.exact:
             self._blocks[name] = blk
         return blk
@@ -655,7 +714,7 @@ class Drive:
         if k % every == 0 or self._held is None:
             law = self.controller
             x = (np.reshape(loop.plant.state, (loop.batch, -1)) if self.observer is None
-                 else _current(loop.observers[self.observer])[0])
+                 else loop.current(self.observer)[0])
             self._held = self._check(law.act(k * Ts, x), loop.batch, k * Ts)
         return np.broadcast_to(self._held[:, None], (loop.batch, T, self.m)).copy()
 
@@ -673,15 +732,6 @@ class Drive:
         return {"type": type(src).__name__, **params}
 
 
-def _current(ob: Observer) -> tuple[Array, Array, Array]:
-    x, z, d = ob._current()
-    nd = len(ob.family_diagnostics)
-    D = np.empty((x.shape[0], nd + 1))
-    D[:, :nd] = d
-    D[:, nd] = ob._dropouts
-    return x.copy(), z.copy(), D
-
-
 class _Found(Exception):
     """An observer failed at sample ``row`` of a segment; ``head`` its rows before that."""
 
@@ -695,13 +745,13 @@ def _empty(ob: Observer, B: int) -> Block:
                  np.empty((B, 0, len(ob.diagnostic_names))))
 
 
-def _replay(ob: Observer, Ym: Array, U: Array, Ts: float) -> _Found:
-    """Advance ``ob`` sample by sample over the segment until it fails again: the failing
+def _replay(ob: Observer, p: Params, state: State, Ym: Array, U: Array, Ts: float) -> _Found:
+    """Advance ``state`` sample by sample over the segment until it fails again: the failing
     sample, its error and the rows before it."""
     rows: list[Block] = []
     for j in range(Ym.shape[1]):
         try:
-            rows.append(ob._advance_checked(Ym[:, j:j + 1], U[:, j:j + 1], Ts))
+            rows.append(ob._step_checked(p, state, Ym[:, j:j + 1], U[:, j:j + 1], Ts))
         except _FAILURES as exc:
             head = _empty(ob, Ym.shape[0]) if not rows else Block(
                 *(np.concatenate([getattr(r, f) for r in rows], axis=1)

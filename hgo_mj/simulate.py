@@ -1002,8 +1002,7 @@ class Store:
         x0s = np.broadcast_to(np.reshape(plant_x0_rows(lp.plant, x0), (-1, n)), (lp.batch, n))
         for b in range(lp.batch):
             seed = seeds[b] if isinstance(seeds, list) else seeds
-            inv = {name: int(np.reshape(ob._inverse_failures, -1)[b])
-                   for name, ob in lp.observers.items()}
+            inv = {name: int(lp.states[name].inverse_failures[b]) for name in lp.observers}
             m = {**meta, "seed": seed, "x0": x0s[b].tolist(), "inverse_failures": inv}
             out.append(self._trajectory(b, self.base, self.done, m, update_time))
         return out

@@ -130,12 +130,12 @@ def bench_batched(B: int = 1024, rounds: int = 3) -> dict[int, dict[str, tuple[f
                 Y = 0.1 * rng.standard_normal((B, T, 1))
                 U = np.zeros((B, T, m))
                 ob.reset(batch=B)  # type: ignore[attr-defined]
-                ob.advance(Y, U, DT)  # type: ignore[attr-defined]
+                advance(ob, Y, U, DT)  # type: ignore[attr-defined]
                 best = float("inf")
                 for _ in range(rounds):
                     t0 = time.perf_counter()
                     for _ in range(calls):
-                        ob.advance(Y, U, DT)  # type: ignore[attr-defined]
+                        advance(ob, Y, U, DT)  # type: ignore[attr-defined]
                     best = min(best, (time.perf_counter() - t0) / (calls * B * T))
                 per.append(best)
             out[n][name] = (per[0], per[1])

@@ -154,12 +154,12 @@ def batched(B: int = 1024, rounds: int = 3) -> dict[str, float]:
             for T in (1, 100):
                 Y, U = np.full((B, T, 1), y0), np.full((B, T, 1), u0)
                 reps = max(1, 100 // T)
-                f.advance(Y, U, dt)
+                advance(f, Y, U, dt)
                 best = float("inf")
                 for _ in range(rounds):
                     t0 = time.perf_counter()
                     for _ in range(reps):
-                        f.advance(Y, U, dt)
+                        advance(f, Y, U, dt)
                     best = min(best, (time.perf_counter() - t0) / (reps * B * T))
                 out[f"{cls.name}, {label}, B = {B}, T = {T}"] = best
     return out

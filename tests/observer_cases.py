@@ -93,3 +93,12 @@ def signals(k: int, p: int, m: int) -> tuple[np.ndarray, np.ndarray]:
         y[0] = math.nan
     u = np.array([0.2 * math.cos(3.0 * t + j) + 0.5 for j in range(m)])
     return y, u
+
+
+def advance(ob: Observer, Y: np.ndarray, U: np.ndarray, dt: float):
+    """Consume the block ``Y`` ``(B, T, p)``, ``U`` ``(B, T, m)`` on the observer's own state
+    through the pure step (``Observer.step``), keep the new state, return the rows."""
+    params, state = ob._own()
+    new, rows = ob.step(params, state, Y, U, dt)
+    ob._hold(params, new)
+    return rows

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import DesignError, DimensionError
-from .base import Array, Observer
+from .base import Array, Observer, Params, State
 from .high_gain import derivative_names
 
 __all__ = ["ObserverBank"]
@@ -27,9 +27,9 @@ class ObserverBank(Observer):
     Parameters
     ----------
     observers : sequence of Observer
-        The members, each reading its own channels (its ``outputs``) of ``y``. They are
-        advanced with the bank's batch (``reset(batch=B)`` resets every member with ``B``);
-        the bank resets them when it is built.
+        The members, each reading its own channels (its ``outputs``) of ``y``. The bank's
+        state and parameters hold each member's (fields ``members``), advanced with the
+        bank's batch.
     names : sequence of str, optional
         Names of the concatenated estimate; default: each member's ``state_names`` (for a
         single-output member without a system, the derivatives of
@@ -65,6 +65,7 @@ class ObserverBank(Observer):
     name = "bank"
     summary = "several observers on the same measurement, estimates concatenated"
     needs_normal_form = False
+    grouped = False  # each member groups its own members by their parameters
 
     def __init__(self, observers: Sequence[Observer], *, names: Sequence[str] | None = None,
                  output_names: Sequence[str] | None = None) -> None:
@@ -102,7 +103,6 @@ class ObserverBank(Observer):
                                         for key in o.family_diagnostics)
         #: width of the full measurement the members index into
         self._width = max(outputs) + 1
-        self.reset()  # every member from its own initial estimate, unbatched
 
     @property
     def n_inputs(self) -> int | None:
@@ -113,33 +113,52 @@ class ObserverBank(Observer):
     def state_names(self) -> tuple[str, ...]:
         return self._names
 
-    def check_period(self, dt: float) -> None:
-        for o in self.members:
-            o.check_period(dt)
+    def parameters(self, batch: int = 1, **values: Any) -> Params:
+        """The members' parameters: ``members``, one :class:`Params` per member (a member's
+        own are set on the member, or through ``members=``: a sequence of dicts of values)."""
+        per = values.pop("members", None)
+        if values:
+            raise DesignError(f"bank: unknown parameter(s) {sorted(values)}; valid: ['members'] "
+                              f"(one dict of values per member)")
+        if per is None:
+            per = [{}] * len(self.members)
+        if not isinstance(per, (list, tuple)) or len(per) != len(self.members) or not all(
+                isinstance(v, dict) for v in per):
+            raise DesignError(f"bank: members must be one dict of parameter values per member "
+                              f"({len(self.members)}); found {per!r}")
+        return Params(members=tuple(o.parameters(batch, **v) for o, v in zip(self.members, per)))
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
-        B = self.batch
+    def _check_period(self, p: Params, dt: float) -> None:
+        for o, po in zip(self.members, p.members):
+            o.check_period(dt, po)
+
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        B = u0.shape[0]
         u = None if self._m is None else u0
         i = 0
-        for o in self.members:
+        states = []
+        for o, po in zip(self.members, p.members):
             if x0 is not None:
                 w = len(o.state_names)
-                o.reset(x0[:, i:i + w], u0=u, batch=B)
+                states.append(o.init(B, x0[:, i:i + w], u0=u, params=po))
             elif z0 is not None:
                 w = o.n
-                o.reset(z_hat0=z0[:, i:i + w], u0=u, batch=B)
+                states.append(o.init(B, z_hat0=z0[:, i:i + w], u0=u, params=po))
             else:
                 w = 0
-                o.reset(u0=u, batch=B)
+                states.append(o.init(B, u0=u, params=po))
             i += w
+        return {"members": tuple(states)}
 
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
         B, T = Y.shape[0], Y.shape[1]
         full = np.full((B, T, self._width), np.nan)
         full[:, :, self._cols] = Y
         ix = iz = idg = 0
-        for o in self.members:
-            blk = o._advance_checked(full, U, dt)
+        for o, po, so in zip(self.members, p.members, s.members):
+            blk = o._step_checked(po, so, full, U, dt)
             nx, nz, nd = blk.x_hat.shape[2], blk.z_hat.shape[2], len(o.family_diagnostics)
             X[:, :, ix:ix + nx] = blk.x_hat
             Z[:, :, iz:iz + nz] = blk.z_hat
@@ -151,13 +170,16 @@ class ObserverBank(Observer):
         """Whether any member has a discrete measurement update (:meth:`filtered`)."""
         return any(o.measurement_update for o in self.members)
 
-    def _filtered(self, Y: Array) -> Array:
-        return np.concatenate([o._filtered(Y) for o in self.members], axis=1)
+    def _filtered(self, p: Params, s: State, Y: Array) -> Array:
+        return np.concatenate([o._filtered_of(po, so, Y) for o, po, so in
+                               zip(self.members, p.members, s.members)], axis=1)
 
-    def _current(self) -> tuple[Array, Array, Array]:
-        parts = [o._current() for o in self.members]
-        return tuple(np.concatenate([p[j] for p in parts], axis=1)  # type: ignore[return-value]
-                     for j in range(3))
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
+        parts = [o.current(po, so) for o, po, so in zip(self.members, p.members, s.members)]
+        return (np.concatenate([x for x, _, _ in parts], axis=1),
+                np.concatenate([z for _, z, _ in parts], axis=1),
+                np.concatenate([d[:, :len(o.family_diagnostics)] for o, (_, _, d) in
+                                zip(self.members, parts)], axis=1))
 
     def params(self) -> dict[str, Any]:
         return {"members": [{"type": type(o).__name__, **o.params()} for o in self.members],

@@ -1,26 +1,44 @@
-"""The observer contract: one abstract base, a batch axis, one primitive.
+"""The observer contract: state and parameters as data, one pure step, a batch axis.
 
 An observer is a continuous-time ODE in observer coordinates ``z`` driven by the measurement,
-which is held constant between samples. Every observer advances **B independent copies at
-once**: its state is data with a leading batch axis (estimate ``(B, n)``, gains, parameter
-estimates, covariances), measurements are ``(B, p)``, inputs ``(B, m)``. A single run is
-B = 1 on the same code.
+which is held constant between samples. Its **state is data** and its **parameters are data**,
+in the shape of dynamax's ``_predict``/``_condition_on``:
 
-**The one primitive** is :meth:`Observer._advance`, which a family implements: consume T
-samples ``Y[:, j]`` (the channels in :attr:`Observer.outputs` only) with the inputs
-``U[:, j]``, integrate over ``dt`` after each, and write the estimate *after* each sample into
-the rows ``X[:, j]``, ``Z[:, j]``, ``D[:, j]``. Everything else is derived here, once:
+* :meth:`Observer.parameters` ``(batch)`` -> :class:`Params`: the tunable quantities (gains,
+  noise covariances, adaptation gains), each ``(B, ...)``. A parameter may differ per member
+  (``k`` of shape ``()`` for every member or ``(B,)``; ``Q`` of ``(n, n)`` or ``(B, n, n)``),
+  so one batch holds many tunings; member ``i`` equals the single run with its own values, bit
+  for bit.
+* :meth:`Observer.init` ``(batch, x_hat0, ...)`` -> :class:`State`: named ``(B, ...)``
+  arrays (the estimate, gains, parameter estimates, covariances, dropout counts).
+* :meth:`Observer.step` ``(params, state, Y, U, dt) -> (state, block)``: **pure**: consume T
+  samples ``Y`` ``(B, T, p)`` with inputs ``U`` ``(B, T, m)``, return the new state and the
+  rows of the estimate after each sample (:class:`Block`); the state given is not touched.
+* :meth:`Observer.current` ``(params, state)``: the estimate, ``z_hat`` and diagnostics now.
 
-* :meth:`advance` validates the measurement block, counts dropouts and calls ``_advance``;
-* :meth:`step` is one sample (T = 1), :meth:`update` one sample of an unbatched observer
-  (1-D ``y`` and ``u``, returns the 1-D estimate), :meth:`run` an offline driver over a whole
-  record (in the spirit of filterpy's ``batch_filter``);
-* :attr:`x_hat`, :attr:`z_hat` and :meth:`diagnostics` read the current state.
+The object keeps what is not state: the model (``system``), names, checks, diagnostics'
+names, the constructor's parameters (the defaults of :meth:`parameters`) and caches derived
+from parameters (one-step maps per period). The loop holds the states: a replay after a failure
+starts again from the state before the segment, and restarting members is a row assignment
+(:meth:`State.put`).
 
-Shapes follow the batch of the last :meth:`reset`: ``reset(batch=B)`` (or an initial estimate
-of shape ``(B, n)``) makes the observer *batched* and every public array carries the leading
-``B``; a plain ``reset()`` makes it *unbatched* (``B = 1`` inside) and the public arrays drop
-the batch axis, so ``x_hat`` is ``(n,)`` and a diagnostic a float.
+For users with one run at hand the object also holds **one state of its own**: :meth:`reset`
+starts it, :meth:`update` consumes one sample (the second public stepping verb, the one the
+Gymnasium wrappers and a user's own loop call), :attr:`x_hat`, :attr:`z_hat` and
+:meth:`diagnostics` read it, and :meth:`run` is the offline driver over a whole record (in the
+spirit of filterpy's ``batch_filter``). All of them go through the same pure step.
+
+**A family implements** (the equations, next to their paper): :meth:`Observer._parameters`
+(its tunable parameters with their defaults, one member's shape), :meth:`Observer._init`
+(the state fields of a batch), :meth:`Observer._step` (advance a state in place over a block
+and write the rows), :meth:`Observer._current`, and where it has a discrete measurement update
+:meth:`Observer._filtered`. Each of these sees the parameters of **one member** (a batch whose
+members differ is handed to the family group by group of equal parameters, by the base): a
+family is written once, for shared parameters, and gets per-member ones for free.
+
+**Validate once, run unchecked.** The public entries check shapes, types and the period; the
+loop checks them once per run (:func:`hgo_mj.loop.check_fits`) and calls
+:meth:`Observer._step_checked`, which checks nothing per sample.
 
 **Estimate layout.** ``x_hat`` has one entry per name in :attr:`Observer.state_names`. These
 are the plant's state names when the observer estimates the physical state, but need not be:
@@ -30,14 +48,14 @@ metrics, figures and recordings match the estimate to the plant's states *by nam
 estimate ``x_hat0`` always has this layout, ``(n_x,)`` for every member or ``(B, n_x)``.
 
 **Dropouts.** A NaN measurement (a sensor dropout) is never propagated: the observer integrates
-its prediction without output injection over that sample; :meth:`advance` counts it in
-``dropouts_`` (per member). An infinite measurement raises :class:`DivergenceError`.
+its prediction without output injection over that sample; the step counts it in the state's
+``dropouts`` (per member). An infinite measurement raises :class:`DivergenceError`.
 
 **Undefined inverse map.** ``x_hat`` is the image of ``z_hat`` under the inverse normal-form
 map, which may be undefined there (the bioreactor's ``Phi^-1`` needs ``m > 0``). Then ``x_hat``
 holds its last valid value, and is **NaN before any valid value**; each failed evaluation is
-counted in ``inverse_failures_`` (:meth:`Observer._to_physical`). Divergence is judged on
-``z_hat``, which is always defined.
+counted in the state's ``inverse_failures`` (:meth:`Observer._to_physical`). Divergence is
+judged on ``z_hat``, which is always defined.
 
 **Diagnostics.** :attr:`diagnostic_names` lists exactly what :meth:`diagnostics` returns, in
 order, ``"dropouts"`` last (added here); a family lists its own (run-time quantities such as
@@ -75,7 +93,7 @@ ONE_BUFFER = 4096
 
 @dataclass
 class Block:
-    """Rows of an :meth:`Observer.advance`: the estimate after each of the T samples.
+    """Rows of an :meth:`Observer.step`: the estimate after each of the T samples.
 
     ``x_hat`` ``(B, T, len(state_names))``, ``z_hat`` ``(B, T, n)``, ``diagnostics``
     ``(B, T, len(diagnostic_names))`` in the order of ``diagnostic_names``.
@@ -160,6 +178,285 @@ def _positive_dt(dt: Any) -> float:
     return float(dt)
 
 
+def _rows_of(value: Any, rows: Any) -> Any:
+    """``value[rows]`` of an array, a :class:`State` or a tuple of them (a copy)."""
+    if isinstance(value, State):
+        return value.take(rows)
+    if isinstance(value, tuple):
+        return tuple(_rows_of(v, rows) for v in value)
+    return value[rows]
+
+
+def _put_rows(dst: Any, rows: Any, src: Any) -> None:
+    """``dst[rows] = src`` for an array, a :class:`State` or a tuple of them."""
+    if isinstance(dst, State):
+        dst.put(rows, src)
+    elif isinstance(dst, tuple):
+        for d, s in zip(dst, src):
+            _put_rows(d, rows, s)
+    else:
+        dst[rows] = src
+
+
+def _copied(value: Any) -> Any:
+    if isinstance(value, State):
+        return value.copy()
+    if isinstance(value, tuple):
+        return tuple(_copied(v) for v in value)
+    return value.copy()
+
+
+class State:
+    """An observer's state as data: named arrays, each with the leading batch axis ``B``
+    (a field may also be a :class:`State` or a tuple of them: an observer bank's members).
+
+    Read a field as an attribute (``state.z``); a family's :meth:`Observer._step` writes into
+    the arrays or assigns a field anew (``state.z = ...``). :meth:`copy`, :meth:`take` and
+    :meth:`put` are the whole of what the loop does with a state: keep it, and restart members.
+
+    Parameters
+    ----------
+    **fields : ndarray or State or tuple of State
+        The named fields; every array's first axis is the batch.
+
+    Attributes
+    ----------
+    fields : dict
+        Field name -> array (or nested state), in the order given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = State(z=np.zeros((3, 2)), dropouts=np.zeros(3, dtype=np.int64))
+    >>> s.batch, s.z.shape
+    (3, (3, 2))
+    >>> s.put([1], State(z=np.ones((1, 2)), dropouts=np.zeros(1, dtype=np.int64)))
+    >>> s.z[:, 0].tolist()
+    [0.0, 1.0, 0.0]
+    """
+
+    __slots__ = ("fields",)
+
+    def __init__(self, **fields: Any) -> None:
+        object.__setattr__(self, "fields", fields)
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return object.__getattribute__(self, "fields")[name]
+        except KeyError:
+            raise AttributeError(f"{type(self).__name__} has no field {name!r}; it has "
+                                 f"{list(object.__getattribute__(self, 'fields'))}") from None
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        self.fields[name] = value
+
+    def __getstate__(self) -> dict[str, Any]:
+        return self.fields
+
+    def __setstate__(self, fields: dict[str, Any]) -> None:
+        object.__setattr__(self, "fields", fields)
+
+    @property
+    def batch(self) -> int:
+        """The number of members ``B`` (the first axis of the first array field)."""
+        for v in self.fields.values():
+            if isinstance(v, np.ndarray):
+                return int(v.shape[0])
+            if isinstance(v, State):
+                return v.batch
+            if isinstance(v, tuple) and v:
+                return int(v[0].batch)
+        raise DesignError(f"{type(self).__name__} has no array field to give its batch")
+
+    def copy(self) -> State:
+        """A deep copy (new arrays).
+
+        Returns
+        -------
+        State
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> s = State(z=np.zeros((2, 1)))
+        >>> t = s.copy(); t.z[0] = 5.0
+        >>> s.z[0].tolist()
+        [0.0]
+        """
+        return type(self)(**{k: _copied(v) for k, v in self.fields.items()})
+
+    def take(self, rows: Any) -> State:
+        """The members ``rows`` as a new state (copies).
+
+        Parameters
+        ----------
+        rows : sequence of int or ndarray or slice
+            Member indices.
+
+        Returns
+        -------
+        State
+            ``len(rows)`` members.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> State(z=np.arange(6.0).reshape(3, 2)).take([2]).z.tolist()
+        [[4.0, 5.0]]
+        """
+        return type(self)(**{k: _rows_of(v, rows) for k, v in self.fields.items()})
+
+    def put(self, rows: Any, src: State) -> None:
+        """Write the members of ``src`` into the members ``rows`` of this state, in place.
+
+        Parameters
+        ----------
+        rows : sequence of int or ndarray or slice
+            Member indices, one per member of ``src``.
+        src : State
+            A state with the same fields and ``len(rows)`` members.
+
+        Raises
+        ------
+        DesignError
+            ``src`` has other fields.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> s = State(z=np.zeros((2, 1)))
+        >>> s.put([0], State(z=np.ones((1, 1))))
+        >>> s.z.ravel().tolist()
+        [1.0, 0.0]
+        """
+        if list(src.fields) != list(self.fields):
+            raise DesignError(f"put: the states have different fields {list(self.fields)} and "
+                              f"{list(src.fields)}")
+        for k, v in self.fields.items():
+            _put_rows(v, rows, src.fields[k])
+
+    def __repr__(self) -> str:
+        inner = ", ".join(f"{k}={getattr(v, 'shape', type(v).__name__)}"
+                          for k, v in self.fields.items())
+        return f"{type(self).__name__}({inner})"
+
+
+class Params(State):
+    """An observer's parameters as data: one ``(B, ...)`` array per tunable parameter (see
+    :meth:`Observer.parameters`). The same container as :class:`State`; the arrays are
+    read-only, so a family cannot change a parameter by accident.
+
+    Parameters
+    ----------
+    **fields : ndarray
+        Parameter name -> ``(B, ...)`` array.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = Params(k=np.array([10.0, 20.0]))
+    >>> p.batch, p.k.flags.writeable
+    (2, False)
+    """
+
+    __slots__ = ()
+
+    def __init__(self, **fields: Any) -> None:
+        for v in fields.values():
+            if isinstance(v, np.ndarray):
+                v.flags.writeable = False
+        super().__init__(**fields)
+
+    def copy(self) -> Params:  # read-only arrays are shared, not copied
+        """The same parameters (their arrays are read-only, so shared).
+
+        Returns
+        -------
+        Params
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> p = Params(k=np.array([1.0]))
+        >>> p.copy().k is p.k
+        True
+        """
+        return type(self)(**self.fields)
+
+    def member(self, b: int) -> Params:
+        """Member ``b``'s parameters, without the batch axis (what a family's hooks see).
+
+        Parameters
+        ----------
+        b : int
+            The member.
+
+        Returns
+        -------
+        Params
+            Each field of one member's shape.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Params(k=np.array([10.0, 20.0])).member(1).k.item()
+        20.0
+        """
+        return Params(**{k: (v.member(b) if isinstance(v, Params) else
+                             tuple(x.member(b) for x in v) if isinstance(v, tuple) else v[b])
+                         for k, v in self.fields.items()})
+
+    def key(self) -> bytes:
+        """The values as bytes: equal parameters give equal keys (a cache key for what a
+        family derives from them).
+
+        Returns
+        -------
+        bytes
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Params(k=np.array(2.0)).key() == Params(k=np.array(2.0)).key()
+        True
+        """
+        parts = []
+        for v in self.fields.values():
+            if isinstance(v, Params):
+                parts.append(v.key())
+            elif isinstance(v, tuple):
+                parts.extend(x.key() for x in v)
+            else:
+                parts.append(np.ascontiguousarray(v, dtype=np.float64).tobytes())
+        return b"|".join(parts)
+
+    def groups(self) -> list[tuple[NDArray[np.intp], Params]]:
+        """The members grouped by equal parameters: ``(rows, one member's parameters)`` per
+        group, in order of first appearance (one group when every member shares them).
+
+        Returns
+        -------
+        list of (ndarray, Params)
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> [(r.tolist(), p.k.item()) for r, p in Params(k=np.array([1.0, 2.0, 1.0])).groups()]
+        [([0, 2], 1.0), ([1], 2.0)]
+        """
+        B = self.batch
+        flat = [np.ascontiguousarray(v, dtype=np.float64).reshape(B, -1)
+                for v in self.fields.values() if isinstance(v, np.ndarray)]
+        if not flat:
+            return [(np.arange(B), self.member(0))]
+        table = np.concatenate(flat, axis=1)
+        if table.shape[0] == 1 or (table == table[:1]).all():
+            return [(np.arange(B), self.member(0))]
+        _, first, inverse = np.unique(table, axis=0, return_index=True, return_inverse=True)
+        order = np.argsort(first)
+        return [(np.flatnonzero(inverse.ravel() == g), self.member(int(first[g]))) for g in order]
+
+
 class Observer(ABC):
     """Abstract base of every observer family (see the module docstring for the contract).
 
@@ -181,9 +478,11 @@ class Observer(ABC):
         Dimension of ``z``.
     outputs : tuple of int
     batch : int
-        The number of copies advanced together (1 for an unbatched observer).
+        The number of members of the observer's own state (1 for an unbatched observer).
+    state : State
+        The observer's own state (:meth:`reset`, :meth:`update`).
     dropouts_ : int or (B,) int array
-        NaN samples consumed (per member).
+        NaN samples consumed (per member) by the observer's own state.
     inverse_failures_ : int or (B,) int array
         Failed evaluations of the inverse normal-form map (per member).
 
@@ -202,18 +501,27 @@ class Observer(ABC):
     A family subclasses Observer; a user builds one through its class or
     :func:`~hgo_mj.observers.make_observer`:
 
+    >>> import numpy as np
     >>> from hgo_mj.observers import HighGainObserver
     >>> from hgo_mj.systems import SYSTEMS
     >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
     >>> isinstance(obs, Observer), obs.n, obs.outputs, obs.state_names
     (True, 2, (0,), ('angle', 'angular_velocity'))
+
+    Three gains as one batch, each member its own single run:
+
+    >>> params = obs.parameters(3, k=[5.0, 10.0, 20.0])
+    >>> state = obs.init(3, params=params)
+    >>> state, rows = obs.step(params, state, np.full((3, 4, 1), 0.2), np.zeros((3, 4, 1)), 0.01)
+    >>> rows.diagnostics[:, -1, 0].tolist()
+    [5.0, 10.0, 20.0]
     """
 
     #: registry name, e.g. ``"high_gain"``
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     reference: ClassVar[str] = ""
-    #: the family's own run-time quantities, in the order ``_advance`` writes them into ``D``
+    #: the family's own run-time quantities, in the order ``_step`` writes them into ``D``
     #: (a class attribute; an instance may set its own where they depend on its form)
     family_diagnostics: tuple[str, ...] = ()
     #: whether ``system`` needs a single-output normal form (``normal_form_order``)
@@ -221,6 +529,9 @@ class Observer(ABC):
     #: whether a sample moves the estimate at its own instant (a discrete measurement update:
     #: the Kalman filters; see :meth:`filtered`)
     measurement_update: ClassVar[bool] = False
+    #: whether the base hands the family's hooks one group of equal parameters at a time (see
+    #: the module docstring); an observer that holds others (a bank) takes the whole batch
+    grouped: ClassVar[bool] = True
 
     def __init__(self, system: System | None, *, order: int | None = None,
                  outputs: Any = (0,), on_unstable: str = "raise") -> None:
@@ -242,7 +553,7 @@ class Observer(ABC):
         lo, hi = self.outputs[0], self.outputs[-1] + 1
         self._cols_index: slice | NDArray[np.intp] = (slice(lo, hi) if self.outputs == tuple(range(lo, hi))
                                            else self._cols)
-        self.batch = 1
+        self._held: tuple[Params, State] | None = None
         self._batched = False
 
     #: the observer form a system must declare (:meth:`System.form`), and the paper's words
@@ -324,37 +635,69 @@ class Observer(ABC):
         return (*self.family_diagnostics, "dropouts")
 
     # --------------------------------------------------------- the family's part
-    @abstractmethod
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
-        """Set the state of ``self.batch`` copies from ``x0`` ``(B, len(state_names))`` or ``z0``
-        ``(B, n)`` (at most one given; neither: the family's default) and ``u0`` ``(B, m)``."""
+    def _parameters(self) -> dict[str, Any]:
+        """The family's tunable parameters: name -> the constructor's value, in one member's
+        shape (a float, or an array). Default: none."""
+        return {}
+
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        """One member's value of the parameter ``name``, checked (as the constructor checks
+        it) and as a float array of the default's shape. Default: real and finite; a family
+        adds its own conditions (positive, Hurwitz, ...)."""
+        default = np.asarray(self._parameters()[name], dtype=np.float64)
+        a = np.asarray(value)
+        if a.dtype.kind not in "iuf" or a.dtype == np.bool_:
+            raise DesignError(f"{self.name}: parameter {name} must be real numbers; found "
+                              f"{value!r}")
+        if a.shape != default.shape:
+            raise DimensionError(f"{self.name}: parameter {name} must have shape "
+                                 f"{default.shape} per member; found shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise DesignError(f"{self.name}: parameter {name} must be finite; found {value!r}")
+        return a.astype(np.float64)
 
     @abstractmethod
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        """Consume ``Y[:, j]`` ``(B, T, len(outputs))`` (NaN: a dropout of that member and
-        channel) with ``U[:, j]`` ``(B, T, m)``, integrate over ``dt`` after each sample, and
-        write the estimate after sample ``j`` into ``X[:, j]``, ``Z[:, j]`` and ``D[:, j]``
-        (``family_diagnostics``). Raise :class:`DivergenceError` where the state blows up."""
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        """The family's state fields for ``len(u0)`` members with the parameters ``p`` (one
+        member's) from ``x0`` ``(B, len(state_names))`` or ``z0`` ``(B, n)`` (at most one
+        given; neither: the family's default) and ``u0`` ``(B, m)``."""
 
     @abstractmethod
-    def _current(self) -> tuple[Array, Array, Array]:
-        """The current ``(x_hat (B, n_x), z_hat (B, n), family diagnostics (B, d))``."""
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
+        """Advance the state ``s`` in place: consume ``Y[:, j]`` ``(B, T, len(outputs))``
+        (NaN: a dropout of that member and channel) with ``U[:, j]`` ``(B, T, m)``, integrate
+        over ``dt`` after each sample, and write the estimate after sample ``j`` into
+        ``X[:, j]``, ``Z[:, j]`` and ``D[:, j]`` (``family_diagnostics``). Raise
+        :class:`DivergenceError` where the state blows up."""
 
-    def _filtered(self, Y: Array) -> Array:
+    @abstractmethod
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
+        """The current ``(x_hat (B, n_x), z_hat (B, n), family diagnostics (B, d))`` of the
+        state ``s`` (new arrays)."""
+
+    def _filtered(self, p: Params, s: State, Y: Array) -> Array:
         """The estimate ``(B, n_x)`` given also ``Y`` ``(B, p)`` (every measured channel) at
         the present instant, the state unchanged (:meth:`filtered`); a family with a discrete
         measurement update (:attr:`measurement_update`) overrides it."""
-        return self._current()[0]
+        return self._current(p, s)[0]
 
-    def check_period(self, dt: float) -> None:  # noqa: B027 - optional, default: no check
-        """Check that the update is stable at the sample period ``dt`` (the loop calls this
-        before a run) and react as ``on_unstable`` says, naming the largest stable period.
-        Default: nothing to check (an update stable for every period).
+    def _check_period(self, p: Params, dt: float) -> None:
+        """:meth:`check_period` for one member's parameters; default: nothing to check."""
+
+    def check_period(self, dt: float, params: Params | None = None) -> None:
+        """Check that the update is stable at the sample period ``dt`` for every member's
+        parameters (the loop calls this before a run) and react as ``on_unstable`` says,
+        naming the largest stable period. Default: nothing to check (an update stable for
+        every period).
 
         Parameters
         ----------
         dt : float
             The sample period, in seconds.
+        params : Params, optional
+            The parameters to check (default: the constructor's).
 
         Raises
         ------
@@ -368,6 +711,9 @@ class Observer(ABC):
         >>> from hgo_mj.systems import SYSTEMS
         >>> HighGainObserver(SYSTEMS["pendulum"](), k=10.0).check_period(0.01)  # stable: silent
         """
+        params = self.parameters(1) if params is None else params
+        for _, p in self._groups(params):
+            self._check_period(p, dt)
 
     def params(self) -> dict[str, Any]:
         """Constructor parameters, JSON-ready, for a trajectory's metadata.
@@ -387,14 +733,359 @@ class Observer(ABC):
         """
         return {"outputs": list(self.outputs)}
 
-    # --------------------------------------------------------------- derived
+    # --------------------------------------------------------- data: the pure API
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """The names of the family's tunable parameters (the fields of :meth:`parameters`)."""
+        return tuple(self._parameters())
+
+    def parameters(self, batch: int = 1, **values: Any) -> Params:
+        """The parameters of ``batch`` members as data: every tunable parameter ``(B, ...)``,
+        the constructor's value unless given here, for every member (one member's shape) or
+        per member (``(B, ...)``).
+
+        Parameters
+        ----------
+        batch : int
+            The number of members B.
+        **values : array_like
+            Parameter name -> one value for every member, or one per member (leading B).
+
+        Returns
+        -------
+        Params
+            One read-only ``(B, ...)`` array per name of :attr:`parameter_names`.
+
+        Raises
+        ------
+        DesignError
+            An unknown name (the valid ones listed), ``batch`` not a positive integer, or a
+            value the family refuses (each member is checked as the constructor checks it).
+        DimensionError
+            A value that is neither one member's shape nor ``(B, ...)`` of it.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> obs.parameters(2, k=[10.0, 30.0]).k.tolist()
+        [10.0, 30.0]
+        >>> obs.parameters(2, gain=[1.0, 2.0])
+        Traceback (most recent call last):
+        ...
+        hgo_mj.exceptions.DesignError: high_gain: unknown parameter(s) ['gain']; valid: ['k', 'p']
+        """
+        B = _batch_size(batch)
+        defaults = self._parameters()
+        bad = [k for k in values if k not in defaults]
+        if bad:
+            raise DesignError(f"{self.name}: unknown parameter(s) {bad}; valid: "
+                              f"{list(defaults)}")
+        out: dict[str, Array] = {}
+        for name, default in defaults.items():
+            shape = np.shape(default)
+            if name not in values:
+                out[name] = np.broadcast_to(np.asarray(default, dtype=np.float64),
+                                            (B, *shape)).copy()
+                continue
+            a = np.asarray(values[name])
+            if a.shape == shape or a.dtype == object:
+                one = self._check_parameter(name, values[name])
+                out[name] = np.broadcast_to(one, (B, *shape)).copy()
+            elif a.shape == (B, *shape):
+                out[name] = np.stack([self._check_parameter(name, a[b]) for b in range(B)])
+            else:
+                raise DimensionError(f"{self.name}: parameter {name} must have shape {shape} "
+                                     f"(every member) or {(B, *shape)} (per member); found "
+                                     f"shape {a.shape}")
+        return Params(**out)
+
+    def _groups(self, params: Params) -> list[tuple[Any, Params]]:
+        """``(rows, parameters)`` for each group of members the family's hooks see: one group
+        of every member with the whole ``params`` for an ungrouped observer (a bank), else
+        :meth:`Params.groups`."""
+        if not self.grouped:
+            return [(slice(None), params)]
+        if not params.fields:
+            return [(slice(None), params)]
+        return params.groups()
+
+    def init(self, batch: int = 1, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+             params: Params | None = None) -> State:
+        """A new state of ``batch`` members, from ``x_hat0`` (the layout of
+        :attr:`state_names`) or ``z_hat0`` (``(n,)`` for every member or ``(B, n)``);
+        neither: the constructor's initial estimate. ``u0`` (``(m,)`` or ``(B, m)``) is the
+        input the maps ``to_normal`` and ``from_normal`` read at the start (default zero).
+
+        Parameters
+        ----------
+        batch : int
+            The number of members B.
+        x_hat0 : array_like, optional
+            Initial estimate in the layout of :attr:`state_names`, ``(n_x,)`` or ``(B, n_x)``.
+        z_hat0 : array_like, optional
+            Initial estimate in observer coordinates, ``(n,)`` or ``(B, n)``; not together
+            with ``x_hat0``.
+        u0 : array_like, optional
+            Input at the start, ``(m,)`` or ``(B, m)``; default zero.
+        params : Params, optional
+            The members' parameters (default: :meth:`parameters` ``(batch)``); where a family's
+            initial state depends on them (an initial gain), each member starts from its own.
+
+        Returns
+        -------
+        State
+            Named ``(B, ...)`` arrays: the family's fields, then ``dropouts``,
+            ``inverse_failures`` and ``x_held`` (the last valid estimate, NaN before any).
+
+        Raises
+        ------
+        DesignError
+            Both ``x_hat0`` and ``z_hat0`` given, ``batch`` not a positive integer, a
+            non-finite initial value, or ``params`` of another batch.
+        DimensionError
+            An initial value or ``u0`` of the wrong shape.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> s = obs.init(2, [0.1, 0.0])
+        >>> obs.current(obs.parameters(2), s)[0].tolist()
+        [[0.1, 0.0], [0.1, 0.0]]
+        """
+        B = _batch_size(batch)
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0, not both")
+        x0 = None if x_hat0 is None else batch_rows("x_hat0", x_hat0, len(self.state_names), B)
+        z0 = None if z_hat0 is None else batch_rows("z_hat0", z_hat0, self.n, B)
+        m = self.n_inputs
+        u = np.zeros((B, m or 0)) if u0 is None or m is None else batch_rows("u0", u0, m, B)
+        params = self.parameters(B) if params is None else params
+        if not isinstance(params, Params) or _batch_of(params) not in (None, B):
+            raise DesignError(f"{self.name}: params must be this observer's Params of {B} "
+                              f"member(s) (Observer.parameters); found {params!r}")
+        groups = self._groups(params)
+        if len(groups) == 1:
+            return State(**{**self._core(B), **self._init(groups[0][1], x0, z0, u)})
+        state: State | None = None
+        for rows, p in groups:
+            part = State(**{**self._core(len(rows)),
+                            **self._init(p, None if x0 is None else x0[rows],
+                                         None if z0 is None else z0[rows], u[rows])})
+            if state is None:  # the fields' shapes from the first group, B rows
+                state = State(**{k: _empty_rows(v, B) for k, v in part.fields.items()})
+            state.put(rows, part)
+        assert state is not None
+        return state
+
+    def _core(self, B: int) -> dict[str, Array]:
+        """The fields every state has, fresh for ``B`` members: ``dropouts``,
+        ``inverse_failures`` and ``x_held`` (the last valid estimate, NaN before any). A
+        family's :meth:`_init` may return its own ``x_held`` (an estimate mapped at the start)."""
+        return {"dropouts": np.zeros(B, dtype=np.int64),
+                "inverse_failures": np.zeros(B, dtype=np.int64),
+                "x_held": np.full((B, len(self.state_names)), np.nan)}
+
+    def step(self, params: Params, state: State, Y: Any, U: Any,
+             dt: float) -> tuple[State, Block]:
+        """Consume T samples of B members, **purely**: ``Y`` ``(B, T, p)`` (every measured
+        channel; the observer reads :attr:`outputs`), ``U`` ``(B, T, m)``; return the new
+        state and the rows of the estimate after each sample. ``state`` is not changed.
+
+        Parameters
+        ----------
+        params : Params
+            The members' parameters (:meth:`parameters`).
+        state : State
+            The state before the samples (:meth:`init`, or a previous step's).
+        Y : array_like
+            Measurements ``(B, T, p)``, every measured channel; NaN is a dropout.
+        U : array_like
+            Inputs ``(B, T, m)``, finite.
+        dt : float
+            Sample period in seconds, positive.
+
+        Returns
+        -------
+        state : State
+            The state after the T samples (new arrays).
+        block : Block
+            ``x_hat`` ``(B, T, n_x)``, ``z_hat`` ``(B, T, n)`` and ``diagnostics``
+            ``(B, T, len(diagnostic_names))`` after each sample.
+
+        Raises
+        ------
+        DimensionError
+            ``Y`` or ``U`` of the wrong shape for this batch, or not real numbers.
+        DesignError
+            ``dt`` not a positive finite number, a non-finite input, or ``params`` and
+            ``state`` of different batches.
+        DivergenceError
+            An infinite measurement, or (from the family) a state that blows up.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> p = obs.parameters(3)
+        >>> s0 = obs.init(3, params=p)
+        >>> s1, rows = obs.step(p, s0, np.full((3, 4, 1), 0.2), np.zeros((3, 4, 1)), 0.01)
+        >>> rows.x_hat.shape, rows.z_hat.shape, rows.diagnostics.shape
+        ((3, 4, 2), (3, 4, 2), (3, 4, 2))
+        >>> float(s0.z[0, 0]), round(float(s1.z[0, 0]), 4)   # s0 untouched
+        (0.0, 0.1223)
+        """
+        Y, U = self._check_block(params, state, Y, U)
+        new = state.copy()
+        return new, self._step_checked(params, new, Y, U, _positive_dt(dt))
+
+    def _check_block(self, params: Params, state: State, Y: Any, U: Any) -> tuple[Array, Array]:
+        """``Y`` and ``U`` as float arrays of this batch's shapes (the checks of :meth:`step`)."""
+        if not isinstance(state, State) or not isinstance(params, Params):
+            raise DesignError(f"{self.name}: step takes (params, state, Y, U, dt) with Params "
+                              f"and State (Observer.parameters, Observer.init); found "
+                              f"{type(params).__name__}, {type(state).__name__}")
+        B = state.batch
+        if _batch_of(params) not in (None, B):
+            raise DesignError(f"{self.name}: params of {_batch_of(params)} member(s) for a state "
+                              f"of {B}")
+        Y, U = self._floats("y", Y), self._inputs(U)
+        if Y.ndim != 3 or Y.shape[0] != B or Y.shape[2] <= self._max_col:
+            raise DimensionError(f"{self.name}: y must have shape (B={B}, T, p) with "
+                                 f"channel(s) {list(self.outputs)}; found shape {Y.shape}")
+        m = self.n_inputs
+        if U.ndim != 3 or U.shape[:2] != (B, Y.shape[1]) or (m is not None and U.shape[2] != m):
+            raise DimensionError(f"{self.name}: u must have shape ({B}, {Y.shape[1]}, "
+                                 f"{'m' if m is None else m}); found shape {U.shape}")
+        return Y, U
+
+    def _step_checked(self, params: Params, s: State, Y: Array, U: Array, dt: float,
+                      out: Block | None = None) -> Block:
+        """Advance ``s`` **in place** over ``Y`` ``(B, T, p)``, ``U`` ``(B, T, m)`` (checked by
+        the caller: the loop checks once per run) and return the rows; they are written into
+        ``out`` where it is given with these B and T (a caller that keeps no rows reuses its
+        block), else into a new :class:`Block`."""
+        # a C-contiguous float64 copy of the observer's channels: a family may write into its
+        # measurement block
+        Yo = Y[..., self._cols_index]
+        Yo = Yo.copy() if Yo.dtype is _F64 else np.array(Yo, dtype=np.float64, order="C")
+        B, T = Yo.shape[0], Yo.shape[1]
+        nd = len(self.family_diagnostics)
+        nx = s.x_held.shape[1]
+        if out is not None and out.z_hat.shape[:2] == (B, T):
+            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
+        elif B * T < ONE_BUFFER:
+            X = np.empty((B, T, nx))
+            Z = np.empty((B, T, self.n))
+            D = np.empty((B, T, nd + 1))
+            out = Block(X, Z, D)
+        else:
+            out = _one_buffer(B, T, nx, self.n, nd + 1)
+            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
+        finite = (math.isfinite(Yo.item()) if Yo.size == 1  # one sample of one channel: cheap
+                  else bool(np.isfinite(Yo).all()))
+        if not finite:  # dropouts (NaN) counted; an infinite value refused
+            if np.isinf(Yo).any():
+                b, j, c = (int(v[0]) for v in np.nonzero(np.isinf(Yo)))
+                raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
+                                      f"{Yo[b, j, c]} (member {b}, sample {j})")
+            lost = np.cumsum(np.isnan(Yo).any(axis=2), axis=1)
+        else:
+            lost = None
+        if not U.flags.c_contiguous:
+            U = np.ascontiguousarray(U)
+        groups = self._groups(params)
+        if len(groups) == 1:
+            self._step(groups[0][1], s, Yo, U, dt, X, Z, D[..., :nd])
+        else:
+            for rows, p in groups:
+                sub = s.take(rows)
+                Xg, Zg, Dg = X[rows], Z[rows], D[rows, :, :nd]
+                self._step(p, sub, np.ascontiguousarray(Yo[rows]), U[rows], dt, Xg, Zg, Dg)
+                s.put(rows, sub)
+                X[rows], Z[rows], D[rows, :, :nd] = Xg, Zg, Dg
+        dropouts = s.dropouts
+        if lost is None:  # (D[..., nd] and a Python number: the cheapest indexing for one row)
+            D[..., nd] = dropouts.item(0) if B == 1 else dropouts[:, None]
+        else:
+            D[:, :, nd] = dropouts[:, None] + lost
+            dropouts += lost[:, -1]
+        return out
+
+    def current(self, params: Params, state: State) -> tuple[Array, Array, Array]:
+        """The estimate of ``state`` now: ``x_hat`` ``(B, n_x)``, ``z_hat`` ``(B, n)`` and the
+        diagnostics ``(B, len(diagnostic_names))`` (new arrays).
+
+        Parameters
+        ----------
+        params : Params
+            The members' parameters.
+        state : State
+            The state to read.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``(x_hat, z_hat, diagnostics)``.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> p = obs.parameters(1)
+        >>> x, z, d = obs.current(p, obs.init(1, [0.3, 0.0], params=p))
+        >>> x.tolist(), d.tolist()
+        ([[0.3, 0.0]], [[10.0, 0.0]])
+        """
+        nd = len(self.family_diagnostics)
+        B = state.batch
+        groups = self._groups(params)
+        if len(groups) == 1:
+            x, z, d = self._current(groups[0][1], state)
+        else:
+            x, z, d = (np.empty((B, len(self.state_names))), np.empty((B, self.n)),
+                       np.empty((B, nd)))
+            for rows, p in groups:
+                x[rows], z[rows], d[rows] = self._current(p, state.take(rows))
+        D = np.empty((B, nd + 1))
+        D[:, :nd] = d
+        D[:, nd] = state.dropouts
+        return np.array(x, dtype=np.float64), np.array(z, dtype=np.float64), D
+
+    # ------------------------------------------- the observer's own state (convenience)
+    @property
+    def batch(self) -> int:
+        """The number of members of the observer's own state (:meth:`reset`)."""
+        return 1 if self._held is None else self._held[1].batch
+
+    @property
+    def state(self) -> State:
+        """The observer's own state (:meth:`reset`, :meth:`update`)."""
+        return self._own()[1]
+
+    def _hold(self, params: Params, state: State, batched: bool | None = None) -> None:
+        """Make ``(params, state)`` the observer's own (the loop hands its states over, so
+        that :attr:`x_hat` reads a run's last estimate); ``batched`` sets the public shapes."""
+        self._held = (params, state)
+        if batched is not None:
+            self._batched = batched
+
+    def _own(self) -> tuple[Params, State]:
+        if self._held is None:
+            self.reset()
+        return self._held  # type: ignore[return-value]
+
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
-              batch: int | None = None) -> None:
-        """Restart ``batch`` copies (default: the batch of the initial estimate, else one
-        unbatched copy) from ``x_hat0`` (the layout of :attr:`state_names`) or ``z_hat0``
-        (``(n,)`` for every member, or ``(B, n)``); neither: the constructor's initial
-        estimate. ``u0`` (``(m,)`` or ``(B, m)``) is the input the maps ``to_normal`` and
-        ``from_normal`` read at the start (default zero).
+              batch: int | None = None, params: Params | None = None) -> None:
+        """Restart the observer's own state: ``batch`` members (default: the batch of the
+        initial estimate or of ``params``, else one unbatched member) from ``x_hat0`` or
+        ``z_hat0``; neither: the constructor's initial estimate (see :meth:`init`).
 
         Parameters
         ----------
@@ -409,6 +1100,8 @@ class Observer(ABC):
         batch : int, optional
             Number of members B; given, the observer is batched (public arrays keep the
             leading B axis).
+        params : Params, optional
+            Per-member parameters (:meth:`parameters`); given, the observer is batched.
 
         Raises
         ------
@@ -430,40 +1123,26 @@ class Observer(ABC):
         >>> obs.x_hat.shape
         (3, 2)
         """
-        if x_hat0 is not None and z_hat0 is not None:
-            raise DesignError("give x_hat0 or z_hat0, not both")
-        if batch is not None and (isinstance(batch, (bool, np.bool_))
-                                  or not isinstance(batch, (int, np.integer)) or batch < 1):
-            raise DesignError(f"batch must be a positive integer; found {batch!r}")
         given = x_hat0 if x_hat0 is not None else z_hat0
-        batched = batch is not None or (given is not None and np.ndim(given) == 2)
-        x0 = None if x_hat0 is None else batch_rows("x_hat0", x_hat0, len(self.state_names), batch)
-        z0 = None if z_hat0 is None else batch_rows("z_hat0", z_hat0, self.n, batch)
-        B = batch if batch is not None else (
-            (x0 if x0 is not None else z0).shape[0] if given is not None else 1)  # type: ignore[union-attr]
-        m = self.n_inputs
-        if u0 is None or m is None:
-            u = np.zeros((B, m or 0))
+        if batch is not None:
+            B = _batch_size(batch)
+        elif params is not None and _batch_of(params) is not None:
+            B = _batch_of(params)  # type: ignore[assignment]
+        elif given is not None and np.ndim(given) == 2:
+            B = int(np.shape(given)[0])
         else:
-            u = batch_rows("u0", u0, m, B)
-        self.batch, self._batched = int(B), batched
-        self._dropouts = np.zeros(B, dtype=np.int64)
-        self._inverse_failures = np.zeros(B, dtype=np.int64)
-        #: the width of ``x_hat`` (``len(state_names)``, looked up once per reset)
-        self._nx = len(self.state_names)
-        self._x_held = np.empty((B, self._nx))
-        self._x_held.fill(np.nan)  # np.full's values, without its Python-level wrapper
-        self._reset(x0, z0, u)
+            B = 1
+        batched = batch is not None or params is not None or (given is not None
+                                                               and np.ndim(given) == 2)
+        p = self.parameters(B) if params is None else params
+        s = self.init(B, x_hat0, z_hat0=z_hat0, u0=u0, params=p)
+        self._held, self._batched = (p, s), batched
 
     def reset_members(self, idx: Sequence[int]) -> None:
-        """Restart the members ``idx`` of a batch from the constructor's initial estimate, as
-        :meth:`reset` starts every member (zero input); the others go on untouched.
-
-        Derived once for every family: a copy of this observer (kept for the next call) is
-        reset to ``len(idx)`` members, and each per-member array of the state (leading axis
-        B here, ``len(idx)`` in the copy, the rest of the shape the same; observers held by
-        this one, as a bank's, likewise) takes its rows from it. The member is then what a
-        fresh reset gives, bit for bit.
+        """Restart the members ``idx`` of the observer's own batched state from the
+        constructor's initial estimate, as :meth:`reset` starts every member (zero input); the
+        others go on untouched. A row assignment (:meth:`State.put`) of a fresh
+        :meth:`init` of those members with their own parameters.
 
         Parameters
         ----------
@@ -473,8 +1152,7 @@ class Observer(ABC):
         Raises
         ------
         DesignError
-            An unbatched observer, or a member index outside the batch, or members that share
-            a clock or counter (one member cannot be restarted alone).
+            An unbatched observer, or a member index outside the batch.
 
         Examples
         --------
@@ -483,7 +1161,10 @@ class Observer(ABC):
         >>> from hgo_mj.systems import SYSTEMS
         >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
         >>> obs.reset(batch=3)
-        >>> obs.step(np.full((3, 1), 0.2), np.zeros((3, 1)), 0.01)
+        >>> obs.update(np.full((3, 1), 0.2), np.zeros((3, 1)), 0.01).round(3)
+        array([[0.038, 0.181],
+               [0.038, 0.181],
+               [0.038, 0.181]])
         >>> obs.reset_members([1])
         >>> obs.x_hat.round(3)
         array([[0.038, 0.181],
@@ -494,199 +1175,82 @@ class Observer(ABC):
         if not self._batched:
             raise DesignError(f"{self.name}: reset_members needs a batched observer (reset with "
                               f"batch=B); this one is unbatched")
-        bad = [b for b in rows if not 0 <= b < self.batch]
+        params, state = self._own()
+        self._restart(params, state, rows)
+
+    def _restart(self, params: Params, state: State, rows: list[int]) -> None:
+        """Write a fresh :meth:`init` of the members ``rows`` (with their own parameters) into
+        ``state``: the loop's and :meth:`reset_members`' restart."""
+        B = state.batch
+        bad = [b for b in rows if not 0 <= b < B]
         if bad:
-            raise DesignError(f"{self.name}: member(s) {bad} outside the batch of {self.batch}")
+            raise DesignError(f"{self.name}: member(s) {bad} outside the batch of {B}")
         if not rows:
             return
-        if len(rows) == self.batch:
-            self.reset(batch=self.batch)
-            return
-        fresh = self.__dict__.get("_fresh_copy")
-        if fresh is None:
-            import copy
-
-            state = {k: v for k, v in self.__dict__.items() if k != "_fresh_copy"}
-            fresh = copy.copy(self)
-            fresh.__dict__ = copy.deepcopy(state)
-            self._fresh_copy = fresh
-        fresh.reset(batch=len(rows))
-        shared = _shared_clock(self, fresh)
-        if shared:
-            raise DesignError(f"{self.name}: its members share a clock or counter "
-                              f"({', '.join(shared)}): one member cannot be restarted alone")
-        _transplant(self, fresh, rows, self.batch, len(rows))
-
-    def advance(self, Y: Any, U: Any, dt: float) -> Block:
-        """Consume T samples of B members: ``Y`` ``(B, T, p)`` (every measured channel; the
-        observer reads :attr:`outputs`), ``U`` ``(B, T, m)``; return the rows of the estimate
-        after each sample (:class:`Block`). The validating entry; the loop calls
-        :meth:`_advance_checked` on arrays it has already checked.
-
-        Parameters
-        ----------
-        Y : array_like
-            Measurements ``(B, T, p)``, every measured channel; NaN is a dropout.
-        U : array_like
-            Inputs ``(B, T, m)``, finite.
-        dt : float
-            Sample period in seconds, positive.
-
-        Returns
-        -------
-        Block
-            ``x_hat`` ``(B, T, n_x)``, ``z_hat`` ``(B, T, n)`` and ``diagnostics``
-            ``(B, T, len(diagnostic_names))`` after each sample.
-
-        Raises
-        ------
-        DimensionError
-            ``Y`` or ``U`` of the wrong shape for this batch, or not real numbers.
-        DesignError
-            ``dt`` not a positive finite number, or a non-finite input.
-        DivergenceError
-            An infinite measurement, or (from the family) a state that blows up.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> from hgo_mj.observers import HighGainObserver
-        >>> from hgo_mj.systems import SYSTEMS
-        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
-        >>> obs.reset(batch=3)
-        >>> rows = obs.advance(np.full((3, 4, 1), 0.2), np.zeros((3, 4, 1)), 0.01)
-        >>> rows.x_hat.shape, rows.z_hat.shape, rows.diagnostics.shape
-        ((3, 4, 2), (3, 4, 2), (3, 4, 2))
-        """
-        Y, U = self._floats("y", Y), self._inputs(U)
-        if Y.ndim != 3 or Y.shape[0] != self.batch or Y.shape[2] <= self._max_col:
-            raise DimensionError(f"{self.name}: y must have shape (B={self.batch}, T, p) with "
-                                 f"channel(s) {list(self.outputs)}; found shape {Y.shape}")
-        m = self.n_inputs
-        if U.ndim != 3 or U.shape[:2] != (self.batch, Y.shape[1]) or (
-                m is not None and U.shape[2] != m):
-            raise DimensionError(f"{self.name}: u must have shape ({self.batch}, {Y.shape[1]}, "
-                                 f"{'m' if m is None else m}); found shape {U.shape}")
-        return self._advance_checked(Y, U, _positive_dt(dt))
-
-    def _advance_checked(self, Y: Array, U: Array, dt: float, out: Block | None = None) -> Block:
-        """:meth:`advance` without the shape checks (``Y`` ``(B, T, p)`` float); the rows are
-        written into ``out`` where it is given with these B and T (a caller that keeps no
-        rows reuses its block), else into a new :class:`Block`."""
-        # a C-contiguous float64 copy of the observer's channels: a family may write into its
-        # measurement block
-        Yo = Y[..., self._cols_index]
-        Yo = Yo.copy() if Yo.dtype is _F64 else np.array(Yo, dtype=np.float64, order="C")
-        B, T = Yo.shape[0], Yo.shape[1]
-        nd = len(self.family_diagnostics)
-        if out is not None and out.z_hat.shape[:2] == (B, T):
-            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        elif B * T < ONE_BUFFER:
-            X = np.empty((B, T, self._nx))
-            Z = np.empty((B, T, self.n))
-            D = np.empty((B, T, nd + 1))
-            out = Block(X, Z, D)
-        else:
-            out = _one_buffer(B, T, self._nx, self.n, nd + 1)
-            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        finite = (math.isfinite(Yo.item()) if Yo.size == 1  # one sample of one channel: cheap
-                  else bool(np.isfinite(Yo).all()))
-        if not finite:  # dropouts (NaN) counted; an infinite value refused
-            if np.isinf(Yo).any():
-                b, j, c = (int(v[0]) for v in np.nonzero(np.isinf(Yo)))
-                raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
-                                      f"{Yo[b, j, c]} (member {b}, sample {j})")
-            lost = np.cumsum(np.isnan(Yo).any(axis=2), axis=1)
-        else:
-            lost = None
-        if not U.flags.c_contiguous:
-            U = np.ascontiguousarray(U)
-        self._advance(Yo, U, dt, X, Z, D[..., :nd])
-        if lost is None:  # (D[..., nd] and a Python number: the cheapest indexing for one row)
-            D[..., nd] = self._dropouts.item(0) if B == 1 else self._dropouts[:, None]
-        else:
-            D[:, :, nd] = self._dropouts[:, None] + lost
-            self._dropouts = self._dropouts + lost[:, -1]
-        return out
-
-    def step(self, y: Any, u: Any, dt: float) -> None:
-        """One sample of every member: ``y`` ``(B, p)``, ``u`` ``(B, m)``.
-
-        Parameters
-        ----------
-        y : array_like
-            Measurements ``(B, p)``; NaN is a dropout.
-        u : array_like
-            Inputs ``(B, m)``.
-        dt : float
-            Sample period in seconds.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> from hgo_mj.observers import HighGainObserver
-        >>> from hgo_mj.systems import SYSTEMS
-        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
-        >>> obs.reset(batch=2)
-        >>> obs.step(np.full((2, 1), 0.2), np.zeros((2, 1)), 0.01)
-        >>> obs.x_hat.round(3)
-        array([[0.038, 0.181],
-               [0.038, 0.181]])
-        """
-        self.advance(np.asarray(y, dtype=float)[:, None], np.asarray(u, dtype=float)[:, None], dt)
+        sub = params.take(rows) if params.fields else self.parameters(len(rows))
+        state.put(rows, self.init(len(rows), params=sub))  # type: ignore[arg-type]
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
-        """One sample of an unbatched observer: ``y`` ``(p,)``, ``u`` ``(m,)``; returns
-        ``x_hat`` after it, ``(n_x,)``.
+        """One sample of the observer's own state: ``y`` ``(p,)`` and ``u`` ``(m,)`` when
+        unbatched, ``(B, p)`` and ``(B, m)`` when batched; returns ``x_hat`` after it.
 
         Parameters
         ----------
         y : array_like
-            Measurement ``(p,)``; NaN is a dropout.
+            Measurement (every measured channel; the observer reads :attr:`outputs`); NaN is
+            a dropout.
         u : array_like
-            Input ``(m,)``.
+            Input.
         dt : float
             Sample period in seconds.
 
         Returns
         -------
-        (n_x,) ndarray
-            The estimate after the sample, in the layout of :attr:`state_names`.
+        ndarray
+            ``x_hat`` after the sample, ``(n_x,)`` or ``(B, n_x)``.
 
         Raises
         ------
         DimensionError
-            A batched observer, or ``y``/``u`` not vectors of the needed widths.
+            ``y`` without the observer's channels, or ``u`` of the wrong width.
+        DesignError
+            ``dt`` not a positive finite number.
 
         Examples
         --------
         >>> from hgo_mj.observers import HighGainObserver
         >>> from hgo_mj.systems import SYSTEMS
         >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
-        >>> obs.reset([0.1, 0.0])
-        >>> obs.update([0.2], [0.0], 0.01).round(4)
-        array([0.119 , 0.0906])
+        >>> obs.update([0.2], [0.0], 0.01).round(3)
+        array([0.038, 0.181])
         """
-        if self._batched:
-            raise DimensionError(f"{self.name}: update() is for an unbatched observer; this one "
-                                 f"holds a batch of {self.batch} (use step or advance)")
+        params, state = self._own()
         ya, ua = self._floats("y", y), self._inputs(u)
-        if ya.ndim != 1 or ya.shape[0] <= self._max_col:
-            raise DimensionError(f"{self.name}: y must be a vector with channel(s) "
+        B = state.batch
+        if self._batched:
+            ya, ua = ya[:, None] if ya.ndim == 2 else ya, ua[:, None] if ua.ndim == 2 else ua
+        else:
+            ya, ua = ya.reshape(1, 1, -1) if ya.ndim == 1 else ya, (
+                ua.reshape(1, 1, -1) if ua.ndim == 1 else ua)
+        if ya.ndim != 3 or ya.shape[:2] != (B, 1) or ya.shape[2] <= self._max_col:
+            want = f"({B}, p)" if self._batched else "(p,)"
+            raise DimensionError(f"{self.name}: y must be {want} with channel(s) "
                                  f"{list(self.outputs)} (the measured outputs this observer "
                                  f"reads); found {y!r}")
         m = self.n_inputs
-        if ua.ndim != 1 or (m is not None and ua.shape[0] != m):
-            raise DimensionError(f"{self.name}: u must have shape ({'m' if m is None else m},); "
-                                 f"found shape {ua.shape}")
+        if ua.ndim != 3 or ua.shape[:2] != (B, 1) or (m is not None and ua.shape[2] != m):
+            want = f"({B}, {'m' if m is None else m})" if self._batched else \
+                f"({'m' if m is None else m},)"
+            raise DimensionError(f"{self.name}: u must have shape {want}; found shape "
+                                 f"{np.shape(u)}")
         if not (type(dt) is float and dt > 0 and dt < math.inf):
             dt = _positive_dt(dt)
-        return self._advance_checked(ya.reshape(1, 1, -1), ua.reshape(1, 1, -1),
-                                     dt).x_hat[0, 0]
+        x = self._step_checked(params, state, ya, ua, dt).x_hat[:, 0]
+        return self._public(x)  # type: ignore[no-any-return]
 
     def filtered(self, y: Any) -> Array:
         """The estimate at the present instant given also ``y``, measured at this instant,
-        without consuming it: the observer's state is unchanged and the next :meth:`advance`
+        without consuming it: the observer's state is unchanged and the next :meth:`update`
         consumes that sample as usual (the *current* estimate, where :attr:`x_hat` is the
         prediction made before the sample: the current and prediction estimators of G. F.
         Franklin, J. D. Powell, M. L. Workman, *Digital Control of Dynamic Systems*, 3rd ed.,
@@ -723,19 +1287,31 @@ class Observer(ABC):
         >>> obs.filtered([0.3]).tolist() == obs.x_hat.tolist()  # continuous-time: the same
         True
         """
+        params, state = self._own()
         Y = self._floats("y", y)
         if Y.ndim == 1 and not self._batched:
             Y = Y.reshape(1, -1)
-        if Y.ndim != 2 or Y.shape[0] != self.batch or Y.shape[1] <= self._max_col:
-            want = f"({self.batch}, p)" if self._batched else "(p,)"
+        if Y.ndim != 2 or Y.shape[0] != state.batch or Y.shape[1] <= self._max_col:
+            want = f"({state.batch}, p)" if self._batched else "(p,)"
             raise DimensionError(f"{self.name}: y must have shape {want} with channel(s) "
                                  f"{list(self.outputs)}; found shape {Y.shape}")
-        return self._public(np.array(self._filtered(Y), dtype=np.float64))  # type: ignore[no-any-return]
+        return self._public(self._filtered_of(params, state, Y))  # type: ignore[no-any-return]
+
+    def _filtered_of(self, params: Params, state: State, Y: Array) -> Array:
+        """:meth:`_filtered` over the groups of ``params`` (new ``(B, n_x)`` array)."""
+        groups = self._groups(params)
+        if len(groups) == 1:
+            return np.array(self._filtered(groups[0][1], state, Y), dtype=np.float64)
+        out = np.empty((state.batch, len(self.state_names)))
+        for rows, p in groups:
+            out[rows] = self._filtered(p, state.take(rows), Y[rows])
+        return out
 
     def run(self, ys: Any, us: Any, dt: float, *, x_hat0: Any = None) -> Block:
-        """Offline driver over recorded data (filterpy's ``batch_filter``): reset (unbatched,
-        or batched when ``ys`` is ``(B, T, p)``), then advance over ``ys`` ``(T, p)`` with
-        ``us`` ``(T, m)``. The returned rows are the estimate *after* each sample.
+        """Offline driver over recorded data (filterpy's ``batch_filter``): restart the
+        observer's own state (unbatched, or batched when ``ys`` is ``(B, T, p)``), then
+        consume ``ys`` ``(T, p)`` with ``us`` ``(T, m)``. The returned rows are the estimate
+        *after* each sample.
 
         Parameters
         ----------
@@ -753,6 +1329,11 @@ class Observer(ABC):
         Block
             The rows after each sample, with a leading batch axis (1 for ``(T, p)`` data).
 
+        Raises
+        ------
+        DimensionError
+            ``ys`` or ``us`` of the wrong shape.
+
         Examples
         --------
         >>> import numpy as np
@@ -765,10 +1346,13 @@ class Observer(ABC):
         """
         ya, ua = self._floats("ys", ys), self._inputs(us, "us")
         if ya.ndim == 2:
+            ya, ua = ya[None], ua[None]
             self.reset(x_hat0)
-            return self.advance(ya[None], ua[None], dt)
-        self.reset(x_hat0, batch=ya.shape[0] if ya.ndim == 3 else None)
-        return self.advance(ya, ua, dt)
+        else:
+            self.reset(x_hat0, batch=ya.shape[0] if ya.ndim == 3 else None)
+        params, state = self._own()
+        Y, U = self._check_block(params, state, ya, ua)
+        return self._step_checked(params, state, Y, U, _positive_dt(dt))
 
     def _public(self, a: NDArray[Any]) -> Any:
         """Drop the batch axis of an unbatched observer (``a[0]``; a float for a scalar)."""
@@ -780,24 +1364,24 @@ class Observer(ABC):
     @property
     def z_hat(self) -> Array:
         """The current estimate in observer coordinates, ``(n,)`` or ``(B, n)``."""
-        return self._public(self._current()[1])  # type: ignore[no-any-return]
+        return self._public(self.current(*self._own())[1])  # type: ignore[no-any-return]
 
     @property
     def x_hat(self) -> Array:
         """The current estimate in the layout of :attr:`state_names`, ``(n_x,)`` or ``(B, n_x)``."""
-        return self._public(self._current()[0])  # type: ignore[no-any-return]
+        return self._public(self.current(*self._own())[0])  # type: ignore[no-any-return]
 
     @property
     def dropouts_(self) -> Any:
-        return self._public(self._dropouts)
+        return self._public(self._own()[1].dropouts.copy())
 
     @property
     def inverse_failures_(self) -> Any:
-        return self._public(self._inverse_failures)
+        return self._public(self._own()[1].inverse_failures.copy())
 
     def diagnostics(self) -> dict[str, Any]:
-        """The current run-time quantities named in :attr:`diagnostic_names` (floats, or
-        ``(B,)`` arrays for a batched observer).
+        """The current run-time quantities of the observer's own state, named in
+        :attr:`diagnostic_names` (floats, or ``(B,)`` arrays for a batched observer).
 
         Returns
         -------
@@ -813,11 +1397,8 @@ class Observer(ABC):
         >>> obs.diagnostics()
         {'k': 10.0, 'dropouts': 0.0}
         """
-        d = self._current()[2]
-        out = {name: self._public(d[:, j].astype(float)) for j, name in
-               enumerate(self.family_diagnostics)}
-        out["dropouts"] = self._public(self._dropouts.astype(float))
-        return out
+        d = self.current(*self._own())[2]
+        return {name: self._public(d[:, j]) for j, name in enumerate(self.diagnostic_names)}
 
     # --------------------------------------------------------------- helpers
     def _floats(self, what: str, value: Any) -> Array:
@@ -840,21 +1421,22 @@ class Observer(ABC):
 
     def _initial_z(self, x0: Array | None, z0: Array | None, u0: Array) -> Array:
         """``(B, n)`` observer coordinates from a physical ``x0`` (through ``to_normal``) or
-        ``z0``; zero if neither is given."""
+        ``z0``; zero if neither is given (``B = len(u0)``)."""
         if z0 is not None:
             return z0
         if x0 is None:
-            return np.zeros((self.batch, self.n))
+            return np.zeros((u0.shape[0], self.n))
         if self.system is None:
             return x0
         return np.array([self.system.to_normal(x, u) for x, u in zip(x0, u0)], dtype=float)
 
-    def _to_physical(self, Z: Array, U: Array, X: Array) -> None:
+    def _to_physical(self, s: State, Z: Array, U: Array, X: Array) -> None:
         """Write ``system.from_normal`` of the rows ``Z`` ``(B, T, n)`` (inputs ``U``) into ``X``.
         Where the inverse is undefined (the system raises :class:`DesignError`) count it in
-        ``inverse_failures_`` and hold the member's last valid value (NaN before any). Other
-        errors (a math domain error on a blown-up ``z``) propagate as a divergence. Systems
-        offering a vectorized ``from_normal_batch(Z, U)`` (rows ``(N, n)``) are used whole."""
+        the state's ``inverse_failures`` and hold the member's last valid value (``x_held``,
+        NaN before any). Other errors (a math domain error on a blown-up ``z``) propagate as
+        a divergence. Systems offering a vectorized ``from_normal_batch(Z, U)`` (rows
+        ``(N, n)``) are used whole."""
         sys = self.system
         if sys is None:
             X[...] = Z
@@ -868,21 +1450,21 @@ class Observer(ABC):
             if ok.all():
                 X[...] = flat
                 if T:  # as the per-row path: the last row is the member's held value
-                    self._x_held[...] = flat[:, -1]
+                    s.x_held[...] = flat[:, -1]
                 return
         for b in range(B):
-            held = self._x_held[b]
+            held = s.x_held[b]
             for j in range(T):
                 try:
                     x = sys.from_normal_unchecked(Z[b, j], U[b, j])
                 except DesignError:
-                    self._inverse_failures[b] += 1
+                    s.inverse_failures[b] += 1
                     X[b, j] = held
                     continue
                 held = np.asarray(x, dtype=float)
                 self._check_width(held.size, X.shape[2])
                 X[b, j] = held
-            self._x_held[b] = held
+            s.x_held[b] = held
 
     def _check_width(self, width: int, named: int) -> None:
         if width != named:
@@ -893,47 +1475,32 @@ class Observer(ABC):
         return f"{type(self).__name__}(outputs={list(self.outputs)}, batch={self.batch})"
 
 
+def _batch_size(batch: Any) -> int:
+    if isinstance(batch, (bool, np.bool_)) or not isinstance(batch, (int, np.integer)) or batch < 1:
+        raise DesignError(f"batch must be a positive integer; found {batch!r}")
+    return int(batch)
+
+
+def _batch_of(params: Params) -> int | None:
+    """The batch of ``params``, or None where it has no array to tell (no parameters)."""
+    try:
+        return params.batch
+    except DesignError:
+        return None
+
+
+def _empty_rows(value: Any, B: int) -> Any:
+    """An uninitialised field of ``B`` rows shaped like ``value``'s rows (arrays, nested)."""
+    if isinstance(value, State):
+        return State(**{k: _empty_rows(v, B) for k, v in value.fields.items()})
+    if isinstance(value, tuple):
+        return tuple(_empty_rows(v, B) for v in value)
+    return np.empty((B, *value.shape[1:]), dtype=value.dtype)
+
+
 ObserverT = TypeVar("ObserverT", bound=type[Observer])
 
-__all__ = ["ON_UNSTABLE", "OBSERVERS", "Block", "Observer", "register", "registered"]
-
-def _shared_clock(dst: Any, src: Any) -> list[str]:
-    """The numbers (ints, floats) of ``dst``'s state, and of the observers it holds, that are
-    not what a fresh reset (``src``) gives: a clock or a counter shared by the members."""
-    out = []
-    for key, d in vars(dst).items():
-        s = vars(src).get(key)
-        if isinstance(d, (int, float)) and not isinstance(d, bool) and key != "batch":
-            if not (d == s or (d != d and s != s)):
-                out.append(key)
-        elif isinstance(d, Observer) and isinstance(s, Observer):
-            out += _shared_clock(d, s)
-        elif isinstance(d, (list, tuple)) and isinstance(s, (list, tuple)) and len(d) == len(s):
-            for di, si in zip(d, s):
-                if isinstance(di, Observer) and isinstance(si, Observer):
-                    out += _shared_clock(di, si)
-    return out
-
-
-def _transplant(dst: Any, src: Any, rows: list[int], B: int, k: int) -> None:
-    """Copy the ``k`` members of ``src`` into the members ``rows`` of ``dst`` (B members):
-    every array attribute whose leading axis is B in ``dst`` and k in ``src`` (the rest of the
-    shape equal), in the observers they hold (attributes, lists and tuples) likewise."""
-    for key, d in vars(dst).items():
-        if key == "_fresh_copy":
-            continue
-        s = vars(src).get(key)
-        if isinstance(d, np.ndarray) and isinstance(s, np.ndarray):
-            if d.ndim and s.ndim == d.ndim and d.shape[0] == B and s.shape[0] == k \
-                    and d.shape[1:] == s.shape[1:]:
-                d[rows] = s
-        elif isinstance(d, Observer) and isinstance(s, Observer):
-            _transplant(d, s, rows, B, k)
-        elif isinstance(d, (list, tuple)) and isinstance(s, (list, tuple)) and len(d) == len(s):
-            for di, si in zip(d, s):
-                if isinstance(di, Observer) and isinstance(si, Observer):
-                    _transplant(di, si, rows, B, k)
-
+__all__ = ["ON_UNSTABLE", "OBSERVERS", "Block", "Observer", "Params", "State", "register", "registered"]
 
 #: registry name -> observer class (filled by :func:`register`)
 OBSERVERS: dict[str, type[Observer]] = {}

@@ -60,7 +60,7 @@ from .._validate import boolean, finite_scalar, one_of, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
 from ..exceptions import DesignError, DimensionError
 from ..systems.base import System, derivative_names
-from .base import Array, Observer, batch_rows, register
+from .base import Array, Observer, Params, State, batch_rows, register
 
 __all__ = ["METHODS", "HighGainObserver", "MultiOutputHighGainObserver", "matched_gain",
            "one_step_map"]
@@ -423,7 +423,7 @@ class _Chains:
     _lay: Array
     _bounds: Array
     _flags: int
-    _maps: dict[float, Array]
+    _maps: dict[tuple[float, bytes], Array]
 
     def _layout(self, orders: tuple[int, ...], bounds: tuple[Array, Array] | None) -> None:
         first = np.cumsum((0,) + orders[:-1])
@@ -432,18 +432,23 @@ class _Chains:
         self._flags = 0 if bounds is None else SATURATE
         self._maps = {}
 
-    def _chain_maps(self, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
+    def _chain_maps(self, p: Params, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
         raise NotImplementedError
 
-    def _maps_at(self, dt: float) -> Array:
-        """The packed maps at the period ``dt`` (built and checked on first use)."""
-        maps = self._maps.get(dt)
+    def _maps_at(self, p: Params, dt: float) -> Array:
+        """The packed maps of the parameters ``p`` at the period ``dt`` (built and checked on
+        first use; at most :data:`MAP_CACHE` kept)."""
+        key = (dt, p.key())
+        maps = self._maps.get(key)
         if maps is None:
-            maps = packed_maps(self._chain_maps(finite_scalar("dt", dt, positive=True)))
+            maps = packed_maps(self._chain_maps(p, finite_scalar("dt", dt, positive=True)))
             if len(self._maps) >= MAP_CACHE:
                 del self._maps[next(iter(self._maps))]
-            self._maps[dt] = maps
+            self._maps[key] = maps
         return maps
+
+    def _check_period(self, p: Params, dt: float) -> None:
+        self._maps_at(p, dt)
 
     def _kernel(self, Z: Array, Y: Array, W: Array | None, maps: Array, t0: int, t1: int,
                 Zout: Array) -> None:
@@ -549,15 +554,25 @@ class HighGainObserver(_Chains, Observer):
         self.model = boolean("model", model)
         self.method = method
         self.z_bounds = bounds_pair(z_bounds, n)
-        self.L = hgo_gains(self.p, self.k_)
         if x_hat0 is not None and z_hat0 is not None:
             raise DesignError("give x_hat0 or z_hat0, not both")
-        self._init = (None if x_hat0 is None else vector("x_hat0", x_hat0, len(self.state_names)),
-                      None if z_hat0 is None else vector("z_hat0", z_hat0, n))
+        self._start = (None if x_hat0 is None else vector("x_hat0", x_hat0, len(self.state_names)),
+                       None if z_hat0 is None else vector("z_hat0", z_hat0, n))
         #: ``x_hat`` is ``z_hat`` itself (no system, or a system whose normal form is its state)
         self._identity = system is None or _is_identity(system, n)
         self._layout((n,), self.z_bounds)
-        self.reset()
+
+    def _parameters(self) -> dict[str, Any]:
+        """The gain ``k`` and the Hurwitz coefficients ``p`` (paper 000, eq. 2-3)."""
+        return {"k": self.k_, "p": self.p}
+
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        if name == "k":
+            return np.array(finite_scalar("k", value, positive=True))
+        arr = check_hurwitz(value)
+        if arr.size != self.n:
+            raise DimensionError(f"p must have n = {self.n} coefficients; found {arr.size}")
+        return arr
 
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
@@ -575,71 +590,77 @@ class HighGainObserver(_Chains, Observer):
         >>> HighGainObserver(order=2, k=10.0).max_stable_period()
         inf
         """
+        return self._max_period(self.p, self.k_)
+
+    def _max_period(self, p: Array, k: float) -> float:
         if self.method == "exact":
             return float("inf")
-        return largest_stable_step(lambda dt: one_step_map(self.p, self.k_, dt, self.method)[0],
-                                   1e-3 / self.k_, 1e6 / self.k_)
+        return largest_stable_step(lambda dt: one_step_map(p, k, dt, self.method)[0],
+                                   1e-3 / k, 1e6 / k)
 
-    def check_period(self, dt: float) -> None:
-        self._maps_at(dt)
-
-    def _chain_maps(self, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
-        M, b, g = one_step_map(self.p, self.k_, dt, self.method)
-        check_step_stable(M, self.on_unstable, f"{self.method} update of the {self._label()}",
-                          dt, self.max_stable_period, digits=6)
-        M0, _, g0 = one_step_map(self.p, self.k_, dt, self.method, closed=False)  # dropout
+    def _chain_maps(self, p: Params, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
+        k, pc = float(p.k), np.asarray(p.p)
+        M, b, g = one_step_map(pc, k, dt, self.method)
+        check_step_stable(M, self.on_unstable,
+                          f"{self.method} update of the high-gain observer (n={self.n}, k={k:g})",
+                          dt, lambda: self._max_period(pc, k), digits=6)
+        M0, _, g0 = one_step_map(pc, k, dt, self.method, closed=False)  # dropout
         return [(M, b, g, M0, g0)]
 
-    def _label(self) -> str:
-        """The observer and its gain, as error messages name it."""
-        return f"high-gain observer (n={self.n}, k={self.k_:g})"
-
     # ------------------------------------------------------------- the family
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        B = u0.shape[0]
         if x0 is None and z0 is None:
-            ix, iz = self._init
-            x0 = None if ix is None else batch_rows("x_hat0", ix, ix.size, self.batch)
-            z0 = None if iz is None else batch_rows("z_hat0", iz, iz.size, self.batch)
-        self._Z = np.array(self._initial_z(x0, z0, u0), dtype=float, order="C")
+            ix, iz = self._start
+            x0 = None if ix is None else batch_rows("x_hat0", ix, ix.size, B)
+            z0 = None if iz is None else batch_rows("z_hat0", iz, iz.size, B)
+        fields: dict[str, Any] = {"z": np.array(self._initial_z(x0, z0, u0), dtype=float,
+                                                order="C")}
         if not self._identity:
-            X = np.empty((self.batch, 1, len(self.state_names)))
-            self._estimate(self._sat(self._Z)[:, None], u0[:, None], X)
+            s = State(**self._core(B))
+            X = np.empty((B, 1, len(self.state_names)))
+            self._to_physical(s, self._sat(fields["z"])[:, None], u0[:, None], X)
+            fields.update(s.fields)
+        return fields
 
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        maps = self._maps.get(dt)
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
+        maps = self._maps.get((dt, p.key()))
         if maps is None:
-            maps = self._maps_at(dt)
+            maps = self._maps_at(p, dt)
         T = Y.shape[1]
         if not self.model:
-            self._kernel(self._Z, Y, None, maps, 0, T, Z)
+            self._kernel(s.z, Y, None, maps, 0, T, Z)
         elif self.method != "rk4":
             phi = self.system.phi_batch  # type: ignore[union-attr]
             if T == 1:  # one sample: phi's rows are the held term as they come
-                W = np.ascontiguousarray(phi(self._sat(self._Z), U[:, 0]),
+                W = np.ascontiguousarray(phi(self._sat(s.z), U[:, 0]),
                                          dtype=np.float64).reshape(Y.shape[0], 1, 1)
-                self._kernel(self._Z, Y, W, maps, 0, 1, Z)
+                self._kernel(s.z, Y, W, maps, 0, 1, Z)
             else:
                 W = np.empty((Y.shape[0], T, 1))
                 for j in range(T):  # phi at the start of the sample, held over it
-                    W[:, j, 0] = phi(self._sat(self._Z), U[:, j])
-                    self._kernel(self._Z, Y, W, maps, j, j + 1, Z)
+                    W[:, j, 0] = phi(self._sat(s.z), U[:, j])
+                    self._kernel(s.z, Y, W, maps, j, j + 1, Z)
         else:
+            L = hgo_gains(np.asarray(p.p), float(p.k))
             for j in range(T):
-                self._rk4_model(Y, U, dt, maps, j, Z)
-        D[...] = self.k_
+                self._rk4_model(s.z, L, Y, U, dt, maps, j, Z)
+        D[...] = float(p.k)
         if self._identity:
             np.copyto(X, Z)
         elif T:
-            self._estimate(Z, U, X)
+            self._to_physical(s, Z, U, X)
 
-    def _rk4_model(self, Y: Array, U: Array, dt: float, maps: Array, j: int,
-                   Zout: Array) -> None:
-        """Sample ``j`` by RK4 of the continuous observer with ``phi`` at every stage; members
-        whose measurement is NaN take the open-loop map with ``phi`` held (the kernel)."""
+    def _rk4_model(self, Z: Array, L: Array, Y: Array, U: Array, dt: float, maps: Array,
+                   j: int, Zout: Array) -> None:
+        """Sample ``j`` by RK4 of the continuous observer with ``phi`` at every stage, ``Z``
+        in place; members whose measurement is NaN take the open-loop map with ``phi`` held
+        (the kernel)."""
         phi = self.system.phi_batch  # type: ignore[union-attr]
         y = Y[:, j, 0]
         lost = np.isnan(y)
-        Z = self._Z
         if lost.any():
             rows = np.flatnonzero(lost)
             Zl = Z[rows]
@@ -649,7 +670,7 @@ class HighGainObserver(_Chains, Observer):
             Z[rows] = Zl
         ok = np.flatnonzero(~lost)
         if ok.size:
-            L, Uo, yo = self.L, U[ok, j], y[ok, None]
+            Uo, yo = U[ok, j], y[ok, None]
 
             def rhs(z: Array) -> Array:
                 dz = np.empty_like(z)
@@ -671,18 +692,12 @@ class HighGainObserver(_Chains, Observer):
             return z
         return np.clip(z, self.z_bounds[0], self.z_bounds[1])
 
-    def _estimate(self, Z: Array, U: Array, X: Array) -> None:
-        """``X`` from the reported rows ``Z`` ``(B, T, n)`` through the inverse map; keep the
-        last as the current one."""
-        self._to_physical(Z, U, X)
-        self._X = X[:, -1].copy()
-
-    def _current(self) -> tuple[Array, Array, Array]:
-        z = self._sat(self._Z)
-        z = z.copy() if z is self._Z else z
-        k = np.empty((self.batch, 1))
-        k.fill(self.k_)  # np.full's values, without its Python-level wrapper
-        return (z.copy() if self._identity else self._X.copy(), z, k)
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
+        z = self._sat(s.z)
+        z = z.copy() if z is s.z else z
+        k = np.empty((z.shape[0], 1))
+        k.fill(float(p.k))  # np.full's values, without its Python-level wrapper
+        return (z.copy() if self._identity else s.x_held.copy(), z, k)
 
     def params(self) -> dict[str, Any]:
         return {"k": self.k_, "p": self.p.tolist(), "order": self.n,
@@ -883,13 +898,19 @@ class MultiOutputHighGainObserver(_Chains, Observer):
                               f"{type(phi).__name__}")
         self.phi = phi
         self.method = method
-        self.L = [hgo_gains(pc, kc) for pc, kc in zip(self.ps, self.ks)]
         if x_hat0 is not None and z_hat0 is not None:
             raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
         z0 = z_hat0 if z_hat0 is not None else x_hat0
-        self._init = None if z0 is None else vector("z_hat0", z0, self.n)
+        self._start = None if z0 is None else vector("z_hat0", z0, self.n)
         self._layout(self.orders, None)
-        self.reset()
+
+    def _parameters(self) -> dict[str, Any]:
+        """The gain of each chain, ``k`` ``(len(orders),)`` (paper 001, eq. 5)."""
+        return {"k": np.array(self.ks)}
+
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        ks = _per_chain("k", value, len(self.orders))
+        return np.array([finite_scalar(f"k[{c}]", kc, positive=True) for c, kc in enumerate(ks)])
 
     def _chain_p(self, p: Any) -> tuple[Array, ...]:
         m = len(self.orders)
@@ -940,21 +961,22 @@ class MultiOutputHighGainObserver(_Chains, Observer):
         >>> round(obs.max_stable_period(), 6)
         0.2
         """
-        return min(HighGainObserver(order=n, k=kc, p=pc, method=self.method,
+        return self._max_period(self.ks)
+
+    def _max_period(self, ks: Any) -> float:
+        return min(HighGainObserver(order=n, k=float(kc), p=pc, method=self.method,
                                     on_unstable="ignore").max_stable_period()
-                   for n, kc, pc in zip(self.orders, self.ks, self.ps))
+                   for n, kc, pc in zip(self.orders, ks, self.ps))
 
-    def check_period(self, dt: float) -> None:
-        self._maps_at(dt)
-
-    def _chain_maps(self, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
+    def _chain_maps(self, p: Params, dt: float) -> list[tuple[Array, Array, Array, Array, Array]]:
         entries = []
-        for c, (n, kc, pc) in enumerate(zip(self.orders, self.ks, self.ps)):
+        ks = [float(v) for v in p.k]
+        for c, (n, kc, pc) in enumerate(zip(self.orders, ks, self.ps)):
             M, b, g = one_step_map(pc, kc, dt, self.method)
             check_step_stable(M, self.on_unstable,
                               f"{self.method} update of chain {c} ({self.output_names[c]}, n={n}, "
                               f"k={kc:g}) of the multi-output high-gain observer", dt,
-                              self.max_stable_period)
+                              lambda: self._max_period(ks))
             M0, _, g0 = one_step_map(pc, kc, dt, self.method, closed=False)
             entries.append((M, b, g, M0, g0))
         return entries
@@ -963,33 +985,37 @@ class MultiOutputHighGainObserver(_Chains, Observer):
     @property
     def channel_dropouts_(self) -> Any:
         """NaN samples per chain: a list of ints (unbatched) or a ``(B, len(orders))`` array."""
+        drops = self.state.channel_dropouts
         if self._batched:
-            return self._channel_dropouts.copy()
-        return [int(v) for v in self._channel_dropouts[0]]
+            return drops.copy()
+        return [int(v) for v in drops[0]]
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        B = u0.shape[0]
         z = x0 if x0 is not None else z0
         if z is None:
-            z = np.zeros((self.batch, self.n)) if self._init is None else np.tile(
-                self._init, (self.batch, 1))
-        self._Z = np.array(z, dtype=float, order="C")
-        self._channel_dropouts = np.zeros((self.batch, len(self.orders)), dtype=np.int64)
+            z = np.zeros((B, self.n)) if self._start is None else np.tile(self._start, (B, 1))
+        return {"z": np.array(z, dtype=float, order="C"),
+                "channel_dropouts": np.zeros((B, len(self.orders)), dtype=np.int64)}
 
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        maps = self._maps_at(dt)
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
+        maps = self._maps_at(p, dt)
         B, T = Y.shape[0], Y.shape[1]
-        self._channel_dropouts += np.isnan(Y).sum(axis=1)
+        s.channel_dropouts += np.isnan(Y).sum(axis=1)
         if self.phi is None:
-            self._kernel(self._Z, Y, None, maps, 0, T, Z)
+            self._kernel(s.z, Y, None, maps, 0, T, Z)
         elif self.method != "rk4":
             W = np.empty((B, T, len(self.orders)))
             for j in range(T):  # phi at the start of the sample, held over it
-                W[:, j] = self._phi_rows(self._Z, U[:, j])
-                self._kernel(self._Z, Y, W, maps, j, j + 1, Z)
+                W[:, j] = self._phi_rows(s.z, U[:, j])
+                self._kernel(s.z, Y, W, maps, j, j + 1, Z)
         else:
+            L = [hgo_gains(pc, float(kc)) for pc, kc in zip(self.ps, p.k)]
             for j in range(T):
-                self._rk4_model(Y[:, j], U[:, j], dt)
-                Z[:, j] = self._Z
+                s.z = self._rk4_model(s.z, L, Y[:, j], U[:, j], dt)
+                Z[:, j] = s.z
         X[...] = Z
 
     def _phi_rows(self, Z: Array, U: Array) -> Array:
@@ -1009,9 +1035,9 @@ class MultiOutputHighGainObserver(_Chains, Observer):
             out[b] = ph
         return out
 
-    def _rk4_model(self, y: Array, u: Array, dt: float) -> None:
-        """One sample by RK4 of the coupled observer, ``phi`` at every stage; a chain whose
-        channel is NaN runs open loop (no correction) over it."""
+    def _rk4_model(self, z: Array, L: list[Array], y: Array, u: Array, dt: float) -> Array:
+        """One sample by RK4 of the coupled observer from ``z``, ``phi`` at every stage; a
+        chain whose channel is NaN runs open loop (no correction) over it."""
         n = self.n
         first, size = self._lay[:, 0], self._lay[:, 1]
         top = first + size - 1
@@ -1020,7 +1046,7 @@ class MultiOutputHighGainObserver(_Chains, Observer):
         lost = np.isnan(y)
         Lfull = np.zeros((y.shape[0], n))
         for c, (f, nc) in enumerate(zip(first, size)):
-            Lfull[:, f:f + nc] = np.where(lost[:, c:c + 1], 0.0, self.L[c])
+            Lfull[:, f:f + nc] = np.where(lost[:, c:c + 1], 0.0, L[c])
         yv = np.where(lost, 0.0, y)
 
         def rhs(z: Array) -> Array:
@@ -1029,16 +1055,15 @@ class MultiOutputHighGainObserver(_Chains, Observer):
             dz[:, top] += self._phi_rows(z, u)
             return dz + Lfull * (yv - z[:, first])[:, chain_of]
 
-        z = self._Z
         k1 = rhs(z)
         k2 = rhs(z + dt / 2 * k1)
         k3 = rhs(z + dt / 2 * k2)
         k4 = rhs(z + dt * k3)
-        self._Z = np.ascontiguousarray(z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
+        return np.ascontiguousarray(z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
 
-    def _current(self) -> tuple[Array, Array, Array]:
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         """``x_hat = z_hat`` (model-free: outputs and derivatives, see the class docstring)."""
-        return self._Z.copy(), self._Z.copy(), np.zeros((self.batch, 0))
+        return s.z.copy(), s.z.copy(), np.zeros((s.z.shape[0], 0))
 
     def params(self) -> dict[str, Any]:
         return {"k": list(self.ks), "orders": list(self.orders),

@@ -10,6 +10,7 @@ import pytest
 
 from hgo_mj.observers import AdaptiveGainObserver
 from hgo_mj.systems import ElasticJoint, Pendulum
+from observer_cases import advance
 
 B, T, DT = 64, 240, 0.01
 
@@ -43,12 +44,12 @@ def make(**kw):
 def _check_batch_equals_single(make_ob, z0, Y, U):
     ob = make_ob()
     ob.reset(z_hat0=z0)
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     assert ob.batch == B and blk.x_hat.shape[:2] == (B, T)
     for b in (0, 1, 17, 40, 63):
         one = make_ob()
         one.reset(z_hat0=z0[b:b + 1])
-        blk1 = one.advance(Y[b:b + 1], U[b:b + 1], DT)
+        blk1 = advance(one, Y[b:b + 1], U[b:b + 1], DT)
         np.testing.assert_array_equal(blk1.x_hat[0], blk.x_hat[b])
         np.testing.assert_array_equal(blk1.z_hat[0], blk.z_hat[b])
         np.testing.assert_array_equal(blk1.diagnostics[0], blk.diagnostics[b])
@@ -76,9 +77,9 @@ def test_block_equals_single_steps(kw):
         a, b = make(**kw), make(**kw)
         a.reset(z_hat0=z0)
         b.reset(z_hat0=z0)
-        blk = a.advance(Y, U, DT)
+        blk = advance(a, Y, U, DT)
         for j in range(T):
-            b.step(Y[:, j], U[:, j], DT)
+            b.update(Y[:, j], U[:, j], DT)
             np.testing.assert_array_equal(b.x_hat, blk.x_hat[:, j])
             np.testing.assert_array_equal(b.z_hat, blk.z_hat[:, j])
             np.testing.assert_array_equal(b.k_, blk.diagnostics[:, j, 0])
@@ -102,7 +103,7 @@ def test_unbatched_is_one_member():
     z0, Y, U = streams(2, seed=3)
     ob = make(method="exact")
     ob.reset(z_hat0=z0)
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     one = make(method="exact")
     one.reset(z_hat0=z0[5])
     xs = np.array([one.update(Y[5, j], U[5, j], DT) for j in range(T)])

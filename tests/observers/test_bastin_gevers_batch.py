@@ -13,6 +13,7 @@ from hgo_mj.exceptions import DivergenceError
 from hgo_mj.observers import AOCF, BastinGeversObserver
 from hgo_mj.systems import CartPendulum, Pendulum
 from hgo_mj.systems.papers import BioreactorBastinGevers
+from observer_cases import advance
 
 B, T, DT = 64, 240, 0.01
 
@@ -81,7 +82,7 @@ def test_batch_equals_each_member_alone(make, mu, level):
     th, z = _start(ob, rng)
     ob.reset(z_hat0=z, theta_hat0=th)
     assert ob.batch == B
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     assert np.isnan(Y).any() and np.all(np.isfinite(blk.z_hat))
     np.testing.assert_array_equal(ob.dropouts_, np.isnan(Y[:, :, 0]).sum(axis=1))
     final = (ob.x_hat, ob.z_hat, ob.theta_hat_, ob.V_, ob.inverse_failures_,
@@ -89,7 +90,7 @@ def test_batch_equals_each_member_alone(make, mu, level):
     for b in range(B):
         one = make()
         one.reset(z_hat0=z[b], theta_hat0=th[b])  # unbatched: B = 1 on the same code
-        alone = one.advance(Y[b:b + 1], U[b:b + 1], DT)
+        alone = advance(one, Y[b:b + 1], U[b:b + 1], DT)
         np.testing.assert_array_equal(alone.x_hat[0], blk.x_hat[b], err_msg=f"member {b}")
         np.testing.assert_array_equal(alone.z_hat[0], blk.z_hat[b], err_msg=f"member {b}")
         np.testing.assert_array_equal(alone.diagnostics[0], blk.diagnostics[b],
@@ -109,9 +110,9 @@ def test_a_block_equals_single_steps(make, mu, level):
     th, z = _start(ob, rng)
     ob.reset(z_hat0=z[:8], theta_hat0=th[:8])
     ref.reset(z_hat0=z[:8], theta_hat0=th[:8])
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     for j in range(T):
-        ref.step(Y[:, j], U[:, j], DT)
+        ref.update(Y[:, j], U[:, j], DT)
         np.testing.assert_array_equal(ref.x_hat, blk.x_hat[:, j], err_msg=f"sample {j}")
         np.testing.assert_array_equal(ref.z_hat, blk.z_hat[:, j], err_msg=f"sample {j}")
         d = ref.diagnostics()
@@ -126,7 +127,7 @@ def test_diagnostics_layout_and_pickle_of_a_batch():
     Y, U = _streams(rng, 2, 1.0)
     th, z = _start(ob, rng)
     ob.reset(z_hat0=z, theta_hat0=th)
-    blk = ob.advance(Y[:, :100], U[:, :100], DT)
+    blk = advance(ob, Y[:, :100], U[:, :100], DT)
     assert ob.diagnostic_names == ("theta_1", "theta_2", "theta_3", "theta_p1", "theta_p2",
                                    "theta_p3", "theta_p0", "excitation", "reachability_rank",
                                    "dropouts")
@@ -137,7 +138,7 @@ def test_diagnostics_layout_and_pickle_of_a_batch():
     assert ob.excitation_matrix_.shape == (B, 3, 3)
     assert set(ob.physical_params_) == {"p1", "p2", "p3", "p0"}
     twin = pickle.loads(pickle.dumps(ob))
-    a, b = ob.advance(Y[:, 100:], U[:, 100:], DT), twin.advance(Y[:, 100:], U[:, 100:], DT)
+    a, b = advance(ob, Y[:, 100:], U[:, 100:], DT), advance(twin, Y[:, 100:], U[:, 100:], DT)
     np.testing.assert_array_equal(a.x_hat, b.x_hat)
     np.testing.assert_array_equal(a.diagnostics, b.diagnostics)
 
@@ -147,10 +148,10 @@ def test_a_changed_period_restarts_the_window_and_divergence_names_the_member():
     ob.reset(batch=2)
     Y = np.full((2, 50, 1), 0.3)
     U = np.full((2, 50, 1), 0.2)
-    ob.advance(Y, U, 0.01)
-    ob.advance(Y, U, 0.02)  # a new period: a window of round(0.3 / 0.02) = 15 samples
+    advance(ob, Y, U, 0.01)
+    advance(ob, Y, U, 0.02)  # a new period: a window of round(0.3 / 0.02) = 15 samples
     assert ob._ring.shape == (2, 15, 2)
     Y[1, 10] = 1e308  # g(y) overflows: the state leaves the finite numbers at that sample
     with np.errstate(over="ignore"), pytest.raises(
             DivergenceError, match=r"left the finite numbers.*\(member 1, sample 10\)"):
-        ob.advance(Y, U, 0.02)
+        advance(ob, Y, U, 0.02)

@@ -13,6 +13,7 @@ import pytest
 
 from hgo_mj.observers.besancon import AffineForm, BesanconObserver
 from hgo_mj.systems import BesanconExample1, BesanconExample2, ElasticJoint, ElasticJoint2Link, Pendulum
+from observer_cases import advance
 
 B = 64
 T = 200
@@ -79,7 +80,7 @@ CASES = [
 
 
 def _block(ob: BesanconObserver, Y: np.ndarray, U: np.ndarray, dt: float) -> list[np.ndarray]:
-    blk = ob.advance(Y, U, dt)
+    blk = advance(ob, Y, U, dt)
     return [blk.x_hat, blk.z_hat, blk.diagnostics, ob.state_rows, ob.inverse_failures_]
 
 
@@ -114,19 +115,19 @@ def test_block_equals_single_steps(make, dt, init):
     Y, U = _streams(p, m, dt, seed=5)
     Y, U = Y[:8], U[:8]
     ob.reset(**kw)
-    blk = ob.advance(Y, U, dt)
+    blk = advance(ob, Y, U, dt)
     ob.reset(**kw)
     rows = []
     for j in range(T):
-        ob.step(Y[:, j], U[:, j], dt)
+        ob.update(Y[:, j], U[:, j], dt)
         rows.append((ob.x_hat, ob.z_hat, ob.excitation_))
     np.testing.assert_array_equal(np.stack([r[0] for r in rows], axis=1), blk.x_hat)
     np.testing.assert_array_equal(np.stack([r[1] for r in rows], axis=1), blk.z_hat)
     np.testing.assert_array_equal(np.stack([r[2] for r in rows], axis=1), blk.diagnostics[:, :, -2])
     # and a pickled copy continues identically
     copy = pickle.loads(pickle.dumps(ob))
-    a = ob.advance(Y[:, :20], U[:, :20], dt)
-    c = copy.advance(Y[:, :20], U[:, :20], dt)
+    a = advance(ob, Y[:, :20], U[:, :20], dt)
+    c = advance(copy, Y[:, :20], U[:, :20], dt)
     np.testing.assert_array_equal(a.x_hat, c.x_hat)
     np.testing.assert_array_equal(a.diagnostics, c.diagnostics)
 
@@ -154,11 +155,11 @@ def test_inverse_failures_hold_the_last_physical_value():
     ob = BesanconObserver(ElasticJoint(), unknown=("stiffness",), lam=20.0, gain=1e-6,
                           theta_hat0=[9.0])
     ob.reset(theta_hat0=np.array([[9.0], [9.0]]))
-    ob.advance(np.full((2, 1, 1), 0.1), np.zeros((2, 1, 1)), 0.001)
+    advance(ob, np.full((2, 1, 1), 0.1), np.zeros((2, 1, 1)), 0.001)
     held = ob.x_hat.copy()
     S = ob._S
     S[1, ob.n] = -1.0  # member 1's stiffness estimate leaves the domain
-    blk = ob.advance(np.full((2, 3, 1), 0.1), np.zeros((2, 3, 1)), 0.001)
+    blk = advance(ob, np.full((2, 3, 1), 0.1), np.zeros((2, 3, 1)), 0.001)
     np.testing.assert_array_equal(ob.inverse_failures_, [0, 3])
     np.testing.assert_array_equal(blk.x_hat[1], np.tile(held[1], (3, 1)))
     assert np.all(np.isfinite(blk.x_hat[0])) and not np.array_equal(blk.x_hat[0, -1], held[0])

@@ -194,7 +194,7 @@ def test_dropout_holds_prediction_and_counts():
 def test_saturation_clips_reported_estimate_only():
     ob = HighGainObserver(order=2, k=100.0, z_bounds=([-1, -5], [1, 5]))
     ob.update(np.array([0.9]), np.zeros(0), 0.01)
-    assert ob.z_hat[1] == 5.0 and ob._Z[0, 1] > 5.0
+    assert ob.z_hat[1] == 5.0 and ob.state.z[0, 1] > 5.0
 
 
 def test_update_returns_fresh_arrays():
@@ -238,7 +238,7 @@ def test_model_update_is_correction_then_held_model_term(method, z_bounds):
 
     ys = rng.uniform(-2, 2, 200).tolist() + [np.nan]
     for y, u in zip(ys, rng.uniform(-0.5, 0.5, 201).tolist()):
-        z = a._Z[0].copy()
+        z = a.state.z[0].copy()
         zs = z if z_bounds is None else np.clip(z, *z_bounds)
         ph = float(sys_.phi(zs, [u]))
         if y == y:
@@ -246,7 +246,7 @@ def test_model_update_is_correction_then_held_model_term(method, z_bounds):
         else:
             expected = row_sum(M0, z, (g0, ph))
         x = a.update(np.array([y]), np.array([u]), dt)
-        np.testing.assert_array_equal(a._Z[0], expected)
+        np.testing.assert_array_equal(a.state.z[0], expected)
         np.testing.assert_array_equal(x, expected if z_bounds is None else np.clip(expected,
                                                                                     *z_bounds))
     assert a.dropouts_ == 1 and np.all(np.isfinite(x))

@@ -12,6 +12,7 @@ from hgo_mj.observers import HighGainObserver, MultiOutputHighGainObserver, Obse
 from hgo_mj.observers.base import ONE_BUFFER
 from hgo_mj.observers.high_gain import TILE
 from hgo_mj.systems import ElasticJoint, Pendulum
+from observer_cases import advance
 
 B, T, DT = 64, 200, 2e-3
 METHODS = ("exact", "euler", "rk4")
@@ -40,12 +41,12 @@ def check_batch_equals_members(make, z0: np.ndarray, Y: np.ndarray, U: np.ndarra
     batched = make()
     batched.reset(z_hat0=z0)
     assert batched.batch == B
-    blk = batched.advance(Y, U, DT)
+    blk = advance(batched, Y, U, DT)
     assert np.isnan(Y).any() and np.all(np.isfinite(blk.z_hat))
     for b in range(B):
         alone = make()
         alone.reset(z_hat0=z0[b:b + 1])
-        one = alone.advance(Y[b:b + 1], U[b:b + 1], DT)
+        one = advance(alone, Y[b:b + 1], U[b:b + 1], DT)
         np.testing.assert_array_equal(one.x_hat[0], blk.x_hat[b], err_msg=f"member {b}")
         np.testing.assert_array_equal(one.z_hat[0], blk.z_hat[b], err_msg=f"member {b}")
         np.testing.assert_array_equal(one.diagnostics[0], blk.diagnostics[b])
@@ -59,9 +60,9 @@ def check_block_equals_steps(make, z0: np.ndarray, Y: np.ndarray, U: np.ndarray)
     a, s = make(), make()
     a.reset(z_hat0=z0)
     s.reset(z_hat0=z0)
-    blk = a.advance(Y, U, DT)
+    blk = advance(a, Y, U, DT)
     for j in range(Y.shape[1]):
-        s.step(Y[:, j], U[:, j], DT)
+        s.update(Y[:, j], U[:, j], DT)
         np.testing.assert_array_equal(s.z_hat, blk.z_hat[:, j])
         np.testing.assert_array_equal(s.x_hat, blk.x_hat[:, j])
     u = make()
@@ -120,7 +121,7 @@ def test_high_gain_batch_from_physical_initial_states():
     Y, U = streams(1, 1, seed=5)
     ob = HighGainObserver(system, k=40.0, model=True)
     ob.reset(x0)
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     for b in (0, 17, 63):
         alone = HighGainObserver(system, k=40.0, model=True)
         alone.reset(x0[b])
@@ -145,12 +146,12 @@ def test_members_across_kernel_tiles_equal_each_member_alone(orders):
             return MultiOutputHighGainObserver(orders=orders, k=(20.0, 15.0, 30.0))
     batched = make()
     batched.reset(z_hat0=z0)
-    blk = batched.advance(Y, U, DT)
+    blk = advance(batched, Y, U, DT)
     assert np.isnan(Y).any()
     for b in range(nb):
         alone = make()
         alone.reset(z_hat0=z0[b])
-        np.testing.assert_array_equal(alone.advance(Y[b:b + 1], U[b:b + 1], DT).z_hat[0],
+        np.testing.assert_array_equal(advance(alone, Y[b:b + 1], U[b:b + 1], DT).z_hat[0],
                                       blk.z_hat[b], err_msg=f"member {b}")
         np.testing.assert_array_equal(alone.z_hat, batched.z_hat[b])
 
@@ -164,18 +165,18 @@ def test_large_block_arrays_share_one_allocation_and_nothing_else():
     Y, U = streams(1, 1, seed=22, n_b=nb, t=t)
     ob = HighGainObserver(order=3, k=40.0)
     ob.reset(batch=nb)
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     arrays = (blk.x_hat, blk.z_hat, blk.diagnostics)
     assert [a.shape for a in arrays] == [(nb, t, 3), (nb, t, 3), (nb, t, 2)]
     assert all(a.flags.c_contiguous and a.flags.writeable for a in arrays)
     assert not any(np.shares_memory(a, b) for i, a in enumerate(arrays) for b in arrays[i + 1:])
-    nxt = ob.advance(Y, U, DT)
+    nxt = advance(ob, Y, U, DT)
     assert not any(np.shares_memory(a, b) for a in arrays
                    for b in (nxt.x_hat, nxt.z_hat, nxt.diagnostics))
     alone = HighGainObserver(order=3, k=40.0)
     for b in (0, nb - 1):
         alone.reset()
-        one = alone.advance(Y[b:b + 1], U[b:b + 1], DT)
+        one = advance(alone, Y[b:b + 1], U[b:b + 1], DT)
         np.testing.assert_array_equal(one.x_hat[0], blk.x_hat[b])
         np.testing.assert_array_equal(one.diagnostics[0], blk.diagnostics[b])
 
@@ -197,7 +198,7 @@ def test_multi_output_batch_equals_each_member_alone(method, coupled):
     check_batch_equals_members(make, z0, Y, U)
     ob = make()
     ob.reset(z_hat0=z0)
-    ob.advance(Y, U, DT)
+    advance(ob, Y, U, DT)
     # chain c reads channel outputs[c]: its dropouts are that channel's NaN samples
     np.testing.assert_array_equal(ob.channel_dropouts_, np.isnan(Y[:, :, [1, 0]]).sum(axis=1))
 
@@ -233,10 +234,10 @@ def test_bank_block_equals_single_steps_and_its_members():
     check_block_equals_steps(make, z0, Y, U)
     bank = make()
     bank.reset(z_hat0=z0)
-    blk = bank.advance(Y, U, DT)
+    blk = advance(bank, Y, U, DT)
     i = 0
     for o in make().members:  # the bank is its members run on their own channels
         o.reset(z_hat0=z0[:, i:i + o.n])
-        np.testing.assert_array_equal(o.advance(Y, U, DT).z_hat, blk.z_hat[:, :, i:i + o.n])
+        np.testing.assert_array_equal(advance(o, Y, U, DT).z_hat, blk.z_hat[:, :, i:i + o.n])
         i += o.n
     assert bank.diagnostic_names == ("k_0", "k_1", "dropouts")

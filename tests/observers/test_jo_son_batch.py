@@ -11,6 +11,7 @@ import pytest
 from hgo_mj.observers.jo_son import JoSonForm, JoSonObserver
 from hgo_mj.systems import ElasticJoint
 from hgo_mj.systems.papers import JoSonExample
+from observer_cases import advance
 
 B, T = 64, 240
 
@@ -58,13 +59,13 @@ def test_batch_equals_each_member_alone(make, p, m, dt):
     z0, th0 = _initial(ob, rng)
     ob.reset(z_hat0=z0, theta_hat0=th0)
     assert ob.batch == B and ob.z_hat.shape == (B, ob.n) and ob.theta_hat_.shape == (B, ob.form.p)
-    blk = ob.advance(Y, U, dt)
+    blk = advance(ob, Y, U, dt)
     assert np.all(np.isfinite(blk.x_hat)) and np.all(np.isfinite(blk.z_hat))
     np.testing.assert_array_equal(ob.dropouts_, np.isnan(Y).any(axis=2).sum(axis=1))
     for b in range(B):
         one = make()
         one.reset(z_hat0=z0[b:b + 1], theta_hat0=th0[b:b + 1])
-        ref = one.advance(Y[b:b + 1], U[b:b + 1], dt)
+        ref = advance(one, Y[b:b + 1], U[b:b + 1], dt)
         np.testing.assert_array_equal(blk.x_hat[b], ref.x_hat[0])
         np.testing.assert_array_equal(blk.z_hat[b], ref.z_hat[0])
         np.testing.assert_array_equal(blk.diagnostics[b], ref.diagnostics[0])
@@ -78,9 +79,9 @@ def test_a_block_equals_single_steps_and_unbatched_updates(make, p, m, dt):
     whole, steps = make(), make()
     for ob in (whole, steps):
         ob.reset(z_hat0=z0[:4], theta_hat0=th0[:4])
-    blk = whole.advance(Y, U, dt)
+    blk = advance(whole, Y, U, dt)
     for j in range(T):
-        steps.step(Y[:, j], U[:, j], dt)
+        steps.update(Y[:, j], U[:, j], dt)
         np.testing.assert_array_equal(steps.x_hat, blk.x_hat[:, j])
         np.testing.assert_array_equal(steps.z_hat, blk.z_hat[:, j])
     np.testing.assert_array_equal(steps.theta_hat_, whole.theta_hat_)
@@ -88,7 +89,7 @@ def test_a_block_equals_single_steps_and_unbatched_updates(make, p, m, dt):
     parts, j0 = make(), 0
     parts.reset(z_hat0=z0[:4], theta_hat0=th0[:4])
     for n in (1, 7, 50, T - 58):
-        b = parts.advance(Y[:, j0:j0 + n], U[:, j0:j0 + n], dt)
+        b = advance(parts, Y[:, j0:j0 + n], U[:, j0:j0 + n], dt)
         np.testing.assert_array_equal(b.x_hat, blk.x_hat[:, j0:j0 + n])
         np.testing.assert_array_equal(b.diagnostics, blk.diagnostics[:, j0:j0 + n])
         j0 += n
@@ -104,10 +105,10 @@ def test_batched_state_pickles_and_continues_alike():
     Y, U, rng = _streams(1, 1, seed=2)
     ob = JoSonObserver(JoSonExample(), lam=2.0, gamma=5.0)
     ob.reset(batch=5)
-    ob.advance(Y[:5, :100], U[:5, :100], 0.01)
+    advance(ob, Y[:5, :100], U[:5, :100], 0.01)
     twin = pickle.loads(pickle.dumps(ob))
-    a = ob.advance(Y[:5, 100:], U[:5, 100:], 0.01)
-    b = twin.advance(Y[:5, 100:], U[:5, 100:], 0.01)
+    a = advance(ob, Y[:5, 100:], U[:5, 100:], 0.01)
+    b = advance(twin, Y[:5, 100:], U[:5, 100:], 0.01)
     np.testing.assert_array_equal(a.x_hat, b.x_hat)
     np.testing.assert_array_equal(a.diagnostics, b.diagnostics)
 
@@ -122,7 +123,7 @@ def test_excitation_window_is_the_smallest_eigenvalue_of_the_gram_matrix():
     Y = rng.normal(size=(2, 40, 3))
     U = rng.normal(size=(2, 40, 1))
     ob.reset(batch=2)
-    blk = ob.advance(Y, U, dt)
+    blk = advance(ob, Y, U, dt)
     beta = np.stack([U[:, :, 0], -Y[:, :, 0], Y[:, :, 1] - Y[:, :, 2]], axis=2)  # eq. 10 regressor
     for j in (0, 5, 12, 13, 25, 39):
         win = beta[:, max(0, j - W + 1):j + 1]
@@ -138,7 +139,7 @@ def test_a_member_where_the_inverse_map_is_undefined_holds_alone():
     ob = JoSonObserver(form=form, lam=1.0, gamma=1.0)
     ob.reset(z_hat0=[[4.0], [1.0]])
     # z' = K (y - z) with K = lambda = 1: member 1 is driven below zero, member 0 stays positive
-    blk = ob.advance(np.array([[[4.0]] * 3, [[-5.0]] * 3]), np.zeros((2, 3, 1)), 1.0)
+    blk = advance(ob, np.array([[[4.0]] * 3, [[-5.0]] * 3]), np.zeros((2, 3, 1)), 1.0)
     assert blk.z_hat[1, -1, 0] < 0 and np.all(blk.x_hat[1] == 1.0)
     np.testing.assert_allclose(blk.x_hat[0, :, 0], np.sqrt(blk.z_hat[0, :, 0]))
     np.testing.assert_array_equal(ob.inverse_failures_, [0, 3])

@@ -15,6 +15,7 @@ from hgo_mj.observers import make_observer
 from hgo_mj.observers.base import Observer
 from hgo_mj.systems import BioreactorBullinger, ElasticJoint, ElasticJoint2Link, Pendulum
 from hgo_mj.systems.base import System
+from observer_cases import advance
 
 B = 64
 T = 200
@@ -121,7 +122,7 @@ def test_batch_equals_each_member_alone(make, dt, x0, spread, th0, u_level):
     X0, TH0 = _initial(x0, spread, th0)
     ob.reset(X0, theta_hat0=TH0)
     assert ob.batch == B
-    blk = ob.advance(Y, U, dt)
+    blk = advance(ob, Y, U, dt)
     assert np.isnan(Y).any(axis=2).sum() > 0 and np.all(np.isfinite(blk.x_hat))
     P = ob.P_
     assert P.shape == (B, ob.N, ob.N) and ob.theta_hat_.shape == (B, ob.q)
@@ -129,7 +130,7 @@ def test_batch_equals_each_member_alone(make, dt, x0, spread, th0, u_level):
     for b in range(B):
         one = make()
         one.reset(X0[b:b + 1], theta_hat0=None if TH0 is None else TH0[b:b + 1])
-        r = one.advance(Y[b:b + 1], U[b:b + 1], dt)
+        r = advance(one, Y[b:b + 1], U[b:b + 1], dt)
         np.testing.assert_array_equal(r.x_hat[0], blk.x_hat[b])
         np.testing.assert_array_equal(r.z_hat[0], blk.z_hat[b])
         np.testing.assert_array_equal(r.diagnostics[0], blk.diagnostics[b])
@@ -144,9 +145,9 @@ def test_block_equals_single_steps(make, dt, x0, spread, th0, u_level):
     X0, TH0 = _initial(x0, spread, th0, seed=3)
     a.reset(X0[:4], theta_hat0=None if TH0 is None else TH0[:4])
     b.reset(X0[:4], theta_hat0=None if TH0 is None else TH0[:4])
-    blk = a.advance(Y, U, dt)
+    blk = advance(a, Y, U, dt)
     for j in range(Y.shape[1]):
-        b.step(Y[:, j], U[:, j], dt)
+        b.update(Y[:, j], U[:, j], dt)
         np.testing.assert_array_equal(b.x_hat, blk.x_hat[:, j])
         np.testing.assert_array_equal(b.theta_hat_, blk.diagnostics[:, j, :a.q])
     np.testing.assert_array_equal(a.P_, b.P_)
@@ -185,7 +186,7 @@ def test_compiled_model_equals_python_model(make, dt, x0, spread, th0, u_level):
     X0, TH0 = _initial(x0, spread, th0, seed=4)
     for ob in (fast, slow):
         ob.reset(X0[:6], theta_hat0=None if TH0 is None else TH0[:6])
-    a, b = fast.advance(Y, U, dt), slow.advance(Y, U, dt)
+    a, b = advance(fast, Y, U, dt), advance(slow, Y, U, dt)
     np.testing.assert_array_equal(a.x_hat, b.x_hat)
     np.testing.assert_array_equal(a.diagnostics, b.diagnostics)
     np.testing.assert_array_equal(fast.P_, slow.P_)
@@ -210,7 +211,7 @@ def test_compiled_model_divergence_is_reported_alike(cls):
         Y = np.full((3, 40, 1), 0.075)
         # numpy warns of the overflow on the Python model's floats; the kernels do not
         with pytest.raises(DivergenceError) as e, np.errstate(all="ignore"):
-            ob.advance(Y, np.full((3, 40, 1), 0.08), 0.5)
+            advance(ob, Y, np.full((3, 40, 1), 0.08), 0.5)
         errors.append(str(e.value))
         states.append(ob._x.copy())
     assert errors[0] == errors[1] and "member 1" in errors[0]

@@ -17,7 +17,7 @@ import json
 
 import numpy as np
 import pytest
-from observer_cases import CASES, DT, signals
+from observer_cases import CASES, DT, advance, signals
 
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers import OBSERVERS, make_observer
@@ -115,7 +115,7 @@ def test_a_batch_equals_its_members_run_alone(kind, make, p, m):
         Y[b, 2 + b, 0] = np.nan
     batch = make()
     batch.reset(batch=B)
-    blk = batch.advance(Y, U, DT)
+    blk = advance(batch, Y, U, DT)
     assert blk.x_hat.shape == (B, T, len(batch.state_names))
     assert blk.z_hat.shape == (B, T, batch.n)
     assert blk.diagnostics.shape == (B, T, len(batch.diagnostic_names))
@@ -154,7 +154,7 @@ def test_reset_members_restarts_only_those_members(kind, make, p, m):
     ob.reset(batch=3)
     ref.reset(batch=3)
     for o in (ob, ref):
-        o.advance(*batch(0, 5), DT)
+        advance(o, *batch(0, 5), DT)
     try:
         ob.reset_members([1])
     except DesignError as exc:  # a clock shared by the members: refused, named
@@ -162,9 +162,9 @@ def test_reset_members_restarts_only_those_members(kind, make, p, m):
         assert kind in SHARED_CLOCK, exc
         return
     assert kind not in SHARED_CLOCK
-    out, want = ob.advance(*batch(5, STEPS), DT), ref.advance(*batch(5, STEPS), DT)
+    out, want = advance(ob, *batch(5, STEPS), DT), advance(ref, *batch(5, STEPS), DT)
     fresh.reset(batch=1)
-    alone = fresh.advance(*block(5, STEPS, 0.01), DT)
+    alone = advance(fresh, *block(5, STEPS, 0.01), DT)
     for b in (0, 2):
         np.testing.assert_array_equal(out.x_hat[b], want.x_hat[b])
         np.testing.assert_array_equal(out.diagnostics[b], want.diagnostics[b])

@@ -9,6 +9,7 @@ import pytest
 
 from hgo_mj.observers import QIntegralObserver, RiccatiObserver
 from hgo_mj.systems import CartPendulum, ElasticJoint
+from observer_cases import advance
 
 B, T, DT = 64, 240, 0.01
 
@@ -38,12 +39,12 @@ CONFIGS = (
 def _batch_and_single(make, z0, Y, U):
     ob = make()
     ob.reset(z_hat0=z0)
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     assert blk.x_hat.shape[:2] == (B, T) and np.isfinite(blk.x_hat).all()
     for b in (0, 3, 31, 50, 63):
         one = make()
         one.reset(z_hat0=z0[b:b + 1])
-        blk1 = one.advance(Y[b:b + 1], U[b:b + 1], DT)
+        blk1 = advance(one, Y[b:b + 1], U[b:b + 1], DT)
         np.testing.assert_array_equal(blk1.x_hat[0], blk.x_hat[b])
         np.testing.assert_array_equal(blk1.z_hat[0], blk.z_hat[b])
         np.testing.assert_array_equal(blk1.diagnostics[0], blk.diagnostics[b])
@@ -63,9 +64,9 @@ def test_block_equals_single_steps(cls, kw):
     a, b = cls(CartPendulum(), gamma=6.0, **kw), cls(CartPendulum(), gamma=6.0, **kw)
     a.reset(z_hat0=z0)
     b.reset(z_hat0=z0)
-    blk = a.advance(Y, U, DT)
+    blk = advance(a, Y, U, DT)
     for j in range(T):
-        b.step(Y[:, j], U[:, j], DT)
+        b.update(Y[:, j], U[:, j], DT)
         np.testing.assert_array_equal(b.x_hat, blk.x_hat[:, j])
         np.testing.assert_array_equal(b.z_hat, blk.z_hat[:, j])
     np.testing.assert_array_equal(a.z_hat, b.z_hat)
@@ -85,7 +86,7 @@ def test_unbatched_is_one_member():
     z0, Y, U = streams(2, seed=3)
     ob = QIntegralObserver(CartPendulum(), gamma=6.0, q=2)
     ob.reset(z_hat0=z0)
-    blk = ob.advance(Y, U, DT)
+    blk = advance(ob, Y, U, DT)
     one = QIntegralObserver(CartPendulum(), gamma=6.0, q=2)
     one.reset(z_hat0=z0[9])
     xs = np.array([one.update(Y[9, j], U[9, j], DT) for j in range(T)])
