@@ -17,7 +17,8 @@ The loop holds each observer's state and parameters as data (:attr:`Loop.states`
 members with different parameters (``params=``), each member its own single run. An observer
 that fails inside a segment (a math error on a blown-up estimate, its own divergence check) is
 found to the sample: the step is pure, so the state before a segment of more than one sample
-is still there and, on a failure, the loop replays that observer sample by sample from it. The :class:`LoopFailure` it raises names the observer, the sample and
+is still there and, on a failure, the loop replays that observer sample by sample from it.
+The :class:`LoopFailure` it raises names the observer, the sample and
 the cause, and carries the rows that are valid.
 """
 

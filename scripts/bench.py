@@ -38,6 +38,13 @@ B_BATCH = 1024
 T_BATCH = 100
 
 
+def advance(ob, Y, U, dt):
+    """Consume a block on the observer's own state in place: the loop's path
+    (``Observer._step_checked``, the block checked once by the caller)."""
+    params, state = ob._own()
+    return ob._step_checked(params, state, Y, U, dt)
+
+
 def best_per_call(fn, number: int, repeat: int = 7) -> float:
     """Best over ``repeat`` runs of the mean seconds per call of ``fn`` called ``number`` times."""
     best = float("inf")

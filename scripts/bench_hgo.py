@@ -48,6 +48,13 @@ from hgo_mj.systems import ElasticJoint, Pendulum
 DT = 1e-3
 
 
+def advance(ob, Y, U, dt):
+    """Consume a block on the observer's own state in place: the loop's path
+    (``Observer._step_checked``, the block checked once by the caller)."""
+    params, state = ob._own()
+    return ob._step_checked(params, state, Y, U, dt)
+
+
 def round_robin(fns: dict[str, Callable[[int], None]], number: int, rounds: int) -> dict[str, float]:
     """Best over ``rounds`` of the mean seconds per call of each ``fn(number)``, interleaved."""
     best = dict.fromkeys(fns, float("inf"))

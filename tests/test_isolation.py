@@ -20,6 +20,8 @@ from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate, simulate_batch
 
 FRAG = '''
+import numpy as np
+
 from hgo_mj.exceptions import DivergenceError
 from hgo_mj.observers.high_gain import HighGainObserver
 
@@ -29,15 +31,14 @@ class Frag(HighGainObserver):
 
     name = "frag"
 
-    def __init__(self, *args, **kw):
-        self.count = 0
-        super().__init__(*args, **kw)
+    def _init(self, p, x0, z0, u0):  # its sample count is state
+        return {**super()._init(p, x0, z0, u0), "count": np.zeros(u0.shape[0], dtype=int)}
 
-    def _advance(self, Y, U, dt, X, Z, D):
-        self.count += Y.shape[1]
-        if self.count > 30:
+    def _step(self, p, s, Y, U, dt, X, Z, D):
+        s.count += Y.shape[1]
+        if s.count.max() > 30:
             raise DivergenceError("the observer state left the finite numbers: [inf]")
-        super()._advance(Y, U, dt, X, Z, D)
+        super()._step(p, s, Y, U, dt, X, Z, D)
 '''
 
 
@@ -91,8 +92,8 @@ def test_an_estimate_that_leaves_the_finite_numbers_stops_alone():
     """No exception, an infinite estimate: with isolate it is NaN from that row on."""
 
     class Runaway(HighGainObserver):
-        def _current(self):
-            x, z, d = super()._current()
+        def _current(self, p, s):
+            x, z, d = super()._current(p, s)
             return x, np.full_like(z, np.inf), d
 
     plant, sensor, u = _parts()

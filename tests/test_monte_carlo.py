@@ -210,18 +210,22 @@ class _Fragile(HighGainObserver):
 
     def __init__(self, system, *, jump: float, **kw):
         super().__init__(system, **kw)
-        self.jump, self._last = jump, None
+        self.jump = jump
 
-    def _advance(self, Y, U, dt, X, Z, D):
+    def _init(self, p, x0, z0, u0):  # the last measurement is state (NaN: none yet)
+        return {**super()._init(p, x0, z0, u0), "last": np.full(u0.shape[0], np.nan)}
+
+    def _step(self, p, s, Y, U, dt, X, Z, D):
         from hgo_mj.exceptions import DivergenceError
 
         for j in range(Y.shape[1]):
             y = float(Y[0, j, 0])
-            if self._last is not None and abs(y - self._last) > self.jump:
-                raise DivergenceError(f"jump of {abs(y - self._last):.3g}")
-            self._last = y
+            last = float(s.last[0])
+            if last == last and abs(y - last) > self.jump:
+                raise DivergenceError(f"jump of {abs(y - last):.3g}")
+            s.last[0] = y
             one = slice(j, j + 1)
-            super()._advance(Y[:, one], U[:, one], dt, X[:, one], Z[:, one], D[:, one])
+            super()._step(p, s, Y[:, one], U[:, one], dt, X[:, one], Z[:, one], D[:, one])
 
 
 def make_fragile_run() -> dict:

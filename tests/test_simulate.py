@@ -96,8 +96,8 @@ def test_controller_sees_the_estimate_or_the_truth(setup):
 
 def test_divergence_raises_with_partial_trajectory(chain):
     class Exploding(HighGainObserver):  # reports an infinite z_hat after every sample
-        def _advance(self, Y, U, dt, X, Z, D):
-            super()._advance(Y, U, dt, X, Z, D)
+        def _step(self, p, s, Y, U, dt, X, Z, D):
+            super()._step(p, s, Y, U, dt, X, Z, D)
             Z[...] = (np.inf, 0.0)
             X[...] = Z
 
@@ -213,7 +213,7 @@ def test_physical_holds_the_last_valid_value(chain):
 
     def physical(ob, z):
         X = np.empty((1, 1, len(ob.state_names)))
-        ob._to_physical(np.array([[z]], dtype=float), np.full((1, 1, 1), 0.05), X)
+        ob._to_physical(ob.state, np.array([[z]], dtype=float), np.full((1, 1, 1), 0.05), X)
         return X[0, 0]
 
     ob = HighGainObserver(BioreactorBullinger(), k=5.0)
@@ -241,8 +241,8 @@ def test_physical_holds_the_last_valid_value(chain):
 
 def test_divergence_is_judged_on_z_hat(chain):
     class Runaway(HighGainObserver):  # z leaves the finite numbers, x_hat is NaN meanwhile
-        def _advance(self, Y, U, dt, X, Z, D):
-            super()._advance(Y, U, dt, X, Z, D)
+        def _step(self, p, s, Y, U, dt, X, Z, D):
+            super()._step(p, s, Y, U, dt, X, Z, D)
             Z[...] = (np.nan, 0.0)
             X[...] = np.nan
 
@@ -261,17 +261,19 @@ def test_math_error_in_an_update_is_a_divergence(chain, error):
     stops the run with a DivergenceError naming the observer and the time, carrying the
     partial trajectory (every row up to the failing update, also the chunks handed out)."""
     class Fragile(HighGainObserver):  # fails on its 6th sample (its state counts samples)
-        def _advance(self, Y, U, dt, X, Z, D):
+        def _init(self, p, x0, z0, u0):
+            return {**super()._init(p, x0, z0, u0), "calls": np.zeros(u0.shape[0], dtype=int)}
+
+        def _step(self, p, s, Y, U, dt, X, Z, D):
             for j in range(Y.shape[1]):
-                if self.calls == 5:
+                if s.calls[0] == 5:
                     raise error
-                self.calls += 1
-                super()._advance(Y[:, j:j + 1], U[:, j:j + 1], dt, X[:, j:j + 1],
-                                 Z[:, j:j + 1], D[:, j:j + 1])
+                s.calls += 1
+                super()._step(p, s, Y[:, j:j + 1], U[:, j:j + 1], dt, X[:, j:j + 1],
+                              Z[:, j:j + 1], D[:, j:j + 1])
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
     ob = Fragile(plant.system, k=1.0)
-    ob.calls = 0
     chunks = []
     with pytest.raises(DivergenceError, match=rf"observer 'frag' failed in its update at "
                                               rf"t=0.005 \(row 5\): {type(error).__name__}: ") as info:
@@ -287,7 +289,7 @@ def test_math_error_in_an_update_is_a_divergence(chain, error):
 def test_deliberate_errors_in_an_update_propagate(chain):
     """A shape mistake in an update stays a DimensionError; validation before the loop too."""
     class Strict(HighGainObserver):
-        def _advance(self, Y, U, dt, X, Z, D):
+        def _step(self, p, s, Y, U, dt, X, Z, D):
             raise DimensionError("phi(z_hat, u) must return 1 value; found 2")
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)
@@ -299,7 +301,7 @@ def test_deliberate_errors_in_an_update_propagate(chain):
 
 def test_an_observers_own_divergence_names_it(chain):
     class Checked(HighGainObserver):
-        def _advance(self, Y, U, dt, X, Z, D):
+        def _step(self, p, s, Y, U, dt, X, Z, D):
             raise DivergenceError("the observer state left the finite numbers: [inf]")
 
     plant = OdePlant(chain(2)(), dt=1e-3, physics_dt=1e-3)

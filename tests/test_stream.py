@@ -27,18 +27,21 @@ class Runaway(HighGainObserver):
     """Its estimate becomes infinite after ``after`` samples, without an exception."""
 
     def __init__(self, *args, after=0, **kw):
-        self.after, self.seen = after, 0
+        self.after = after
         super().__init__(*args, **kw)
 
-    def _advance(self, Y, U, dt, X, Z, D):
-        start = self.seen
-        self.seen += Y.shape[1]
-        super()._advance(Y, U, dt, X, Z, D)
+    def _init(self, p, x0, z0, u0):  # the samples seen are state
+        return {**super()._init(p, x0, z0, u0), "seen": np.zeros(u0.shape[0], dtype=int)}
+
+    def _step(self, p, s, Y, U, dt, X, Z, D):
+        start = int(s.seen[0])
+        s.seen += Y.shape[1]
+        super()._step(p, s, Y, U, dt, X, Z, D)
         Z[:, max(self.after - start, 0):] = np.inf
 
-    def _current(self):
-        x, z, d = super()._current()
-        return (x, np.full_like(z, np.inf), d) if self.seen > self.after else (x, z, d)
+    def _current(self, p, s):
+        x, z, d = super()._current(p, s)
+        return (x, np.full_like(z, np.inf), d) if s.seen[0] > self.after else (x, z, d)
 
 
 def _run(keep, *, every=1, duration=3.0, chunk=0.37, controller=False, observers=None,

@@ -683,7 +683,7 @@ class Observer(ABC):
         measurement update (:attr:`measurement_update`) overrides it."""
         return self._current(p, s)[0]
 
-    def _check_period(self, p: Params, dt: float) -> None:
+    def _check_period(self, p: Params, dt: float) -> None:  # noqa: B027 - optional hook
         """:meth:`check_period` for one member's parameters; default: nothing to check."""
 
     def check_period(self, dt: float, params: Params | None = None) -> None:

@@ -7,10 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.observers import AdaptiveGainObserver
 from hgo_mj.systems import ElasticJoint, Pendulum
-from observer_cases import advance
 
 B, T, DT = 64, 240, 0.01
 

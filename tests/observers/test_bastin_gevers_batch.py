@@ -8,12 +8,12 @@ import pickle
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.exceptions import DivergenceError
 from hgo_mj.observers import AOCF, BastinGeversObserver
 from hgo_mj.systems import CartPendulum, Pendulum
 from hgo_mj.systems.papers import BioreactorBastinGevers
-from observer_cases import advance
 
 B, T, DT = 64, 240, 0.01
 

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.observers import HighGainObserver, MultiOutputHighGainObserver, ObserverBank
 from hgo_mj.observers.base import ONE_BUFFER
 from hgo_mj.observers.high_gain import TILE
 from hgo_mj.systems import ElasticJoint, Pendulum
-from observer_cases import advance
 
 B, T, DT = 64, 200, 2e-3
 METHODS = ("exact", "euler", "rk4")

@@ -7,11 +7,11 @@ import pickle
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.observers.jo_son import JoSonForm, JoSonObserver
 from hgo_mj.systems import ElasticJoint
 from hgo_mj.systems.papers import JoSonExample
-from observer_cases import advance
 
 B, T = 64, 240
 

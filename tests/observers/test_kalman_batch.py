@@ -9,13 +9,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.exceptions import DivergenceError
 from hgo_mj.observers import make_observer
 from hgo_mj.observers.base import Observer
 from hgo_mj.systems import BioreactorBullinger, ElasticJoint, ElasticJoint2Link, Pendulum
 from hgo_mj.systems.base import System
-from observer_cases import advance
 
 B = 64
 T = 200

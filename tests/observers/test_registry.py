@@ -27,18 +27,18 @@ class HoldObserver(Observer):
     def __init__(self, system=None, *, outputs=(0,)):
         super().__init__(system, order=1, outputs=outputs)
 
-    def _reset(self, x0, z0, u0):
-        self._Z = np.zeros((self.batch, 1)) if z0 is None else z0.copy()
+    def _init(self, p, x0, z0, u0):
+        return {"z": np.zeros((u0.shape[0], 1)) if z0 is None else z0.copy()}
 
-    def _advance(self, Y, U, dt, X, Z, D):
+    def _step(self, p, s, Y, U, dt, X, Z, D):
         for j in range(Y.shape[1]):
             ok = ~np.isnan(Y[:, j, 0])
-            self._Z[ok, 0] = Y[ok, j, 0]
-            Z[:, j] = self._Z
-            X[:, j] = self._Z
+            s.z[ok, 0] = Y[ok, j, 0]
+            Z[:, j] = s.z
+            X[:, j] = s.z
 
-    def _current(self):
-        return self._Z, self._Z, np.zeros((self.batch, 0))
+    def _current(self, p, s):
+        return s.z.copy(), s.z.copy(), np.zeros((s.z.shape[0], 0))
 '''
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.observers import QIntegralObserver, RiccatiObserver
 from hgo_mj.systems import CartPendulum, ElasticJoint
-from observer_cases import advance
 
 B, T, DT = 64, 240, 0.01
 

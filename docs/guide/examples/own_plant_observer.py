@@ -14,6 +14,7 @@ import numpy as np
 from hgo_mj.inputs import Multisine
 from hgo_mj.metrics import all_metrics, format_table
 from hgo_mj.observers import HighGainObserver, Observer, make_observer, register
+from hgo_mj.observers.base import Params, State
 from hgo_mj.plants import OdePlant
 from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
@@ -55,7 +56,7 @@ class VanDerPol(System):
         return float(self.params["mu"] * (1.0 - z[0] ** 2) * z[1] - z[0] + u0)
 
 
-# --- an observer: the state as (B, n) arrays, the algorithm in _advance -------------------
+# --- an observer: state and parameters as data, the algorithm in _step --------------------
 @register
 class EulerLuenberger(Observer):
     """z' = A z + L (y - z1) + e_n phi(z, u), integrated by forward Euler, L = (2w, w^2)."""
@@ -67,28 +68,33 @@ class EulerLuenberger(Observer):
                  outputs: Any = (0,)) -> None:
         super().__init__(system, outputs=outputs)
         self.w = float(w)
-        self._z = np.zeros((1, self.n))
 
-    def _reset(self, x0: np.ndarray | None, z0: np.ndarray | None, u0: np.ndarray) -> None:
+    def _parameters(self) -> dict[str, Any]:  # tunable, per member in a batch
+        return {"w": self.w}
+
+    def _init(self, p: Params, x0: np.ndarray | None, z0: np.ndarray | None,
+              u0: np.ndarray) -> dict[str, np.ndarray]:
         if z0 is not None:
-            self._z = np.array(z0, dtype=float)
+            z = np.array(z0, dtype=float)
         elif x0 is not None:
-            self._z = np.array([self.system.to_normal(x, u) for x, u in zip(x0, u0)])
+            z = np.array([self.system.to_normal(x, u) for x, u in zip(x0, u0)])
         else:
-            self._z = np.zeros((self.batch, self.n))
+            z = np.zeros((u0.shape[0], self.n))
+        return {"z": z}  # the state: (B, ...) arrays
 
-    def _advance(self, Y: np.ndarray, U: np.ndarray, dt: float, X: np.ndarray, Z: np.ndarray,
-                 D: np.ndarray) -> None:
-        gains = np.array([2.0 * self.w, self.w ** 2])
+    def _step(self, p: Params, s: State, Y: np.ndarray, U: np.ndarray, dt: float,
+              X: np.ndarray, Z: np.ndarray, D: np.ndarray) -> None:
+        w = float(p.w)  # one member's parameters (the base groups members by parameters)
+        gains = np.array([2.0 * w, w ** 2])
         for j in range(Y.shape[1]):
-            e = np.nan_to_num(Y[:, j, 0] - self._z[:, 0])  # a dropout (NaN): no correction
-            rate = np.column_stack([self._z[:, 1], self.system.phi_batch(self._z, U[:, j])])
-            self._z = self._z + dt * (rate + gains * e[:, None])
-            Z[:, j] = self._z
-            X[:, j] = self._z  # from_normal is the identity here
+            e = np.nan_to_num(Y[:, j, 0] - s.z[:, 0])  # a dropout (NaN): no correction
+            rate = np.column_stack([s.z[:, 1], self.system.phi_batch(s.z, U[:, j])])
+            s.z = s.z + dt * (rate + gains * e[:, None])
+            Z[:, j] = s.z
+            X[:, j] = s.z  # from_normal is the identity here
 
-    def _current(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return self._z.copy(), self._z.copy(), np.zeros((self.batch, 0))
+    def _current(self, p: Params, s: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return s.z.copy(), s.z.copy(), np.zeros((s.z.shape[0], 0))
 
 
 plant = OdePlant(VanDerPol(mu=1.0), dt=0.001)
@@ -102,3 +108,14 @@ traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0), observers
 metrics = all_metrics(traj, t_transient=2.0)
 print(format_table(metrics))
 assert all(np.all(np.asarray(m["rmse"]) < 0.05) for m in metrics.values())
+
+# --- many tunings as one batch: member i runs with w[i], each equal to its single run -------
+ob = observers["luenberger"]
+params = ob.parameters(3, w=[5.0, 10.0, 20.0])
+state = ob.init(3, [2.0, 0.0], params=params)
+y = traj.y_meas[None, :200].repeat(3, axis=0)
+u = traj.u[None, :200].repeat(3, axis=0)
+state, rows = ob.step(params, state, y, u, 0.001)
+single = ob.parameters(1, w=20.0)
+_, alone = ob.step(single, ob.init(1, [2.0, 0.0], params=single), y[:1], u[:1], 0.001)
+assert np.array_equal(rows.x_hat[2], alone.x_hat[0])
