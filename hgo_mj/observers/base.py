@@ -235,26 +235,13 @@ class State:
     [0.0, 1.0, 0.0]
     """
 
-    __slots__ = ("fields",)
-
     def __init__(self, **fields: Any) -> None:
-        object.__setattr__(self, "fields", fields)
+        vars(self).update(fields)  # plain attributes: a field is read at attribute speed
 
-    def __getattr__(self, name: str) -> Any:
-        try:
-            return object.__getattribute__(self, "fields")[name]
-        except KeyError:
-            raise AttributeError(f"{type(self).__name__} has no field {name!r}; it has "
-                                 f"{list(object.__getattribute__(self, 'fields'))}") from None
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        self.fields[name] = value
-
-    def __getstate__(self) -> dict[str, Any]:
-        return self.fields
-
-    def __setstate__(self, fields: dict[str, Any]) -> None:
-        object.__setattr__(self, "fields", fields)
+    @property
+    def fields(self) -> dict[str, Any]:
+        """Field name -> array (or nested state), in the order given (the live mapping)."""
+        return vars(self)
 
     @property
     def batch(self) -> int:
@@ -359,13 +346,27 @@ class Params(State):
     (2, False)
     """
 
-    __slots__ = ()
-
     def __init__(self, **fields: Any) -> None:
         for v in fields.values():
             if isinstance(v, np.ndarray):
                 v.flags.writeable = False
         super().__init__(**fields)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise DesignError(f"Params are read-only; make new ones (Observer.parameters) to "
+                          f"change {name!r}")
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: v for k, v in vars(self).items() if not k.startswith("_")}
+
+    def __setstate__(self, fields: dict[str, Any]) -> None:
+        vars(self).update(fields)
+
+    @property
+    def fields(self) -> dict[str, Any]:
+        """Parameter name -> ``(B, ...)`` array (the caches :meth:`groups` and :meth:`key`
+        keep are not fields)."""
+        return {k: v for k, v in vars(self).items() if not k.startswith("_")}
 
     def copy(self) -> Params:  # read-only arrays are shared, not copied
         """The same parameters (their arrays are read-only, so shared).
@@ -420,6 +421,12 @@ class Params(State):
         >>> Params(k=np.array(2.0)).key() == Params(k=np.array(2.0)).key()
         True
         """
+        found = vars(self).get("_key")
+        if found is None:
+            found = vars(self)["_key"] = self._find_key()
+        return found  # type: ignore[no-any-return]
+
+    def _find_key(self) -> bytes:
         parts = []
         for v in self.fields.values():
             if isinstance(v, Params):
@@ -444,11 +451,17 @@ class Params(State):
         >>> [(r.tolist(), p.k.item()) for r, p in Params(k=np.array([1.0, 2.0, 1.0])).groups()]
         [([0, 2], 1.0), ([1], 2.0)]
         """
+        found = vars(self).get("_groups")
+        if found is None:  # computed once: the arrays are read-only
+            found = vars(self)["_groups"] = self._find_groups()
+        return found  # type: ignore[no-any-return]
+
+    def _find_groups(self) -> list[tuple[Any, Params]]:
+        arrays = [v for v in self.fields.values() if isinstance(v, np.ndarray)]
+        if not arrays:  # no parameters: one group of every member
+            return [(slice(None), self)]
         B = self.batch
-        flat = [np.ascontiguousarray(v, dtype=np.float64).reshape(B, -1)
-                for v in self.fields.values() if isinstance(v, np.ndarray)]
-        if not flat:
-            return [(np.arange(B), self.member(0))]
+        flat = [np.ascontiguousarray(v, dtype=np.float64).reshape(B, -1) for v in arrays]
         table = np.concatenate(flat, axis=1)
         if table.shape[0] == 1 or (table == table[:1]).all():
             return [(np.arange(B), self.member(0))]
@@ -806,8 +819,6 @@ class Observer(ABC):
         of every member with the whole ``params`` for an ungrouped observer (a bank), else
         :meth:`Params.groups`."""
         if not self.grouped:
-            return [(slice(None), params)]
-        if not params.fields:
             return [(slice(None), params)]
         return params.groups()
 
@@ -1224,9 +1235,9 @@ class Observer(ABC):
         >>> obs.update([0.2], [0.0], 0.01).round(3)
         array([0.038, 0.181])
         """
-        params, state = self._own()
+        params, state = self._held if self._held is not None else self._own()
         ya, ua = self._floats("y", y), self._inputs(u)
-        B = state.batch
+        B = state.batch if self._batched else 1
         if self._batched:
             ya, ua = ya[:, None] if ya.ndim == 2 else ya, ua[:, None] if ua.ndim == 2 else ua
         else:
@@ -1404,7 +1415,9 @@ class Observer(ABC):
     def _floats(self, what: str, value: Any) -> Array:
         """``value`` as a float array: real numbers only (a bool or a string is refused, not
         converted); NaN is allowed (a measurement's dropout)."""
-        a = np.asarray(value)
+        a = value if type(value) is np.ndarray else np.asarray(value)
+        if a.dtype is _F64:
+            return a  # type: ignore[no-any-return]
         if a.dtype.kind not in "iuf":
             raise DimensionError(f"{self.name}: {what} must be an array of real numbers; found "
                                  f"{value!r}")
@@ -1413,7 +1426,7 @@ class Observer(ABC):
     def _inputs(self, value: Any, what: str = "u") -> Array:
         """The input as a float array: real numbers, finite (an input is never a dropout)."""
         a = self._floats(what, value)
-        if not np.isfinite(a).all():
+        if not (math.isfinite(a.item()) if a.size == 1 else np.isfinite(a).all()):
             at = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
             raise DesignError(f"{self.name}: {what} must be finite; found {what}{list(at)} = "
                               f"{a[at]}")
