@@ -313,6 +313,8 @@ class Loop:
         self._values = {name: dict(v) for name, v in values.items()}
         self.states: dict[str, State] = {}
         self.params: dict[str, Params] = {}
+        #: the observers whose kernels a throw-away sample has warmed (:meth:`_warm_up`)
+        self._warm: set[str] = set()
         self.exact = bool(exact)
         if not isinstance(isolate, bool):
             raise DesignError(f"isolate must be true or false; found {isolate!r}")
@@ -322,7 +324,8 @@ class Loop:
         self.failed: dict[str, tuple[int, float, BaseException]] = {}
         self.batch = 1
         self.k = 0
-        #: seconds spent in each observer's updates since the reset
+        #: seconds spent in each observer's updates since the reset, warm (the kernels'
+        #: compilation or cache load is spent before, on a throw-away sample: :meth:`_warm_up`)
         self.wall: dict[str, float] = {}
         #: (sample index, measurement) drawn by :meth:`sample` and not yet consumed
         self._pending: tuple[int, Array] | None = None
@@ -387,10 +390,26 @@ class Loop:
             ob.check_period(self.periods.sample, p)
             self.params[name], self.states[name] = p, ob.init(B, params=p)
             ob._hold(p, self.states[name], batched)
+            if name not in self._warm:
+                self._warm_up(ob, p, self.states[name])
+                self._warm.add(name)
         self.batch, self.k = B, 0
         self.wall = dict.fromkeys(self.observers, 0.0)
         self._pending = None
         self.failed = {}
+
+    def _warm_up(self, ob: Observer, p: Params, state: State) -> None:
+        """One throw-away sample of a copy of member 0 (the plant's clean output, zero
+        input): it compiles or loads the family's kernels (numba's dispatch and cache), so
+        that the wall time the loop reports per update (:attr:`wall`) is the warm cost, the
+        same whichever observer runs first. Its outcome is discarded; a failure here is not
+        the run's (the run meets it again where it is real)."""
+        y = np.asarray(self.plant.outputs(), dtype=np.float64).reshape(self.plant.batch, 1, -1)
+        U = np.zeros((1, 1, len(self.plant.input_names)))
+        try:
+            ob._step_checked(p.take([0]), state.take([0]), y[:1], U, self.periods.sample)
+        except Exception:  # noqa: BLE001, S110 - a warm-up only; its result is discarded
+            pass
 
     def reset_members(self, idx: Any, X0: Any, seeds: Any) -> None:
         """Restart the members ``idx`` of a batch only (a vector environment's autoreset): the

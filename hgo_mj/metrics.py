@@ -9,7 +9,9 @@ by name):
 * ``settling_time``: the first time after which ``|e|`` stays inside ``band`` (absolute, or
   relative to the range of the true state when ``relative=True``); ``inf`` if it never does;
 * ``final``: ``|e|`` at the last sample;
-* ``update_time``: mean wall time of one observer update, seconds.
+* ``update_time``: mean wall time of one observer update, seconds, warm: the loop spends the
+  kernels' compilation or cache load on a throw-away sample before it starts timing
+  (:class:`~hgo_mj.loop.Loop`), so an observer's cost is the same listed first or second.
 
 A plant state the observer does not estimate (an order-only observer's ``z1, z2, ...``, a
 model-free multi-output observer without the motor states, ...) is **not estimated**: its
