@@ -439,7 +439,8 @@ class Params(State):
 
     def groups(self) -> list[tuple[NDArray[np.intp], Params]]:
         """The members grouped by equal parameters: ``(rows, one member's parameters)`` per
-        group, in order of first appearance (one group when every member shares them).
+        group, in order of first appearance (one group when every member shares them);
+        ``rows`` is an index array, or a slice where the group's members are consecutive.
 
         Returns
         -------
@@ -448,8 +449,11 @@ class Params(State):
         Examples
         --------
         >>> import numpy as np
-        >>> [(r.tolist(), p.k.item()) for r, p in Params(k=np.array([1.0, 2.0, 1.0])).groups()]
-        [([0, 2], 1.0), ([1], 2.0)]
+        >>> [(r, p.k.item()) for r, p in Params(k=np.array([1.0, 2.0, 1.0])).groups()]
+        [(array([0, 2]), 1.0), (slice(1, 2, None), 2.0)]
+
+        Consecutive members of a group are a slice (the base then steps views of the state,
+        without copies): a tuning round's trials x seeds, seeds innermost, are.
         """
         found = vars(self).get("_groups")
         if found is None:  # computed once: the arrays are read-only
@@ -466,8 +470,13 @@ class Params(State):
         if table.shape[0] == 1 or (table == table[:1]).all():
             return [(np.arange(B), self.member(0))]
         _, first, inverse = np.unique(table, axis=0, return_index=True, return_inverse=True)
-        order = np.argsort(first)
-        return [(np.flatnonzero(inverse.ravel() == g), self.member(int(first[g]))) for g in order]
+        out: list[tuple[Any, Params]] = []
+        for g in np.argsort(first):
+            rows: Any = np.flatnonzero(inverse.ravel() == g)
+            if rows[-1] - rows[0] + 1 == rows.size:  # consecutive members: a slice (views)
+                rows = slice(int(rows[0]), int(rows[-1]) + 1)
+            out.append((rows, self.member(int(first[g]))))
+        return out
 
 
 class Observer(ABC):
@@ -803,11 +812,11 @@ class Observer(ABC):
                                             (B, *shape)).copy()
                 continue
             a = np.asarray(values[name])
-            if a.shape == shape or a.dtype == object:
-                one = self._check_parameter(name, values[name])
-                out[name] = np.broadcast_to(one, (B, *shape)).copy()
-            elif a.shape == (B, *shape):
+            if a.shape == (B, *shape) and a.dtype != object:  # one value per member
                 out[name] = np.stack([self._check_parameter(name, a[b]) for b in range(B)])
+            elif a.ndim <= len(shape) or a.dtype == object:  # one value (a family's shorthand
+                one = self._check_parameter(name, values[name])  # as its constructor takes)
+                out[name] = np.broadcast_to(one, (B, *shape)).copy()
             else:
                 raise DimensionError(f"{self.name}: parameter {name} must have shape {shape} "
                                      f"(every member) or {(B, *shape)} (per member); found "
@@ -883,7 +892,8 @@ class Observer(ABC):
             return State(**{**self._core(B), **self._init(groups[0][1], x0, z0, u)})
         state: State | None = None
         for rows, p in groups:
-            part = State(**{**self._core(len(rows)),
+            part = State(**{**self._core(len(range(B)[rows]) if isinstance(rows, slice)
+                                         else len(rows)),
                             **self._init(p, None if x0 is None else x0[rows],
                                          None if z0 is None else z0[rows], u[rows])})
             if state is None:  # the fields' shapes from the first group, B rows
@@ -1015,6 +1025,11 @@ class Observer(ABC):
             self._step(groups[0][1], s, Yo, U, dt, X, Z, D[..., :nd])
         else:
             for rows, p in groups:
+                if isinstance(rows, slice):  # consecutive members: views, written in place
+                    sub = _view(s, rows)
+                    self._step(p, sub, Yo[rows], U[rows], dt, X[rows], Z[rows], D[rows, :, :nd])
+                    _put_back(s, rows, sub)
+                    continue
                 sub = s.take(rows)
                 Xg, Zg, Dg = X[rows], Z[rows], D[rows, :, :nd]
                 self._step(p, sub, np.ascontiguousarray(Yo[rows]), U[rows], dt, Xg, Zg, Dg)
@@ -1492,6 +1507,31 @@ def _batch_size(batch: Any) -> int:
     if isinstance(batch, (bool, np.bool_)) or not isinstance(batch, (int, np.integer)) or batch < 1:
         raise DesignError(f"batch must be a positive integer; found {batch!r}")
     return int(batch)
+
+
+def _view(s: State, rows: slice) -> State:
+    """The members ``rows`` of ``s`` as views (a field that is a nested state: its views)."""
+    def one(v: Any) -> Any:
+        if isinstance(v, State):
+            return _view(v, rows)
+        if isinstance(v, tuple):
+            return tuple(one(x) for x in v)
+        return v[rows]
+    return State(**{k: one(v) for k, v in s.fields.items()})
+
+
+def _put_back(s: State, rows: slice, sub: State) -> None:
+    """Write the fields of ``sub`` that a family assigned anew (no longer views of ``s``)
+    into the members ``rows`` of ``s``."""
+    for k, v in s.fields.items():
+        w = sub.fields[k]
+        if isinstance(v, State):
+            _put_back(v, rows, w)
+        elif isinstance(v, tuple):
+            for a, b in zip(v, w):
+                _put_back(a, rows, b)
+        elif not (isinstance(w, np.ndarray) and w.base is v):
+            v[rows] = w
 
 
 def _batch_of(params: Params) -> int | None:

@@ -67,8 +67,9 @@ __all__ = ["METHODS", "HighGainObserver", "MultiOutputHighGainObserver", "matche
 
 #: the integration methods of a sample: the sampled-data observer, forward Euler, RK4
 METHODS = ("exact", "euler", "rk4")
-#: at most this many sample periods keep their one-step maps (jittered periods do not grow memory)
-MAP_CACHE = 8
+#: at most this many (sample period, parameters) keep their one-step maps (a tuning round of many
+#: gains reuses them; jittered periods do not grow memory without bound)
+MAP_CACHE = 1024
 
 
 #: ``flags`` bits of :func:`affine_advance`
