@@ -8,12 +8,12 @@ import pickle
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.exceptions import DivergenceError
 from hgo_mj.observers import AOCF, BastinGeversObserver
 from hgo_mj.systems import CartPendulum, Pendulum
 from hgo_mj.systems.papers import BioreactorBastinGevers
-from observer_cases import advance
 
 B, T, DT = 64, 240, 0.01
 
@@ -150,7 +150,7 @@ def test_a_changed_period_restarts_the_window_and_divergence_names_the_member():
     U = np.full((2, 50, 1), 0.2)
     advance(ob, Y, U, 0.01)
     advance(ob, Y, U, 0.02)  # a new period: a window of round(0.3 / 0.02) = 15 samples
-    assert ob._ring.shape == (2, 15, 2)
+    assert ob.state.ring.shape == (2, 15, 2)
     Y[1, 10] = 1e308  # g(y) overflows: the state leaves the finite numbers at that sample
     with np.errstate(over="ignore"), pytest.raises(
             DivergenceError, match=r"left the finite numbers.*\(member 1, sample 10\)"):
