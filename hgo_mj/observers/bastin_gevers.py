@@ -92,7 +92,7 @@ from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, v
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.aocf import AOCF, Rebuildable, _callable, _names
 from ..systems.base import System
-from .base import Array, Observer, batch_rows, register
+from .base import Array, Block, Observer, Params, State, _batch_of, _batch_size, batch_rows, register
 
 __all__ = ["AOCF", "BastinGeversObserver", "Rebuildable", "SlidingGram", "advance_3_1",
            "check_rk_period", "diagnostics_4_5_4_11", "excitation_4_5", "reachability_rank_4_11",
@@ -846,52 +846,70 @@ class BastinGeversObserver(Observer):
             f"theta_{nm}" for nm in aocf.theta_names) + tuple(
             f"theta_{nm}" for nm in aocf.physical_param_names) + (
             ("excitation",) if excitation_window is not None else ()) + ("reachability_rank",)
-        self._init = (x_hat0, z_hat0, theta_hat0)
-        self.reset()
+        #: the constructor's initial estimate (x_hat0, z_hat0, theta_hat0), as given
+        self._start = (x_hat0, z_hat0, theta_hat0)
+        # checked now (shapes, the form's maps and the inverse map's domain at the start), so
+        # that a bad initial estimate is refused at construction; the state is made by init
+        self._start_fields(None)
 
     @property
     def state_names(self) -> tuple[str, ...]:
         return self.form.state_names
 
-    # ------------------------------------------------------------------ reset
-    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
-              batch: int | None = None, theta_hat0: Any = None) -> None:
-        """Restart from ``x_hat0`` (physical, needs the form's ``from_physical``) or
-        ``z_hat0`` (AOCF coordinates) and ``theta_hat0`` (each ``(d,)`` for every member or
-        ``(B, d)``); all three left out: the constructor's. The filter restarts at
-        ``V(0) = 0``."""
-        if x_hat0 is None and z_hat0 is None and theta_hat0 is None:
-            x_hat0, z_hat0, theta_hat0 = self._init
-        if batch is None and theta_hat0 is not None and np.ndim(theta_hat0) == 2 and (
-                x_hat0 is None and z_hat0 is None):
-            batch = int(np.shape(theta_hat0)[0])
-        self._theta0 = theta_hat0
-        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch)
+    # ------------------------------------------------------------------ parameters
+    def _parameters(self) -> dict[str, Any]:
+        """The output-injection gain ``c1`` (Theorem 4.1 i) and the adaptation gain
+        :math:`\\Gamma` ``gamma`` ``(m, m)`` (eq. 3.1c)."""
+        return {"c1": self.c1, "gamma": self.gamma}
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        if name == "c1":
+            return np.array(finite_scalar("c1", value, positive=True))
+        return symmetric_matrix("gamma", value, self.form.m, dim="m")
+
+    # ------------------------------------------------------------------ the state
+    def _theta_rows(self, theta_hat0: Any, B: int) -> Array:
+        """``theta_hat0`` (``(m,)`` for every member or ``(B, m)``; None: zero) as ``(B, m)``."""
+        m = self.form.m
+        if theta_hat0 is None:
+            return np.zeros((B, m))
+        if np.ndim(theta_hat0) == 1:  # one estimate for every member
+            return np.tile(batch_rows("theta_hat0", theta_hat0, m, None), (B, 1))
+        return batch_rows("theta_hat0", theta_hat0, m, B)
+
+    def _start_fields(self, B: int | None) -> dict[str, Any]:
+        """The state fields of ``B`` members (None: the constructor's own rows, else one) from
+        the constructor's initial estimate, input zero."""
+        x, z, th = self._start
+        if x is not None and z is not None:
+            raise DesignError("give x_hat0 or z_hat0, not both")
+        x0 = None if x is None else batch_rows("x_hat0", x, len(self.state_names), B)
+        z0 = None if z is None else batch_rows("z_hat0", z, self.n, B)
+        if B is None:
+            rows = [v.shape[0] for v in (x0, z0) if v is not None]
+            B = rows[0] if rows else (int(np.shape(th)[0]) if np.ndim(th) == 2 else 1)
+        u0 = np.zeros((B, self.n_inputs or 0))
+        return self._fields(x0, z0, u0, self._theta_rows(th, B))
+
+    def _fields(self, x0: Array | None, z0: Array | None, u0: Array,
+                th: Array) -> dict[str, Any]:
+        """The state of ``B = len(u0)`` members from ``x0`` (physical) or ``z0`` (AOCF
+        coordinates; neither: zero) and the parameter estimate ``th`` ``(B, m)``; the filter
+        starts at ``V(0) = 0``. (The initial state does not depend on the gains.)"""
         f = self.form
-        B, n, m = self.batch, f.n, f.m
-        if self._theta0 is None:
-            th = np.zeros((B, m))
-        elif np.ndim(self._theta0) == 1:  # one estimate for every member
-            th = np.tile(batch_rows("theta_hat0", self._theta0, m, None), (B, 1))
-        else:
-            th = batch_rows("theta_hat0", self._theta0, m, B)
+        B, n, m = u0.shape[0], f.n, f.m
         if x0 is not None:
             if not f.has_forward:
                 raise DesignError(f"x_hat0 in physical coordinates needs the form's from_physical "
                                   f"map; {f.label} has none: give z_hat0 (AOCF coordinates)")
             z = np.array([vector("from_physical(x_hat0)", f.from_physical(x, t, u), n)
-                          for x, t, u in zip(x0, th, u0)])
+                          for x, t, u in zip(x0, th, u0)]).reshape(B, n)
         else:
             z = np.zeros((B, n)) if z0 is None else z0
-        self._S = np.ascontiguousarray(np.concatenate((z, th, np.zeros((B, (n - 1) * m))),
-                                                      axis=1))
-        self._phi = np.zeros((B, m))
-        self._params = np.full((B, len(f.physical_param_names)), np.nan)
-        self._xp = z.copy()
+        p_held = np.full((B, len(f.physical_param_names)), np.nan)
+        xp = z.copy()
         if f.has_inverse:
-            self._xp = np.empty((B, len(f.state_names)))
+            xp = np.empty((B, len(f.state_names)))
             for b in range(B):
                 try:
                     state, params = f.to_physical(z[b], th[b], u0[b])
@@ -903,19 +921,124 @@ class BastinGeversObserver(Observer):
                                       f"{th[b].tolist()}) lies where the inverse map is "
                                       f"undefined: {exc}; give theta_hat0 / z_hat0 inside its "
                                       f"domain") from None
-                self._xp[b] = state
+                xp[b] = state
                 if params:
-                    self._params[b] = [params[nm] for nm in f.physical_param_names]
-        # condition 4.5: the regressors of the last window (allocated at the first period)
-        self._ring = np.zeros((B, 0, m))
-        self._ring_dt = math.nan
-        self._ring_pos = np.zeros(B, dtype=np.int64)
-        self._ring_full = np.zeros(B, dtype=np.bool_)
-        self._gram = np.zeros((B, m, m))
-        self._excitation = np.zeros(B)
-        # Theorem 4.2 along the run: sum of omega omega^T
-        self._Wsum = np.zeros((B, f.s, f.s))
-        self._rank = np.zeros(B)
+                    p_held[b] = [params[nm] for nm in f.physical_param_names]
+        return {
+            # (x_hat, theta_hat, vec V), the argument of the kernels
+            "S": np.ascontiguousarray(np.concatenate((z, th, np.zeros((B, (n - 1) * m))),
+                                                     axis=1)),
+            "phi": np.zeros((B, m)),  # the regressor (3.1e) at the last sample
+            "p_held": p_held,  # the physical parameters (held where the inverse is undefined)
+            "x_held": xp,  # the physical estimate (the same)
+            # condition 4.5: the regressors of the last window, per member with the period it
+            # was filled at (NaN: none yet); the ring's length is set at the first period
+            # (:meth:`_step_checked`); a restarted member's row broadcasts into it
+            "ring": np.zeros((B, 0 if self.excitation_window is None else 1, m)),
+            "ring_dt": np.full(B, np.nan),
+            "ring_pos": np.zeros(B, dtype=np.int64),
+            "ring_full": np.zeros(B, dtype=np.bool_),
+            "gram": np.zeros((B, m, m)),
+            "excitation": np.zeros(B),
+            # Theorem 4.2 along the run: sum of omega omega^T, and the rank
+            "Wsum": np.zeros((B, f.s, f.s)),
+            "rank": np.zeros(B),
+        }
+
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        """From ``x0`` or ``z0`` with a zero parameter estimate; neither: the constructor's
+        initial estimate (with its ``theta_hat0``)."""
+        if x0 is None and z0 is None:
+            return self._start_fields(u0.shape[0])
+        return self._fields(x0, z0, u0, self._theta_rows(None, u0.shape[0]))
+
+    def init(self, batch: int = 1, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+             params: Params | None = None, theta_hat0: Any = None) -> State:
+        """A new state of ``batch`` members (:meth:`Observer.init`), with the parameter
+        estimate ``theta_hat0`` (``(m,)`` for every member or ``(B, m)``) where given: then
+        from ``x_hat0`` or ``z_hat0`` (default zero). All three left out: the constructor's
+        initial estimate. The filter starts at ``V(0) = 0``.
+
+        Parameters
+        ----------
+        batch : int
+            The number of members B.
+        x_hat0, z_hat0 : array_like, optional
+            Initial estimate in physical coordinates (needs the form's ``from_physical``) or
+            in AOCF coordinates, ``(d,)`` or ``(B, d)``.
+        u0 : array_like, optional
+            Input at the start, ``(m_u,)`` or ``(B, m_u)``; default zero.
+        params : Params, optional
+            The members' parameters (the initial state does not depend on them).
+        theta_hat0 : array_like, optional
+            Initial parameter estimate, ``(m,)`` or ``(B, m)``; default zero (or the
+            constructor's, with neither initial estimate given).
+
+        Returns
+        -------
+        State
+
+        Raises
+        ------
+        DesignError
+            Both ``x_hat0`` and ``z_hat0``, a non-finite value, an initial estimate where the
+            inverse map is undefined, or ``params`` of another batch.
+        DimensionError
+            An initial value of the wrong shape.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems.papers import BioreactorBastinGevers
+        >>> ob = BastinGeversObserver(BioreactorBastinGevers(), c2=1.0,
+        ...                           theta_hat0=[-3.0, -0.1, -0.1], z_hat0=[1.0, 1.0])
+        >>> s = ob.init(2, z_hat0=[1.0, 1.0], theta_hat0=[[-3.0, -0.1, -0.1], [-2.0, -0.2, -0.1]])
+        >>> s.S[:, 2].tolist(), s.ring.shape
+        ([-3.0, -2.0], (2, 1, 3))
+        """
+        if theta_hat0 is None:
+            return super().init(batch, x_hat0, z_hat0=z_hat0, u0=u0, params=params)
+        B = _batch_size(batch)
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0, not both")
+        x0 = None if x_hat0 is None else batch_rows("x_hat0", x_hat0, len(self.state_names), B)
+        z0 = None if z_hat0 is None else batch_rows("z_hat0", z_hat0, self.n, B)
+        m = self.n_inputs
+        u = np.zeros((B, m or 0)) if u0 is None or m is None else batch_rows("u0", u0, m, B)
+        if params is not None and (not isinstance(params, Params)
+                                   or _batch_of(params) not in (None, B)):
+            raise DesignError(f"{self.name}: params must be this observer's Params of {B} "
+                              f"member(s) (Observer.parameters); found {params!r}")
+        return State(**{**self._core(B), **self._fields(x0, z0, u, self._theta_rows(theta_hat0, B))})
+
+    def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+              batch: int | None = None, params: Params | None = None,
+              theta_hat0: Any = None) -> None:
+        """Restart the observer's own state (:meth:`Observer.reset`) from ``x_hat0``
+        (physical, needs the form's ``from_physical``) or ``z_hat0`` (AOCF coordinates) and
+        ``theta_hat0`` (each ``(d,)`` for every member or ``(B, d)``); all three left out: the
+        constructor's. The filter restarts at ``V(0) = 0``."""
+        if x_hat0 is None and z_hat0 is None and theta_hat0 is None:
+            x_hat0, z_hat0, theta_hat0 = self._start
+        if theta_hat0 is None:
+            super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch, params=params)
+            return
+        given = x_hat0 if x_hat0 is not None else z_hat0
+        if batch is not None:
+            B = _batch_size(batch)
+        elif params is not None and _batch_of(params) is not None:
+            B = _batch_of(params)  # type: ignore[assignment]
+        elif given is not None and np.ndim(given) == 2:
+            B = int(np.shape(given)[0])
+        elif np.ndim(theta_hat0) == 2:
+            B = int(np.shape(theta_hat0)[0])
+        else:
+            B = 1
+        batched = (batch is not None or params is not None or np.ndim(theta_hat0) == 2
+                   or (given is not None and np.ndim(given) == 2))
+        p = self.parameters(B) if params is None else params
+        s = self.init(B, x_hat0, z_hat0=z_hat0, u0=u0, params=p, theta_hat0=theta_hat0)
+        self._hold(p, s, batched)
 
     # ------------------------------------------------------------------ dynamics
     def _signals(self, Y: Array, U: Array) -> tuple[Array, Array]:
@@ -936,7 +1059,24 @@ class BastinGeversObserver(Observer):
                                  f"shape {G.shape[1:]}")
         return W, G
 
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+    def _size_ring(self, s: State, dt: float) -> None:
+        """Give the ring of condition 4.5 the ``round(T / dt)`` samples of the window at the
+        period ``dt`` (a ring of another length: every member's window starts over). Done on
+        the whole state before it is handed to :meth:`_step` group by group."""
+        if self.excitation_window is None:
+            return
+        L = max(1, int(round(self.excitation_window / dt)))
+        if s.ring.shape[1] != L:
+            s.ring = np.zeros((s.ring.shape[0], L, self.form.m))
+            s.ring_dt[:] = np.nan
+
+    def _step_checked(self, params: Params, s: State, Y: Array, U: Array, dt: float,
+                      out: Block | None = None) -> Block:
+        self._size_ring(s, dt)
+        return super()._step_checked(params, s, Y, U, dt, out)
+
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
         f = self.form
         n, m = f.n, f.m
         B, T = Y.shape[0], Y.shape[1]
@@ -953,49 +1093,54 @@ class BastinGeversObserver(Observer):
             Wf, Gf = self._signals(y.reshape(-1), U.reshape(B * T, -1))
             W = np.ascontiguousarray(Wf).reshape(B, T, f.s)
             G = np.ascontiguousarray(Gf).reshape(B, T, n)
-        Sout = np.empty((B, T, self._S.shape[1]))
+        Sout = np.empty((B, T, s.S.shape[1]))
         PHI = np.empty((B, T, m))
         y = np.ascontiguousarray(y)
-        args = (y, W, G, self._alpha, self._R, self.gamma, self.c1, dt / self.substeps,
-                self.substeps, self.method == "euler", Sout, PHI)
+        args = (y, W, G, self._alpha, self._R, np.array(p.gamma), float(p.c1),
+                dt / self.substeps, self.substeps, self.method == "euler", Sout, PHI)
         # runs of samples without a dropout go to the kernel whole; at a sample with one,
         # omega and g of the members that lost it are taken at their prediction x_hat_1
         j = 0
         for jl in [*np.flatnonzero(lost.any(axis=0)).tolist(), T] if n_lost else [T]:
             if jl > j:
-                self._integrate(j, jl, args)
+                self._integrate(s.S, j, jl, args)
             if jl == T:
                 break
             bs = np.flatnonzero(lost[:, jl])
-            W[bs, jl], G[bs, jl] = self._signals(self._S[bs, 0], U[bs, jl])
-            self._integrate(jl, jl + 1, args)
+            W[bs, jl], G[bs, jl] = self._signals(s.S[bs, 0], U[bs, jl])
+            self._integrate(s.S, jl, jl + 1, args)
             j = jl + 1
         Z[...] = Sout[:, :, :n]
         D[:, :, :m] = Sout[:, :, n:n + m]
         col = m + len(f.physical_param_names)
-        self._physical(Sout, U, X, D[:, :, m:col])
-        if self.excitation_window is not None and dt != self._ring_dt:
-            # a new period: a new window of round(T / dt) samples
-            L = max(1, int(round(self.excitation_window / dt)))
-            self._ring = np.zeros((B, L, m))
-            self._ring_dt = dt
-            self._ring_pos[:] = 0
-            self._ring_full[:] = False
-            self._gram[...] = 0.0
+        self._physical(s, Sout, U, X, D[:, :, m:col])
+        if self.excitation_window is not None:
+            # a member's first period, or a new one: its window of round(T / dt) samples
+            self._size_ring(s, dt)
+            new = s.ring_dt != dt
+            if new.any():
+                s.ring[new] = 0.0
+                s.ring_pos[new] = 0
+                s.ring_full[new] = False
+                s.gram[new] = 0.0
+                s.ring_dt[new] = dt
         out = np.empty((B, T, 2))
-        diagnostics_4_5_4_11(PHI, W, dt, self._ring, self._ring_pos, self._ring_full,
-                             self._gram, self._P, self._Wsum, out)
+        diagnostics_4_5_4_11(PHI, W, dt, s.ring, s.ring_pos, s.ring_full, s.gram, self._P,
+                             s.Wsum, out)
         if self.excitation_window is not None:
             D[:, :, col] = out[:, :, 0]
             col += 1
-            self._excitation = out[:, -1, 0]
+            if T:
+                s.excitation[:] = out[:, -1, 0]
         D[:, :, col] = out[:, :, 1]
-        self._rank = out[:, -1, 1]
-        self._phi = PHI[:, -1]
+        if T:
+            s.rank[:] = out[:, -1, 1]
+            s.phi[...] = PHI[:, -1]
 
-    def _integrate(self, j0: int, j1: int, args: tuple[Any, ...]) -> None:
-        """:func:`advance_3_1` over the samples ``j0 <= j < j1``; a divergence is raised."""
-        code = advance_3_1(self._S, j0, j1, *args)
+    def _integrate(self, S: Array, j0: int, j1: int, args: tuple[Any, ...]) -> None:
+        """:func:`advance_3_1` of the members' states ``S`` over the samples
+        ``j0 <= j < j1``; a divergence is raised."""
+        code = advance_3_1(S, j0, j1, *args)
         if code >= 0:
             Sout = args[-2]
             b, j = divmod(code, Sout.shape[1])
@@ -1003,34 +1148,35 @@ class BastinGeversObserver(Observer):
                                   f"(x_hat, theta_hat, V) = {Sout[b, j].tolist()} (member {b}, "
                                   f"sample {j})")
 
-    def _physical(self, Sout: Array, U: Array, X: Array, Dp: Array) -> None:
+    def _physical(self, s: State, Sout: Array, U: Array, X: Array, Dp: Array) -> None:
         """The physical estimate (the inverse map 2.4-2.5) after each sample into ``X`` and
         ``Dp``; where the inverse is undefined the member's last value is held and counted in
-        ``inverse_failures_`` (:func:`hold_valid`)."""
+        the state's ``inverse_failures`` (:func:`hold_valid`)."""
         f = self.form
         n, m = f.n, f.m
         B, T = Sout.shape[0], Sout.shape[1]
         if not f.has_inverse:
             X[...] = Sout[:, :, :n]
-            self._xp = X[:, -1].copy()
+            if T:
+                s.x_held[...] = X[:, -1]
             return
         states, params = f.to_physical_rows(Sout[:, :, :n].reshape(B * T, n),
                                             Sout[:, :, n:n + m].reshape(B * T, m),
                                             U.reshape(B * T, -1))
         P = np.empty((B, T, Dp.shape[2]))
         hold_valid(np.ascontiguousarray(states).reshape(B, T, -1),
-                   np.ascontiguousarray(params).reshape(B, T, -1), self._xp, self._params,
-                   self._inverse_failures, X, P)
+                   np.ascontiguousarray(params).reshape(B, T, -1), s.x_held, s.p_held,
+                   s.inverse_failures, X, P)
         Dp[...] = P
 
-    def _current(self) -> tuple[Array, Array, Array]:
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         f = self.form
         n, m = f.n, f.m
-        cols = [self._S[:, n:n + m], self._params]
+        cols = [s.S[:, n:n + m], s.p_held]
         if self.excitation_window is not None:
-            cols.append(self._excitation[:, None])
-        cols.append(self._rank[:, None])
-        return self._xp.copy(), self._S[:, :n].copy(), np.concatenate(cols, axis=1)
+            cols.append(s.excitation[:, None])
+        cols.append(s.rank[:, None])
+        return s.x_held.copy(), s.S[:, :n].copy(), np.concatenate(cols, axis=1)
 
     # ------------------------------------------------------------------ one point
     def rhs(self, s: Array, y: float, omega: Array, g: Array, correct: bool = True) -> Array:
@@ -1075,7 +1221,7 @@ class BastinGeversObserver(Observer):
         """
         f = self.form
         sa, w, ga = (np.ascontiguousarray(v, dtype=float) for v in (s, omega, g))
-        for name, v, k in (("s", sa, self._S.shape[1]), ("omega", w, f.s), ("g", ga, f.n)):
+        for name, v, k in (("s", sa, f.n + f.m + (f.n - 1) * f.m), ("omega", w, f.s), ("g", ga, f.n)):
             if v.shape != (k,):
                 raise DimensionError(f"{name} must have shape ({k},); found shape {v.shape}")
         return rhs_one(sa, float(y), 1.0 if correct else 0.0, w, ga, self._alpha, self._R,
@@ -1113,10 +1259,10 @@ class BastinGeversObserver(Observer):
         return W[0], G[0]
 
     # ------------------------------------------------------------------ interface
-    def check_period(self, dt: float) -> None:
+    def _check_period(self, p: Params, dt: float) -> None:
         """Check the integration of the linear modes :math:`-c_1` and :math:`\\lambda(F)` (the
         poles of :math:`R^*`, eq. 4.3) at the period ``dt``; react as ``on_unstable`` says."""
-        lam = np.concatenate(([-self.c1], np.linalg.eigvals(self.form.F) if self.form.n > 1
+        lam = np.concatenate(([-float(p.c1)], np.linalg.eigvals(self.form.F) if self.form.n > 1
                               else []))
         try:
             check_rk_period("the Bastin-Gevers observer", lam, dt, self.method, self.substeps)
@@ -1124,50 +1270,53 @@ class BastinGeversObserver(Observer):
             if self.on_unstable == "raise":
                 raise
             if self.on_unstable == "warn":
-                warnings.warn(str(exc), RuntimeWarning, stacklevel=2)
+                warnings.warn(str(exc), RuntimeWarning, stacklevel=3)
 
     @property
     def theta_hat_(self) -> Array:
         f = self.form
-        return self._public(self._S[:, f.n:f.n + f.m].copy())  # type: ignore[no-any-return]
+        return self._public(self.state.S[:, f.n:f.n + f.m].copy())  # type: ignore[no-any-return]
 
     @property
     def V_(self) -> Array:
         f = self.form
+        S = self.state.S
         return self._public(  # type: ignore[no-any-return]
-            self._S[:, f.n + f.m:].reshape(self.batch, f.n - 1, f.m).copy())
+            S[:, f.n + f.m:].reshape(S.shape[0], f.n - 1, f.m).copy())
 
     @property
     def phi_(self) -> Array:
-        return self._public(self._phi.copy())  # type: ignore[no-any-return]
+        return self._public(self.state.phi.copy())  # type: ignore[no-any-return]
 
     @property
     def state_vector_(self) -> Array:
         """The flat observer state ``(x_hat, theta_hat, vec V)`` (the argument of :meth:`rhs`)."""
-        return self._public(self._S.copy())  # type: ignore[no-any-return]
+        return self._public(self.state.S.copy())  # type: ignore[no-any-return]
 
     @property
     def physical_params_(self) -> dict[str, Any]:
-        return {nm: self._public(self._params[:, i].copy())
+        p_held = self.state.p_held
+        return {nm: self._public(p_held[:, i].copy())
                 for i, nm in enumerate(self.form.physical_param_names)}
 
     @property
     def excitation_(self) -> Any:
         if self.excitation_window is None:
             return math.nan
-        return self._public(self._excitation.copy())
+        return self._public(self.state.excitation.copy())
 
     @property
     def excitation_matrix_(self) -> Array:
         """The windowed :math:`\\int \\varphi \\varphi^T d\\tau` of condition 4.5."""
         if self.excitation_window is None:
             raise DesignError("the excitation diagnostic is off (excitation_window=None)")
-        dt = self._ring_dt if math.isfinite(self._ring_dt) else 0.0
-        return self._public(self._gram * dt)  # type: ignore[no-any-return]
+        s = self.state
+        dt = np.where(np.isfinite(s.ring_dt), s.ring_dt, 0.0)
+        return self._public(s.gram * dt[:, None, None])  # type: ignore[no-any-return]
 
     @property
     def reachability_rank_(self) -> Any:
-        r = self._public(self._rank.astype(np.int64))
+        r = self._public(self.state.rank.astype(np.int64))
         return int(r) if np.ndim(r) == 0 else r
 
     def params(self) -> dict[str, Any]:

@@ -386,7 +386,7 @@ def test_bad_forms_and_settings():
     with pytest.raises(DimensionError, match=r"omega\(y, u\) or g\(y, u\) of .* failed on "
                                              r"y = 1.0, u of shape \(1,\)"):
         ob.update(np.array([1.0]), np.array([1.0]), 0.01)
-    with pytest.raises(DimensionError, match=r"y must be a vector with channel\(s\) \[0\]"):
+    with pytest.raises(DimensionError, match=r"y must be \(p,\) with channel\(s\) \[0\]"):
         ob.update(1.0, np.array([1.0, 1.0]), 0.01)
     for kw, match in [({"c1": 0.0}, "c1 must be > 0; found 0"),
                       ({"method": "rk45"}, r"method must be one of \['rk4', 'euler'\]"),

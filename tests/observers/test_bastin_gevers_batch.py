@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from observer_cases import advance
 
-from hgo_mj.exceptions import DivergenceError
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.observers import AOCF, BastinGeversObserver
 from hgo_mj.systems import CartPendulum, Pendulum
 from hgo_mj.systems.papers import BioreactorBastinGevers
@@ -150,8 +150,99 @@ def test_a_changed_period_restarts_the_window_and_divergence_names_the_member():
     U = np.full((2, 50, 1), 0.2)
     advance(ob, Y, U, 0.01)
     advance(ob, Y, U, 0.02)  # a new period: a window of round(0.3 / 0.02) = 15 samples
-    assert ob._ring.shape == (2, 15, 2)
+    assert ob.state.ring.shape == (2, 15, 2)
     Y[1, 10] = 1e308  # g(y) overflows: the state leaves the finite numbers at that sample
     with np.errstate(over="ignore"), pytest.raises(
             DivergenceError, match=r"left the finite numbers.*\(member 1, sample 10\)"):
         advance(ob, Y, U, 0.02)
+
+
+# (id, constructor keywords but the gains, input width, output around, three gains c1, gamma)
+_GAINS = [
+    ("bioreactor", dict(system=BioreactorBastinGevers(), c2=1.0, excitation_window=0.3,
+                        theta_hat0=[-3.0, -0.1, -0.1], z_hat0=[1.0, 1.0]), 2, 1.0,
+     [5.0, 3.0, 8.0],
+     [2.0 * np.eye(3), np.diag([1.0, 2.0, 3.0]),
+      np.array([[2.0, 0.3, 0.0], [0.3, 1.0, 0.1], [0.0, 0.1, 4.0]])]),
+    ("pendulum-euler", dict(system=Pendulum(), c2=5.0, excitation_window=0.2, method="euler",
+                            substeps=2, theta_hat0=[1.0, 1.0]), 1, 0.3,
+     [20.0, 10.0, 30.0], [50.0 * np.eye(2), np.diag([5.0, 20.0]), np.array([[3.0, 1.0], [1.0, 2.0]])]),
+]
+
+
+@pytest.mark.parametrize("kw, mu, level, c1s, gammas", [g[1:] for g in _GAINS],
+                         ids=[g[0] for g in _GAINS])
+def test_members_with_different_gains_equal_their_single_runs(kw, mu, level, c1s, gammas):
+    """State and parameters as data: a batch whose members have different gains ``c1`` and
+    ``gamma`` (``parameters(B, c1=..., gamma=...)``) equals, member by member and bit for bit,
+    the observer constructed with that member's gains run alone, over samples with dropouts
+    and a change of period (the excitation window starts over at its new length); ``step``
+    leaves the state it is given as it was."""
+    rng = np.random.default_rng(21)
+    nb = len(c1s)
+    ob = BastinGeversObserver(**kw)
+    Y, U = _streams(rng, mu, level)
+    Y, U = Y[:nb, :90], U[:nb, :90]
+    Y[0, 7] = Y[2, 30:33] = np.nan
+    params = ob.parameters(nb, c1=c1s, gamma=np.stack(gammas))
+    state = ob.init(nb, params=params)
+    before = state.copy()
+    mid, first = ob.step(params, state, Y[:, :60], U[:, :60], DT)
+    for field, value in before.fields.items():  # the state given is untouched
+        np.testing.assert_array_equal(getattr(state, field), value, err_msg=field)
+    after, second = ob.step(params, mid, Y[:, 60:], U[:, 60:], 2 * DT)
+    assert np.isnan(Y).any() and after.ring.shape == (nb, 15 if kw["excitation_window"] == 0.3
+                                                       else 10, ob.form.m)
+    for b in range(nb):
+        one = BastinGeversObserver(**kw, c1=c1s[b], gamma=gammas[b])
+        one.reset()
+        alone = (advance(one, Y[b:b + 1, :60], U[b:b + 1, :60], DT),
+                 advance(one, Y[b:b + 1, 60:], U[b:b + 1, 60:], 2 * DT))
+        for got, want in zip((first, second), alone):
+            np.testing.assert_array_equal(got.x_hat[b], want.x_hat[0], err_msg=f"member {b}")
+            np.testing.assert_array_equal(got.z_hat[b], want.z_hat[0], err_msg=f"member {b}")
+            np.testing.assert_array_equal(got.diagnostics[b], want.diagnostics[0],
+                                          err_msg=f"member {b}")
+        for field, value in after.fields.items():
+            np.testing.assert_array_equal(value[b], getattr(one.state, field)[0],
+                                          err_msg=f"member {b}, {field}")
+    np.testing.assert_array_equal(after.dropouts, np.isnan(Y[:, :, 0]).sum(axis=1))
+    assert after.dropouts[2] == 3
+
+
+def test_member_gains_are_checked_as_the_constructor_checks_them():
+    ob = CONFIGS[0][1]()
+    assert ob.parameter_names == ("c1", "gamma")
+    p = ob.parameters(3, c1=[5.0, 6.0, 7.0])
+    assert p.c1.tolist() == [5.0, 6.0, 7.0] and p.gamma.shape == (3, 3, 3)
+    np.testing.assert_array_equal(p.gamma[1], 2.0 * np.eye(3))
+    with pytest.raises(DesignError, match="c1 must be > 0; found -1"):
+        ob.parameters(3, c1=[5.0, -1.0, 2.0])
+    with pytest.raises(DesignError, match=r"gamma must be positive definite; found eigenvalues "
+                                          r"\[-1.0"):
+        ob.parameters(3, gamma=[[1, 2, 0], [2, 1, 0], [0, 0, 1]])
+    with pytest.raises(DesignError, match="gamma must be symmetric"):
+        ob.parameters(2, gamma=np.stack([np.eye(3), [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]]))
+    with pytest.raises(DimensionError, match=r"parameter gamma must have shape \(3, 3\)"):
+        ob.parameters(3, gamma=np.eye(2))
+    with pytest.raises(DesignError, match="c1 must be finite; found nan"):
+        ob.parameters(1, c1=np.nan)
+
+
+def test_a_restarted_member_runs_as_a_fresh_one():
+    """``reset_members`` writes a fresh member into a running batch: its excitation window
+    (the ring of the running period) starts over, the others go on; it then equals a fresh
+    single run."""
+    ob = CONFIGS[0][1]()
+    rng = np.random.default_rng(5)
+    Y, U = _streams(rng, 2, 1.0)
+    Y, U = Y[:3], U[:3]
+    ob.reset(batch=3)
+    advance(ob, Y[:, :40], U[:, :40], DT)
+    ob.reset_members([1])
+    assert np.isnan(ob.state.ring_dt[1]) and not ob.state.ring[1].any()
+    rows = advance(ob, Y[:, 40:], U[:, 40:], DT)
+    one = CONFIGS[0][1]()
+    alone = advance(one, Y[1:2, 40:], U[1:2, 40:], DT)
+    np.testing.assert_array_equal(rows.x_hat[1], alone.x_hat[0])
+    np.testing.assert_array_equal(rows.diagnostics[1], alone.diagnostics[0])
