@@ -70,17 +70,20 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
 from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, vector
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from ..systems.jo_son_form import JoSonForm
-from .base import Array, Observer, batch_rows, check_outputs, register
+from .base import Array, Block, Observer, Params, State, batch_rows, check_outputs, register
 from .bastin_gevers import check_rk_period, sym_eigvals
 
 __all__ = ["JoSonForm", "JoSonObserver", "jo_son_gain"]
 
 METHODS = ("rk4", "euler")
+#: the most parameter sets whose gains an observer keeps (:meth:`JoSonObserver._gains`)
+GAIN_CACHE = 64
 
 
 def jo_son_gain(b: Any, lam: float) -> Array:
@@ -212,33 +215,42 @@ def rk4_combine(S: Array, h6: float, k1: Array, k2: Array, k3: Array, k4: Array,
 
 
 @njit(cache=True)
-def gram_push(buf: Array, M: Array, v: Array, i: int, full: bool) -> None:  # pragma: no cover
-    """Slide the excitation window by one sample: row ``i`` of the ring ``buf`` ``(B, W, p)``
-    leaves (if ``full``) and ``v`` ``(B, p)`` enters; ``M`` ``(B, p, p)`` is the running
-    :math:`\\sum v v^T` over the window."""
-    B, _, p = buf.shape
-    for b in range(B):
-        for k in range(p):
-            for m in range(p):
-                if full:
-                    M[b, k, m] -= buf[b, i, k] * buf[b, i, m]
-                M[b, k, m] += v[b, k] * v[b, m]
-        for k in range(p):
-            buf[b, i, k] = v[b, k]
+def gram_exact(buf: Array, M: Array, b: int) -> None:  # pragma: no cover - jit
+    """``M[b]`` = :math:`\\sum v v^T` over every row of member ``b``'s ring ``buf[b]``,
+    recomputed exactly (once a window)."""
+    _, W, p = buf.shape
+    for k in range(p):
+        for m in range(p):
+            s = 0.0
+            for w in range(W):
+                s += buf[b, w, k] * buf[b, w, m]
+            M[b, k, m] = s
 
 
 @njit(cache=True)
-def gram_sum(buf: Array, M: Array) -> None:  # pragma: no cover - jit
-    """``M`` = :math:`\\sum v v^T` over every row of the ring ``buf``, recomputed exactly (once
-    a window, so that the running sum of :func:`gram_push` does not drift)."""
+def gram_push(buf: Array, M: Array, v: Array, i: NDArray[np.int64],
+              full: NDArray[np.bool_]) -> None:  # pragma: no cover - jit
+    """Slide every member's excitation window by one sample: row ``i[b]`` of the ring ``buf``
+    ``(B, W, p)`` leaves (if ``full[b]``) and ``v[b]`` ``(p,)`` enters; ``M`` ``(B, p, p)`` is
+    the running :math:`\\sum v v^T` over the window. ``i`` and ``full`` (per member) advance;
+    a member whose ring comes round (``i`` back to 0) recomputes its ``M`` exactly
+    (:func:`gram_exact`), so that the running sum does not drift."""
     B, W, p = buf.shape
     for b in range(B):
+        ib = i[b]
         for k in range(p):
             for m in range(p):
-                s = 0.0
-                for w in range(W):
-                    s += buf[b, w, k] * buf[b, w, m]
-                M[b, k, m] = s
+                if full[b]:
+                    M[b, k, m] -= buf[b, ib, k] * buf[b, ib, m]
+                M[b, k, m] += v[b, k] * v[b, m]
+        for k in range(p):
+            buf[b, ib, k] = v[b, k]
+        ib += 1
+        if ib == W:
+            ib = 0
+            full[b] = True
+            gram_exact(buf, M, b)
+        i[b] = ib
 
 
 @njit(cache=True)
@@ -286,8 +298,10 @@ class JoSonObserver(Observer):
     rows), ``f_obar`` at every stage of the RK4 (or Euler) integration; the arithmetic of
     eq. 27 is the kernel :func:`eq27`, one loop over the B members.
 
-    State as data: ``(B, n + p)`` rows ``(z_hat_o, z_hat_obar, theta_hat)``, the held
-    auxiliary channels ``(B, a)`` and the excitation window.
+    State as data (:meth:`_init`): ``(B, n + p)`` rows ``(z_hat_o, z_hat_obar, theta_hat)``,
+    the held auxiliary channels ``(B, a)`` and each member's excitation window. Parameters as
+    data (:meth:`~hgo_mj.observers.base.Observer.parameters`): ``lam`` (``()`` per member) and
+    ``gamma`` (``(p, p)`` per member), so one batch may hold many tunings.
 
     Parameters
     ----------
@@ -343,6 +357,15 @@ class JoSonObserver(Observer):
     >>> ob.reset(batch=4)
     >>> ob.z_hat.shape, ob.theta_hat_.shape
     ((4, 3), (4, 1))
+
+    Three values of :math:`\\lambda` as one batch, each member its own single run:
+
+    >>> import numpy as np
+    >>> params = ob.parameters(3, lam=[1.0, 2.0, 4.0])
+    >>> state = ob.init(3, params=params)
+    >>> state, rows = ob.step(params, state, np.full((3, 5, 1), 0.5), np.zeros((3, 5, 1)), 0.01)
+    >>> rows.z_hat.shape, rows.diagnostics.shape
+    ((3, 5, 3), (3, 5, 3))
 
     References
     ----------
@@ -410,8 +433,43 @@ class JoSonObserver(Observer):
         names = tuple(f"theta_{nm}" for nm in form.theta_names)
         self.family_diagnostics = names + (  # type: ignore[misc]
             ("excitation",) if excitation_window is not None else ())
-        self._init = (x_hat0, z_hat0, theta_hat0)
-        self.reset()
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0, not both")
+        #: the constructor's initial estimate (raw: a reset given none takes its batch from it)
+        self._start = (x_hat0, z_hat0, theta_hat0)
+        #: ``(K, Gamma)`` per parameters (:meth:`_gains`), at most :data:`GAIN_CACHE` kept
+        self._gain_cache: dict[bytes, tuple[Array, Array]] = {}
+        # check the initial estimate here, as a reset given none would read it: its shapes,
+        # theta_hat0's, and T^-1 defined there (the state made is dropped)
+        given = [batch_rows(nm, v, w, None) for nm, v, w in
+                 (("x_hat0", x_hat0, len(self.state_names)), ("z_hat0", z_hat0, self.n))
+                 if v is not None]
+        self.init(given[0].shape[0] if given else 1)
+
+    def _parameters(self) -> dict[str, Any]:
+        """The tunable parameters: :math:`\\lambda` ``lam`` (a float; the gain ``K`` of eq. 25
+        follows from it) and the adaptation gain :math:`\\Gamma` ``gamma`` ``(p, p)``."""
+        return {"lam": self.lam, "gamma": self.gamma}
+
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        if name == "lam":  # Corollary 3.3: lambda > 0 (b is the form's, checked already)
+            lam = finite_scalar("lambda", value)
+            jo_son_gain(self.form.b, lam)
+            return np.array(lam)
+        return symmetric_matrix("gamma", value, self.form.p, dim="m")
+
+    def _gains(self, p: Params) -> tuple[Array, Array]:
+        """``K`` (eq. 25) and :math:`\\Gamma` of the parameters ``p`` (one member's), as the
+        kernel reads them."""
+        key = p.key()
+        gains = self._gain_cache.get(key)
+        if gains is None:
+            gains = (jo_son_gain(self.form.b, float(p.lam)),
+                     np.array(p.gamma, dtype=np.float64, order="C"))
+            if len(self._gain_cache) >= GAIN_CACHE:
+                del self._gain_cache[next(iter(self._gain_cache))]
+            self._gain_cache[key] = gains
+        return gains
 
     @staticmethod
     def _form_of(system: System) -> JoSonForm:
@@ -433,11 +491,13 @@ class JoSonObserver(Observer):
     def state_names(self) -> tuple[str, ...]:
         return self.form.state_names
 
-    # ------------------------------------------------------------------ reset
+    # ------------------------------------------------------------------ state
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
-              batch: int | None = None, theta_hat0: Any = None) -> None:
-        """Restart ``batch`` copies from ``x_hat0`` / ``z_hat0`` (neither: the constructor's)
-        and ``theta_hat0`` (``(p,)`` or ``(B, p)``; default: the constructor's, else zero).
+              batch: int | None = None, params: Params | None = None,
+              theta_hat0: Any = None) -> None:
+        """Restart the observer's own state (:meth:`Observer.reset`) from ``x_hat0`` /
+        ``z_hat0`` (neither: the constructor's) and ``theta_hat0`` (``(p,)`` or ``(B, p)``;
+        default: the constructor's, else zero).
 
         Raises
         ------
@@ -446,14 +506,27 @@ class JoSonObserver(Observer):
             the inverse map :math:`T^{-1}` is undefined (non-finite), naming the member.
         """
         if x_hat0 is None and z_hat0 is None:
-            x_hat0, z_hat0 = self._init[0], self._init[1]
-        self._theta_hat0 = self._init[2] if theta_hat0 is None else theta_hat0
-        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch)
+            x_hat0, z_hat0 = self._start[0], self._start[1]
+        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch, params=params)
+        if theta_hat0 is not None:
+            s = self.state
+            s.S[:, self.form.n:] = batch_rows("theta_hat0", theta_hat0, self.form.p, s.batch)
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
-        f, B = self.form, self.batch
-        th = (np.zeros((B, f.p)) if self._theta_hat0 is None
-              else batch_rows("theta_hat0", self._theta_hat0, f.p, B))
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        """The state of ``len(u0)`` members: ``S`` ``(B, n + p)`` the rows
+        ``(z_hat, theta_hat)``, ``x_held`` :math:`T^{-1}(\\hat z)`, ``aux_last`` the held
+        auxiliary channels ``(B, a)``, and with an excitation window its ring ``gram_buf``
+        ``(B, W, p)`` (``W = 1`` until a period gives it its length: :meth:`_step_checked`),
+        its running sum ``gram_M`` ``(B, p, p)``, next row ``gram_i``, whether it is full
+        ``gram_full``, the period it was kept at ``gram_dt`` (NaN: none yet) and its smallest
+        eigenvalue ``excitation``, each ``(B,)``."""
+        f, B = self.form, u0.shape[0]
+        ix, iz, ith = self._start
+        if x0 is None and z0 is None:
+            x0 = None if ix is None else batch_rows("x_hat0", ix, len(self.state_names), B)
+            z0 = None if iz is None else batch_rows("z_hat0", iz, f.n, B)
+        th = np.zeros((B, f.p)) if ith is None else batch_rows("theta_hat0", ith, f.p, B)
         if x0 is not None:
             z = f.normal_rows(x0)
             if not np.all(np.isfinite(z)):
@@ -465,18 +538,20 @@ class JoSonObserver(Observer):
         bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
         if bad.size:
             b = int(bad[0])
-            who = f" (member {b})" if self._batched else ""
+            who = f" (member {b})" if B > 1 else ""
             raise DesignError(f"the initial estimate z = {z[b].tolist()}{who} lies where the "
                               f"inverse map T^-1 of {f.label} is undefined (it gives "
                               f"{x[b].tolist()}); give x_hat0 / z_hat0 inside its domain")
-        self._S = np.ascontiguousarray(np.concatenate((z, th), axis=1))
-        self._x_held = x
-        self._aux_last = np.zeros((B, len(f.aux_outputs)))
-        self._gram_buf: Array | None = None
-        self._gram_dt = math.nan
-        self._gram_M = np.zeros((B, f.p, f.p))
-        self._gram_i, self._gram_full = 0, False
-        self._excitation = np.zeros(B)
+        fields: dict[str, Any] = {
+            "S": np.ascontiguousarray(np.concatenate((z, th), axis=1)),
+            "x_held": np.array(x, dtype=np.float64),
+            "aux_last": np.zeros((B, len(f.aux_outputs)))}
+        if self.excitation_window is not None:
+            fields.update(gram_buf=np.zeros((B, 1, f.p)), gram_M=np.zeros((B, f.p, f.p)),
+                          gram_i=np.zeros(B, dtype=np.int64),
+                          gram_full=np.zeros(B, dtype=np.bool_),
+                          gram_dt=np.full(B, math.nan), excitation=np.zeros(B))
+        return fields
 
     # ------------------------------------------------------------------ dynamics
     def signals(self, y: Any, u: Any) -> tuple[Array, Array, Array]:
@@ -507,19 +582,20 @@ class JoSonObserver(Observer):
         """
         return self.form.signals(np.asarray(y, dtype=float), np.asarray(u, dtype=float))
 
-    def _eq27(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
-              out: Array) -> Array:
-        """:func:`eq27` at the rows ``S`` with the held signals into ``out`` (``f_obar``
-        evaluated here, at ``S``)."""
+    def _eq27(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array, K: Array,
+              G: Array, out: Array) -> Array:
+        """:func:`eq27` at the rows ``S`` with the held signals and the gains ``K``, ``G``
+        (:math:`\\Gamma`) into ``out`` (``f_obar`` evaluated here, at ``S``)."""
         f = self.form
         fo = f.f_obar_rows(y, S[:, f.r:f.n]) if f.n_obar else gb
-        eq27(S, y, c, go, be, fo, gb, self.K_, f.b, f.A_obar_o, self.gamma, f.r, out)
+        eq27(S, y, c, go, be, fo, gb, K, f.b, f.A_obar_o, G, f.r, out)
         return out
 
     def rhs(self, S: Any, y: Any, u: Any, c: Any = 1.0) -> Array:
         """Right-hand side of eq. 27 at the rows ``S`` ``(N, n + p)`` ``= (z_hat, theta_hat)``
         with ``y`` ``(N,)`` and ``u`` ``(N, m + a)``: the same arithmetic as the sampled
-        update, for continuous-time checks. ``c = 0`` drops the output injection.
+        update (with the constructor's gains), for continuous-time checks. ``c = 0`` drops the
+        output injection.
 
         Parameters
         ----------
@@ -550,115 +626,134 @@ class JoSonObserver(Observer):
         y = np.ascontiguousarray(y, dtype=float)
         go, be, gb = self.signals(y, u)
         cc = np.ascontiguousarray(np.broadcast_to(np.asarray(c, dtype=float), y.shape))
-        return self._eq27(S, y, cc, go, be, gb, np.empty_like(S))
+        return self._eq27(S, y, cc, go, be, gb, self.K_, self.gamma, np.empty_like(S))
 
     def _integrate(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
-                   h: float, k: Array) -> Array:
+                   K: Array, G: Array, h: float, k: Array) -> Array:
         """``substeps`` steps of RK4 (or Euler) of eq. 27 over ``h`` each, the signals held;
         ``k`` ``(5, B, n + p)`` holds the stages and the stage state. Returns a new array."""
         h2, h6 = 0.5 * h, h / 6.0
         St = k[4]
         for _ in range(self.substeps):
             nxt = np.empty_like(S)
-            self._eq27(S, y, c, go, be, gb, k[0])
+            self._eq27(S, y, c, go, be, gb, K, G, k[0])
             if self.method == "euler":
                 axpy(S, h, k[0], nxt)
             else:
                 axpy(S, h2, k[0], St)
-                self._eq27(St, y, c, go, be, gb, k[1])
+                self._eq27(St, y, c, go, be, gb, K, G, k[1])
                 axpy(S, h2, k[1], St)
-                self._eq27(St, y, c, go, be, gb, k[2])
+                self._eq27(St, y, c, go, be, gb, K, G, k[2])
                 axpy(S, h, k[2], St)
-                self._eq27(St, y, c, go, be, gb, k[3])
+                self._eq27(St, y, c, go, be, gb, K, G, k[3])
                 rk4_combine(S, h6, k[0], k[1], k[2], k[3], nxt)
             S = nxt
         return S
 
-    def _excite(self, be: Array, dt: float) -> None:
-        """Add the regressors ``be`` ``(B, p)`` of one sample to the excitation window and
-        update its smallest eigenvalue (a new window when ``dt`` changes)."""
-        if self.excitation_window is None:
+    def _window(self, s: State, dt: float) -> None:
+        """Give the excitation window its length ``round(window / dt)`` at the period ``dt``:
+        a member whose window was kept at another period (or at none yet, ``gram_dt`` NaN)
+        starts a new, empty one. Before the members are grouped by their parameters
+        (:meth:`_step_checked`): the ring's length is one for the whole state."""
+        new = s.gram_dt != dt
+        if not new.any():
             return
-        B, p = be.shape
-        if self._gram_buf is None or dt != self._gram_dt:
-            W = max(1, int(round(self.excitation_window / dt)))
-            self._gram_buf = np.zeros((B, W, p))
-            self._gram_M = np.zeros((B, p, p))
-            self._gram_i, self._gram_full, self._gram_dt = 0, False, dt
-        buf = self._gram_buf
-        gram_push(buf, self._gram_M, be, self._gram_i, self._gram_full)
-        self._gram_i += 1
-        if self._gram_i == buf.shape[1]:
-            self._gram_i, self._gram_full = 0, True
-            gram_sum(buf, self._gram_M)
-        if p == 1:
-            self._excitation = self._gram_M[:, 0, 0] * dt
+        W = max(1, int(round(self.excitation_window / dt)))  # type: ignore[operator]
+        if s.gram_buf.shape[1] != W:
+            s.gram_buf = np.zeros((s.batch, W, self.form.p))
+            new[:] = True
+        else:
+            s.gram_buf[new] = 0.0
+        s.gram_M[new] = 0.0
+        s.gram_i[new] = 0
+        s.gram_full[new] = False
+        s.gram_dt[new] = dt
+
+    def _excite(self, s: State, be: Array, dt: float) -> None:
+        """Add the regressors ``be`` ``(B, p)`` of one sample to each member's excitation
+        window and update its smallest eigenvalue."""
+        gram_push(s.gram_buf, s.gram_M, be, s.gram_i, s.gram_full)
+        if be.shape[1] == 1:
+            s.excitation = s.gram_M[:, 0, 0] * dt
             return
-        exc = np.empty(B)
-        min_eig_sym(self._gram_M, dt, exc)
-        self._excitation = exc
+        exc = np.empty(be.shape[0])
+        min_eig_sym(s.gram_M, dt, exc)
+        s.excitation = exc
 
     # ------------------------------------------------------------------ interface
-    def check_period(self, dt: float) -> None:
+    def _check_period(self, p: Params, dt: float) -> None:
         """Check the sample period against the integration of the observer's linear modes
         (the roots of :math:`(s + \\lambda)(b_r s^{r-1} + \\dots + b_1)`, eq. 26) and react as
         ``on_unstable`` says."""
         b = self.form.b
-        lam_ = np.concatenate(([-self.lam], np.roots(b[::-1]) if b.size > 1 else []))
+        lam_ = np.concatenate(([-float(p.lam)], np.roots(b[::-1]) if b.size > 1 else []))
         try:
             check_rk_period("the Jo-Son observer", lam_, dt, self.method, self.substeps)
         except DesignError as exc:
             if self.on_unstable == "raise":
                 raise
             if self.on_unstable == "warn":
-                warnings.warn(str(exc), RuntimeWarning, stacklevel=2)
+                warnings.warn(str(exc), RuntimeWarning, stacklevel=3)
 
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+    def _step_checked(self, params: Params, s: State, Y: Array, U: Array, dt: float,
+                      out: Block | None = None) -> Block:
+        """:meth:`Observer._step_checked`, the excitation window first given its length at
+        ``dt`` for the whole state (:meth:`_window`)."""
+        if self.excitation_window is not None:
+            self._window(s, dt)
+        return super()._step_checked(params, s, Y, U, dt, out)
+
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
         # floating-point warnings are silenced over the block: a blown-up state raises
         # DivergenceError below, an undefined inverse map is counted (inverse_failures_)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            S = self._samples(Y, U, dt, Z, D)
+            S = self._samples(p, s, Y, U, dt, Z, D)
             if not np.isfinite(S).all():
                 self._diverged(Z, D)
-            self._S = S
-            self._physical(Z, X)
+            s.S = S
+            self._physical(s, Z, X)
 
-    def _samples(self, Y: Array, U: Array, dt: float, Z: Array, D: Array) -> Array:
-        """Integrate eq. 27 over the T samples of the block; return the final state (the
-        observer's own is left as it was until the block is checked)."""
+    def _samples(self, p: Params, s: State, Y: Array, U: Array, dt: float, Z: Array,
+                 D: Array) -> Array:
+        """Integrate eq. 27 over the T samples of the block; return the final ``S`` (the
+        state's own is left as it was until the block is checked)."""
         f = self.form
         B, T = Y.shape[0], Y.shape[1]
-        r, n, p, a = f.r, f.n, f.p, len(f.aux_outputs)
+        r, n, np_, a = f.r, f.n, f.p, len(f.aux_outputs)
+        K, G = self._gains(p)
         lost = np.asarray(np.isnan(Y).any(axis=2)).T  # (T, B): y or an aux channel lost
         yT = np.ascontiguousarray(Y[:, :, 0].T)  # (T, B): sample-major, each sample contiguous
         UU = np.ascontiguousarray(U.transpose(1, 0, 2))  # (T, B, m)
         if a:  # known inputs: the auxiliary channels, lost ones held (0 before any)
             aux = Y[:, :, 1:].transpose(1, 0, 2).copy()
-            last = self._aux_last
+            last = s.aux_last
             for j in range(T):
                 aux[j] = np.where(np.isnan(aux[j]), last, aux[j])
                 last = aux[j]
-            self._aux_last = last.copy()
+            s.aux_last = last.copy()
             UU = np.concatenate((UU, aux), axis=2)
         # the held signals of eq. 27 at the measured y, the whole block at once
         go, be, gb = (v.reshape(T, B, -1) for v in
                       self.signals(yT.reshape(T * B), UU.reshape(T * B, -1)))
         c = np.where(lost, 0.0, 1.0)
         h = dt / self.substeps
-        k = np.empty((5, *self._S.shape))
-        S = self._S
+        S = s.S
+        k = np.empty((5, *S.shape))
+        window = self.excitation_window is not None
         for j in range(T):
             y = yT[j]
             if lost[j].any():  # a dropout: the signals at the predicted output z_hat_r
                 m = lost[j]
                 y[m] = S[m, r - 1]
                 go[j][m], be[j][m], gb[j][m] = self.signals(y[m], UU[j][m])
-            self._excite(be[j], dt)
-            S = self._integrate(S, y, c[j], go[j], be[j], gb[j], h, k)
+            if window:
+                self._excite(s, be[j], dt)
+            S = self._integrate(S, y, c[j], go[j], be[j], gb[j], K, G, h, k)
             Z[:, j] = S[:, :n]
-            D[:, j, :p] = S[:, n:]
-            if self.excitation_window is not None:
-                D[:, j, p] = self._excitation
+            D[:, j, :np_] = S[:, n:]
+            if window:
+                D[:, j, np_] = s.excitation
         return S
 
     def _diverged(self, Z: Array, D: Array) -> None:
@@ -673,10 +768,10 @@ class JoSonObserver(Observer):
                               f"(z_hat, theta_hat) = {state.tolist()} (member {m}, sample {j}; "
                               f"n = {n})")
 
-    def _physical(self, Z: Array, X: Array) -> None:
+    def _physical(self, s: State, Z: Array, X: Array) -> None:
         """``X`` = :math:`T^{-1}(\\hat z)` of the rows ``Z`` ``(B, T, n)``; where the map is
-        undefined (non-finite) the member holds its last valid value, counted in
-        ``inverse_failures_``."""
+        undefined (non-finite) the member holds its last valid value (``x_held``), counted in
+        the state's ``inverse_failures``."""
         B, T, n = Z.shape
         if T == 0:
             return
@@ -684,37 +779,37 @@ class JoSonObserver(Observer):
         ok = np.asarray(np.isfinite(Xf).all(axis=2))
         if ok.all():
             X[...] = Xf
-            self._x_held = Xf[:, -1].copy()
+            s.x_held = Xf[:, -1].copy()
             return
         for b in range(B):
-            held = self._x_held[b]
+            held = s.x_held[b]
             for j in range(T):
                 if ok[b, j]:
                     held = Xf[b, j]
                 else:
-                    self._inverse_failures[b] += 1
+                    s.inverse_failures[b] += 1
                 X[b, j] = held
-            self._x_held[b] = held
+            s.x_held[b] = held
 
-    def _current(self) -> tuple[Array, Array, Array]:
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         n = self.form.n
-        d = self._S[:, n:]
+        d = s.S[:, n:]
         if self.excitation_window is not None:
-            d = np.concatenate((d, self._excitation[:, None]), axis=1)
-        return self._x_held.copy(), self._S[:, :n].copy(), d.copy()
+            d = np.concatenate((d, s.excitation[:, None]), axis=1)
+        return s.x_held.copy(), s.S[:, :n].copy(), d.copy()
 
     # ------------------------------------------------------------------ estimates
     @property
     def theta_hat_(self) -> Any:
-        """:math:`\\hat\\theta`, ``(p,)`` or ``(B, p)``."""
-        return self._public(self._S[:, self.form.n:].copy())
+        """:math:`\\hat\\theta` of the observer's own state, ``(p,)`` or ``(B, p)``."""
+        return self._public(self.state.S[:, self.form.n:].copy())
 
     @property
     def excitation_(self) -> Any:
         """The smallest eigenvalue of the excitation window (NaN without one)."""
         if self.excitation_window is None:
             return self._public(np.full(self.batch, math.nan))
-        return self._public(self._excitation.copy())
+        return self._public(self.state.excitation.copy())
 
     def params(self) -> dict[str, Any]:
         f = self.form

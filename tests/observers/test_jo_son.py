@@ -290,7 +290,7 @@ def test_bad_forms_and_shapes():
     ob = _observer()
     with pytest.raises(DimensionError, match=r"u must have shape \(1,\); found shape \(0,\)"):
         ob.update(np.array([1.0]), np.array([]), 0.01)
-    with pytest.raises(DimensionError, match=r"y must be a vector with channel\(s\) \[0\]"):
+    with pytest.raises(DimensionError, match=r"y must be \(p,\) with channel\(s\) \[0\]"):
         ob.update(np.array([]), np.array([0.0]), 0.01)
     with pytest.raises(DimensionError, match=r"theta_hat0 must have shape \(1,\) or \(1, 1\); "
                                              r"found shape \(2,\)"):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from observer_cases import advance
 
+from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers.jo_son import JoSonForm, JoSonObserver
 from hgo_mj.systems import ElasticJoint
 from hgo_mj.systems.papers import JoSonExample
@@ -143,3 +144,99 @@ def test_a_member_where_the_inverse_map_is_undefined_holds_alone():
     assert blk.z_hat[1, -1, 0] < 0 and np.all(blk.x_hat[1] == 1.0)
     np.testing.assert_allclose(blk.x_hat[0, :, 0], np.sqrt(blk.z_hat[0, :, 0]))
     np.testing.assert_array_equal(ob.inverse_failures_, [0, 3])
+
+
+# ------------------------------------------------------------------ per-member parameters
+def _example(lam, gamma):
+    return JoSonObserver(JoSonExample(), lam=lam, gamma=gamma)
+
+
+def _motor_side(lam, gamma):
+    return JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), lam=lam, gamma=gamma,
+                         excitation_window=0.05)
+
+
+# members 0 and 2 share their parameters (one group of two), 1 and 3 have their own
+MEMBER_CASES = [
+    pytest.param(_example, [2.0, 3.5, 2.0, 1.0],
+                 [[[5.0]], [[2.0]], [[5.0]], [[9.0]]], 1, 1, 0.01, id="example"),
+    pytest.param(_motor_side, [50.0, 30.0, 50.0, 70.0],
+                 [np.diag([1e4, 20.0, 1e6]), np.diag([2e4, 10.0, 5e5]), np.diag([1e4, 20.0, 1e6]),
+                  np.array([[1e4, 50.0, 0.0], [50.0, 20.0, 0.0], [0.0, 0.0, 1e6]])],
+                 3, 1, 0.001, id="motor-side"),
+]
+
+
+@pytest.mark.parametrize("make,lams,gammas,p,m,dt", MEMBER_CASES)
+def test_members_with_their_own_gains_equal_their_single_runs(make, lams, gammas, p, m, dt):
+    """A batch whose members differ in lambda and Gamma: member b equals, bit for bit, the
+    observer constructed with its own values run alone (dropouts of y included); the pure
+    step leaves the state it is given as it was."""
+    nb = len(lams)
+    Y, U, rng = _streams(p, m, seed=4)
+    Y, U = Y[:nb, :120].copy(), U[:nb, :120]
+    Y[1, 5:8, 0] = np.nan
+    Y[2, 40, 0] = np.nan
+    ob = make(lams[0], gammas[0])
+    params = ob.parameters(nb, lam=lams, gamma=np.array(gammas))
+    z0 = rng.uniform(-0.5, 0.5, (nb, ob.n))
+    s0 = ob.init(nb, z_hat0=z0, params=params)
+    before = s0.copy()
+    s1, blk = ob.step(params, s0, Y[:, :70], U[:, :70], dt)
+    s2, blk2 = ob.step(params, s1, Y[:, 70:], U[:, 70:], dt)
+    for name, v in before.fields.items():
+        np.testing.assert_array_equal(s0.fields[name], v)
+    assert s0.S is not s1.S and s1.S is not s2.S
+    np.testing.assert_array_equal(s2.dropouts, np.isnan(Y).any(axis=2).sum(axis=1))
+    x, z, d = ob.current(params, s2)
+    for b in range(nb):
+        one = make(lams[b], gammas[b])
+        one.reset(z_hat0=z0[b:b + 1])
+        ref = advance(one, Y[b:b + 1], U[b:b + 1], dt)
+        for got, want in ((blk, ref.x_hat[0, :70]), (blk2, ref.x_hat[0, 70:])):
+            np.testing.assert_array_equal(got.x_hat[b], want)
+        np.testing.assert_array_equal(np.concatenate((blk.z_hat[b], blk2.z_hat[b])), ref.z_hat[0])
+        np.testing.assert_array_equal(np.concatenate((blk.diagnostics[b], blk2.diagnostics[b])),
+                                      ref.diagnostics[0])
+        np.testing.assert_array_equal(s2.S[b], one.state.S[0])
+        np.testing.assert_array_equal(x[b], one.x_hat[0])
+        np.testing.assert_array_equal(d[b], ob.current(*one._own())[2][0])
+        np.testing.assert_array_equal(z[b], one.z_hat[0])
+
+
+@pytest.mark.parametrize("values,exc,match", [
+    ({"lam": [2.0, -1.0, 1.0]}, DesignError, r"Corollary 3.3 needs lambda > 0; found lambda = -1"),
+    ({"lam": [2.0, np.nan, 1.0]}, DesignError, r"lambda must be finite"),
+    ({"gamma": [[[5.0]], [[0.0]], [[1.0]]]}, DesignError,
+     r"gamma must be positive definite; found eigenvalues \[0.0\]"),
+    ({"gamma": [[[5.0]], [[-2.0]], [[1.0]]]}, DesignError, "positive definite"),
+    ({"gamma": [5.0, 2.0, 1.0]}, DimensionError, r"parameter gamma must have shape \(1, 1\)"),
+])
+def test_per_member_parameters_are_checked_as_the_constructor_checks_them(values, exc, match):
+    ob = JoSonObserver(JoSonExample(), lam=2.0, gamma=5.0)
+    assert ob.parameter_names == ("lam", "gamma")
+    with pytest.raises(exc, match=match):
+        ob.parameters(3, **values)
+    with pytest.raises(DesignError, match="gamma must be symmetric"):
+        _motor_side(50.0, np.eye(3)).parameters(2, gamma=np.array([np.eye(3), np.triu(np.ones((3, 3)))]))
+
+
+def test_a_restarted_member_equals_a_fresh_run_and_the_others_go_on():
+    """reset_members restarts one member's estimate and its excitation window (per-member
+    window rows and counters); the others go on as if nothing happened."""
+    Y, U, _ = _streams(3, 1, seed=5)
+    make = lambda: _motor_side(50.0, (1e4, 20.0, 1e6))  # noqa: E731
+    ob, ref = make(), make()
+    for o in (ob, ref):
+        o.reset(batch=3)
+        advance(o, Y[:3, :80], U[:3, :80], 0.001)
+    ob.reset_members([1])
+    blk = advance(ob, Y[:3, 80:], U[:3, 80:], 0.001)
+    rest = advance(ref, Y[:3, 80:], U[:3, 80:], 0.001)
+    fresh = make()
+    fresh.reset(batch=1)
+    one = advance(fresh, Y[1:2, 80:], U[1:2, 80:], 0.001)
+    for b in (0, 2):
+        np.testing.assert_array_equal(blk.diagnostics[b], rest.diagnostics[b])
+    np.testing.assert_array_equal(blk.x_hat[1], one.x_hat[0])
+    np.testing.assert_array_equal(blk.diagnostics[1], one.diagnostics[0])
