@@ -268,7 +268,9 @@ class QIntegralObserver(AffineObserver):
     Attributes
     ----------
     gamma_ : float
-        The high-gain parameter, reported by :meth:`diagnostics` as ``"gamma"``.
+        The high-gain parameter (constant over a run), reported by :meth:`diagnostics` as
+        ``"gamma"``. With ``alpha`` it is a tunable parameter: this value is the default of
+        :meth:`parameters`, which gives each member of a batch its own ``gamma`` and ``alpha``.
     Z, Q : ndarray
         ``Z(gamma)`` (the Riccati solution of the augmented chain, eq. 40) and ``Q(gamma)``.
     L : ndarray

@@ -72,13 +72,13 @@ def design_gamma(gamma: Any, alpha: np.ndarray, rho: Any, where: str) -> tuple[f
     return finite_scalar("gamma", gamma, positive=True), r
 
 
-def cached(cache: dict[Any, Any], key: Any, build: Callable[[], Any]) -> Any:
-    """``cache[key]``, built by ``build()`` when missing; at most :data:`CACHE_SIZE` entries
-    (the oldest goes first). The key is what the entry derives from: the period and the
-    parameters' :meth:`~hgo_mj.observers.base.Params.key`."""
+def cached(cache: dict[Any, Any], key: Any, build: Callable[[Any], Any]) -> Any:
+    """``cache[key]``, built by ``build(key)`` when missing; at most :data:`CACHE_SIZE` entries
+    (the oldest goes first). The key is what the entry derives from (the period, the
+    parameters' :meth:`~hgo_mj.observers.base.Params.key`)."""
     entry = cache.get(key)
     if entry is None:
-        entry = build()
+        entry = build(key)
         if len(cache) >= CACHE_SIZE:
             del cache[next(iter(cache))]
         cache[key] = entry
@@ -299,7 +299,7 @@ class AffineObserver(Observer):
         """The gain ``L = P(gamma) C'`` of the parameters ``p`` (from the Riccati equation,
         :func:`~hgo_mj.design.riccati_gains`), contiguous for the kernels."""
         return cached(self._gains_cache, p.key(),  # type: ignore[no-any-return]
-                      lambda: np.ascontiguousarray(
+                      lambda _: np.ascontiguousarray(
                           riccati_gains(np.asarray(p.alpha), float(p.gamma)), dtype=float))
 
     # ------------------------------------------------------------------ setup
@@ -311,7 +311,7 @@ class AffineObserver(Observer):
 
     def _entry(self, p: Params, dt: float) -> tuple[Array, ...]:
         return cached(self._maps_cache, (dt, p.key()),  # type: ignore[no-any-return]
-                      lambda: self._maps(p, dt))
+                      lambda _: self._maps(p, dt))
 
     def _check_period(self, p: Params, dt: float) -> None:
         """Check the one-step error map of the parameters ``p`` at the sample period ``dt``
@@ -460,7 +460,9 @@ class RiccatiObserver(AffineObserver):
     Attributes
     ----------
     gamma_ : float
-        The high-gain parameter (constant), reported by :meth:`diagnostics` as ``"gamma"``.
+        The high-gain parameter (constant over a run), reported by :meth:`diagnostics` as
+        ``"gamma"``. With ``alpha`` it is a tunable parameter: this value is the default of
+        :meth:`parameters`, which gives each member of a batch its own ``gamma`` and ``alpha``.
     P, Q : ndarray
         ``P(gamma)`` and ``Q(gamma)`` of the design.
     L : ndarray
