@@ -69,7 +69,7 @@ from ..design import (
 )
 from ..exceptions import DimensionError
 from ..systems.base import System
-from .base import Array, register
+from .base import Array, Params, register
 from .high_gain import (
     check_step_stable,
     largest_stable_step,
@@ -268,7 +268,9 @@ class QIntegralObserver(AffineObserver):
     Attributes
     ----------
     gamma_ : float
-        The high-gain parameter, reported by :meth:`diagnostics` as ``"gamma"``.
+        The high-gain parameter (constant over a run), reported by :meth:`diagnostics` as
+        ``"gamma"``. With ``alpha`` it is a tunable parameter: this value is the default of
+        :meth:`parameters`, which gives each member of a batch its own ``gamma`` and ``alpha``.
     Z, Q : ndarray
         ``Z(gamma)`` (the Riccati solution of the augmented chain, eq. 40) and ``Q(gamma)``.
     L : ndarray
@@ -303,15 +305,13 @@ class QIntegralObserver(AffineObserver):
         n = self.n
         q = positive_int("q (the number of output integrators)", q)
         N = n + q
-        a = binomial_coefficients(N) if alpha is None else check_riccati_alpha(alpha)
-        if a.size != N:
-            raise DimensionError(f"alpha must have n + q = {n} + {q} = {N} coefficients; found "
-                                 f"{a.size}")
-        g, r = design_gamma(gamma, a, rho, type(self).__name__)
-        self._setup(model, method, None, x_hat0, z_hat0)
         self.q = q
         self._off = q
         self.N = N
+        a = binomial_coefficients(N) if alpha is None else self._check_alpha(
+            check_riccati_alpha(alpha))
+        g, r = design_gamma(gamma, a, rho, type(self).__name__)
+        self._setup(model, method, None, x_hat0, z_hat0)
         self.alpha = a
         self.gamma_ = g
         self.rho = r
@@ -319,14 +319,18 @@ class QIntegralObserver(AffineObserver):
         self.Q = riccati_Q(a, g)
         self.Z = riccati_P(a, g)
         self.L = riccati_gains(a, g)  # Z(gamma) C' from the ARE of the augmented chain
-        self._L = np.ascontiguousarray(self.L, dtype=float)
         self.condition = None if r is None else lipschitz_condition(a, g, r)
         if r is not None and self.condition is not None and not self.condition["satisfied"]:
             warnings.warn(f"QIntegralObserver: gamma = {g:g} does not meet condition (44) for "
                           f"rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
                           f"convergence is not guaranteed; min_gamma gives {min_gamma(a, r):.4g}",
                           RuntimeWarning, stacklevel=2)
-        self.reset()
+
+    def _check_alpha(self, a: Array) -> Array:
+        if a.size != self.N:
+            raise DimensionError(f"alpha must have n + q = {self.n} + {self.q} = {self.N} "
+                                 f"coefficients; found {a.size}")
+        return a
 
     # ------------------------------------------------------------------ setup
     def max_stable_period(self) -> float:
@@ -343,24 +347,28 @@ class QIntegralObserver(AffineObserver):
         >>> round(obs.max_stable_period(), 4)
         0.2
         """
+        return self._max_period(self.alpha, self.gamma_)
+
+    def _max_period(self, alpha: Array, gamma: float) -> float:
         if self.method == "exact":
             return float("inf")
         return largest_stable_step(
-            lambda dt: q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)[0],
-            1e-3 / self.gamma_, 1e6 / self.gamma_)
+            lambda dt: q_integral_step_map(alpha, gamma, self.q, dt, self.method)[0],
+            1e-3 / gamma, 1e6 / gamma)
 
-    def _maps(self, dt: float) -> tuple[Array, ...]:
-        M, b, g = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method)
+    def _maps(self, p: Params, dt: float) -> tuple[Array, ...]:
+        alpha, gamma = np.asarray(p.alpha), float(p.gamma)
+        M, b, g = q_integral_step_map(alpha, gamma, self.q, dt, self.method)
         check_step_stable(M, self.on_unstable,
                           f"{self.method} update of the q-integral observer (n={self.n}, "
-                          f"q={self.q}, gamma={self.gamma_:g})", dt, self.max_stable_period)
-        M0, _, g0 = q_integral_step_map(self.alpha, self.gamma_, self.q, dt, self.method,
-                                        closed=False)
+                          f"q={self.q}, gamma={gamma:g})", dt,
+                          lambda: self._max_period(alpha, gamma))
+        M0, _, g0 = q_integral_step_map(alpha, gamma, self.q, dt, self.method, closed=False)
         return np.array([M, M0]), np.array([b, g, g0])
 
-    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
+    def _stage(self, V: Array, Y: Array, j: int, phi: Array, L: Array) -> Array:
         Dv = np.empty_like(V)
-        q_integral_rhs(V, Y, j, phi, self._L, self.q, Dv)
+        q_integral_rhs(V, Y, j, phi, L, self.q, Dv)
         return Dv
 
     # ------------------------------------------------------------------ state
@@ -370,7 +378,7 @@ class QIntegralObserver(AffineObserver):
 
     @property
     def w_(self) -> Array:
-        return self._public(self._S.copy())  # type: ignore[no-any-return]
+        return self._public(self.state.S.copy())  # type: ignore[no-any-return]
 
     def params(self) -> dict[str, Any]:
         return {"gamma": self.gamma_, "gamma_spec": self.gamma_spec, "q": self.q,

@@ -46,7 +46,7 @@ from ..design import (
 )
 from ..exceptions import DesignError, DimensionError
 from ..systems.base import System
-from .base import Array, Observer, batch_rows, register
+from .base import Array, Observer, Params, State, batch_rows, register
 from .high_gain import (
     bounds_pair,
     check_options,
@@ -55,7 +55,8 @@ from .high_gain import (
     one_step_map,
 )
 
-#: per-dt entries kept by an observer (jittered periods must not grow memory)
+#: per-(dt, parameters) entries kept by an observer (jittered periods and many tunings must
+#: not grow memory)
 CACHE_SIZE = 8
 
 
@@ -71,15 +72,16 @@ def design_gamma(gamma: Any, alpha: np.ndarray, rho: Any, where: str) -> tuple[f
     return finite_scalar("gamma", gamma, positive=True), r
 
 
-def cached(cache: dict[float, Any], dt: float, build: Callable[[float], Any]) -> Any:
-    """``cache[dt]``, built by ``build(dt)`` when missing; at most :data:`CACHE_SIZE` entries
-    (the oldest goes first)."""
-    entry = cache.get(dt)
+def cached(cache: dict[Any, Any], key: Any, build: Callable[[Any], Any]) -> Any:
+    """``cache[key]``, built by ``build(key)`` when missing; at most :data:`CACHE_SIZE` entries
+    (the oldest goes first). The key is what the entry derives from (the period, the
+    parameters' :meth:`~hgo_mj.observers.base.Params.key`)."""
+    entry = cache.get(key)
     if entry is None:
-        entry = build(dt)
+        entry = build(key)
         if len(cache) >= CACHE_SIZE:
             del cache[next(iter(cache))]
-        cache[dt] = entry
+        cache[key] = entry
     return entry
 
 
@@ -250,15 +252,19 @@ class AffineObserver(Observer):
     RK4 with the model term at every stage (:func:`model_rk4`); the estimate ``z_hat`` is
     ``sat(S[:, off:])``.
 
-    A family sets ``_off``, ``gamma_`` and implements ``_maps(dt) -> ((M, M0), (b, g, g0))``
-    (the arrays of :func:`affine_run`), the
-    stage derivative ``_stage(V, Y, j, phi) -> dV/dt`` (RK4 with the model term) and
-    ``_initial_state(z0)``.
+    The tunable parameters are the high-gain parameter ``gamma`` and the coefficients
+    ``alpha`` (:meth:`parameters`); the state is ``S`` with the base's fields. A family sets
+    ``_off``, ``gamma_``, ``alpha`` and ``rho`` and implements
+    ``_maps(p, dt) -> ((M, M0), (b, g, g0))`` (the arrays of :func:`affine_run` for the
+    parameters ``p``), the stage derivative ``_stage(V, Y, j, phi, L) -> dV/dt`` (RK4 with the
+    model term, ``L`` the gain of ``p``), ``_check_alpha(alpha)`` and ``_initial_state(z0)``.
     """
 
     family_diagnostics = ("gamma",)
     _off = 0
     gamma_: float
+    alpha: Array
+    rho: float | None
 
     def _setup(self, model: bool, method: str, z_bounds: Any, x_hat0: Any, z_hat0: Any) -> None:
         check_options(method, self.on_unstable, model, self.system)
@@ -267,31 +273,63 @@ class AffineObserver(Observer):
         self.z_bounds = bounds_pair(z_bounds, self.n)
         self._bounds, self._sat = bounds_rows(self.z_bounds, self.n)
         self._identity = is_identity_map(self.system, self.n)
-        self._maps_cache: dict[float, tuple[Array, ...]] = {}
-        self._init = (x_hat0, z_hat0)
+        self._maps_cache: dict[tuple[float, bytes], tuple[Array, ...]] = {}
+        self._gains_cache: dict[bytes, Array] = {}
+        self._start = (x_hat0, z_hat0)
+
+    # ------------------------------------------------------------- parameters
+    def _parameters(self) -> dict[str, Any]:
+        """The high-gain parameter ``gamma`` (a float) and the coefficients ``alpha`` of (9)
+        (one per integrator of the chain) (paper 004, Theorem 1, eq. 6-10)."""
+        return {"gamma": self.gamma_, "alpha": self.alpha}
+
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        """``gamma`` > 0, or ``"min"`` (:func:`~hgo_mj.design.min_gamma` of the constructor's
+        ``alpha`` and ``rho``); ``alpha`` (9) Hurwitz, meeting (10), of the chain's length. (The
+        constructor's warning on the Lipschitz condition is not repeated per member: it needs
+        the pair ``gamma``, ``alpha``.)"""
+        if name == "gamma":
+            return np.array(design_gamma(value, self.alpha, self.rho, type(self).__name__)[0])
+        return self._check_alpha(check_riccati_alpha(value))
+
+    def _check_alpha(self, a: Array) -> Array:
+        raise NotImplementedError
+
+    def _gains(self, p: Params) -> Array:
+        """The gain ``L = P(gamma) C'`` of the parameters ``p`` (from the Riccati equation,
+        :func:`~hgo_mj.design.riccati_gains`), contiguous for the kernels."""
+        return cached(self._gains_cache, p.key(),  # type: ignore[no-any-return]
+                      lambda _: np.ascontiguousarray(
+                          riccati_gains(np.asarray(p.alpha), float(p.gamma)), dtype=float))
 
     # ------------------------------------------------------------------ setup
-    def _maps(self, dt: float) -> tuple[Array, ...]:
+    def _maps(self, p: Params, dt: float) -> tuple[Array, ...]:
         raise NotImplementedError
 
-    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
+    def _stage(self, V: Array, Y: Array, j: int, phi: Array, L: Array) -> Array:
         raise NotImplementedError
 
-    def _entry(self, dt: float) -> tuple[Array, ...]:
-        return cached(self._maps_cache, dt, self._maps)  # type: ignore[no-any-return]
+    def _entry(self, p: Params, dt: float) -> tuple[Array, ...]:
+        return cached(self._maps_cache, (dt, p.key()),  # type: ignore[no-any-return]
+                      lambda _: self._maps(p, dt))
 
-    def check_period(self, dt: float) -> None:
-        """Check the one-step error map at the sample period ``dt`` (once per period: the
-        first update at a new period does it too) and react as ``on_unstable`` says."""
-        self._entry(finite_scalar("dt", dt, positive=True))
+    def _check_period(self, p: Params, dt: float) -> None:
+        """Check the one-step error map of the parameters ``p`` at the sample period ``dt``
+        (once per period: the first update at a new period does it too) and react as
+        ``on_unstable`` says."""
+        self._entry(p, finite_scalar("dt", dt, positive=True))
 
     # ------------------------------------------------------------------ state
     def _initial_state(self, z0: Array) -> Array:
         return np.array(z0, dtype=float, order="C")
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
-        self._S = self._initial_state(self._initial_z(*initial_rows(self, x0, z0), u0))
-        self._x = physical_rows(self, self._S, self._off, u0)
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        B = u0.shape[0]
+        S = self._initial_state(self._initial_z(*initial_rows(self, x0, z0, B), u0))
+        s = State(**self._core(B))
+        physical_rows(self, s, S, self._off, u0)
+        return {"S": S, **s.fields}
 
     def _phi(self, V: Array, u: Array) -> Array:
         """The model term ``phi(sat(V[:, off:]), u)`` of every member, ``(B,)``."""
@@ -299,14 +337,16 @@ class AffineObserver(Observer):
         saturated(V, self._off, self._bounds, self._sat, A)
         return np.ascontiguousarray(self.system.phi_batch(A, u), dtype=float)  # type: ignore[union-attr]
 
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        mats, vecs = self._entry(dt)
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
+        mats, vecs = self._entry(p, dt)
         M0, g0 = mats[1], vecs[2]
-        S, off, bounds, sat = self._S, self._off, self._bounds, self._sat
+        S, off, bounds, sat = s.S, self._off, self._bounds, self._sat
         B, T = Y.shape[0], Y.shape[1]
         if not self.model:  # the whole block in one call
             affine_run(S, Y, np.zeros((1, T)), 0, False, mats, vecs, bounds, off, sat, Z)
         elif self.method == "rk4":  # the model term at every stage
+            L = self._gains(p)
             for j in range(T):
                 u = U[:, j]
 
@@ -314,7 +354,7 @@ class AffineObserver(Observer):
                     return self._phi(V, u)
 
                 def stage(V: Array, ph: Array, j: int = j) -> Array:
-                    return self._stage(V, Y, j, ph)
+                    return self._stage(V, Y, j, ph, L)
 
                 model_rk4(S, Y, j, dt, 0, M0, g0, phi, stage)
                 report(S, off, bounds, sat, j, Z)
@@ -322,47 +362,48 @@ class AffineObserver(Observer):
             for j in range(T):
                 ph = self._phi(S, U[:, j])
                 affine_run(S, Y, ph.reshape(B, 1), j, True, mats, vecs, bounds, off, sat, Z)
-        D[:, :, 0] = self.gamma_
-        to_physical(self, Z, U, X)
+        D[:, :, 0] = float(p.gamma)
+        to_physical(self, s, Z, U, X)
 
-    def _current(self) -> tuple[Array, Array, Array]:
-        Zc = np.empty((self.batch, 1, self.n))
-        report(self._S, self._off, self._bounds, self._sat, 0, Zc)
-        return self._x.copy(), Zc[:, 0], np.full((self.batch, 1), self.gamma_)
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
+        B = s.S.shape[0]
+        Zc = np.empty((B, 1, self.n))
+        report(s.S, self._off, self._bounds, self._sat, 0, Zc)
+        return s.x_held.copy(), Zc[:, 0], np.full((B, 1), float(p.gamma))
 
 
-def initial_rows(ob: Observer, x0: Array | None, z0: Array | None) -> tuple[Any, Any]:
-    """The initial estimate of a ``reset``: the one given, else the constructor's
-    (``ob._init = (x_hat0, z_hat0)``) for every member."""
+def initial_rows(ob: Observer, x0: Array | None, z0: Array | None, B: int) -> tuple[Any, Any]:
+    """The initial estimate of ``B`` members: the one given, else the constructor's
+    (``ob._start = (x_hat0, z_hat0)``) for every member."""
     if x0 is not None or z0 is not None:
         return x0, z0
-    ix, iz = ob._init  # type: ignore[attr-defined]
-    return (None if ix is None else batch_rows("x_hat0", ix, len(ob.state_names), ob.batch),
-            None if iz is None else batch_rows("z_hat0", iz, ob.n, ob.batch))
+    ix, iz = ob._start  # type: ignore[attr-defined]
+    return (None if ix is None else batch_rows("x_hat0", ix, len(ob.state_names), B),
+            None if iz is None else batch_rows("z_hat0", iz, ob.n, B))
 
 
-def to_physical(ob: Any, Z: Array, U: Array, X: Array) -> None:
+def to_physical(ob: Any, s: State, Z: Array, U: Array, X: Array) -> None:
     """``X`` from the rows ``Z`` (the identity, or the inverse normal-form map) and keep the
-    last row as the current ``x_hat``."""
+    last row as the current ``x_hat`` (the state's ``x_held``)."""
     if ob._identity:
         X[...] = Z
+        if Z.shape[1]:
+            s.x_held[...] = X[:, -1]
     else:
-        ob._to_physical(Z, U, X)
-    if Z.shape[1]:
-        ob._x = X[:, -1].copy()
+        ob._to_physical(s, Z, U, X)  # keeps the last (valid) row in s.x_held
 
 
-def physical_rows(ob: Any, S: Array, off: int, u0: Array) -> Array:
-    """``x_hat`` of the state ``S`` at a reset (failures of the inverse map not counted: the
-    run has not started)."""
+def physical_rows(ob: Any, s: State, S: Array, off: int, u0: Array) -> None:
+    """``x_hat`` of the state ``S`` at the start into ``s.x_held`` (failures of the inverse map
+    not counted: the run has not started)."""
     Zc = np.empty((S.shape[0], 1, ob.n))
     report(S, off, ob._bounds, ob._sat, 0, Zc)
     if ob._identity:
-        return Zc[:, 0].copy()
+        s.x_held[...] = Zc[:, 0]
+        return
     X = np.empty((S.shape[0], 1, len(ob.state_names)))
-    ob._to_physical(Zc, u0[:, None], X)
-    ob._inverse_failures[:] = 0
-    return X[:, 0]
+    ob._to_physical(s, Zc, u0[:, None], X)  # keeps the row (or NaN) in s.x_held
+    s.inverse_failures[:] = 0
 
 
 @register
@@ -419,7 +460,9 @@ class RiccatiObserver(AffineObserver):
     Attributes
     ----------
     gamma_ : float
-        The high-gain parameter (constant), reported by :meth:`diagnostics` as ``"gamma"``.
+        The high-gain parameter (constant over a run), reported by :meth:`diagnostics` as
+        ``"gamma"``. With ``alpha`` it is a tunable parameter: this value is the default of
+        :meth:`parameters`, which gives each member of a batch its own ``gamma`` and ``alpha``.
     P, Q : ndarray
         ``P(gamma)`` and ``Q(gamma)`` of the design.
     L : ndarray
@@ -461,9 +504,8 @@ class RiccatiObserver(AffineObserver):
                  x_hat0: Any = None, z_hat0: Any = None, on_unstable: str = "raise") -> None:
         super().__init__(system, order=order, outputs=outputs, on_unstable=on_unstable)
         n = self.n
-        a = binomial_coefficients(n) if alpha is None else check_riccati_alpha(alpha)
-        if a.size != n:
-            raise DimensionError(f"alpha must have n = {n} coefficients; found {a.size}")
+        a = binomial_coefficients(n) if alpha is None else self._check_alpha(
+            check_riccati_alpha(alpha))
         g, r = design_gamma(gamma, a, rho, type(self).__name__)
         self._setup(model, method, z_bounds, x_hat0, z_hat0)
         self.alpha = a
@@ -474,14 +516,17 @@ class RiccatiObserver(AffineObserver):
         self.Q = riccati_Q(a, g)
         self.P = riccati_P(a, g)
         self.L = riccati_gains(a, g)  # P(gamma) C' from the ARE; equals (alpha_i gamma^i)
-        self._L = np.ascontiguousarray(self.L, dtype=float)
         self.condition = None if r is None else lipschitz_condition(a, g, r)
         if r is not None and self.condition is not None and not self.condition["satisfied"]:
             warnings.warn(f"RiccatiObserver: gamma = {g:g} does not meet the Lipschitz condition (5) "
                           f"for rho = {r:g} (it admits rho <= {self.condition['rho_bound']:.4g}); "
                           f"convergence is not guaranteed; min_gamma gives "
                           f"{min_gamma(a, r):.4g}", RuntimeWarning, stacklevel=2)
-        self.reset()
+
+    def _check_alpha(self, a: Array) -> Array:
+        if a.size != self.n:
+            raise DimensionError(f"alpha must have n = {self.n} coefficients; found {a.size}")
+        return a
 
     def max_stable_period(self) -> float:
         """Largest sample period for which ``method``'s one-step error map is stable.
@@ -499,23 +544,27 @@ class RiccatiObserver(AffineObserver):
         >>> RiccatiObserver(order=2, gamma=10.0, model=False).max_stable_period()
         inf
         """
+        return self._max_period(self.alpha, self.gamma_)
+
+    def _max_period(self, alpha: Array, gamma: float) -> float:
         if self.method == "exact":
             return float("inf")
         return largest_stable_step(
-            lambda dt: one_step_map(self.alpha, self.gamma_, dt, self.method)[0],
-            1e-3 / self.gamma_, 1e6 / self.gamma_)
+            lambda dt: one_step_map(alpha, gamma, dt, self.method)[0],
+            1e-3 / gamma, 1e6 / gamma)
 
-    def _maps(self, dt: float) -> tuple[Array, ...]:
-        M, b, g = one_step_map(self.alpha, self.gamma_, dt, self.method)
+    def _maps(self, p: Params, dt: float) -> tuple[Array, ...]:
+        alpha, gamma = np.asarray(p.alpha), float(p.gamma)
+        M, b, g = one_step_map(alpha, gamma, dt, self.method)
         check_step_stable(M, self.on_unstable, f"{self.method} update of the Riccati observer "
-                          f"(n={self.n}, gamma={self.gamma_:g})", dt, self.max_stable_period,
-                          digits=6)
-        M0, _, g0 = one_step_map(self.alpha, self.gamma_, dt, self.method, closed=False)
+                          f"(n={self.n}, gamma={gamma:g})", dt,
+                          lambda: self._max_period(alpha, gamma), digits=6)
+        M0, _, g0 = one_step_map(alpha, gamma, dt, self.method, closed=False)
         return np.array([M, M0]), np.array([b, g, g0])
 
-    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
+    def _stage(self, V: Array, Y: Array, j: int, phi: Array, L: Array) -> Array:
         Dv = np.empty_like(V)
-        chain_rhs(V, Y, j, phi, self._L, Dv)
+        chain_rhs(V, Y, j, phi, L, Dv)
         return Dv
 
     def params(self) -> dict[str, Any]:
