@@ -72,7 +72,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -206,6 +206,9 @@ def _copied(value: Any) -> Any:
     return value.copy()
 
 
+_StateT = TypeVar("_StateT", bound="State")
+
+
 class State:
     """An observer's state as data: named arrays, each with the leading batch axis ``B``
     (a field may also be a :class:`State` or a tuple of them: an observer bank's members).
@@ -238,6 +241,11 @@ class State:
     def __init__(self, **fields: Any) -> None:
         vars(self).update(fields)  # plain attributes: a field is read at attribute speed
 
+    if TYPE_CHECKING:  # the fields are dynamic: any name reads and writes an array
+        def __getattr__(self, name: str) -> Any: ...
+
+        def __setattr__(self, name: str, value: Any) -> None: ...
+
     @property
     def fields(self) -> dict[str, Any]:
         """Field name -> array (or nested state), in the order given (the live mapping)."""
@@ -255,7 +263,7 @@ class State:
                 return int(v[0].batch)
         raise DesignError(f"{type(self).__name__} has no array field to give its batch")
 
-    def copy(self) -> State:
+    def copy(self: _StateT) -> _StateT:
         """A deep copy (new arrays).
 
         Returns
@@ -272,7 +280,7 @@ class State:
         """
         return type(self)(**{k: _copied(v) for k, v in self.fields.items()})
 
-    def take(self, rows: Any) -> State:
+    def take(self: _StateT, rows: Any) -> _StateT:
         """The members ``rows`` as a new state (copies).
 
         Parameters
@@ -705,6 +713,11 @@ class Observer(ABC):
         measurement update (:attr:`measurement_update`) overrides it."""
         return self._current(p, s)[0]
 
+    def _prepare(self, s: State, dt: float) -> None:  # noqa: B027 - optional hook
+        """Shape the whole state ``s`` for the period ``dt`` before a block is split into
+        groups of equal parameters (a window whose length is ``round(window / dt)``: every
+        member's buffer one size); default: nothing."""
+
     def _check_period(self, p: Params, dt: float) -> None:  # noqa: B027 - optional hook
         """:meth:`check_period` for one member's parameters; default: nothing to check."""
 
@@ -1020,6 +1033,7 @@ class Observer(ABC):
             lost = None
         if not U.flags.c_contiguous:
             U = np.ascontiguousarray(U)
+        self._prepare(s, dt)
         groups = self._groups(params)
         if len(groups) == 1:
             self._step(groups[0][1], s, Yo, U, dt, X, Z, D[..., :nd])

@@ -92,7 +92,7 @@ from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, v
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.aocf import AOCF, Rebuildable, _callable, _names
 from ..systems.base import System
-from .base import Array, Block, Observer, Params, State, _batch_of, _batch_size, batch_rows, register
+from .base import Array, Observer, Params, State, _batch_of, _batch_size, batch_rows, register
 
 __all__ = ["AOCF", "BastinGeversObserver", "Rebuildable", "SlidingGram", "advance_3_1",
            "check_rk_period", "diagnostics_4_5_4_11", "excitation_4_5", "reachability_rank_4_11",
@@ -1070,10 +1070,9 @@ class BastinGeversObserver(Observer):
             s.ring = np.zeros((s.ring.shape[0], L, self.form.m))
             s.ring_dt[:] = np.nan
 
-    def _step_checked(self, params: Params, s: State, Y: Array, U: Array, dt: float,
-                      out: Block | None = None) -> Block:
+    def _prepare(self, s: State, dt: float) -> None:
+        """The excitation ring given its length at ``dt`` for the whole state."""
         self._size_ring(s, dt)
-        return super()._step_checked(params, s, Y, U, dt, out)
 
     def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
               D: Array) -> None:

@@ -76,7 +76,7 @@ from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, v
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from ..systems.jo_son_form import JoSonForm
-from .base import Array, Block, Observer, Params, State, batch_rows, check_outputs, register
+from .base import Array, Observer, Params, State, batch_rows, check_outputs, register
 from .bastin_gevers import check_rk_period, sym_eigvals
 
 __all__ = ["JoSonForm", "JoSonObserver", "jo_son_gain"]
@@ -695,13 +695,11 @@ class JoSonObserver(Observer):
             if self.on_unstable == "warn":
                 warnings.warn(str(exc), RuntimeWarning, stacklevel=3)
 
-    def _step_checked(self, params: Params, s: State, Y: Array, U: Array, dt: float,
-                      out: Block | None = None) -> Block:
-        """:meth:`Observer._step_checked`, the excitation window first given its length at
-        ``dt`` for the whole state (:meth:`_window`)."""
+    def _prepare(self, s: State, dt: float) -> None:
+        """The excitation window given its length at ``dt`` for the whole state
+        (:meth:`_window`)."""
         if self.excitation_window is not None:
             self._window(s, dt)
-        return super()._step_checked(params, s, Y, U, dt, out)
 
     def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
               D: Array) -> None:

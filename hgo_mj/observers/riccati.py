@@ -290,6 +290,9 @@ class AffineObserver(Observer):
         the pair ``gamma``, ``alpha``.)"""
         if name == "gamma":
             return np.array(design_gamma(value, self.alpha, self.rho, type(self).__name__)[0])
+        a = np.asarray(value)
+        if a.dtype.kind in "iuf" and a.ndim == 1:  # the length first: a wrong one is named so
+            self._check_alpha(a.astype(float))
         return self._check_alpha(check_riccati_alpha(value))
 
     def _check_alpha(self, a: Array) -> Array:

@@ -223,7 +223,8 @@ def test_member_gains_are_checked_as_the_constructor_checks_them():
         ob.parameters(3, gamma=[[1, 2, 0], [2, 1, 0], [0, 0, 1]])
     with pytest.raises(DesignError, match="gamma must be symmetric"):
         ob.parameters(2, gamma=np.stack([np.eye(3), [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]]))
-    with pytest.raises(DimensionError, match=r"parameter gamma must have shape \(3, 3\)"):
+    with pytest.raises(DimensionError, match=r"gamma must be a scalar, a length-3 vector or a "
+                                             r"3x3 matrix; found shape \(2, 2\)"):
         ob.parameters(3, gamma=np.eye(2))
     with pytest.raises(DesignError, match="c1 must be finite; found nan"):
         ob.parameters(1, c1=np.nan)

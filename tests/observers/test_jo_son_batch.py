@@ -210,7 +210,7 @@ def test_members_with_their_own_gains_equal_their_single_runs(make, lams, gammas
     ({"gamma": [[[5.0]], [[0.0]], [[1.0]]]}, DesignError,
      r"gamma must be positive definite; found eigenvalues \[0.0\]"),
     ({"gamma": [[[5.0]], [[-2.0]], [[1.0]]]}, DesignError, "positive definite"),
-    ({"gamma": [5.0, 2.0, 1.0]}, DimensionError, r"parameter gamma must have shape \(1, 1\)"),
+    ({"gamma": [5.0, 2.0, 1.0]}, DimensionError, r"gamma as a vector must have length m = 1"),
 ])
 def test_per_member_parameters_are_checked_as_the_constructor_checks_them(values, exc, match):
     ob = JoSonObserver(JoSonExample(), lam=2.0, gamma=5.0)

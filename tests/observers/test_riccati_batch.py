@@ -195,7 +195,7 @@ def test_bad_parameters_are_refused_with_the_constructors_message(cls, kw):
         ob.parameters(2, alpha=weights)
     with pytest.raises(DesignError, match=r"violates condition \(10\).*q_1 = -9"):
         cls(CartPendulum(), gamma=6.0, alpha=weights, **kw)
-    with pytest.raises(DimensionError, match=rf"alpha must have shape \({N},\)"):
+    with pytest.raises(DimensionError, match=rf"alpha must have n.* = {N} coefficients; found {N + 1}"):
         ob.parameters(2, alpha=[1.0] * (N + 1))
 
 
