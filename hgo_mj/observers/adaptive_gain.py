@@ -582,8 +582,8 @@ class AdaptiveGainObserver(Observer):
         return {"lam": self.lam, "lam_hat": self.lam_hat, "gamma": self.gamma, "k0": self.k0}
 
     def _check_parameter(self, name: str, value: Any) -> Array:
-        if name not in ("lam", "lam_hat", "gamma", "k0"):
-            return super()._check_parameter(name, value)
+        """Each a positive finite number (``k0 <= k_max``), as the constructor checks it;
+        ``lam_hat > lam`` is a condition on two parameters, checked by :meth:`parameters`."""
         v = finite_scalar(name, value, positive=True)
         if name == "k0" and self.k_max is not None and self.k_max < v:
             raise DesignError(f"k_max must be >= k0; found k_max={self.k_max:g} < k0={v:g}")
