@@ -38,25 +38,16 @@ from .._validate import boolean, finite_scalar
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
-from .base import Array, Observer, register
+from .base import Array, Observer, Params, State, batch_rows, register
 from .high_gain import (
+    MAP_CACHE,
     bounds_pair,
     check_options,
     largest_stable_step,
     one_step_map,
     sampled_chain,
 )
-from .riccati import (
-    bounds_rows,
-    cached,
-    initial_rows,
-    is_identity_map,
-    model_rk4,
-    physical_rows,
-    report,
-    saturated,
-    to_physical,
-)
+from .riccati import bounds_rows, is_identity_map, model_rk4, report, saturated
 
 #: method codes of the kernels
 EXACT, EULER, RK4 = 0, 1, 2
@@ -252,7 +243,7 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
       while ``k`` does not change) and ``k+ = k + dt gamma d^2(e)``, ``e = y - z_1``;
     * ``euler`` (1): ``s+ = s + dt f(s)`` (:func:`joint_rhs`), plus ``dt phi`` in the last row;
     * ``rk4`` (2): classical RK4 of :func:`joint_rhs` (without the model term: with it, the
-      stages are driven from Python, :meth:`AdaptiveGainObserver._advance`);
+      stages are driven from Python, :meth:`AdaptiveGainObserver._step`);
 
     then :func:`gain_limits` (``lim`` ``(B, 3)``); ``sat(z)`` into ``Z[:, j]``, ``k`` into
     ``D[:, j, 0]``. With ``stop`` a member stops before the sample at which ``k`` crosses
@@ -376,6 +367,13 @@ def adaptive_rhs(V, Y, j, PHI, vecs, lam, lam_hat, gamma, Dv):  # pragma: no cov
 
 
 # --------------------------------------------------------------------- per-period design
+def _check_dead_zone(lam: float, lam_hat: float) -> None:
+    """``lam_hat > lam`` (paper 000, eq. 5), as the constructor and :meth:`parameters` check it."""
+    if not lam_hat > lam:
+        raise DesignError(f"lam_hat must be > lam (paper 000, eq. 5: lambda_hat > lambda > 0); "
+                          f"found lam_hat={lam_hat:g} <= lam={lam:g}")
+
+
 def _root_groups(p: Array) -> tuple[list[float], list[tuple[float, float]]]:
     """Roots of ``s^n + p_1 s^(n-1) + ... + p_n``: the real ones and the ``(re, im > 0)`` pairs."""
     roots = np.roots(np.concatenate(([1.0], p)))
@@ -477,9 +475,9 @@ class AdaptiveGainObserver(Observer):
         Initial estimate in physical or observer coordinates (default zero).
     on_unstable : {"raise", "warn", "ignore"}
         What :meth:`check_period` does when the linear part's one-step map is unstable at the
-        current ``k`` or at ``k_max``, and what ``update`` does when ``k`` grows past the
-        stable limit during a run (``raise``: :class:`~hgo_mj.exceptions.DivergenceError`;
-        ``warn``: once per reset).
+        gain a run starts from (``k0``) or at ``k_max``, and what a step does when ``k`` grows
+        past the stable limit during a run (``raise``: :class:`~hgo_mj.exceptions.DivergenceError`;
+        ``warn``: once per member and reset).
 
     Attributes
     ----------
@@ -551,18 +549,14 @@ class AdaptiveGainObserver(Observer):
             raise DimensionError(f"p must have n = {n} coefficients; found {self.p.size}")
         self.lam = finite_scalar("lam", lam, positive=True)
         self.lam_hat = finite_scalar("lam_hat", lam_hat, positive=True)
-        if not self.lam_hat > self.lam:
-            raise DesignError(f"lam_hat must be > lam (paper 000, eq. 5: lambda_hat > lambda > 0); "
-                              f"found lam_hat={self.lam_hat:g} <= lam={self.lam:g}")
+        _check_dead_zone(self.lam, self.lam_hat)
         self.gamma = finite_scalar("gamma", gamma, positive=True)
         self.k0 = finite_scalar("k0", k0, positive=True)
         if k_max is None:
             self.k_max = None
         else:
             self.k_max = finite_scalar("k_max", k_max, positive=True)
-            if self.k_max < self.k0:
-                raise DesignError(f"k_max must be >= k0; found k_max={self.k_max:g} < "
-                                  f"k0={self.k0:g}")
+            self._check_parameter("k0", self.k0)
         check_options(method, self.on_unstable, model, system)
         self.model = boolean("model", model)
         self.method = method
@@ -571,41 +565,97 @@ class AdaptiveGainObserver(Observer):
         self._tau_max = _max_stable_kdt(tuple(self.p.tolist()), method)
         self._roots = root_data(self.p)
         self._identity = is_identity_map(system, n)
-        self._maps_cache: dict[float, tuple[Any, ...]] = {}
-        self._init = (x_hat0, z_hat0)
-        self.reset()
+        #: the packed constants of :func:`adaptive_run` per (period, parameters)
+        self._maps_cache: dict[tuple[float, bytes], tuple[Array, Array, Array]] = {}
+        # the constructor's initial estimate, checked now (any number of members)
+        for name, value, width in (("x_hat0", x_hat0, len(self.state_names)),
+                                   ("z_hat0", z_hat0, n)):
+            if value is not None:
+                batch_rows(name, value, width, None)
+        self._start = (x_hat0, z_hat0)
+
+    # ------------------------------------------------------------------ parameters
+    def _parameters(self) -> dict[str, Any]:
+        """The constants of the adaptation law (paper 000, eq. 4-5): the dead-zone width
+        ``lam``, its saturation level ``lam_hat``, the rate ``gamma`` and the initial gain
+        ``k0``, each a float per member."""
+        return {"lam": self.lam, "lam_hat": self.lam_hat, "gamma": self.gamma, "k0": self.k0}
+
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        """Each a positive finite number (``k0 <= k_max``), as the constructor checks it;
+        ``lam_hat > lam`` is a condition on two parameters, checked by :meth:`parameters`."""
+        v = finite_scalar(name, value, positive=True)
+        if name == "k0" and self.k_max is not None and self.k_max < v:
+            raise DesignError(f"k_max must be >= k0; found k_max={self.k_max:g} < k0={v:g}")
+        return np.array(v)
+
+    def parameters(self, batch: int = 1, **values: Any) -> Params:
+        """The parameters of ``batch`` members (:meth:`Observer.parameters`), each member's
+        ``lam_hat > lam`` checked as the constructor checks it (paper 000, eq. 5).
+
+        Examples
+        --------
+        >>> obs = AdaptiveGainObserver(order=2, lam=0.1, lam_hat=0.3, gamma=100.0, k0=5.0)
+        >>> obs.parameters(2, gamma=[100.0, 400.0]).gamma.tolist()
+        [100.0, 400.0]
+        >>> obs.parameters(2, lam=[0.1, 0.3])  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        hgo_mj.exceptions.DesignError: lam_hat must be > lam ...; found lam_hat=0.3 <= lam=0.3
+        """
+        params = super().parameters(batch, **values)
+        for lam, lam_hat in zip(params.lam, params.lam_hat):
+            _check_dead_zone(float(lam), float(lam_hat))
+        return params
 
     # ------------------------------------------------------------------ state
     @property
     def k_(self) -> Any:
         """The current gain ``k(t)`` (a float, or ``(B,)`` for a batched observer)."""
-        return self._public(self._S[:, 0].copy())
+        return self._public(self.state.S[:, 0].copy())
 
     @property
     def k_max_reached_(self) -> Any:
         """Whether ``k`` reached ``k_max`` since the last reset (per member)."""
-        return self._public(self._lim[:, 0] > 0)
+        return self._public(self.state.lim[:, 0] > 0)
 
     @property
     def L(self) -> Array:
         """The current output-injection gains ``p_i k^i`` (eq. 2), ``(n,)`` or ``(B, n)``."""
-        return self._public(self.p * self._S[:, :1] ** np.arange(1, self.n + 1))  # type: ignore[no-any-return]
+        return self._public(self.p * self.state.S[:, :1] ** np.arange(1, self.n + 1))  # type: ignore[no-any-return]
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
-        z = self._initial_z(*initial_rows(self, x0, z0), u0)
-        self._S = np.ascontiguousarray(np.hstack([np.full((self.batch, 1), self.k0), z]))
-        self._x = physical_rows(self, self._S, 1, u0)
-        #: per member: reached k_max (0/1), sample at which k crossed the stable limit (-1:
-        #: not yet), k there
-        self._lim = np.zeros((self.batch, 3))
-        self._lim[:, 1] = -1.0
-        self._warned_unstable = False
-        self._warned_k_max = False
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        """``S = (k, z)`` ``(B, n + 1)`` with ``k = k0``; ``lim`` per member: reached
+        ``k_max`` (0/1), sample at which ``k`` crossed the stable limit (-1: not yet), ``k``
+        there; ``warned``: whether the warnings of ``k_max`` and of the stable limit were
+        issued (once per member and reset); ``x_held``: the estimate at the start (failures
+        of the inverse map not counted: the run has not started)."""
+        B = u0.shape[0]
+        if x0 is None and z0 is None:
+            ix, iz = self._start
+            x0 = None if ix is None else batch_rows("x_hat0", ix, len(self.state_names), B)
+            z0 = None if iz is None else batch_rows("z_hat0", iz, self.n, B)
+        z = self._initial_z(x0, z0, u0)
+        S = np.ascontiguousarray(np.hstack([np.full((B, 1), float(p.k0)), z]))
+        lim = np.zeros((B, 3))
+        lim[:, 1] = -1.0
+        fields: dict[str, Any] = {"S": S, "lim": lim, "warned": np.zeros((B, 2), dtype=bool)}
+        if not self._identity:
+            s = State(**self._core(B))
+            Zc = np.empty((B, 1, self.n))
+            report(S, 1, self._bounds, self._sat, 0, Zc)
+            self._to_physical(s, Zc, u0[:, None], np.empty((B, 1, len(self.state_names))))
+            s.inverse_failures[:] = 0
+            fields.update(s.fields)
+        return fields
 
-    def _current(self) -> tuple[Array, Array, Array]:
-        Zc = np.empty((self.batch, 1, self.n))
-        report(self._S, 1, self._bounds, self._sat, 0, Zc)
-        return self._x.copy(), Zc[:, 0], self._S[:, :1].copy()
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
+        S = s.S
+        Zc = np.empty((S.shape[0], 1, self.n))
+        report(S, 1, self._bounds, self._sat, 0, Zc)
+        x = Zc[:, 0].copy() if self._identity else s.x_held.copy()
+        return x, Zc[:, 0], S[:, :1].copy()
 
     # ------------------------------------------------------------------ setup
     def max_stable_gain(self, dt: float) -> float:
@@ -637,8 +687,8 @@ class AdaptiveGainObserver(Observer):
         return self._tau_max / finite_scalar("dt", dt, positive=True)
 
     def max_stable_period(self, k: float | None = None) -> float:
-        """Largest stable sample period at gain ``k`` (default: the current ``k``, the largest
-        over the members).
+        """Largest stable sample period at gain ``k`` (default: the current ``k`` of the
+        observer's own state, the largest over the members).
 
         Parameters
         ----------
@@ -662,22 +712,22 @@ class AdaptiveGainObserver(Observer):
         >>> round(obs.max_stable_period(), 6), round(obs.max_stable_period(10.0), 6)
         (0.4, 0.2)
         """
-        k = float(self._S[:, 0].max()) if k is None else finite_scalar("k", k, positive=True)
+        k = float(self.state.S[:, 0].max()) if k is None else finite_scalar("k", k, positive=True)
         return self._tau_max / k
 
-    def check_period(self, dt: float) -> None:
-        """Check the linear part's one-step map at the current ``k`` (the largest over the
-        members) and at ``k_max`` (if given).
+    def _check_period(self, p: Params, dt: float) -> None:
+        """Check the linear part's one-step map at the current gain of a run that starts
+        (``k0`` of the parameters ``p``) and at ``k_max`` (if given).
 
         ``k`` only grows, so a period stable now may not stay so: without ``k_max``, the update
         checks ``k dt`` against the limit at every sample where ``k`` changed.
         """
         dt = finite_scalar("dt", dt, positive=True)
-        self._entry(dt)
+        self._entry(p, dt)
         if self.on_unstable == "ignore" or self.method == "exact":
             return
         limit = self.max_stable_gain(dt)
-        for what, k in (("the current gain", float(self._S[:, 0].max())), ("k_max", self.k_max)):
+        for what, k in (("the current gain", float(p.k0)), ("k_max", self.k_max)):
             if k is not None and k >= limit:
                 self._unstable(
                     f"{self.method} update of the adaptive high-gain observer (n={self.n}) with "
@@ -691,11 +741,21 @@ class AdaptiveGainObserver(Observer):
             raise exc(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=4)
 
-    def _entry(self, dt: float) -> tuple[Any, ...]:
-        return cached(self._maps_cache, dt, self._maps)
+    def _entry(self, p: Params, dt: float) -> tuple[Array, Array, Array]:
+        """:meth:`_maps` of the parameters ``p`` at the period ``dt``, cached (at most
+        :data:`~hgo_mj.observers.high_gain.MAP_CACHE` kept, the oldest goes first)."""
+        key = (dt, p.key())
+        entry = self._maps_cache.get(key)
+        if entry is None:
+            entry = self._maps(p, dt)
+            if len(self._maps_cache) >= MAP_CACHE:
+                del self._maps_cache[next(iter(self._maps_cache))]
+            self._maps_cache[key] = entry
+        return entry
 
-    def _maps(self, dt: float) -> tuple[Array, Array, Array]:
-        """The packed constants of :func:`adaptive_run` at the period ``dt``:
+    def _maps(self, p: Params, dt: float) -> tuple[Array, Array, Array]:
+        """The packed constants of :func:`adaptive_run` at the period ``dt`` for the
+        parameters ``p``:
         ``par = (dt, lam, lam_hat, gamma, r, k_limit, k_max, k_stab)``, ``mats = (Phi, W, M0)``
         (``Phi``, ``W`` of the exact map, zero otherwise; ``M0`` the dropout map) and
         ``vecs = (p, g0, C(n, j), real roots, pairs)``; ``g0`` is also the held model term's
@@ -711,28 +771,29 @@ class AdaptiveGainObserver(Observer):
             k_stab = self._tau_max / dt
         k_max = math.inf if self.k_max is None else self.k_max
         mode, r, _, _, rows = self._roots
-        par = np.array([dt, self.lam, self.lam_hat, self.gamma, r, min(k_stab, k_max), k_max,
-                        k_stab])
+        par = np.array([dt, float(p.lam), float(p.lam_hat), float(p.gamma), r,
+                        min(k_stab, k_max), k_max, k_stab])
         vecs = np.zeros((6, n + 1))
         vecs[0, :n], vecs[1, :n], vecs[2:] = self.p, g0, rows
         return par, np.array([Phi, W, M0]), vecs
 
     # ------------------------------------------------------------------ update
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
-        par, mats, vecs = self._entry(dt)
-        self._dt = dt
-        S, B, T = self._S, Y.shape[0], Y.shape[1]
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
+        par, mats, vecs = self._entry(p, dt)
+        S, B, T = s.S, Y.shape[0], Y.shape[1]
         stop = self.on_unstable == "raise"
-        bounds, sat, lim = self._bounds, self._sat, self._lim
+        bounds, sat, lim = self._bounds, self._sat, s.lim
         mode, _, nr, npair, _ = self._roots
         code = _CODES[self.method]
         if not self.model:  # the whole block in one call
             status = adaptive_run(S, Y, np.zeros((1, T)), 0, False, code, mode, nr, npair, stop,
                                   sat, par, mats, vecs, bounds, Z, D, lim)
             if status:
-                self._limits(dt)
+                self._limits(p, s, dt)
         elif self.method == "rk4":  # the model term at every stage
             M0, g0 = mats[2], vecs[1, :self.n]
+            lam, lam_hat, gamma = float(par[1]), float(par[2]), float(par[3])
             for j in range(T):
                 u = U[:, j]
                 prev = S.copy()
@@ -741,11 +802,13 @@ class AdaptiveGainObserver(Observer):
                     return self._phi(V, u)
 
                 def stage(V: Array, ph: Array, j: int = j) -> Array:
-                    return self._stage(V, Y, j, ph)
+                    Dv = np.empty_like(V)
+                    adaptive_rhs(V, Y, j, ph, vecs, lam, lam_hat, gamma, Dv)
+                    return Dv
 
                 model_rk4(S, Y, j, dt, 1, M0, g0, phi, stage)
                 if adaptive_limits(S, prev, Y, j, par, stop, lim):
-                    self._limits(dt)
+                    self._limits(p, s, dt)
                 D[:, j, 0] = S[:, 0]
                 report(S, 1, bounds, sat, j, Z)
         else:  # the model term held at its start-of-sample value
@@ -753,8 +816,11 @@ class AdaptiveGainObserver(Observer):
                 ph = self._phi(S, U[:, j])
                 if adaptive_run(S, Y, ph.reshape(B, 1), j, True, code, mode, nr, npair, stop,
                                 sat, par, mats, vecs, bounds, Z, D, lim):
-                    self._limits(dt)
-        to_physical(self, Z, U, X)
+                    self._limits(p, s, dt)
+        if self._identity:
+            X[...] = Z
+        else:
+            self._to_physical(s, Z, U, X)
 
     def _phi(self, V: Array, u: Array) -> Array:
         """The model term ``phi(sat(z), u)`` of every member, ``(B,)``."""
@@ -762,28 +828,27 @@ class AdaptiveGainObserver(Observer):
         saturated(V, 1, self._bounds, self._sat, A)
         return np.ascontiguousarray(self.system.phi_batch(A, u), dtype=float)  # type: ignore[union-attr]
 
-    def _stage(self, V: Array, Y: Array, j: int, phi: Array) -> Array:
-        Dv = np.empty_like(V)
-        adaptive_rhs(V, Y, j, phi, self._entry(self._dt)[2], self.lam, self.lam_hat, self.gamma, Dv)
-        return Dv
-
-    def _limits(self, dt: float) -> None:
-        """Warn (once per reset) that ``k`` reached ``k_max``; raise or warn (once) when it
-        grew past the largest gain at which euler/rk4 are stable at this period."""
-        if not self._warned_k_max and (self._lim[:, 0] > 0).any():
-            self._warned_k_max = True
+    def _limits(self, p: Params, s: State, dt: float) -> None:
+        """Warn (once per member and reset) that ``k`` reached ``k_max``; raise or warn (once)
+        when it grew past the largest gain at which euler/rk4 are stable at this period."""
+        lim, warned = s.lim, s.warned
+        reached = lim[:, 0] > 0
+        if (reached & ~warned[:, 0]).any():
+            warned[:, 0] |= reached
             warnings.warn(f"adaptive high-gain observer: k reached k_max = {self.k_max:g}; "
                           f"k is held there (the output error is still outside the "
-                          f"lam = {self.lam:g} strip: noise larger than lam, or lam too "
-                          f"small for this plant)", RuntimeWarning, stacklevel=5)
-        crossed = self._lim[:, 1] >= 0
-        if self._warned_unstable or not crossed.any():
+                          f"lam = {float(p.lam):g} strip: noise larger than "
+                          f"lam, or lam too small for this plant)", RuntimeWarning, stacklevel=5)
+        crossed = lim[:, 1] >= 0
+        new = crossed & ~warned[:, 1]
+        if not new.any():
             return
-        self._warned_unstable = True
-        b = int(np.argmax(crossed))
-        who = f" (member {b})" if self._batched else ""
+        warned[:, 1] |= crossed
+        b = int(np.argmax(new))
+        B = lim.shape[0]
+        who = f" (member {b} of {B} with these parameters)" if B > 1 else ""
         self._unstable(
-            f"adaptive high-gain observer: k grew to {self._lim[b, 2]:g}{who}, past the largest "
+            f"adaptive high-gain observer: k grew to {lim[b, 2]:g}{who}, past the largest "
             f"gain {self._tau_max / dt:.4g} at which the {self.method} update with sample period "
             f"{dt:g} is stable (k dt < {self._tau_max:.4g}); use method='exact', a shorter "
             f"period, or k_max below the limit", DivergenceError)

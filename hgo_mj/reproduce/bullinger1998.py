@@ -149,7 +149,7 @@ def _simulate(z0s: dict[str, Any], seed: int | None) -> Trajectory:
 def k_final_on(y: Array, z_hat0: Any, method: str = METHOD) -> tuple[float, Array]:
     """Run the observer alone on a measurement sequence; the final ``k`` and ``k(t)``."""
     ob = _observer(z_hat0, method)
-    k = ob.advance(y.reshape(1, -1, 1), np.zeros((1, y.size, 0)), SAMPLE_PERIOD).diagnostics
+    k = ob.run(y.reshape(-1, 1), np.zeros((y.size, 0)), SAMPLE_PERIOD).diagnostics
     ks = np.concatenate(([ob.k0], k[0, :-1, 0]))  # k before each sample
     return ob.k_, ks
 

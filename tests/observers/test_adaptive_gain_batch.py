@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from observer_cases import advance
 
+from hgo_mj.exceptions import DesignError
 from hgo_mj.observers import AdaptiveGainObserver
 from hgo_mj.systems import ElasticJoint, Pendulum
 
@@ -110,3 +111,74 @@ def test_unbatched_is_one_member():
     np.testing.assert_array_equal(xs, blk.x_hat[5])
     assert isinstance(one.k_, float) and one.k_ == blk.diagnostics[5, -1, 0]
     assert one.L.shape == (2,) and ob.L.shape == (B, 2)
+
+
+#: per member: the adaptation law's constants (paper 000, eq. 4-5), every one different
+MEMBER_VALUES = {"lam": [0.04, 0.02, 0.03], "lam_hat": [0.08, 0.1, 0.05],
+                 "gamma": [400.0, 900.0, 150.0], "k0": [10.0, 4.0, 25.0]}
+
+
+@pytest.mark.parametrize("kw", CONFIGS)
+def test_members_with_different_parameters_equal_their_single_runs(kw):
+    """State and parameters as data: one batch whose members have different ``lam``,
+    ``lam_hat``, ``gamma`` and ``k0`` equals, member by member and bit for bit, the single run
+    of an observer constructed with that member's values (NaN dropouts included); ``step``
+    leaves the state it is given as it was."""
+    n_b, n_t = 3, 120
+    z0, Y, U = streams(2, seed=4)
+    z0, Y, U = z0[:n_b], Y[:n_b, :n_t].copy(), U[:n_b, :n_t]
+    Y[:, 7] = np.nan  # a dropout of every member
+    Y[1, 30:33] = np.nan  # and of one member
+    ob = make(**kw)
+    assert ob.parameter_names == ("lam", "lam_hat", "gamma", "k0")
+    params = ob.parameters(n_b, **MEMBER_VALUES)
+    assert len(params.groups()) == n_b
+    state = ob.init(n_b, z_hat0=z0, params=params)
+    np.testing.assert_array_equal(ob.current(params, state)[2][:, 0], MEMBER_VALUES["k0"])
+    before = state.copy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # k_max reached
+        after, blk = ob.step(params, state, Y, U, DT)
+        for field, value in before.fields.items():  # the state given is untouched
+            np.testing.assert_array_equal(getattr(state, field), value)
+        assert after is not state
+        k = blk.diagnostics[:, :, 0]
+        assert np.all(k[:, -1] > MEMBER_VALUES["k0"])  # every member adapted, at its own rate
+        assert len(set(k[:, -1].tolist())) == n_b
+        np.testing.assert_array_equal(blk.diagnostics[:, -1, 1], np.isnan(Y[:, :, 0]).sum(axis=1))
+        for b in range(n_b):
+            one = AdaptiveGainObserver(Pendulum(), k_max=30.0, on_unstable="ignore",
+                                       **{name: v[b] for name, v in MEMBER_VALUES.items()}, **kw)
+            one.reset(z_hat0=z0[b:b + 1])
+            alone = advance(one, Y[b:b + 1], U[b:b + 1], DT)
+            np.testing.assert_array_equal(blk.x_hat[b], alone.x_hat[0])
+            np.testing.assert_array_equal(blk.z_hat[b], alone.z_hat[0])
+            np.testing.assert_array_equal(blk.diagnostics[b], alone.diagnostics[0])
+            for field, value in one.state.fields.items():
+                np.testing.assert_array_equal(getattr(after, field)[b], value[0])
+    # the current estimate after the block is the last row, member by member
+    x, z, d = ob.current(params, after)
+    np.testing.assert_array_equal(x, blk.x_hat[:, -1])
+    np.testing.assert_array_equal(z, blk.z_hat[:, -1])
+    np.testing.assert_array_equal(d, blk.diagnostics[:, -1])
+
+
+@pytest.mark.parametrize("values, match", [
+    ({"gamma": [100.0, -1.0, 200.0]}, "gamma must be > 0; found -1"),
+    ({"lam": [0.04, 0.0, 0.02]}, "lam must be > 0; found 0"),
+    ({"lam_hat": [0.08, float("nan"), 0.1]}, "lam_hat must be finite; found nan"),
+    ({"k0": [10.0, 0.0, 5.0]}, "k0 must be > 0; found 0"),
+    ({"k0": [10.0, 40.0, 5.0]}, r"k_max must be >= k0; found k_max=30 < k0=40"),
+    ({"lam": [0.04, 0.09, 0.02]}, r"lam_hat must be > lam .*found lam_hat=0.08 <= lam=0.09"),
+    ({"lam": [0.04, 0.05, 0.02], "lam_hat": [0.08, 0.05, 0.1]},
+     r"lam_hat must be > lam .*found lam_hat=0.05 <= lam=0.05"),
+    ({"lam_hat": 0.03}, "lam_hat must be > lam"),
+])
+def test_parameters_refuse_what_the_constructor_refuses(values, match):
+    with pytest.raises(DesignError, match=match):
+        make().parameters(3, **values)
+    if np.ndim(next(iter(values.values()))):  # the constructor refuses it with the same message
+        bad = {k: v[1] for k, v in values.items()}
+        with pytest.raises(DesignError, match=match):
+            AdaptiveGainObserver(Pendulum(), **{**dict(lam=0.04, lam_hat=0.08, gamma=400.0,
+                                                       k0=10.0, k_max=30.0), **bad})
