@@ -44,7 +44,11 @@ parameter dynamics :math:`\\dot\\varepsilon_\\theta = -S \\hat\\Gamma^T C^T C \\
 :math:`(\\hat x, \\hat\\theta, \\hat\\Gamma)` (:math:`N = n + q + nq`, :math:`\\hat\\Gamma`
 row-major). The right-hand side above is written once, per row, in :func:`_derivative` (numba);
 one integration stage of all members is one call of :func:`_stage`, between which the form's
-``terms`` evaluates :math:`\\varphi, \\psi` of all members' saturated rows at once.
+``terms`` evaluates :math:`\\varphi, \\psi` of all members' saturated rows at once. The
+state (:meth:`BesanconObserver.init`) holds those rows ``S`` with each member's own clock ``t``
+(``adapt_after``) and excitation ring (eq. 11), so a member restarts alone; the tunable
+parameters :math:`\\lambda` (``lam``), :math:`K` (``K0``) and :math:`S` (``gain``) may differ per
+member (:meth:`~hgo_mj.observers.base.Observer.parameters`).
 
 **Corrections of the paper** (the checks are in ``tests/observers/test_besancon.py`` and
 ``docs/results/adaptive.md``):
@@ -312,7 +316,7 @@ def _begin(S: Array, Y: Array, chains: Any, innov: bool, gram_dt: float, EM: Arr
 
 @njit(cache=True)
 def _stage(S0: Array, Sk: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, EM: Array,
-           chains: Any, P: Array, Sg: Array, adapt: Array, h: float, a: float, b: float,
+           chains: Any, P: Array, Sg: Array, adapt: NDArray[np.int64], h: float, a: float, b: float,
            flags: int, Acc: Array, Snext: Array, Xtn: Array, Ttn: Array) -> int:
     """One Runge-Kutta stage of every member: ``k`` = eq. 12 / 24 at the stage state ``Sk``
     (saturated ``Xt, Tt``, the form's terms ``phi, psi`` there, innovations from ``EM``, the
@@ -393,18 +397,30 @@ def _window_sums(s: Any, rows: NDArray[np.intp]) -> Array:
     """The excitation integral of the members ``rows`` of the state ``s`` over their complete
     sub-windows, ``(len(rows), q, q)``: each member's ring ``blocks`` summed oldest first (NaN
     where none is complete yet)."""
-    q = s.acc.shape[1]
+    F = s.fields
+    blocks, nblocks, next_block = F["blocks"], F["nblocks"], F["next_block"]
+    B, q = blocks.shape[0], blocks.shape[2]
+    k0, n0 = int(nblocks[rows[0]]), int(next_block[rows[0]])
+    if rows.size == B and (nblocks == k0).all() and (next_block == n0).all():
+        # every member at one ring position (the usual case): views, no copies
+        if k0 == 0:
+            return np.full((B, q, q), np.nan)
+        order = [(n0 - k0 + i) % SUBWINDOWS for i in range(k0)]
+        W = blocks[:, order[0]].copy()
+        for i in order[1:]:
+            W += blocks[:, i]
+        return W
     out = np.full((len(rows), q, q), np.nan)
-    k_all, next_all = s.nblocks[rows], s.next_block[rows]
+    k_all, next_all = nblocks[rows], next_block[rows]
     for k, nxt in {(int(k), int(x)) for k, x in zip(k_all, next_all)}:
         if k == 0:
             continue
         at = np.flatnonzero((k_all == k) & (next_all == nxt))
         members = rows[at]
         order = [(nxt - k + i) % SUBWINDOWS for i in range(k)]
-        W = s.blocks[members, order[0]]  # (a copy: fancy indexing)
+        W = blocks[members, order[0]]  # (a copy: fancy indexing)
         for i in order[1:]:
-            W += s.blocks[members, i]
+            W += blocks[members, i]
         out[at] = W
     return out
 
@@ -858,31 +874,40 @@ class BesanconObserver(Observer):
             return
         n, q = f.n, f.q
         P, Sg = self._design_at(p)
+        F = s.fields  # the state's arrays (read in the sample loop without attribute lookups)
+        S = F["S"]
         Yt = np.ascontiguousarray(Y.transpose(1, 0, 2))  # (T, B, p): one sample is contiguous
         Ut = np.ascontiguousarray(U.transpose(1, 0, 2))
         TH = np.empty((B, T, q))
         chains = self._chains
         # work arrays: held values and masks, the stage sum, two stage states
         EM = np.empty((B, 2, f.p))
-        Acc = np.empty_like(s.S)
-        bufs = [(np.empty_like(s.S), np.empty((B, n)), np.empty((B, q))) for _ in range(2)]
-        cur = (s.S, np.empty((B, n)), np.empty((B, q)))  # the state, x~, theta~
-        _saturate_rows(cur[0], self.X, self.Theta, cur[1], cur[2])
+        Acc = np.empty(S.shape)
+        bufs = [(np.empty(S.shape), np.empty((B, n)), np.empty((B, q))) for _ in range(2)]
+        cur = (S, np.empty((B, n)), np.empty((B, q)))  # the state, x~, theta~
+        _saturate_rows(S, self.X, self.Theta, cur[1], cur[2])
         innov = self.hold == "innovation"
         gram_dt = dt if self.excitation_window is not None else 0.0
         h = dt / self.substeps
-        frozen_until = self.adapt_after - 1e-12
         terms = f.terms
+        acc, acc_t, t, exc, sub = F["acc"], F["acc_t"], F["t"], F["exc"], self._sub
+        # per member: the gain Sg[adapt] (Sg[0] = 0 until adapt_after, then Sg[1] = S)
+        frozen_until = self.adapt_after - 1e-12
+        frozen = self.adapt_after > 0.0
+        adapt = np.empty(B, dtype=np.int64)
+        adapt.fill(1)
         for j in range(T):
             Uj = Ut[j]
-            _begin(cur[0], Yt[j], chains, innov, gram_dt, EM, s.acc)
+            _begin(cur[0], Yt[j], chains, innov, gram_dt, EM, acc)
             if gram_dt:
-                s.acc_t += dt
-                due = s.acc_t >= self._sub
+                acc_t += dt
+                due = acc_t >= sub
                 if due.any():
                     self._close_windows(s, np.flatnonzero(due))
-            adapt = np.where(s.t < frozen_until, 0, 1)  # per member: Sg[0] = 0 until adapt_after
-            s.t += dt
+            if frozen:
+                np.greater_equal(t, frozen_until, out=adapt, casting="unsafe")
+                frozen = not adapt.all()
+            t += dt
             for _ in range(self.substeps):
                 src = cur
                 for st, (a, b, flags) in enumerate(self._tableau):
@@ -900,10 +925,10 @@ class BesanconObserver(Observer):
                 # the step is the new state; the old state's arrays become a stage buffer
                 bufs[0 if src is bufs[0] else 1] = cur
                 cur = src
-                s.S = cur[0]
+                F["S"] = cur[0]
             Z[:, j] = cur[0][:, :n]
             TH[:, j] = cur[0][:, n:n + q]
-            D[:, j, -1] = s.exc
+            D[:, j, -1] = exc
         self._write_diag(D, TH)
         self._write_physical(s, Z, TH, U, X)
 
@@ -947,20 +972,34 @@ class BesanconObserver(Observer):
         """A sub-window of the excitation integral is complete for the members ``rows``: store
         it in their rings, refresh their smallest eigenvalue over the last ``SUBWINDOWS``
         (summed oldest first)."""
-        nxt = s.next_block[rows]
-        s.blocks[rows, nxt] = s.acc[rows]
-        s.next_block[rows] = (nxt + 1) % SUBWINDOWS
-        s.nblocks[rows] = np.minimum(s.nblocks[rows] + 1, SUBWINDOWS)
-        s.acc[rows] = 0.0
-        s.acc_t[rows] = 0.0
-        full = rows[s.nblocks[rows] == SUBWINDOWS]
+        F = s.fields
+        blocks, nblocks, next_block, acc = F["blocks"], F["nblocks"], F["next_block"], F["acc"]
+        i0 = int(next_block[rows[0]])
+        if rows.size == blocks.shape[0] and (next_block == i0).all():
+            # every member at one ring position (the usual case): views, no copies
+            blocks[:, i0] = acc
+            next_block.fill((i0 + 1) % SUBWINDOWS)
+            np.minimum(nblocks + 1, SUBWINDOWS, out=nblocks)
+            acc.fill(0.0)
+            F["acc_t"].fill(0.0)
+        else:
+            nxt = next_block[rows]
+            blocks[rows, nxt] = acc[rows]
+            next_block[rows] = (nxt + 1) % SUBWINDOWS
+            nblocks[rows] = np.minimum(nblocks[rows] + 1, SUBWINDOWS)
+            acc[rows] = 0.0
+            F["acc_t"][rows] = 0.0
+        full = rows[nblocks[rows] == SUBWINDOWS]
         if full.size:
             W = _window_sums(s, full)
             ok = np.all(np.isfinite(W), axis=(1, 2))
-            exc = np.full(full.size, np.nan)
-            if ok.any():
-                exc[ok] = np.linalg.eigvalsh(W[ok])[:, 0]
-            s.exc[full] = exc
+            if ok.all():
+                F["exc"][full] = np.linalg.eigvalsh(W)[:, 0]
+            else:
+                exc = np.full(full.size, np.nan)
+                if ok.any():
+                    exc[ok] = np.linalg.eigvalsh(W[ok])[:, 0]
+                F["exc"][full] = exc
 
     def excitation_matrix_rows(self, state: State | None = None) -> Array:
         """The windowed :math:`\\int \\hat\\Gamma^T C^T C \\hat\\Gamma d\\tau` of every member

@@ -10,11 +10,11 @@ import pickle
 
 import numpy as np
 import pytest
+from observer_cases import advance
 
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers.besancon import AffineForm, BesanconObserver
 from hgo_mj.systems import BesanconExample1, BesanconExample2, ElasticJoint, ElasticJoint2Link, Pendulum
-from observer_cases import advance
 
 B = 64
 T = 200
