@@ -44,7 +44,11 @@ parameter dynamics :math:`\\dot\\varepsilon_\\theta = -S \\hat\\Gamma^T C^T C \\
 :math:`(\\hat x, \\hat\\theta, \\hat\\Gamma)` (:math:`N = n + q + nq`, :math:`\\hat\\Gamma`
 row-major). The right-hand side above is written once, per row, in :func:`_derivative` (numba);
 one integration stage of all members is one call of :func:`_stage`, between which the form's
-``terms`` evaluates :math:`\\varphi, \\psi` of all members' saturated rows at once.
+``terms`` evaluates :math:`\\varphi, \\psi` of all members' saturated rows at once. The
+state (:meth:`BesanconObserver.init`) holds those rows ``S`` with each member's own clock ``t``
+(``adapt_after``) and excitation ring (eq. 11), so a member restarts alone; the tunable
+parameters :math:`\\lambda` (``lam``), :math:`K` (``K0``) and :math:`S` (``gain``) may differ per
+member (:meth:`~hgo_mj.observers.base.Observer.parameters`).
 
 **Corrections of the paper** (the checks are in ``tests/observers/test_besancon.py`` and
 ``docs/results/adaptive.md``):
@@ -94,13 +98,14 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
 from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, vector
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.affine_form import AffineForm
 from ..systems.base import System
-from .base import Array, Observer, batch_rows, check_outputs, register
+from .base import Array, Observer, Params, State, _batch_size, batch_rows, check_outputs, register
 from .bastin_gevers import check_rk_period
 
 __all__ = ["AffineForm", "BesanconObserver", "affine_form"]
@@ -116,6 +121,8 @@ TABLEAUS: dict[str, tuple[tuple[float, float], ...]] = {
 }
 #: sub-windows of the excitation integral (eq. 11)
 SUBWINDOWS = 20
+#: designs (per parameter values) an observer keeps
+DESIGN_CACHE = 64
 
 
 def affine_form(system: Any, unknown: Sequence[str] | None = None) -> AffineForm:
@@ -309,13 +316,15 @@ def _begin(S: Array, Y: Array, chains: Any, innov: bool, gram_dt: float, EM: Arr
 
 @njit(cache=True)
 def _stage(S0: Array, Sk: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, EM: Array,
-           chains: Any, P: Array, Sg: Array, h: float, a: float, b: float, flags: int,
-           Acc: Array, Snext: Array, Xtn: Array, Ttn: Array) -> int:
+           chains: Any, P: Array, Sg: Array, adapt: NDArray[np.int64], h: float, a: float, b: float,
+           flags: int, Acc: Array, Snext: Array, Xtn: Array, Ttn: Array) -> int:
     """One Runge-Kutta stage of every member: ``k`` = eq. 12 / 24 at the stage state ``Sk``
-    (saturated ``Xt, Tt``, the form's terms ``phi, psi`` there, innovations from ``EM``);
-    ``Acc`` = (``FIRST`` stage) or += ``b k``; the next stage's state ``Snext = S0 + a h k``,
-    or on the ``LAST`` stage the step ``S0 + h Acc``, and its saturation ``Xtn, Ttn``.
-    Returns the number of members whose step is not finite (0 but on the last stage)."""
+    (saturated ``Xt, Tt``, the form's terms ``phi, psi`` there, innovations from ``EM``, the
+    adaptation gain ``Sg[adapt[m]]`` of member ``m``: ``Sg`` ``(2, q, q)`` holds the frozen
+    gain 0 and :math:`S`); ``Acc`` = (``FIRST`` stage) or += ``b k``; the next stage's state
+    ``Snext = S0 + a h k``, or on the ``LAST`` stage the step ``S0 + h Acc``, and its
+    saturation ``Xtn, Ttn``. Returns the number of members whose step is not finite (0 but on
+    the last stage)."""
     B, N = Sk.shape
     n, q, p = Xt.shape[1], Tt.shape[1], chains.shape[0]
     lam, X, Theta, lamK, lampow, lam_e, psicoef = _unpack(P, n, q, p)
@@ -328,8 +337,8 @@ def _stage(S0: Array, Sk: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, E
     bad = 0
     for m in range(B):
         _innovations(Sk, m, EM, chains, innov, e)
-        _derivative(Sk, Xt, Tt, phi, psi, m, e, chains, lam, lamK, lampow, lam_e, psicoef, Sg,
-                    v, w, k)
+        _derivative(Sk, Xt, Tt, phi, psi, m, e, chains, lam, lamK, lampow, lam_e, psicoef,
+                    Sg[adapt[m]], v, w, k)
         if first:
             for i in range(N):
                 Acc[m, i] = b * k[i]
@@ -382,6 +391,38 @@ def _derivative_rows(S: Array, Xt: Array, Tt: Array, phi: Array, psi: Array, EM:
 
 def _c(a: Array) -> Array:
     return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _window_sums(s: Any, rows: NDArray[np.intp]) -> Array:
+    """The excitation integral of the members ``rows`` of the state ``s`` over their complete
+    sub-windows, ``(len(rows), q, q)``: each member's ring ``blocks`` summed oldest first (NaN
+    where none is complete yet)."""
+    F = s.fields
+    blocks, nblocks, next_block = F["blocks"], F["nblocks"], F["next_block"]
+    B, q = blocks.shape[0], blocks.shape[2]
+    k0, n0 = int(nblocks[rows[0]]), int(next_block[rows[0]])
+    if rows.size == B and (nblocks == k0).all() and (next_block == n0).all():
+        # every member at one ring position (the usual case): views, no copies
+        if k0 == 0:
+            return np.full((B, q, q), np.nan)
+        order = [(n0 - k0 + i) % SUBWINDOWS for i in range(k0)]
+        W = blocks[:, order[0]].copy()
+        for i in order[1:]:
+            W += blocks[:, i]
+        return W
+    out = np.full((len(rows), q, q), np.nan)
+    k_all, next_all = nblocks[rows], next_block[rows]
+    for k, nxt in {(int(k), int(x)) for k, x in zip(k_all, next_all)}:
+        if k == 0:
+            continue
+        at = np.flatnonzero((k_all == k) & (next_all == nxt))
+        members = rows[at]
+        order = [(nxt - k + i) % SUBWINDOWS for i in range(k)]
+        W = blocks[members, order[0]]  # (a copy: fancy indexing)
+        for i in order[1:]:
+            W += blocks[members, i]
+        out[at] = W
+    return out
 
 
 @register
@@ -478,9 +519,19 @@ class BesanconObserver(Observer):
     >>> from hgo_mj.systems import BesanconExample1
     >>> ob = BesanconObserver(BesanconExample1(), lam=10.0, X=10.0, Theta=10.0)
     >>> ob.reset(batch=4)
-    >>> blk = ob.advance(np.full((4, 3, 1), 0.5), np.zeros((4, 3, 1)), 0.01)
-    >>> blk.x_hat.shape, ob.theta_hat_.shape
-    ((4, 3, 2), (4, 2))
+    >>> ob.run(np.full((4, 3, 1), 0.5), np.zeros((4, 3, 1)), 0.01).x_hat.shape
+    (4, 3, 2)
+    >>> ob.theta_hat_.shape
+    (4, 2)
+
+    Four high gains and adaptation gains as one batch, each member its own single run:
+
+    >>> params = ob.parameters(4, lam=[5.0, 10.0, 20.0, 40.0],
+    ...                        gain=np.eye(2) * np.array([1.0, 1.0, 2.0, 4.0])[:, None, None])
+    >>> state = ob.init(4, params=params)
+    >>> state, blk = ob.step(params, state, np.full((4, 3, 1), 0.5), np.zeros((4, 3, 1)), 0.01)
+    >>> blk.z_hat.shape, state.t.tolist()
+    ((4, 3, 2), [0.03, 0.03, 0.03, 0.03])
 
     References
     ----------
@@ -541,33 +592,67 @@ class BesanconObserver(Observer):
         self.family_diagnostics = tuple(  # type: ignore[misc]  # per instance: the form's names
             f"theta_{nm}" for nm in form.theta_names) + tuple(
             f"theta_{k}" for k in self._extra) + ("excitation",)
-        self._init = (x_hat0, z_hat0, theta_hat0, Gamma0)
-        self.reset()
+        self._start = (x_hat0, z_hat0, theta_hat0, Gamma0)
+        self.init(1)  # checks the initial estimate (Theorem 3.1's balls, the map's domain)
 
     # ------------------------------------------------------------------ setup
     def _design(self) -> None:
-        """The constant arrays of the kernels (eq. 12 / 24) from the design: ``chains``
-        ``(p, 2)`` (first state, order) and the design vector ``P`` of :func:`_unpack`."""
-        f, lam = self.form, self.lam
+        """The constant arrays of the kernels that do not depend on the tunable parameters:
+        ``chains`` ``(p, 2)`` (first state, order), the tableau, the sub-window length; the
+        design vectors of the parameters are built by :meth:`_design_at`."""
+        f = self.form
         self._chains = np.array([(fi, o) for fi, o in zip(f.firsts, f.orders)], dtype=np.int64)
-        lamK = np.empty(f.n)
-        lampow = np.empty(f.n)
-        for c, (fi, o) in enumerate(zip(f.firsts, f.orders)):
-            for r in range(o):
-                lamK[fi + r] = lam * self.K[c][r]
-                lampow[fi + r] = lam ** r
-        lam_e = np.array([lam ** e for e in self.exps])
-        psicoef = np.array([[lam ** (e - (o - 1)) for e in self.exps] for o in f.orders])
-        self._P = np.concatenate(([lam, self.X, self.Theta], lamK, lampow, lam_e,
-                                  psicoef.reshape(-1)))
-        self._Sg = _c(self.gain)
-        self._Sg_frozen = np.zeros((f.q, f.q))  # no adaptation before adapt_after
         self._tableau = tuple((a, b, (FIRST if i == 0 else 0)
                                | (LAST if i == len(TABLEAUS[self.method]) - 1 else 0)
                                | (INNOVATION if self.hold == "innovation" else 0))
                               for i, (a, b) in enumerate(TABLEAUS[self.method]))
         self._sub = (self.excitation_window / SUBWINDOWS * (1.0 - 1e-9)
                      if self.excitation_window else math.inf)
+        self._designs: dict[bytes, tuple[Array, Array]] = {}
+
+    def _parameters(self) -> dict[str, Any]:
+        """The high gain ``lam`` (:math:`\\lambda`, a float), the Hurwitz gains ``K0`` of the
+        chains concatenated (:math:`(K_1, \\dots, K_p)`, ``(n,)``) and the adaptation gain
+        ``gain`` (:math:`S`, ``(q, q)``) (paper 001, eq. 12 / 24; Zhang 2002)."""
+        return {"lam": self.lam, "K0": np.concatenate(self.K), "gain": self.gain}
+
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        if name == "lam":
+            return np.array(finite_scalar("lam", value, positive=True))
+        if name == "K0":
+            if np.shape(value) == (self.n,):  # the chains' gains concatenated
+                return np.concatenate(self._chain_gains(
+                    [np.asarray(value)[fi:fi + o] for fi, o in zip(self.form.firsts,
+                                                                   self.form.orders)]))
+            return np.concatenate(self._gains(value))
+        return symmetric_matrix("gain", value, self.q)
+
+    def _design_at(self, p: Params) -> tuple[Array, Array]:
+        """The design of the parameters ``p`` (one member's): the vector ``P`` of
+        :func:`_unpack` and the adaptation gains ``(2, q, q)`` (0 before ``adapt_after``,
+        then :math:`S`), built on first use (at most :data:`DESIGN_CACHE` kept)."""
+        key = p.key()
+        design = self._designs.get(key)
+        if design is None:
+            f, lam = self.form, float(p.lam)
+            K = np.asarray(p.K0)
+            lamK = np.empty(f.n)
+            lampow = np.empty(f.n)
+            for fi, o in zip(f.firsts, f.orders):
+                for r in range(o):
+                    lamK[fi + r] = lam * K[fi + r]
+                    lampow[fi + r] = lam ** r
+            lam_e = np.array([lam ** e for e in self.exps])
+            psicoef = np.array([[lam ** (e - (o - 1)) for e in self.exps] for o in f.orders])
+            P = np.concatenate(([lam, self.X, self.Theta], lamK, lampow, lam_e,
+                                psicoef.reshape(-1)))
+            Sg = np.zeros((2, f.q, f.q))  # [0]: no adaptation before adapt_after
+            Sg[1] = p.gain
+            design = (P, Sg)
+            if len(self._designs) >= DESIGN_CACHE:
+                del self._designs[next(iter(self._designs))]
+            self._designs[key] = design
+        return design
 
     def _gains(self, K0: Any) -> tuple[Array, ...]:
         f = self.form
@@ -580,6 +665,11 @@ class BesanconObserver(Observer):
             if len(per) != f.p:
                 raise DimensionError(f"K0 must be one array for every chain or one per chain "
                                      f"({f.p}); found {len(per)} entries")
+        return self._chain_gains(per)
+
+    def _chain_gains(self, per: list[Any]) -> tuple[Array, ...]:
+        """:math:`K_c` of each chain from ``per`` (one value or None per chain), checked."""
+        f = self.form
         out = []
         for c, (o, k) in enumerate(zip(f.orders, per)):
             name = "K0" if f.p == 1 else f"K0[{c}]"
@@ -616,28 +706,30 @@ class BesanconObserver(Observer):
         f = self.form
         return f.physical_state_names if f.to_physical is not None else f.state_names
 
-    def check_period(self, dt: float) -> None:
+    def _check_period(self, p: Params, dt: float) -> None:
         """Refuse (``on_unstable``) a sample period for which the integration of the linear
         modes :math:`\\lambda\\,\\mathrm{eig}(A_c - K_c C_c)` is unstable (the parameter modes
         depend on the data and are not checked here)."""
         if self.on_unstable == "ignore":
             return
-        lam_modes = np.concatenate([self.lam * np.roots(np.concatenate(([1.0], k)))
-                                    for k in self.K])
+        lam, K = float(p.lam), np.asarray(p.K0)
+        lam_modes = np.concatenate([lam * np.roots(np.concatenate(([1.0], K[fi:fi + o])))
+                                    for fi, o in zip(self.form.firsts, self.form.orders)])
         try:
-            check_rk_period(f"the Besançon observer (lambda={self.lam:g}, modes lambda*eig(A - K C))",
+            check_rk_period(f"the Besançon observer (lambda={lam:g}, modes lambda*eig(A - K C))",
                             lam_modes, dt, self.method, self.substeps)
         except DesignError as exc:
             if self.on_unstable == "raise":
                 raise
-            warnings.warn(str(exc), RuntimeWarning, stacklevel=2)
+            warnings.warn(str(exc), RuntimeWarning, stacklevel=3)
 
-    # ------------------------------------------------------------------ reset
+    # ------------------------------------------------------------------ initial state
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
-              batch: int | None = None, theta_hat0: Any = None, Gamma0: Any = None) -> None:
-        """Restart ``batch`` copies (see :meth:`Observer.reset`); each initial value not given
-        is the constructor's. ``theta_hat0`` is ``(q,)`` or ``(B, q)``, ``Gamma0`` ``(n, q)``
-        or ``(B, n, q)``.
+              batch: int | None = None, params: Params | None = None, theta_hat0: Any = None,
+              Gamma0: Any = None) -> None:
+        """Restart the observer's own state (see :meth:`Observer.reset`); each initial value
+        not given is the constructor's. ``theta_hat0`` is ``(q,)`` or ``(B, q)``, ``Gamma0``
+        ``(n, q)`` or ``(B, n, q)``; one given per member makes the observer batched.
 
         Raises
         ------
@@ -645,23 +737,90 @@ class BesanconObserver(Observer):
             An initial estimate outside the balls of radius ``X``, ``Theta`` (Theorem 3.1), or
             where the form's map to physical coordinates is undefined.
         """
-        ix, iz, ith, iG = self._init
-        if x_hat0 is None and z_hat0 is None:
-            x_hat0, z_hat0 = ix, iz
-        theta_hat0 = ith if theta_hat0 is None else theta_hat0
-        Gamma0 = iG if Gamma0 is None else Gamma0
-        if batch is None:  # the batch of any value given per member
+        if batch is None and params is None:  # the batch of any value given per member
             given = x_hat0 if x_hat0 is not None else z_hat0
             for v, nd in ((given, 2), (theta_hat0, 2), (Gamma0, 3)):
                 if v is not None and np.ndim(v) == nd:
                     batch = int(np.shape(v)[0])
                     break
-        self._pending = (theta_hat0, Gamma0)
-        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch)
+        batched = batch is not None or params is not None
+        B = batch if batch is not None else (1 if params is None else params.batch)
+        p = self.parameters(B) if params is None else params
+        s = self.init(B, x_hat0, z_hat0=z_hat0, u0=u0, params=p, theta_hat0=theta_hat0,
+                      Gamma0=Gamma0)
+        self._hold(p, s, batched)
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
-        f, B = self.form, self.batch
-        th0, G0 = self._pending
+    def init(self, batch: int = 1, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+             params: Params | None = None, theta_hat0: Any = None,
+             Gamma0: Any = None) -> State:
+        """A new state of ``batch`` members (see :meth:`Observer.init`), with also the initial
+        parameter estimate ``theta_hat0`` (``(q,)`` or ``(B, q)``) and filter ``Gamma0``
+        (``(n, q)`` or ``(B, n, q)``); each not given is the constructor's. The initial state
+        does not depend on the parameters.
+
+        Parameters
+        ----------
+        batch : int
+            The number of members B.
+        x_hat0, z_hat0, u0, params
+            As in :meth:`Observer.init`.
+        theta_hat0 : array_like, optional
+            Initial parameter estimate.
+        Gamma0 : array_like, optional
+            Initial :math:`\\hat\\Gamma`.
+
+        Returns
+        -------
+        State
+            ``S`` ``(B, N)`` (rows :math:`(\\hat x, \\hat\\theta, \\hat\\Gamma)`), the clock
+            ``t`` ``(B,)``, the excitation integral (``acc``, ``acc_t``, the ring ``blocks``
+            ``(B, 20, q, q)`` with ``nblocks`` and ``next_block``, ``exc``), then the core
+            fields of :meth:`Observer.init`.
+
+        Raises
+        ------
+        DesignError
+            As :meth:`reset`.
+        DimensionError
+            An initial value of the wrong shape.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import BesanconExample1
+        >>> ob = BesanconObserver(BesanconExample1(), lam=10.0)
+        >>> s = ob.init(3, theta_hat0=[[0.5, 1.0], [0.4, 1.0], [0.3, 1.0]])
+        >>> s.S.shape, s.S[:, 2].tolist()
+        ((3, 8), [0.5, 0.4, 0.3])
+        """
+        if theta_hat0 is None and Gamma0 is None:
+            return super().init(batch, x_hat0, z_hat0=z_hat0, u0=u0, params=params)
+        B = _batch_size(batch)
+        if x_hat0 is not None and z_hat0 is not None:
+            raise DesignError("give x_hat0 or z_hat0, not both")
+        if params is not None and (not isinstance(params, Params) or params.batch != B):
+            raise DesignError(f"{self.name}: params must be this observer's Params of {B} "
+                              f"member(s) (Observer.parameters); found {params!r}")
+        x0 = None if x_hat0 is None else batch_rows("x_hat0", x_hat0, len(self.state_names), B)
+        z0 = None if z_hat0 is None else batch_rows("z_hat0", z_hat0, self.n, B)
+        m = self.n_inputs
+        u = np.zeros((B, m or 0)) if u0 is None or m is None else batch_rows("u0", u0, m, B)
+        return State(**{**self._core(B), **self._fields(x0, z0, u, theta_hat0, Gamma0)})
+
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        return self._fields(x0, z0, u0, None, None)
+
+    def _fields(self, x0: Array | None, z0: Array | None, u0: Array, th0: Any,
+                G0: Any) -> dict[str, Any]:
+        """The state fields of ``len(u0)`` members from ``x0`` or ``z0`` (neither: the
+        constructor's), ``th0`` and ``G0`` (None: the constructor's)."""
+        f, B = self.form, u0.shape[0]
+        ix, iz, ith, iG = self._start
+        if x0 is None and z0 is None:
+            x0 = None if ix is None else batch_rows("x_hat0", ix, len(self.state_names), B)
+            z0 = None if iz is None else batch_rows("z_hat0", iz, self.n, B)
+        th0 = ith if th0 is None else th0
+        G0 = iG if G0 is None else G0
         th = np.zeros((B, f.q)) if th0 is None else batch_rows("theta_hat0", th0, f.q, B)
         if G0 is None:
             G = np.zeros((B, f.n, f.q))
@@ -687,16 +846,14 @@ class BesanconObserver(Observer):
         if np.any(nt > self.Theta):
             raise DesignError(f"the initial parameter estimate must lie in |theta_hat| <= Theta = "
                               f"{self.Theta:g} (Theorem 3.1); found {nt.max():.4g}")
-        self._S = _c(np.concatenate((z, th, G.reshape(B, -1)), axis=1))
-        self._Xt = np.empty((B, f.n))
-        self._Tt = np.empty((B, f.q))
-        _saturate_rows(self._S, self.X, self.Theta, self._Xt, self._Tt)
-        # work arrays of _advance: held values and masks, the stage sum, two stage states
-        self._EM = np.empty((B, 2, f.p))
-        self._Acc = np.empty_like(self._S)
-        self._bufs = [(np.empty_like(self._S), np.empty((B, f.n)), np.empty((B, f.q)))
-                      for _ in range(2)]
-        self._t = 0.0
+        fields: dict[str, Any] = {
+            "S": _c(np.concatenate((z, th, G.reshape(B, -1)), axis=1)),
+            "t": np.zeros(B),  # each member's time since its start (adapt_after)
+            # excitation: SUBWINDOWS sub-windows of the windowed Gram integral (eq. 11)
+            "acc": np.zeros((B, f.q, f.q)), "acc_t": np.zeros(B),
+            "blocks": np.zeros((B, SUBWINDOWS, f.q, f.q)),
+            "nblocks": np.zeros(B, dtype=np.int64), "next_block": np.zeros(B, dtype=np.int64),
+            "exc": np.full(B, np.nan)}
         if f.to_physical is not None:
             xp = np.asarray(f.to_physical(z, th, u0), dtype=float).reshape(B, -1)
             if not np.all(np.isfinite(xp)):
@@ -705,69 +862,75 @@ class BesanconObserver(Observer):
                                   f"{th[b].tolist()}) lies where the map of {f.label} to physical "
                                   f"coordinates is undefined; give theta_hat0 inside its domain "
                                   f"(e.g. a positive stiffness)")
-            self._x_held = xp.copy()
-            self._xp = xp
-        else:
-            self._xp = z.copy()
-        # excitation: SUBWINDOWS sub-windows of the windowed Gram integral (eq. 11)
-        self._acc = np.zeros((B, f.q, f.q))
-        self._acc_t = 0.0
-        self._blocks = np.zeros((B, SUBWINDOWS, f.q, f.q))
-        self._nblocks = 0
-        self._next_block = 0
-        self._exc = np.full(B, np.nan)
-        self._d = np.empty((B, len(self.family_diagnostics)))
-        self._write_diag(self._d[:, None], th[:, None])
-        self._d[:, -1] = self._exc
+            fields["x_held"] = xp.copy()
+        return fields
 
-    # ------------------------------------------------------------------ advance
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+    # ------------------------------------------------------------------ step
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
         f = self.form
-        T = Y.shape[1]
+        B, T = Y.shape[0], Y.shape[1]
+        if T == 0:
+            return
         n, q = f.n, f.q
+        P, Sg = self._design_at(p)
+        F = s.fields  # the state's arrays (read in the sample loop without attribute lookups)
+        S = F["S"]
         Yt = np.ascontiguousarray(Y.transpose(1, 0, 2))  # (T, B, p): one sample is contiguous
         Ut = np.ascontiguousarray(U.transpose(1, 0, 2))
-        TH = np.empty((Y.shape[0], T, q))
-        EM, Acc, bufs, P, chains = self._EM, self._Acc, self._bufs, self._P, self._chains
-        cur = (self._S, self._Xt, self._Tt)  # the state, x~, theta~
+        TH = np.empty((B, T, q))
+        chains = self._chains
+        # work arrays: held values and masks, the stage sum, two stage states
+        EM = np.empty((B, 2, f.p))
+        Acc = np.empty(S.shape)
+        bufs = [(np.empty(S.shape), np.empty((B, n)), np.empty((B, q))) for _ in range(2)]
+        cur = (S, np.empty((B, n)), np.empty((B, q)))  # the state, x~, theta~
+        _saturate_rows(S, self.X, self.Theta, cur[1], cur[2])
         innov = self.hold == "innovation"
         gram_dt = dt if self.excitation_window is not None else 0.0
         h = dt / self.substeps
         terms = f.terms
+        acc, acc_t, t, exc, sub = F["acc"], F["acc_t"], F["t"], F["exc"], self._sub
+        # per member: the gain Sg[adapt] (Sg[0] = 0 until adapt_after, then Sg[1] = S)
+        frozen_until = self.adapt_after - 1e-12
+        frozen = self.adapt_after > 0.0
+        adapt = np.empty(B, dtype=np.int64)
+        adapt.fill(1)
         for j in range(T):
             Uj = Ut[j]
-            _begin(cur[0], Yt[j], chains, innov, gram_dt, EM, self._acc)
+            _begin(cur[0], Yt[j], chains, innov, gram_dt, EM, acc)
             if gram_dt:
-                self._acc_t += dt
-                if self._acc_t >= self._sub:
-                    self._close_window()
-            Sg = self._Sg_frozen if self._t < self.adapt_after - 1e-12 else self._Sg
-            self._t += dt
+                acc_t += dt
+                due = acc_t >= sub
+                if due.any():
+                    self._close_windows(s, np.flatnonzero(due))
+            if frozen:
+                np.greater_equal(t, frozen_until, out=adapt, casting="unsafe")
+                frozen = not adapt.all()
+            t += dt
             for _ in range(self.substeps):
                 src = cur
                 for st, (a, b, flags) in enumerate(self._tableau):
                     dst = bufs[st % 2]  # stages alternate between two buffers
                     phi, psi = terms(src[1], Uj)
                     bad = _stage(cur[0], src[0], src[1], src[2], phi, psi, EM, chains, P, Sg,
-                                 h, a, b, flags, Acc, dst[0], dst[1], dst[2])
+                                 adapt, h, a, b, flags, Acc, dst[0], dst[1], dst[2])
                     src = dst
                 if bad:
                     rows = cur[0][~np.all(np.isfinite(src[0]), axis=1), :n]
                     raise DivergenceError(
                         f"the Besançon observer state left the finite numbers: from "
-                        f"{rows[0].tolist()} (lambda={self.lam:g}, step {dt:g}); bound it with "
-                        f"X= and Theta=, lower the gain or raise substeps")
+                        f"{rows[0].tolist()} (lambda={float(p.lam):g}, step {dt:g}); bound it "
+                        f"with X= and Theta=, lower the gain or raise substeps")
                 # the step is the new state; the old state's arrays become a stage buffer
                 bufs[0 if src is bufs[0] else 1] = cur
                 cur = src
-                self._S, self._Xt, self._Tt = cur
+                F["S"] = cur[0]
             Z[:, j] = cur[0][:, :n]
             TH[:, j] = cur[0][:, n:n + q]
-            D[:, j, -1] = self._exc
+            D[:, j, -1] = exc
         self._write_diag(D, TH)
-        self._write_physical(Z, TH, U, X)
-        self._xp = X[:, -1].copy()
-        self._d = D[:, -1].copy()
+        self._write_physical(s, Z, TH, U, X)
 
     def _write_diag(self, D: Array, TH: Array) -> None:
         """The parameter columns of the diagnostics ``D`` ``(B, T, d)`` from the estimates
@@ -781,10 +944,10 @@ class BesanconObserver(Observer):
             for i, k in enumerate(self._extra):
                 D[:, :, q + i] = (np.asarray(phys[k]).reshape(B, T) if k in phys else np.nan)
 
-    def _write_physical(self, Z: Array, TH: Array, U: Array, X: Array) -> None:
+    def _write_physical(self, s: State, Z: Array, TH: Array, U: Array, X: Array) -> None:
         """``X`` ``(B, T, n_x)``: the form's map to physical coordinates of the rows (with the
         parameter estimates after each sample), holding each member's last valid value where it
-        is undefined (counted in ``inverse_failures_``); ``z_hat`` without a map."""
+        is undefined (counted in the state's ``inverse_failures``); ``z_hat`` without a map."""
         f = self.form
         if f.to_physical is None:
             X[...] = Z
@@ -795,35 +958,57 @@ class BesanconObserver(Observer):
         bad = ~np.all(np.isfinite(xp), axis=2)
         if bad.any():
             for b in np.flatnonzero(bad.any(axis=1)):
-                held = self._x_held[b]
+                held = s.x_held[b]
                 for j in range(T):
                     if bad[b, j]:
-                        self._inverse_failures[b] += 1
+                        s.inverse_failures[b] += 1
                         xp[b, j] = held
                     else:
                         held = xp[b, j]
         X[...] = xp
-        self._x_held = xp[:, -1].copy()
+        s.x_held = xp[:, -1].copy()
 
-    def _close_window(self) -> None:
-        """A sub-window of the excitation integral is complete: store it, refresh the
-        smallest eigenvalue over the last ``SUBWINDOWS`` (summed oldest first)."""
-        self._blocks[:, self._next_block] = self._acc
-        self._next_block = (self._next_block + 1) % SUBWINDOWS
-        self._nblocks = min(self._nblocks + 1, SUBWINDOWS)
-        self._acc = np.zeros_like(self._acc)
-        self._acc_t = 0.0
-        if self._nblocks == SUBWINDOWS:
-            W = self.excitation_matrix_rows()
+    def _close_windows(self, s: State, rows: NDArray[np.intp]) -> None:
+        """A sub-window of the excitation integral is complete for the members ``rows``: store
+        it in their rings, refresh their smallest eigenvalue over the last ``SUBWINDOWS``
+        (summed oldest first)."""
+        F = s.fields
+        blocks, nblocks, next_block, acc = F["blocks"], F["nblocks"], F["next_block"], F["acc"]
+        i0 = int(next_block[rows[0]])
+        if rows.size == blocks.shape[0] and (next_block == i0).all():
+            # every member at one ring position (the usual case): views, no copies
+            blocks[:, i0] = acc
+            next_block.fill((i0 + 1) % SUBWINDOWS)
+            np.minimum(nblocks + 1, SUBWINDOWS, out=nblocks)
+            acc.fill(0.0)
+            F["acc_t"].fill(0.0)
+        else:
+            nxt = next_block[rows]
+            blocks[rows, nxt] = acc[rows]
+            next_block[rows] = (nxt + 1) % SUBWINDOWS
+            nblocks[rows] = np.minimum(nblocks[rows] + 1, SUBWINDOWS)
+            acc[rows] = 0.0
+            F["acc_t"][rows] = 0.0
+        full = rows[nblocks[rows] == SUBWINDOWS]
+        if full.size:
+            W = _window_sums(s, full)
             ok = np.all(np.isfinite(W), axis=(1, 2))
-            exc = np.full(self.batch, np.nan)
-            if ok.any():
-                exc[ok] = np.linalg.eigvalsh(W[ok])[:, 0]
-            self._exc = exc
+            if ok.all():
+                F["exc"][full] = np.linalg.eigvalsh(W)[:, 0]
+            else:
+                exc = np.full(full.size, np.nan)
+                if ok.any():
+                    exc[ok] = np.linalg.eigvalsh(W[ok])[:, 0]
+                F["exc"][full] = exc
 
-    def excitation_matrix_rows(self) -> Array:
+    def excitation_matrix_rows(self, state: State | None = None) -> Array:
         """The windowed :math:`\\int \\hat\\Gamma^T C^T C \\hat\\Gamma d\\tau` of every member
         over the complete sub-windows, ``(B, q, q)`` (NaN before the first).
+
+        Parameters
+        ----------
+        state : State, optional
+            The state to read (default: the observer's own).
 
         Returns
         -------
@@ -840,14 +1025,8 @@ class BesanconObserver(Observer):
         >>> ob.excitation_matrix_rows().shape
         (3, 2, 2)
         """
-        k = self._nblocks
-        if k == 0:
-            return np.full((self.batch, self.q, self.q), np.nan)
-        order = [(self._next_block - k + i) % SUBWINDOWS for i in range(k)]
-        W = self._blocks[:, order[0]].copy()
-        for i in order[1:]:
-            W += self._blocks[:, i]
-        return W
+        s = self.state if state is None else state
+        return _window_sums(s, np.arange(s.batch))
 
     def excitation_matrix(self) -> Array:
         """:meth:`excitation_matrix_rows`, ``(q, q)`` for an unbatched observer (eq. 11).
@@ -876,8 +1055,8 @@ class BesanconObserver(Observer):
     def _rhs(self, S: Any, Y: Any, U: Any, *, gain: Any = None) -> Array:
         """Eq. 12 / 24 of the rows ``S`` ``(B, N)`` (``(x_hat, theta_hat, Gamma_hat)``,
         ``Gamma_hat`` row-major) with the measurements ``Y`` ``(B, p)`` held (NaN: a dropout)
-        and inputs ``U`` ``(B, m)``: the continuous-time observer (tests, the reproduction's
-        continuous-time cross-check)."""
+        and inputs ``U`` ``(B, m)``, with the constructor's parameters: the continuous-time
+        observer (tests, the reproduction's continuous-time cross-check)."""
         S, Y, U = _c(np.atleast_2d(S)), _c(np.atleast_2d(Y)), _c(np.atleast_2d(U))
         B = S.shape[0]
         Xt, Tt = np.empty((B, self.n)), np.empty((B, self.q))
@@ -886,37 +1065,43 @@ class BesanconObserver(Observer):
         lost = np.isnan(Y)
         EM = _c(np.stack((np.where(lost, 0.0, Y), (~lost).astype(float)), axis=1))
         out = np.empty_like(S)
-        _derivative_rows(S, Xt, Tt, phi, psi, EM, self._chains, self._P,
-                         self._Sg if gain is None else _c(gain), out)
+        P, Sg = self._design_at(self.parameters().member(0))
+        _derivative_rows(S, Xt, Tt, phi, psi, EM, self._chains, P,
+                         Sg[1] if gain is None else _c(gain), out)
         return out
 
     # ------------------------------------------------------------------ estimates
-    def _current(self) -> tuple[Array, Array, Array]:
-        return self._xp.copy(), self._S[:, :self.n].copy(), self._d.copy()
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
+        n, q, S = self.n, self.q, s.S
+        x = s.x_held.copy() if self.form.to_physical is not None else S[:, :n].copy()
+        d = np.empty((S.shape[0], 1, len(self.family_diagnostics)))
+        self._write_diag(d, S[:, None, n:n + q])
+        d[:, 0, -1] = s.exc
+        return x, S[:, :n].copy(), d[:, 0]
 
     @property
     def state_rows(self) -> Array:
         """The observer state of every member, ``(B, N)`` rows ``(x_hat, theta_hat,
         Gamma_hat)`` (a copy)."""
-        return self._S.copy()
+        return self.state.S.copy()  # type: ignore[no-any-return]
 
     @property
     def theta_hat_(self) -> Array:
-        return self._public(self._S[:, self.n:self.n + self.q].copy())  # type: ignore[no-any-return]
+        return self._public(self.state.S[:, self.n:self.n + self.q].copy())  # type: ignore[no-any-return]
 
     @property
     def Gamma_(self) -> Array:
         n, q = self.n, self.q
-        return self._public(self._S[:, n + q:].reshape(-1, n, q).copy())  # type: ignore[no-any-return]
+        return self._public(self.state.S[:, n + q:].reshape(-1, n, q).copy())  # type: ignore[no-any-return]
 
     @property
     def excitation_(self) -> Any:
-        return self._public(self._exc.copy())
+        return self._public(self.state.exc.copy())
 
     @property
     def physical_params_(self) -> dict[str, Any]:
         f = self.form
-        th = self._S[:, self.n:self.n + self.q]
+        th = self.state.S[:, self.n:self.n + self.q]
         phys = f.physical_params(th.copy()) if f.physical_params else {}
         out: dict[str, Any] = {}
         for k in f.true_physical:

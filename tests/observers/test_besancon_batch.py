@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from observer_cases import advance
 
+from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers.besancon import AffineForm, BesanconObserver
 from hgo_mj.systems import BesanconExample1, BesanconExample2, ElasticJoint, ElasticJoint2Link, Pendulum
 
@@ -157,7 +158,7 @@ def test_inverse_failures_hold_the_last_physical_value():
     ob.reset(theta_hat0=np.array([[9.0], [9.0]]))
     advance(ob, np.full((2, 1, 1), 0.1), np.zeros((2, 1, 1)), 0.001)
     held = ob.x_hat.copy()
-    S = ob._S
+    S = ob.state.S
     S[1, ob.n] = -1.0  # member 1's stiffness estimate leaves the domain
     blk = advance(ob, np.full((2, 3, 1), 0.1), np.zeros((2, 3, 1)), 0.001)
     np.testing.assert_array_equal(ob.inverse_failures_, [0, 3])
@@ -172,3 +173,103 @@ def test_dt_changes_between_blocks():
     for _ in range(200):
         ob.update(np.array([0.3]), np.array([0.1]), 0.001 * (1 + 0.1 * rng.random()))
     assert np.all(np.isfinite(ob.x_hat))
+
+
+# ----------------------------------------------------------------- parameters as data
+# (id, constructor taking the tunable parameters, dt, per-member lam, K0 (n,), gain (q, q))
+TUNED = [
+    ("ex1-adapt-after-excitation", lambda **kw: BesanconObserver(
+        BesanconExample1(), X=10.0, Theta=10.0, theta_hat0=[0.5, 1.0], adapt_after=0.05,
+        excitation_window=0.1, **kw), 0.01,
+     [10.0, 5.0, 20.0, 10.0], [[2.0, 1.0], [3.0, 2.0], [2.0, 1.0], [2.0, 1.0]],
+     [np.eye(2), np.diag([2.0, 0.5]), [[1.0, 0.3], [0.3, 0.5]], np.eye(2)]),
+    ("ex2-two-chains-innovation", lambda **kw: BesanconObserver(
+        BesanconExample2(), X=100.0, Theta=20.0, hold="innovation", excitation_window=0.5,
+        method="rk4", **kw), 0.01,
+     [5.0, 3.0, 8.0], [[2.0, 1.0, 2.0, 1.0], [3.0, 2.0, 2.0, 1.0], [2.0, 1.0, 4.0, 4.0]],
+     [np.eye(2), 0.5 * np.eye(2), [[2.0, 0.1], [0.1, 1.0]]]),
+    ("elastic-joint-physical", lambda **kw: BesanconObserver(
+        ElasticJoint(), X=2e4, Theta=30.0, theta_hat0=[0.8, 7.0, 5.6], excitation_window=0.05,
+        **kw), 0.001,
+     [20.0, 15.0, 25.0], [[4.0, 6.0, 4.0, 1.0], [4.0, 6.0, 4.0, 1.0], [5.0, 9.0, 7.0, 2.0]],
+     [np.diag([1e-5, 1e-7, 1e-7]), np.diag([2e-5, 1e-7, 1e-7]), np.diag([1e-5, 3e-7, 1e-7])]),
+]
+
+
+@pytest.mark.parametrize("make,dt,lams,Ks,gains", [pytest.param(*c[1:], id=c[0]) for c in TUNED])
+def test_members_with_their_own_parameters_equal_their_single_runs(make, dt, lams, Ks, gains):
+    """One batch whose members have different high gains, Hurwitz gains and adaptation gains
+    (some shared, some not) equals, member by member, the single run of an observer built with
+    that member's values, bit for bit, through a NaN dropout; step leaves its state alone."""
+    ob = make(lam=10.0)
+    nb, p, m, n = len(lams), ob.form.p, ob.n_inputs, ob.n
+    params = ob.parameters(nb, lam=lams, K0=Ks, gain=np.array(gains, dtype=float))
+    assert params.lam.shape == (nb,) and params.K0.shape == (nb, n)
+    assert params.gain.shape == (nb, ob.q, ob.q)
+    state = ob.init(nb, params=params)
+    Y, U = _streams(p, m, dt, seed=23, scale=0.2)
+    Y, U = Y[:nb, :120], U[:nb, :120]
+    Y[:, 3, 0] = np.nan  # a dropout in every member
+    before = state.copy()
+    s1, first = ob.step(params, state, Y[:, :50], U[:, :50], dt)
+    for k, v in before.fields.items():  # the state passed in is unchanged
+        np.testing.assert_array_equal(state.fields[k], v)
+    s2, second = ob.step(params, s1, Y[:, 50:], U[:, 50:], dt)
+    assert not np.array_equal(s2.S, s1.S)
+    x = np.concatenate((first.x_hat, second.x_hat), axis=1)
+    z = np.concatenate((first.z_hat, second.z_hat), axis=1)
+    d = np.concatenate((first.diagnostics, second.diagnostics), axis=1)
+    assert (d[:, -1, -1] >= 1).all()  # the dropout counted
+    assert np.isfinite(d[:, -1, ob.diagnostic_names.index("excitation")]).all()
+    for b in range(nb):
+        alone = make(lam=lams[b], K0=Ks[b] if p == 1 else [Ks[b][:2], Ks[b][2:]], gain=gains[b])
+        rows = alone.run(Y[b], U[b], dt)
+        np.testing.assert_array_equal(rows.x_hat[0], x[b])
+        np.testing.assert_array_equal(rows.z_hat[0], z[b])
+        np.testing.assert_array_equal(rows.diagnostics[0], d[b])
+        for k, v in alone.state.fields.items():
+            np.testing.assert_array_equal(v[0], s2.fields[k][b], err_msg=k)
+    # current() of the batch reads each member's own parameters
+    xc, zc, dc = ob.current(params, s2)
+    np.testing.assert_array_equal(zc, z[:, -1])
+    np.testing.assert_array_equal(dc, d[:, -1])
+
+
+def test_parameters_refuse_what_the_constructor_refuses():
+    ob = BesanconObserver(BesanconExample1(), lam=10.0)
+    with pytest.raises(DesignError, match="lam must be > 0"):
+        ob.parameters(3, lam=[10.0, -1.0, 5.0])
+    with pytest.raises(DesignError, match="K0 must give a Hurwitz polynomial"):
+        ob.parameters(3, K0=[[2.0, 1.0], [-1.0, 1.0], [2.0, 1.0]])
+    with pytest.raises(DesignError, match=r"gain must be positive definite; found eigenvalues \[-1.0, 1.0\]"):
+        ob.parameters(3, gain=np.array([np.eye(2), [[0.0, 1.0], [1.0, 0.0]], np.eye(2)]))
+    with pytest.raises(DesignError, match="gain must be symmetric"):
+        ob.parameters(2, gain=[[1.0, 0.5], [0.0, 1.0]])
+    with pytest.raises(DimensionError, match=r"parameter K0 must have shape \(2,\)"):
+        ob.parameters(3, K0=[1.0, 2.0, 3.0, 4.0])
+    two = BesanconObserver(BesanconExample2(), lam=5.0)
+    with pytest.raises(DesignError, match=r"K0\[1\] must give a Hurwitz polynomial"):
+        two.parameters(1, K0=[2.0, 1.0, 1.0, -1.0])
+    assert two.parameters(1).K0.tolist() == [[2.0, 1.0, 2.0, 1.0]]  # the chains concatenated
+
+
+def test_restarting_a_member_restarts_its_clock_and_excitation():
+    """Each member has its own clock (adapt_after) and excitation ring: a member restarted
+    mid-run equals a fresh single run from then on; the others go on untouched."""
+    make = TUNED[0][1]
+    dt = 0.01
+    ob, ref = make(lam=10.0), make(lam=10.0)
+    Y, U = _streams(1, 1, dt, seed=31, scale=0.2)
+    Y, U = Y[:3, :150], U[:3, :150]
+    for o in (ob, ref):
+        o.reset(batch=3)
+        advance(o, Y[:, :40], U[:, :40], dt)
+    ob.reset_members([1])
+    assert ob.state.t.tolist()[1] == 0.0 and ob.state.nblocks.tolist()[1] == 0
+    out, want = advance(ob, Y[:, 40:], U[:, 40:], dt), advance(ref, Y[:, 40:], U[:, 40:], dt)
+    alone = make(lam=10.0).run(Y[1, 40:], U[1, 40:], dt)
+    for b in (0, 2):
+        np.testing.assert_array_equal(out.x_hat[b], want.x_hat[b])
+        np.testing.assert_array_equal(out.diagnostics[b], want.diagnostics[b])
+    np.testing.assert_array_equal(out.x_hat[1], alone.x_hat[0])
+    np.testing.assert_array_equal(out.diagnostics[1], alone.diagnostics[0])
