@@ -123,6 +123,36 @@ class Block:
     diagnostics: Array
 
 
+@dataclass(frozen=True)
+class Dimension:
+    """One dimension of an observer's tuning space (:meth:`Observer.tuning_space`): a search
+    variable, its bounds, its scale and its default.
+
+    Parameters
+    ----------
+    name : str
+        The search variable: a parameter's name (``"k"``), or an entry of one
+        (``"Q[1]"``: the second diagonal entry of ``Q``).
+    low, high : float
+        The bounds, ``low < high``.
+    log : bool
+        Search on a log scale (gains, covariances) or a linear one.
+    default : float
+        The constructor's value.
+
+    Examples
+    --------
+    >>> Dimension("k", 1.0, 100.0, True, 10.0)
+    Dimension(name='k', low=1.0, high=100.0, log=True, default=10.0)
+    """
+
+    name: str
+    low: float
+    high: float
+    log: bool
+    default: float
+
+
 def _one_buffer(B: int, T: int, nx: int, n: int, nd: int) -> Block:
     """A new :class:`Block` ``(B, T, nx)``, ``(B, T, n)``, ``(B, T, nd)`` whose arrays are
     consecutive parts of one allocation. (glibc returns the freed top of its heap to the system
@@ -767,6 +797,120 @@ class Observer(ABC):
          'method': 'exact', 'z_bounds': None}
         """
         return {"outputs": list(self.outputs)}
+
+    def predicted_output(self, x_hat: Array, z_hat: Array) -> Array | None:
+        """The measured outputs an estimate predicts, ``(..., len(outputs))`` from rows
+        ``x_hat`` ``(..., n_x)`` and ``z_hat`` ``(..., n)``: what tuning without ground truth
+        compares with the next measurement (the output prediction error). Default: ``z_1``, the
+        output in the observability normal form (paper 000, eq. 1), for a single-output
+        observer; None where the family gives none.
+
+        Parameters
+        ----------
+        x_hat : ndarray
+            Estimates in the layout of :attr:`state_names`.
+        z_hat : ndarray
+            The same estimates in observer coordinates.
+
+        Returns
+        -------
+        ndarray or None
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> ob = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> ob.predicted_output(np.zeros((1, 2)), np.array([[0.3, 1.0]])).tolist()
+        [[0.3]]
+        """
+        if len(self.outputs) == 1 and self.needs_normal_form:
+            return z_hat[..., :1]
+        return None
+
+    # --------------------------------------------------------- tuning space
+    #: the factor around a positive default that the default tuning space spans (log scale)
+    TUNING_SPAN: ClassVar[float] = 10.0
+
+    def tuning_space(self) -> dict[str, Dimension]:
+        """The search variables of this observer's tunable parameters (what ``hgo-mj tune``
+        searches), by name: a positive scalar parameter on a log scale over
+        ``[default / 10, 10 default]``; a square matrix (a covariance) by its positive
+        diagonal entries ``"Q[i]"``, log scale over ``[default / 100, 100 default]``. Other
+        parameters (polynomials, vectors) are not searched unless a family declares them
+        (families override this with their papers' ranges).
+
+        Returns
+        -------
+        dict of str to Dimension
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> HighGainObserver(SYSTEMS["pendulum"](), k=10.0).tuning_space()["k"]
+        Dimension(name='k', low=1.0, high=100.0, log=True, default=10.0)
+        """
+        out: dict[str, Dimension] = {}
+        span = self.TUNING_SPAN
+        for name, value in self._parameters().items():
+            a = np.asarray(value, dtype=np.float64)
+            if a.ndim == 0 and np.isfinite(a) and a > 0:
+                v = float(a)
+                out[name] = Dimension(name, v / span, v * span, True, v)
+            elif a.ndim == 2 and a.shape[0] == a.shape[1]:
+                for i, v in enumerate(np.diag(a).tolist()):
+                    if np.isfinite(v) and v > 0:
+                        key = f"{name}[{i}]"
+                        out[key] = Dimension(key, v / span ** 2, v * span ** 2, True, v)
+        return out
+
+    def tuned_parameters(self, values: dict[str, float]) -> dict[str, Any]:
+        """The parameter values (for :meth:`parameters`) of search values over
+        :meth:`tuning_space`: a scalar as it is, a diagonal entry ``"Q[i]"`` into a copy of the
+        constructor's matrix; a parameter not searched keeps its value.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            Search variable -> value (a subset of :meth:`tuning_space`).
+
+        Returns
+        -------
+        dict
+            Parameter name -> one member's value.
+
+        Raises
+        ------
+        DesignError
+            A name that is not a search variable of this observer (the valid ones listed).
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> HighGainObserver(SYSTEMS["pendulum"](), k=10.0).tuned_parameters({"k": 25.0})
+        {'k': 25.0}
+        """
+        space = self.tuning_space()
+        bad = [k for k in values if k not in space]
+        if bad:
+            raise DesignError(f"{self.name}: unknown search variable(s) {bad}; valid: "
+                              f"{list(space)}")
+        defaults = self._parameters()
+        out: dict[str, Any] = {}
+        for key, v in values.items():
+            name, _, index = key.partition("[")
+            if not index:
+                out[name] = float(v)
+                continue
+            m = out.get(name)
+            if m is None:
+                m = out[name] = np.array(defaults[name], dtype=np.float64)
+            i = int(index.rstrip("]"))
+            m[i, i] = float(v)
+        return out
 
     # --------------------------------------------------------- data: the pure API
     @property
@@ -1567,7 +1711,8 @@ def _empty_rows(value: Any, B: int) -> Any:
 
 ObserverT = TypeVar("ObserverT", bound=type[Observer])
 
-__all__ = ["ON_UNSTABLE", "OBSERVERS", "Block", "Observer", "Params", "State", "register", "registered"]
+__all__ = ["ON_UNSTABLE", "OBSERVERS", "Block", "Dimension", "Observer", "Params", "State",
+           "register", "registered"]
 
 #: registry name -> observer class (filled by :func:`register`)
 OBSERVERS: dict[str, type[Observer]] = {}

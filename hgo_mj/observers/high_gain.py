@@ -991,6 +991,10 @@ class MultiOutputHighGainObserver(_Chains, Observer):
             return drops.copy()
         return [int(v) for v in drops[0]]
 
+    def predicted_output(self, x_hat: Array, z_hat: Array) -> Array | None:
+        """The first entry of each chain: the measured outputs (paper 001, eq. 5)."""
+        return z_hat[..., self._lay[:, 0]]
+
     def _init(self, p: Params, x0: Array | None, z0: Array | None,
               u0: Array) -> dict[str, Any]:
         B = u0.shape[0]

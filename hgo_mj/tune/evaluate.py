@@ -1,0 +1,354 @@
+"""Evaluating many tunings of one observer as one batch.
+
+A tuning holds the scenario fixed: the plant, its initial state, the input and the periods. In
+an open loop the plant's trajectory then depends neither on the noise seed nor on the
+observer, so it is simulated **once** (:func:`hgo_mj.study.engine.plant_rows`) and replayed to
+every member (:class:`hgo_mj.study.engine.ReplayPlant`), as the study engine does. A round of
+``R`` trials over ``S`` seeds is one batch of ``R x S`` members on the one loop
+(:class:`hgo_mj.loop.Loop`): the sensor chain draws one seeded stream per member (member
+``r S + s`` uses seed ``s``: trial-major, so each trial's members are consecutive and the base
+steps them as views), and the observer advances every member with its own trial's parameters
+(``Loop(params=...)``, :meth:`hgo_mj.observers.Observer.parameters`). Member ``(r, s)`` equals
+``simulate`` of trial ``r`` at seed ``s`` alone.
+
+What each member gives (:class:`Scores`):
+
+* with ground truth, the study engine's streamed metrics (:class:`hgo_mj.study.engine.Metrics`,
+  as :func:`hgo_mj.metrics.observer_metrics`): per scored state its RMSE after the transient,
+  its peak and its settling time into a band of 5 % of the state's range;
+* without ground truth, what a user has on a rig: the output prediction error, the RMS over
+  the samples after the transient of ``y_k - y_hat_k`` where ``y_hat_k`` is the output the
+  estimate *before* ``y_k`` predicts (:meth:`hgo_mj.observers.Observer.predicted_output`), and,
+  for a filter that reports it (a diagnostic ``nis``), the mean normalized innovation squared.
+
+A member whose observer fails (an exception in its update) or whose estimate leaves the finite
+numbers scores ``inf``; the trials of a round that fails are split in halves until each failing
+trial is alone, so one diverging trial does not cost the others their scores.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..exceptions import DesignError
+from ..loop import Drive, Loop, LoopFailure, Periods
+from ..observers.base import Observer
+from ..study.engine import Metrics, ReplayPlant, plant_rows, segment_length
+
+Array = NDArray[np.float64]
+
+__all__ = ["Scores", "Setup", "evaluate", "setup"]
+
+
+@dataclass
+class Setup:
+    """What a tuning holds fixed, built once: the scenario's plant run, periods and windows.
+
+    Parameters
+    ----------
+    scenario : dict
+        The scenario (validated).
+    observer : str
+        The label of the observer tuned (one of the scenario's ``[[observers]]``).
+    plant : Plant
+        The scenario's plant (its system names the states).
+    periods : Periods
+        The sample and control periods.
+    N : int
+        Samples of the run.
+    X, Yc : ndarray
+        The plant's true states and clean outputs ``(1, N + 1, .)``.
+    states : tuple of str
+        The scored states (default: every plant state the observer estimates).
+    ranges : ndarray
+        Each scored state's range over the run (``ptp``; 1 where it is 0): what the scores
+        are normalized by.
+    t_transient : float
+        The window of the steady-state scores starts here (seconds).
+    """
+
+    scenario: dict[str, Any]
+    observer: str
+    plant: Any
+    periods: Periods
+    N: int
+    X: Array
+    Yc: Array
+    states: tuple[str, ...]
+    ranges: Array
+    t_transient: float
+
+
+@dataclass
+class Scores:
+    """Per member of a round ``(R, S)`` (trials x seeds).
+
+    Parameters
+    ----------
+    rmse : ndarray
+        ``(R, S, k)``: RMSE of each scored state after the transient (state units; inf: the
+        member diverged).
+    peak : ndarray
+        ``(R, S, k)``: the largest error of each scored state.
+    settling : ndarray
+        ``(R, S, k)``: seconds into the 5 % band (inf: never).
+    output_error : ndarray
+        ``(R, S)``: RMS output prediction error after the transient (NaN: the observer
+        predicts no output).
+    nis : ndarray
+        ``(R, S)``: mean normalized innovation squared (NaN: the observer reports none).
+    message : list of list of str or None
+        Why a member diverged (None: it did not).
+    """
+
+    rmse: Array
+    peak: Array
+    settling: Array
+    output_error: Array
+    nis: Array
+    message: list[list[str | None]]
+
+
+def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] | None = None,
+          t_transient: float | None = None) -> Setup:
+    """Build a tuning's fixed part from a scenario: check it, simulate its plant once.
+
+    Parameters
+    ----------
+    scenario : mapping
+        A scenario (``hgo-mj run``'s format) with an open-loop ``[input]`` and the observer.
+    observer : str
+        The label of the observer to tune.
+    states : sequence of str, optional
+        The states scored (default: every plant state the observer estimates).
+    t_transient : float, optional
+        Start of the steady-state window, seconds (default 0.2 times the duration, as
+        :func:`hgo_mj.metrics.observer_metrics`).
+
+    Returns
+    -------
+    Setup
+
+    Raises
+    ------
+    DesignError
+        A closed-loop scenario (a ``[controller]``: the plant's run would depend on the
+        estimate), an observer the scenario does not have, or states the plant does not have
+        or the observer does not estimate.
+
+    Examples
+    --------
+    >>> sc = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.3, 0.0]},
+    ...       "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...       "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+    ...       "run": {"duration": 2.0}}
+    >>> s = setup(sc, "hgo")
+    >>> s.N, s.states, s.X.shape
+    (200, ('angle', 'angular_velocity'), (1, 201, 2))
+    """
+    from ..scenario import scenario_run
+
+    sc = copy.deepcopy(dict(scenario))
+    if "controller" in sc:
+        raise DesignError("tuning replays one plant run to every trial: it needs an open-loop "
+                          "[input], not a [controller]")
+    kw = scenario_run(sc)
+    if observer not in kw["observers"]:
+        raise DesignError(f"observer {observer!r} is not in the scenario; it has "
+                          f"{list(kw['observers'])}")
+    ob: Observer = kw["observers"][observer]
+    plant = kw["plant"]
+    periods = Periods.of(plant, kw["sample_period"], kw["control_period"])
+    N = int(round(float(kw["duration"]) / periods.sample))
+    x0 = kw.get("x0")
+    x0s = np.reshape(np.asarray(plant.system.default_x0 if x0 is None else x0, dtype=float),
+                     (1, -1))
+    X, Yc = plant_rows(plant, kw["inputs"], periods, N, x0s)
+    estimated = [s for s in plant.state_names if s in ob.state_names]
+    if states is None:
+        chosen = tuple(estimated)
+    else:
+        chosen = tuple(states)
+        bad = [s for s in chosen if s not in estimated]
+        if bad or not chosen:
+            raise DesignError(f"states to score must be plant states the observer {observer!r} "
+                              f"estimates, {estimated}; found {list(chosen)}")
+    if not chosen:
+        raise DesignError(f"observer {observer!r} estimates none of the plant's states "
+                          f"{list(plant.state_names)}: nothing to score")
+    idx = [list(plant.state_names).index(s) for s in chosen]
+    with np.errstate(invalid="ignore"):
+        ptp = np.ptp(X[0, :, idx], axis=1)
+    ranges = np.where(np.isfinite(ptp) & (ptp > 0), ptp, 1.0)
+    tt = 0.2 * (N * periods.sample) if t_transient is None else float(t_transient)
+    if not (math.isfinite(tt) and 0 <= tt < N * periods.sample):
+        raise DesignError(f"t_transient must lie in [0, duration); found {t_transient!r}")
+    return Setup(sc, observer, plant, periods, N, X, Yc, chosen, ranges, tt)
+
+
+def _observer(s: Setup, mismatch: Mapping[str, Any] | None) -> Any:
+    """The scenario's run with the tuned observer alone, its model's parameters overridden
+    by ``mismatch`` (``system_params`` of its spec)."""
+    from ..scenario import scenario_run
+
+    sc = copy.deepcopy(s.scenario)
+    specs = [o for o in sc.get("observers", []) if o.get("name", o.get("type")) == s.observer]
+    if mismatch:
+        spec = specs[0]
+        spec["system_params"] = {**(spec.get("system_params") or {}), **dict(mismatch)}
+    sc["observers"] = specs
+    return scenario_run(sc)
+
+
+def evaluate(s: Setup, trials: Sequence[Mapping[str, Any]], seeds: Sequence[int],
+             mismatch: Mapping[str, Any] | None = None) -> Scores:
+    """Score ``R`` trials (each: parameter values for :meth:`Observer.parameters`, one
+    member's values) over ``S`` seeds as one batch of ``R x S`` members (module docstring).
+
+    Parameters
+    ----------
+    s : Setup
+        The tuning's fixed part (:func:`setup`).
+    trials : sequence of mapping
+        Per trial, parameter name -> value (a parameter not named keeps the constructor's).
+    seeds : sequence of int
+        The sensor chain's seeds.
+    mismatch : mapping, optional
+        Parameters of the observer's model that differ from the plant's (``system_params``).
+
+    Returns
+    -------
+    Scores
+
+    Raises
+    ------
+    DesignError
+        A trial's value the observer refuses (as :meth:`Observer.parameters` does).
+
+    Examples
+    --------
+    >>> sc = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.3, 0.0]},
+    ...       "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    ...       "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...       "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+    ...       "run": {"duration": 2.0}}
+    >>> sc_ = evaluate(setup(sc, "hgo"), [{"k": 5.0}, {"k": 40.0}], seeds=[1, 2])
+    >>> sc_.rmse.shape, bool((sc_.rmse[1] < sc_.rmse[0]).all())
+    ((2, 2, 2), True)
+    """
+    R, S = len(trials), len(seeds)
+    k = len(s.states)
+    out = Scores(np.full((R, S, k), np.inf), np.full((R, S, k), np.inf),
+                 np.full((R, S, k), np.inf), np.full((R, S), np.inf), np.full((R, S), np.inf),
+                 [[None] * S for _ in range(R)])
+    if R == 0 or S == 0:
+        return out
+    _evaluate(s, list(trials), list(seeds), mismatch, list(range(R)), out)
+    return out
+
+
+def _evaluate(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
+              mismatch: Mapping[str, Any] | None, which: list[int], out: Scores) -> None:
+    """Score the trials ``which`` as one batch; on a failure, halves (module docstring)."""
+    try:
+        _batch(s, [trials[r] for r in which], seeds, mismatch, which, out)
+    except LoopFailure as failure:
+        if len(which) == 1:
+            msg = (f"observer {s.observer!r} failed in its update at t={failure.t:g} (row "
+                   f"{failure.row}): {type(failure.cause).__name__}: {failure.cause}")
+            for j in range(len(seeds)):
+                out.message[which[0]][j] = msg
+            return
+        half = len(which) // 2
+        _evaluate(s, trials, seeds, mismatch, which[:half], out)
+        _evaluate(s, trials, seeds, mismatch, which[half:], out)
+
+
+def _member_values(ob: Observer, trials: list[Mapping[str, Any]], S: int) -> dict[str, Array]:
+    """The per-member parameter values ``(R S, ...)`` of the trials (trial-major)."""
+    defaults = ob._parameters()
+    names = sorted({name for t in trials for name in t})
+    bad = [n for n in names if n not in defaults]
+    if bad:
+        raise DesignError(f"{ob.name}: unknown parameter(s) {bad}; valid: {list(defaults)}")
+    values: dict[str, Array] = {}
+    for name in names:
+        rows = [ob._check_parameter(name, t.get(name, defaults[name])) for t in trials]
+        values[name] = np.repeat(np.stack(rows), S, axis=0)
+    return values
+
+
+def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
+           mismatch: Mapping[str, Any] | None, which: list[int], out: Scores) -> None:
+    kw = _observer(s, mismatch)
+    name = s.observer
+    ob: Observer = kw["observers"][name]
+    R, S = len(trials), len(seeds)
+    B = R * S
+    plant = ReplayPlant(s.plant, s.X, s.Yc, np.zeros(B, dtype=np.intp))
+    loop = Loop(plant, kw["sensor"], {name: ob}, s.periods, exact=False,
+                params={name: _member_values(ob, trials, S)})
+    drive = Drive.of(kw["inputs"], {name: ob}, plant, s.periods)
+    loop.reset(None, seed=[sd for _ in range(R) for sd in seeds], batch=B)
+    Ts = s.periods.sample
+    band = 0.05 * np.broadcast_to(_full_ranges(s), (B, len(s.plant.state_names)))
+    acc = Metrics(ob, s.plant.state_names, B, Ts, s.t_transient, np.ascontiguousarray(band))
+    x, z, _ = loop.current(name)
+    prev = (x, z)
+    cols = list(ob.outputs)
+    first = int(math.ceil(s.t_transient / Ts - 1e-9))
+    sq, n_sq = np.zeros(B), 0
+    nis_col = ob.diagnostic_names.index("nis") if "nis" in ob.diagnostic_names else None
+    nis_sum = np.zeros(B)
+    while loop.k < s.N:
+        k0, T = loop.k, drive.length(loop.k, s.N, segment_length(B))
+        seg = loop.segment(drive.inputs(loop, T))
+        blk = seg.blocks[name]
+        acc.add(k0, seg.x, prev, blk.x_hat, blk.z_hat)
+        # the estimate before each sample: prev for the first, then the block's rows
+        xb = np.concatenate([prev[0][:, None], blk.x_hat[:, :-1]], axis=1)
+        zb = np.concatenate([prev[1][:, None], blk.z_hat[:, :-1]], axis=1)
+        yh = ob.predicted_output(xb, zb)
+        lo = max(first - k0, 0)
+        if yh is not None and lo < T:
+            e = seg.y_meas[:, lo:, cols] - yh[:, lo:]
+            e = np.where(np.isfinite(seg.y_meas[:, lo:, cols]), e, 0.0)
+            sq += np.sum(e * e, axis=(1, 2))
+            n_sq += (T - lo) * len(cols)
+        if nis_col is not None and lo < T:
+            nis_sum += np.sum(blk.diagnostics[:, lo:, nis_col], axis=1)
+        prev = (blk.x_hat[:, -1].copy(), blk.z_hat[:, -1].copy())
+    Xl = np.reshape(plant.state, (B, 1, -1))
+    acc.add(s.N, Xl, prev, prev[0][:, None], prev[1][:, None])
+    res = acc.result(len(s.plant.state_names), 0.0)
+    idx = [list(s.plant.state_names).index(st) for st in s.states]
+    n_win = max(s.N - first, 1)
+    oe = np.sqrt(sq / max(n_sq, 1)) if n_sq else np.full(B, np.nan)
+    nis = nis_sum / n_win if nis_col is not None else np.full(B, np.nan)
+    for i, r in enumerate(which):
+        rows = slice(i * S, (i + 1) * S)
+        bad = acc.bad_row[rows] >= 0
+        for key, arr in (("rmse", out.rmse), ("peak", out.peak), ("settling", out.settling)):
+            vals = res["settling_time" if key == "settling" else key][rows][:, idx]
+            arr[r] = np.where(bad[:, None], np.inf, vals)
+        out.output_error[r] = np.where(bad, np.inf, oe[rows])
+        out.nis[r] = np.where(bad, np.inf, nis[rows])
+        for j in range(S):
+            if bad[j]:
+                out.message[r][j] = (f"observer {name!r} estimate left the finite numbers at "
+                                     f"t={acc.bad_row[rows][j] * Ts:g}")
+
+
+def _full_ranges(s: Setup) -> Array:
+    """Every plant state's range over the run (``ptp``; 1 where 0): the settling band's
+    scale, as :func:`hgo_mj.metrics.observer_metrics` with ``relative=True``."""
+    with np.errstate(invalid="ignore"):
+        ptp = np.ptp(s.X[0], axis=0)
+    return np.where(np.isfinite(ptp) & (ptp > 0), ptp, 1.0)
