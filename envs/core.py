@@ -52,7 +52,7 @@ from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
 from hgo_mj.plants import MujocoPlant, make_plant, model_path
-from hgo_mj.sensors import SensorChain, Stage, make_stage
+from hgo_mj.sensors import SensorChain
 
 Array = NDArray[np.float64]
 
@@ -133,7 +133,9 @@ def reset_chain(chain: SensorChain, seed: int | None) -> None:
 
 
 def sensor_chain(spec: Any, seed: int | None = None) -> SensorChain:
-    """Build a :class:`~hgo_mj.sensors.SensorChain` from what an environment accepts.
+    """Build a :class:`~hgo_mj.sensors.SensorChain` from what an environment accepts: a chain
+    as is, anything else read by :meth:`~hgo_mj.sensors.SensorChain.from_spec` (the one reader
+    of a sensor spec).
 
     Parameters
     ----------
@@ -164,36 +166,7 @@ def sensor_chain(spec: Any, seed: int | None = None) -> SensorChain:
     >>> sensor_chain(None).describe()
     []
     """
-    if isinstance(spec, SensorChain):
-        return spec
-    if spec is None:
-        return SensorChain([], seed=seed)
-    if isinstance(spec, (str, Stage, Mapping)):
-        spec = [spec]
-    stages: list[Stage] = []
-    for i, s in enumerate(spec):
-        if isinstance(s, Stage):
-            stages.append(s)
-        elif isinstance(s, str):
-            stages.append(make_stage(s))
-        elif isinstance(s, Mapping):
-            params = dict(s)
-            if "stage" not in params:
-                raise DesignError(f"sensor stage {i} must name its stage: {{'stage': name, ...}}; "
-                                  f"found keys {sorted(params)}")
-            stages.append(make_stage(params.pop("stage"), **params))
-        else:
-            raise DesignError(f"sensor stage {i} must be a Stage, a stage name or a mapping "
-                              f"{{'stage': name, ...}}; found {type(s).__name__}")
-    return SensorChain(stages, seed=seed)
-
-
-def _accepted(cls: type[Any], params: Mapping[str, Any]) -> dict[str, Any]:
-    """The entries of ``params`` that ``cls``'s constructor accepts (all, with ``**kwargs``)."""
-    sig = inspect.signature(cls.__init__)
-    if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
-        return dict(params)
-    return {k: v for k, v in params.items() if k in sig.parameters}
+    return spec if isinstance(spec, SensorChain) else SensorChain.from_spec(spec, seed=seed)
 
 
 def _system_key(system: Any) -> Any:
@@ -1019,23 +992,19 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         return self.task.default_observer
 
     def observer_params(self, kind: str) -> dict[str, Any]:
-        """The task's default parameters for a registered observer ``kind``, restricted to the
-        ones its constructor accepts (empty if the task has none for it).
+        """The task's default parameters for the observer ``kind``, as the task gives them
+        (empty if it has none for that kind); :meth:`build_observer` passes every one to the
+        observer, which refuses one it does not take.
 
         Parameters
         ----------
         kind : str
-            A registered observer name (``hgo_mj.observers.OBSERVERS``).
+            An observer name (``hgo_mj.observers.OBSERVERS``).
 
         Returns
         -------
         dict
             Parameter name -> default value.
-
-        Raises
-        ------
-        DesignError
-            ``kind`` is not registered (the message lists the valid names).
 
         Examples
         --------
@@ -1043,12 +1012,11 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         >>> PendulumSwingUpEnv().observer_params("high_gain")
         {'k': 10.0, 'model': True}
         """
-        if kind not in OBSERVERS:
-            raise DesignError(f"unknown observer {kind!r}; valid: {sorted(OBSERVERS)}")
-        return _accepted(OBSERVERS[kind], self.task.observer_defaults.get(kind, {}))
+        return dict(self.task.observer_defaults.get(kind, {}))
 
     def build_observer(self, kind: str, system: Any, params: Mapping[str, Any]) -> Observer:
-        """``make_observer(kind, system, **params)`` over the task's defaults for ``kind``.
+        """``make_observer(kind, system, **params)`` over the task's defaults for ``kind``
+        (:meth:`observer_params`): the builder a scenario's observers go through too.
 
         Parameters
         ----------
@@ -1067,8 +1035,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         Raises
         ------
         DesignError
-            ``kind`` is not a registered name (the message lists the valid ones); the
-            observer's own constructor raises for bad parameters.
+            ``kind`` is not a registered name, or a parameter (the task's default or
+            ``params``) is not one the observer takes: one line naming the valid ones; the
+            observer's own constructor raises for bad values.
 
         Examples
         --------
@@ -1078,8 +1047,6 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         >>> type(obs).__name__, obs.params()["k"]
         ('HighGainObserver', 5.0)
         """
-        if not isinstance(kind, str) or kind not in OBSERVERS:
-            raise DesignError(f"unknown observer {kind!r}; valid: {sorted(OBSERVERS)}")
         return make_observer(kind, system, **{**self.observer_params(kind), **params})
 
     def _check_instance(self, obs: Observer, system: Any) -> None:

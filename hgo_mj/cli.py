@@ -42,10 +42,7 @@ from ._io import atomic_path, check_disk, check_writable, save_figure, write_tex
 from ._json import write_json
 from ._validate import positive_int
 from .exceptions import DesignError, DivergenceError, HgoError, RecordingError
-from .schema import SCHEMA, check_scenario
-
-#: the keys of each section (:data:`hgo_mj.schema.SCHEMA`; ``[input]`` also takes its signal's)
-SCENARIO_KEYS = {section: list(SCHEMA[section]) for section in ("plant", "sensor", "input", "run")}
+from .schema import check_scenario
 
 
 def parse_value(text: str) -> Any:
@@ -150,104 +147,11 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
 RRD_CHUNK_SECONDS = 2.0
 
 
-def scenario_run(sc: dict[str, Any], name: str = "run") -> dict[str, Any]:
-    """Validate a scenario and build one run of it from fresh objects: the keyword arguments of
-    :func:`hgo_mj.simulate.simulate` (``plant``, ``sensor``, ``observers``, ``inputs``,
-    ``duration``, ``sample_period``, ``control_period``, ``x0``, ``metadata``) except ``seed``
-    (``run.seed``, default 0, is the sensor chain's seed until ``simulate`` re-seeds it).
-    ``functools.partial(scenario_run, sc)`` is the ``make_run`` of
-    :func:`hgo_mj.study.monte_carlo`.
-
-    Raises
-    ------
-    DesignError
-        The scenario does not fit :data:`hgo_mj.schema.SCHEMA`, or a part refuses its
-        parameters; a ``TypeError`` of a part's constructor (one registered by another package)
-        is reported as a DesignError naming the scenario."""
-    try:
-        return _scenario_run(sc, name)
-    except TypeError as exc:
-        raise DesignError(f"scenario {str(sc.get('name', name))!r}: {exc}") from exc
-
-
-def _scenario_run(sc: dict[str, Any], name: str) -> dict[str, Any]:
-    from .check import refuse_inapplicable
-    from .inputs import Controller, Signal, signal_from_spec
-    from .observers import make_observer
-    from .sensors import SensorChain
-
-    check_scenario(sc)
-    pl = sc["plant"]
-    plant = build_plant(pl, str(sc.get("name", name)))
-    run = sc["run"]
-    seed = run.get("seed", 0)
-    sensor = SensorChain.from_spec(sc.get("sensor", {}).get("stages", []), seed=seed)
-    observers = {}
-    for i, spec in enumerate(sc.get("observers", [])):
-        spec = dict(spec)
-        kind = spec.pop("type", None)
-        if kind is None:
-            raise DesignError(f"observer #{i + 1} needs type = ...")
-        short = kind.rsplit(":", 1)[-1].rsplit(".", 1)[-1] if isinstance(kind, str) else kind
-        label = spec.pop("name", f"{short}_{i}")
-        if label in observers:
-            raise DesignError(f"two observers are named {label!r}; give each a distinct name")
-        refuse_inapplicable(kind, plant.system, label)
-        observers[label] = make_observer(kind, observer_system(plant.system, spec.pop(
-            "system_params", None), label), **spec)
-    inputs: Signal | Controller
-    if "controller" in sc:
-        from .control import make_controller
-
-        if "input" in sc:
-            raise DesignError("a scenario has an [input] signal or a [controller], not both")
-        inputs = make_controller(sc["controller"], plant.system)
-    else:  # one table, or one table per actuator
-        inputs = signal_from_spec(sc.get("input"), len(plant.input_names))
-    if "duration" not in run:
-        raise DesignError("scenario needs run.duration (seconds), e.g. --duration 10")
-    return {"plant": plant, "sensor": sensor, "observers": observers, "inputs": inputs,
-            "duration": run["duration"], "sample_period": run.get("sample_period"),
-            "control_period": run.get("control_period"), "x0": pl.get("x0"),
-            "metadata": {"scenario": sc.get("name", name), "scenario_spec": sc}}
-
-
-def build_plant(pl: dict[str, Any], name: str = "run") -> Any:
-    """The plant of a scenario's ``[plant]`` table: a registered plant (``name``), any MJCF
-    file (``model``, :mod:`hgo_mj.systems.mjcf`) or an ODE given as text (``states``, ``f``,
-    ``h``, :mod:`hgo_mj.systems.symbolic`)."""
-    from .plants import OdePlant, make_plant
-
-    if "f" in pl:  # an ODE, its normal form derived (hgo_mj.systems.symbolic)
-        from .systems.symbolic import ode_system
-
-        system = ode_system(pl["states"], pl["f"], pl["h"], inputs=pl.get("inputs", ()),
-                            params=pl.get("params"), x0=pl.get("x0"), name=name,
-                            held_input=pl.get("held_input", False))()
-        return OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
-    if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
-        return make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),
-                          outputs=pl["outputs"], inputs=pl.get("inputs"), **pl.get("params", {}))
-    return make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
-                      **pl.get("params", {}))
-
-
 def plant_label(pl: dict[str, Any]) -> str:
     """A scenario's plant for titles: its registered name, or its MJCF file's name."""
     if "f" in pl:
         return "ODE y = " + str(pl["h"])
     return str(pl.get("name") or Path(pl["model"]).name)
-
-
-def observer_system(system: Any, params: Any, label: str) -> Any:
-    """The system an observer designs against: the plant's, or (model mismatch) one of the
-    same class whose parameters ``params`` differ from the plant's."""
-    if params is None:
-        return system
-    if not isinstance(params, dict):
-        raise DesignError(f"observer {label!r}: system_params must be a table of parameter "
-                          f"values; found {params!r}")
-    return type(system)(**{**system.params, **params})
 
 
 #: what ``hgo-mj run --format`` can write: the trajectory as ``.npz``
@@ -315,6 +219,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
     ``run.seeds`` is read by :func:`run_study`; this runs the one seed ``run.seed``."""
     from .metrics import all_metrics, format_table
     from .plotting import plot_trajectory
+    from .scenario import scenario_run
     from .simulate import simulate
 
     kw = scenario_run(sc, name)
@@ -736,6 +641,7 @@ def cmd_check(target: str, sample_period: float | None = None) -> int:
     plant, and why; the sample period (the flag, else the scenario's ``run.sample_period``, else
     the plant's step) against paper 004's LMI bound."""
     from . import check
+    from .scenario import build_plant
 
     if target.endswith(".toml"):
         sc = load_scenario_file(target)

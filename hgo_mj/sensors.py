@@ -1143,6 +1143,23 @@ def stream_generators(seed: int | None, count: int) -> list[np.random.Generator]
     return gens
 
 
+
+def _stage_of(i: int, item: Any) -> Stage:
+    """Entry ``i`` of a sensor spec as a stage (:meth:`SensorChain.from_spec`)."""
+    if isinstance(item, Stage):
+        return item
+    if isinstance(item, str):
+        return make_stage(item)
+    if not isinstance(item, Mapping):
+        raise DesignError(f"sensor spec[{i}] must be a dict like "
+                          f"{{'stage': 'gaussian', 'std': 0.01}}, a stage name or a Stage; "
+                          f"found {item!r}")
+    if "stage" not in item:
+        raise DesignError(f"sensor spec[{i}] has no 'stage' key (one of "
+                          f"{sorted(STAGES)}); found keys {sorted(map(str, item))}")
+    return make_stage(item["stage"], **{k: v for k, v in item.items() if k != "stage"})
+
+
 class SensorChain:
     """A sequence of sensor stages applied in order to blocks of B seeded streams.
 
@@ -1496,15 +1513,17 @@ class SensorChain:
         return [{"stage": s.name, **s.params()} for s in self._stages]
 
     @classmethod
-    def from_spec(cls, spec: Sequence[Mapping[str, Any]], seed: int | None = None
-                  ) -> SensorChain:
-        """Build a chain from a list of dicts such as ``{"stage": "gaussian", "std": 0.01}``.
+    def from_spec(cls, spec: Any, seed: int | None = None) -> SensorChain:
+        """Build a chain from its description: the one reader of a sensor spec (a scenario's
+        ``[sensor] stages``, an environment's ``sensor=``).
 
         Parameters
         ----------
-        spec : sequence of mapping
-            One mapping per stage, in order, each with a ``"stage"`` key (a registry name)
-            and the stage's parameters.
+        spec : sequence of (mapping, str or Stage), one of those, or None
+            The stages in order, each a mapping such as ``{"stage": "gaussian", "std": 0.01}``
+            (a registry name under ``"stage"`` and the stage's parameters), a bare name (a
+            stage without required parameters) or a :class:`Stage` (used as is); one stage
+            alone; ``None`` or ``[]`` for exact measurements.
         seed : int or None, default None
             Seed of the chain.
 
@@ -1515,7 +1534,7 @@ class SensorChain:
         Raises
         ------
         DesignError
-            A malformed entry, a missing ``"stage"`` key, or an invalid stage (see
+            A malformed entry, a mapping without a ``"stage"`` key, or an invalid stage (see
             :func:`make_stage`).
 
         Examples
@@ -1523,21 +1542,22 @@ class SensorChain:
         >>> SensorChain.from_spec([{"stage": "gaussian", "std": 0.01},
         ...                        {"stage": "quantize", "resolution": 0.001}], seed=0)
         SensorChain([GaussianNoise(std=0.01), Quantization(resolution=0.001)], seed=0)
+        >>> SensorChain.from_spec([Bias(0.1), {"stage": "gaussian", "std": 0.01}]).describe()
+        [{'stage': 'bias', 'offset': 0.1}, {'stage': 'gaussian', 'std': 0.01}]
+        >>> SensorChain.from_spec([{"std": 0.01}])
+        Traceback (most recent call last):
+        ...
+        hgo_mj.exceptions.DesignError: sensor spec[0] has no 'stage' key (one of [...]); found keys ['std']
         """
-        if isinstance(spec, (Mapping, str, bytes)) or not isinstance(spec, Sequence):
-            raise DesignError("sensor spec must be a list of dicts like "
-                              f"{{'stage': 'gaussian', 'std': 0.01}}; found {spec!r}")
-        stages = []
-        for i, item in enumerate(spec):
-            if not isinstance(item, Mapping):
-                raise DesignError(f"sensor spec[{i}] must be a dict like "
-                                  f"{{'stage': 'gaussian', 'std': 0.01}}; found {item!r}")
-            if "stage" not in item:
-                raise DesignError(f"sensor spec[{i}] has no 'stage' key (one of "
-                                  f"{sorted(STAGES)}); found keys {sorted(map(str, item))}")
-            params = {k: v for k, v in item.items() if k != "stage"}
-            stages.append(make_stage(item["stage"], **params))
-        return cls(stages, seed=seed)
+        if spec is None:
+            spec = []
+        elif isinstance(spec, (Mapping, str, Stage)):
+            spec = [spec]
+        elif isinstance(spec, bytes) or not isinstance(spec, Sequence):
+            raise DesignError("sensor spec must be a list of stages, each a dict like "
+                              f"{{'stage': 'gaussian', 'std': 0.01}}, a stage name or a Stage; "
+                              f"found {spec!r}")
+        return cls([_stage_of(i, item) for i, item in enumerate(spec)], seed=seed)
 
     def noise_variance(self, n_outputs: int) -> Array:
         """Per-channel variance of the white noise the chain adds.

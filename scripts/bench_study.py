@@ -70,7 +70,7 @@ def warm_up(tmp: Path) -> None:
 
 def _single_run(job: tuple[dict, int]) -> dict:
     """One run through the single-run path: ``simulate`` and its metrics."""
-    from hgo_mj.cli import scenario_run
+    from hgo_mj.scenario import scenario_run
     from hgo_mj.study import run_seed
 
     sc, seed = job

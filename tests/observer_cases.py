@@ -12,7 +12,7 @@ from hgo_mj.observers import make_observer
 from hgo_mj.observers.base import Observer
 from hgo_mj.observers.bastin_gevers import AOCF, BastinGeversObserver
 from hgo_mj.observers.besancon import AffineForm, BesanconObserver
-from hgo_mj.observers.jo_son import JoSonForm, JoSonObserver
+from hgo_mj.observers.jo_son import JoSonObserver
 from hgo_mj.systems import (
     BesanconExample1,
     BesanconExample2,
@@ -23,6 +23,7 @@ from hgo_mj.systems import (
     JoSonExample,
     Pendulum,
 )
+from hgo_mj.systems.elastic_joint import jo_son_motor_side
 
 DT = 0.01
 
@@ -54,7 +55,7 @@ CASES: list[Case] = [
     # Jo-Son: forms of closures
     ("jo_son", "example", lambda: JoSonObserver(JoSonExample(), lam=2.0, gamma=5.0), 1, 1),
     ("jo_son", "motor-side",
-     lambda: JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), lam=50.0,
+     lambda: JoSonObserver(form=jo_son_motor_side(), lam=50.0,
                            gamma=(1e4, 20.0, 1e6)), 3, 1),
     # Besancon: generated code (pendulum, the adaptation frozen at first), closures (elastic
     # joint, with the map to physical coordinates), the papers' examples and the protocol

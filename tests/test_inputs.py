@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from hgo_mj.cli import main, scenario_run
+from hgo_mj.cli import main
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.inputs import (
     PRBS,
@@ -20,6 +20,7 @@ from hgo_mj.inputs import (
     make_signal,
     signal_from_spec,
 )
+from hgo_mj.scenario import scenario_run
 from hgo_mj.simulate import Trajectory
 
 

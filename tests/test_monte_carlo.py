@@ -14,12 +14,13 @@ from functools import partial
 import numpy as np
 import pytest
 
-from hgo_mj.cli import main, scenario_run
+from hgo_mj.cli import main
 from hgo_mj.exceptions import DesignError
 from hgo_mj.inputs import Multisine
 from hgo_mj.metrics import all_metrics
 from hgo_mj.observers import HighGainObserver
 from hgo_mj.plants import make_plant
+from hgo_mj.scenario import scenario_run
 from hgo_mj.sensors import GaussianNoise, Quantization, SensorChain
 from hgo_mj.simulate import Trajectory, simulate
 from hgo_mj.study import aggregate, monte_carlo

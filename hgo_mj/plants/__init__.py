@@ -7,8 +7,9 @@ from typing import Any
 
 from .._validate import check_call, import_class, reject_unknown
 from ..exceptions import DesignError
+from ..models import model_path
 from .base import Plant
-from .mujoco import MujocoPlant, model_path
+from .mujoco import MujocoPlant
 from .ode import OdePlant
 
 

@@ -24,7 +24,6 @@ paths that give the same bits (both call ``mj_step`` on the same state; tested):
 from __future__ import annotations
 
 import os
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -58,7 +57,7 @@ _DIRECT_SENSORS = {
 }
 
 
-__all__ = ["MujocoPlant", "model_path"]
+__all__ = ["MujocoPlant"]
 
 
 def _constraint_free(m: Any) -> bool:
@@ -89,41 +88,6 @@ def sensor_channel(m: Any, name: str) -> tuple[str, int]:
         if s >= 0 and k.isdigit() and int(k) < int(m.sensor_dim[s]):
             return base, int(k)
     return name, 0
-
-
-def model_path(name: str) -> Path:
-    """Absolute path of an MJCF file shipped under ``models/`` (works from a wheel install).
-
-    Parameters
-    ----------
-    name : str
-        File name of a shipped model, e.g. ``"pendulum.xml"``.
-
-    Returns
-    -------
-    Path
-        The absolute path of the file.
-
-    Raises
-    ------
-    DesignError
-        No shipped model of that name (the shipped ones are listed).
-
-    Examples
-    --------
-    >>> path = model_path("pendulum.xml")
-    >>> path.name, path.is_absolute()
-    ('pendulum.xml', True)
-    >>> model_path("nope.xml")
-    Traceback (most recent call last):
-    ...
-    hgo_mj.exceptions.DesignError: no MJCF model named 'nope.xml'; shipped models: [...]
-    """
-    path = Path(str(resources.files("hgo_mj.models").joinpath(name)))
-    if not path.is_file():
-        shipped = sorted(p.name for p in Path(str(resources.files("hgo_mj.models"))).glob("*.xml"))
-        raise DesignError(f"no MJCF model named {name!r}; shipped models: {shipped}")
-    return path
 
 
 class MujocoPlant(Plant):

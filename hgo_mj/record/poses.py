@@ -24,6 +24,7 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from ..exceptions import DesignError
+from ..models import model_path
 from .layout import GHOST_ALPHA, TRUE_ROOT, body_path, geom_path
 
 Array = NDArray[np.float64]
@@ -376,8 +377,6 @@ def model_for(meta: Mapping[str, Any]) -> tuple[Any, tuple[str, ...]]:
     if cls is None or cls.model_file is None:
         return None, ()
     import mujoco
-
-    from ..plants.mujoco import model_path
 
     model_file = (spec.get("plant", {}).get("params", {}) or {}).get("model_file")
     path = Path(model_file) if model_file else model_path(cls.model_file)

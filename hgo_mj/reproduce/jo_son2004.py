@@ -57,6 +57,7 @@ from ..plants.ode import OdePlant
 from ..progress import Progress
 from ..simulate import simulate
 from ..systems.base import Array
+from ..systems.elastic_joint import jo_son_motor_side
 from ..systems.papers import JoSonExample, jo_son_input
 from . import finish, fmt_num, record_runs
 
@@ -172,7 +173,7 @@ def _elastic_run(dt: float) -> tuple[Any, JoSonForm, Array, Any, Multisine]:
     p = plant.system.params
     J = p["motor_inertia"]
     truth = np.array([p["gear"] / J, p["motor_damping"] / J, p["stiffness"] / J])
-    form = JoSonForm.elastic_joint_motor_side()
+    form = jo_son_motor_side()
     ob = JoSonObserver(form=form, lam=E["lam"], gamma=E["gamma"])
     u = Multisine(E["amplitudes"], E["frequencies"], E["phases"])
     tr = simulate(plant, None, {"jo_son": ob}, u, E["T"], x0=E["x0"])

@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 from ..loop import Drive, Loop, LoopFailure, Periods
 from ..observers.base import Observer
 from ..plants.base import Plant
+from ..scenario import scenario_run
 
 Array = NDArray[np.float64]
 
@@ -399,8 +400,6 @@ class _Plants:
     (a batch of plants); the rows each member replays, the band's scale per trajectory."""
 
     def __init__(self, chunk: Chunk) -> None:
-        from ..cli import scenario_run
-
         kw = scenario_run(chunk.scenarios[chunk.members[0][0]])
         self.plant: Plant = kw["plant"]
         self.periods = Periods.of(self.plant, kw["sample_period"], kw["control_period"])
@@ -446,14 +445,10 @@ class _Bucket:
     observers) on the chunk's plant rows."""
 
     def __init__(self, plants: _Plants, scenario: dict[str, Any]) -> None:
-        from ..cli import scenario_run
-
         self.p, self.scenario = plants, scenario
         self.kw = scenario_run(scenario)
 
     def run(self, members: list[int], names: list[str], exact: bool) -> dict[str, Outcome]:
-        from ..cli import scenario_run
-
         p = self.p
         kw = scenario_run(self.scenario)  # fresh parts: a run may be repeated after a failure
         obs = {n: kw["observers"][n] for n in names}
@@ -485,8 +480,6 @@ class _ClosedBucket:
     range (for the band), the closed loop's cost and peak input accumulated as they come."""
 
     def __init__(self, chunk: Chunk, scenario: dict[str, Any], idxs: list[int]) -> None:
-        from ..cli import scenario_run
-
         self.scenario = scenario
         self.kw = scenario_run(scenario)
         plant: Plant = self.kw["plant"]
@@ -502,8 +495,6 @@ class _ClosedBucket:
         self.band, self.relative = float(mkw.get("band", 0.05)), bool(mkw.get("relative", True))
 
     def run(self, members: list[int], names: list[str], exact: bool) -> dict[str, Outcome]:
-        from ..cli import scenario_run
-
         kw = scenario_run(self.scenario)
         obs, law = kw["observers"], kw["inputs"]
         loop = Loop(kw["plant"], kw["sensor"], obs, self.periods, exact=exact)

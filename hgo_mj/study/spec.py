@@ -1,6 +1,6 @@
 """A study: a scenario, the axes swept over it, and the seeds; expanded into cells.
 
-A study file is a scenario file (see :mod:`hgo_mj.cli`) with a ``[sweep]`` table::
+A study file is a scenario file (see :mod:`hgo_mj.scenario`) with a ``[sweep]`` table::
 
     [sweep]
     seeds = 64                               # the seeds SEED ... SEED+63 of [run] seed; or a list
@@ -23,7 +23,7 @@ parameter its table accepts: an unknown one is refused with the valid keys at th
 
 Each **cell** is the scenario with one value per axis set (the product of the axes, or their
 zip); each cell runs once per seed. The expansion is pure data: a cell is a plain dict that
-:func:`hgo_mj.cli.scenario_run` builds, so a cell's run is exactly ``simulate`` of that
+:func:`hgo_mj.scenario.scenario_run` builds, so a cell's run is exactly ``simulate`` of that
 scenario at that seed.
 """
 
@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import DesignError
+from ..scenario import SCENARIO_KEYS
 
 #: keys of ``[sweep]`` that are not axes
 SWEEP_KEYS = ("seeds", "mode", "store", "together")
@@ -308,8 +309,6 @@ def _step(node: Any, part: str, walked: str) -> tuple[Any, Any]:
 
 def _accepted_keys(walked: str, node: Mapping[str, Any]) -> list[str]:
     """The keys a table at ``walked`` may take beyond those it has."""
-    from ..cli import SCENARIO_KEYS
-
     parts = walked.split(".")
     known = set(node)
     if walked in ("plant", "run"):

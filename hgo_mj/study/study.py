@@ -20,6 +20,7 @@ from typing import Any
 from .._validate import vector
 from ..exceptions import DesignError, HgoError
 from ..progress import Progress, seconds
+from ..scenario import scenario_run
 from .engine import Chunk, plan
 from .results import ResultsDir, schema, write_summary
 from .spec import MAX_RUNS, Cell, parse_study
@@ -343,8 +344,6 @@ class Study:
         ...
         hgo_mj.exceptions.DesignError: cell 1 (observers.hgo.k = -1.0): ...
         """
-        from ..cli import scenario_run
-
         names: list[str] = []
         built: dict[str, Any] = {}
         for cell in self.cells:
@@ -544,7 +543,6 @@ class Study:
         cell run alone through :func:`hgo_mj.simulate.simulate`."""
         if not self.spec.store:
             return
-        from ..cli import scenario_run
         from ..simulate import simulate
 
         for cell in self.cells:

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from .._validate import check_params, vector
 from ..exceptions import DesignError
+from ..models import model_path
 
 __all__ = ["CompiledModel", "System", "derivative_names"]
 
@@ -694,8 +695,6 @@ class System:
         if cls.model_file is None:
             raise DesignError(f"{cls.__name__} is not a MuJoCo system (model_file is None)")
         import mujoco
-
-        from ..plants.mujoco import model_path
 
         return mujoco.MjModel.from_xml_path(str(model_path(cls.model_file)))
 

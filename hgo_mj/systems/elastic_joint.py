@@ -10,9 +10,10 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
-from ..exceptions import DesignError
+from ..exceptions import DesignError, DimensionError
 from ._mujoco import _MjReader, _MujocoSystem
 from .base import Array, CompiledModel
+from .jo_son_form import JoSonForm
 
 __all__ = ["AFFINE_PARAMS", "ElasticJoint", "jo_son_motor_side"]
 
@@ -326,14 +327,12 @@ class ElasticJoint(_MujocoSystem):
             ``sensors`` is not ``"motor_side"``.
         """
         if sensors != "motor_side":
-            from ..exceptions import DesignError
-
             raise DesignError(
                 f"{type(self).__name__} provides no Jo-Son form (paper 003, eq. 10) for the "
                 f"sensors {sensors!r}: with its default link-angle sensor every parameter "
                 f"reaches y with relative degree >= 2, so b_r = 0; measure the motor velocity "
                 f"and the spring deflection and use form('jo_son', sensors='motor_side') "
-                f"(JoSonForm.elastic_joint_motor_side()); see docs/adaptive_canonical_forms.md")
+                f"(jo_son_motor_side()); see docs/adaptive_canonical_forms.md")
         return jo_son_motor_side(aux_outputs, unknown)
 
     def _form_kalman_fields(self) -> dict[str, str]:
@@ -664,7 +663,7 @@ def _motor_beta(y: Any, u: Any) -> tuple[Any, Any, Any]:
 
 
 def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
-                      unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> Any:
+                      unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")) -> JoSonForm:
     """The motor side of the elastic joint in the form eq. 10 of paper 003, measured by a motor
     tachometer, with the spring deflection measured as a known signal.
 
@@ -724,9 +723,6 @@ def jo_son_motor_side(aux_outputs: Sequence[int] = (1, 2),
     >>> ElasticJoint().form("jo_son", sensors="motor_side").theta_names
     ('b_over_J', 'dm_over_J', 'K_over_J')
     """
-    from ..exceptions import DimensionError
-    from .jo_son_form import JoSonForm
-
     aux = tuple(int(i) for i in aux_outputs)
     if len(aux) != 2:
         raise DimensionError(f"aux_outputs must name 2 channels (link_angle, motor_angle); "

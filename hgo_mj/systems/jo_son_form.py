@@ -134,9 +134,11 @@ class JoSonForm:
     >>> form.state_names
     ('z1', 'z2')
 
-    The form of paper 003's example (eq. 31):
+    The form of paper 003's example (eq. 31), which the example system builds (a system
+    declares its form; the form knows no system):
 
-    >>> JoSonForm.example()
+    >>> from hgo_mj.systems import JoSonExample
+    >>> JoSonExample().form("jo_son")
     JoSonForm(Jo-Son example eq. 31: r=2, n=3, b=[2.0, 1.0], theta=['theta'])
     """
 
@@ -229,7 +231,8 @@ class JoSonForm:
         Examples
         --------
         >>> import numpy as np
-        >>> form = JoSonForm.example()
+        >>> from hgo_mj.systems import JoSonExample
+        >>> form = JoSonExample().form("jo_son")
         >>> y, u = np.array([0.5, 1.0]), np.array([[0.3, 0.0]])  # u component first: (m, N)
         >>> form.rows("beta(y, u)", form.beta, 1, 2, y, u)
         array([[0.15],
@@ -276,7 +279,8 @@ class JoSonForm:
         Examples
         --------
         >>> import numpy as np
-        >>> form = JoSonForm.example()  # beta = y u, gamma_obar = -y^2/2 + y^4
+        >>> from hgo_mj.systems import JoSonExample
+        >>> form = JoSonExample().form("jo_son")  # beta = y u, gamma_obar = -y^2/2 + y^4
         >>> go, be, gb = form.signals(np.array([0.5, 1.0]), np.array([[0.3], [0.0]]))
         >>> be
         array([[0.15],
@@ -314,7 +318,8 @@ class JoSonForm:
         Examples
         --------
         >>> import numpy as np
-        >>> form = JoSonForm.example()  # f_obar = -z3 - (z3 + y^2/2)^3
+        >>> from hgo_mj.systems import JoSonExample
+        >>> form = JoSonExample().form("jo_son")  # f_obar = -z3 - (z3 + y^2/2)^3
         >>> form.f_obar_rows(np.array([0.5, 1.0]), np.array([[-1.125], [0.0]]))
         array([[ 2.125],
                [-0.125]])
@@ -339,7 +344,8 @@ class JoSonForm:
         Examples
         --------
         >>> import numpy as np
-        >>> form = JoSonForm.example()
+        >>> from hgo_mj.systems import JoSonExample
+        >>> form = JoSonExample().form("jo_son")
         >>> form.physical_rows(np.array([[1.041666666666667, 0.5, -1.125]])).round(6)
         array([[ 0.5,  1. , -1. ]])
         """
@@ -369,7 +375,8 @@ class JoSonForm:
         Examples
         --------
         >>> import numpy as np
-        >>> form = JoSonForm.example()  # T(x) = (x1^3/3 + x2, x1, x3 - x1^2/2)
+        >>> from hgo_mj.systems import JoSonExample
+        >>> form = JoSonExample().form("jo_son")  # T(x) = (x1^3/3 + x2, x1, x3 - x1^2/2)
         >>> form.normal_rows(np.array([[0.5, 1.0, -1.0]])).round(6)
         array([[ 1.041667,  0.5     , -1.125   ]])
         """
@@ -378,60 +385,3 @@ class JoSonForm:
                               f"map (T of eq. 27); {self.label} has none: give z_hat0")
         return self.rows("from_physical(x)", self.from_physical, self.n, X.shape[0],
                          np.ascontiguousarray(X.T))
-
-    # ------------------------------------------------------------------ factories
-    @classmethod
-    def example(cls, system: Any = None) -> JoSonForm:
-        """The form eq. 31 of the example eq. 28: ``JoSonExample().form("jo_son")``
-        (:meth:`hgo_mj.systems.papers.JoSonExample._form_jo_son`).
-
-        Parameters
-        ----------
-        system : JoSonExample, optional
-            The example system whose form to build (default ``JoSonExample()``,
-            ``theta = 1``).
-
-        Returns
-        -------
-        JoSonForm
-            ``r = 2``, ``n = 3``, ``b = (2, 1)``, one parameter ``theta``.
-
-        Examples
-        --------
-        >>> JoSonForm.example()
-        JoSonForm(Jo-Son example eq. 31: r=2, n=3, b=[2.0, 1.0], theta=['theta'])
-        """
-        from .papers import JoSonExample
-
-        sys_ = JoSonExample() if system is None else system
-        return sys_.form("jo_son")  # type: ignore[no-any-return]
-
-    @classmethod
-    def elastic_joint_motor_side(cls, aux_outputs: Sequence[int] = (1, 2),
-                                 unknown: Sequence[str] = ("b_over_J", "dm_over_J", "K_over_J")
-                                 ) -> JoSonForm:
-        """The motor side of the elastic joint, measured by a motor tachometer with the spring
-        deflection as a known signal (:func:`hgo_mj.systems.elastic_joint.jo_son_motor_side`,
-        also ``ElasticJoint().form("jo_son", sensors="motor_side")``).
-
-        Parameters
-        ----------
-        aux_outputs : (int, int)
-            Channels of ``link_angle`` and ``motor_angle`` in the measurement vector.
-        unknown : sequence of str
-            Must be ``("b_over_J", "dm_over_J", "K_over_J")``.
-
-        Returns
-        -------
-        JoSonForm
-            ``r = n = 1``, ``b = (1,)``, the three parameters ``unknown``.
-
-        Examples
-        --------
-        >>> form = JoSonForm.elastic_joint_motor_side()
-        >>> form.theta_names, form.aux_outputs
-        (('b_over_J', 'dm_over_J', 'K_over_J'), (1, 2))
-        """
-        from .elastic_joint import jo_son_motor_side
-
-        return jo_son_motor_side(aux_outputs, unknown)

@@ -43,6 +43,7 @@ from .._validate import finite_scalar, vector
 from ..exceptions import DesignError
 from .aocf import AOCF, system_form
 from .base import Array, CompiledModel, System
+from .jo_son_form import JoSonForm
 
 __all__ = [
     "BASTIN_GEVERS_U_MAX",
@@ -1580,8 +1581,6 @@ class JoSonExample(System):
         ----------
         Paper 003, eq. 28, 30, 31.
         """
-        from .jo_son_form import JoSonForm
-
         return JoSonForm(self.b, _jo_son_gamma_o, _jo_son_beta, n_unobservable=1,
                          f_obar=_jo_son_f_obar, gamma_obar=_jo_son_gamma_obar,
                          theta_names=("theta",), to_physical=jo_son_T_inverse,

@@ -413,6 +413,22 @@ def test_unknown_observer_lists_the_valid_ones():
         envs.PendulumSwingUpEnv(observer={"k": 3.0})
 
 
+def test_a_task_default_the_observer_does_not_take_is_refused():
+    """The task's observer defaults go to make_observer as they are: none is dropped silently."""
+    from hgo_mj.envs.tasks import SwingUpTask
+
+    class Typo(SwingUpTask):
+        observer_defaults = {"high_gain": {"k": 10.0, "kk": 3.0}}
+
+    with pytest.raises(DesignError, match=r"^observer 'high_gain': unknown parameter\(s\) "
+                                          r"\['kk'\]; valid: \[.*'k'.*\]$"):
+        envs.HgoEnv(task=Typo())
+    with pytest.raises(DesignError, match=r"unknown parameter\(s\) \['gain'\]; valid: \["):
+        envs.PendulumSwingUpEnv(observer="high_gain", observer_kwargs={"gain": 3.0})
+    env = envs.HgoEnv(task=Typo(), observer={"type": "riccati", "gamma": 5.0})  # another kind
+    assert type(env.observer).__name__ == "RiccatiObserver"
+
+
 def test_unknown_sensor_stage_lists_the_valid_ones():
     with pytest.raises(DesignError, match=r"unknown sensor stage 'laser'; valid: \[.*'gaussian'"):
         gym.make("hgo_mj/PendulumSwingUp-v0", sensor=[{"stage": "laser", "std": 1.0}])

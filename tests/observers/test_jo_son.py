@@ -14,6 +14,7 @@ from hgo_mj.plants import make_plant
 from hgo_mj.plants.ode import OdePlant
 from hgo_mj.simulate import simulate
 from hgo_mj.systems import ElasticJoint, Pendulum
+from hgo_mj.systems.elastic_joint import jo_son_motor_side
 from hgo_mj.systems.papers import JoSonExample, jo_son_input
 
 
@@ -73,7 +74,7 @@ def test_lambda_must_be_positive():
 def test_example_form_is_eq_31():
     """A_o z + gamma_o + b beta theta and f_obar + gamma_obar reproduce eq. 31 (canonical_rhs)."""
     rng = np.random.default_rng(0)
-    form = JoSonForm.example()
+    form = JoSonExample().form("jo_son")
     for theta in (0.0, 1.0, -0.7):
         sys_ = JoSonExample(theta=theta)
         for _ in range(20):
@@ -100,14 +101,14 @@ def test_form_functions_work_on_rows_component_first():
         np.testing.assert_allclose(be[i], form.beta(Z[i, 1], U[i]), rtol=1e-15)
     np.testing.assert_allclose(form.physical_rows(Z), [form.to_physical(z) for z in Z], rtol=1e-15)
     np.testing.assert_allclose(form.normal_rows(form.physical_rows(Z)), Z, atol=1e-14)
-    assert JoSonForm.example().label == form.label
+    assert JoSonExample().form("jo_son").label == form.label
 
 
 def test_forms_are_declared_by_the_systems():
     assert "jo_son" in JoSonExample.forms and "jo_son" in ElasticJoint.forms
     assert JoSonForm is __import__("hgo_mj.systems.jo_son_form", fromlist=["JoSonForm"]).JoSonForm
     form = ElasticJoint().form("jo_son", sensors="motor_side")
-    assert form.theta_names == JoSonForm.elastic_joint_motor_side().theta_names
+    assert form.theta_names == jo_son_motor_side().theta_names
 
 
 def test_observer_rhs_is_eq_27_with_z_hat1():
@@ -174,7 +175,7 @@ def test_dropout_holds_the_prediction_and_counts():
 
 
 def test_lost_auxiliary_output_holds_only_the_auxiliary_channels():
-    ob = JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), lam=50.0, gamma=(1e4, 20.0, 1e6))
+    ob = JoSonObserver(form=jo_son_motor_side(), lam=50.0, gamma=(1e4, 20.0, 1e6))
     seen = []
     signals = ob.signals
     ob.signals = lambda y, u: (seen.append(np.array(u)), signals(y, u))[1]
@@ -229,7 +230,7 @@ def test_elastic_joint_motor_side_estimates_the_motor_parameters():
     p = plant.system.params
     J = p["motor_inertia"]
     truth = np.array([p["gear"] / J, p["motor_damping"] / J, p["stiffness"] / J])
-    ob = JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), lam=50.0, gamma=(1e4, 20.0, 1e6))
+    ob = JoSonObserver(form=jo_son_motor_side(), lam=50.0, gamma=(1e4, 20.0, 1e6))
     u = Multisine([0.3, 0.2, 0.1], [0.5, 2.3, 11.0], [0.0, 1.0, 2.0])
     simulate(plant, None, {"js": ob}, u, 10.0, x0=[0.3, 0.3, 0.0, 0.0])
     rel = (ob.theta_hat_ - truth) / truth
@@ -243,7 +244,7 @@ def test_system_without_the_form_is_named():
                                           r"none"):
         JoSonObserver(Pendulum.from_mjmodel(make_plant("pendulum").model))
     with pytest.raises(DesignError, match=r"ElasticJoint provides no Jo-Son form.*relative degree "
-                                          r">= 2, so b_r = 0.*elastic_joint_motor_side"):
+                                          r">= 2, so b_r = 0.*jo_son_motor_side"):
         make_observer("jo_son", ElasticJoint.from_mjmodel(make_plant("elastic_joint").model))
     with pytest.raises(DesignError, match="needs a system with a derived form or form="):
         JoSonObserver()
@@ -304,13 +305,13 @@ def test_bad_forms_and_shapes():
                                           r"1-tuple.*found \[0, 1\]"):
         _observer(outputs=(0, 1))
     with pytest.raises(DesignError, match=r"outputs must be distinct channels; found \[1, 1, 2\]"):
-        JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), outputs=(1,))
+        JoSonObserver(form=jo_son_motor_side(), outputs=(1,))
     with pytest.raises(DesignError, match="x_hat0 in physical coordinates needs the form's "
                                           "from_physical"):
-        JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), x_hat0=[1.0])
+        JoSonObserver(form=jo_son_motor_side(), x_hat0=[1.0])
     with pytest.raises(DesignError, match="give x_hat0 or z_hat0, not both"):
         _observer(x_hat0=[0, 0, 0], z_hat0=[0, 0, 0])
     with pytest.raises(DesignError, match=r"jo_son.: unknown parameter\(s\) \[.Lambda.\]; valid:"):
         make_observer("jo_son", JoSonExample(), Lambda=2.0)
     with pytest.raises(DimensionError, match="aux_outputs must name 2 channels"):
-        JoSonForm.elastic_joint_motor_side(aux_outputs=(1,))
+        jo_son_motor_side(aux_outputs=(1,))

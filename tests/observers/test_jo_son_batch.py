@@ -12,6 +12,7 @@ from observer_cases import advance
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers.jo_son import JoSonForm, JoSonObserver
 from hgo_mj.systems import ElasticJoint
+from hgo_mj.systems.elastic_joint import jo_son_motor_side
 from hgo_mj.systems.papers import JoSonExample
 
 B, T = 64, 240
@@ -26,7 +27,7 @@ CONFIGS = [
     ("motor-side", lambda: JoSonObserver(form=ElasticJoint().form("jo_son", sensors="motor_side"),
                                          lam=50.0, gamma=(1e4, 20.0, 1e6),
                                          excitation_window=0.05), 3, 1, 0.001),
-    ("motor-side-rk4-substeps", lambda: JoSonObserver(form=JoSonForm.elastic_joint_motor_side(),
+    ("motor-side-rk4-substeps", lambda: JoSonObserver(form=jo_son_motor_side(),
                                                       lam=50.0, gamma=(1e4, 20.0, 1e6),
                                                       substeps=2), 3, 1, 0.001),
 ]
@@ -118,7 +119,7 @@ def test_excitation_window_is_the_smallest_eigenvalue_of_the_gram_matrix():
     """The running window equals sum beta beta^T dt over the last round(window / dt) samples
     (recomputed exactly once a window), its smallest eigenvalue within rounding."""
     rng = np.random.default_rng(3)
-    ob = JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), lam=50.0, gamma=(1e4, 20.0, 1e6),
+    ob = JoSonObserver(form=jo_son_motor_side(), lam=50.0, gamma=(1e4, 20.0, 1e6),
                        excitation_window=0.013)
     dt, W = 0.001, 13
     Y = rng.normal(size=(2, 40, 3))

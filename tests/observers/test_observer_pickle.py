@@ -16,6 +16,7 @@ from hgo_mj.observers.base import Observer
 from hgo_mj.observers.bastin_gevers import AOCF
 from hgo_mj.observers.jo_son import JoSonForm, JoSonObserver
 from hgo_mj.systems import (
+    JoSonExample,
     Pendulum,
 )
 
@@ -78,7 +79,7 @@ def test_forms_pickle_as_the_factory_call_that_built_them():
     assert twin.label == form.label and twin.theta_names == form.theta_names
     np.testing.assert_array_equal(twin.alpha, form.alpha)
     np.testing.assert_array_equal(twin.omega(0.3, np.array([0.2])), form.omega(0.3, np.array([0.2])))
-    jf = pickle.loads(pickle.dumps(JoSonForm.example()))
+    jf = pickle.loads(pickle.dumps(JoSonExample().form("jo_son")))
     assert jf.label == "Jo-Son example eq. 31" and jf.beta(2.0, np.array([3.0])) == (6.0,)
 
 

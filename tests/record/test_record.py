@@ -23,8 +23,7 @@ from hgo_mj.cli import RRD_CHUNK_SECONDS, main
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.inputs import make_signal
 from hgo_mj.observers import make_observer
-from hgo_mj.plants import make_plant
-from hgo_mj.plants.mujoco import model_path
+from hgo_mj.plants import make_plant, model_path
 from hgo_mj.record import Poses, Recorder, diagnostic_path, read, record_trajectory
 from hgo_mj.sensors import SensorChain
 from hgo_mj.simulate import Trajectory, simulate

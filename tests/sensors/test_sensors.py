@@ -584,13 +584,27 @@ def test_make_stage_errors():
         make_stage("dropout", p=3)
 
 
+def test_from_spec_reads_every_form_of_a_stage():
+    """The one reader of a sensor spec: dicts, bare names, Stage instances, one stage alone."""
+    bias = Bias(0.5)
+    chain = SensorChain.from_spec([{"stage": "gaussian", "std": 0.1}, bias], seed=3)
+    assert [s.name for s in chain.stages] == ["gaussian", "bias"]
+    assert chain.stages[1] is bias and chain.seed == 3
+    with pytest.raises(DesignError, match=r"Bias \('bias'\): missing parameter\(s\) \['offset'\]"):
+        SensorChain.from_spec(["bias"])  # a bare name: the stage without parameters
+    assert SensorChain.from_spec({"stage": "gaussian", "std": 0.1}).describe() == [
+        {"stage": "gaussian", "std": 0.1}]
+    assert len(SensorChain.from_spec(None)) == 0 == len(SensorChain.from_spec([]))
+
+
 def test_from_spec_errors():
     with pytest.raises(DesignError, match=r"spec\[1\] has no 'stage' key.*found keys \['std'\]"):
         SensorChain.from_spec([{"stage": "bias", "offset": 1.0}, {"std": 0.1}])
-    with pytest.raises(DesignError, match=r"spec\[0\] must be a dict"):
-        SensorChain.from_spec(["gaussian"])
-    with pytest.raises(DesignError, match="must be a list of dicts"):
-        SensorChain.from_spec({"stage": "gaussian", "std": 0.1})
+    with pytest.raises(DesignError, match=r"spec\[0\] must be a dict.*a stage name or a Stage; "
+                                          r"found 5"):
+        SensorChain.from_spec([5])
+    with pytest.raises(DesignError, match="must be a list of stages"):
+        SensorChain.from_spec(5)
     with pytest.raises(DesignError, match="unknown sensor stage 'nope'"):
         SensorChain.from_spec([{"stage": "nope"}])
 

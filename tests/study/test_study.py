@@ -13,9 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hgo_mj.cli import main, scenario_run
+from hgo_mj.cli import main
 from hgo_mj.exceptions import DesignError, DivergenceError
 from hgo_mj.metrics import all_metrics
+from hgo_mj.scenario import scenario_run
 from hgo_mj.simulate import simulate
 from hgo_mj.study import Study
 from hgo_mj.study.engine import plan

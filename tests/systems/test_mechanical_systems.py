@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from hgo_mj.exceptions import DesignError, DimensionError
-from hgo_mj.plants.mujoco import MujocoPlant, model_path
+from hgo_mj.plants import MujocoPlant, model_path
 from hgo_mj.systems.cart_pendulum import CartPendulum
 from hgo_mj.systems.elastic_joint import ElasticJoint
 from hgo_mj.systems.elastic_joint_2link import ElasticJoint2Link

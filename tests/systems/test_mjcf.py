@@ -173,8 +173,8 @@ def test_command_line_runs_any_mjcf_and_refuses_bad_names(tmp_path):
 
 
 def test_scenario_file_takes_model_outputs_and_inputs(tmp_path):
-    from hgo_mj.cli import scenario_run
     from hgo_mj.exceptions import DesignError as DE
+    from hgo_mj.scenario import scenario_run
 
     sc = {"plant": {"model": str(IDP), "outputs": ["slider", "hinge", "hinge2"],
                     "inputs": ["slide"], "x0": [0, 0.05, -0.05, 0, 0, 0]},

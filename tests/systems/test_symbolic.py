@@ -344,7 +344,8 @@ def test_structural_problems_are_named():
 
 
 def test_scenario_runs_an_ode_given_as_text(tmp_path):
-    from hgo_mj.cli import main, scenario_run
+    from hgo_mj.cli import main
+    from hgo_mj.scenario import scenario_run
     from hgo_mj.simulate import Trajectory, simulate
 
     sc = {"name": "ode_pendulum",
