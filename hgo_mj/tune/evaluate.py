@@ -72,6 +72,8 @@ class Setup:
         are normalized by.
     t_transient : float
         The window of the steady-state scores starts here (seconds).
+    n_outputs : int
+        The measured outputs the observer reads (the expected mean NIS).
     """
 
     scenario: dict[str, Any]
@@ -84,6 +86,7 @@ class Setup:
     states: tuple[str, ...]
     ranges: Array
     t_transient: float
+    n_outputs: int
 
 
 @dataclass
@@ -190,7 +193,7 @@ def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] |
     tt = 0.2 * (N * periods.sample) if t_transient is None else float(t_transient)
     if not (math.isfinite(tt) and 0 <= tt < N * periods.sample):
         raise DesignError(f"t_transient must lie in [0, duration); found {t_transient!r}")
-    return Setup(sc, observer, plant, periods, N, X, Yc, chosen, ranges, tt)
+    return Setup(sc, observer, plant, periods, N, X, Yc, chosen, ranges, tt, len(ob.outputs))
 
 
 def _observer(s: Setup, mismatch: Mapping[str, Any] | None) -> Any:
