@@ -179,6 +179,14 @@ def _system_key(system: Any) -> Any:
     return (cls.__name__, cls.model_file, cls.state_names, cls.output_names, cls.input_names)
 
 
+def _column(v: Any, B: int, dtype: Any) -> Any:
+    """``v`` as a fresh ``(B,)`` array of ``dtype`` (a float broadcast; an array that is a view,
+    e.g. a column of the states, copied so that the caller may write into it)."""
+    if type(v) is np.ndarray and v.base is None and v.shape == (B,) and v.dtype == dtype:
+        return v
+    return np.full(B, v, dtype=dtype)
+
+
 class Task:
     """Reward, termination and reset distribution of an environment, and its defaults.
 
@@ -314,10 +322,79 @@ class Task:
         """
         return ()
 
+    def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
+        """The reward and its terms, written once for one member and for B members at once.
+
+        ``x``, ``u`` and ``goal`` are indexed by state, input and goal entry: each entry is a
+        float (one member, :meth:`reward`) or a ``(B,)`` column (B members, :meth:`rewards`),
+        so the body is arithmetic that works on both (operators, ``abs``, ``%``, numpy ufuncs
+        such as ``np.maximum``); the same numbers come out either way, bit for bit. A term that
+        does not depend on the state may be a float (broadcast to the members).
+
+        Parameters
+        ----------
+        x : sequence
+            True state at the end of the step, one entry (float or column) per plant state.
+        u : sequence
+            Input held over the step (``action * max_action``, plant units).
+        goal : sequence
+            The episode's goal (empty for a task without one).
+
+        Returns
+        -------
+        reward : float or (B,) array
+        terms : dict of str to float or (B,) array
+            The reward's terms, keyed ``reward_<term>``.
+
+        Raises
+        ------
+        NotImplementedError
+            Always, here: a subclass implements it (or :meth:`reward` alone, which the vector
+            environment then calls row by row).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.envs.tasks import SwingUpTask
+        >>> r, terms = SwingUpTask().reward_terms([3.0, 0.0], [0.1], ())
+        >>> round(r, 4)
+        -0.0201
+        >>> X = np.array([[3.0, 0.0], [0.0, 0.0]])
+        >>> SwingUpTask().reward_terms(X.T, np.zeros((1, 2)), ())[0].round(2)
+        array([-0.02, -9.87])
+        """
+        raise NotImplementedError
+
+    def termination(self, x: Any) -> Any:
+        """Whether the true state ends the episode, written once for one member and for B
+        members (``x`` as in :meth:`reward_terms`; default: never).
+
+        Parameters
+        ----------
+        x : sequence
+            True state, one entry (float or ``(B,)`` column) per plant state.
+
+        Returns
+        -------
+        bool or (B,) bool array
+            True where the episode ends.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.envs.tasks import BalanceTask
+        >>> BalanceTask().termination([0.6, 0.0])
+        True
+        >>> BalanceTask().termination(np.array([[0.1, 0.0], [np.nan, 0.0]]).T)
+        array([False,  True])
+        """
+        return False
+
     def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
                ) -> tuple[float, dict[str, float]]:
         """Reward of the step that ended in the true state ``x`` under input ``u``, and its
-        terms, keyed ``reward_<term>`` (they go into ``info`` as they are).
+        terms, keyed ``reward_<term>`` (they go into ``info`` as they are): :meth:`reward_terms`
+        of one member, as floats.
 
         Parameters
         ----------
@@ -334,11 +411,6 @@ class Task:
         terms : dict of str to float
             The reward's terms, keyed ``reward_<term>``.
 
-        Raises
-        ------
-        NotImplementedError
-            Always, here: a subclass implements it.
-
         Examples
         --------
         >>> from hgo_mj.envs.tasks import SwingUpTask
@@ -346,10 +418,11 @@ class Task:
         >>> round(reward, 4), sorted(terms)
         (-0.0201, ['reward_control', 'reward_upright', 'reward_velocity'])
         """
-        raise NotImplementedError
+        r, terms = self.reward_terms(x, u, goal)
+        return float(r), {k: float(v) for k, v in terms.items()}
 
     def terminated(self, x: list[float]) -> bool:
-        """Whether the true state ``x`` ends the episode (default: never).
+        """Whether the true state ``x`` ends the episode: :meth:`termination` of one member.
 
         Parameters
         ----------
@@ -367,13 +440,13 @@ class Task:
         >>> BalanceTask().terminated([0.1, 0.0]), BalanceTask().terminated([0.6, 0.0])
         (False, True)
         """
-        return False
+        return bool(self.termination(x))
 
     def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
         """:meth:`reward` of B members at once (a vector environment): true states ``X``
         ``(B, n)``, inputs ``U`` ``(B, m)``, goals ``G`` ``(B, g)``; the rewards ``(B,)`` and
-        the terms as ``(B,)`` arrays. Default: :meth:`reward` row by row; a task may give a
-        vectorized form, which must give the same numbers bit for bit (tested).
+        the terms as ``(B,)`` arrays (fresh, writable). :meth:`reward_terms` on the columns;
+        a task that gives only :meth:`reward` is called row by row.
 
         Parameters
         ----------
@@ -399,14 +472,19 @@ class Task:
         >>> r.round(2)
         array([-0.02, -9.87])
         """
-        out = [self.reward(x, u, tuple(g)) for x, u, g in zip(X.tolist(), U.tolist(),
-                                                               G.tolist())]
-        terms = {k: np.array([t[k] for _, t in out]) for k in (out[0][1] if out else {})}
-        return np.array([r for r, _ in out], dtype=np.float64), terms
+        B = X.shape[0]
+        if type(self).reward_terms is Task.reward_terms:  # a task written row by row
+            out = [self.reward(x, u, tuple(g)) for x, u, g in zip(X.tolist(), U.tolist(),
+                                                                   G.tolist())]
+            terms = {k: np.array([t[k] for _, t in out]) for k in (out[0][1] if out else {})}
+            return np.array([r for r, _ in out], dtype=np.float64), terms
+        r, terms = self.reward_terms(X.T, U.T, G.T)
+        return _column(r, B, np.float64), {k: _column(v, B, np.float64)
+                                           for k, v in terms.items()}
 
     def terminations(self, X: Array) -> NDArray[np.bool_]:
-        """:meth:`terminated` of B members at once, ``(B,)`` (default: row by row; none
-        where the task never terminates).
+        """:meth:`terminated` of B members at once, ``(B,)``: :meth:`termination` on the
+        columns (a task that gives only :meth:`terminated` is called row by row).
 
         Parameters
         ----------
@@ -425,9 +503,9 @@ class Task:
         >>> BalanceTask().terminations(np.array([[0.1, 0.0], [0.6, 0.0]]))
         array([False,  True])
         """
-        if type(self).terminated is Task.terminated:
-            return np.zeros(X.shape[0], dtype=bool)
-        return np.array([self.terminated(x) for x in X.tolist()], dtype=bool)
+        if type(self).terminated is not Task.terminated:  # a task written row by row
+            return np.array([self.terminated(x) for x in X.tolist()], dtype=bool)
+        return _column(self.termination(X.T), X.shape[0], np.bool_)
 
     def fallback_observer(self, system: Any, sample_period: float) -> Observer | None:
         """The observer to use when ``default_observer`` is not registered (default: none).

@@ -11,29 +11,34 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hgo_mj._validate import finite_scalar
 from hgo_mj.exceptions import DesignError
 from hgo_mj.observers import HighGainObserver, Observer
 from hgo_mj.observers.bank import ObserverBank
 
-from .core import Array, Task
+from .core import Task
 
 _TWO_PI = 2.0 * math.pi
 
 
-def _wrap(a: float) -> float:
-    """Angle wrapped to ``[-pi, pi)``."""
+def _wrap(a: Any) -> Any:
+    """Angle (a float or an array) wrapped to ``[-pi, pi)``: ``%`` is Python's on a float and
+    ``numpy.remainder`` on an array, the same numbers."""
     return (a + math.pi) % _TWO_PI - math.pi
 
 
-def _total(terms: dict[str, Array]) -> Array:
-    """The terms summed in order from 0, as the scalar ``sum(terms.values())`` does."""
-    total = np.zeros_like(next(iter(terms.values())))
+def _total(terms: dict[str, Any]) -> Any:
+    """The terms summed in order from 0 (floats or arrays alike)."""
+    total: Any = 0.0
     for v in terms.values():
         total = total + v
     return total
+
+
+def _outside(v: Any, limit: float) -> Any:
+    """``not |v| <= limit`` on a float or an array: NaN is outside."""
+    return (abs(v) > limit) | (v != v)
 
 
 def _range(name: str, value: float, upper: float | None = None) -> float:
@@ -103,19 +108,10 @@ class SwingUpTask(Task):
         r0, r1 = rng.random(2).tolist()
         return [s * (2.0 * r0 - 1.0), s * (2.0 * r1 - 1.0)]
 
-    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
-               ) -> tuple[float, dict[str, float]]:
+    def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
         d = _wrap(x[0] - math.pi)
         a = u[0] / self.max_torque
         upright, velocity, control = -d * d, -0.1 * x[1] * x[1], -0.001 * a * a
-        return upright + velocity + control, {"reward_upright": upright,
-                                              "reward_velocity": velocity,
-                                              "reward_control": control}
-
-    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
-        d = np.remainder(X[:, 0] - math.pi + math.pi, _TWO_PI) - math.pi
-        a = U[:, 0] / self.max_torque
-        upright, velocity, control = -d * d, -0.1 * X[:, 1] * X[:, 1], -0.001 * a * a
         return upright + velocity + control, {"reward_upright": upright,
                                               "reward_velocity": velocity,
                                               "reward_control": control}
@@ -183,24 +179,14 @@ class BalanceTask(Task):
         s = self.start_noise
         return rng.uniform(-s, s, 2).tolist()
 
-    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
-               ) -> tuple[float, dict[str, float]]:
+    def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
         a = u[0] / self.max_acceleration
         angle, control = -x[0] * x[0], -0.01 * a * a
         return 1.0 + angle + control, {"reward_alive": 1.0, "reward_angle": angle,
                                        "reward_control": control}
 
-    def terminated(self, x: list[float]) -> bool:
-        return not abs(x[0]) <= self.max_angle
-
-    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
-        a = U[:, 0] / self.max_acceleration
-        angle, control = -X[:, 0] * X[:, 0], -0.01 * a * a
-        return 1.0 + angle + control, {"reward_alive": np.ones(X.shape[0]),
-                                       "reward_angle": angle, "reward_control": control}
-
-    def terminations(self, X: Array) -> NDArray[np.bool_]:
-        return ~(np.abs(X[:, 0]) <= self.max_angle)
+    def termination(self, x: Any) -> Any:
+        return _outside(x[0], self.max_angle)
 
     def params(self) -> dict[str, Any]:
         return {"max_acceleration": self.max_acceleration, "max_angle": self.max_angle,
@@ -279,20 +265,11 @@ class ReachTask(Task):
     def sample_goal(self, rng: np.random.Generator) -> tuple[float, ...]:
         return (float(rng.uniform(-self.target_range, self.target_range)),)
 
-    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
-               ) -> tuple[float, dict[str, float]]:
+    def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
         e = x[0] - goal[0]
         a = u[0] / self.max_torque
         defl = x[2] - x[3]
         terms = {"reward_tracking": -e * e, "reward_velocity": -0.01 * x[2] * x[2],
-                 "reward_vibration": -0.01 * defl * defl, "reward_control": -0.001 * a * a}
-        return max(sum(terms.values()), -self.max_cost), terms
-
-    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
-        e = X[:, 0] - G[:, 0]
-        a = U[:, 0] / self.max_torque
-        defl = X[:, 2] - X[:, 3]
-        terms = {"reward_tracking": -e * e, "reward_velocity": -0.01 * X[:, 2] * X[:, 2],
                  "reward_vibration": -0.01 * defl * defl, "reward_control": -0.001 * a * a}
         return np.maximum(_total(terms), -self.max_cost), terms
 
@@ -381,23 +358,12 @@ class Reach2LinkTask(Task):
     def sample_goal(self, rng: np.random.Generator) -> tuple[float, ...]:
         return tuple(rng.uniform(-self.target_range, self.target_range, 2).tolist())
 
-    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
-               ) -> tuple[float, dict[str, float]]:
+    def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
         e1, e2 = x[0] - goal[0], x[1] - goal[1]
         d1, d2 = x[4] - x[6], x[5] - x[7]
         a1, a2 = u[0] / self.max_torque[0], u[1] / self.max_torque[1]
         terms = {"reward_tracking": -(e1 * e1 + e2 * e2),
-                 "reward_velocity": -0.01 * (x[4] ** 2 + x[5] ** 2),
-                 "reward_vibration": -0.01 * (d1 * d1 + d2 * d2),
-                 "reward_control": -0.001 * (a1 * a1 + a2 * a2)}
-        return max(sum(terms.values()), -self.max_cost), terms
-
-    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
-        e1, e2 = X[:, 0] - G[:, 0], X[:, 1] - G[:, 1]
-        d1, d2 = X[:, 4] - X[:, 6], X[:, 5] - X[:, 7]
-        a1, a2 = U[:, 0] / self.max_torque[0], U[:, 1] / self.max_torque[1]
-        terms = {"reward_tracking": -(e1 * e1 + e2 * e2),
-                 "reward_velocity": -0.01 * (X[:, 4] * X[:, 4] + X[:, 5] * X[:, 5]),
+                 "reward_velocity": -0.01 * (x[4] * x[4] + x[5] * x[5]),
                  "reward_vibration": -0.01 * (d1 * d1 + d2 * d2),
                  "reward_control": -0.001 * (a1 * a1 + a2 * a2)}
         return np.maximum(_total(terms), -self.max_cost), terms
@@ -470,34 +436,28 @@ class LabSwingUpTask(Task):
         n = 2 * len(self.plant_outputs)
         return rng.uniform(-self.start_noise, self.start_noise, n).tolist()
 
-    def rewards(self, X: Array, U: Array, G: Array) -> tuple[Array, dict[str, Array]]:
-        target = np.zeros(X.shape[0])
+    def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
+        target: Any = 0.0
         for i, value, wrapped in self.targets:
-            e = X[:, i] - value
+            e = x[i] - value
             if wrapped:
-                e = np.remainder(e + math.pi, _TWO_PI) - math.pi
+                e = _wrap(e)
             target = target - e * e
-        nq = X.shape[1] // 2
-        velocity = -0.01 * np.sum(X[:, nq:] * X[:, nq:], axis=1)
-        a = U[:, 0] / self.max_input
+        velocity: Any = 0.0
+        for j in range(len(x) // 2, len(x)):
+            velocity = velocity + x[j] * x[j]
+        velocity = -0.01 * velocity
+        a = u[0] / self.max_input
         control = -0.001 * a * a
         return target + velocity + control, {"reward_target": target,
                                              "reward_velocity": velocity,
                                              "reward_control": control}
 
-    def reward(self, x: list[float], u: list[float], goal: tuple[float, ...]
-               ) -> tuple[float, dict[str, float]]:
-        r, terms = self.rewards(np.array([x]), np.array([u]), np.zeros((1, 0)))
-        return float(r[0]), {k: float(v[0]) for k, v in terms.items()}
-
-    def terminations(self, X: Array) -> NDArray[np.bool_]:
-        out = np.zeros(X.shape[0], dtype=bool)
+    def termination(self, x: Any) -> Any:
+        out: Any = False
         for i, limit in self.limits:
-            out |= ~(np.abs(X[:, i]) <= limit)
+            out = out | _outside(x[i], limit)
         return out
-
-    def terminated(self, x: list[float]) -> bool:
-        return bool(self.terminations(np.array([x]))[0])
 
     def params(self) -> dict[str, Any]:
         return {"max_input": self.max_input, "start_noise": self.start_noise}

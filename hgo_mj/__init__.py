@@ -10,7 +10,50 @@ reference lists these names and the rest of each module.
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import sys
 from typing import Any
+
+
+class _MujocoWithoutGL(importlib.abc.MetaPathFinder):
+    """``import mujoco`` without its OpenGL renderer: while mujoco's ``__init__`` runs (its
+    first import, after ``import hgo_mj``), ``mujoco.rendering`` is refused, which mujoco
+    itself tolerates (it then lacks ``Renderer`` and ``GLContext``), so no simulation loads
+    GLFW. ``mujoco.Renderer`` and ``mujoco.GLContext`` are imported on first use (a module
+    ``__getattr__``), and ``mujoco.rendering`` imports as usual after that ``__init__``."""
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> None:
+        if fullname != "mujoco.rendering":
+            return None
+        mj = sys.modules.get("mujoco")
+        if mj is None or not getattr(mj.__spec__, "_initializing", False):
+            return None
+        if "__getattr__" not in vars(mj):
+            setattr(mj, "__getattr__", _mujoco_gl_attr)  # noqa: B010 - PEP 562 on mujoco
+        raise ModuleNotFoundError("mujoco.rendering is loaded on first use (hgo_mj)",
+                                  name=fullname)
+
+
+def _mujoco_gl_attr(name: str) -> Any:
+    """``mujoco.Renderer`` / ``mujoco.GLContext``, imported on first use."""
+    mj = sys.modules["mujoco"]
+    if name == "Renderer":
+        from mujoco.rendering.classic.renderer import Renderer
+
+        setattr(mj, "Renderer", Renderer)  # noqa: B010
+        return Renderer
+    if name == "GLContext":
+        from mujoco.rendering.classic.gl_context import GLContext
+
+        setattr(mj, "GLContext", GLContext)  # noqa: B010
+        return GLContext
+    raise AttributeError(f"module 'mujoco' has no attribute {name!r}")
+
+
+if "mujoco" not in sys.modules and not any(isinstance(f, _MujocoWithoutGL)
+                                           for f in sys.meta_path):
+    sys.meta_path.insert(0, _MujocoWithoutGL())
+
 
 #: public name -> the module that defines it
 _HOME = {

@@ -28,9 +28,11 @@ NaN (``final`` when the last estimate is undefined). No metric warns.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from ._validate import finite_scalar
@@ -67,15 +69,12 @@ def settling_time(t: Array, err: Array, band: float | Array) -> Array:
     >>> settling_time(np.arange(5) * 0.1, err, 0.05)
     array([0.2, 0.3])
     """
-    inside = np.abs(err) <= np.asarray(band)
-    out = np.full(err.shape[1], np.inf)
-    for j in range(err.shape[1]):
-        outside = np.flatnonzero(~inside[:, j])
-        if outside.size == 0:
-            out[j] = t[0]
-        elif outside[-1] + 1 < t.size:
-            out[j] = t[outside[-1] + 1]
-    return out
+    with np.errstate(invalid="ignore"):
+        outside = ~(np.abs(err) <= np.asarray(band))
+    T = t.size
+    last = T - 1 - np.argmax(outside[::-1], axis=0)  # the last row outside (where any)
+    after = np.where(last + 1 < T, t[np.minimum(last + 1, T - 1)], np.inf)
+    return np.where(outside.any(axis=0), after, t[0]).astype(np.float64)
 
 
 def observer_metrics(traj: Any, observer: str, *, t_transient: float | None = None,
@@ -196,16 +195,11 @@ class RunningMetrics:
         n = len(traj.state_names)
         self.est = {name: traj.estimated(name) for name in names}
         self.lo, self.hi = np.full(n, np.inf), np.full(n, -np.inf)
-        self.sumsq = {name: np.zeros(n) for name in names}
-        self.count = {name: np.zeros(n, dtype=np.int64) for name in names}
-        self.peak = {name: np.full(n, -np.inf) for name in names}
-        self.undefined = {name: np.zeros(n, dtype=np.int64) for name in names}
-        self.final = {name: np.full(n, np.nan) for name in names}
+        # one member; the estimate's columns are the plant's (Trajectory.estimate)
+        self.acc = {name: MetricsBatch(np.flatnonzero(est), np.flatnonzero(est), 1,
+                                       self.t_transient)
+                    for name, est in self.est.items()}
         self.t_end = -np.inf
-        #: settling: the time found per state (NaN: not yet), and the first time of the chunk
-        #: after the one being scanned (inf before the last chunk)
-        self.settled = {name: np.full(n, np.nan) for name in names}
-        self._after = np.inf
 
     def add(self, chunk: Any) -> None:
         """Take the next chunk of the run (a :class:`~hgo_mj.simulate.Trajectory` of rows
@@ -226,26 +220,19 @@ class RunningMetrics:
         ...                 lambda t: [0.0], duration=0.5, x0=[0.2, 0.0])
         >>> acc = RunningMetrics(traj, t_transient=0.1)
         >>> acc.add(traj)
-        >>> int(acc.count["hgo"][0])
+        >>> int(acc.acc["hgo"].count[0, 0])
         41
         """
         if len(chunk) == 0:
             return
-        t = chunk.t
-        win = t >= self.t_transient
-        self.t_end = float(t[-1])
-        with np.errstate(over="ignore", invalid="ignore"):  # inf - inf, huge**2: honest inf/NaN
+        self.t_end = float(chunk.t[-1])
+        with np.errstate(invalid="ignore"):  # inf - inf: an honest NaN
             self.lo = np.fmin(self.lo, chunk.x.min(axis=0))
             self.hi = np.fmax(self.hi, chunk.x.max(axis=0))
-            for name in self.est:
-                e = chunk.error(name)
-                finite = np.isfinite(e)
-                self.sumsq[name] += np.sum(np.where(finite & win[:, None], e, 0.0) ** 2, axis=0)
-                self.count[name] += np.count_nonzero(finite & win[:, None], axis=0)
-                self.peak[name] = np.fmax(self.peak[name],
-                                          np.max(np.where(finite, np.abs(e), -np.inf), axis=0))
-                self.undefined[name] += np.count_nonzero(~finite, axis=0)
-                self.final[name] = np.abs(e[-1])
+        X = np.ascontiguousarray(chunk.x)[None]
+        for name, acc in self.acc.items():
+            est = np.ascontiguousarray(chunk.estimate(name))[None]
+            acc.add(chunk.t, X, (est[:, 0], _NO_Z), est[:, 1:], _NO_Z_ROWS)
 
     def _scale(self) -> Any:
         if not self.relative:
@@ -284,18 +271,12 @@ class RunningMetrics:
         >>> acc.settle(traj.t, {"hgo": traj.error("hgo")})
         True
         """
-        scale = self._scale()
+        band = (self.band * self._scale())[None]
+        done = True
         for name, e in errors.items():
-            done = ~np.isnan(self.settled[name])
-            with np.errstate(invalid="ignore"):
-                found = settling_time(t, np.where(np.isfinite(e), e, np.inf),
-                                      self.band * scale)
-            # a state inside over the whole chunk settled at or before its first time; one
-            # outside at its last sample settled where the chunk after it starts
-            here = np.where(found == t[0], np.nan, np.where(np.isinf(found), self._after, found))
-            self.settled[name] = np.where(done, self.settled[name], here)
-        self._after = float(t[0])
-        return all(not np.isnan(v).any() for v in self.settled.values())
+            acc = self.acc[name]
+            done &= acc.settle(t, np.asarray(e)[None][:, :, acc.idx], band[:, acc.idx])
+        return done
 
     def result(self, traj: Any) -> dict[str, dict[str, Any]]:
         """The metrics, as :func:`observer_metrics` gives them, per observer.
@@ -334,26 +315,181 @@ class RunningMetrics:
             raise DesignError(f"t_transient = {self.t_transient:g} leaves no samples (run ends "
                               f"at {self.t_end:g})")
         out = {}
+        n = len(traj.state_names)
         for name, est in self.est.items():
-            with np.errstate(invalid="ignore"):
-                rmse = np.sqrt(self.sumsq[name] / self.count[name])
-            settle = np.where(np.isnan(self.settled[name]), self._after, self.settled[name])
+            m = self.acc[name].arrays(n)
             per_state = _PerState(est)
             out[name] = {
                 "states": list(traj.state_names),
                 "estimated": est.tolist(),
-                "rmse": per_state(np.where(self.count[name] > 0, rmse, math.nan), float),
-                "peak": per_state(np.where(np.isfinite(self.peak[name]), self.peak[name],
-                                           math.nan), float),
-                "settling_time": per_state(settle, float),
-                "final": per_state(self.final[name], float),
-                "undefined_samples": per_state(self.undefined[name], int),
+                "rmse": per_state(m["rmse"][0], float),
+                "peak": per_state(m["peak"][0], float),
+                "settling_time": per_state(m["settling_time"][0], float),
+                "final": per_state(m["final"][0], float),
+                "undefined_samples": per_state(m["undefined_samples"][0], int),
                 "extra_states": list(traj.extra_states(name)),
                 "update_time": traj.observers[name].update_time,
                 "t_transient": self.t_transient,
                 "band": self.band,
                 "band_relative_to_range": self.relative,
             }
+        return out
+
+
+_NO_Z = np.empty((1, 0))
+_NO_Z_ROWS = np.empty((1, 0, 0))
+
+
+@njit(cache=True)
+def _accumulate(t: Array, X: Array, px: Array, pz: Array, BX: Array, BZ: Array, idx: Any,
+                cols: Any, t_tr: float, band: Array, sumsq: Array, comp: Array, count: Any,
+                peak: Array, undefined: Any, settle: Array, final: Array, bad: Any,
+                E: Array, r0: int) -> None:  # pragma: no cover - compiled
+    """One pass over the rows ``0 ... T - 1`` of a block of B members (:class:`MetricsBatch`):
+    the estimate of row ``j`` is ``px``/``pz`` for ``j = 0``, else ``BX``/``BZ``'s row
+    ``j - 1``. The squares are summed with Neumaier's compensation. ``settle`` holds the time
+    of the row after the last one outside the band (NaN: the next row's, still to come).
+    The block's first row is row ``r0`` of the run: ``bad`` holds rows, and where ``E`` has
+    rows, each error is also written there (``E[b, r0 + j, s]``)."""
+    keep = E.shape[1] > 0
+    B, T, nz, nx = X.shape[0], X.shape[1], pz.shape[1], px.shape[1]
+    for b in range(B):
+        for j in range(T):
+            if bad[b] < 0:
+                for q in range(nz):
+                    v = pz[b, q] if j == 0 else BZ[b, j - 1, q]
+                    if not np.isfinite(v):
+                        bad[b] = r0 + j
+                for q in range(nx):
+                    v = px[b, q] if j == 0 else BX[b, j - 1, q]
+                    if np.isinf(v):
+                        bad[b] = r0 + j
+            inwin = t[j] >= t_tr
+            for s in range(idx.size):
+                e = X[b, j, idx[s]] - (px[b, cols[s]] if j == 0 else BX[b, j - 1, cols[s]])
+                if keep:
+                    E[b, r0 + j, s] = e
+                ae = abs(e)
+                if j == T - 1:
+                    final[b, s] = ae
+                if np.isnan(settle[b, s]):
+                    settle[b, s] = t[j]
+                if not np.isfinite(e):
+                    undefined[b, s] += 1
+                    settle[b, s] = np.nan
+                    continue
+                if inwin:
+                    v, tot = e * e, sumsq[b, s]
+                    new = tot + v
+                    comp[b, s] += (tot - new) + v if abs(tot) >= abs(v) else (v - new) + tot
+                    sumsq[b, s] = new
+                    count[b, s] += 1
+                if ae > peak[b, s]:
+                    peak[b, s] = ae
+                if not ae <= band[b, s]:
+                    settle[b, s] = np.nan
+
+
+class MetricsBatch:
+    """The one accumulator of the metrics (module docstring) of B runs of one observer, over
+    the rows as they come, without keeping them: one compiled pass per block.
+    :class:`RunningMetrics` (one run, chunk by chunk, so :func:`observer_metrics` too) and the
+    study engine (B members, block by block) take their metrics from it.
+
+    The plant states ``idx`` are compared with the estimate's columns ``cols``. ``band``
+    ``(B, k)`` is the absolute band of each member and compared state, or None when it is
+    known only at the end (a relative band): then :meth:`settle` scans the errors from the
+    last block back (kept here when ``rows`` > 0, or handed over again). RMSE: the squares in
+    the window ``t >= t_transient`` summed with Neumaier's compensation (equal to
+    ``numpy.mean``'s pairwise sum to rounding). ``bad`` per member: the first row whose
+    estimate is infinite or whose ``z_hat`` is not finite (-1: none).
+    """
+
+    def __init__(self, idx: Any, cols: Any, B: int, t_transient: float,
+                 band: Array | None = None, rows: int = 0) -> None:
+        self.idx = np.asarray(idx, dtype=np.intp)
+        self.cols = np.asarray(cols, dtype=np.intp)
+        self.t_transient = float(t_transient)
+        k = self.idx.size
+        self.known_band = band is not None
+        # a band not known yet: only non-finite errors count as outside for now
+        self.band = (np.full((B, k), np.inf) if band is None
+                     else np.ascontiguousarray(band, dtype=np.float64))
+        self.E = np.empty((B, rows, k))
+        self.sumsq, self.comp = np.zeros((B, k)), np.zeros((B, k))
+        self.count = np.zeros((B, k), dtype=np.int64)
+        self.peak = np.full((B, k), -np.inf)
+        self.undefined = np.zeros((B, k), dtype=np.int64)
+        self.final = np.full((B, k), np.nan)
+        self.settle_t = np.full((B, k), np.nan)
+        self.bad = np.full(B, -1, dtype=np.int64)
+        self.rows = 0
+        #: the backward scan (:meth:`settle`): the time found per state (NaN: not yet), and
+        #: the first time of the block after the one being scanned (inf before the last)
+        self.settled = np.full((B, k), np.nan)
+        self._after = np.inf
+
+    @classmethod
+    def of(cls, observer_states: Sequence[str], state_names: Sequence[str], B: int,
+           t_transient: float, band: Array | None = None, rows: int = 0) -> MetricsBatch:
+        """The accumulator of an observer whose estimate has the columns ``observer_states``,
+        on the plant's ``state_names`` (compared where the names agree; ``band`` ``(B, n)``
+        over the plant's states)."""
+        own = {s: j for j, s in enumerate(observer_states)}
+        cols = [own[s] for s in state_names if s in own]
+        idx = np.flatnonzero([s in own for s in state_names])
+        return cls(idx, cols, B, t_transient, None if band is None else band[:, idx], rows)
+
+    def add(self, t: Any, X: Array, prev: tuple[Array, Array], BX: Array, BZ: Array) -> None:
+        """Rows at times ``t`` ``(T,)``: true states ``X`` ``(B, T, n)``; the estimate of the
+        first row ``prev`` (``x_hat``, ``z_hat``, ``(B, .)``) and of the others ``BX``, ``BZ``
+        ``(B, T - 1 or more, .)`` (row ``j`` is the block's row ``j - 1``)."""
+        _accumulate(np.ascontiguousarray(t, dtype=np.float64), X, prev[0], prev[1], BX, BZ,
+                    self.idx, self.cols, self.t_transient, self.band, self.sumsq, self.comp,
+                    self.count, self.peak, self.undefined, self.settle_t, self.final, self.bad,
+                    self.E, self.rows)
+        self.rows += X.shape[1]
+
+    def settle(self, t: Array, E: Array, band: Array) -> bool:
+        """Scan a block's errors ``E`` ``(B, T, k)`` at times ``t`` against the band ``(B, k)``
+        for the settling time, from the last block back; True when every one is found."""
+        B, T, k = E.shape
+        with np.errstate(invalid="ignore"):
+            found = settling_time(t, np.where(np.isfinite(E), E, np.inf)
+                                  .transpose(1, 0, 2).reshape(T, B * k),
+                                  np.asarray(band).reshape(B * k)).reshape(B, k)
+        # a state inside over the whole block settled at or before its first time; one
+        # outside at its last sample settled where the block after it starts
+        here = np.where(found == t[0], np.nan, np.where(np.isinf(found), self._after, found))
+        self.settled = np.where(np.isnan(self.settled), here, self.settled)
+        self._after = float(t[0])
+        self.known_band = False
+        return not np.isnan(self.settled).any()
+
+    def settle_kept(self, t: Any, band: Array) -> None:
+        """:meth:`settle` over the kept errors (``rows`` > 0) at times ``t``, once the band
+        ``(B, n)`` over the plant's states is known (a closed loop)."""
+        self.settle(t, self.E, band[:, self.idx])
+
+    def arrays(self, n: int) -> dict[str, Array]:
+        """Per metric a ``(B, n)`` array over the plant's ``n`` states (NaN: not estimated):
+        ``rmse``, ``peak``, ``settling_time``, ``final``, ``undefined_samples``."""
+        B = self.sumsq.shape[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rmse = np.where(self.count > 0,
+                            np.sqrt((self.sumsq + self.comp) / np.maximum(self.count, 1)),
+                            np.nan)
+        peak = np.where(np.isfinite(self.peak), self.peak, np.nan)
+        if self.known_band:  # found on the way (NaN: outside at the last row)
+            settle = np.where(np.isnan(self.settle_t), np.inf, self.settle_t)
+        else:
+            settle = np.where(np.isnan(self.settled), self._after, self.settled)
+        out = {}
+        for key, val in (("rmse", rmse), ("peak", peak), ("settling_time", settle),
+                         ("final", self.final), ("undefined_samples", self.undefined)):
+            full = np.full((B, n), np.nan)
+            full[:, self.idx] = val
+            out[key] = full
         return out
 
 

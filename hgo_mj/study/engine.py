@@ -14,10 +14,11 @@ of its initial state), the sensor chain
 draws one seeded stream per member, and every observer advances over all members, on
 :class:`~hgo_mj.loop.Loop` as ``simulate`` does: member ``b`` equals ``simulate`` of its cell at
 its seed (the same kernels on the same numbers). The metrics of :func:`hgo_mj.metrics.
-observer_metrics` are accumulated segment by segment (:class:`Metrics`), so no trajectory is
-kept: peak, final error, settling time and the undefined-sample count equal the single run's
-bit for bit; the RMSE's sum of squares is compensated (Neumaier), equal to ``numpy.mean``'s
-pairwise sum over the whole window to rounding (relative 1e-12).
+observer_metrics` are accumulated segment by segment (:class:`Metrics`, on the one accumulator
+:class:`hgo_mj.metrics.MetricsBatch`), so no trajectory is
+kept: every metric equals the single run's bit for bit (the RMSE's sum of squares is the same
+compensated (Neumaier) sum, row by row, in both; equal to ``numpy.mean``'s pairwise sum to
+rounding).
 
 **Failures are rows.** An observer whose update fails (a :class:`~hgo_mj.loop.LoopFailure`) is
 taken out of the batch, the others rerun without it (the same numbers: the streams are seeded),
@@ -36,10 +37,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from ..loop import Drive, Loop, LoopFailure, Periods
+from ..metrics import MetricsBatch
 from ..observers.base import Observer
 from ..plants.base import Plant
 from ..scenario import scenario_run
@@ -209,114 +210,38 @@ def plant_rows(plant: Plant, inputs: Any, periods: Periods, N: int, x0s: Array
 
 
 # ------------------------------------------------------------------- streamed metrics
-@njit(cache=True)
-def _accumulate(k0: int, X: Array, px: Array, pz: Array, BX: Array, BZ: Array, idx: Any,
-                cols: Any, Ts: float, t_tr: float, band: Array, sumsq: Array, comp: Array,
-                count: Any, peak: Array, undefined: Any, last_out: Any, final: Array,
-                bad_row: Any, E: Array) -> None:  # pragma: no cover - compiled
-    """One pass over the rows ``k0 ... k0 + T - 1`` of B members (see :class:`Metrics`): the
-    estimate of row ``j`` is ``px``/``pz`` (before the block) for ``j = 0``, else the block's
-    row ``j - 1``. The squares are summed with Neumaier's compensation. Where ``E`` has rows,
-    each error is also written there (``E[b, k0 + j, s]``)."""
-    keep = E.shape[1] > 0
-    B, T, nz, nx = X.shape[0], X.shape[1], pz.shape[1], px.shape[1]
-    for b in range(B):
-        for j in range(T):
-            if bad_row[b] < 0:
-                for q in range(nz):
-                    v = pz[b, q] if j == 0 else BZ[b, j - 1, q]
-                    if not np.isfinite(v):
-                        bad_row[b] = k0 + j
-                for q in range(nx):
-                    v = px[b, q] if j == 0 else BX[b, j - 1, q]
-                    if np.isinf(v):
-                        bad_row[b] = k0 + j
-            inwin = (k0 + j) * Ts >= t_tr
-            for s in range(idx.size):
-                e = X[b, j, idx[s]] - (px[b, cols[s]] if j == 0 else BX[b, j - 1, cols[s]])
-                if keep:
-                    E[b, k0 + j, s] = e
-                ae = abs(e)
-                if j == T - 1:
-                    final[b, s] = ae
-                if not np.isfinite(e):
-                    undefined[b, s] += 1
-                    last_out[b, s] = k0 + j
-                    continue
-                if inwin:
-                    v, tot = e * e, sumsq[b, s]
-                    new = tot + v
-                    comp[b, s] += (tot - new) + v if abs(tot) >= abs(v) else (v - new) + tot
-                    sumsq[b, s] = new
-                    count[b, s] += 1
-                if ae > peak[b, s]:
-                    peak[b, s] = ae
-                if not ae <= band[b, s]:
-                    last_out[b, s] = k0 + j
-
-
 class Metrics:
     """:func:`hgo_mj.metrics.observer_metrics` of B runs of one observer, accumulated over the
-    rows as they come (row ``k``: the true state at ``t_k`` and the estimate before
-    ``y(t_k)``), without keeping them: one compiled pass per block. ``band`` ``(B, n)`` is the
-    band of each member and state (times the true state's range for a relative band); None
-    when it is known only at the end (a closed loop): then the ``rows`` errors are kept and
-    :meth:`settle` finds the settling rows."""
+    rows as they come (row ``k``: the true state at ``t_k = k Ts`` and the estimate before
+    ``y(t_k)``) by :class:`hgo_mj.metrics.MetricsBatch`, the accumulator
+    :class:`~hgo_mj.metrics.RunningMetrics` uses. ``band`` ``(B, n)`` is the band of each
+    member and state (times the true state's range for a relative band); None when it is
+    known only at the end (a closed loop): then the ``rows`` errors are kept and
+    :meth:`settle` finds the settling times."""
 
     def __init__(self, observer: Observer, state_names: Sequence[str], B: int, Ts: float,
                  t_transient: float, band: Array | None, rows: int = 0) -> None:
-        own = {s: j for j, s in enumerate(observer.state_names)}
-        self.cols = np.array([own[s] for s in state_names if s in own], dtype=np.intp)
-        self.idx = np.flatnonzero([s in own for s in state_names]).astype(np.intp)
-        self.Ts, self.t_transient = Ts, t_transient
-        k = self.idx.size
-        # a band not known yet (a closed loop: the true state's range comes with the run):
-        # only non-finite errors count as outside now, the errors are kept for the band
-        self.band = (np.full((B, k), np.inf) if band is None
-                     else np.ascontiguousarray(band[:, self.idx]))
-        self.E = np.empty((B, rows if band is None else 0, k))
-        self.sumsq, self.comp = np.zeros((B, k)), np.zeros((B, k))
-        self.count = np.zeros((B, k), dtype=np.int64)
-        self.peak = np.full((B, k), -np.inf)
-        self.undefined = np.zeros((B, k), dtype=np.int64)
-        self.last_out = np.full((B, k), -1, dtype=np.int64)
-        self.final = np.full((B, k), np.nan)
-        self.bad_row = np.full(B, -1, dtype=np.int64)  # first row with a non-finite z_hat
-        self.rows = 0
+        self.acc = MetricsBatch.of(observer.state_names, state_names, B, t_transient, band,
+                                   rows if band is None else 0)
+        self.Ts = Ts
+        self.bad_row = self.acc.bad  # first row with a non-finite z_hat (-1: none)
 
     def add(self, k0: int, X: Array, prev: tuple[Array, Array], BX: Array, BZ: Array) -> None:
         """Rows ``k0 ...``: true states ``X`` ``(B, T, n)``; the estimate before the block
         ``prev`` (``x_hat``, ``z_hat``, ``(B, .)``) and the block's rows after each sample
         ``BX``, ``BZ`` ``(B, T', .)`` (row ``j`` of the run is ``prev`` for ``j = 0``, else
         the block's row ``j - 1``)."""
-        _accumulate(k0, X, prev[0], prev[1], BX, BZ, self.idx, self.cols, self.Ts,
-                    self.t_transient, self.band, self.sumsq, self.comp, self.count, self.peak,
-                    self.undefined, self.last_out, self.final, self.bad_row, self.E)
-        self.rows = k0 + X.shape[1]
+        self.acc.add(np.arange(k0, k0 + X.shape[1]) * self.Ts, X, prev, BX, BZ)
 
     def settle(self, band: Array) -> None:
-        """The settling rows from the kept errors, once the band ``(B, n)`` is known."""
-        b = band[:, self.idx][:, None, :]
-        with np.errstate(invalid="ignore"):
-            outside = ~(np.where(np.isfinite(self.E), np.abs(self.E), np.inf) <= b)
-        any_out = outside.any(axis=1)
-        last = self.E.shape[1] - 1 - np.argmax(outside[:, ::-1], axis=1)
-        self.last_out = np.where(any_out, last, -1)
+        """The settling times from the kept errors, once the band ``(B, n)`` is known."""
+        self.acc.settle_kept(np.arange(self.acc.rows) * self.Ts, band)
 
     def result(self, n: int, update_time: float) -> dict[str, Array]:
         """Per metric ``(B, n)`` arrays over the plant's states (NaN: not estimated)."""
-        B = self.sumsq.shape[0]
-        out = {m: np.full((B, n), np.nan) for m in METRICS}
-        total = self.sumsq + self.comp
-        rmse = np.where(self.count > 0, np.sqrt(total / np.maximum(self.count, 1)), np.nan)
-        peak = np.where(np.isfinite(self.peak), self.peak, np.nan)
-        last = self.last_out
-        settle = np.where(last < 0, 0.0,
-                          np.where(last + 1 < self.rows, (last + 1) * self.Ts, np.inf))
-        for key, val in (("rmse", rmse), ("peak", peak), ("settling_time", settle),
-                         ("final", self.final), ("undefined_samples", self.undefined)):
-            out[key][:, self.idx] = val
-        out["update_time"][:, self.idx] = update_time
+        out = self.acc.arrays(n)
+        out["update_time"] = np.full_like(out["rmse"], np.nan)
+        out["update_time"][:, self.acc.idx] = update_time
         return out
 
 
