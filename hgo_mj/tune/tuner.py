@@ -527,15 +527,16 @@ def _summary(st: Setup, ob: Observer, default: Mapping[str, float], best: Mappin
              dv: Sequence[float], bv: Sequence[float]) -> str:
     """Default against tuned: each scored state's RMSE (mean over the seeds, nominal model)
     with its unit, and the objective values."""
-    from ..units import unit_of
+    from ..units import system_units
 
+    units = system_units(st.plant.system)
     sc = runner(st, [ob.tuned_parameters(dict(default)), ob.tuned_parameters(dict(best))],
                 seeds, None)
     with np.errstate(invalid="ignore"):
         rmse = np.mean(sc.rmse, axis=1)
     lines = [f"{'state':<24} {'unit':<10} {'default RMSE':>14} {'tuned RMSE':>14} {'ratio':>8}"]
     for j, s in enumerate(st.states):
-        unit = unit_of(st.plant.system, s)
+        unit = units.get(s, "")
         d, b = rmse[0, j], rmse[1, j]
         ratio = b / d if d > 0 and np.isfinite(d) else math.nan
         lines.append(f"{s:<24} {unit:<10} {d:>14.6g} {b:>14.6g} {ratio:>8.3f}")
