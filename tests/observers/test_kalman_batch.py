@@ -213,6 +213,6 @@ def test_compiled_model_divergence_is_reported_alike(cls):
         with pytest.raises(DivergenceError) as e, np.errstate(all="ignore"):
             advance(ob, Y, np.full((3, 40, 1), 0.08), 0.5)
         errors.append(str(e.value))
-        states.append(ob._x.copy())
+        states.append(ob.state.x.copy())
     assert errors[0] == errors[1] and "member 1" in errors[0]
     np.testing.assert_array_equal(states[0], states[1])
