@@ -16,12 +16,16 @@ predicts to ``t_k + dt`` with ``u`` held (the time update), so that, as every ob
 package, the filter reports the estimate of ``x(t_k + dt)`` and row ``k`` of a trajectory is
 the prediction made before ``y(t_k)`` was seen.
 
-**State as data.** ``B`` filters advance together: the augmented estimate ``x`` ``(B, N)`` and
-its covariance ``P`` ``(B, N, N)`` (``N = n + q``). The step is written once, in the shape of
-dynamax's ``_predict`` / ``_condition_on``: :meth:`_KalmanFilter._condition_on` (the
-measurement update) and ``_predict`` (the time update) act on the whole batch; the covariance
-arithmetic (transition, :math:`\\Phi P \\Phi^T + Q h`, the updates, Cholesky factors, sigma
-points and moments) runs in the module-level numba kernels below, one loop over ``B`` each, so a
+**State and parameters as data.** ``B`` filters advance together: the state's fields are the
+augmented estimate ``x`` ``(B, N)`` and its covariance ``P`` ``(B, N, N)`` (``N = n + q``); the
+tunable parameters (:meth:`~hgo_mj.observers.base.Observer.parameters`) are the noise
+covariances ``Q`` ``(n, n)``, ``R`` ``(p, p)`` and, with ``estimate``, ``Q_theta`` ``(q, q)``, and
+the UKF's ``alpha``, ``beta``, ``kappa``, each for every member or per member. The step is
+written once, in the shape of dynamax's ``_predict`` / ``_condition_on``:
+:meth:`_KalmanFilter._condition_on` (the measurement update) and ``_predict`` (the time
+update) act on the whole batch of one member's parameters; the covariance arithmetic
+(transition, :math:`\\Phi P \\Phi^T + Q h`, the updates, Cholesky factors, sigma points and
+moments) runs in the module-level numba kernels below, one loop over ``B`` each, so a
 member's numbers do not depend on the batch it runs in.
 
 **Time update** over ``substeps`` steps ``h``: the mean by RK4 (or Euler) of :math:`f` with
