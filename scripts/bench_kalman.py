@@ -46,6 +46,15 @@ from hgo_mj.systems.pendulum import Pendulum
 DT = 1e-3
 
 
+def advance(ob, Y, U, dt):
+    """The pure step (``Observer.step``) of the observer's own state over the block ``Y``
+    ``(B, T, p)``, ``U`` ``(B, T, m)``; the new state kept, the rows returned."""
+    params, state = ob._own()
+    new, rows = ob.step(params, state, Y, U, dt)
+    ob._hold(params, new)
+    return rows
+
+
 def candidates() -> dict[str, object]:
     from filterpy.kalman import ExtendedKalmanFilter as FEKF
     from filterpy.kalman import MerweScaledSigmaPoints
@@ -108,22 +117,24 @@ def candidates() -> dict[str, object]:
         return run
 
     def own(ob):
-        """The family's step alone (``_advance`` on prepared rows), without the base class's
-        validation and bookkeeping in ``update`` / ``advance``."""
+        """The family's step alone (``_step`` on prepared rows, one member's parameters), without
+        the base class's validation and bookkeeping in ``update`` / ``advance``."""
         Y, U = np.full((1, 1, 1), 0.1), np.full((1, 1, 1), 0.2)
         X, Z, D = np.empty((1, 1, 2)), np.empty((1, 1, 2)), np.empty((1, 1, 0))
+        params, state = ob._own()
+        p = params.member(0)
 
         def run(n):
             for _ in range(n):
-                ob._advance(Y, U, DT, X, Z, D)
+                ob._step(p, state, Y, U, DT, X, Z, D)
         return run
 
     out = {"filterpy ExtendedKalmanFilter predict+update": filterpy_ekf,
            "hgo_mj ExtendedKalmanFilter.update (ekf)": loop(me),
            "filterpy UnscentedKalmanFilter predict+update": filterpy_ukf,
            "hgo_mj UnscentedKalmanFilter.update (ukf)": loop(mu),
-           "ekf: the family's step alone (_advance, B = 1)": own(me),
-           "ukf: the family's step alone (_advance, B = 1)": own(mu)}
+           "ekf: the family's step alone (_step, B = 1)": own(me),
+           "ukf: the family's step alone (_step, B = 1)": own(mu)}
     others = {"HighGainObserver.update, n=2 (plain, model-free)": lambda: HighGainObserver(s, k=20.0),
               "HighGainObserver.update, n=2, model=True (eq. 4)":
                   lambda: HighGainObserver(s, k=20.0, model=True),

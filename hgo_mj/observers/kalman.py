@@ -16,12 +16,16 @@ predicts to ``t_k + dt`` with ``u`` held (the time update), so that, as every ob
 package, the filter reports the estimate of ``x(t_k + dt)`` and row ``k`` of a trajectory is
 the prediction made before ``y(t_k)`` was seen.
 
-**State as data.** ``B`` filters advance together: the augmented estimate ``x`` ``(B, N)`` and
-its covariance ``P`` ``(B, N, N)`` (``N = n + q``). The step is written once, in the shape of
-dynamax's ``_predict`` / ``_condition_on``: :meth:`_KalmanFilter._condition_on` (the
-measurement update) and ``_predict`` (the time update) act on the whole batch; the covariance
-arithmetic (transition, :math:`\\Phi P \\Phi^T + Q h`, the updates, Cholesky factors, sigma
-points and moments) runs in the module-level numba kernels below, one loop over ``B`` each, so a
+**State and parameters as data.** ``B`` filters advance together: the state's fields are the
+augmented estimate ``x`` ``(B, N)`` and its covariance ``P`` ``(B, N, N)`` (``N = n + q``); the
+tunable parameters (:meth:`~hgo_mj.observers.base.Observer.parameters`) are the noise
+covariances ``Q`` ``(n, n)``, ``R`` ``(p, p)`` and, with ``estimate``, ``Q_theta`` ``(q, q)``, and
+the UKF's ``alpha``, ``beta``, ``kappa``, each for every member or per member. The step is
+written once, in the shape of dynamax's ``_predict`` / ``_condition_on``:
+:meth:`_KalmanFilter._condition_on` (the measurement update) and ``_predict`` (the time
+update) act on the whole batch of one member's parameters; the covariance arithmetic
+(transition, :math:`\\Phi P \\Phi^T + Q h`, the updates, Cholesky factors, sigma points and
+moments) runs in the module-level numba kernels below, one loop over ``B`` each, so a
 member's numbers do not depend on the batch it runs in.
 
 **Time update** over ``substeps`` steps ``h``: the mean by RK4 (or Euler) of :math:`f` with
@@ -102,7 +106,7 @@ from ..systems.base import (
     model_jacobian,
     model_param_jacobian,
 )
-from .base import Array, Observer, batch_rows, register
+from .base import Array, Observer, Params, State, batch_rows, register
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
@@ -666,7 +670,7 @@ def _ekf_block(model: Any, X: Array, P: Array, Y: Array, U: Array, sel: IntArray
     model and a selection output, in place: per sample :func:`_condition_selection`, then
     ``substeps`` times :func:`_ekf_predict`, the estimate after it into ``Xs[:, j]`` and
     ``Zs[:, j]`` ``(B, T, n)`` and the parameters into ``Ds[:, j]`` ``(B, T, q)``: the sample
-    loop of ``_KalmanFilter._advance`` in one call. Returns the sample at which an estimate
+    loop of ``_KalmanFilter._step`` in one call. Returns the sample at which an estimate
     left the finite numbers (the state left there), else -1."""
     B, T = Y.shape[0], Y.shape[1]
     N = X.shape[1]
@@ -1279,6 +1283,35 @@ class MujocoModel:
 # ======================================================================================
 
 
+class _Tuning:
+    """What a filter derives from one member's parameters: the augmented process noise
+    intensity ``Qc`` ``(N, N)``, the measurement covariance ``R`` ``(p, p)`` and whether it is
+    diagonal (the sequential scalar updates), and for the UKF the sigma-point scale ``c`` and
+    weights ``Wm``, ``Wc`` (:func:`_sigma_weights`)."""
+
+    __slots__ = ("Qc", "R", "diag_R", "c", "Wm", "Wc")
+
+    def __init__(self, Qc: Array, R: Array, diag_R: bool) -> None:
+        self.Qc, self.R, self.diag_R = Qc, R, diag_R
+        self.c = 0.0
+        self.Wm = self.Wc = np.zeros(0)
+
+
+def _sigma_weights(N: int, alpha: float, beta: float, kappa: float) -> tuple[float, Array, Array]:
+    """The scaled sigma points' spread ``c = sqrt(N + lambda)`` and the weights ``Wm``, ``Wc``
+    ``(2N + 1,)`` [WM00], :math:`\\lambda = \\alpha^2 (N + \\kappa) - N`; refused where
+    :math:`N + \\lambda \\le 0`."""
+    lam = alpha ** 2 * (N + kappa) - N
+    if not N + lam > 0:
+        raise DesignError(f"alpha^2 (N + kappa) must be > 0 (sigma-point spread); found "
+                          f"{N + lam:g} with N = {N}, alpha = {alpha:g}, kappa = {kappa:g}")
+    Wm = np.full(2 * N + 1, 0.5 / (N + lam))
+    Wc = Wm.copy()
+    Wm[0] = lam / (N + lam)
+    Wc[0] = lam / (N + lam) + 1.0 - alpha ** 2 + beta
+    return math.sqrt(N + lam), Wm, Wc
+
+
 class _KalmanFilter(Observer):
     """Shared construction, validation, measurement update and bookkeeping (see module)."""
 
@@ -1346,7 +1379,6 @@ class _KalmanFilter(Observer):
                               f"initial guess of the estimated parameters)")
         self.sel = mdl.selection(self.outputs)
         self._sel = np.array(self.sel if self.sel is not None else [], dtype=np.int64)
-        self._diag_R = bool(np.all(self.R == np.diag(np.diag(self.R))))
         self.family_diagnostics = tuple(f"theta_{nm}" for nm in self.estimate)  # type: ignore[misc]
         self._x_hat0 = None if x_hat0 is None else (
             vector("x_hat0", x_hat0, self.n) if np.ndim(x_hat0) <= 1
@@ -1354,10 +1386,10 @@ class _KalmanFilter(Observer):
         self._theta_hat0 = None if not self.q else (
             vector("theta_hat0", theta_hat0, self.q) if np.ndim(theta_hat0) <= 1
             else batch_rows("theta_hat0", theta_hat0, self.q, None))
-        self._theta_arg: Any = None
-        self._qh: dict[float, Array] = {}
-        self._weights()
-        self.reset()
+        #: what the filter derives from one member's parameters (:class:`_Tuning`), by
+        #: :meth:`Params.key`, and ``Q h`` by substep and key (at most ``_CACHE_MAX`` each)
+        self._tunings: dict[bytes, _Tuning] = {}
+        self._qh: dict[tuple[float, bytes], Array] = {}
 
     def _augmented(self, state: Array, params: Array) -> Array:
         """The block-diagonal ``N x N`` matrix of a state block and a parameter block."""
@@ -1366,118 +1398,193 @@ class _KalmanFilter(Observer):
         out[self.n:, self.n:] = params
         return out
 
-    def _weights(self) -> None:
-        """UKF: sigma-point weights (before the first reset)."""
+    # ------------------------------------------------------------------ parameters
+    def _parameters(self) -> dict[str, Any]:
+        """The noise covariances as the filter uses them: ``Q`` ``(n, n)``, ``R`` ``(p, p)``
+        and, with ``estimate``, ``Q_theta`` ``(q, q)`` (full matrices, whatever form the
+        constructor was given)."""
+        n = self.n
+        out: dict[str, Any] = {"Q": self.Qc[:n, :n].copy(), "R": self.R.copy()}
+        if self.q:
+            out["Q_theta"] = self.Qc[n:, n:].copy()
+        return out
 
-    # ------------------------------------------------------------------ reset
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        if name == "Q":
+            return positive_semidefinite("Q", value, self.n)
+        if name == "Q_theta":
+            return positive_semidefinite("Q_theta", value, self.q)
+        if name == "R":
+            return positive_definite("R", value, len(self.outputs))
+        return super()._check_parameter(name, value)
+
+    def _tuning(self, p: Params, key: bytes) -> _Tuning:
+        """What the filter derives from the parameters ``p`` (``key = p.key()``), built on
+        first use."""
+        t = self._tunings.get(key)
+        if t is None:
+            if len(self._tunings) >= _CACHE_MAX:
+                self._tunings.clear()
+            t = self._tune(p)
+            self._tunings[key] = t
+        return t
+
+    def _tune(self, p: Params) -> _Tuning:
+        R = np.array(p.R, dtype=np.float64, order="C")  # writable: the kernels' type
+        Qc = self._augmented(np.asarray(p.Q), np.asarray(p.Q_theta) if self.q
+                             else np.zeros((0, 0)))
+        return _Tuning(Qc, R, bool(np.all(R == np.diag(np.diag(R)))))
+
+    # ------------------------------------------------------------------ state
+    def init(self, batch: int = 1, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
+             params: Params | None = None, theta_hat0: Any = None) -> State:
+        """:meth:`Observer.init`, and ``theta_hat0`` (``(q,)`` for every member or ``(B, q)``;
+        default the constructor's): the state ``x`` ``(B, N)`` (the estimate, then the
+        parameter estimates) and ``P`` ``(B, N, N)`` (``P0``).
+
+        Parameters
+        ----------
+        batch, x_hat0, z_hat0, u0, params
+            As :meth:`Observer.init` (``z_hat0`` is the same thing as ``x_hat0`` here).
+        theta_hat0 : array_like, optional
+            Initial parameter estimates.
+
+        Returns
+        -------
+        State
+            The fields ``x``, ``P``, then the base's.
+
+        Examples
+        --------
+        >>> from hgo_mj.systems import Pendulum
+        >>> f = ExtendedKalmanFilter(Pendulum(), estimate=["damping"], theta_hat0=[0.05])
+        >>> s = f.init(2, [0.1, 0.0], theta_hat0=[[0.04], [0.06]])
+        >>> s.x.tolist(), s.P.shape
+        ([[0.1, 0.0, 0.04], [0.1, 0.0, 0.06]], (2, 3, 3))
+        """
+        if x_hat0 is None and z_hat0 is None and self._x_hat0 is not None \
+                and self._x_hat0.ndim == 2:
+            x_hat0 = self._x_hat0
+        s = super().init(batch, x_hat0, z_hat0=z_hat0, u0=u0, params=params)
+        if self.q:
+            th = theta_hat0 if theta_hat0 is not None else self._theta_hat0
+            s.x[:, self.n:] = batch_rows("theta_hat0", th, self.q, s.batch)
+        return s
+
     def reset(self, x_hat0: Any = None, *, z_hat0: Any = None, u0: Any = None,
-              batch: int | None = None, theta_hat0: Any = None) -> None:
+              batch: int | None = None, params: Params | None = None,
+              theta_hat0: Any = None) -> None:
         """Restart ``batch`` filters from ``x_hat0`` (physical state; ``z_hat0`` is the same
         thing here) and ``theta_hat0`` (``(q,)`` for every member or ``(B, q)``) with the
         covariance ``P0``; what is not given is the constructor's (``x_hat0`` default zero)."""
-        if (batch is None and x_hat0 is None and z_hat0 is None and theta_hat0 is not None
-                and np.ndim(theta_hat0) == 2):
+        if (batch is None and params is None and x_hat0 is None and z_hat0 is None
+                and theta_hat0 is not None and np.ndim(theta_hat0) == 2):
             batch = int(np.shape(theta_hat0)[0])
         if batch is None and x_hat0 is None and z_hat0 is None and self._x_hat0 is not None \
                 and self._x_hat0.ndim == 2:
             x_hat0 = self._x_hat0
-        self._theta_arg = theta_hat0
-        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch)
+        super().reset(x_hat0, z_hat0=z_hat0, u0=u0, batch=batch, params=params)
+        if self.q and theta_hat0 is not None:
+            s = self.state
+            s.x[:, self.n:] = batch_rows("theta_hat0", theta_hat0, self.q, s.batch)
 
-    def _reset(self, x0: Array | None, z0: Array | None, u0: Array) -> None:
-        B = self.batch
+    def _init(self, p: Params, x0: Array | None, z0: Array | None,
+              u0: Array) -> dict[str, Any]:
+        """``x`` from ``x0`` (the parameter columns zero: :meth:`init` writes them) and
+        ``P = P0``."""
+        B = u0.shape[0]
         x = x0 if x0 is not None else z0
         if x is None:
             x = (np.zeros((B, self.n)) if self._x_hat0 is None
                  else batch_rows("x_hat0", self._x_hat0, self.n, B))
-        th = self._theta_arg if self._theta_arg is not None else self._theta_hat0
-        self._theta_arg = None
         rows = [x]
         if self.q:
-            rows.append(batch_rows("theta_hat0", th, self.q, B))
-        self._x = np.ascontiguousarray(np.concatenate(rows, axis=1), dtype=float)
-        self._P = np.ascontiguousarray(np.tile(self.P0, (B, 1, 1)))
+            rows.append(np.zeros((B, self.q)))
+        return {"x": np.ascontiguousarray(np.concatenate(rows, axis=1), dtype=float),
+                "P": np.ascontiguousarray(np.tile(self.P0, (B, 1, 1)))}
 
     # ------------------------------------------------------------------ the step
-    def _Qh(self, h: float) -> Array:
-        """``Q h`` for the substep ``h`` (at most ``_CACHE_MAX`` periods kept)."""
-        Qh = self._qh.get(h)
+    def _Qh(self, t: _Tuning, key: bytes, h: float) -> Array:
+        """``Q h`` for the substep ``h`` (at most ``_CACHE_MAX`` kept)."""
+        Qh = self._qh.get((h, key))
         if Qh is None:
             if len(self._qh) >= _CACHE_MAX:
                 self._qh.clear()
-            Qh = np.ascontiguousarray(self.Qc * h)
-            self._qh[h] = Qh
+            Qh = np.ascontiguousarray(t.Qc * h)
+            self._qh[(h, key)] = Qh
         return Qh
 
-    def _advance(self, Y: Array, U: Array, dt: float, X: Array, Z: Array, D: Array) -> None:
+    def _step(self, p: Params, s: State, Y: Array, U: Array, dt: float, X: Array, Z: Array,
+              D: Array) -> None:
         n = self.n
         h = dt / self.substeps
-        Qh = self._Qh(h)
+        key = p.key()
+        t = self._tuning(p, key)
+        Qh = self._Qh(t, key, h)
         T = Y.shape[1]
-        j = self._block(Y, U, h, Qh, X, Z, D)
+        j = self._block(t, s, Y, U, h, Qh, X, Z, D)
         if j is None:  # sample by sample, from Python (the same arithmetic)
-            hist = np.empty((T, self.batch, self.N))  # the estimates, sample-major
+            hist = np.empty((T, s.x.shape[0], self.N))  # the estimates, sample-major
             for j in range(T):
-                self._condition_on(np.ascontiguousarray(Y[:, j]))
+                self._condition_on(t, s.x, s.P, np.ascontiguousarray(Y[:, j]))
                 u = np.ascontiguousarray(U[:, j])
                 for _ in range(self.substeps):
-                    self._predict(u, h, Qh)
-                if _first_nonfinite(self._x) >= 0:
+                    self._predict(t, s, u, h, Qh)
+                if _first_nonfinite(s.x) >= 0:
                     break
-                hist[j] = self._x
+                hist[j] = s.x
             else:
                 j = -1
                 X[...] = hist[:, :, :n].transpose(1, 0, 2)
                 Z[...] = X
                 D[...] = hist[:, :, n:].transpose(1, 0, 2)
         if j >= 0:
-            b = _first_nonfinite(self._x)
+            b = _first_nonfinite(s.x)
             raise DivergenceError(f"{type(self).__name__} estimate left the finite numbers: "
-                                  f"{self._x[b].tolist()} (member {b}, sample {j})")
+                                  f"{s.x[b].tolist()} (member {b}, sample {j})")
 
-    def _block(self, Y: Array, U: Array, h: float, Qh: Array, X: Array, Z: Array,
-               D: Array) -> int | None:
+    def _block(self, t: _Tuning, s: State, Y: Array, U: Array, h: float, Qh: Array, X: Array,
+               Z: Array, D: Array) -> int | None:
         """The whole block in one kernel call where the filter has one (the EKF with a compiled
         model and a selection output): the rows after each sample into ``X``, ``Z``, ``D`` (as
-        :meth:`_advance`); returns the sample at which an estimate left the finite numbers (the
+        :meth:`_step`); returns the sample at which an estimate left the finite numbers (the
         state is left there), else -1. ``None``: no such kernel, the samples go one by one
         from Python."""
         return None
 
-    def _condition_on(self, Y: Array) -> None:
-        """The measurement update of every member with ``Y`` ``(B, p)`` (NaN: lost channel)."""
+    def _condition_on(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
+        """The measurement update of every member of ``x`` ``(B, N)``, ``P`` ``(B, N, N)``
+        (in place) with ``Y`` ``(B, p)`` (NaN: lost channel)."""
         if self.sel is not None:
-            _condition_selection(self._x, self._P, Y, self._sel, self.R, self._diag_R)
+            _condition_selection(x, P, Y, self._sel, t.R, t.diag_R)
         else:
-            self._condition_general(Y)
+            self._condition_general(t, x, P, Y)
 
-    def _condition_general(self, Y: Array) -> None:
+    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
         """The measurement update for a general output map ``h`` (filter-specific)."""
         raise NotImplementedError
 
-    def _filtered(self, Y: Array) -> Array:
+    def _filtered(self, p: Params, s: State, Y: Array) -> Array:
         """``x_{k|k}``: the measurement update of a copy of the state with ``Y`` (every
-        channel; the filter's own read), the filter left as it was."""
-        x, P = self._x.copy(), self._P.copy()
-        try:
-            self._condition_on(np.ascontiguousarray(Y[:, self._cols_index]))
-            return self._x[:, :self.n].copy()
-        finally:
-            self._x, self._P = x, P
+        channel; the filter's own read), the state left as it was."""
+        x, P = s.x.copy(), s.P.copy()
+        self._condition_on(self._tuning(p, p.key()), x, P,
+                           np.ascontiguousarray(Y[:, self._cols_index]))
+        return x[:, :self.n].copy()
 
     def _present(self, y: Array) -> list[int]:
         return [c for c in range(y.shape[0]) if y[c] == y[c]]
 
-    def _predict(self, U: Array, h: float, Qh: Array) -> None:
-        """The time update of every member over one substep ``h`` (filter-specific)."""
+    def _predict(self, t: _Tuning, s: State, U: Array, h: float, Qh: Array) -> None:
+        """The time update of every member of ``s`` over one substep ``h`` (filter-specific)."""
         raise NotImplementedError
 
-    def _current(self) -> tuple[Array, Array, Array]:
-        x = self._x
+    def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
+        x = s.x
         return x[:, :self.n].copy(), x[:, :self.n].copy(), x[:, self.n:].copy()
 
     # ------------------------------------------------------------------ interface
-    def check_period(self, dt: float) -> None:
+    def _check_period(self, p: Params, dt: float) -> None:
         """Refuse a sample period the MuJoCo model cannot step (not a multiple of its
         timestep times ``substeps``); the system-model filters take any period (the filter
         is a discrete recursion: no period makes it unstable)."""
@@ -1488,12 +1595,12 @@ class _KalmanFilter(Observer):
     @property
     def theta_hat_(self) -> Any:
         """Parameter estimates, ``(q,)`` or ``(B, q)`` (also the diagnostics ``theta_<name>``)."""
-        return self._public(self._x[:, self.n:].copy())
+        return self._public(self.state.x[:, self.n:].copy())
 
     @property
     def P_(self) -> Any:
         """Covariance of the augmented estimate, ``(N, N)`` or ``(B, N, N)``."""
-        return self._public(self._P.copy())
+        return self._public(self.state.P.copy())
 
     def params(self) -> dict[str, Any]:
         return {"model": self.model.kind, "estimate": list(self.estimate),
@@ -1580,45 +1687,45 @@ class ExtendedKalmanFilter(_KalmanFilter):
     summary = "continuous-discrete extended Kalman filter, parameters by state augmentation"
     reference = "Jazwinski 1970 sec. 8.3; Simon 2006 sec. 13.2"
 
-    def _predict(self, U: Array, h: float, Qh: Array) -> None:
+    def _predict(self, t: _Tuning, s: State, U: Array, h: float, Qh: Array) -> None:
         mdl = self.model
         if isinstance(mdl, MujocoModel):
-            self._x, Phi = mdl.transition(self._x, U, h)
+            s.x, Phi = mdl.transition(s.x, U, h)
         elif mdl.compiled is not None:
             vs, ms = _ekf_scratch(self.n, self.N, mdl._c0.shape[0])
-            _ekf_predict(mdl.compiled, self._x, U, self._P, mdl._c0, mdl._pidx, mdl.analytic, h,
+            _ekf_predict(mdl.compiled, s.x, U, s.P, mdl._c0, mdl._pidx, mdl.analytic, h,
                          self.method == "rk4", Qh, vs, ms)
             return
         else:
-            F = mdl.jac(self._x, U)
-            self._x = mdl.step(self._x, U, h, self.method)
-            _ekf_covariance(self._P, F, h, self.method == "rk4", Qh)
+            F = mdl.jac(s.x, U)
+            s.x = mdl.step(s.x, U, h, self.method)
+            _ekf_covariance(s.P, F, h, self.method == "rk4", Qh)
             return
-        _propagate(self._P, Phi, Qh)
+        _propagate(s.P, Phi, Qh)
 
-    def _block(self, Y: Array, U: Array, h: float, Qh: Array, X: Array, Z: Array,
-               D: Array) -> int | None:
+    def _block(self, t: _Tuning, s: State, Y: Array, U: Array, h: float, Qh: Array, X: Array,
+               Z: Array, D: Array) -> int | None:
         mdl = self.model
         if not isinstance(mdl, SystemModel) or mdl.compiled is None or self.sel is None:
             return None
-        return _ekf_block(mdl.compiled, self._x, self._P, Y, U, self._sel, self.R,  # type: ignore[no-any-return]
-                          self._diag_R, mdl._c0, mdl._pidx, mdl.analytic, h, self.substeps,
+        return _ekf_block(mdl.compiled, s.x, s.P, Y, U, self._sel, t.R,  # type: ignore[no-any-return]
+                          t.diag_R, mdl._c0, mdl._pidx, mdl.analytic, h, self.substeps,
                           self.method == "rk4", Qh, X, Z, D)
 
-    def _condition_general(self, Y: Array) -> None:
+    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
         """Linearize ``h`` by central differences at each member's prediction, then update."""
         out = self.model.output
-        for b in range(self.batch):
+        for b in range(x.shape[0]):
             idx = self._present(Y[b])
             if not idx:
                 continue
             chans = [self.outputs[c] for c in idx]
-            x = self._x[b]
-            H = _central_differences(functools.partial(_rows_output, out, chans), x[None],
+            xb = x[b]
+            H = _central_differences(functools.partial(_rows_output, out, chans), xb[None],
                                      self.N)[0]
-            v = np.ascontiguousarray(Y[b, idx] - out(x)[chans])
-            _joint_update(x, self._P[b], v, np.ascontiguousarray(H),
-                          np.ascontiguousarray(self.R[np.ix_(idx, idx)]))
+            v = np.ascontiguousarray(Y[b, idx] - out(xb)[chans])
+            _joint_update(xb, P[b], v, np.ascontiguousarray(H),
+                          np.ascontiguousarray(t.R[np.ix_(idx, idx)]))
 
 
 @register
@@ -1673,67 +1780,79 @@ method, substeps, jacobian, model, on_unstable
         self.beta = finite_scalar("beta", beta)
         self.kappa = finite_scalar("kappa", kappa)
         super().__init__(system, **kw)
+        _sigma_weights(self.N, self.alpha, self.beta, self.kappa)  # refuse a bad spread now
 
-    def _weights(self) -> None:
-        N = self.N
-        lam = self.alpha ** 2 * (N + self.kappa) - N
-        if not N + lam > 0:
-            raise DesignError(f"alpha^2 (N + kappa) must be > 0 (sigma-point spread); found "
-                              f"{N + lam:g} with N = {N}, alpha = {self.alpha:g}, kappa = {self.kappa:g}")
-        self._c = math.sqrt(N + lam)
-        self.Wm = np.full(2 * N + 1, 0.5 / (N + lam))
-        self.Wc = self.Wm.copy()
-        self.Wm[0] = lam / (N + lam)
-        self.Wc[0] = lam / (N + lam) + 1.0 - self.alpha ** 2 + self.beta
+    def _parameters(self) -> dict[str, Any]:
+        """:meth:`_KalmanFilter._parameters` and the sigma points' ``alpha``, ``beta``,
+        ``kappa`` (floats)."""
+        return {**super()._parameters(), "alpha": self.alpha, "beta": self.beta,
+                "kappa": self.kappa}
 
-    def _sigma(self) -> Array:
+    def _check_parameter(self, name: str, value: Any) -> Array:
+        if name == "alpha":
+            alpha = finite_scalar("alpha", value, positive=True)
+            _sigma_weights(self.N, alpha, self.beta, self.kappa)
+            return np.array(alpha)
+        if name == "beta":
+            return np.array(finite_scalar("beta", value))
+        if name == "kappa":
+            kappa = finite_scalar("kappa", value)
+            _sigma_weights(self.N, self.alpha, self.beta, kappa)
+            return np.array(kappa)
+        return super()._check_parameter(name, value)
+
+    def _tune(self, p: Params) -> _Tuning:
+        t = super()._tune(p)
+        t.c, t.Wm, t.Wc = _sigma_weights(self.N, float(p.alpha), float(p.beta), float(p.kappa))
+        return t
+
+    def _sigma(self, t: _Tuning, x: Array, P: Array) -> Array:
         """The sigma points of every member, ``(B, 2N + 1, N)``; where ``P`` is not numerically
         positive definite, from its eigen-decomposition (refused if indefinite)."""
-        B, N = self._x.shape
+        B, N = x.shape
         S = np.empty((B, 2 * N + 1, N))
         ok = np.empty(B, dtype=np.bool_)
-        _sigma_points(self._x, self._P, self._c, S, ok)
+        _sigma_points(x, P, t.c, S, ok)
         for b in np.nonzero(~ok)[0]:
-            P = self._P[b]
-            w, V = np.linalg.eigh(0.5 * (P + P.T))
+            Pb = P[b]
+            w, V = np.linalg.eigh(0.5 * (Pb + Pb.T))
             if w[0] < -1e-9 * max(1.0, w[-1]):
                 raise DivergenceError(f"UKF covariance is not positive semi-definite (eigenvalues "
                                       f"{w.tolist()}, member {int(b)})")
-            cL = self._c * (V * np.sqrt(np.clip(w, 0.0, None)))
-            x = self._x[b]
-            S[b] = np.vstack((x, x + cL.T, x - cL.T))
+            cL = t.c * (V * np.sqrt(np.clip(w, 0.0, None)))
+            xb = x[b]
+            S[b] = np.vstack((xb, xb + cL.T, xb - cL.T))
         return S
 
-    def _predict(self, U: Array, h: float, Qh: Array) -> None:
+    def _predict(self, t: _Tuning, s: State, U: Array, h: float, Qh: Array) -> None:
         # sigma points redrawn and Q h added per substep
-        S = self._sigma()
+        S = self._sigma(t, s.x, s.P)
         B, M, N = S.shape
         rows = self.model.step(S.reshape(B * M, N), np.repeat(U, M, axis=0), h, self.method,
                                members=np.repeat(np.arange(B), M))
-        _moments(np.ascontiguousarray(rows.reshape(B, M, N)), self.Wm, self.Wc, Qh,
-                 self._x, self._P)
+        _moments(np.ascontiguousarray(rows.reshape(B, M, N)), t.Wm, t.Wc, Qh, s.x, s.P)
 
-    def _condition_general(self, Y: Array) -> None:
+    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
         """The unscented measurement update, one member at a time."""
-        S = self._sigma()
+        S = self._sigma(t, x, P)
         out = self.model.output
-        for b in range(self.batch):
+        for b in range(x.shape[0]):
             idx = self._present(Y[b])
             if not idx:
                 continue
             chans = [self.outputs[c] for c in idx]
-            x, P = self._x[b], self._P[b]
+            xb, Pb = x[b], P[b]
             Xs = S[b]
             Ys = np.array([out(s)[chans] for s in Xs])
-            yhat = self.Wm @ Ys
+            yhat = t.Wm @ Ys
             dY = Ys - yhat
-            dX = Xs - x
-            Pyy = (dY.T * self.Wc) @ dY + self.R[np.ix_(idx, idx)]
-            Pxy = (dX.T * self.Wc) @ dY
+            dX = Xs - xb
+            Pyy = (dY.T * t.Wc) @ dY + t.R[np.ix_(idx, idx)]
+            Pxy = (dX.T * t.Wc) @ dY
             K = np.linalg.solve(Pyy, Pxy.T).T
-            self._x[b] = x + K @ (Y[b, idx] - yhat)
-            P = P - K @ Pyy @ K.T
-            self._P[b] = 0.5 * (P + P.T)
+            x[b] = xb + K @ (Y[b, idx] - yhat)
+            Pb = Pb - K @ Pyy @ K.T
+            P[b] = 0.5 * (Pb + Pb.T)
 
 
 @register

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from observer_cases import advance
 
-from hgo_mj.exceptions import DivergenceError
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.observers import make_observer
 from hgo_mj.observers.base import Observer
 from hgo_mj.systems import BioreactorBullinger, ElasticJoint, ElasticJoint2Link, Pendulum
@@ -213,6 +213,121 @@ def test_compiled_model_divergence_is_reported_alike(cls):
         with pytest.raises(DivergenceError) as e, np.errstate(all="ignore"):
             advance(ob, Y, np.full((3, 40, 1), 0.08), 0.5)
         errors.append(str(e.value))
-        states.append(ob._x.copy())
+        states.append(ob.state.x.copy())
     assert errors[0] == errors[1] and "member 1" in errors[0]
     np.testing.assert_array_equal(states[0], states[1])
+
+
+# ---------------------------------------------------------------- per-member parameters
+Q2 = [np.diag([1e-6, 1e-3]), np.diag([1e-5, 1e-2]), np.array([[1e-4, 1e-5], [1e-5, 1e-3]])]
+Q8 = [1e-4 * np.eye(8), np.diag(np.linspace(1e-5, 1e-3, 8)), 1e-3 * np.eye(8) + 1e-5]
+R1 = [np.array([[1e-4]]), np.array([[1e-3]]), np.array([[1e-5]])]
+R2 = [np.diag([1e-4, 2e-4]), np.array([[1e-4, 2e-5], [2e-5, 1e-4]]),
+      np.array([[1e-3, -1e-4], [-1e-4, 5e-4]])]
+QT = [np.array([[1e-5]]), np.array([[1e-6]]), np.array([[1e-4]])]
+SIGMA = {"alpha": [1.0, 0.5, 2.0], "beta": [2.0, 0.0, 3.0], "kappa": [0.0, 1.0, -0.5]}
+
+# (id, constructor taking the tuned keywords, dt, initial state, initial parameters, input
+# level, three values of each tunable parameter); member 3 repeats member 0's values
+TUNED: list[tuple[Any, ...]] = [
+    ("ekf-pendulum-estimate",
+     lambda **kw: make_observer("ekf", Pendulum(), estimate=("mass",), theta_hat0=[0.2], **kw),
+     0.01, [0.3, 0.0], [0.2], (0.0, 0.5), {"Q": Q2, "R": R1, "Q_theta": QT}),
+    ("ekf-two-link-diagonal-and-full-R",
+     lambda **kw: make_observer("ekf", ElasticJoint2Link(), **kw), 0.01,
+     [0.3, -0.2, 0.3, -0.2, 0.0, 0.0, 0.0, 0.0], None, (0.0, 0.3), {"Q": Q8, "R": R2}),
+    ("ekf-general-output", lambda **kw: make_observer("ekf", MixedOutput(), **kw), 0.05,
+     [0.1, 0.0], None, (0.0, 1.0), {"Q": Q2, "R": R1}),
+    ("ukf-pendulum-estimate",
+     lambda **kw: make_observer("ukf", Pendulum(), estimate=("g",), theta_hat0=[9.0], **kw),
+     0.01, [0.3, 0.0], [9.0], (0.0, 0.5), {"Q": Q2, "R": R1, "Q_theta": QT, **SIGMA}),
+    ("ukf-general-output", lambda **kw: make_observer("ukf", MixedOutput(), **kw), 0.05,
+     [0.1, 0.0], None, (0.0, 1.0), {"R": R1, **SIGMA}),
+    ("ekf_mujoco-pendulum-estimate",
+     lambda **kw: make_observer("ekf_mujoco", Pendulum(), estimate=("damping",),
+                                theta_hat0=[0.05], **kw),
+     0.002, [0.3, 0.0], [0.05], (0.0, 0.5), {"Q": Q2, "R": R1, "Q_theta": QT}),
+    ("ukf_mujoco-pendulum", lambda **kw: make_observer("ukf_mujoco", Pendulum(), **kw), 0.002,
+     [0.3, 0.0], None, (0.0, 0.5), {"Q": Q2, "R": R1, **SIGMA}),
+]
+
+
+@pytest.mark.parametrize("make,dt,x0,th0,u_level,values",
+                         [pytest.param(*c[1:], id=c[0]) for c in TUNED])
+def test_members_with_their_own_parameters_equal_single_runs(make, dt, x0, th0, u_level,
+                                                             values):
+    """Four members, each with its own Q, R (Q_theta; alpha, beta, kappa) (member 3 with
+    member 0's), as one batch through the pure step: each equals the filter constructed with
+    its values run alone, bit for bit (estimate, parameters, covariance, dropouts, the
+    measurement update ``filtered``); the state passed to ``step`` is left as it was."""
+    nb, T_ = 4, 60
+    ob = make()
+    Y, U = _streams(ob, dt, x0, 0.05, u_level, seed=21)
+    Y, U = Y[:nb, :T_].copy(), U[:nb, :T_].copy()
+    Y[1, 5] = np.nan  # a dropout for sure, besides the random ones
+    X0, TH0 = _initial(x0, 0.05, th0, seed=22)
+    X0, TH0 = X0[:nb], None if TH0 is None else TH0[:nb]
+    per = {k: [*v, v[0]] for k, v in values.items()}
+    params = ob.parameters(nb, **per)
+    assert set(params.fields) == set(ob.parameter_names) >= set(values)
+    assert len(params.groups()) == 3
+    state = ob.init(nb, X0, params=params, theta_hat0=TH0)
+    before = state.copy()
+    new, blk = ob.step(params, state, Y, U, dt)
+    for k, v in before.fields.items():
+        np.testing.assert_array_equal(state.fields[k], v)
+    assert np.isnan(Y).any() and np.all(np.isfinite(blk.x_hat))
+    np.testing.assert_array_equal(new.dropouts, np.isnan(Y).any(axis=2).sum(axis=1))
+    ob.reset(X0, params=params, theta_hat0=TH0)
+    advance(ob, Y[:, :-1], U[:, :-1], dt)
+    current = ob.filtered(Y[:, -1])
+    for b in range(nb):
+        one = make(**{k: v[b] for k, v in per.items()})
+        p1 = one.parameters(1)
+        for k in values:
+            np.testing.assert_array_equal(p1.fields[k][0], params.fields[k][b])
+        s1 = one.init(1, X0[b], params=p1, theta_hat0=None if TH0 is None else TH0[b])
+        s1, r = one.step(p1, s1, Y[b:b + 1], U[b:b + 1], dt)
+        np.testing.assert_array_equal(r.x_hat[0], blk.x_hat[b])
+        np.testing.assert_array_equal(r.z_hat[0], blk.z_hat[b])
+        np.testing.assert_array_equal(r.diagnostics[0], blk.diagnostics[b])
+        np.testing.assert_array_equal(s1.x[0], new.x[b])
+        np.testing.assert_array_equal(s1.P[0], new.P[b])
+        one.reset(X0[b], theta_hat0=None if TH0 is None else TH0[b])
+        advance(one, Y[b:b + 1, :-1], U[b:b + 1, :-1], dt)
+        np.testing.assert_array_equal(one.filtered(Y[b, -1]), current[b])
+    # the members do differ: a batch with member 0's parameters throughout gives other rows
+    same = ob.parameters(nb, **{k: v[0] for k, v in values.items()})
+    _, other = ob.step(same, ob.init(nb, X0, params=same, theta_hat0=TH0), Y, U, dt)
+    assert not np.array_equal(other.x_hat[1], blk.x_hat[1])
+    np.testing.assert_array_equal(other.x_hat[3], blk.x_hat[3])
+
+
+def test_parameters_refuse_what_the_constructor_refuses():
+    ekf = make_observer("ekf", Pendulum(), estimate=("mass",), theta_hat0=[0.2], R=1e-4)
+    ukf = make_observer("ukf", Pendulum(), R=1e-4)
+    assert ekf.parameter_names == ("Q", "R", "Q_theta")
+    assert ukf.parameter_names == ("Q", "R", "alpha", "beta", "kappa")
+    p = ekf.parameters(1)
+    assert p.Q.shape == (1, 2, 2) and p.R.shape == (1, 1, 1) and p.Q_theta.shape == (1, 1, 1)
+    np.testing.assert_array_equal(p.Q[0], 1e-4 * np.eye(2))  # the constructor's scalar, as used
+    good = [[[1e-4]], [[1e-4]], [[1e-4]]]
+    with pytest.raises(DesignError, match=r"R must be positive definite; found eigenvalues \[0.0\]"):
+        ekf.parameters(3, R=[[[1e-4]], [[0.0]], [[1e-4]]])
+    with pytest.raises(DesignError, match=r"Q must be positive semi-definite; found eigenvalues "
+                                          r"\[-1.0, 1.0\]"):
+        ekf.parameters(3, Q=[np.eye(2), [[0.0, 1.0], [1.0, 0.0]], np.eye(2)], R=good)
+    with pytest.raises(DesignError, match="Q must be symmetric"):
+        ekf.parameters(2, Q=[[[1.0, 0.5], [0.0, 1.0]], np.eye(2)])
+    with pytest.raises(DesignError, match="Q_theta must be positive semi-definite"):
+        ekf.parameters(2, Q_theta=[[[1e-5]], [[-1.0]]])
+    with pytest.raises(DimensionError, match="parameter Q must have shape"):
+        ekf.parameters(2, Q=np.eye(3))
+    with pytest.raises(DesignError, match=r"alpha\^2 \(N \+ kappa\) must be > 0"):
+        ukf.parameters(3, kappa=[0.0, -5.0, 1.0])
+    with pytest.raises(DesignError, match="alpha must be"):
+        ukf.parameters(2, alpha=[1.0, 0.0])
+    with pytest.raises(DesignError, match="beta must be"):
+        ukf.parameters(2, beta=[1.0, np.inf])
+    with pytest.raises(DesignError, match=r"unknown parameter\(s\) \['Q_theta'\]"):
+        ukf.parameters(2, Q_theta=1e-6)
