@@ -620,6 +620,10 @@ class BesanconObserver(Observer):
         if name == "lam":
             return np.array(finite_scalar("lam", value, positive=True))
         if name == "K0":
+            a = np.asarray(value, dtype=object)
+            if a.ndim == 1 and a.shape != (self.n,) and all(np.ndim(v) == 0 for v in a):
+                raise DimensionError(f"K0 must have n = {self.n} gains (the chains' gains "
+                                     f"concatenated) or one array per chain; found {a.size}")
             if np.shape(value) == (self.n,):  # the chains' gains concatenated
                 return np.concatenate(self._chain_gains(
                     [np.asarray(value)[fi:fi + o] for fi, o in zip(self.form.firsts,

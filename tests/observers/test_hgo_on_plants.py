@@ -157,4 +157,4 @@ def test_model_term_matches_the_array_formula(system, bounded):
     M, b, g = one_step_map(ob.p, 40.0, dt, "exact")
     zs = z0 if bounds is None else np.clip(z0, *bounds)
     ref = M @ z0 + b * y[0] + g * system.phi(zs, u)
-    np.testing.assert_allclose(ob._Z[0], ref, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(ob.state.z[0], ref, rtol=1e-13, atol=1e-13)
