@@ -43,15 +43,9 @@ from .environments import (
 from .vector import HgoVectorEnv, vector_entry_point
 
 #: registered id -> environment class
-ENVIRONMENTS: dict[str, type[HgoEnv]] = {
-    "hgo_mj/PendulumSwingUp-v0": PendulumSwingUpEnv,
-    "hgo_mj/CartPendulumBalance-v0": CartPendulumBalanceEnv,
-    "hgo_mj/ElasticJointReach-v0": ElasticJointReachEnv,
-    "hgo_mj/ElasticJoint2LinkReach-v0": ElasticJoint2LinkReachEnv,
-    "hgo_mj/FurutaSwingUp-v0": FurutaSwingUpEnv,
-    "hgo_mj/AcrobotSwingUp-v0": AcrobotSwingUpEnv,
-    "hgo_mj/CartPoleSwingUp-v0": CartPoleSwingUpEnv,
-}
+ENVIRONMENTS: dict[str, type[HgoEnv]] = {str(cls.env_id): cls for cls in (
+    PendulumSwingUpEnv, CartPendulumBalanceEnv, ElasticJointReachEnv, ElasticJoint2LinkReachEnv,
+    FurutaSwingUpEnv, AcrobotSwingUpEnv, CartPoleSwingUpEnv)}
 
 
 def register_all() -> None:

@@ -910,6 +910,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 50}
     task_class: ClassVar[type[Task] | None] = None
+    #: the id the class is registered under (:data:`hgo_mj.envs.ENVIRONMENTS`); None: none
+    env_id: ClassVar[str | None] = None
 
     def __init__(self, *, task: Task | None = None, observer: Any = "default",
                  observer_kwargs: Mapping[str, Any] | None = None, sensor: Any = "default",
@@ -1407,11 +1409,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         """
         from hgo_mj.simulate import package_versions
 
-        from . import ENVIRONMENTS
-
-        spec = getattr(self, "spec", None)
-        env_id = spec.id if spec is not None else next(
-            (k for k, c in ENVIRONMENTS.items() if c is type(self)), None)
+        spec = getattr(self, "spec", None)  # else the class's own id (a subclass has none)
+        env_id = spec.id if spec is not None else vars(type(self)).get("env_id")
         obs = self.observer
         observers = {}
         if obs is not None:

@@ -169,6 +169,7 @@ class PendulumSwingUpEnv(HgoEnv):
     start_noise : float, default 0.1
         Half width of the initial state draw [rad, rad/s].""", "(3,)", "-9.71")
     task_class = SwingUpTask
+    env_id = "hgo_mj/PendulumSwingUp-v0"
 
 
 class CartPendulumBalanceEnv(HgoEnv):
@@ -231,6 +232,7 @@ class CartPendulumBalanceEnv(HgoEnv):
     start_noise : float, default 0.2
         Half width of the initial state draw.""", "(2,)", "1.0")
     task_class = BalanceTask
+    env_id = "hgo_mj/CartPendulumBalance-v0"
 
 
 class ElasticJointReachEnv(HgoEnv):
@@ -305,6 +307,7 @@ class ElasticJointReachEnv(HgoEnv):
     max_cost : float, default 10.0
         Bound of the per-step cost.""", "(5,)", "-0.24")
     task_class = ReachTask
+    env_id = "hgo_mj/ElasticJointReach-v0"
 
 
 class ElasticJoint2LinkReachEnv(HgoEnv):
@@ -381,6 +384,7 @@ class ElasticJoint2LinkReachEnv(HgoEnv):
     max_cost : float, default 10.0
         Bound of the per-step cost.""", "(10,)", "-1.11")
     task_class = Reach2LinkTask
+    env_id = "hgo_mj/ElasticJoint2LinkReach-v0"
 
 
 class FurutaSwingUpEnv(HgoEnv):
@@ -445,6 +449,7 @@ class FurutaSwingUpEnv(HgoEnv):
     start_noise : float, default 0.05
         Half width of the initial state draw.""", "(6,)", "-9.72")
     task_class = FurutaSwingUpTask
+    env_id = "hgo_mj/FurutaSwingUp-v0"
 
 
 class AcrobotSwingUpEnv(HgoEnv):
@@ -508,6 +513,7 @@ class AcrobotSwingUpEnv(HgoEnv):
     start_noise : float, default 0.05
         Half width of the initial state draw.""", "(6,)", "-9.79")
     task_class = AcrobotSwingUpTask
+    env_id = "hgo_mj/AcrobotSwingUp-v0"
 
 
 class CartPoleSwingUpEnv(HgoEnv):
@@ -573,6 +579,7 @@ class CartPoleSwingUpEnv(HgoEnv):
     start_noise : float, default 0.05
         Half width of the initial state draw.""", "(5,)", "-9.72")
     task_class = CartPoleSwingUpTask
+    env_id = "hgo_mj/CartPoleSwingUp-v0"
 
 
 __all__ = ["AcrobotSwingUpEnv", "CartPendulumBalanceEnv", "CartPoleSwingUpEnv",
