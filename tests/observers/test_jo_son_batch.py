@@ -153,7 +153,7 @@ def _example(lam, gamma):
 
 
 def _motor_side(lam, gamma):
-    return JoSonObserver(form=JoSonForm.elastic_joint_motor_side(), lam=lam, gamma=gamma,
+    return JoSonObserver(form=jo_son_motor_side(), lam=lam, gamma=gamma,
                          excitation_window=0.05)
 
 

@@ -321,7 +321,8 @@ def test_parameters_refuse_what_the_constructor_refuses():
         ekf.parameters(2, Q=[[[1.0, 0.5], [0.0, 1.0]], np.eye(2)])
     with pytest.raises(DesignError, match="Q_theta must be positive semi-definite"):
         ekf.parameters(2, Q_theta=[[[1e-5]], [[-1.0]]])
-    with pytest.raises(DimensionError, match="parameter Q must have shape"):
+    with pytest.raises(DimensionError, match=r"Q must be a scalar, a length-2 vector or a 2x2 "
+                                             r"matrix; found shape \(3, 3\)"):
         ekf.parameters(2, Q=np.eye(3))
     with pytest.raises(DesignError, match=r"alpha\^2 \(N \+ kappa\) must be > 0"):
         ukf.parameters(3, kappa=[0.0, -5.0, 1.0])
