@@ -74,6 +74,16 @@ class Setup:
         The window of the steady-state scores starts here (seconds).
     n_outputs : int
         The measured outputs the observer reads (the expected mean NIS).
+
+    Examples
+    --------
+    Built by :func:`setup`:
+
+    >>> sc = {"plant": {"name": "pendulum", "dt": 0.01}, "run": {"duration": 1.0},
+    ...       "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}]}
+    >>> s = setup(sc, "hgo")
+    >>> isinstance(s, Setup), s.observer, s.n_outputs
+    (True, 'hgo', 1)
     """
 
     scenario: dict[str, Any]
@@ -109,6 +119,17 @@ class Scores:
         ``(R, S)``: mean normalized innovation squared (NaN: the observer reports none).
     message : list of list of str or None
         Why a member diverged (None: it did not).
+
+    Examples
+    --------
+    Made by :func:`evaluate`:
+
+    >>> sc = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.2, 0.0]},
+    ...       "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...       "run": {"duration": 1.0}}
+    >>> scores = evaluate(setup(sc, "hgo"), [{"k": 10.0}], seeds=[0])
+    >>> scores.rmse.shape, scores.message
+    ((1, 1, 2), [[None]])
     """
 
     rmse: Array

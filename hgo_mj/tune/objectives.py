@@ -74,7 +74,7 @@ class Objective:
     >>> Objective("rms")
     Traceback (most recent call last):
     ...
-    hgo_mj.exceptions.DesignError: objective 'rms' is not a score; valid: ['rmse', 'peak', 'settling', 'output_error', 'nis']
+    hgo_mj.exceptions.DesignError: objective 'rms' is not a score; valid: ['rmse', 'peak', ...]
     """
 
     def __init__(self, spec: Any) -> None:

@@ -74,6 +74,17 @@ class TuneResult:
         The printed table: default against tuned, per scored state, with units.
     seconds : float
         Wall time of the tuning.
+
+    Examples
+    --------
+    Returned by :func:`tune`:
+
+    >>> sc = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.2, 0.0]},
+    ...       "observers": [{"type": "high_gain", "name": "hgo", "k": 5.0}],
+    ...       "run": {"duration": 1.0}}
+    >>> r = tune(sc, "hgo", budget=4, seeds=1, progress=False)
+    >>> isinstance(r, TuneResult), sorted(r.figures), list(r.trials.columns[:3])
+    (True, ['convergence'], ['number', 'state', 'k'])
     """
 
     best: dict[str, float]
@@ -305,21 +316,9 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
     """
     t_start = time.perf_counter()
     obj = Objective(objective)
-    if isinstance(budget, bool) or not isinstance(budget, int) or budget < 2:
-        raise DesignError(f"budget must be an integer >= 2 (the default and one trial); found "
-                          f"{budget!r}")
-    if isinstance(round_size, bool) or not isinstance(round_size, int) or round_size < 1:
-        raise DesignError(f"round_size must be a positive integer; found {round_size!r}")
-    if aggregate not in AGGREGATES:
-        raise DesignError(f"aggregate must be one of {list(AGGREGATES)}; found {aggregate!r}")
-    if backend not in ("local", "ray"):
-        raise DesignError(f"backend must be 'local' or 'ray'; found {backend!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int):
-        raise DesignError(f"seed must be an integer; found {seed!r}")
+    _check_arguments(budget, round_size, aggregate, backend, seed, sampler)
     seed_list = _seeds(seeds)
     models = _mismatches(mismatch)
-    if sampler not in SAMPLERS:
-        raise DesignError(f"sampler must be one of {list(SAMPLERS)}; found {sampler!r}")
     st = setup(scenario, observer, states=states, t_transient=t_transient)
     from ..scenario import scenario_run
 
@@ -359,6 +358,24 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
                    time.perf_counter() - t_start)
 
 
+def _check_arguments(budget: Any, round_size: Any, aggregate: Any, backend: Any, seed: Any,
+                     sampler: Any) -> None:
+    """:func:`tune`'s plain arguments, each named with what was expected."""
+    if isinstance(budget, bool) or not isinstance(budget, int) or budget < 2:
+        raise DesignError(f"budget must be an integer >= 2 (the default and one trial); found "
+                          f"{budget!r}")
+    if isinstance(round_size, bool) or not isinstance(round_size, int) or round_size < 1:
+        raise DesignError(f"round_size must be a positive integer; found {round_size!r}")
+    if aggregate not in AGGREGATES:
+        raise DesignError(f"aggregate must be one of {list(AGGREGATES)}; found {aggregate!r}")
+    if backend not in ("local", "ray"):
+        raise DesignError(f"backend must be 'local' or 'ray'; found {backend!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise DesignError(f"seed must be an integer; found {seed!r}")
+    if sampler not in SAMPLERS:
+        raise DesignError(f"sampler must be one of {list(SAMPLERS)}; found {sampler!r}")
+
+
 def _distributions(dims: Mapping[str, Dimension]) -> dict[str, Any]:
     import optuna
 
@@ -371,7 +388,7 @@ def _study(obj: Objective, dims: Mapping[str, Dimension], sampler: str, seed: in
     import optuna
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    directions = ["minimize"] * len(obj.terms)
+    directions: list[Any] = ["minimize"] * len(obj.terms)
     smp = _sampler(sampler, len(obj.terms), seed)
     if out is None:
         if resume:
@@ -449,7 +466,6 @@ def _runner(backend: str, jobs: int, address: str | None) -> Any:
     remote = ray.remote(evaluate)
 
     def on_ray(st: Setup, trials: list[Any], seeds: list[int], mismatch: Any) -> Scores:
-        parts = [list(range(len(trials)))[i::1] for i in range(1)]
         size = max(1, math.ceil(len(trials) / jobs))
         parts = [list(range(i, min(i + size, len(trials)))) for i in range(0, len(trials), size)]
         refs = [remote.remote(st, [trials[i] for i in p], seeds, mismatch) for p in parts]
