@@ -340,6 +340,13 @@ def _flag_int(value: Any, where: str) -> int:
     return positive_int(where, value, floats=False)
 
 
+def _flag_seed(value: str) -> int:
+    """``--seed``: an integer >= 0."""
+    if not value.strip().lstrip("+").isdigit():
+        raise DesignError(f"--seed must be an integer >= 0; found {value!r}")
+    return int(value.strip())
+
+
 def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = None, *,
               jobs: int = 1, formats: Any = None, quiet: bool = False,
               resume: bool = False) -> tuple[Any, dict[str, Any], Path, Any]:
@@ -559,6 +566,30 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--yes", action="store_true",
                     help="run a study of more than 10 million runs")
     sw.add_argument("--quiet", action="store_true", help="no plan line and no progress")
+    t = sub.add_parser("tune", help="tune a scenario's observer with Optuna (see hgo_mj.tune)")
+    t.add_argument("scenario", help="scenario TOML file (open-loop [input]; the observer in "
+                   "[[observers]])")
+    t.add_argument("--observer", required=True, metavar="NAME",
+                   help="the label of the observer to tune")
+    t.add_argument("--budget", default="64", metavar="N",
+                   help="trials in all, the untuned default included (default 64)")
+    t.add_argument("--objective", action="append", metavar="SCORE",
+                   help="rmse (default), peak, settling (ground truth), output_error, nis "
+                   "(no truth); repeat for a Pareto front")
+    t.add_argument("--seeds", default="8", metavar="N", help="tuning seeds 1..N (default 8)")
+    t.add_argument("--aggregate", choices=["mean", "worst"], default="mean",
+                   help="over the seeds (and model mismatches): mean (default) or worst")
+    t.add_argument("--sampler", choices=["tpe", "cmaes", "nsga2", "random"], default="tpe",
+                   help="Optuna's sampler (default tpe; several objectives: nsga2)")
+    t.add_argument("--seed", default="0", metavar="N", help="the sampler's seed (default 0)")
+    t.add_argument("--out", help="results folder (default runs/tune-SCENARIO-OBSERVER)")
+    t.add_argument("--resume", action="store_true",
+                   help="go on with the study in OUT (the same tuning only)")
+    t.add_argument("--backend", choices=["local", "ray"], default="local",
+                   help="where the rounds run (default local)")
+    t.add_argument("--jobs", default="1", metavar="N", help="Ray workers a round is split over")
+    t.add_argument("--address", help="a Ray cluster's address (default a local instance)")
+    t.add_argument("--quiet", action="store_true", help="no progress on stderr")
     c = sub.add_parser("check", help="which observer applies to a plant, and why")
     c.add_argument("target", metavar="PLANT-OR-SCENARIO",
                    help="a registered plant name (see `hgo-mj list`) or a scenario TOML file")
@@ -577,6 +608,32 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
     d.add_argument("--no-rrd", dest="no_rrd", action="store_true", help="write no recording")
     return ap
+
+
+def cmd_tune(args: argparse.Namespace) -> int:
+    """``hgo-mj tune SCENARIO --observer NAME``: search the observer's tuning space, write
+    trials.parquet, best.toml, summary.txt and figures, print the summary."""
+    from .tune import tune
+    from .tune.tuner import SCENARIO_TABLES
+
+    sc = load_scenario_file(args.scenario)
+    extra = sorted(set(sc) - SCENARIO_TABLES)
+    if extra:
+        raise DesignError(f"scenario {args.scenario!r}: tables {extra} are not part of a tuning "
+                          f"scenario (a [sweep] belongs to hgo-mj sweep)")
+    out = Path(args.out or f"runs/tune-{Path(args.scenario).stem}-{args.observer}")
+    result = tune(sc, args.observer, objective=args.objective or "rmse",
+                  budget=_flag_int(args.budget, "--budget"),
+                  seeds=_flag_int(args.seeds, "--seeds"), aggregate=args.aggregate,
+                  sampler=args.sampler, seed=_flag_seed(args.seed), out=out,
+                  resume=args.resume, backend=args.backend,
+                  jobs=_flag_int(args.jobs, "--jobs"), address=args.address,
+                  progress=not args.quiet)
+    print(result.summary)
+    print(f"wrote {out}/trials.parquet ({len(result.trials)} trials), best.toml, summary.txt, "
+          f"{', '.join(f'{k}.png' for k in result.figures)} and study.db in "
+          f"{result.seconds:.1f} s")
+    return 0
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -694,6 +751,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "sweep":
             return cmd_sweep(args)
+        if args.command == "tune":
+            return cmd_tune(args)
         if args.command == "check":
             return cmd_check(args.target, args.sample_period)
         if args.command == "reproduce":

@@ -847,10 +847,10 @@ class Observer(ABC):
 
         Examples
         --------
-        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.observers import make_observer
         >>> from hgo_mj.systems import SYSTEMS
-        >>> HighGainObserver(SYSTEMS["pendulum"](), k=10.0).tuning_space()["k"]
-        Dimension(name='k', low=1.0, high=100.0, log=True, default=10.0)
+        >>> make_observer("riccati", SYSTEMS["pendulum"](), gamma=20.0).tuning_space()["gamma"]
+        Dimension(name='gamma', low=2.0, high=200.0, log=True, default=20.0)
         """
         out: dict[str, Dimension] = {}
         span = self.TUNING_SPAN

@@ -60,7 +60,7 @@ from .._validate import boolean, finite_scalar, one_of, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
 from ..exceptions import DesignError, DimensionError
 from ..systems.base import System, derivative_names
-from .base import Array, Observer, Params, State, batch_rows, register
+from .base import Array, Dimension, Observer, Params, State, batch_rows, register
 
 __all__ = ["METHODS", "HighGainObserver", "MultiOutputHighGainObserver", "matched_gain",
            "one_step_map"]
@@ -566,6 +566,14 @@ class HighGainObserver(_Chains, Observer):
     def _parameters(self) -> dict[str, Any]:
         """The gain ``k`` and the Hurwitz coefficients ``p`` (paper 000, eq. 2-3)."""
         return {"k": self.k_, "p": self.p}
+
+    def tuning_space(self) -> dict[str, Dimension]:
+        """The gain ``k`` over ``[k / 10, 100 k]`` on a log scale: a high gain trades the
+        rejection of the unmodelled ``phi`` against noise amplified by ``k^(i-1)`` in the
+        ``i``-th estimate (paper 000, eq. 3), so the optimum is often well above a hand-set
+        ``k``. (``p`` stays as given: a search over Hurwitz polynomials is not declared.)"""
+        k = self.k_
+        return {"k": Dimension("k", k / 10.0, k * 100.0, True, k)}
 
     def _check_parameter(self, name: str, value: Any) -> Array:
         if name == "k":

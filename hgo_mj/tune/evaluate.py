@@ -141,7 +141,8 @@ class Scores:
 
 
 def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] | None = None,
-          t_transient: float | None = None) -> Setup:
+          t_transient: float | None = None,
+          mismatches: Sequence[Mapping[str, Any] | None] = ()) -> Setup:
     """Build a tuning's fixed part from a scenario: check it, simulate its plant once.
 
     Parameters
@@ -155,6 +156,9 @@ def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] |
     t_transient : float, optional
         Start of the steady-state window, seconds (default 0.2 times the duration, as
         :func:`hgo_mj.metrics.observer_metrics`).
+    mismatches : sequence of mapping or None
+        Models of the observer (``system_params``) the tuning will use: each is built here,
+        so that a wrong one is refused before the plant runs.
 
     Returns
     -------
@@ -164,8 +168,8 @@ def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] |
     ------
     DesignError
         A closed-loop scenario (a ``[controller]``: the plant's run would depend on the
-        estimate), an observer the scenario does not have, or states the plant does not have
-        or the observer does not estimate.
+        estimate), an observer the scenario does not have, states the plant does not have
+        or the observer does not estimate, or a model mismatch the observer's system refuses.
 
     Examples
     --------
@@ -191,10 +195,6 @@ def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] |
     plant = kw["plant"]
     periods = Periods.of(plant, kw["sample_period"], kw["control_period"])
     N = int(round(float(kw["duration"]) / periods.sample))
-    x0 = kw.get("x0")
-    x0s = np.reshape(np.asarray(plant.system.default_x0 if x0 is None else x0, dtype=float),
-                     (1, -1))
-    X, Yc = plant_rows(plant, kw["inputs"], periods, N, x0s)
     estimated = [s for s in plant.state_names if s in ob.state_names]
     if states is None:
         chosen = tuple(estimated)
@@ -207,28 +207,41 @@ def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] |
     if not chosen:
         raise DesignError(f"observer {observer!r} estimates none of the plant's states "
                           f"{list(plant.state_names)}: nothing to score")
+    tt = 0.2 * (N * periods.sample) if t_transient is None else float(t_transient)
+    if not (math.isfinite(tt) and 0 <= tt < N * periods.sample):
+        raise DesignError(f"t_transient must lie in [0, duration); found {t_transient!r}")
+    for m in mismatches:
+        if m:
+            scenario_run(_with_model(sc, observer, m))
+    x0 = kw.get("x0")
+    x0s = np.reshape(np.asarray(plant.system.default_x0 if x0 is None else x0, dtype=float),
+                     (1, -1))
+    X, Yc = plant_rows(plant, kw["inputs"], periods, N, x0s)  # the work: checks are done
     idx = [list(plant.state_names).index(s) for s in chosen]
     with np.errstate(invalid="ignore"):
         ptp = np.ptp(X[0, :, idx], axis=1)
     ranges = np.where(np.isfinite(ptp) & (ptp > 0), ptp, 1.0)
-    tt = 0.2 * (N * periods.sample) if t_transient is None else float(t_transient)
-    if not (math.isfinite(tt) and 0 <= tt < N * periods.sample):
-        raise DesignError(f"t_transient must lie in [0, duration); found {t_transient!r}")
     return Setup(sc, observer, plant, periods, N, X, Yc, chosen, ranges, tt, len(ob.outputs))
 
 
-def _observer(s: Setup, mismatch: Mapping[str, Any] | None) -> Any:
-    """The scenario's run with the tuned observer alone, its model's parameters overridden
-    by ``mismatch`` (``system_params`` of its spec)."""
-    from ..scenario import scenario_run
-
-    sc = copy.deepcopy(s.scenario)
-    specs = [o for o in sc.get("observers", []) if o.get("name", o.get("type")) == s.observer]
+def _with_model(scenario: Mapping[str, Any], observer: str,
+                mismatch: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The scenario with the tuned observer alone, its model's parameters overridden by
+    ``mismatch`` (``system_params`` of its spec)."""
+    sc = copy.deepcopy(dict(scenario))
+    specs = [o for o in sc.get("observers", []) if o.get("name", o.get("type")) == observer]
     if mismatch:
         spec = specs[0]
         spec["system_params"] = {**(spec.get("system_params") or {}), **dict(mismatch)}
     sc["observers"] = specs
-    return scenario_run(sc)
+    return sc
+
+
+def _observer(s: Setup, mismatch: Mapping[str, Any] | None) -> Any:
+    """The scenario's run with the tuned observer alone (:func:`_with_model`)."""
+    from ..scenario import scenario_run
+
+    return scenario_run(_with_model(s.scenario, s.observer, mismatch))
 
 
 def evaluate(s: Setup, trials: Sequence[Mapping[str, Any]], seeds: Sequence[int],

@@ -44,6 +44,8 @@ from .objectives import AGGREGATES, Objective, objective_values
 __all__ = ["SAMPLERS", "TuneResult", "check_space", "tune"]
 
 SAMPLERS = ("tpe", "cmaes", "nsga2", "random")
+#: the tables a tuning scenario may have
+SCENARIO_TABLES = frozenset({"name", "plant", "sensor", "observers", "input", "run"})
 #: trials per round by default (a round is one batch of trials x seeds)
 ROUND = 16
 STUDY_NAME = "hgo_mj-tune"
@@ -319,10 +321,19 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
     _check_arguments(budget, round_size, aggregate, backend, seed, sampler)
     seed_list = _seeds(seeds)
     models = _mismatches(mismatch)
-    st = setup(scenario, observer, states=states, t_transient=t_transient)
     from ..scenario import scenario_run
 
-    ob: Observer = scenario_run(st.scenario)["observers"][observer]
+    if not isinstance(scenario, Mapping):
+        raise DesignError(f"scenario must be a table (a parsed scenario file); found "
+                          f"{type(scenario).__name__}")
+    if "controller" in scenario:
+        raise DesignError("tuning replays one plant run to every trial: it needs an open-loop "
+                          "[input], not a [controller]")
+    built = scenario_run(dict(scenario))["observers"]
+    if observer not in built:
+        raise DesignError(f"observer {observer!r} is not in the scenario; it has "
+                          f"{list(built)}")
+    ob: Observer = built[observer]
     dims = check_space(ob, space)
     if not obj.needs_truth and "output_error" in obj.scores and ob.predicted_output(
             np.zeros((1, len(ob.state_names))), np.zeros((1, ob.n))) is None:
@@ -330,10 +341,8 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
     if "nis" in obj.scores and "nis" not in ob.diagnostic_names:
         raise DesignError(f"objective nis: observer {ob.name!r} reports no NIS (a Kalman "
                           f"filter does)")
-    for m in models:  # each model mismatch must build, before any work
-        if m is not None:
-            from .evaluate import _observer
-            _observer(st, m)
+    _check_out(out, resume)
+    st = setup(scenario, observer, states=states, t_transient=t_transient, mismatches=models)
     study, folder = _study(obj, dims, sampler, seed, out, resume,
                            _fingerprint(st.scenario, observer, dims, obj, seed_list, models,
                                         aggregate, states))
@@ -383,6 +392,21 @@ def _distributions(dims: Mapping[str, Dimension]) -> dict[str, Any]:
             for k, d in dims.items()}
 
 
+def _check_out(out: str | Path | None, resume: bool) -> None:
+    """``out`` and ``resume`` agree with what is on disk (before any work)."""
+    if out is None:
+        if resume:
+            raise DesignError("resume needs out (the folder of the study to go on with)")
+        return
+    folder = check_writable("out", out, folder=True)
+    db = folder / "study.db"
+    if db.exists() and not resume:
+        raise DesignError(f"{db} exists: resume=True (--resume) goes on with it, or choose "
+                          f"another out")
+    if resume and not db.exists():
+        raise DesignError(f"resume: no study in {folder} (expected {db.name})")
+
+
 def _study(obj: Objective, dims: Mapping[str, Dimension], sampler: str, seed: int,
            out: str | Path | None, resume: bool, fingerprint: str) -> tuple[Any, Path | None]:
     import optuna
@@ -391,17 +415,10 @@ def _study(obj: Objective, dims: Mapping[str, Dimension], sampler: str, seed: in
     directions: list[Any] = ["minimize"] * len(obj.terms)
     smp = _sampler(sampler, len(obj.terms), seed)
     if out is None:
-        if resume:
-            raise DesignError("resume needs out (the folder of the study to go on with)")
         return optuna.create_study(sampler=smp, directions=directions), None
-    folder = check_writable("out", out, folder=True)
+    folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     db = folder / "study.db"
-    if db.exists() and not resume:
-        raise DesignError(f"{db} exists: resume=True (--resume) goes on with it, or choose "
-                          f"another out")
-    if resume and not db.exists():
-        raise DesignError(f"resume: no study in {folder} (expected {db.name})")
     study = optuna.create_study(storage=f"sqlite:///{db}", study_name=STUDY_NAME,
                                 sampler=smp, directions=directions, load_if_exists=True)
     found = study.user_attrs.get("fingerprint")
@@ -448,9 +465,23 @@ def _finish_pending(study: Any, st: Setup, obj: Objective, dims: Mapping[str, Di
 
 def _score(st: Setup, obj: Objective, ob: Observer, params: list[dict[str, float]],
            seeds: list[int], models: list[Any], aggregate: str, runner: Any) -> np.ndarray:
+    """The objective values ``(R, n_objectives)`` of the trials ``params``; a trial the
+    observer refuses as a whole (a condition between its parameters, e.g. the adaptive gain's
+    ``lam_hat > lam``) is not run and scores inf."""
     trials = [ob.tuned_parameters(p) for p in params]
-    rounds = [runner(st, trials, seeds, m) for m in models]
-    return objective_values(obj, st, rounds, aggregate)
+    ok = []
+    for t in trials:
+        try:
+            ob.parameters(1, **t)
+            ok.append(True)
+        except DesignError:
+            ok.append(False)
+    out = np.full((len(trials), len(obj.terms)), np.inf)
+    valid = [t for t, good in zip(trials, ok) if good]
+    if valid:
+        rounds = [runner(st, valid, seeds, m) for m in models]
+        out[np.flatnonzero(ok)] = objective_values(obj, st, rounds, aggregate)
+    return out
 
 
 def _runner(backend: str, jobs: int, address: str | None) -> Any:
