@@ -868,8 +868,9 @@ class Observer(ABC):
 
     def tuned_parameters(self, values: dict[str, float]) -> dict[str, Any]:
         """The parameter values (for :meth:`parameters`) of search values over
-        :meth:`tuning_space`: a scalar as it is, a diagonal entry ``"Q[i]"`` into a copy of the
-        constructor's matrix; a parameter not searched keeps its value.
+        :meth:`tuning_space`: a scalar as it is, an entry ``"Q[i]"`` into a copy of the
+        constructor's value (a diagonal entry of a matrix, an entry of a vector); a parameter
+        not searched keeps its value.
 
         Parameters
         ----------
@@ -909,7 +910,10 @@ class Observer(ABC):
             if m is None:
                 m = out[name] = np.array(defaults[name], dtype=np.float64)
             i = int(index.rstrip("]"))
-            m[i, i] = float(v)
+            if m.ndim == 1:  # an entry of a vector (a gain per chain)
+                m[i] = float(v)
+            else:  # a diagonal entry of a matrix (a covariance)
+                m[i, i] = float(v)
         return out
 
     # --------------------------------------------------------- data: the pure API

@@ -917,6 +917,12 @@ class MultiOutputHighGainObserver(_Chains, Observer):
         """The gain of each chain, ``k`` ``(len(orders),)`` (paper 001, eq. 5)."""
         return {"k": np.array(self.ks)}
 
+    def tuning_space(self) -> dict[str, Dimension]:
+        """Each chain's gain ``k[c]`` over ``[k_c / 10, 100 k_c]``, log scale (as
+        :meth:`HighGainObserver.tuning_space`)."""
+        return {f"k[{c}]": Dimension(f"k[{c}]", k / 10.0, k * 100.0, True, k)
+                for c, k in enumerate(self.ks)}
+
     def _check_parameter(self, name: str, value: Any) -> Array:
         ks = _per_chain("k", value, len(self.orders))
         return np.array([finite_scalar(f"k[{c}]", kc, positive=True) for c, kc in enumerate(ks)])

@@ -149,3 +149,16 @@ def test_a_killed_driver_leaves_no_ray_processes(tmp_path):
         for p in ray_procs:
             if _alive(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def test_tuning_on_ray_gives_the_local_result(local_ray):
+    """``tune(backend="ray")``: a round's trials scored in parts as Ray tasks on the local
+    instance (127.0.0.1); the same seed gives the same trials and values as locally."""
+    from hgo_mj.tune import tune
+
+    sc = {**BASE, "run": {"duration": 1.0}}
+    local = tune(sc, "hgo", budget=8, seeds=2, round_size=4, progress=False)
+    on_ray = tune(sc, "hgo", budget=8, seeds=2, round_size=4, backend="ray", jobs=2,
+                  progress=False)
+    pd.testing.assert_frame_equal(local.trials, on_ray.trials)
+    assert local.best == on_ray.best
