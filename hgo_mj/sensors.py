@@ -629,12 +629,16 @@ class RandomWalkDrift(Stage):
         Random-walk intensity, >= 0, in output units per sqrt(second), per channel.
     initial : float or array_like, default 0
         Initial bias, per channel.
+    initial_std : float or array_like, default 0
+        A turn-on bias drawn per stream: the initial bias is ``initial + N(0, initial_std**2)``
+        (the first sample's draw; a MEMS gyro's bias repeatability), per channel, >= 0.
 
     Raises
     ------
     DesignError
         When ``t`` decreases, within a block or from one block to the next (call
-        :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting).
+        :meth:`SensorChain.reset` or :meth:`SensorChain.restart` before restarting); a
+        negative ``sigma`` or ``initial_std``.
 
     Examples
     --------
@@ -652,12 +656,16 @@ class RandomWalkDrift(Stage):
     summary = "random-walk bias: b += N(0, sigma^2 dt) each call, output y + b"
     draws = "standard_normal"
 
-    def __init__(self, sigma: float | ArrayLike, initial: float | ArrayLike = 0.0) -> None:
+    def __init__(self, sigma: float | ArrayLike, initial: float | ArrayLike = 0.0,
+                 initial_std: float | ArrayLike = 0.0) -> None:
         super().__init__()
         self._sigma = _channel_param("RandomWalkDrift.sigma", sigma, "nonneg")
         self._initial = _channel_param("RandomWalkDrift.initial", initial, "real")
+        self._initial_std = _channel_param("RandomWalkDrift.initial_std", initial_std, "nonneg")
         self._params = {"sigma": _json(self._sigma), "initial": _json(self._initial)}
-        self._channels(sigma=self._sigma, initial=self._initial)
+        if np.any(self._initial_std != 0):
+            self._params["initial_std"] = _json(self._initial_std)
+        self._channels(sigma=self._sigma, initial=self._initial, initial_std=self._initial_std)
 
     @property
     def bias(self) -> Array | None:
@@ -691,7 +699,9 @@ class RandomWalkDrift(Stage):
         if first:
             b0 = np.zeros((B, p))
             b0 += self._initial
-            inc[:, 0] = b0          # the first sample sets the initial bias (its draw unused)
+            if np.any(self._initial_std != 0):  # the turn-on bias: the first sample's draw
+                b0 += z[:, 0] * self._initial_std
+            inc[:, 0] = b0          # the first sample sets the initial bias
         else:
             inc[:, 0] += st["b"]    # the bias so far plus the first increment
         b = np.cumsum(inc, axis=1)

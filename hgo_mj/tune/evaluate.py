@@ -117,6 +117,13 @@ class Scores:
         predicts no output).
     nis : ndarray
         ``(R, S)``: mean normalized innovation squared (NaN: the observer reports none).
+    iae : ndarray
+        ``(R, S)``: the integral over the first second of the norm of the error normalized by
+        each scored state's range (seconds; the transient score of the benchmark).
+    peaking : ndarray
+        ``(R, S)``: the largest normalized error norm over the normalized initial error norm.
+    update_time : ndarray
+        ``(R,)``: seconds per observer update and member, warm (the loop's wall clock).
     message : list of list of str or None
         Why a member diverged (None: it did not).
 
@@ -137,6 +144,9 @@ class Scores:
     settling: Array
     output_error: Array
     nis: Array
+    iae: Array
+    peaking: Array
+    update_time: Array
     message: list[list[str | None]]
 
 
@@ -284,6 +294,7 @@ def evaluate(s: Setup, trials: Sequence[Mapping[str, Any]], seeds: Sequence[int]
     k = len(s.states)
     out = Scores(np.full((R, S, k), np.inf), np.full((R, S, k), np.inf),
                  np.full((R, S, k), np.inf), np.full((R, S), np.inf), np.full((R, S), np.inf),
+                 np.full((R, S), np.inf), np.full((R, S), np.inf), np.full(R, np.nan),
                  [[None] * S for _ in range(R)])
     if R == 0 or S == 0:
         return out
@@ -344,6 +355,11 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
     sq, n_sq = np.zeros(B), 0
     nis_col = ob.diagnostic_names.index("nis") if "nis" in ob.diagnostic_names else None
     nis_sum = np.zeros(B)
+    pidx = [list(s.plant.state_names).index(st) for st in s.states]
+    oidx = [list(ob.state_names).index(st) for st in s.states]
+    n_first = int(round(1.0 / Ts))  # the samples of the first second
+    iae, peak_e = np.zeros(B), np.zeros(B)
+    e0 = None
     while loop.k < s.N:
         k0, T = loop.k, drive.length(loop.k, s.N, segment_length(B))
         seg = loop.segment(drive.inputs(loop, T))
@@ -352,6 +368,13 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
         # the estimate before each sample: prev for the first, then the block's rows
         xb = np.concatenate([prev[0][:, None], blk.x_hat[:, :-1]], axis=1)
         zb = np.concatenate([prev[1][:, None], blk.z_hat[:, :-1]], axis=1)
+        en = np.linalg.norm((seg.x[:, :, pidx] - xb[:, :, oidx]) / s.ranges, axis=2)
+        if e0 is None:
+            e0 = en[:, 0].copy()
+        with np.errstate(invalid="ignore"):
+            peak_e = np.fmax(peak_e, np.max(np.where(np.isfinite(en), en, np.inf), axis=1))
+        if k0 < n_first:
+            iae += np.sum(en[:, :n_first - k0], axis=1) * Ts
         yh = ob.predicted_output(xb, zb)
         lo = max(first - k0, 0)
         if yh is not None and lo < T:
@@ -368,6 +391,9 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
     idx = [list(s.plant.state_names).index(st) for st in s.states]
     n_win = max(s.N - first, 1)
     oe = np.sqrt(sq / max(n_sq, 1)) if n_sq else np.full(B, np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        peaking = np.where(e0 > 0, peak_e / e0, np.nan) if e0 is not None else np.full(B, np.nan)
+    wall = loop.wall[name] / (max(s.N, 1) * B)
     nis = nis_sum / n_win if nis_col is not None else np.full(B, np.nan)
     for i, r in enumerate(which):
         rows = slice(i * S, (i + 1) * S)
@@ -377,6 +403,9 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             arr[r] = np.where(bad[:, None], np.inf, vals)
         out.output_error[r] = np.where(bad, np.inf, oe[rows])
         out.nis[r] = np.where(bad, np.inf, nis[rows])
+        out.iae[r] = np.where(bad, np.inf, iae[rows])
+        out.peaking[r] = np.where(bad, np.inf, peaking[rows])
+        out.update_time[r] = wall
         for j in range(S):
             if bad[j]:
                 out.message[r][j] = (f"observer {name!r} estimate left the finite numbers at "

@@ -501,10 +501,9 @@ def _runner(backend: str, jobs: int, address: str | None) -> Any:
         parts = [list(range(i, min(i + size, len(trials)))) for i in range(0, len(trials), size)]
         refs = [remote.remote(st, [trials[i] for i in p], seeds, mismatch) for p in parts]
         got = ray.get(refs)
-        return Scores(np.concatenate([g.rmse for g in got]), np.concatenate([g.peak for g in got]),
-                      np.concatenate([g.settling for g in got]),
-                      np.concatenate([g.output_error for g in got]),
-                      np.concatenate([g.nis for g in got]), [m for g in got for m in g.message])
+        return Scores(*(np.concatenate([getattr(g, f) for g in got]) for f in
+                        ("rmse", "peak", "settling", "output_error", "nis", "iae", "peaking",
+                         "update_time")), [m for g in got for m in g.message])
     return on_ray
 
 
