@@ -258,8 +258,8 @@ def signal_series(lay: EstimateLayout, b: Block, output_names: Sequence[str],
     The true states, each observer's estimate of each (NaN where the observer gave no
     estimate in this block) and its error ``x - x_hat``, the observers' own estimates, the
     clean (NaN without one) and measured outputs, the inputs and the extras. ``clock`` is True
-    for the true states, the entities that carry the ``step`` timeline (see the module's
-    docstring).
+    for the true states, the entities that carry the ``step`` timeline besides ``sim_time``
+    (the others carry ``sim_time`` alone; :mod:`hgo_mj.record.recorder`).
 
     Parameters
     ----------
