@@ -614,7 +614,7 @@ class Recorder:
         (see the module docstring)."""
         lay = self._require(self.layout, "layout")
         clock = time_columns(b.t, b.steps, b.episode)  # the truth: sim_time and step
-        index = time_columns(b.t, b.steps, b.episode, step=False)  # the rest: sim_time
+        index = [c for c in clock if c.timeline_name() != layout.STEP]  # the rest: sim_time
         for path, values, on_clock in row_fns.signal_series(lay, b, self.output_names,
                                                             self.input_names, self._extra):
             self._sink.scalars(path, clock if on_clock else index, values)
