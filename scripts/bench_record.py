@@ -28,7 +28,10 @@ Each time covers everything from building the recorder to the file being closed.
 reported is the best of the repeats (the machine is shared; noise only adds), the median is
 shown beside it, and so is the process's CPU time (all threads: rerun encodes and writes on its
 own threads, which a second core absorbs in wall time). Targets (issue 6): recording adds at
-most 10% to the run, the file stays under 3 MB.
+most 10% to the run; the issue "State as data" reads it on CPU (all threads), and asks for a
+file of at most 2.35 MB (its size before one entity per observer and state). The live
+recorders are given ``dropouts=`` as ``hgo-mj run --rrd`` gives it (no dropout stage here: no
+dropout series).
 """
 
 from __future__ import annotations
@@ -74,7 +77,8 @@ def run_plain(path: Path) -> None:
 
 def run_live(path: Path) -> None:
     plant, sensor, obs, inputs = setup()
-    rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record")
+    rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record",
+                             dropouts=sensor.has_dropouts)
     traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
                     on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
     rec.log_metadata(traj.metadata)
@@ -84,7 +88,8 @@ def run_live(path: Path) -> None:
 
 def run_live_nofooter(path: Path) -> None:
     plant, sensor, obs, inputs = setup()
-    rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record", footer=False)
+    rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record", footer=False,
+                             dropouts=sensor.has_dropouts)
     traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
                     on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
     rec.log_metadata(traj.metadata)
@@ -123,10 +128,12 @@ def replay_with(mod: object):
         if not _RUN:
             plant, sensor, obs, inputs = setup()
             traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1)
-            _RUN.update(plant=plant, obs=list(obs), traj=traj, metrics=all_metrics(traj))
+            _RUN.update(plant=plant, obs=list(obs), traj=traj, metrics=all_metrics(traj),
+                        dropouts=sensor.has_dropouts)
         traj, rows = _RUN["traj"], len(_RUN["traj"])
         block = int(round(RRD_CHUNK_SECONDS / float(traj.t[1] - traj.t[0])))
-        rec = mod.Recorder.for_plant(path, _RUN["plant"], _RUN["obs"], recording_name="bench_record")
+        rec = mod.Recorder.for_plant(path, _RUN["plant"], _RUN["obs"], recording_name="bench_record",
+                                     dropouts=_RUN["dropouts"])
         k0 = 0
         while k0 < rows:  # as simulate: a tail under half a chunk joins the last chunk
             k1 = rows if rows - (k0 + block) < block // 2 else k0 + block
@@ -265,11 +272,13 @@ def main() -> int:
         lines.append(f"| {labels[k]} | {1e3 * best[k]:.1f} | {1e3 * med[k]:.1f} | {added} | "
                      f"{1e3 * best_cpu[k]:.1f} | {added_cpu} | {size} |")
     ok_t = all(best[k] <= 1.10 * best["plain"] for k in ("live", "after"))
+    ok_cpu = all(best_cpu[k] <= 1.10 * best_cpu["plain"] for k in ("live", "after"))
     ok_c = best["command_rrd"] <= 1.10 * best["command"]
-    ok_s = all(s < 3e6 for s in sizes.values())
-    lines += ["", f"Targets: at most +10% to the run (wall, best): against the bare computation "
-              f"{'met' if ok_t else 'NOT met'}, against the command as run "
-              f"{'met' if ok_c else 'NOT met'}; file under 3 MB: {'met' if ok_s else 'NOT met'}. "
+    ok_s = all(s <= 2.35e6 for s in sizes.values())
+    lines += ["", f"Targets: at most +10% to the run: against the bare computation, wall "
+              f"{'met' if ok_t else 'NOT met'}, CPU {'met' if ok_cpu else 'NOT met'}; against "
+              f"the command as run (wall) {'met' if ok_c else 'NOT met'}; file at most 2.35 MB: "
+              f"{'met' if ok_s else 'NOT met'}. "
               f"Load average at the end: {os.getloadavg()[0]:.2f}."]
     text = "\n".join(lines)
     print(text)

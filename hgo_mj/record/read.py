@@ -26,7 +26,8 @@ _NAMES = ("SeriesLines:names", "SeriesPoints:names")
 def read(path: str | Path) -> Any:
     """The scalar series of a recording (``.rrd``) as a :class:`pandas.DataFrame`.
 
-    One row per ``step`` (the index, the recording's ``step`` timeline), the ``sim_time``
+    One row per ``step`` (the index, the recording's ``step`` timeline; a series logged on
+    ``sim_time`` alone takes the step of the true state's row at its time), the ``sim_time``
     timeline in seconds as a column (and ``episode`` where episodes were recorded), and one
     column per series: the entity path (``/state/angle``, ``/input/torque``,
     ``/observer/fast/gain``) where the entity holds one value per step, else
@@ -97,6 +98,7 @@ def read(path: str | Path) -> Any:
     static: dict[str, dict[str, Any]] = {}
     parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
     clocks: list[Any] = []
+    loose: list[tuple[str, np.ndarray, np.ndarray]] = []  # series on sim_time alone
     for chunk in chunks:
         rb = chunk.to_record_batch()
         names = [n for n in rb.schema.names if not n.startswith("rerun.controls")]
@@ -106,11 +108,17 @@ def read(path: str | Path) -> Any:
                 comps[name] = rb.column(name).to_pylist()[-1]
             continue
         if STEP not in names:
+            if SIM_TIME in names and SCALARS in names:
+                loose.append((chunk.entity_path, _nanoseconds(rb), _scalars(rb.column(SCALARS))))
             continue
         steps = rb.column(STEP).to_numpy()
         clocks.append(_clock_frame(rb, names, steps))
         if SCALARS in names:
             parts.setdefault(chunk.entity_path, []).append((steps, _scalars(rb.column(SCALARS))))
+    clock = (pd.concat(clocks) if clocks else pd.DataFrame(columns=[SIM_TIME, "ns"]))
+    clock = clock[~clock.index.duplicated(keep="last")]
+    _place(loose, clock, parts)
+    clock = clock.drop(columns="ns")
     columns = {}
     for entity, got in parts.items():
         steps = np.concatenate([s for s, _ in got])
@@ -120,8 +128,6 @@ def read(path: str | Path) -> Any:
         frame = frame[~frame.index.duplicated(keep="last")]
         for label in labels:
             columns[label] = frame[label]
-    clock = (pd.concat(clocks) if clocks else pd.DataFrame(columns=[SIM_TIME]))
-    clock = clock[~clock.index.duplicated(keep="last")]
     df = pd.concat([clock, pd.DataFrame(columns)], axis=1).sort_index()
     df.index.name = STEP
     df.attrs["static"] = static
@@ -143,13 +149,35 @@ def _unit(column: str, static: dict[str, Any]) -> str | None:
     return "" if m.group(1) == "-" else m.group(1)
 
 
-def _clock_frame(rb: Any, names: list[str], steps: np.ndarray) -> Any:
-    import pandas as pd
+def _nanoseconds(rb: Any) -> np.ndarray:
+    """The ``sim_time`` column of a record batch in integer nanoseconds."""
     import pyarrow as pa
 
-    out = {}
+    return rb.column(SIM_TIME).cast(pa.int64()).to_numpy(zero_copy_only=False)
+
+
+def _place(loose: list[tuple[str, np.ndarray, np.ndarray]], clock: Any,
+           parts: dict[str, list[tuple[np.ndarray, np.ndarray]]]) -> None:
+    """Give the rows of series logged on ``sim_time`` alone the step of the true state's row
+    at the same ``sim_time`` (``clock``: step -> ``ns``); a time no step has is dropped."""
+    if not loose:
+        return
+    ns = clock["ns"].to_numpy(dtype=np.int64)
+    order = np.argsort(ns, kind="stable")
+    ns, steps = ns[order], clock.index.to_numpy()[order]
+    for entity, t, values in loose:
+        at = np.clip(np.searchsorted(ns, t), 0, max(ns.size - 1, 0))
+        found = (ns[at] == t) if ns.size else np.zeros(t.size, dtype=bool)
+        parts.setdefault(entity, []).append((steps[at[found]], values[found]))
+
+
+def _clock_frame(rb: Any, names: list[str], steps: np.ndarray) -> Any:
+    import pandas as pd
+
+    out: dict[str, Any] = {}
     if SIM_TIME in names:
-        out[SIM_TIME] = rb.column(SIM_TIME).cast(pa.int64()).to_numpy(zero_copy_only=False) / 1e9
+        out["ns"] = _nanoseconds(rb)
+        out[SIM_TIME] = out["ns"] / 1e9
     if EPISODE in names:
         out[EPISODE] = rb.column(EPISODE).to_numpy(zero_copy_only=False)
     return pd.DataFrame(out, index=pd.Index(steps, name=STEP))

@@ -1,16 +1,27 @@
 """The :class:`Recorder`: trajectories and environment episodes to a rerun file, headless.
 
-A recorder owns an explicit :class:`rerun.RecordingStream` (never rerun's global or thread
-default) with a file sink; no viewer is spawned and no display is needed. A reviewer opens
-the file later with ``rerun file.rrd``. It uses rerun's public API only: each entity's block
-of rows is one ``rr.send_columns`` call (``rr.TimeColumn`` indexes and the archetypes'
-``.columns(...)``; a per-step ``rr.log`` would cost 36 to 120 microseconds a step), static
-styles and geometry one ``rr.log(..., static=True)`` each, the blueprint one
-``send_blueprint``. Every call makes new chunks, so two recordings written in one process
-share no chunk id.
+A recorder checks each block of rows and keeps what a recording needs across blocks (the
+layout fixed at the first block, the styles not yet sent, the diagnostics' last values, the
+queued poses); what a block becomes is computed by pure functions
+(:mod:`hgo_mj.record.rows`: the entities and values of a block, the rows kept of a
+piecewise-constant diagnostic, the rows posed in 3D; :mod:`hgo_mj.record.layout`: entity
+paths, styles, blueprint; :mod:`hgo_mj.record.documents`; :mod:`hgo_mj.record.poses`), and
+sent by a thin row sink (:class:`hgo_mj.record.sink.RowSink`), the one place that talks to
+rerun. No viewer is spawned and no display is needed; a reviewer opens the file later with
+``rerun file.rrd``. It uses rerun's public API only: each entity's block of rows is one
+``rr.send_columns`` call (``rr.TimeColumn`` indexes and the archetypes' ``.columns(...)``; a
+per-step ``rr.log`` would cost 36 to 120 microseconds a step), static styles and geometry one
+``rr.log(..., static=True)`` each, the blueprint one ``send_blueprint``. Every call makes new
+chunks, so two recordings written in one process share no chunk id.
 
 Timelines: ``sim_time`` (simulated time, a duration), ``step`` (the sample index) and, for
-environments, ``episode``. Where each signal goes and how it is styled:
+environments, ``episode``. ``step`` is carried by the true states (``/state/<s>/true``), the
+diagnostics and the 3D poses; the other per-sample series (estimates, errors, outputs,
+inputs, extras) carry ``sim_time`` (and ``episode``) only: their step is the truth's at the
+same ``sim_time``, and :func:`hgo_mj.record.read` indexes them so. This saves 4 bytes a row
+and entity (12% of a pendulum recording with two observers); the viewer's time panel shows
+``sim_time`` (the blueprint's timeline), where every series is drawn, while the ``step``
+timeline draws the truth, diagnostics and poses only. Where each signal goes and how it is styled:
 :mod:`hgo_mj.record.layout`; the documents: :mod:`hgo_mj.record.documents`; the 3D view:
 :mod:`hgo_mj.record.poses`.
 
@@ -32,11 +43,7 @@ left open for the rest of the process (its shutdown would wait for ever).
 
 from __future__ import annotations
 
-import signal
-import threading
-import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import Any, TypeVar
@@ -44,88 +51,23 @@ from typing import Any, TypeVar
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
-from numpy.typing import NDArray
 
 from ..exceptions import DesignError, DimensionError, RecordingError
 from . import documents, layout
-from .layout import EPISODE, SIM_TIME, STEP, TRUE_ROOT, EstimateLayout
+from . import rows as row_fns
+from .layout import EstimateLayout
 from .poses import Poses, model_for, xyzw
+from .rows import Array, Block, Mask
+from .sink import DeferSigint as _DeferSigint
+from .sink import RowSink, time_columns
 
 _T = TypeVar("_T")
 
-Array = NDArray[np.float64]
-Steps = NDArray[np.int64]
-
-#: least wall time between two flushes started after blocks, seconds
-_FLUSH_INTERVAL = 0.25
 #: pose rows queued before they are posed and sent (a 2 s block at 50 Hz has 101)
 _POSE_ROWS = 250
-#: the chunk batcher of a recorder's own stream (rerun's default holds chunks up to 200 ms or
-#: 2 MiB: the file writer would then encode a run's last blocks at close)
-_BATCHER = rr.ChunkBatcherConfig(flush_tick=0.01, flush_num_bytes=262144)
 #: seconds :meth:`Recorder.close` waits for the file sink to write what is queued (a healthy
 #: sink writes a block within milliseconds; one that failed never finishes)
 CLOSE_TIMEOUT_S = 20.0
-#: streams whose file sink failed, kept for the rest of the process (see the module docstring)
-_STUCK: list[Any] = []
-
-
-class _DeferSigint:
-    """Hold a SIGINT (Ctrl-C) until a block is written, so a chunk is never half-recorded."""
-
-    def __enter__(self) -> _DeferSigint:
-        self._old: Any = None
-        self._hit = False
-        if (threading.current_thread() is threading.main_thread()
-                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
-            self._old = signal.signal(signal.SIGINT, self._handler)
-        return self
-
-    def _handler(self, signum: int, frame: Any) -> None:
-        self._hit = True
-
-    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        if self._old is not None:
-            signal.signal(signal.SIGINT, self._old)
-        if self._hit and et is None:
-            raise KeyboardInterrupt
-
-
-def _columns(name: str, a: Any, rows: int, width: int | None = None) -> Array:
-    arr = np.asarray(a, dtype=float)
-    if arr.ndim == 1 and width == 1:
-        arr = arr.reshape(-1, 1)
-    if arr.ndim != 2 or arr.shape[0] != rows or (width is not None and arr.shape[1] != width):
-        want = f"({rows}, {width})" if width is not None else f"({rows}, n)"
-        raise DimensionError(f"{name} must have shape {want}; found {arr.shape}")
-    return arr
-
-
-def time_columns(t: Array, steps: Steps, episode: int | None) -> list[rr.TimeColumn]:
-    """The ``sim_time`` (nanoseconds), ``step`` and ``episode`` index columns of rows."""
-    ns = np.rint(np.asarray(t, dtype=float) * 1e9).astype(np.int64).astype("timedelta64[ns]")
-    cols = [rr.TimeColumn(SIM_TIME, duration=ns),
-            rr.TimeColumn(STEP, sequence=np.asarray(steps, dtype=np.int64))]
-    if episode is not None:
-        cols.append(rr.TimeColumn(EPISODE, sequence=np.full(ns.size, int(episode), np.int64)))
-    return cols
-
-
-@dataclass
-class _Block:
-    """One validated block of rows."""
-
-    t: Array
-    steps: Steps
-    episode: int | None
-    x: Array
-    y_clean: Array | None
-    y_meas: Array
-    u: Array
-    est: dict[str, Array]
-    diag: dict[str, dict[str, Array]]
-    extra: dict[str, Array]
 
 
 class Recorder:
@@ -247,10 +189,8 @@ class Recorder:
         self.pose_rate = pose_rate
         self.scene = self._scene(model, joints)
         self.path = None if path is None else Path(path)
-        self._own_sink = self.path is not None
-        self.stream = self._open(stream, application_id, footer)
-        if recording_name:
-            self.stream.send_recording_name(recording_name)
+        self._sink = RowSink(self.path, stream, application_id, footer, recording_name)
+        self.stream = self._sink.stream
         self.layout: EstimateLayout | None = None  # fixed at the first block
         self._diag: dict[tuple[str, str], tuple[str, str]] = {}  # (obs, key) -> (path, kind)
         self._diag_last: dict[str, float] = {}
@@ -263,9 +203,8 @@ class Recorder:
         self._t_next = 0.0
         self._step_next = 0
         self._closed = False
-        self._poses: list[tuple[Array, Steps, int | None, dict[str, Array]]] = []
+        self._poses: list[tuple[Array, row_fns.Steps, int | None, dict[str, Array]]] = []
         self._pose_rows = 0
-        self._flushed = time.monotonic()  # the first flush 0.25 s after the start
 
     def _scene(self, model: Any, joints: Sequence[str]) -> Poses | None:
         if model is None:
@@ -276,29 +215,6 @@ class Recorder:
             raise DimensionError(f"x must hold the positions and velocities of the joints "
                                  f"{list(joints)}; found {len(self.state_names)} states")
         return Poses(model, joints)
-
-    def _open(self, stream: rr.RecordingStream | None, application_id: str,
-              footer: bool) -> rr.RecordingStream:
-        """The stream, with a file sink on ``self.path`` when one is given."""
-        if stream is None:
-            if self.path is None:
-                raise DesignError("give a path for the .rrd file, or a stream with its sinks set")
-            stream = rr.RecordingStream(application_id, make_default=False,
-                                        make_thread_default=False, batcher_config=_BATCHER)
-        elif not isinstance(stream, rr.RecordingStream):
-            raise DesignError(f"stream must be a rerun.RecordingStream; found "
-                              f"{type(stream).__name__}")
-        if self.path is not None:
-            if self.path.suffix != ".rrd":
-                raise DesignError(f"a recording path must end in .rrd; found {str(self.path)!r}")
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            try:
-                stream.save(self.path, write_footer=bool(footer))
-            except (RuntimeError, OSError) as exc:  # the header could not be written
-                raise RecordingError(f"cannot write the recording {str(self.path)!r}: "
-                                     f"{exc}") from None
-        self._footer = bool(footer)
-        return stream
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -416,11 +332,6 @@ class Recorder:
                    joints=joints or (), **kw)
 
     # ------------------------------------------------------------------ documents
-    def _document(self, path: str, text: str) -> None:
-        rr.log(path, rr.TextDocument(text, media_type="text/markdown"), static=True, strict=True,
-               recording=self.stream)
-        self._flush()
-
     def log_metadata(self, metadata: Mapping[str, Any]) -> None:
         """Log a run's metadata (scenario, seed, observer parameters, versions, ...) as the
         text document ``/scenario`` (:func:`~hgo_mj.record.documents.scenario_document`) and
@@ -447,8 +358,8 @@ class Recorder:
         """
         props: dict[str, Any] = dict(documents.scenario_properties(metadata))
         if props:
-            self.stream.send_property("hgo_mj", rr.AnyValues(**props))
-        self._document("/scenario", documents.scenario_document(metadata))
+            self._sink.properties("hgo_mj", props)
+        self._sink.document("/scenario", documents.scenario_document(metadata))
 
     def log_metrics(self, metrics: Mapping[str, Mapping[str, Any]]) -> None:
         """Log the metrics table (:func:`hgo_mj.metrics.format_table`) as ``/metrics``.
@@ -474,7 +385,7 @@ class Recorder:
         >>> print(doc["TextDocument:text"][0].splitlines()[6])
         k40              angle                      0.1         0.5          1        0.01          2
         """
-        self._document("/metrics", documents.metrics_document(metrics))
+        self._sink.document("/metrics", documents.metrics_document(metrics))
 
     def log_episode_metrics(self, episodes: Sequence[Mapping[str, Any]]) -> None:
         """Log the metrics of an environment's episodes as ``/metrics``
@@ -503,7 +414,7 @@ class Recorder:
         >>> doc["TextDocument:text"][0].splitlines()[6]
         '| 0 | 1 | 200 | -3.5 | False | 0.01 |'
         """
-        self._document("/metrics", documents.episode_metrics_document(episodes))
+        self._sink.document("/metrics", documents.episode_metrics_document(episodes))
 
     # ------------------------------------------------------------------ data
     def record(self, t: Any, x: Any, y_clean: Any, y_meas: Any, u: Any,
@@ -587,30 +498,20 @@ class Recorder:
                estimates: Mapping[str, Any] | None,
                diagnostics: Mapping[str, Mapping[str, Any]] | None, step: Any,
                episode: int | None, extra: Mapping[str, Any] | None,
-               estimate_names: Mapping[str, Sequence[str]] | None) -> _Block:
-        """Check a block before anything of it is sent, and fix the layout at the first."""
-        T = t.size
-        x = _columns("x", x, T, len(self.state_names))
-        ym = _columns("y_meas", y_meas, T, len(self.output_names))
-        yc = None if y_clean is None else _columns("y_clean", y_clean, T, len(self.output_names))
-        u = _columns("u", u, T, len(self.input_names))
+               estimate_names: Mapping[str, Sequence[str]] | None) -> Block:
+        """Check a block before anything of it is sent (:func:`~hgo_mj.record.rows.check_block`),
+        and fix the layout at the first."""
         self._check_observers("estimates of", estimates)
-        est = {o: _columns(f"estimate of {o!r}", estimates[o], T)  # type: ignore[index]
-               for o in self.observers if o in (estimates or {})}
+        est = {o: estimates[o] for o in self.observers if o in (estimates or {})}  # type: ignore[index]
+        est = {o: row_fns.as_columns(f"estimate of {o!r}", a, t.size) for o, a in est.items()}
         names = self._estimate_names(est, estimate_names)
-        for o, a in est.items():
-            if a.shape[1] != len(names[o]):
-                raise DimensionError(f"estimate of {o!r} must have shape ({T}, {len(names[o])}) "
-                                     f"(columns {list(names[o])}); found {a.shape}")
         self._check_observers("diagnostics of", diagnostics)
-        diag = {o: {str(k): self._series(f"diagnostic {k!r} of {o!r}", v, T)
-                    for k, v in d.items() if self.dropouts is not False or k != "dropouts"}
+        diag = {o: {k: v for k, v in d.items() if self.dropouts is not False or k != "dropouts"}
                 for o, d in (diagnostics or {}).items()}
-        extras = {str(k): np.asarray(v, dtype=float) for k, v in (extra or {}).items()}
-        for name, v in extras.items():
-            if v.ndim not in (1, 2) or v.shape[0] != T:
-                raise DimensionError(f"extra {name!r} must have shape ({T},) or ({T}, k); found "
-                                     f"{v.shape}")
+        block = row_fns.check_block(t, x, y_clean, y_meas, u, est, names, diag, extra or {},
+                                 (len(self.state_names), len(self.output_names),
+                                  len(self.input_names)),
+                                 row_fns.as_steps(step, t.size, self._step_next), episode)
         if self.layout is None:
             self._names = names
             self.layout = layout.estimate_layout(self.state_names, self.observers, names)
@@ -619,20 +520,13 @@ class Recorder:
             if self.scene is not None:
                 self._static += [("/world", [rr.ViewCoordinates.RIGHT_HAND_Z_UP])]
                 self._static += self.scene.geometry()
-        return _Block(t, self._steps(step, T), episode, x, yc, ym, u, est, diag, extras)
+        return block
 
     def _check_observers(self, what: str, given: Mapping[str, Any] | None) -> None:
         unknown = sorted(set(given or {}) - set(self.observers))
         if unknown:
             raise DesignError(f"{what} unknown observer(s) {unknown}; observers: "
                               f"{list(self.observers)}")
-
-    @staticmethod
-    def _series(name: str, v: Any, rows: int) -> Array:
-        a = np.asarray(v, dtype=float).reshape(-1)
-        if a.size != rows:
-            raise DimensionError(f"{name} must have {rows} rows; found {a.size}")
-        return a
 
     def _estimate_names(self, est: Mapping[str, Array],
                         given: Mapping[str, Sequence[str]] | None) -> dict[str, tuple[str, ...]]:
@@ -654,23 +548,13 @@ class Recorder:
                 names[o] = layout.default_names(self.state_names, width)
         return names
 
-    def _steps(self, step: Any, rows: int) -> Steps:
-        if step is None:
-            return self._step_next + np.arange(rows, dtype=np.int64)
-        if np.ndim(step) == 0:
-            return int(step) + np.arange(rows, dtype=np.int64)
-        steps = np.asarray(step, dtype=np.int64).reshape(-1)
-        if steps.size != rows:
-            raise DimensionError(f"step must have {rows} entries; found {steps.size}")
-        return steps
-
-    def _write(self, b: _Block, mark_end: bool) -> None:
+    def _write(self, b: Block, mark_end: bool) -> None:
         """Send a checked block: its rows first (rerun's file writer, the slowest part,
         starts on them), then new styles and geometry, the layout, diagnostics and poses."""
         posed = self._posed(b)
         self._register(b, posed)
         self._send_rows(b)
-        self._send_static()
+        self._sink.static(self._take_static())
         self._send_blueprint()
         self._send_diagnostics(b, mark_end)
         if self.scene is not None:
@@ -678,16 +562,16 @@ class Recorder:
         self._last_row = (float(b.t[-1]), int(b.steps[-1]), b.episode)
         self._step_next = int(b.steps[-1]) + 1
         self._t_next = float(b.t[-1]) + (float(b.t[-1] - b.t[-2]) if b.t.size > 1 else 0.0)
-        self._flush()
+        self._sink.tick()
 
-    def _posed(self, b: _Block) -> list[str]:
+    def _posed(self, b: Block) -> list[str]:
         """The observers of the block whose estimate poses a ghost (one joint at least)."""
         if self.scene is None or self.layout is None:
             return []
         joint_obs = self.layout.joint_observers(self.scene.njoints)
         return [o for o in self.observers if o in b.est and o in joint_obs]
 
-    def _register(self, b: _Block, posed: list[str]) -> None:
+    def _register(self, b: Block, posed: list[str]) -> None:
         """Queue the styles of diagnostics and extras seen for the first time, and the
         geometry of ghosts posed for the first time (drawn from their first pose on)."""
         for o, d in b.diag.items():
@@ -712,11 +596,10 @@ class Recorder:
             self._static += [(path, [style]) for path, style in styles]
         return self._diag[(o, key)]
 
-    def _send(self, path: str, index: list[rr.TimeColumn], columns: Any) -> None:
-        rr.send_columns(path, indexes=index, columns=columns, recording=self.stream)
-
-    def _scalars(self, path: str, index: list[rr.TimeColumn], values: Any) -> None:
-        self._send(path, index, rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
+    def _take_static(self) -> list[tuple[str, list[Any]]]:
+        """The queued static styles and geometry, the queue emptied."""
+        queued, self._static = self._static, []
+        return queued
 
     @staticmethod
     def _require(value: _T | None, what: str) -> _T:
@@ -725,77 +608,33 @@ class Recorder:
             raise DesignError(f"the recorder has no {what}: it was closed or never started")
         return value
 
-    def _send_rows(self, b: _Block) -> None:
-        """Send the block's states, estimates, errors, outputs, inputs and extras (one row a
-        sample), one ``send_columns`` per entity."""
+    def _send_rows(self, b: Block) -> None:
+        """Send the block's per-sample series (:func:`~hgo_mj.record.rows.signal_series`),
+        one ``send_columns`` per entity; only the true states carry the ``step`` timeline
+        (see the module docstring)."""
         lay = self._require(self.layout, "layout")
-        index = time_columns(b.t, b.steps, b.episode)
-        nan = np.full(b.t.size, np.nan)
-        for i, (s, ests) in enumerate(zip(self.state_names, lay.est_of)):
-            self._scalars(layout.state_path(s), index, b.x[:, i])
-            for o, j in ests:
-                # an observer without an estimate in this block: NaN, and no ghost pose
-                est = b.est[o][:, j] if o in b.est else nan
-                self._scalars(layout.state_path(s, o), index, est)
-                self._scalars(layout.error_path(s, o), index, b.x[:, i] - est)
-        for o, own in lay.own.items():
-            if o in b.est:  # estimates that are not plant states: under the observer's names
-                for name, j in own:
-                    self._scalars(layout.own_estimate_path(o, name), index, b.est[o][:, j])
-        for j, name in enumerate(self.output_names):
-            clean = b.y_clean[:, j] if b.y_clean is not None else nan
-            self._scalars(layout.sensor_path(name, layout.CLEAN), index, clean)
-            self._scalars(layout.sensor_path(name, layout.MEASURED), index, b.y_meas[:, j])
-        for j, name in enumerate(self.input_names):
-            self._scalars(layout.input_path(name), index, b.u[:, j])
-        for name, v in b.extra.items():
-            self._scalars(self._extra[name], index, v)
-
-    def _send_static(self) -> None:
-        """Log the queued static styles and geometry."""
-        queued, self._static = self._static, []
-        for path, archetypes in queued:
-            rr.log(path, *archetypes, static=True, recording=self.stream)
+        clock = time_columns(b.t, b.steps, b.episode)  # the truth: sim_time and step
+        index = [c for c in clock if c.timeline_name() != layout.STEP]  # the rest: sim_time
+        for path, values, on_clock in row_fns.signal_series(lay, b, self.output_names,
+                                                            self.input_names, self._extra):
+            self._sink.scalars(path, clock if on_clock else index, values)
 
     # ------------------------------------------------------------------ diagnostics
-    def _send_diagnostics(self, b: _Block, mark_end: bool) -> None:
-        """Send the block's diagnostics where they change (and the true parameter next to a
-        parameter estimate)."""
-        series: dict[str, Array] = {}
-        for o, d in b.diag.items():
-            for key, v in d.items():
-                path, kind = self._diagnostic(o, key)
-                series.setdefault(path, v)
-                p = layout.theta_param(path) if kind == "theta" else None
-                if p in self.params:
-                    series.setdefault(layout.param_path(p), np.full(b.t.size, self.params[p]))
-        for path, v in series.items():
-            keep = self._changes(path, v, mark_end)
-            if keep is not None:
-                self._scalars(path, time_columns(b.t[keep], b.steps[keep], b.episode), v[keep])
-
-    def _changes(self, path: str, v: Array, mark_end: bool) -> NDArray[np.bool_] | None:
-        """The rows of a piecewise-constant series to log: where it changes, its first row,
-        and its last row when ``mark_end`` (else that row waits for the next block or for
-        :meth:`close`); ``None`` for none."""
-        last = self._diag_last.get(path)
-        if last is not None and not mark_end:  # unchanged through the block
-            same = np.isnan(v).all() if np.isnan(last) else bool((v == last).all())
-            if same:
+    def _send_diagnostics(self, b: Block, mark_end: bool) -> None:
+        """Send the block's diagnostics where they change
+        (:func:`~hgo_mj.record.rows.changes`), and the true parameter next to a parameter
+        estimate; a series' last row waits for the next block or :meth:`close` unless
+        ``mark_end``."""
+        for path, v in row_fns.diagnostic_series(b, self._diag, self.params).items():
+            keep, last, pending = row_fns.changes(v, self._diag_last.get(path), mark_end)
+            self._diag_last[path] = last
+            if pending:
                 self._diag_pending[path] = last
-                return None
-        prev = np.empty_like(v)
-        prev[0] = np.nan if last is None else last
-        prev[1:] = v[:-1]
-        keep = ~((v == prev) | (np.isnan(v) & np.isnan(prev)))
-        keep[0] |= last is None
-        keep[-1] |= mark_end
-        self._diag_last[path] = float(v[-1])
-        if keep[-1]:
-            self._diag_pending.pop(path, None)
-        else:
-            self._diag_pending[path] = float(v[-1])
-        return keep if keep.any() else None
+            else:
+                self._diag_pending.pop(path, None)
+            if keep is not None:
+                self._sink.scalars(path, time_columns(b.t[keep], b.steps[keep], b.episode),
+                                   v[keep])
 
     def _send_pending(self) -> None:
         """Log the last row of every piecewise-constant series whose end is still pending."""
@@ -803,29 +642,19 @@ class Recorder:
             t, step, episode = self._last_row
             index = time_columns(np.array([t]), np.array([step], dtype=np.int64), episode)
             for path, value in self._diag_pending.items():
-                self._scalars(path, index, np.array([value]))
+                self._sink.scalars(path, index, np.array([value]))
             self._diag_pending.clear()
 
     # ------------------------------------------------------------------ poses
-    def _queue_poses(self, b: _Block, posed: list[str]) -> None:
-        """Queue the joint positions of the block's pose rows (``pose_rate``) for the truth
-        and each posed observer (a joint an estimate does not give, or gives as NaN, on the
-        truth); they are posed and sent :data:`_POSE_ROWS` rows at a time (a batch costs
-        about the same whatever its length), the rest by :meth:`flush` or :meth:`close`."""
+    def _queue_poses(self, b: Block, posed: list[str]) -> None:
+        """Queue the joint positions of the block's pose rows
+        (:func:`~hgo_mj.record.rows.pose_rows`, :func:`~hgo_mj.record.rows.pose_sets`); they
+        are posed and sent :data:`_POSE_ROWS` rows at a time (a batch costs about the same
+        whatever its length), the rest by :meth:`flush` or :meth:`close`."""
         lay = self._require(self.layout, "layout")
         scene = self._require(self.scene, "scene")
-        nj = scene.njoints
-        sel = self._pose_rows_of(b)
-        q_true = b.x[sel, :nj]
-        sets = {TRUE_ROOT: q_true}
-        for o in posed:
-            q = q_true.copy()
-            for i, j in enumerate(lay.joint_columns(o, nj)):
-                if j is not None:
-                    q[:, i] = b.est[o][sel, j]
-            bad = ~np.isfinite(q)
-            q[bad] = q_true[bad]
-            sets[layout.ghost_root(o)] = q
+        sel: Mask = row_fns.pose_rows(b.t, b.steps, self.pose_rate)
+        sets = row_fns.pose_sets(lay, b, posed, scene.njoints, sel)
         queued = self._poses
         if queued and (queued[0][2] != b.episode or set(queued[0][3]) != set(sets)):
             self._send_poses()
@@ -833,17 +662,6 @@ class Recorder:
         self._pose_rows += int(sel.sum())
         if self._pose_rows >= _POSE_ROWS:
             self._send_poses()
-
-    def _pose_rows_of(self, b: _Block) -> NDArray[np.bool_]:
-        """The block's rows on the ``pose_rate`` grid of steps, and its last row (so the 3D
-        view ends where the run does)."""
-        if self.pose_rate is None or b.t.size < 2:
-            return np.ones(b.t.size, dtype=bool)
-        dt = float(np.median(np.diff(b.t)))
-        stride = max(int(round(1.0 / (self.pose_rate * dt))), 1) if dt > 0 else 1
-        sel = b.steps % stride == 0
-        sel[-1] = True
-        return sel
 
     def _send_poses(self) -> None:
         """Pose the queued rows (every set of joint positions in one pass of
@@ -860,9 +678,8 @@ class Recorder:
         for i, root in enumerate(roots):
             rows = slice(i * t.size, (i + 1) * t.size)
             for body in self.scene.posed_bodies():
-                self._send(layout.body_path(root, self.scene.body_names[body]), index,
-                           rr.Transform3D.columns(translation=pos[rows, body],
-                                                  quaternion=xyzw(quat[rows, body])))
+                self._sink.transforms(layout.body_path(root, self.scene.body_names[body]), index,
+                                      pos[rows, body], xyzw(quat[rows, body]))
 
     # ------------------------------------------------------------------ layout
     def blueprint(self) -> rrb.Blueprint:
@@ -900,7 +717,7 @@ class Recorder:
         key = (tuple(self._diag.values()), tuple(self._extra))
         if key != self._sent_layout:
             self._sent_layout = key
-            self.stream.send_blueprint(self.blueprint(), make_active=True, make_default=True)
+            self._sink.blueprint(self.blueprint())
 
     # ------------------------------------------------------------------ whole runs
     def record_trajectory(self, traj: Any, *, metrics: bool | Mapping[str, Any] = True,
@@ -1081,16 +898,6 @@ class Recorder:
                     step=self._step_next, episode=int(episode), extra=extra)
 
     # ------------------------------------------------------------------ lifetime
-    def _flush(self) -> None:
-        """After a block: start a flush to the file without waiting for it, at most every
-        0.25 s of wall time (rerun's own thread writes each block within a few milliseconds
-        anyway). A run killed part-way leaves every block before the last in the file (the
-        3D poses are sent every few blocks, see ``pose_rate``); :meth:`close` always waits."""
-        now = time.monotonic()
-        if now - self._flushed >= _FLUSH_INTERVAL:
-            self._flushed = now
-            self.stream.flush(timeout_sec=0.0)
-
     def flush(self) -> None:
         """Send the queued poses and wait until everything recorded so far is written.
 
@@ -1118,7 +925,7 @@ class Recorder:
         """
         with _DeferSigint():
             self._send_poses()
-        self.stream.flush()
+        self._sink.flush()
 
     def close(self) -> None:
         """Log what is pending, flush and close the file (idempotent). A stream handed in
@@ -1149,21 +956,8 @@ class Recorder:
             self._closed = True
             self._send_poses()
             self._send_pending()
-            if not self._own_sink:
-                self.stream.flush()
-                return
-            try:
-                self.stream.flush(timeout_sec=CLOSE_TIMEOUT_S)
-            except RuntimeError as exc:  # the sink failed: its shutdown would never return
-                import atexit
-
-                _STUCK.append(self.stream)
-                atexit.unregister(rr.rerun_shutdown)
-                raise RecordingError(f"the recording {str(self.path)!r} could not be written "
-                                     f"({exc}: is the disk full?); the file is incomplete"
-                                     ) from None
-            self.stream.disconnect()  # the file sink writes its footer and closes the file
-            if self._footer:
+            self._sink.close(CLOSE_TIMEOUT_S)
+            if self.path is not None and self._sink.footer:
                 check_finalized(self.path)
 
     def __enter__(self) -> Recorder:

@@ -193,10 +193,15 @@ def test_post_run_recording_equals_live_one(recorded, tmp_path):
     with Recorder.for_trajectory(tmp_path / "blocks.rrd", traj) as rec:
         rec.record_trajectory(traj, chunk_seconds=0.3)
     blocks, _ = read_rrd(tmp_path / "blocks.rrd")
-    for name in ("/state/angle/true", "/error/angular_velocity/fast",
-                 "/observer/slow/diagnostics/dropouts"):
-        np.testing.assert_array_equal(blocks[name]["step"], post[name]["step"])
+    for name, index in (("/state/angle/true", "step"), ("/error/angular_velocity/fast", "sim_time"),
+                        ("/observer/slow/diagnostics/dropouts", "step")):
+        np.testing.assert_array_equal(blocks[name][index], post[name][index])
         np.testing.assert_array_equal(blocks[name]["Scalars:scalars"], post[name]["Scalars:scalars"])
+    # the truth carries step and sim_time, the other per-sample series sim_time alone
+    # (read() gives them the truth's step)
+    assert "step" not in blocks["/error/angular_velocity/fast"]._rows()
+    np.testing.assert_array_equal(blocks["/error/angular_velocity/fast"]["sim_time"],
+                                  blocks["/state/angle/true"]["sim_time"])
 
 
 def test_ode_plant_has_no_3d_view(tmp_path, chain):
