@@ -590,6 +590,28 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--jobs", default="1", metavar="N", help="Ray workers a round is split over")
     t.add_argument("--address", help="a Ray cluster's address (default a local instance)")
     t.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    b = sub.add_parser("bench", help="the nonlinear observer benchmark: every observer tuned by "
+                       "the same budget on versioned tasks, scored, ranked (see hgo_mj.bench)")
+    b.add_argument("--suite", choices=["quick", "full", "none"], default="quick",
+                   help="the built-in suite (default quick; none: only --tasks/--task-file)")
+    b.add_argument("--tasks", nargs="+", default=[], metavar="NAME",
+                   help="built-in tasks by name, e.g. pendulum/encoder-v1")
+    b.add_argument("--task-file", action="append", default=[], metavar="FILE",
+                   help="a task of your own (TOML, the fields of hgo_mj.bench.Task); repeatable")
+    b.add_argument("--observers", nargs="+", default=None, metavar="NAME",
+                   help="registered observers (default every family)")
+    b.add_argument("--observer", action="append", default=[], metavar="MODULE:CLASS",
+                   help="your own observer (an Observer subclass), added to the observers")
+    b.add_argument("--budget", default="24", metavar="N",
+                   help="tuning trials per observer and task, the same for all (default 24)")
+    b.add_argument("--out", default="runs/bench", help="results folder (default runs/bench)")
+    b.add_argument("--resume", action="store_true",
+                   help="reuse the finished (task, observer) parts in OUT")
+    b.add_argument("--backend", choices=["local", "ray"], default="local")
+    b.add_argument("--jobs", default="1", metavar="N", help="Ray workers")
+    b.add_argument("--no-rrd", dest="no_rrd", action="store_true",
+                   help="no rerun recordings of each task's best and worst observer")
+    b.add_argument("--quiet", action="store_true", help="no progress on stderr")
     c = sub.add_parser("check", help="which observer applies to a plant, and why")
     c.add_argument("target", metavar="PLANT-OR-SCENARIO",
                    help="a registered plant name (see `hgo-mj list`) or a scenario TOML file")
@@ -633,6 +655,28 @@ def cmd_tune(args: argparse.Namespace) -> int:
     print(f"wrote {out}/trials.parquet ({len(result.trials)} trials), best.toml, summary.txt, "
           f"{', '.join(f'{k}.png' for k in result.figures)} and study.db in "
           f"{result.seconds:.1f} s")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """``hgo-mj bench``: run the benchmark, print the leaderboard, say where the files are."""
+    from .bench import bench
+
+    observers = (list(args.observers) if args.observers else None)
+    if args.observer:
+        from .bench.report import default_observers
+
+        observers = (observers or default_observers()) + list(args.observer)
+    result = bench(None if args.suite == "none" else args.suite, tasks=args.tasks,
+                   task_files=args.task_file, observers=observers,
+                   budget=_flag_int(args.budget, "--budget"), out=args.out,
+                   resume=args.resume, backend=args.backend,
+                   jobs=_flag_int(args.jobs, "--jobs"), record=not args.no_rrd,
+                   progress=not args.quiet)
+    print(result.table)
+    print(f"\nwrote {args.out}/leaderboard.md, leaderboard.parquet, scores.parquet "
+          f"({len(result.scores)} rows), score_matrix.png, task_*.png, traj_*.png"
+          + ("" if args.no_rrd else ", *.rrd") + f" in {result.seconds:.1f} s")
     return 0
 
 
@@ -753,6 +797,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_sweep(args)
         if args.command == "tune":
             return cmd_tune(args)
+        if args.command == "bench":
+            return cmd_bench(args)
         if args.command == "check":
             return cmd_check(args.target, args.sample_period)
         if args.command == "reproduce":

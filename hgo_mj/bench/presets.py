@@ -52,10 +52,15 @@ def _values(name: str, params: Mapping[str, Any] | None) -> dict[str, float]:
                           f"{sorted(PRESETS[name])}")
     out = {**PRESETS[name]}
     for k, v in given.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise DesignError(f"sensor preset {name!r}: {k} must be a finite number >= 0; "
-                              f"found {v!r}")
+        signed = k in ("low", "high")  # an analog range may be negative
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (
+                v < 0 and not signed):
+            want = "a finite number" if signed else "a finite number >= 0"
+            raise DesignError(f"sensor preset {name!r}: {k} must be {want}; found {v!r}")
         out[k] = float(v)
+    if name == "analog" and not out["low"] < out["high"]:
+        raise DesignError(f"sensor preset 'analog': low must be < high; found {out['low']} >= "
+                          f"{out['high']}")
     return out
 
 
@@ -88,11 +93,11 @@ def preset(name: str, params: Mapping[str, Any] | None = None) -> tuple[list[dic
     --------
     >>> stages, std = preset("encoder", {"counts_per_rev": 1024})
     >>> [s["stage"] for s in stages], round(std, 6)
-    (['gaussian', 'quantize'], 0.001782)
+    (['gaussian', 'quantize'], 0.001774)
     >>> preset("laser")
     Traceback (most recent call last):
     ...
-    hgo_mj.exceptions.DesignError: unknown sensor preset 'laser'; valid: ['analog', 'encoder', 'mems', 'vision']
+    hgo_mj.exceptions.DesignError: unknown sensor preset 'laser'; valid: ['analog', ...]
     """
     v = _values(name, params)
     if name == "encoder":
