@@ -296,5 +296,3 @@ def trajectory(task: Task, observers: Sequence[str], parts: Sequence[dict[str, A
     kw.pop("metadata", None)
     return simulate(seed=task.scoring_seeds[0], isolate=True, **kw)
 
-
-__all__ += ["best_and_worst", "trajectory"]
