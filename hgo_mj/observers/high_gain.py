@@ -69,7 +69,7 @@ __all__ = ["METHODS", "HighGainObserver", "MultiOutputHighGainObserver", "matche
 METHODS = ("exact", "euler", "rk4")
 #: at most this many (sample period, parameters) keep their one-step maps (a tuning round of many
 #: gains reuses them; jittered periods do not grow memory without bound)
-MAP_CACHE = 1024
+MAP_CACHE = 64
 
 
 #: ``flags`` bits of :func:`affine_advance`
@@ -555,6 +555,7 @@ class HighGainObserver(_Chains, Observer):
         self.model = boolean("model", model)
         self.method = method
         self.z_bounds = bounds_pair(z_bounds, n)
+        hgo_gains(self.p, self.k_)  # the gains must be finite numbers (a huge k is refused)
         if x_hat0 is not None and z_hat0 is not None:
             raise DesignError("give x_hat0 or z_hat0, not both")
         self._start = (None if x_hat0 is None else vector("x_hat0", x_hat0, len(self.state_names)),
@@ -577,7 +578,9 @@ class HighGainObserver(_Chains, Observer):
 
     def _check_parameter(self, name: str, value: Any) -> Array:
         if name == "k":
-            return np.array(finite_scalar("k", value, positive=True))
+            k = finite_scalar("k", value, positive=True)
+            hgo_gains(self.p, k)  # a huge k is refused as the constructor refuses it
+            return np.array(k)
         arr = check_hurwitz(value)
         if arr.size != self.n:
             raise DimensionError(f"p must have n = {self.n} coefficients; found {arr.size}")
@@ -907,6 +910,8 @@ class MultiOutputHighGainObserver(_Chains, Observer):
                               f"{type(phi).__name__}")
         self.phi = phi
         self.method = method
+        for pc, kc in zip(self.ps, self.ks):
+            hgo_gains(pc, kc)  # the gains must be finite numbers (a huge k is refused)
         if x_hat0 is not None and z_hat0 is not None:
             raise DesignError("give x_hat0 or z_hat0 (the same thing here), not both")
         z0 = z_hat0 if z_hat0 is not None else x_hat0
