@@ -152,42 +152,54 @@ _reaper_pipe: int | None = None
 
 #: a process that outlives the driver (its own session, forked off) and, when its standard
 #: input ends (the driver closed it or died, also by SIGKILL), kills every process whose
-#: environment holds ``argv[1]`` (``HGO_MJ_RAY_INSTANCE=<id>``): Ray ends its GCS and raylet
-#: with the driver, its workers and agents with the raylet, but the agents first wait a
-#: minute on the dead GCS, listening
+#: environment holds ``argv[1]`` (``HGO_MJ_RAY_INSTANCE=<id>``), scanning /proc until four
+#: scans half a second apart find none (a worker forked during a scan). Ray ends its GCS and
+#: raylet with the driver, its workers and agents with the raylet, but the agents first wait
+#: a minute on the dead GCS, listening
 _REAPER = r"""
-import os, signal, sys
+import os, signal, sys, time
 if os.fork():
     os._exit(0)
 while sys.stdin.buffer.read(4096):
     pass
 marker = sys.argv[1].encode()
-for pid in filter(str.isdigit, os.listdir("/proc")):
-    try:
-        with open(f"/proc/{pid}/environ", "rb") as fh:
-            if marker in fh.read().split(b"\0"):
-                os.kill(int(pid), signal.SIGKILL)
-    except OSError:
-        pass
+quiet = 0
+for _ in range(120):  # again until 2 s without one: a process forked during a scan
+    found = False
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/environ", "rb") as fh:
+                if marker in fh.read().split(b"\0"):
+                    os.kill(int(pid), signal.SIGKILL)
+                    found = True
+        except OSError:
+            pass
+    quiet = 0 if found else quiet + 1
+    if quiet == 4:
+        break
+    time.sleep(0.5)
 """
 
 
 @contextlib.contextmanager
 def _local_ray_env(instance: str) -> Iterator[None]:
     """:data:`LOCAL_RAY_ENV` and ``HGO_MJ_RAY_INSTANCE=instance`` in ``os.environ`` while a
-    local Ray instance starts (its processes inherit them), Ray's own reading of the first (at
-    its import, maybe before) in this process; restored after."""
+    local Ray instance starts (its processes inherit them), and in this process Ray's value
+    of the first (``ENABLE_RAY_CLUSTER``, read when ray was imported: maybe before); restored
+    after. The loopback test (tests/study/test_ray.py) catches a Ray that reads it elsewhere."""
     import ray._private.ray_constants as ray_constants
 
     env = {**LOCAL_RAY_ENV, _INSTANCE_VAR: instance}
     saved = {k: os.environ.get(k) for k in env}
-    cluster = ray_constants.ENABLE_RAY_CLUSTER
+    cluster = getattr(ray_constants, "ENABLE_RAY_CLUSTER", None)
     os.environ.update(env)
-    ray_constants.ENABLE_RAY_CLUSTER = False
+    if cluster is not None:
+        ray_constants.ENABLE_RAY_CLUSTER = False
     try:
         yield
     finally:
-        ray_constants.ENABLE_RAY_CLUSTER = cluster
+        if cluster is not None:
+            ray_constants.ENABLE_RAY_CLUSTER = cluster
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
