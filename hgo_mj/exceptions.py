@@ -7,7 +7,7 @@ errors a caller would catch anyway (``ValueError``, ``RuntimeError``).
 from __future__ import annotations
 
 __all__ = ["DesignError", "DimensionError", "DivergenceError", "HgoError", "ModelError",
-           "RecordingError"]
+           "RecordingError", "TrajectoryFileError"]
 
 
 class HgoError(Exception):
@@ -92,5 +92,18 @@ class RecordingError(HgoError, RuntimeError):
     --------
     >>> err = RecordingError("run.rrd: No space left on device")
     >>> isinstance(err, HgoError), isinstance(err, RuntimeError)
+    (True, True)
+    """
+
+
+class TrajectoryFileError(HgoError, ValueError):
+    """A trajectory file (``Trajectory.load``) is not one ``Trajectory.save`` writes: damaged,
+    crafted, a pickle (refused) or another format; the message names the file and what is
+    wrong.
+
+    Examples
+    --------
+    >>> err = TrajectoryFileError("run.npz: no column 't'")
+    >>> isinstance(err, HgoError), isinstance(err, ValueError)
     (True, True)
     """

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from ._io import atomic_path
 from ._validate import finite_scalar, positive_int, vector
-from .exceptions import DesignError, DimensionError, DivergenceError
+from .exceptions import DesignError, DimensionError, DivergenceError, TrajectoryFileError
 from .loop import Drive, Loop, LoopFailure, Periods, Segment
 from .observers.base import Observer
 from .plants.base import Plant
@@ -488,8 +488,13 @@ class Trajectory:
 
         Raises
         ------
-        DimensionError
-            Columns of different lengths (or a column missing its rows).
+        TrajectoryFileError
+            The file is not one :meth:`save` writes (not an ``.npz``, a pickle, a column
+            missing, not numeric or larger than the file or the memory, metadata that is not
+            its JSON, names repeated, columns of different lengths), named with what is wrong;
+            columns of different lengths also raise it as a ``DimensionError``.
+        OSError
+            The file cannot be opened.
 
         Examples
         --------
@@ -504,19 +509,29 @@ class Trajectory:
         >>> len(back), back.state_names, np.array_equal(back.x, traj.x)
         (11, ('angle', 'angular_velocity'), True)
         """
-        with np.load(Path(path), allow_pickle=False) as z:
-            meta = json.loads(str(z["__meta__"]))
-            observers = {
-                name: ObserverRecord(
-                    x_hat=z[f"obs/{name}/x_hat"], z_hat=z[f"obs/{name}/z_hat"],
-                    diagnostics={d: z[f"obs/{name}/diag/{d}"] for d in om["diagnostics"]},
-                    update_time=float(om["update_time"]),
-                    state_names=tuple(om.get("state_names") or ()))
-                for name, om in meta["observers"].items()}
+        from ._trajfile import read
+
+        z, meta = read(path)  # checked: a TrajectoryFileError naming the file and the problem
+        observers = {
+            name: ObserverRecord(
+                x_hat=z[f"obs/{name}/x_hat"], z_hat=z[f"obs/{name}/z_hat"],
+                diagnostics={d: z[f"obs/{name}/diag/{d}"] for d in om["diagnostics"]},
+                update_time=float("nan" if om.get("update_time") is None
+                                  else om["update_time"]),
+                state_names=om["state_names"])
+            for name, om in meta["observers"].items()}
+        try:
             return cls(t=z["t"], x=z["x"], y_clean=z["y_clean"], y_meas=z["y_meas"], u=z["u"],
-                       observers=observers, state_names=tuple(meta["state_names"]),
-                       output_names=tuple(meta["output_names"]),
-                       input_names=tuple(meta["input_names"]), metadata=meta["metadata"])
+                       observers=observers, state_names=meta["state_names"],
+                       output_names=meta["output_names"], input_names=meta["input_names"],
+                       metadata=meta.get("metadata", {}))
+        except DimensionError as exc:
+            raise _TrajectoryShapeError(f"{path}: {exc}") from None
+
+
+class _TrajectoryShapeError(TrajectoryFileError, DimensionError):
+    """A loaded file whose columns disagree: both errors (``except DimensionError`` written
+    before files were checked still catches it)."""
 
 
 def package_versions() -> dict[str, str]:

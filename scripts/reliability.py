@@ -22,6 +22,7 @@ import json
 import subprocess
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -94,20 +95,24 @@ def soak(steps: int, names: list[str] | None = None) -> dict[str, dict]:
 
 
 #: the suites whose counts the page gives; the fault suites' tests are listed one by one
-SUITES = ("tests/test_fuzz_scenarios.py", "tests/test_bad_inputs.py", "tests/test_faults.py",
-          "tests/test_isolation.py", "tests/test_stream.py")
-FAULT_SUITES = ("tests/test_faults.py", "tests/test_isolation.py", "tests/test_stream.py")
+SUITES = ("tests/test_fuzz_scenarios.py", "tests/test_bad_inputs.py",
+          "tests/test_trajectory_file.py",
+          "tests/systems/test_symbolic.py::test_oversized_or_non_real_expressions_are_one_line_in_seconds",
+          "tests/test_faults.py", "tests/test_isolation.py", "tests/test_stream.py",
+          "tests/study/test_ray.py")
+FAULT_SUITES = ("tests/test_faults.py", "tests/test_isolation.py", "tests/test_stream.py",
+                "tests/study/test_ray.py")
 
 
-def suites() -> tuple[dict[str, str], list[dict[str, str]]]:
-    """pytest's summary line of each suite, and every fault test: its name, the first line
-    of its docstring (what it injects and asserts) and its outcome (from JUnit XML)."""
+def suites(paths: Sequence[str] = SUITES) -> tuple[dict[str, str], list[dict[str, str]]]:
+    """pytest's summary line of each suite of ``paths``, and every fault test: its name, the
+    first line of its docstring (what it injects and asserts) and its outcome (JUnit XML)."""
     import ast
     import xml.etree.ElementTree as ET
 
     counts, faults = {}, []
     with tempfile.TemporaryDirectory() as tmp:
-        for path in SUITES:
+        for path in paths:
             xml = Path(tmp) / "r.xml"
             r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
                                 f"--junitxml={xml}", path], capture_output=True, text=True,
@@ -152,7 +157,8 @@ def figure(rows: list[dict], path: Path) -> None:
 
 
 def page(rows: list[dict], soaks: dict[str, dict], steps: int, counts: dict[str, str],
-         cmd: str, faults: list[dict[str, str]] | None = None) -> str:
+         cmd: str, faults: list[dict[str, str]] | None = None,
+         suites_cmd: str | None = None) -> str:
     from hgo_mj._bench import header
 
     lines = ["# Reliability: memory, soak, bad inputs, faults", "",
@@ -190,11 +196,19 @@ def page(rows: list[dict], soaks: dict[str, dict], steps: int, counts: dict[str,
         lines.append(f"| {name} | {s['episodes']} | {s['rss_after_1000_mb']:.0f} | "
                      f"{s['rss_end_mb']:.0f} | {'yes' if s['finite'] else 'NO'} |")
     lines += ["", "## Bad inputs and faults", "",
+              *([f"Suites rerun later than the measurements above, by `{suites_cmd}` (a suite "
+                 f"it does not name keeps the first run's count).", ""] if suites_cmd else []),
               "Each fuzz document (hypothesis, 150 derandomized examples per property, no "
               "database) and each regression case either runs or ends in one clear line with "
-              "exit 2 and no output files; the fault tests kill during a save, fill the disk "
-              "under a recording, kill and Ctrl-C multi-run commands, stop a streamed run, and "
-              "make an observer fail in a run.", "", "| suite | pytest |", "|---|---|"]
+              "exit 2 and no output files; each mutated trajectory file (120 examples) loads or "
+              "is one `TrajectoryFileError` naming the file; each oversized or non-real ODE "
+              "expression (`9**9**9`, 100,000 minus signs, a 200,000-term sum, `sqrt(-1)`) is "
+              "one `ModelError` line within seconds. The fault tests kill during a save, fill "
+              "the disk under a recording, kill and Ctrl-C multi-run commands, stop a streamed "
+              "run, make an observer fail in a run, SIGKILL the driver of a local Ray instance "
+              "(none of its processes left after 10 s) and list that instance's listening "
+              "sockets in a network namespace with a non-loopback address (127.0.0.1 only).",
+              "", "| suite | pytest |", "|---|---|"]
     lines += [f"| `{k}` | {v} |" for k, v in counts.items()]
     if faults:
         lines += ["", "### Faults injected, one test each", "",
@@ -214,6 +228,9 @@ def main(argv: list[str] | None = None) -> int:
                     "the raw numbers (reliability.json)")
     ap.add_argument("--page-from", metavar="JSON", help="rewrite the page and figure from the "
                     "raw numbers of an earlier run (no measurement)")
+    ap.add_argument("--rerun-suites", nargs="*", metavar="SUITE", help="with --page-from: "
+                    "run these bad-input and fault suites again (none named: all of them; "
+                    "minutes), keep the other numbers of the earlier run")
     a = ap.parse_args(argv)
     if a.soak_steps < 1001 or any(not d > 0 for d in a.durations):
         print("--soak-steps must be > 1000 and --durations positive", file=sys.stderr)
@@ -225,10 +242,18 @@ def main(argv: list[str] | None = None) -> int:
         rows, soaks, counts, faults, cmd = (raw[k] for k in ("memory", "soak", "suites",
                                                               "faults", "command"))
         steps = raw["soak_steps"]
+        suites_cmd = raw.get("suites_command")
+        if a.rerun_suites is not None:
+            again = a.rerun_suites or list(SUITES)
+            new_counts, new_faults = suites(again)
+            counts = {k: new_counts.get(k, counts.get(k, "-")) for k in (*counts, *again)}
+            faults = [f for f in faults if f["suite"] not in again] + new_faults
+            suites_cmd = (f"python scripts/reliability.py --page-from {a.page_from} "
+                          f"--rerun-suites {' '.join(a.rerun_suites)}").rstrip()
     else:
         rows, soaks, (counts, faults) = memory(a.durations), soak(a.soak_steps), suites()
-        steps = a.soak_steps
-    text = page(rows, soaks, steps, counts, cmd, faults)
+        steps, suites_cmd = a.soak_steps, None
+    text = page(rows, soaks, steps, counts, cmd, faults, suites_cmd)
     print(text)
     if a.out:
         from hgo_mj._io import write_text
@@ -237,10 +262,10 @@ def main(argv: list[str] | None = None) -> int:
         out = Path(a.out)
         figure(rows, out / "reliability_memory.png")
         write_text(out / "reliability.md", text)
-        if not a.page_from:
+        if not a.page_from or a.rerun_suites is not None:
             write_json(out / "reliability.json", {
                 "command": cmd, "soak_steps": steps, "memory": rows, "soak": soaks,
-                "suites": counts, "faults": faults})
+                "suites": counts, "faults": faults, "suites_command": suites_cmd})
     return 0
 
 

@@ -13,15 +13,22 @@ results do not depend on the backend or on the number of workers.
   killed command leaves no orphans computing) and ignore SIGINT: a Ctrl-C reaches the parent,
   which stops them (:func:`worker_init`).
 * ``ray``: ``pip install "hgo_mj[ray]"``. Without ``address``, a local Ray instance with
-  ``jobs`` CPUs bound to 127.0.0.1 without dashboard; with ``address`` (``ray start --head``
-  on the head node prints it, e.g. ``192.168.1.10:6379``), that cluster: every node needs
-  hgo_mj installed, and only the chunk specs and the rows move over the network.
+  ``jobs`` CPUs and no dashboard whose every process listens on 127.0.0.1 only, asks no
+  public DNS server for its address, reports no usage statistics (:data:`LOCAL_RAY_ENV`) and
+  ends with this process, also when it is killed (:func:`ray_init`); with ``address``
+  (``ray start --head`` on the head node prints it, e.g. ``192.168.1.10:6379``), that cluster:
+  every node needs hgo_mj installed, and only the chunk specs and the rows move over the
+  network.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
+import subprocess
+import sys
+import uuid
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -131,17 +138,117 @@ def _local(chunks: list[Any], jobs: int,
     pool.shutdown(wait=True)
 
 
+#: the environment of a local Ray instance's processes (Ray reads these as each one starts):
+#: without a cluster, the node's address is 127.0.0.1, so that the GCS, the raylet, the agents,
+#: the workers and this driver listen on 127.0.0.1 only (Ray otherwise replaces 127.0.0.1 by
+#: the address of the interface its route to a public DNS server, 8.8.8.8, leaves from, and
+#: its gRPC servers listen on every interface); no usage statistics (sent to Ray's servers
+#: after probing the cloud metadata address 169.254.169.254)
+LOCAL_RAY_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
+#: names the processes of one local Ray instance (in their environment), for :data:`_REAPER`
+_INSTANCE_VAR = "HGO_MJ_RAY_INSTANCE"
+#: the write end of the pipe the reaper of the local instance reads (``None``: none started)
+_reaper_pipe: int | None = None
+
+#: a process that outlives the driver (its own session, forked off) and, when its standard
+#: input ends (the driver closed it or died, also by SIGKILL), kills every process whose
+#: environment holds ``argv[1]`` (``HGO_MJ_RAY_INSTANCE=<id>``), scanning /proc until four
+#: scans half a second apart find none (a worker forked during a scan). Ray ends its GCS and
+#: raylet with the driver, its workers and agents with the raylet, but the agents first wait
+#: a minute on the dead GCS, listening
+_REAPER = r"""
+import os, signal, sys, time
+if os.fork():
+    os._exit(0)
+while sys.stdin.buffer.read(4096):
+    pass
+marker = sys.argv[1].encode()
+quiet = 0
+for _ in range(120):  # again until 2 s without one: a process forked during a scan
+    found = False
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/environ", "rb") as fh:
+                if marker in fh.read().split(b"\0"):
+                    os.kill(int(pid), signal.SIGKILL)
+                    found = True
+        except OSError:
+            pass
+    quiet = 0 if found else quiet + 1
+    if quiet == 4:
+        break
+    time.sleep(0.5)
+"""
+
+
+@contextlib.contextmanager
+def _local_ray_env(instance: str) -> Iterator[None]:
+    """:data:`LOCAL_RAY_ENV` and ``HGO_MJ_RAY_INSTANCE=instance`` in ``os.environ`` while a
+    local Ray instance starts (its processes inherit them), and in this process Ray's value
+    of the first (``ENABLE_RAY_CLUSTER``, read when ray was imported: maybe before); restored
+    after. The loopback test (tests/study/test_ray.py) catches a Ray that reads it elsewhere."""
+    import ray._private.ray_constants as ray_constants
+
+    env = {**LOCAL_RAY_ENV, _INSTANCE_VAR: instance}
+    saved = {k: os.environ.get(k) for k in env}
+    cluster = getattr(ray_constants, "ENABLE_RAY_CLUSTER", None)
+    os.environ.update(env)
+    if cluster is not None:
+        ray_constants.ENABLE_RAY_CLUSTER = False
+    try:
+        yield
+    finally:
+        if cluster is not None:
+            ray_constants.ENABLE_RAY_CLUSTER = cluster
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _start_reaper(instance: str) -> None:
+    """Start :data:`_REAPER` for the local instance ``instance`` (Linux: it reads /proc), after
+    ending the previous one's (which kills what is left of a previous instance)."""
+    global _reaper_pipe
+    if _reaper_pipe is not None:
+        os.close(_reaper_pipe)
+        _reaper_pipe = None
+    if not sys.platform.startswith("linux"):
+        return
+    read, write = os.pipe()  # not inherited by the processes Ray starts (close-on-exec)
+    try:
+        subprocess.run([sys.executable, "-c", _REAPER, f"{_INSTANCE_VAR}={instance}"],
+                       stdin=read, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                       start_new_session=True, check=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        os.close(write)  # no reaper: Ray's own clean-up only
+    else:
+        _reaper_pipe = write
+    finally:
+        os.close(read)
+
+
 def ray_init(jobs: int, address: str | None) -> None:
-    """Connect to ``address``, or start a local instance (127.0.0.1, ``jobs`` CPUs, no
-    dashboard) unless one is running in this process."""
+    """Connect to ``address``, or start a local instance (``jobs`` CPUs, no dashboard, every
+    process on 127.0.0.1: :data:`LOCAL_RAY_ENV`) unless one is running in this process.
+
+    The local instance's processes end with this one: Ray ends its GCS and raylet with the
+    driver and the workers with the raylet; a reaper (:data:`_REAPER`) ends its agents, which
+    would otherwise wait a minute on the dead GCS.
+    """
     import ray
 
     if ray.is_initialized():
         return
     try:
         if address is None:
-            ray.init(num_cpus=jobs, include_dashboard=False, _node_ip_address="127.0.0.1",
-                     log_to_driver=False, configure_logging=False)
+            instance = uuid.uuid4().hex
+            with _local_ray_env(instance):
+                ray.init(num_cpus=jobs, include_dashboard=False, dashboard_host="127.0.0.1",
+                         _node_ip_address="127.0.0.1", log_to_driver=False,
+                         configure_logging=False)
+            _start_reaper(instance)
         else:
             ray.init(address=address, log_to_driver=False, configure_logging=False)
     except (ConnectionError, RuntimeError, ValueError) as exc:
@@ -185,4 +292,4 @@ def _ray(chunks: list[Chunk], jobs: int, address: str | None) -> Iterator[tuple[
 
 #: a backend is chosen by name (``Study.run(backend=...)``, ``--backend``); the functions
 #: that build and feed it are internal
-__all__ = ["BACKENDS", "WORKERS_WORTH_S"]
+__all__ = ["BACKENDS", "LOCAL_RAY_ENV", "WORKERS_WORTH_S"]

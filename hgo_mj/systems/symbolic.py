@@ -27,7 +27,11 @@ and gets a :class:`System` whose single-output normal form (paper 000, eq. 1) is
 never see the user's strings: :func:`parse` walks Python's ``ast`` of each expression and
 builds the sympy expression node by node, allowing numbers, declared names, ``+ - * / **``,
 unary signs and calls of :data:`FUNCTIONS`; anything else is a :class:`ModelError` naming it and
-its position.
+its position. Sizes are bounded before sympy sees them (sympy computes with exact numbers:
+``9**9**9`` would never end): at most :data:`MAX_CHARS` characters, :data:`MAX_NODES` nodes
+nested at most :data:`MAX_DEPTH` deep, constant exponents up to :data:`MAX_EXPONENT` in
+magnitude and constants within float64's range; a constant that is not a finite real number
+(``sqrt(-1)``, ``1/0``) is refused where it appears.
 
 **Evaluation.** Every derived expression is compiled into a numba row function
 (:mod:`hgo_mj.systems._codegen`: sympy's code printer over the checked expression with its
@@ -40,6 +44,7 @@ against the hand-written one (BENCHMARKS.md).
 from __future__ import annotations
 
 import ast
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
@@ -67,6 +72,19 @@ _CONSTANTS = {"pi": sympy.pi, "e": sympy.E}
 _BINOPS: dict[type, Callable[[Any, Any], Any]] = {
     ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
     ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: a ** b}
+#: the longest expression :func:`parse` takes (characters)
+MAX_CHARS = 10_000
+#: the most nodes (numbers, names, operations, calls) of one expression
+MAX_NODES = 2_000
+#: the deepest nesting of one expression (a sum or product of k terms nests k deep)
+MAX_DEPTH = 200
+#: the largest magnitude of a constant exponent (``x**e``, ``2**e``)
+MAX_EXPONENT = 100
+#: the largest power of ten of a constant: float64's range, where the compiled model computes
+_MAX_LOG10 = 308.0
+_FLOAT_MAX = int(np.finfo(float).max)
+#: values that are not finite real numbers (a constant like ``sqrt(-1)`` or ``1/0``)
+_NOT_REAL = (sympy.I, sympy.zoo, sympy.nan, sympy.oo, -sympy.oo)
 
 
 def parse(text: Any, names: Mapping[str, sympy.Symbol], where: str) -> sympy.Expr:
@@ -104,20 +122,91 @@ def parse(text: Any, names: Mapping[str, sympy.Symbol], where: str) -> sympy.Exp
     if not isinstance(text, str):
         raise ModelError(f"{where} must be an expression as a string; found {text!r} "
                          f"({type(text).__name__})")
+    if len(text) > MAX_CHARS:
+        raise ModelError(f"{where} = {_quote(text)}: {len(text)} characters; an expression "
+                         f"has at most {MAX_CHARS}")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
         col = exc.offset or len(text.strip()) + 1  # 0: the expression ended too early
-        raise ModelError(f"{where} = {text!r}: syntax error at column {col}: "
+        raise ModelError(f"{where} = {_quote(text)}: syntax error at column {col}: "
                          f"{exc.msg}") from None
-    return _node(tree.body, names, where, text)
+    except (MemoryError, RecursionError, ValueError) as exc:  # nested too deep, huge literals
+        raise ModelError(f"{where} = {_quote(text)}: Python cannot parse it "
+                         f"({type(exc).__name__}: {str(exc) or 'too deeply nested'})") from None
+    _check_size(tree.body, where, text)
+    try:
+        return _node(tree.body, names, where, text)
+    except (MemoryError, RecursionError, OverflowError) as exc:
+        raise ModelError(f"{where} = {_quote(text)}: too large to build "
+                         f"({type(exc).__name__})") from None
+
+
+def _quote(text: str, most: int = 60) -> str:
+    """``repr(text)``, its middle left out beyond ``most`` characters (messages stay one
+    short line)."""
+    if len(text) <= most:
+        return repr(text)
+    return repr(text[:most // 2]) + f" ... ({len(text)} characters) ... " + repr(text[-10:])
+
+
+def _check_size(tree: ast.AST, where: str, text: str) -> None:
+    """Refuse more than :data:`MAX_NODES` nodes or a nesting deeper than :data:`MAX_DEPTH`
+    (walked without recursion: the check must not overflow the stack it protects)."""
+    stack, count = [(tree, 1)], 0
+    while stack:
+        node, depth = stack.pop()
+        count += 1
+        if depth > MAX_DEPTH:
+            raise ModelError(f"{where} = {_quote(text)}, column "
+                             f"{getattr(node, 'col_offset', 0) + 1}: nested more than "
+                             f"{MAX_DEPTH} deep (a sum or product of k terms nests k deep)")
+        if count > MAX_NODES:
+            raise ModelError(f"{where} = {_quote(text)}: more than {MAX_NODES} numbers, names "
+                             f"and operations in one expression")
+        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node)
+                     if not isinstance(child, (ast.operator, ast.unaryop, ast.expr_context)))
+
+
+def _log10(value: Any) -> float:
+    """``log10 |value|`` of a nonzero sympy number, however large (no float overflow)."""
+    if isinstance(value, sympy.Rational):
+        return math.log10(abs(int(value.p))) - math.log10(int(value.q))
+    return float(sympy.log(abs(value), 10).evalf(15))
+
+
+def _power(base: Any, exp: Any, at: str) -> Any:
+    """``base ** exp`` with a constant exponent of at most :data:`MAX_EXPONENT` in magnitude
+    and, for a constant base, a result within float64's range (sympy's exact powers of exact
+    numbers would not end: ``9**9**9``)."""
+    if isinstance(exp, sympy.Number) and exp.is_finite:
+        if abs(exp) > MAX_EXPONENT:
+            raise ModelError(f"{at}: the exponent {_quote(str(exp), 30)} is too large: constant "
+                             f"exponents are at most {MAX_EXPONENT} in magnitude")
+        if isinstance(base, sympy.Number) and base.is_finite and base != 0:
+            size = float(abs(exp)) * abs(_log10(base))
+            if size > _MAX_LOG10:
+                raise ModelError(f"{at}: the power's magnitude is 10^(+-{size:.0f}), beyond "
+                                 f"float64's range (10^{_MAX_LOG10:.0f})")
+    return base ** exp
+
+
+def _real(value: Any, at: str, node: ast.AST) -> Any:
+    """``value``, unless it brought in a number that is not a finite real one (``sqrt(-1)``,
+    ``log(0)``, ``1/0``): the compiled model computes with real floats."""
+    if value.has(*_NOT_REAL) or (value.is_number and value.is_extended_real is False):
+        raise ModelError(f"{at}: {ast.unparse(node)} is {value}, not a finite real number")
+    return value
 
 
 def _node(node: ast.AST, names: Mapping[str, sympy.Symbol], where: str, text: str) -> Any:
-    at = f"{where} = {text!r}, column {getattr(node, 'col_offset', 0) + 1}"
+    at = f"{where} = {_quote(text)}, column {getattr(node, 'col_offset', 0) + 1}"
     if isinstance(node, ast.Constant) and type(node.value) in (int, float):
-        return sympy.Float(node.value) if isinstance(node.value, float) else sympy.Integer(
-            node.value)
+        number: int | float = node.value  # type: ignore[assignment]
+        if (abs(number) > _FLOAT_MAX if isinstance(number, int) else not math.isfinite(number)):
+            raise ModelError(f"{at}: the number {_quote(str(number), 30)} is beyond "
+                             f"float64's range (10^{_MAX_LOG10:.0f})")
+        return sympy.Float(number) if isinstance(number, float) else sympy.Integer(number)
     if isinstance(node, ast.Name):
         if node.id in names:
             return names[node.id]
@@ -126,8 +215,13 @@ def _node(node: ast.AST, names: Mapping[str, sympy.Symbol], where: str, text: st
         raise ModelError(f"{at}: {node.id!r} is not declared; declared: {sorted(names)} "
                          f"(and the constants {sorted(_CONSTANTS)})")
     if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
-        return _BINOPS[type(node.op)](_node(node.left, names, where, text),
-                                      _node(node.right, names, where, text))
+        left = _node(node.left, names, where, text)
+        right = _node(node.right, names, where, text)
+        if isinstance(node.op, ast.Pow):
+            return _real(_power(left, right, at), at, node)
+        value = _BINOPS[type(node.op)](left, right)
+        # from finite real operands, only a division brings in what is not (1/0)
+        return _real(value, at, node) if isinstance(node.op, ast.Div) else value
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
         value = _node(node.operand, names, where, text)
         return -value if isinstance(node.op, ast.USub) else value
@@ -136,7 +230,8 @@ def _node(node: ast.AST, names: Mapping[str, sympy.Symbol], where: str, text: st
         if len(node.args) != 1:
             raise ModelError(f"{at}: {node.func.id}() takes one argument; found "
                              f"{len(node.args)}")
-        return FUNCTIONS[node.func.id][0](_node(node.args[0], names, where, text))
+        arg = _node(node.args[0], names, where, text)
+        return _real(FUNCTIONS[node.func.id][0](arg), at, node)
     what = (f"a call of {ast.unparse(node.func)!r} (allowed: {sorted(FUNCTIONS)})"
             if isinstance(node, ast.Call) else f"{type(node).__name__} {ast.unparse(node)!r}")
     allowed = "" if isinstance(node, ast.Call) else f", and calls of {sorted(FUNCTIONS)}"
@@ -1142,4 +1237,5 @@ def _check_region(cls: type[SymbolicSystem], region: Any, samples: int) -> None:
     cls.lipschitz = bound
 
 
-__all__ = ["FUNCTIONS", "SymbolicSystem", "ode_system", "parse"]
+__all__ = ["FUNCTIONS", "MAX_CHARS", "MAX_DEPTH", "MAX_EXPONENT", "MAX_NODES",
+           "SymbolicSystem", "ode_system", "parse"]

@@ -1,7 +1,11 @@
 """The Ray backend on a real local Ray instance (127.0.0.1, 2 CPUs, no dashboard): the same
-rows as the local backend."""
+rows as the local backend; every process of a local instance listens on loopback only (in a
+network namespace with a non-loopback address) and ends with a killed driver."""
 
 from __future__ import annotations
+
+import os
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -10,7 +14,7 @@ import ray
 from hgo_mj.cli import main
 from hgo_mj.exceptions import DesignError
 from hgo_mj.study import Study
-from hgo_mj.study.backends import backend_for
+from hgo_mj.study.backends import backend_for, ray_init
 
 BASE = {
     "name": "ray",
@@ -25,8 +29,7 @@ AXES = {"observers.hgo.k": [10.0, 40.0], "plant.x0": [[0.5, 0.0], [1.0, 0.0]]}
 
 @pytest.fixture(scope="module")
 def local_ray():
-    ray.init(num_cpus=2, include_dashboard=False, _node_ip_address="127.0.0.1",
-             log_to_driver=False, configure_logging=False)
+    ray_init(2, None)
     yield
     ray.shutdown()
 
@@ -112,9 +115,9 @@ def _alive(pid: int) -> bool:
 
 
 def test_a_killed_driver_leaves_no_ray_processes(tmp_path):
-    """SIGKILL of the process that started the local Ray instance (ray_init): its GCS,
-    raylet, workers and agents all exit (Ray fate-shares them with the driver; its agents
-    notice the raylet's death and exit about a minute later), none is left computing."""
+    """SIGKILL of the process that started the local Ray instance (ray_init): within 10 s its
+    GCS, raylet, workers and both agents have exited (Ray's agents alone would wait a minute on
+    the dead GCS, one of them listening), none is left computing or listening."""
     import os
     import signal
     import subprocess
@@ -138,9 +141,9 @@ def test_a_killed_driver_leaves_no_ray_processes(tmp_path):
         assert names.count("ray::slow") >= 2, ray_procs
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
-        end = time.monotonic() + 180
+        end = time.monotonic() + 10
         while time.monotonic() < end and any(_alive(p) for p in ray_procs):
-            time.sleep(1.0)
+            time.sleep(0.2)
         left = {p: c[:60] for p, c in ray_procs.items() if _alive(p)}
         assert not left, f"left running after the driver was killed: {left}"
     finally:
@@ -162,3 +165,76 @@ def test_tuning_on_ray_gives_the_local_result(local_ray):
                   progress=False)
     pd.testing.assert_frame_equal(local.trials, on_ray.trials)
     assert local.best == on_ray.best
+
+
+NS_DRIVER = """
+import os, subprocess, ray
+from hgo_mj.study.backends import ray_init
+
+ray_init(2, None)
+
+
+@ray.remote(num_cpus=1)
+def pid():
+    return os.getpid()
+
+
+assert len(set(ray.get([pid.remote() for _ in range(4)]))) >= 1
+print(subprocess.run(["ss", "-ltnH"], capture_output=True, text=True, check=True).stdout,
+      flush=True)
+ray.shutdown()
+"""
+#: the listening addresses that only this machine can reach
+LOOPBACK = ("127.0.0.1", "[::ffff:127.0.0.1]", "[::1]")
+
+
+@pytest.fixture
+def netns():
+    """A network namespace with a non-loopback address (10.200.0.1/24 on a veth, a default
+    route through it: Ray's routes to public DNS servers lead there); deleted after."""
+    import shutil
+    import subprocess
+
+    name = f"hgo-ray-{os.getpid()}"
+    ip = shutil.which("ip")
+    if ip is None or shutil.which("ss") is None:
+        pytest.skip("needs iproute2 (ip, ss)")
+    if subprocess.run([ip, "netns", "add", name], capture_output=True).returncode != 0:
+        pytest.skip("cannot create a network namespace (needs root or CAP_NET_ADMIN)")
+    try:
+        for cmd in ("link set lo up", "link add v0 type veth peer name v1",
+                    "addr add 10.200.0.1/24 dev v0", "link set v0 up", "link set v1 up",
+                    "route add default via 10.200.0.254"):
+            subprocess.run([ip, "netns", "exec", name, ip, *cmd.split()], check=True)
+        yield name
+    finally:
+        subprocess.run([ip, "netns", "delete", name], check=False)
+
+
+def test_a_local_instance_listens_on_loopback_only(netns, tmp_path):
+    """In a network namespace whose machine has the address 10.200.0.1: every listening socket
+    of the local instance (GCS, both raylet ports, the agents, the driver, the workers) is on
+    127.0.0.1, and no process asks a public DNS server (8.8.8.8) for the node's address."""
+    import shutil
+    import subprocess
+    import sys
+
+    (tmp_path / "driver.py").write_text(NS_DRIVER)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(Path(__file__).resolve().parents[2]), os.environ.get("PYTHONPATH", "")])}
+    trace = tmp_path / "connect.txt"
+    strace = shutil.which("strace")
+    cmd = [sys.executable, str(tmp_path / "driver.py")]
+    if strace:
+        cmd = [strace, "-f", "-qq", "-e", "trace=connect", "-o", str(trace), *cmd]
+    out = subprocess.run(["ip", "netns", "exec", netns, *cmd], capture_output=True, text=True,
+                         env=env, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    listening = [line.split()[3] for line in out.stdout.splitlines() if line.strip()]
+    assert len(listening) >= 6, out.stdout  # GCS, 2 raylet, driver, workers, agent
+    exposed = [a for a in listening if a.rpartition(":")[0] not in LOOPBACK]
+    assert not exposed, f"listening beyond loopback: {exposed}\n{out.stdout}"
+    if strace:
+        calls = trace.read_text()
+        assert "8.8.8.8" not in calls and "2001:4860:4860" not in calls
+        assert "10.200.0.1" not in calls

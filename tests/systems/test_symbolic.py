@@ -401,3 +401,52 @@ def test_parameter_jacobians_name_an_unknown_parameter():
         s.param_jacobian(0.0, x2, [], None, ["b"])
     with pytest.raises(ModelError, match=r"syntax error at column 6"):
         ode_system(["x1", "x2"], ["x2", "-x1 +"], "x1")
+
+
+@pytest.fixture
+def deadline():
+    """A hang fails: faulthandler ends the process after 60 s, even inside sympy's C code."""
+    import faulthandler
+
+    faulthandler.dump_traceback_later(60, exit=True)
+    yield
+    faulthandler.cancel_dump_traceback_later()
+
+
+@pytest.mark.parametrize(("f1", "match"), [
+    ("9**9**9 + x1", r"f\[1\] = '9\*\*9\*\*9 \+ x1', column 1: the exponent '387420489' is too "
+                     r"large: constant exponents are at most 100 in magnitude"),
+    ("2**2**2**2**2", r"column 1: the exponent '65536' is too large"),
+    ("x1**(10**5)", r"column 1: the exponent '100000' is too large"),
+    ("(9**99)**99 * x1", r"the power's magnitude is 10\^\(\+-9353\), beyond float64's range"),
+    ("-" * 100000 + "x1", r"f\[1\] = '-----.* \.\.\. \(100002 characters\) \.\.\. '-+x1': 100002 "
+                          r"characters; an expression has at most 10000"),
+    ("+".join(["x1"] * 200000), r"599999 characters; an expression has at most 10000"),
+    ("+".join(["x1"] * 1500), r"column \d+: nested more than 200 deep \(a sum or product"),
+    ("-" * 5000 + "x1", r"Python cannot parse it \(RecursionError"),
+    ("sqrt(-1)", r"f\[1\] = 'sqrt\(-1\)', column 1: sqrt\(-1\) is I, not a finite real number"),
+    ("x1 + log(0)", r"column 6: log\(0\) is zoo, not a finite real number"),
+    ("x2/0", r"column 1: x2 / 0 is zoo\*x2, not a finite real number"),
+    ("(-8)**(1/3)", r"is 2\*\(-1\)\*\*\(1/3\), not a finite real number"),
+    ("acos(2) * x1", r"acos\(2\) is acos\(2\), not a finite real number"),
+    ("1e999 * x1", r"the number 'inf' is beyond float64's range"),
+    ("9" * 400, r"is beyond float64's range"),
+])
+def test_oversized_or_non_real_expressions_are_one_line_in_seconds(deadline, f1, match):
+    """Sizes are bounded before sympy sees them (its exact numbers made 9**9**9 hang, 100,000
+    minus signs a MemoryError, a 200,000-term sum a RecursionError) and a constant that is not
+    a finite real number is refused where it is (sqrt(-1) was a numba typing error)."""
+    import time
+
+    t = time.perf_counter()
+    with pytest.raises(ModelError, match=match) as err:
+        ode_system(["x1", "x2"], ["x2", f1], "x1")
+    assert "\n" not in str(err.value) and len(str(err.value)) < 300
+    assert time.perf_counter() - t < 10.0
+
+
+def test_the_limits_leave_ordinary_models_alone():
+    """Constant powers within float64's range, exponents up to 100, a 150-term sum."""
+    cls = ode_system(["x1", "x2"], ["x2", "-2**0.5*x1 + 10**-3*x2**3 - x1**100*1e-300 + "
+                                    + "+".join(["0*x1"] * 150)], "x1")
+    assert cls().phi([0.1, 0.0]) == pytest.approx(-2 ** 0.5 * 0.1, rel=1e-9)
