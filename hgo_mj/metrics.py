@@ -475,10 +475,10 @@ class MetricsBatch:
         """Per metric a ``(B, n)`` array over the plant's ``n`` states (NaN: not estimated):
         ``rmse``, ``peak``, ``settling_time``, ``final``, ``undefined_samples``."""
         B = self.sumsq.shape[0]
+        # a sum of squares that overflowed is inf (its compensation is then inf - inf = NaN)
+        total = np.where(np.isinf(self.sumsq), self.sumsq, self.sumsq + self.comp)
         with np.errstate(invalid="ignore", divide="ignore"):
-            rmse = np.where(self.count > 0,
-                            np.sqrt((self.sumsq + self.comp) / np.maximum(self.count, 1)),
-                            np.nan)
+            rmse = np.where(self.count > 0, np.sqrt(total / np.maximum(self.count, 1)), np.nan)
         peak = np.where(np.isfinite(self.peak), self.peak, np.nan)
         if self.known_band:  # found on the way (NaN: outside at the last row)
             settle = np.where(np.isnan(self.settle_t), np.inf, self.settle_t)

@@ -50,13 +50,13 @@ def _observer_case(obs, steps: int):
 
 
 def _batch_case(obs, steps: int, B: int = 64):
-    """Per member and sample of a batch of ``B`` observers (``Observer.step``)."""
+    """Per member and sample of a batch of ``B`` observers (``Observer.update``, batched)."""
     y, u = np.full((B, len(obs.outputs)), 0.1), np.full((B, 1), 0.2)
     obs.reset(batch=B)
 
     def run() -> None:
         for _ in range(steps):
-            obs.step(y, u, DT)
+            obs.update(y, u, DT)
     return run, steps * B
 
 

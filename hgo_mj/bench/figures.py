@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .._io import save_figure
+from .runner import observer_spec
 from .tasks import Task
 
 __all__ = ["interval_chart", "score_matrix", "write_figures"]
@@ -153,7 +154,6 @@ def write_figures(folder: Path, board: Any, scores: Any, tasks: Sequence[Task],
     True
     """
     from ..plotting import plot_trajectory
-    from .report import best_and_worst, trajectory
 
     written = [save_figure(score_matrix(board), folder / "score_matrix.png")]
     for t in tasks:
@@ -173,3 +173,33 @@ def write_figures(folder: Path, board: Any, scores: Any, tasks: Sequence[Task],
             record_trajectory(traj, path)
             written.append(path)
     return written
+
+
+def _spec_for(task: Task, observer: str, params: dict[str, Any]) -> dict[str, Any]:
+    plant = str(task.plant.get("name", ""))
+    spec = observer_spec(observer, plant, observer.replace(":", ".").replace("/", "."))
+    spec.update(params)
+    if task.mismatch:
+        spec["system_params"] = dict(task.mismatch)
+    return spec
+
+
+def best_and_worst(board: Any, task: Task) -> list[str]:
+    """The task's best and worst scored observers (by rank; one if only one)."""
+    sel = board[(board["task"] == task.name) & (board["status"] == "scored")].sort_values("rank")
+    names = list(sel["observer"])
+    return names[:1] + (names[-1:] if len(names) > 1 else [])
+
+
+def trajectory(task: Task, observers: Sequence[str], parts: Sequence[dict[str, Any]]) -> Any:
+    """One scoring seed of the task with the given (tuned) observers, simulated."""
+    from ..scenario import scenario_run
+    from ..simulate import simulate
+
+    params = {p["observer"]: p.get("parameters", {}) for p in parts if p["task"] == task.name}
+    sc = task.scenario()
+    sc["observers"] = [_spec_for(task, o, params.get(o, {})) for o in observers]
+    kw = scenario_run(sc)
+    kw.pop("metadata", None)
+    return simulate(seed=task.scoring_seeds[0], isolate=True, **kw)
+

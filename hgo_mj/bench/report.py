@@ -22,7 +22,7 @@ from typing import Any
 
 from .._io import write_bytes, write_text
 from ..exceptions import DesignError
-from .runner import observer_spec, parts_of
+from .runner import parts_of
 from .scores import leaderboard, score_rows
 from .tasks import Task, task_hash, tasks_of
 
@@ -188,7 +188,7 @@ def _check(observers: Sequence[str], budget: Any, backend: Any) -> None:
 
 
 def _cell(m: Any, lo: Any, hi: Any, inf: str = "diverged") -> str:
-    if m is None or m is pd_na() or (isinstance(m, float) and math.isnan(m)):
+    if m is None or m is _pd_na() or (isinstance(m, float) and math.isnan(m)):
         return "-"
     if math.isinf(m):
         return inf
@@ -197,7 +197,7 @@ def _cell(m: Any, lo: Any, hi: Any, inf: str = "diverged") -> str:
     return f"{m:.3g} [{lo:.3g}, {hi:.3g}]"
 
 
-def pd_na() -> Any:
+def _pd_na() -> Any:
     """pandas' missing value (a leaderboard cell never filled)."""
     import pandas as pd
 
@@ -266,33 +266,3 @@ def markdown(board: Any, tasks: Sequence[Task], budget: int) -> str:
             lines.append(f"| - | {r['observer']} | not applicable: {r['reason']} | | | | | | | "
                          f"| | | |")
     return "\n".join(lines)
-
-
-def _spec_for(task: Task, observer: str, params: dict[str, Any]) -> dict[str, Any]:
-    plant = str(task.plant.get("name", ""))
-    spec = observer_spec(observer, plant, observer.replace(":", ".").replace("/", "."))
-    spec.update(params)
-    if task.mismatch:
-        spec["system_params"] = dict(task.mismatch)
-    return spec
-
-
-def best_and_worst(board: Any, task: Task) -> list[str]:
-    """The task's best and worst scored observers (by rank; one if only one)."""
-    sel = board[(board["task"] == task.name) & (board["status"] == "scored")].sort_values("rank")
-    names = list(sel["observer"])
-    return names[:1] + (names[-1:] if len(names) > 1 else [])
-
-
-def trajectory(task: Task, observers: Sequence[str], parts: Sequence[dict[str, Any]]) -> Any:
-    """One scoring seed of the task with the given (tuned) observers, simulated."""
-    from ..scenario import scenario_run
-    from ..simulate import simulate
-
-    params = {p["observer"]: p.get("parameters", {}) for p in parts if p["task"] == task.name}
-    sc = task.scenario()
-    sc["observers"] = [_spec_for(task, o, params.get(o, {})) for o in observers]
-    kw = scenario_run(sc)
-    kw.pop("metadata", None)
-    return simulate(seed=task.scoring_seeds[0], isolate=True, **kw)
-

@@ -562,6 +562,9 @@ class HighGainObserver(_Chains, Observer):
                        None if z_hat0 is None else vector("z_hat0", z_hat0, n))
         #: ``x_hat`` is ``z_hat`` itself (no system, or a system whose normal form is its state)
         self._identity = system is None or _is_identity(system, n)
+        # x_hat is the system's state (from_normal), or z_hat: its names must fit it
+        self._check_width(n if system is None else len(system.state_names),
+                          len(self.state_names))
         self._layout((n,), self.z_bounds)
 
     def _parameters(self) -> dict[str, Any]:

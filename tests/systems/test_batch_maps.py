@@ -144,14 +144,14 @@ def test_to_physical_batch_path_holds_and_counts():
     for ob in (fast, slow):
         ob.reset(z_hat0=np.tile([0.5, 0.0], (B, 1)))
     Xf, Xs = np.empty((B, T, 2)), np.empty((B, T, 2))
-    fast._to_physical(Zb, Ub, Xf)
-    slow._to_physical(Zb, Ub, Xs)
+    fast._to_physical(fast.state, Zb, Ub, Xf)
+    slow._to_physical(slow.state, Zb, Ub, Xs)
     assert same_bits(Xf, Xs)
     np.testing.assert_array_equal(fast.inverse_failures_, slow.inverse_failures_)
     good = np.tile([[[0.08, 0.001]]], (B, 1, 1))
-    fast._to_physical(good, np.full((B, 1, 1), 0.05), Xf[:, :1])  # all defined: batch path
+    fast._to_physical(fast.state, good, np.full((B, 1, 1), 0.05), Xf[:, :1])  # all defined: batch path
     bad = np.tile([[[-1.0, 0.0]]], (B, 1, 1))
-    fast._to_physical(bad, np.full((B, 1, 1), 0.05), Xs[:, :1])  # held: the last valid value
+    fast._to_physical(fast.state, bad, np.full((B, 1, 1), 0.05), Xs[:, :1])  # held: the last valid value
     assert same_bits(Xs[:, 0], Xf[:, 0])
 
 
