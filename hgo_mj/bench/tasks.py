@@ -276,12 +276,7 @@ def task_from_dict(doc: Mapping[str, Any], where: str = "task") -> Task:
     kw = dict(doc)
     for key in ("tuning_seeds", "scoring_seeds"):
         if key in kw:
-            seeds = kw[key]
-            if not isinstance(seeds, Sequence) or isinstance(seeds, str) or not seeds or not all(
-                    isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
-                raise DesignError(f"{where}: {key} must be a non-empty list of integers >= 0; "
-                                  f"found {seeds!r}")
-            kw[key] = tuple(seeds)
+            kw[key] = _seeds(kw[key], key, where)
     task = Task(**{k: v for k, v in kw.items() if k in _FIELDS})
     if set(task.tuning_seeds) & set(task.scoring_seeds):
         raise DesignError(f"{where}: tuning and scoring seeds must be disjoint; both have "
@@ -295,6 +290,14 @@ def task_from_dict(doc: Mapping[str, Any], where: str = "task") -> Task:
                           f">= {task.duration}")
     preset(task.sensor, task.sensor_params)
     return Task(**{**asdict(task), "states": tuple(task.states)})
+
+
+def _seeds(seeds: Any, key: str, where: str) -> tuple[int, ...]:
+    if not isinstance(seeds, Sequence) or isinstance(seeds, str) or not seeds or not all(
+            isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
+        raise DesignError(f"{where}: {key} must be a non-empty list of integers >= 0; "
+                          f"found {seeds!r}")
+    return tuple(seeds)
 
 
 def tasks_of(suite: str | None = None, names: Sequence[str] = (),

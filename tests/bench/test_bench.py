@@ -3,9 +3,7 @@ against hand computations, a user's observer and task on the leaderboard, resume
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 
 import numpy as np
 import pandas as pd
