@@ -271,6 +271,57 @@ def _gain_and_nis(S: Array, PHt: Array, v: Array) -> tuple[Array, float]:  # pra
     return sol[:, :N].T.copy(), nis
 
 
+@njit(cache=True, inline="always")
+def _mat_mul(A: Array, B: Array, out: Array) -> None:  # pragma: no cover - numba
+    """``out = A B`` (``(r, k) (k, c)``), each entry one sum in the order of ``k``."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[k, j]
+            out[i, j] = s
+
+
+@njit(cache=True, inline="always")
+def _mat_mul_bt(A: Array, B: Array, out: Array) -> None:  # pragma: no cover - numba
+    """``out = A B^T`` (``(r, k) (c, k)``), each entry one sum in the order of ``k``."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[j, k]
+            out[i, j] = s
+
+
+@njit(cache=True, inline="always")
+def _mat_mul_bt_add(A: Array, B: Array, out: Array) -> None:  # pragma: no cover - numba
+    """In place ``out += A B^T`` (each entry's sum formed first, then added)."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[j, k]
+            out[i, j] += s
+
+
+@njit(cache=True, inline="always")
+def _mat_vec_add(A: Array, v: Array, x: Array) -> None:  # pragma: no cover - numba
+    """In place ``x += A v`` (each ``(A v)_i`` summed first, then added)."""
+    for i in range(A.shape[0]):
+        s = 0.0
+        for k in range(A.shape[1]):
+            s += A[i, k] * v[k]
+        x[i] += s
+
+
+@njit(cache=True, inline="always")
+def _symmetrize(A: Array, out: Array) -> None:  # pragma: no cover - numba
+    """``out = (A + A^T) / 2``."""
+    for i in range(A.shape[0]):
+        for j in range(A.shape[0]):
+            out[i, j] = 0.5 * (A[i, j] + A[j, i])
+
+
 @njit(cache=True)
 def _joint_update(x: Array, P: Array, v: Array, H: Array, R: Array) -> float:  # pragma: no cover
     """In place, the Kalman update of one member with innovation ``v`` [S06, sec. 10.1]:
@@ -280,62 +331,32 @@ def _joint_update(x: Array, P: Array, v: Array, H: Array, R: Array) -> float:  #
         S = H P H^T + R, \\quad K = P H^T S^{-1}, \\quad x \\leftarrow x + K v, \\quad
         P \\leftarrow (I - K H) P (I - K H)^T + K R K^T \\ \\text{(Joseph form, symmetrized)};
 
-    returns the normalized innovation squared :math:`v^T S^{-1} v` (:func:`_gain_and_nis`)."""
+    returns the normalized innovation squared :math:`v^T S^{-1} v` (:func:`_gain_and_nis`).
+    Written with the small-matrix kernels :func:`_mat_mul`, :func:`_mat_mul_bt`,
+    :func:`_mat_mul_bt_add`, :func:`_mat_vec_add`, :func:`_symmetrize`."""
     N, m = P.shape[0], H.shape[0]
-    PHt = np.zeros((N, m))
-    for i in range(N):
-        for a in range(m):
-            s = 0.0
-            for k in range(N):
-                s += P[i, k] * H[a, k]
-            PHt[i, a] = s
-    S = R.copy()
+    PHt = np.empty((N, m))
+    _mat_mul_bt(P, H, PHt)
+    S = np.empty((m, m))
+    _mat_mul(H, PHt, S)
     for a in range(m):
         for c in range(m):
-            s = 0.0
-            for k in range(N):
-                s += H[a, k] * PHt[k, c]
-            S[a, c] += s
+            S[a, c] += R[a, c]
     K, nis = _gain_and_nis(S, PHt, v)
-    for i in range(N):
-        s = 0.0
-        for a in range(m):
-            s += K[i, a] * v[a]
-        x[i] += s
-    IKH = np.eye(N)
+    _mat_vec_add(K, v, x)
+    IKH = np.empty((N, N))  # I - K H
+    _mat_mul(K, H, IKH)
     for i in range(N):
         for j in range(N):
-            s = 0.0
-            for a in range(m):
-                s += K[i, a] * H[a, j]
-            IKH[i, j] -= s
-    M = np.zeros((N, N))
-    for i in range(N):
-        for j in range(N):
-            s = 0.0
-            for k in range(N):
-                s += IKH[i, k] * P[k, j]
-            M[i, j] = s
-    KR = np.zeros((N, m))
-    for i in range(N):
-        for c in range(m):
-            s = 0.0
-            for a in range(m):
-                s += K[i, a] * R[a, c]
-            KR[i, c] = s
-    out = np.zeros((N, N))
-    for i in range(N):
-        for j in range(N):
-            s = 0.0
-            for k in range(N):
-                s += M[i, k] * IKH[j, k]
-            t = 0.0
-            for c in range(m):
-                t += KR[i, c] * K[j, c]
-            out[i, j] = s + t
-    for i in range(N):
-        for j in range(N):
-            P[i, j] = 0.5 * (out[i, j] + out[j, i])
+            IKH[i, j] = (1.0 if i == j else 0.0) - IKH[i, j]
+    M = np.empty((N, N))
+    _mat_mul(IKH, P, M)
+    KR = np.empty((N, m))
+    _mat_mul(K, R, KR)
+    out = np.empty((N, N))
+    _mat_mul_bt(M, IKH, out)  # (I - K H) P (I - K H)^T
+    _mat_mul_bt_add(KR, K, out)  # + K R K^T
+    _symmetrize(out, P)
     return nis
 
 
