@@ -120,7 +120,8 @@ def candidates() -> dict[str, object]:
         """The family's step alone (``_step`` on prepared rows, one member's parameters), without
         the base class's validation and bookkeeping in ``update`` / ``advance``."""
         Y, U = np.full((1, 1, 1), 0.1), np.full((1, 1, 1), 0.2)
-        X, Z, D = np.empty((1, 1, 2)), np.empty((1, 1, 2)), np.empty((1, 1, 0))
+        X, Z = np.empty((1, 1, 2)), np.empty((1, 1, 2))
+        D = np.empty((1, 1, len(ob.family_diagnostics)))  # the family's columns (nis)
         params, state = ob._own()
         p = params.member(0)
 

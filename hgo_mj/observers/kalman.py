@@ -64,6 +64,27 @@ map), so both use it (:func:`_condition_selection`: sequential scalar updates fo
 :math:`R`, the joint Joseph-form update otherwise). For a general :math:`h` the EKF linearizes
 by finite differences and the UKF uses sigma points (one member at a time).
 
+**Consistency: the NIS.** Every Kalman filter reports, per sample, the diagnostic ``nis``: the
+normalized innovation squared of its measurement update,
+
+.. math::
+
+    \\epsilon_k = \\nu_k^T S_k^{-1} \\nu_k, \\qquad \\nu_k = y_k - h(\\hat x_k^-), \\qquad
+    S_k = H P_k^- H^T + R
+
+over the present (non-NaN) channels (the UKF's :math:`S_k = P_{yy} + R` from sigma points;
+for a selection output both are the formula above), NaN for a sample whose channels are all
+lost (and before the first update). For a consistent filter (the model right, ``Q`` and ``R``
+the true noise) :math:`\\epsilon_k` is :math:`\\chi^2` with as many degrees of freedom as
+present channels, so its **expected value is the number of present channels** [BLK01]_; a mean
+well above it says the filter is overconfident (``R`` or ``Q`` too small), well below
+underconfident. It needs no ground truth (the tuner's ``nis`` objective reads it). The kernels
+form it from the :math:`S` (or the scalar :math:`s`) that the update computes anyway: with a
+diagonal :math:`R` the sequential scalar updates give the sum of the squared normalized
+sequential innovations :math:`\\sum_c \\nu_c'^2 / s_c`, which equals the joint
+:math:`\\nu^T S^{-1} \\nu` (the sequential innovations are :math:`L^{-1} \\nu` for
+:math:`S = L D L^T`, their variances :math:`D`).
+
 References
 ----------
 .. [J70] A. H. Jazwinski, *Stochastic Processes and Filtering Theory*, Academic Press 1970,
@@ -74,6 +95,9 @@ References
 .. [S06] D. Simon, *Optimal State Estimation*, Wiley 2006, sec. 13.2 (parameter estimation by
    state augmentation), sec. 10.1 (Joseph form), sec. 14.3 (UKF).
 .. [MJ] MuJoCo documentation, ``mjd_transitionFD`` (finite-differenced transition matrices).
+.. [BLK01] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking
+   and Navigation*, Wiley 2001, sec. 5.4.2 (the normalized innovation squared and its
+   chi-square test).
 """
 
 from __future__ import annotations
@@ -229,94 +253,147 @@ def _spd_solve(S: Array, Rhs: Array) -> Array:  # pragma: no cover - numba
 
 
 @njit(cache=True)
-def _joint_update(x: Array, P: Array, v: Array, H: Array, R: Array) -> None:  # pragma: no cover
+def _gain_and_nis(S: Array, PHt: Array, v: Array) -> tuple[Array, float]:  # pragma: no cover
+    """The gain :math:`K = P H^T S^{-1}` ``(N, m)`` and the normalized innovation squared
+    :math:`v^T S^{-1} v` from one Cholesky factor of ``S`` (:func:`_spd_solve` of the right-hand
+    sides :math:`H P` and ``v`` together; it solves the columns one by one, so the gain is
+    the same to the bit as solved alone)."""
+    N, m = PHt.shape
+    rhs = np.empty((m, N + 1))
+    for a in range(m):
+        for i in range(N):
+            rhs[a, i] = PHt[i, a]
+        rhs[a, N] = v[a]
+    sol = _spd_solve(S, rhs)
+    nis = 0.0
+    for a in range(m):
+        nis += v[a] * sol[a, N]
+    return sol[:, :N].T.copy(), nis
+
+
+@njit(cache=True, inline="always")
+def _mat_mul(A: Array, B: Array, out: Array) -> None:  # pragma: no cover - numba
+    """``out = A B`` (``(r, k) (k, c)``), each entry one sum in the order of ``k``."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[k, j]
+            out[i, j] = s
+
+
+@njit(cache=True, inline="always")
+def _mat_mul_bt(A: Array, B: Array, out: Array) -> None:  # pragma: no cover - numba
+    """``out = A B^T`` (``(r, k) (c, k)``), each entry one sum in the order of ``k``."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[j, k]
+            out[i, j] = s
+
+
+@njit(cache=True, inline="always")
+def _mat_mul_bt_add(A: Array, B: Array, out: Array) -> None:  # pragma: no cover - numba
+    """In place ``out += A B^T`` (each entry's sum formed first, then added)."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[j, k]
+            out[i, j] += s
+
+
+@njit(cache=True, inline="always")
+def _mat_vec_add(A: Array, v: Array, x: Array) -> None:  # pragma: no cover - numba
+    """In place ``x += A v`` (each ``(A v)_i`` summed first, then added)."""
+    for i in range(A.shape[0]):
+        s = 0.0
+        for k in range(A.shape[1]):
+            s += A[i, k] * v[k]
+        x[i] += s
+
+
+@njit(cache=True, inline="always")
+def _symmetrize(A: Array, out: Array) -> None:  # pragma: no cover - numba
+    """``out = (A + A^T) / 2``."""
+    for i in range(A.shape[0]):
+        for j in range(A.shape[0]):
+            out[i, j] = 0.5 * (A[i, j] + A[j, i])
+
+
+@njit(cache=True)
+def _joint_update(x: Array, P: Array, v: Array, H: Array, R: Array) -> float:  # pragma: no cover
     """In place, the Kalman update of one member with innovation ``v`` [S06, sec. 10.1]:
 
     .. math::
 
         S = H P H^T + R, \\quad K = P H^T S^{-1}, \\quad x \\leftarrow x + K v, \\quad
-        P \\leftarrow (I - K H) P (I - K H)^T + K R K^T \\ \\text{(Joseph form, symmetrized)}.
-    """
+        P \\leftarrow (I - K H) P (I - K H)^T + K R K^T \\ \\text{(Joseph form, symmetrized)};
+
+    returns the normalized innovation squared :math:`v^T S^{-1} v` (:func:`_gain_and_nis`).
+    Written with the small-matrix kernels :func:`_mat_mul`, :func:`_mat_mul_bt`,
+    :func:`_mat_mul_bt_add`, :func:`_mat_vec_add`, :func:`_symmetrize`."""
     N, m = P.shape[0], H.shape[0]
-    PHt = np.zeros((N, m))
-    for i in range(N):
-        for a in range(m):
-            s = 0.0
-            for k in range(N):
-                s += P[i, k] * H[a, k]
-            PHt[i, a] = s
-    S = R.copy()
+    PHt = np.empty((N, m))
+    _mat_mul_bt(P, H, PHt)
+    S = np.empty((m, m))
+    _mat_mul(H, PHt, S)
     for a in range(m):
         for c in range(m):
-            s = 0.0
-            for k in range(N):
-                s += H[a, k] * PHt[k, c]
-            S[a, c] += s
-    K = _spd_solve(S, PHt.T.copy()).T.copy()  # (N, m)
-    for i in range(N):
-        s = 0.0
-        for a in range(m):
-            s += K[i, a] * v[a]
-        x[i] += s
-    IKH = np.eye(N)
+            S[a, c] += R[a, c]
+    K, nis = _gain_and_nis(S, PHt, v)
+    _mat_vec_add(K, v, x)
+    IKH = np.empty((N, N))  # I - K H
+    _mat_mul(K, H, IKH)
     for i in range(N):
         for j in range(N):
-            s = 0.0
-            for a in range(m):
-                s += K[i, a] * H[a, j]
-            IKH[i, j] -= s
-    M = np.zeros((N, N))
-    for i in range(N):
-        for j in range(N):
-            s = 0.0
-            for k in range(N):
-                s += IKH[i, k] * P[k, j]
-            M[i, j] = s
-    KR = np.zeros((N, m))
-    for i in range(N):
-        for c in range(m):
-            s = 0.0
-            for a in range(m):
-                s += K[i, a] * R[a, c]
-            KR[i, c] = s
-    out = np.zeros((N, N))
-    for i in range(N):
-        for j in range(N):
-            s = 0.0
-            for k in range(N):
-                s += M[i, k] * IKH[j, k]
-            t = 0.0
-            for c in range(m):
-                t += KR[i, c] * K[j, c]
-            out[i, j] = s + t
-    for i in range(N):
-        for j in range(N):
-            P[i, j] = 0.5 * (out[i, j] + out[j, i])
+            IKH[i, j] = (1.0 if i == j else 0.0) - IKH[i, j]
+    M = np.empty((N, N))
+    _mat_mul(IKH, P, M)
+    KR = np.empty((N, m))
+    _mat_mul(K, R, KR)
+    out = np.empty((N, N))
+    _mat_mul_bt(M, IKH, out)  # (I - K H) P (I - K H)^T
+    _mat_mul_bt_add(KR, K, out)  # + K R K^T
+    _symmetrize(out, P)
+    return nis
 
 
 @njit(cache=True)
 def _condition_selection(X: Array, P: Array, Y: Array, sel: IntArray, R: Array,
-                         diagonal: bool) -> None:  # pragma: no cover - numba
+                         diagonal: bool, nis: Array) -> None:  # pragma: no cover - numba
     """The measurement update of every member with a selection output ``y_c = x[sel[c]]``; a NaN
     channel (a dropout) is left out, so a member with every channel lost only predicts.
 
     Diagonal :math:`R`: one scalar update per present channel (exact, :math:`R` diagonal),
     :math:`s = P_{jj} + r_c,\\ k = P_{:,j},\\ x \\leftarrow x + k (y_c - x_j)/s,\\
     P \\leftarrow P - k k^T / s`. Otherwise the joint update (:func:`_joint_update`) of the
-    present channels."""
+    present channels.
+
+    ``nis[b]``: the member's normalized innovation squared :math:`v^T S^{-1} v` over the
+    present channels, NaN where none is. Sequentially it is the sum of the squared normalized
+    scalar innovations :math:`(y_c - x_j)^2 / s`: with :math:`S = L D L^T` (unit lower
+    :math:`L`), the scalar innovations are :math:`L^{-1} v` and their variances :math:`D`, so
+    :math:`\\sum_c (L^{-1} v)_c^2 / D_c = v^T S^{-1} v` (the joint value)."""
     B, N = X.shape
     p = Y.shape[1]
     idx = np.empty(p, dtype=np.int64)
     k = np.empty(N)
     for b in range(B):
         if diagonal:
+            acc = 0.0
+            seen = False
             for c in range(p):
                 y = Y[b, c]
                 if y != y:
                     continue
+                seen = True
                 j = sel[c]
                 s = P[b, j, j] + R[c, c]
-                e = (y - X[b, j]) / s
+                d = y - X[b, j]
+                e = d / s
+                acc += d * e
                 for i in range(N):
                     k[i] = P[b, i, j]
                 for i in range(N):
@@ -327,6 +404,7 @@ def _condition_selection(X: Array, P: Array, Y: Array, sel: IntArray, R: Array,
                         q = P[b, i, m] - k[i] * k[m] * w
                         P[b, i, m] = q
                         P[b, m, i] = q
+            nis[b] = acc if seen else np.nan
             continue
         m = 0
         for c in range(p):
@@ -334,6 +412,7 @@ def _condition_selection(X: Array, P: Array, Y: Array, sel: IntArray, R: Array,
                 idx[m] = c
                 m += 1
         if m == 0:
+            nis[b] = np.nan
             continue
         H = np.zeros((m, N))
         v = np.empty(m)
@@ -344,7 +423,7 @@ def _condition_selection(X: Array, P: Array, Y: Array, sel: IntArray, R: Array,
             v[a] = Y[b, idx[a]] - X[b, j]
             for c in range(m):
                 Rm[a, c] = R[idx[a], idx[c]]
-        _joint_update(X[b], P[b], v, H, Rm)
+        nis[b] = _joint_update(X[b], P[b], v, H, Rm)
 
 
 @njit(cache=True)
@@ -662,16 +741,17 @@ def _ekf_predict_rows(model: Any, X: Array, U: Array, P: Array, c0: Array, pidx:
 
 
 @njit(cache=True)
-def _ekf_block(model: Any, X: Array, P: Array, Y: Array, U: Array, sel: IntArray, R: Array,
-               diagonal: bool, c0: Array, pidx: IntArray, analytic: bool, h: float,
+def _ekf_block(model: Any, X: Array, P: Array, nis: Array, Y: Array, U: Array, sel: IntArray,
+               R: Array, diagonal: bool, c0: Array, pidx: IntArray, analytic: bool, h: float,
                substeps: int, rk4: bool, Qh: Array, Xs: Array, Zs: Array,
                Ds: Array) -> int:  # pragma: no cover - numba
     """The EKF over a block of samples ``Y`` ``(B, T, p)``, ``U`` ``(B, T, m)`` with a compiled
-    model and a selection output, in place: per sample :func:`_condition_selection`, then
-    ``substeps`` times :func:`_ekf_predict`, the estimate after it into ``Xs[:, j]`` and
-    ``Zs[:, j]`` ``(B, T, n)`` and the parameters into ``Ds[:, j]`` ``(B, T, q)``: the sample
-    loop of ``_KalmanFilter._step`` in one call. Returns the sample at which an estimate
-    left the finite numbers (the state left there), else -1."""
+    model and a selection output, in place: per sample :func:`_condition_selection` (its NIS
+    into ``nis`` ``(B,)``), then ``substeps`` times :func:`_ekf_predict`, the estimate after it
+    into ``Xs[:, j]`` and ``Zs[:, j]`` ``(B, T, n)``, the parameters and the NIS into
+    ``Ds[:, j]`` ``(B, T, q + 1)``: the sample loop of ``_KalmanFilter._step`` in one call.
+    Returns the sample at which an estimate left the finite numbers (the state left there),
+    else -1."""
     B, T = Y.shape[0], Y.shape[1]
     N = X.shape[1]
     n = N - pidx.shape[0]
@@ -684,7 +764,7 @@ def _ekf_block(model: Any, X: Array, P: Array, Y: Array, U: Array, sel: IntArray
                 y[b, c] = Y[b, j, c]
             for c in range(U.shape[2]):
                 u[b, c] = U[b, j, c]
-        _condition_selection(X, P, y, sel, R, diagonal)
+        _condition_selection(X, P, y, sel, R, diagonal, nis)
         for _ in range(substeps):
             _ekf_predict(model, X, u, P, c0, pidx, analytic, h, rk4, Qh, vs, ms)
         if _first_nonfinite(X) >= 0:
@@ -695,6 +775,7 @@ def _ekf_block(model: Any, X: Array, P: Array, Y: Array, U: Array, sel: IntArray
                 Zs[b, j, i] = X[b, i]
             for i in range(n, N):
                 Ds[b, j, i - n] = X[b, i]
+            Ds[b, j, N - n] = nis[b]
     return -1
 
 
@@ -1379,7 +1460,8 @@ class _KalmanFilter(Observer):
                               f"initial guess of the estimated parameters)")
         self.sel = mdl.selection(self.outputs)
         self._sel = np.array(self.sel if self.sel is not None else [], dtype=np.int64)
-        self.family_diagnostics = tuple(f"theta_{nm}" for nm in self.estimate)  # type: ignore[misc]
+        self.family_diagnostics = (  # type: ignore[misc]
+            *(f"theta_{nm}" for nm in self.estimate), "nis")
         self._x_hat0 = None if x_hat0 is None else (
             vector("x_hat0", x_hat0, self.n) if np.ndim(x_hat0) <= 1
             else batch_rows("x_hat0", x_hat0, self.n, None))
@@ -1490,8 +1572,8 @@ class _KalmanFilter(Observer):
 
     def _init(self, p: Params, x0: Array | None, z0: Array | None,
               u0: Array) -> dict[str, Any]:
-        """``x`` from ``x0`` (the parameter columns zero: :meth:`init` writes them) and
-        ``P = P0``."""
+        """``x`` from ``x0`` (the parameter columns zero: :meth:`init` writes them), ``P = P0``
+        and ``nis`` NaN (no measurement update yet)."""
         B = u0.shape[0]
         x = x0 if x0 is not None else z0
         if x is None:
@@ -1501,7 +1583,8 @@ class _KalmanFilter(Observer):
         if self.q:
             rows.append(np.zeros((B, self.q)))
         return {"x": np.ascontiguousarray(np.concatenate(rows, axis=1), dtype=float),
-                "P": np.ascontiguousarray(np.tile(self.P0, (B, 1, 1)))}
+                "P": np.ascontiguousarray(np.tile(self.P0, (B, 1, 1))),
+                "nis": np.full(B, np.nan)}
 
     # ------------------------------------------------------------------ the step
     def _Qh(self, t: _Tuning, key: bytes, h: float) -> Array:
@@ -1524,15 +1607,16 @@ class _KalmanFilter(Observer):
         T = Y.shape[1]
         j = self._block(t, s, Y, U, h, Qh, X, Z, D)
         if j is None:  # sample by sample, from Python (the same arithmetic)
-            hist = np.empty((T, s.x.shape[0], self.N))  # the estimates, sample-major
+            hist = np.empty((T, s.x.shape[0], self.N + 1))  # the estimates and NIS, sample-major
             for j in range(T):
-                self._condition_on(t, s.x, s.P, np.ascontiguousarray(Y[:, j]))
+                self._condition_on(t, s.x, s.P, np.ascontiguousarray(Y[:, j]), s.nis)
                 u = np.ascontiguousarray(U[:, j])
                 for _ in range(self.substeps):
                     self._predict(t, s, u, h, Qh)
                 if _first_nonfinite(s.x) >= 0:
                     break
-                hist[j] = s.x
+                hist[j, :, :-1] = s.x
+                hist[j, :, -1] = s.nis
             else:
                 j = -1
                 X[...] = hist[:, :, :n].transpose(1, 0, 2)
@@ -1552,16 +1636,18 @@ class _KalmanFilter(Observer):
         from Python."""
         return None
 
-    def _condition_on(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
+    def _condition_on(self, t: _Tuning, x: Array, P: Array, Y: Array, nis: Array) -> None:
         """The measurement update of every member of ``x`` ``(B, N)``, ``P`` ``(B, N, N)``
-        (in place) with ``Y`` ``(B, p)`` (NaN: lost channel)."""
+        (in place) with ``Y`` ``(B, p)`` (NaN: lost channel); each member's normalized
+        innovation squared into ``nis`` ``(B,)`` (NaN: every channel lost)."""
         if self.sel is not None:
-            _condition_selection(x, P, Y, self._sel, t.R, t.diag_R)
+            _condition_selection(x, P, Y, self._sel, t.R, t.diag_R, nis)
         else:
-            self._condition_general(t, x, P, Y)
+            self._condition_general(t, x, P, Y, nis)
 
-    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
-        """The measurement update for a general output map ``h`` (filter-specific)."""
+    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array, nis: Array) -> None:
+        """The measurement update for a general output map ``h`` (filter-specific), the NIS
+        into ``nis`` as :meth:`_condition_on`."""
         raise NotImplementedError
 
     def _filtered(self, p: Params, s: State, Y: Array) -> Array:
@@ -1569,7 +1655,7 @@ class _KalmanFilter(Observer):
         channel; the filter's own read), the state left as it was."""
         x, P = s.x.copy(), s.P.copy()
         self._condition_on(self._tuning(p, p.key()), x, P,
-                           np.ascontiguousarray(Y[:, self._cols_index]))
+                           np.ascontiguousarray(Y[:, self._cols_index]), np.empty(x.shape[0]))
         return x[:, :self.n].copy()
 
     def _present(self, y: Array) -> list[int]:
@@ -1581,7 +1667,8 @@ class _KalmanFilter(Observer):
 
     def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         x = s.x
-        return x[:, :self.n].copy(), x[:, :self.n].copy(), x[:, self.n:].copy()
+        return (x[:, :self.n].copy(), x[:, :self.n].copy(),
+                np.concatenate((x[:, self.n:], s.nis[:, None]), axis=1))
 
     # ------------------------------------------------------------------ interface
     def _check_period(self, p: Params, dt: float) -> None:
@@ -1665,18 +1752,27 @@ class ExtendedKalmanFilter(_KalmanFilter):
     dropouts_ : int or (B,) int array
         Samples with at least one NaN channel (only the present ones correct).
 
+    Notes
+    -----
+    The diagnostics are ``theta_<name>`` (the parameter estimates), ``nis`` (the normalized
+    innovation squared of the last measurement update, :math:`\\nu^T S^{-1} \\nu`; expected
+    value the number of present channels for a consistent filter, Bar-Shalom, Li,
+    Kirubarajan 2001, sec. 5.4.2; NaN when every channel was lost) and ``dropouts``.
+
     Examples
     --------
     >>> from hgo_mj.systems import Pendulum
     >>> f = ExtendedKalmanFilter(Pendulum(), R=1e-4, x_hat0=[0.1, 0.0])
     >>> f.update([0.1], [0.0], 0.01).shape
     (2,)
+    >>> round(f.diagnostics()["nis"], 6)   # (0.1 - 0.1)^2 / (P + R): nothing surprising
+    0.0
 
     Estimating the pendulum's damping by augmentation:
 
     >>> f = ExtendedKalmanFilter(Pendulum(), estimate=["damping"], theta_hat0=[0.05], R=1e-4)
     >>> f.diagnostic_names, f.theta_hat_, f.P_.shape
-    (('theta_damping', 'dropouts'), array([0.05]), (3, 3))
+    (('theta_damping', 'nis', 'dropouts'), array([0.05]), (3, 3))
 
     References
     ----------
@@ -1708,24 +1804,26 @@ class ExtendedKalmanFilter(_KalmanFilter):
         mdl = self.model
         if not isinstance(mdl, SystemModel) or mdl.compiled is None or self.sel is None:
             return None
-        return _ekf_block(mdl.compiled, s.x, s.P, Y, U, self._sel, t.R,  # type: ignore[no-any-return]
+        return _ekf_block(mdl.compiled, s.x, s.P, s.nis, Y, U, self._sel, t.R,  # type: ignore[no-any-return]
                           t.diag_R, mdl._c0, mdl._pidx, mdl.analytic, h, self.substeps,
                           self.method == "rk4", Qh, X, Z, D)
 
-    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
-        """Linearize ``h`` by central differences at each member's prediction, then update."""
+    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array, nis: Array) -> None:
+        """Linearize ``h`` by central differences at each member's prediction, then update
+        (:func:`_joint_update`, which gives the NIS)."""
         out = self.model.output
         for b in range(x.shape[0]):
             idx = self._present(Y[b])
             if not idx:
+                nis[b] = np.nan
                 continue
             chans = [self.outputs[c] for c in idx]
             xb = x[b]
             H = _central_differences(functools.partial(_rows_output, out, chans), xb[None],
                                      self.N)[0]
             v = np.ascontiguousarray(Y[b, idx] - out(xb)[chans])
-            _joint_update(xb, P[b], v, np.ascontiguousarray(H),
-                          np.ascontiguousarray(t.R[np.ix_(idx, idx)]))
+            nis[b] = _joint_update(xb, P[b], v, np.ascontiguousarray(H),
+                                   np.ascontiguousarray(t.R[np.ix_(idx, idx)]))
 
 
 @register
@@ -1832,13 +1930,16 @@ method, substeps, jacobian, model, on_unstable
                                members=np.repeat(np.arange(B), M))
         _moments(np.ascontiguousarray(rows.reshape(B, M, N)), t.Wm, t.Wc, Qh, s.x, s.P)
 
-    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array) -> None:
-        """The unscented measurement update, one member at a time."""
+    def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array, nis: Array) -> None:
+        """The unscented measurement update, one member at a time; the NIS
+        :math:`v^T (P_{yy} + R)^{-1} v` with :math:`v = y - \\hat y` (the innovation
+        covariance ``Pyy`` below includes ``R``)."""
         S = self._sigma(t, x, P)
         out = self.model.output
         for b in range(x.shape[0]):
             idx = self._present(Y[b])
             if not idx:
+                nis[b] = np.nan
                 continue
             chans = [self.outputs[c] for c in idx]
             xb, Pb = x[b], P[b]
@@ -1850,7 +1951,9 @@ method, substeps, jacobian, model, on_unstable
             Pyy = (dY.T * t.Wc) @ dY + t.R[np.ix_(idx, idx)]
             Pxy = (dX.T * t.Wc) @ dY
             K = np.linalg.solve(Pyy, Pxy.T).T
-            x[b] = xb + K @ (Y[b, idx] - yhat)
+            v = Y[b, idx] - yhat
+            nis[b] = float(v @ np.linalg.solve(Pyy, v))
+            x[b] = xb + K @ v
             Pb = Pb - K @ Pyy @ K.T
             P[b] = 0.5 * (Pb + Pb.T)
 
@@ -1894,7 +1997,7 @@ on_unstable
     >>> f = MujocoExtendedKalmanFilter(Pendulum(), estimate=["dof_damping[hinge]"],
     ...                                theta_hat0=[0.05], R=1e-4, x_hat0=[0.1, 0.0])
     >>> f.diagnostic_names
-    ('theta_dof_damping[hinge]', 'dropouts')
+    ('theta_dof_damping[hinge]', 'nis', 'dropouts')
     >>> f.update([0.1], [0.0], 0.01).round(4)
     array([ 0.0999, -0.0203])
     """
