@@ -84,6 +84,9 @@ CASES: list[Case] = [
      lambda: make_observer("ekf_mujoco", Pendulum(), estimate=("damping",), theta_hat0=[0.05],
                            R=1e-4), 1, 1),
     ("ukf_mujoco", "pendulum", lambda: make_observer("ukf_mujoco", Pendulum(), R=1e-4), 1, 1),
+    # baselines outside the papers (the benchmark issue, item 4)
+    ("finite_difference", "pendulum",
+     lambda: make_observer("finite_difference", Pendulum(), tau=0.02), 1, 1),
 ]
 
 def signals(k: int, p: int, m: int) -> tuple[np.ndarray, np.ndarray]:

@@ -13,6 +13,7 @@ from .bank import ObserverBank
 from .base import Observer, register, registered
 from .bastin_gevers import AOCF, BastinGeversObserver
 from .besancon import AffineForm, BesanconObserver
+from .finite_difference import FiniteDifferenceObserver
 from .high_gain import HighGainObserver, MultiOutputHighGainObserver
 from .jo_son import JoSonForm, JoSonObserver
 from .kalman import (
@@ -89,4 +90,6 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "OBSERVERS", "AdaptiveGainObserver", "BastinGeversObserver", "JoSonForm",
            "JoSonObserver", "HighGainObserver",
            "MultiOutputHighGainObserver", "Observer", "ObserverBank", "QIntegralObserver", "RiccatiObserver",
-           "make_observer", "register", "registered"]
+           "make_observer", "register", "registered",
+           # baselines outside the papers (the benchmark issue, item 4)
+           "FiniteDifferenceObserver"]
