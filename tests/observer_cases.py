@@ -87,6 +87,8 @@ CASES: list[Case] = [
     # baselines outside the papers (the benchmark issue, item 4)
     ("finite_difference", "pendulum",
      lambda: make_observer("finite_difference", Pendulum(), tau=0.02), 1, 1),
+    ("super_twisting", "pendulum-model",
+     lambda: make_observer("super_twisting", Pendulum(), L=20.0, model=True, substeps=2), 1, 1),
 ]
 
 def signals(k: int, p: int, m: int) -> tuple[np.ndarray, np.ndarray]:

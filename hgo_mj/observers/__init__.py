@@ -24,6 +24,7 @@ from .kalman import (
 )
 from .q_integral import QIntegralObserver
 from .riccati import RiccatiObserver
+from .super_twisting import SuperTwistingObserver
 
 #: registry name -> observer class: every family module registers its class with
 #: :func:`register` when it is imported; observers of other packages register through the
@@ -92,4 +93,4 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "MultiOutputHighGainObserver", "Observer", "ObserverBank", "QIntegralObserver", "RiccatiObserver",
            "make_observer", "register", "registered",
            # baselines outside the papers (the benchmark issue, item 4)
-           "FiniteDifferenceObserver"]
+           "FiniteDifferenceObserver", "SuperTwistingObserver"]
