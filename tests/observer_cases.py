@@ -89,6 +89,8 @@ CASES: list[Case] = [
      lambda: make_observer("finite_difference", Pendulum(), tau=0.02), 1, 1),
     ("super_twisting", "pendulum-model",
      lambda: make_observer("super_twisting", Pendulum(), L=20.0, model=True, substeps=2), 1, 1),
+    ("extended_luenberger", "pendulum",
+     lambda: make_observer("extended_luenberger", Pendulum(), omega=15.0), 1, 1),
 ]
 
 def signals(k: int, p: int, m: int) -> tuple[np.ndarray, np.ndarray]:

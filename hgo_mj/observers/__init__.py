@@ -13,6 +13,7 @@ from .bank import ObserverBank
 from .base import Observer, register, registered
 from .bastin_gevers import AOCF, BastinGeversObserver
 from .besancon import AffineForm, BesanconObserver
+from .extended_luenberger import ExtendedLuenbergerObserver
 from .finite_difference import FiniteDifferenceObserver
 from .high_gain import HighGainObserver, MultiOutputHighGainObserver
 from .jo_son import JoSonForm, JoSonObserver
@@ -93,4 +94,5 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "MultiOutputHighGainObserver", "Observer", "ObserverBank", "QIntegralObserver", "RiccatiObserver",
            "make_observer", "register", "registered",
            # baselines outside the papers (the benchmark issue, item 4)
-           "FiniteDifferenceObserver", "SuperTwistingObserver"]
+           "ExtendedLuenbergerObserver", "FiniteDifferenceObserver",
+           "SuperTwistingObserver"]
