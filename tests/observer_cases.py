@@ -91,6 +91,8 @@ CASES: list[Case] = [
      lambda: make_observer("super_twisting", Pendulum(), L=20.0, model=True, substeps=2), 1, 1),
     ("extended_luenberger", "pendulum",
      lambda: make_observer("extended_luenberger", Pendulum(), omega=15.0), 1, 1),
+    ("mhe", "pendulum",
+     lambda: make_observer("mhe", Pendulum(), q=5.0, r=1e-4, p0=0.5, horizon=6), 1, 1),
 ]
 
 def signals(k: int, p: int, m: int) -> tuple[np.ndarray, np.ndarray]:

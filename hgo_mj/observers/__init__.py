@@ -23,6 +23,7 @@ from .kalman import (
     MujocoUnscentedKalmanFilter,
     UnscentedKalmanFilter,
 )
+from .mhe import MovingHorizonEstimator
 from .q_integral import QIntegralObserver
 from .riccati import RiccatiObserver
 from .super_twisting import SuperTwistingObserver
@@ -95,4 +96,4 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "make_observer", "register", "registered",
            # baselines outside the papers (the benchmark issue, item 4)
            "ExtendedLuenbergerObserver", "FiniteDifferenceObserver",
-           "SuperTwistingObserver"]
+           "MovingHorizonEstimator", "SuperTwistingObserver"]
