@@ -13,6 +13,8 @@ from .bank import ObserverBank
 from .base import Observer, register, registered
 from .bastin_gevers import AOCF, BastinGeversObserver
 from .besancon import AffineForm, BesanconObserver
+from .extended_luenberger import ExtendedLuenbergerObserver
+from .finite_difference import FiniteDifferenceObserver
 from .high_gain import HighGainObserver, MultiOutputHighGainObserver
 from .jo_son import JoSonForm, JoSonObserver
 from .kalman import (
@@ -21,8 +23,10 @@ from .kalman import (
     MujocoUnscentedKalmanFilter,
     UnscentedKalmanFilter,
 )
+from .mhe import MovingHorizonEstimator
 from .q_integral import QIntegralObserver
 from .riccati import RiccatiObserver
+from .super_twisting import SuperTwistingObserver
 
 #: registry name -> observer class: every family module registers its class with
 #: :func:`register` when it is imported; observers of other packages register through the
@@ -89,4 +93,7 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "OBSERVERS", "AdaptiveGainObserver", "BastinGeversObserver", "JoSonForm",
            "JoSonObserver", "HighGainObserver",
            "MultiOutputHighGainObserver", "Observer", "ObserverBank", "QIntegralObserver", "RiccatiObserver",
-           "make_observer", "register", "registered"]
+           "make_observer", "register", "registered",
+           # baselines outside the papers (the benchmark issue, item 4)
+           "ExtendedLuenbergerObserver", "FiniteDifferenceObserver",
+           "MovingHorizonEstimator", "SuperTwistingObserver"]
