@@ -83,8 +83,8 @@ def auto_defaults(kind: str, dt: float) -> dict[str, Any]:
 
 def default_estimate(observer: Observer) -> str:
     """The estimate handed by default, per observer kind, as ``docs/results/wrappers.md``
-    measured it: ``"prediction"`` for a high-gain observer with a model term
-    (``model=True``: holding the newest sample over the step pushes its model-based prediction
+    measured it: ``"prediction"`` for a continuous-time observer with a model term (a high-gain
+    one with ``model=True`` or a ``phi``: holding the newest sample over the step pushes its model-based prediction
     ahead) and for a bank that mixes Kalman filters with continuous-time observers (the one
     mode that applies to both); ``"current"`` for every other (Kalman filters: the measurement
     update; model-free chains).
@@ -108,7 +108,9 @@ def default_estimate(observer: Observer) -> str:
     members = getattr(observer, "members", (observer,))
     if len({bool(o.measurement_update) for o in members}) > 1:
         return "prediction"
-    return "prediction" if any(getattr(o, "model", None) is True for o in members) else "current"
+    modelled = any(not o.measurement_update and (getattr(o, "model", None) is True or callable(
+        getattr(o, "phi", None))) for o in members)
+    return "prediction" if modelled else "current"
 
 
 def chain_start(bank: ObserverBank, y: Array) -> list[float]:
