@@ -83,10 +83,10 @@ def auto_defaults(kind: str, dt: float) -> dict[str, Any]:
 
 def default_estimate(observer: Observer) -> str:
     """The estimate handed by default, per observer kind, as ``docs/results/wrappers.md``
-    measured it: ``"prediction"`` for a continuous-time observer with a model term (a high-gain
-    one with ``model=True`` or a ``phi``: holding the newest sample over the step pushes its model-based prediction
-    ahead) and for a bank that mixes Kalman filters with continuous-time observers (the one
-    mode that applies to both); ``"current"`` for every other (Kalman filters: the measurement
+    measured it: ``"prediction"`` for a continuous-time observer with a model term (a
+    high-gain one with ``model=True`` or a ``phi``: holding the newest sample over the step
+    pushes its model-based prediction ahead) and for a bank that mixes Kalman filters with
+    continuous-time observers (the one mode that applies to both); ``"current"`` for every other (Kalman filters: the measurement
     update; model-free chains).
 
     Parameters
@@ -198,7 +198,7 @@ def tied_space(ob: Observer, n_pos: int) -> tuple[dict[str, Dimension], dict[str
     return space, groups
 
 
-def estimates(ob: Observer, params: Any, start: dict[str, Array], Y: Array, U: Array,
+def estimates(ob: Observer, params: Any, start: dict[str, Any], Y: Array, U: Array,
               dt: float, mode: str) -> Array:
     """The estimates ``(B, T, n_x)`` at ``t_1 .. t_T`` of the members ``params`` started at
     ``start`` (``x_hat0`` or ``z_hat0``) over the samples ``Y`` ``(T + 1, p)`` and inputs ``U``
@@ -347,7 +347,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     ``y_k+1``, and the observer integrates over the step with the input ``u_k`` (the action,
     or ``input(action)``) held. What the agent is handed (``estimate=``):
 
-    * ``"current"`` (default): the estimate at ``t_k+1`` that has used ``y_k+1``, the newest
+    * ``"current"``: the estimate at ``t_k+1`` that has used ``y_k+1``, the newest
       measurement. A continuous-time observer (every family but the Kalman filters)
       integrates over the step with ``y_k+1`` held (the measurement at the step's end, in
       place of the one at its start: no sample of delay); a Kalman filter predicts with
@@ -357,18 +357,44 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
       its prediction of ``x(t_k+1)`` made before ``y_k+1`` (every sample a step late, as a
       sampled observer runs in hgo_mj's loop).
 
-    The agent's observation is that estimate, rearranged by ``layout``.
+    The default is the one measured better per observer kind (:func:`default_estimate`,
+    ``docs/results/wrappers.md``): the current estimate for the Kalman filters and model-free
+    chains, the prediction for a continuous-time observer with a model term (``high_gain_multi``
+    with ``model=True``). The agent's observation is that estimate, rearranged by ``layout``.
+
+    **Tuned observers.** ``observer="auto"`` tunes the observer for this environment and
+    sensor: model-free high-gain chains of order 2, one per measured signal, with ``measure=``;
+    the MuJoCo EKF on the environment's MJCF with ``joints=`` (:data:`AUTO_KINDS`).
+    ``observer="auto:<kind>"`` tunes a named kind instead (e.g. ``"auto:high_gain_multi"``),
+    ``observer_kwargs`` fixing what is not searched and the point the search starts from
+    (default :func:`auto_defaults`). The wrapper rolls out a fresh copy of the environment
+    (``gymnasium.make(env.spec)``: the one given is not touched) with seeded random actions,
+    records the measured signals, their true velocities (a joint's ``qvel``; for a signal that
+    is no joint position, the central difference of the clean signal) and the inputs, draws
+    the sensor's noise on the recording, and searches the kind's tuning space
+    (:meth:`~hgo_mj.observers.Observer.tuning_space`) with Optuna's TPE (seeded), each round
+    of candidates one batch of the observer's pure step over the recording, scored by the RMS
+    velocity error of the estimate handed: each chain is a study of its own (its error
+    depends on its gain alone), a MuJoCo observer one study with its covariance entries tied
+    (:func:`tied_space`). The result is cached in a JSON file (``tuning={"cache": path}``;
+    default ``$XDG_CACHE_HOME/hgo_mj/tuned.json``, else ``~/.cache/hgo_mj/tuned.json``;
+    ``False``: no cache), keyed by the environment's id and arguments, what is measured (a
+    ``measure`` function by its qualified name), the sensor spec, the kind and its parameters,
+    the estimate handed and the tuning options: a second wrapper of the same reads it and
+    rolls nothing out. :attr:`tuned` holds the result.
 
     **On Gymnasium's MuJoCo environments** give ``joints=`` instead of ``measure=``: the
-    named joints' positions are measured (through the sensor chain) inside the environment's
-    physics, at every physics step of its frame skip (``substeps=True``) or once per step; the
+    named joints' positions are read from ``env.unwrapped.data`` after each environment step
+    (public attributes only, :class:`MujocoTap`; once per step: the physics-rate sampling
+    inside the frame skip is not offered) and measured through the sensor chain; the
     observer (default ``"ekf_mujoco"``; any registered name that applies, e.g.
     ``"high_gain_multi"`` with ``model=True``) designs against the environment's own MJCF
     (``env.unwrapped.fullpath``) and reads the controls; the agent's observation is the
     environment's own, in its own space, with every entry that is a joint's position or
     velocity replaced by the estimate (:attr:`observation_names` from the MJCF joints) and the
     other entries (a target, contact forces, cos/sin of angles) kept.
-    ``docs/results/wrappers.md`` compares it with a backward difference.
+    ``docs/results/wrappers.md`` compares it with a backward difference. The environment must
+    come from ``gymnasium.make`` (its ``spec`` makes the probe copy, :class:`MujocoTap`).
 
     Parameters
     ----------
@@ -387,6 +413,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         against an hgo_mj system), or several, each reading its own channel; their estimates
         are concatenated. Instances are deep-copied: the wrapper (and each copy of it in a
         vector environment) runs an observer of its own; read it as ``wrapper.observer``.
+        Or ``"auto"`` / ``"auto:<kind>"``: tuned for this environment and sensor (above).
     observer_kwargs : mapping, optional
         Parameters of a named observer.
     sensor : sensor spec, optional
@@ -409,10 +436,23 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         Half width of the observation space (the estimate is clipped to it; ``info`` keeps
         the unclipped value). With ``joints=`` the environment's own space is kept.
     substeps : bool
-        With ``joints=``: sample at every physics step (default) or once per step.
-    estimate : {"current", "prediction"}
-        The estimate that has used the newest measurement (default), or the prediction made
-        before it (see above). With ``joints=`` and substeps, the same per physics step.
+        Only ``False``: ``True`` (sampling at every physics step inside the frame skip) is
+        refused, with the reason (:class:`MujocoTap`).
+    estimate : {"current", "prediction"}, optional
+        The estimate that has used the newest measurement, or the prediction made before it
+        (see above); default per observer kind (:func:`default_estimate`).
+    tuning : mapping, optional
+        With ``observer="auto"``: options of the tuning (:data:`TUNING`): ``steps`` of the
+        rollout, ``budget`` (trials per study), ``round`` (trials per batch), ``seed`` and
+        ``cache`` (a path, None for the user cache, False for none).
+
+    Raises
+    ------
+    DesignError
+        A bad argument (one line naming it and what is expected): neither or both of
+        ``measure`` and ``joints``, ``substeps=True``, an unknown ``auto:<kind>``, ``tuning``
+        without ``"auto"`` or with an unknown option, an environment not made by
+        ``gymnasium.make`` for ``joints=`` or ``"auto"``, an observer that does not apply.
 
     Notes
     -----
@@ -434,7 +474,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     >>> obs.shape
     (4,)
 
-    The same environment through its joints, the MuJoCo EKF sampling at every physics step:
+    The same environment through its joints, the MuJoCo EKF sampling once per step:
 
     >>> env = ObserverInTheLoop(gymnasium.make("InvertedPendulum-v5"), joints=["slider", "hinge"],
     ...                         sensor=[{"stage": "gaussian", "std": 1e-3}])
@@ -444,6 +484,15 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     >>> obs, reward, terminated, truncated, info = env.step(np.zeros(1, dtype=np.float32))
     >>> bool(abs(obs[2] - info["true_observation"][2]) < 0.1)
     True
+
+    Tuned for this environment and sensor (a short search here; cached unless ``cache`` is
+    ``False``):
+
+    >>> env = ObserverInTheLoop(gymnasium.make("InvertedPendulum-v5"), measure=(0, 1),
+    ...                         observer="auto", sensor=[{"stage": "gaussian", "std": 1e-3}],
+    ...                         tuning={"steps": 60, "budget": 4, "cache": False})
+    >>> env.tuned["kind"], len(env.tuned["values"]), env.estimate
+    ('high_gain', 2, 'current')
     """
 
     def __init__(self, env: gymnasium.Env,
@@ -511,7 +560,8 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         self.dt = env_dt(env, dt)
         self._built = observer is None or isinstance(observer, str)
         if auto:
-            key = (f"{measure.__module__}.{measure.__qualname__}" if callable(measure)
+            fn: Any = measure if hasattr(measure, "__qualname__") else type(measure)
+            key = (f"{fn.__module__}.{fn.__qualname__}" if callable(measure)
                    else list(self._idx))  # type: ignore[arg-type]
             self._autotune(kind, observer_kwargs, measure=key, channels=probe)
         else:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -92,17 +93,12 @@ def search_rounds(spaces: Sequence[Mapping[str, Dimension]],
     """
     import optuna
 
-    if not spaces or any(not s for s in spaces):
-        raise DesignError("search_rounds needs at least one study, each with a search variable")
-    if isinstance(budget, bool) or not isinstance(budget, int) or budget < 2:
-        raise DesignError(f"budget must be an integer >= 2; found {budget!r}")
-    if isinstance(round_size, bool) or not isinstance(round_size, int) or round_size < 1:
-        raise DesignError(f"round_size must be a positive integer; found {round_size!r}")
+    _check(spaces, budget, round_size)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     studies = [optuna.create_study(sampler=optuna.samplers.TPESampler(
         seed=seed + i, multivariate=True, n_startup_trials=min(10, budget)))
         for i in range(len(spaces))]
-    dists = [{k: optuna.distributions.FloatDistribution(d.low, d.high, log=d.log)
+    dists: list[dict[str, Any]] = [{k: optuna.distributions.FloatDistribution(d.low, d.high, log=d.log)
               for k, d in sp.items()} for sp in spaces]
     for st, sp in zip(studies, spaces):
         st.enqueue_trial({k: d.default for k, d in sp.items()})
@@ -117,6 +113,19 @@ def search_rounds(spaces: Sequence[Mapping[str, Dimension]],
                 v = values[r, i]
                 st.tell(asked[i][r], float(v) if math.isfinite(v) else 1e300)
         done += n
+    return _result(studies, budget)
+
+
+def _check(spaces: Sequence[Mapping[str, Dimension]], budget: Any, round_size: Any) -> None:
+    if not spaces or any(not s for s in spaces):
+        raise DesignError("search_rounds needs at least one study, each with a search variable")
+    if isinstance(budget, bool) or not isinstance(budget, int) or budget < 2:
+        raise DesignError(f"budget must be an integer >= 2; found {budget!r}")
+    if isinstance(round_size, bool) or not isinstance(round_size, int) or round_size < 1:
+        raise DesignError(f"round_size must be a positive integer; found {round_size!r}")
+
+
+def _result(studies: list[Any], budget: int) -> SearchResult:
     best, best_v, default_v = [], [], []
     for st in studies:
         trials = [t for t in st.get_trials(deepcopy=False) if t.values is not None]
