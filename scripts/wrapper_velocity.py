@@ -170,8 +170,8 @@ def table(envs: list[str], configs: dict[str, dict], steps: int, std: float) -> 
             cells.append((w, us))
         assert bd is not None
         lines.append(f"| {name} | {nj} | {bd:.4g} | " + " | ".join(
-            "n/a" if c is None else c if isinstance(c, str) else f"{c[0]:.4g} ({c[0] / bd:.2f}x, {c[1]:.0f} us/step)"
-            for c in cells) + " |")
+            "n/a" if c is None else c if isinstance(c, str)
+            else f"{c[0]:.4g} ({c[0] / bd:.2f}x, {c[1]:.0f} us/step)" for c in cells) + " |")
     return lines
 
 

@@ -86,8 +86,8 @@ def default_estimate(observer: Observer) -> str:
     measured it: ``"prediction"`` for a continuous-time observer with a model term (a
     high-gain one with ``model=True`` or a ``phi``: holding the newest sample over the step
     pushes its model-based prediction ahead) and for a bank that mixes Kalman filters with
-    continuous-time observers (the one mode that applies to both); ``"current"`` for every other (Kalman filters: the measurement
-    update; model-free chains).
+    continuous-time observers (the one mode that applies to both); ``"current"`` for every
+    other (Kalman filters: the measurement update; model-free chains).
 
     Parameters
     ----------
