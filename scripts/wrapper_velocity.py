@@ -259,16 +259,17 @@ chain's `k` tuned as a study of its own (its error depends on its own gain alone
 
 {measure}
 
-The tuned chains reach the backward difference and do not beat it: a chain integrating over
-the step with the newest sample held tends, as `k dt` grows, to the backward difference itself
-(its first entry jumps to the sample, its second to the slope over the step), and where the
-tuning rollout says nothing better, the tuning drives `k dt` high (47 and 43 on
-InvertedPendulum-v5, the best of 48 trials over `[0.1, 100]`). Blind to the actions, whose
-random steps change the acceleration every step, a continuous-time chain has no better estimate from the same samples. On HalfCheetah the tuned
-chains are worse than the difference (1.33x): on the tuning rollout (its first 400 steps from
-rest) `k dt` of 1.7 to 6 beat the difference on the leg joints by up to 8 % (3.87 against
-4.20 rad/s on one), and over the 1000 steps measured here those gains lag; the root's two
-chains went to `k dt` of 43 and 47. (A discrete Kalman filter on a double integrator with a piecewise-constant
+The tuned chains reach the backward difference and do not beat it: a chain integrating over the
+step with the newest sample held tends, as `k dt` grows, to the backward difference itself (its
+first entry jumps to the sample, its second to the slope over the step), and where the tuning
+rollout says nothing better, the tuning drives `k dt` high (47 and 43 on InvertedPendulum-v5,
+the best of 48 trials over `[0.1, 100]`). Blind to the actions, whose random steps change the
+acceleration every step, a continuous-time chain has no better estimate from the same samples.
+On HalfCheetah the tuned chains are worse than the difference (1.33x): on the tuning rollout
+(its first 400 steps from rest) `k dt` of 1.7 to 6 beat the difference on the leg joints by up
+to 8 % (3.87 against 4.20 rad/s on one), and over the 1000 steps measured here those gains lag;
+the root's two chains went to `k dt` of 43 and 47.
+(A discrete Kalman filter on a double integrator with a piecewise-constant
 acceleration, also model-free, measured 0.59 times the backward difference's error on
 InvertedPendulum-v5 offline; hgo_mj registers no such model-free filter yet.)
 """
