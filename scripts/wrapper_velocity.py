@@ -267,7 +267,7 @@ the best of 48 trials over `[0.1, 100]`). Blind to the actions, whose random ste
 acceleration every step, a continuous-time chain has no better estimate from the same samples.
 On HalfCheetah the tuned chains are worse than the difference (1.33x): on the tuning rollout
 (its first 400 steps from rest) `k dt` of 1.7 to 6 beat the difference on the leg joints by up
-to 8 % (3.87 against 4.20 rad/s on one), and over the 1000 steps measured here those gains lag;
+to 10 % (3.88 against 4.31 rad/s on one), and over the 1000 steps measured here those gains lag;
 the root's two chains went to `k dt` of 43 and 47.
 (A discrete Kalman filter on a double integrator with a piecewise-constant
 acceleration, also model-free, measured 0.59 times the backward difference's error on
