@@ -10,8 +10,8 @@ import mujoco
 import numpy as np
 import pytest
 import scipy.linalg as sla
-from hgo_mj.envs.wrappers import ObserverInTheLoop, SensorNoise
 
+from hgo_mj.envs.wrappers import ObserverInTheLoop, SensorNoise
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers import HighGainObserver
 
@@ -223,11 +223,12 @@ def test_joints_mode_keeps_the_environments_observation_and_beats_a_backward_dif
     assert np.sqrt(np.mean(np.square(err_w))) < 0.5 * np.sqrt(np.mean(np.square(err_bd)))
 
 
-def test_joints_mode_replaces_only_what_it_estimates_and_samples_every_physics_step():
+def test_joints_mode_replaces_only_what_it_estimates_and_samples_once_per_step():
     """Reacher-v5: cos/sin of the arm's angles and the fingertip's offset from the target are
     not joint states and stay the environment's own; the target's position (two slide joints)
-    and the arm's velocities are replaced by the estimate. With substeps the observer takes
-    frame_skip samples per step, without them one."""
+    and the arm's velocities are replaced by the estimate. The observer takes one sample per
+    environment step (dt = frame_skip physics steps), fed the controls the environment applied,
+    and the environment's own stepping is never replaced (public attributes only)."""
     joints = ["joint0", "joint1", "target_x", "target_y"]
     env = ObserverInTheLoop(gym.make("Reacher-v5"), joints=joints, observer="high_gain_multi",
                             observer_kwargs={"k": 30.0}, sensor=NOISE)
@@ -237,20 +238,23 @@ def test_joints_mode_replaces_only_what_it_estimates_and_samples_every_physics_s
     keep = [i for i in range(obs.size) if i not in env.tap.entries]
     np.testing.assert_array_equal(obs[keep], true[keep])
     calls = []
-    env.observer.update = (lambda f: lambda *a: (calls.append(a[2]), f(*a))[1])(
-        env.observer.update)
-    env.step(np.zeros(2, dtype=np.float32))
-    assert calls == [env.unwrapped.model.opt.timestep] * env.unwrapped.frame_skip
-    once = ObserverInTheLoop(gym.make("Reacher-v5"), joints=joints, substeps=False,
-                             observer="high_gain_multi", observer_kwargs={"k": 30.0})
-    once.reset(seed=0)
-    calls.clear()
-    once.observer.update = (lambda f: lambda *a: (calls.append(a[2]), f(*a))[1])(
-        once.observer.update)
-    once.step(np.zeros(2, dtype=np.float32))
-    assert calls == [pytest.approx(once.dt)] and once.dt == pytest.approx(0.02)
+    env.observer.update = (lambda f: lambda *a: (calls.append((np.array(a[1]), a[2])),
+                                                 f(*a))[1])(env.observer.update)
+    env.step(np.array([0.3, -0.2], dtype=np.float32))
+    assert len(calls) == 1 and calls[0][1] == pytest.approx(0.02) and env.dt == pytest.approx(0.02)
+    np.testing.assert_allclose(calls[0][0], [0.3, -0.2], rtol=1e-6)
+    assert "_step_mujoco_simulation" not in env.unwrapped.__dict__
     env.close()
-    assert "_step_mujoco_simulation" not in env.unwrapped.__dict__  # stepping restored
+
+
+def test_joints_mode_refuses_physics_rate_sampling_and_envs_without_a_spec():
+    from gymnasium.envs.mujoco.inverted_pendulum_v5 import InvertedPendulumEnv
+
+    with pytest.raises(DesignError, match=r"substeps=True \(sampling inside the frame skip\) is "
+                                          r"not supported.*substeps=False"):
+        ObserverInTheLoop(_ip(), joints=["slider", "hinge"], substeps=True)
+    with pytest.raises(DesignError, match="joints= needs an environment made by gymnasium.make"):
+        ObserverInTheLoop(InvertedPendulumEnv(), joints=["slider", "hinge"])
 
 
 def test_joints_mode_passes_check_env_and_needs_a_reset():
@@ -362,6 +366,110 @@ def test_estimate_bad_input():
     mixed = [ExtendedKalmanFilter(Pendulum(), outputs=(0,)),
              HighGainObserver(order=2, k=30.0, outputs=(1,))]
     with pytest.raises(DesignError, match="estimate='current' needs observers of one kind"):
-        ObserverInTheLoop(_ip(), measure=(0, 1), observer=mixed)
-    env = ObserverInTheLoop(_ip(), measure=(0, 1), observer=mixed, estimate="prediction")
+        ObserverInTheLoop(_ip(), measure=(0, 1), observer=mixed, estimate="current")
+    env = ObserverInTheLoop(_ip(), measure=(0, 1), observer=mixed)  # the default: prediction
+    assert env.estimate == "prediction"
     assert env.reset(seed=0)[0].shape == (4,)
+
+
+def test_estimate_default_per_observer_kind():
+    """The default estimate is the one docs/results/wrappers.md measured better per kind: the
+    MuJoCo EKF's current estimate (its measurement update), the prediction of a high-gain
+    observer with the MuJoCo model term, the current estimate of model-free chains; the
+    argument overrides it."""
+    ij = ["slider", "hinge"]
+    assert ObserverInTheLoop(_ip(), joints=ij).estimate == "current"
+    hgm = ObserverInTheLoop(_ip(), joints=ij, observer="high_gain_multi",
+                            observer_kwargs={"k": 20.0, "model": True})
+    assert hgm.estimate == "prediction" and not hgm._lead
+    assert _estimated_ip().estimate == "current"
+    assert ObserverInTheLoop(_ip(), joints=ij, observer="high_gain_multi",
+                             observer_kwargs={"k": 20.0, "model": True},
+                             estimate="current").estimate == "current"
+    assert ObserverInTheLoop(_ip(), joints=ij, estimate="prediction").estimate == "prediction"
+
+
+def _held_out_velocity_error(env: ObserverInTheLoop, seed: int = 99, steps: int = 300) -> float:
+    """RMS error of the estimated velocities of InvertedPendulum-v5 (measure=(0, 1), chains
+    of order 2: entries 1 and 3) on a rollout with random actions the tuning did not see."""
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    err = []
+    for _ in range(steps):
+        _, _, term, trunc, info = env.step(rng.uniform(-3, 3, 1).astype(np.float32))
+        err.append(info["estimate"][[1, 3]] - info["true_observation"][2:])
+        if term or trunc:
+            env.reset()
+    return float(np.sqrt(np.mean(np.square(err))))
+
+
+def test_auto_tunes_caches_and_beats_the_untuned_default(tmp_path, monkeypatch):
+    """observer="auto" with measure= tunes one model-free chain per measured signal on a
+    rollout of a fresh copy of the environment and caches the result: a second construction
+    reads the cache (no rollout), another sensor is another entry; on a held-out rollout the
+    tuned chains beat the untuned default (k = 1/dt)."""
+    from hgo_mj.envs.wrappers import observer_in_the_loop as oil
+
+    cache = tmp_path / "tuned.json"
+    opts = {"cache": cache, "steps": 200, "budget": 16, "round": 8}
+    tuned = ObserverInTheLoop(_ip(), measure=(0, 1), observer="auto", sensor=NOISE,
+                              tuning=opts)
+    info = tuned.tuned
+    assert info["kind"] == "high_gain" and not info["from_cache"] and cache.is_file()
+    assert len(info["values"]) == 2 and info["trials"] == 16
+    assert all(b <= d for b, d in zip(info["score"], info["default_score"]))
+    assert tuned.estimate == "current"
+
+    def no_rollout(*a, **k):
+        raise AssertionError("rolled out despite the cache")
+    monkeypatch.setattr(oil, "record_rollout", no_rollout)
+    again = ObserverInTheLoop(_ip(), measure=(0, 1), observer="auto", sensor=NOISE,
+                              tuning=opts)
+    assert again.tuned["from_cache"] and again.tuned["values"] == info["values"]
+    monkeypatch.undo()
+    other = ObserverInTheLoop(_ip(), measure=(0, 1), observer="auto",
+                              sensor=[{"stage": "gaussian", "std": 1e-2}], tuning=opts)
+    assert not other.tuned["from_cache"]
+    import json
+    assert len(json.loads(cache.read_text())["entries"]) == 2
+    default = ObserverInTheLoop(_ip(), measure=(0, 1), observer="high_gain",
+                                observer_kwargs={"order": 2, "k": 25.0}, sensor=NOISE)
+    e_tuned, e_default = _held_out_velocity_error(tuned), _held_out_velocity_error(default)
+    assert e_tuned < 0.8 * e_default  # measured 0.48 against 0.87 (rad/s, m/s)
+
+
+def test_auto_on_joints_tunes_the_mujoco_ekf_and_passes_check_env(tmp_path):
+    from gymnasium.utils.env_checker import check_env
+
+    env = ObserverInTheLoop(_ip(), joints=["slider", "hinge"], observer="auto", sensor=NOISE,
+                            tuning={"cache": tmp_path / "t.json", "steps": 100, "budget": 8,
+                                    "round": 8})
+    assert env.tuned["kind"] == "ekf_mujoco" and env.estimate == "current"
+    assert set(env.tuned["values"][0]) == {"Q[0]", "Q[1]", "Q[2]", "Q[3]", "R[0]", "R[1]"}
+    assert env.tuned["score"][0] <= env.tuned["default_score"][0]
+    check_env(env, skip_render_check=True)
+    named = ObserverInTheLoop(_ip(), joints=["slider", "hinge"], observer="auto:high_gain_multi",
+                              observer_kwargs={"model": True}, sensor=NOISE,
+                              tuning={"cache": False, "steps": 60, "budget": 4, "round": 4})
+    assert named.tuned["kind"] == "high_gain_multi" and named.tuned["cache"] is None
+    assert named.estimate == "prediction"
+
+
+def test_auto_bad_input(tmp_path):
+    c = {"cache": tmp_path / "t.json"}
+    with pytest.raises(DesignError, match=r"tuning= goes with observer='auto'"):
+        ObserverInTheLoop(_ip(), measure=(0,), tuning=c)
+    with pytest.raises(DesignError, match=r"tuning: unknown option\(s\) \['trials'\]; valid"):
+        ObserverInTheLoop(_ip(), measure=(0,), observer="auto", tuning={"trials": 3})
+    with pytest.raises(DesignError, match="tuning budget must be an integer >= 2; found 1"):
+        ObserverInTheLoop(_ip(), measure=(0,), observer="auto", tuning={"budget": 1})
+    with pytest.raises(DesignError, match="tuning cache must be a path, None"):
+        ObserverInTheLoop(_ip(), measure=(0,), observer="auto", tuning={"cache": 3})
+    with pytest.raises(DesignError, match=r"observer 'auto:kalman': unknown kind 'kalman'"):
+        ObserverInTheLoop(_ip(), measure=(0,), observer="auto:kalman", tuning=c)
+    with pytest.raises(DesignError, match="observer 'ekf_mujoco' cannot run model-free"):
+        ObserverInTheLoop(_ip(), measure=(0,), observer="auto:ekf_mujoco", tuning=c)
+    from gymnasium.envs.mujoco.inverted_pendulum_v5 import InvertedPendulumEnv
+    with pytest.raises(DesignError, match="observer='auto' needs an environment made by "
+                                          "gymnasium.make"):
+        ObserverInTheLoop(InvertedPendulumEnv(), measure=(0,), observer="auto", tuning=c)
