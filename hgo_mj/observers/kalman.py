@@ -1570,6 +1570,13 @@ class _KalmanFilter(Observer):
             s = self.state
             s.x[:, self.n:] = batch_rows("theta_hat0", theta_hat0, self.q, s.batch)
 
+    def predicted_output(self, x_hat: Array, z_hat: Array) -> Array | None:
+        """The measured outputs ``h(x_hat)`` where the output selects states (``y_c =
+        x[sel[c]]``: joint positions, a measured concentration), else None."""
+        if self.sel is None:
+            return None
+        return x_hat[..., self._sel]
+
     def _init(self, p: Params, x0: Array | None, z0: Array | None,
               u0: Array) -> dict[str, Any]:
         """``x`` from ``x0`` (the parameter columns zero: :meth:`init` writes them), ``P = P0``

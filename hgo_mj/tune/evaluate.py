@@ -354,7 +354,7 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
     first = int(math.ceil(s.t_transient / Ts - 1e-9))
     sq, n_sq = np.zeros(B), 0
     nis_col = ob.diagnostic_names.index("nis") if "nis" in ob.diagnostic_names else None
-    nis_sum = np.zeros(B)
+    nis_sum, nis_n = np.zeros(B), np.zeros(B)
     pidx = [list(s.plant.state_names).index(st) for st in s.states]
     oidx = [list(ob.state_names).index(st) for st in s.states]
     n_first = int(round(1.0 / Ts))  # the samples of the first second
@@ -382,19 +382,21 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             e = np.where(np.isfinite(seg.y_meas[:, lo:, cols]), e, 0.0)
             sq += np.sum(e * e, axis=(1, 2))
             n_sq += (T - lo) * len(cols)
-        if nis_col is not None and lo < T:
-            nis_sum += np.sum(blk.diagnostics[:, lo:, nis_col], axis=1)
+        if nis_col is not None and lo < T:  # a sample with every channel lost has no NIS
+            v = blk.diagnostics[:, lo:, nis_col]
+            nis_sum += np.nansum(v, axis=1)
+            nis_n += np.sum(~np.isnan(v), axis=1)
         prev = (blk.x_hat[:, -1].copy(), blk.z_hat[:, -1].copy())
     Xl = np.reshape(plant.state, (B, 1, -1))
     acc.add(s.N, Xl, prev, prev[0][:, None], prev[1][:, None])
     res = acc.result(len(s.plant.state_names), 0.0)
     idx = [list(s.plant.state_names).index(st) for st in s.states]
-    n_win = max(s.N - first, 1)
     oe = np.sqrt(sq / max(n_sq, 1)) if n_sq else np.full(B, np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
         peaking = np.where(e0 > 0, peak_e / e0, np.nan) if e0 is not None else np.full(B, np.nan)
     wall = loop.wall[name] / (max(s.N, 1) * B)
-    nis = nis_sum / n_win if nis_col is not None else np.full(B, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        nis = nis_sum / nis_n if nis_col is not None else np.full(B, np.nan)
     for i, r in enumerate(which):
         rows = slice(i * S, (i + 1) * S)
         bad = acc.bad_row[rows] >= 0
