@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
+# the benchmark's quick suite: leaderboard, figures, recordings -> runs/demo/
 demo: $(STAMP)
-	$(VENV)/bin/hgo-mj demo
+	$(VENV)/bin/hgo-mj bench --suite quick --out runs/demo
 
 # the Debian packages the rendering tests need (EGL, Xvfb), installed where missing
 test: $(STAMP)

@@ -17,7 +17,7 @@ and also writes ``metrics_mc.json``, ``summary_mc.txt``, ``mc.png`` and ``seeds/
 rows); the other files are the first seed's.
 Long jobs show their progress on stderr (:mod:`hgo_mj.progress`; ``--quiet``: none);
 ``hgo-mj reproduce`` prints the reproduction's report. ``hgo-mj demo``
-writes ``runs/demo/demo.rrd`` unless ``--no-rrd``. Bad input exits with status 2 and one line
+writes ``runs/demo-run/demo.rrd`` unless ``--no-rrd``. Bad input exits with status 2 and one line
 naming the parameter, what was expected and what was found; a fault of the machine (a
 recording or result that cannot be written: full disk) exits with status 1 and one line.
 Multi-run commands (``--seeds N --jobs J``, ``sweep --jobs J``) run their workers so that they
@@ -424,7 +424,7 @@ DEMO = {
     ],
     "input": {"type": "multisine", "amplitudes": [0.8, 0.3], "frequencies": [0.4, 1.5],
               "phases": [0.0, 1.0]},
-    "run": {"duration": 5.0, "seed": 0, "out": "runs/demo", "t_transient": 1.0},
+    "run": {"duration": 5.0, "seed": 0, "out": "runs/demo-run", "t_transient": 1.0},
 }
 
 
@@ -626,7 +626,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="also record to a rerun .rrd file (default OUT/NAME.rrd)")
     rp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
-    d.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
+    d.add_argument("--out", default="runs/demo-run", help="output folder (default runs/demo-run)")
     d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
     d.add_argument("--no-rrd", dest="no_rrd", action="store_true", help="write no recording")
     return ap

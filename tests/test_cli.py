@@ -158,8 +158,9 @@ def test_list_sizes_name_columns_to_the_longest_name(capsys):
         for r in rows:
             assert r[2 + width] == " " and r[3 + width] != " ", (title, r)
     observers = blocks[2].splitlines()
+    width = max(len(n) for n in OBSERVERS)
     multi = next(r for r in observers if r.startswith("  high_gain_multi "))
-    assert multi[3 + len("high_gain_multi"):].startswith(OBSERVERS["high_gain_multi"].summary)
+    assert multi[3 + width:].startswith(OBSERVERS["high_gain_multi"].summary)
 
 
 def test_version_is_the_installed_one(capsys):
@@ -198,8 +199,8 @@ def test_every_flag_of_every_subcommand_has_help():
                 continue
             if not (action.help or "").strip() or action.help == argparse.SUPPRESS:
                 missing.append(f"{prog} {'/'.join(action.option_strings) or action.dest}")
-    assert seen == {"hgo-mj", *(f"hgo-mj {c}" for c in ("run", "sweep", "check", "list", "reproduce",
-                                                       "demo"))}
+    assert seen == {"hgo-mj", *(f"hgo-mj {c}" for c in ("run", "sweep", "tune", "bench", "check",
+                                                       "list", "reproduce", "demo"))}
     assert not missing, missing
 
 

@@ -24,7 +24,7 @@ from .._io import write_bytes, write_text
 from ..exceptions import DesignError
 from .runner import parts_of
 from .scores import leaderboard, score_rows
-from .tasks import Task, task_hash, tasks_of
+from .tasks import SUITE_OBSERVERS, Task, task_hash, tasks_of
 
 __all__ = ["BenchResult", "bench", "default_observers", "markdown"]
 
@@ -104,7 +104,8 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
     task_files : sequence of path
         A user's task TOML files.
     observers : sequence of str, optional
-        Registered names or ``module:Class`` (default every family).
+        Registered names or ``module:Class`` (default: the suite's,
+        :data:`~hgo_mj.bench.tasks.SUITE_OBSERVERS`, else every family).
     budget : int
         Tuning trials per observer and task, the same for all (>= 2).
     out : path, optional
@@ -136,7 +137,8 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
     """
     t0 = time.perf_counter()
     chosen = tasks_of(suite, tasks, task_files)
-    obs = list(observers) if observers else default_observers()
+    obs = (list(observers) if observers else
+           list(SUITE_OBSERVERS.get(suite or "", ())) or default_observers())
     _check(obs, budget, backend)
     folder = None
     if out is not None:

@@ -25,7 +25,7 @@ from typing import Any
 from ..exceptions import DesignError
 from .presets import preset
 
-__all__ = ["SUITES", "TASKS", "Task", "load_task", "task_hash", "tasks_of"]
+__all__ = ["SUITES", "SUITE_OBSERVERS", "TASKS", "Task", "load_task", "task_hash", "tasks_of"]
 
 MECH_INPUT = {"type": "multisine", "amplitudes": [0.3, 0.15], "frequencies": [0.4, 1.1]}
 
@@ -210,6 +210,14 @@ SUITES: dict[str, tuple[str, ...]] = {
     "quick": ("pendulum/encoder-v1", "pendulum/vision-v1", "elastic_joint/encoder-v1",
               "bioreactor_bullinger/analog-v1"),
     "full": tuple(TASKS),
+}
+
+#: the observers a suite runs when none are named: the quick suite leaves out the filters that
+#: step a MuJoCo model per member and sample (``ekf_mujoco``, ``ukf_mujoco``: 10-100x the cost
+#: of the others) and the moving-horizon estimator, so that ``make demo`` stays within a minute
+SUITE_OBSERVERS: dict[str, tuple[str, ...]] = {
+    "quick": ("high_gain", "adaptive_gain", "riccati", "ekf", "ukf", "finite_difference",
+              "super_twisting", "extended_luenberger", "bastin_gevers", "besancon"),
 }
 
 _FIELDS = {"name", "plant", "input", "sensor", "sensor_params", "duration", "t_transient",

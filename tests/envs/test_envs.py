@@ -29,6 +29,8 @@ MODES = list(envs.OBSERVATION_MODES)
 
 #: the observers that cannot run on an environment's plant, with the key phrase of the clear
 #: error that constructing the environment with them raises (every other pair must run)
+#: the benchmark's baselines on a single-output normal form (paper 000, eq. 1)
+SINGLE_OUTPUT_BASELINES = ("finite_difference", "super_twisting", "extended_luenberger", "mhe")
 _INCOMPATIBLE: dict[tuple[str, str], tuple[type[Exception], str]] = {
     ("hgo_mj/CartPendulumBalance-v0", "besancon"): (DesignError, "is not in the form of paper 001"),
     ("hgo_mj/CartPendulumBalance-v0", "ekf_mujoco"): (
@@ -69,7 +71,12 @@ _INCOMPATIBLE: dict[tuple[str, str], tuple[type[Exception], str]] = {
            ("riccati", "needs a single-output normal form"),
            ("besancon", "is not in the form of paper 001"),
            ("bastin_gevers", "the Bastin-Gevers observer needs the adaptive observer canonical"),
-           ("jo_son", "the Jo-Son observer needs the adaptive observer canonical form"))},
+           ("jo_son", "the Jo-Son observer needs the adaptive observer canonical form"),
+           *((b, "needs a single-output normal form") for b in SINGLE_OUTPUT_BASELINES))},
+    **{("hgo_mj/ElasticJoint2LinkReach-v0", b): (DesignError, "needs a single-output normal form")
+       for b in SINGLE_OUTPUT_BASELINES},
+    ("hgo_mj/ElasticJointReach-v0", "super_twisting"): (
+        DesignError, "needs a second-order normal form"),
 }
 
 
