@@ -34,10 +34,10 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from hgo_mj.envs.wrappers import ObserverInTheLoop
 
 from hgo_mj._bench import header
 from hgo_mj._io import write_text
-from hgo_mj.envs.wrappers import ObserverInTheLoop
 from hgo_mj.exceptions import DivergenceError
 from hgo_mj.sensors import GaussianNoise, SensorChain
 

@@ -10,8 +10,8 @@ import mujoco
 import numpy as np
 import pytest
 import scipy.linalg as sla
-
 from hgo_mj.envs.wrappers import ObserverInTheLoop, SensorNoise
+
 from hgo_mj.exceptions import DesignError, DimensionError
 from hgo_mj.observers import HighGainObserver
 
