@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 
 # the benchmark's quick suite: leaderboard, figures, recordings -> runs/demo/
 demo: $(STAMP)
-	$(VENV)/bin/hgo-mj bench --suite quick --out runs/demo
+	$(VENV)/bin/hgo-mj bench --suite quick --budget 8 --out runs/demo
 
 # the Debian packages the rendering tests need (EGL, Xvfb), installed where missing
 test: $(STAMP)

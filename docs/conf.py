@@ -27,7 +27,8 @@ extensions = [
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
-exclude_patterns = ["_build", "gallery/*.py", "gallery/GALLERY_HEADER.rst", "auto_examples/*.ipynb",
+exclude_patterns = ["_build", "benchmark/results/*", "gallery/*.py", "gallery/GALLERY_HEADER.rst",
+                    "auto_examples/*.ipynb",
                     "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json"]
 root_doc = "index"
 

@@ -53,7 +53,7 @@ import numpy as np
 from numba import njit
 
 from .._validate import finite_scalar, positive_int
-from ..exceptions import DesignError
+from ..exceptions import DesignError, DivergenceError
 from ..systems.base import System
 from .base import Array, Dimension, Observer, Params, State, register
 from .finite_difference import _NormalFormEstimate
@@ -319,8 +319,13 @@ class ExtendedLuenbergerObserver(_NormalFormEstimate, Observer):
                 if self.system is None:
                     W, J = zero_w, zero_j
                 else:
-                    W, J = phi_and_jacobian(self.system, s.z, U[:, j])
+                    with np.errstate(over="ignore", invalid="ignore"):
+                        W, J = phi_and_jacobian(self.system, s.z, U[:, j])
                 luenberger_advance(s.z, y, W, J, c, h, Z[:, j])
+            if not np.isfinite(s.z).all():  # a gain too high for the period: blown up
+                b = int(np.flatnonzero(~np.isfinite(s.z).all(axis=1))[0])
+                raise DivergenceError(f"the observer state left the finite numbers at sample "
+                                      f"{j} (member {b}): {s.z[b].tolist()}")
         self._write_x(s, Z, U, X)
 
     def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
