@@ -607,7 +607,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="runs/bench", help="results folder (default runs/bench)")
     b.add_argument("--resume", action="store_true",
                    help="reuse the finished (task, observer) parts in OUT")
-    b.add_argument("--backend", choices=["local", "ray"], default="local")
+    b.add_argument("--backend", choices=["local", "ray"], default="local",
+                   help="where the tunings' rounds run (default local)")
     b.add_argument("--jobs", default="1", metavar="N", help="Ray workers")
     b.add_argument("--no-rrd", dest="no_rrd", action="store_true",
                    help="no rerun recordings of each task's best and worst observer")

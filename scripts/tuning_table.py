@@ -29,6 +29,7 @@ import numpy as np
 
 from hgo_mj._bench import header
 from hgo_mj._io import write_text
+from hgo_mj.exceptions import HgoError
 
 MECH_SENSOR = {"stages": [{"stage": "gaussian", "std": 1e-3},
                           {"stage": "quantize", "counts_per_rev": 16384}]}
@@ -156,7 +157,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.only and f"{plant}/{kind}" not in args.only:
             continue
         t0 = time.perf_counter()
-        rows.append(row(plant, kind, sc, args.budget, args.seeds))
+        try:
+            rows.append(row(plant, kind, sc, args.budget, args.seeds))
+        except HgoError as exc:  # listed with its reason, not tuned
+            print(f"{plant}/{kind}: failed: {exc}", file=sys.stderr, flush=True)
+            continue
         print(f"{plant}/{kind}: {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     text = table(rows, args.budget, args.seeds)
     print(text)

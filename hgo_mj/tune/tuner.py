@@ -467,12 +467,13 @@ def _score(st: Setup, obj: Objective, ob: Observer, params: list[dict[str, float
            seeds: list[int], models: list[Any], aggregate: str, runner: Any) -> np.ndarray:
     """The objective values ``(R, n_objectives)`` of the trials ``params``; a trial the
     observer refuses as a whole (a condition between its parameters, e.g. the adaptive gain's
-    ``lam_hat > lam``) is not run and scores inf."""
+    ``lam_hat > lam``, or an update unstable at the sample period) is not run and scores
+    inf."""
     trials = [ob.tuned_parameters(p) for p in params]
     ok = []
     for t in trials:
-        try:
-            ob.parameters(1, **t)
+        try:  # refused as a whole, or unstable at the sample period (a gain too high)
+            ob.check_period(st.periods.sample, ob.parameters(1, **t))
             ok.append(True)
         except DesignError:
             ok.append(False)

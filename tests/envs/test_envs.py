@@ -299,9 +299,9 @@ def test_estimate_plus_diagnostics_layout(env_id, kind):
     ("hgo_mj/PendulumSwingUp-v0", "besancon", {}, ("theta_g_over_l", "theta_b_over_J",
                                                    "excitation")),
     ("hgo_mj/PendulumSwingUp-v0", "ekf", {"estimate": ["damping"], "theta_hat0": [0.02]},
-     ("theta_damping",)),
+     ("theta_damping", "nis")),
     ("hgo_mj/ElasticJointReach-v0", "ukf", {"estimate": ["stiffness"], "theta_hat0": [8.0]},
-     ("theta_stiffness",)),
+     ("theta_stiffness", "nis")),
 ])
 def test_estimate_plus_diagnostics_holds_gain_and_parameter_estimates(env_id, kind, kwargs, keys):
     env = gym.make(env_id, observer=kind, observer_kwargs=kwargs,
