@@ -131,6 +131,13 @@ def main(argv: list[str] | None = None) -> int:
     board_file = args.results / "leaderboard.md"
     board = board_file.read_text() if board_file.is_file() else "(no run yet)"
     board = board.replace("\n## ", "\n### ")
+    ran = args.results / "tasks.json"
+    if ran.is_file():
+        import json
+
+        n = len(json.loads(ran.read_text()))
+        board = (f"The run committed in `{args.results}` covers {n} of the {len(TASKS)} tasks"
+                 + (" (the quick suite)." if n < len(TASKS) else ".") + "\n\n" + board)
     for name in TASKS:
         write_text(args.docs / "tasks" / (name.replace("/", "__") + ".md"),
                    task_page(name, args.results, args.docs))

@@ -171,7 +171,16 @@ def main(argv: list[str] | None = None) -> int:
                  "parameters, the parameters tuned with ground truth (the simulated state) and "
                  "those tuned without it (the output prediction error a rig gives, or a "
                  "filter's NIS), each scored on seeds the tuning never saw.\n\n")
-        write_text(args.out, intro + text + "\n")
+        reading = ("\n\nHow to read it: a `-` in the no-truth column is a family that predicts no "
+                   "output and reports no NIS (the adaptive observers whose outputs are not a "
+                   "state of their estimate): it can be tuned with ground truth only. Where the "
+                   "output prediction error's optimum is far from the truth optimum (a ratio "
+                   "well above 1), the output error cannot see what the truth objective weighs: "
+                   "a finite difference minimizes its output error by following the measurement "
+                   "closely (a small `tau`), which passes the noise into its derivative "
+                   "estimates. `diverged` in every column is a family whose hand-set start and "
+                   "every trial of the budget diverged on that plant.\n")
+        write_text(args.out, intro + text + reading)
     return 0
 
 

@@ -11,7 +11,7 @@ For each task and each observer (the registered families, or those asked for, or
 3. **Tuning.** :func:`hgo_mj.tune.tune` on the task's **tuning seeds** with the same
    ``budget`` for every observer (objective: the normalized steady-state RMSE).
 4. **Scores.** The tuned observer on the **scoring seeds**, disjoint from the tuning seeds, as
-   one batch (:func:`hgo_mj.tune.evaluate`): per seed and scored state (``scores.parquet``).
+   one batch (:func:`hgo_mj.tune.scoring`): per seed and scored state (``scores.parquet``).
 
 Each (task, observer) result is kept in ``OUT/parts/`` as soon as it is done (atomically), so a
 killed run resumes (``resume=True``) with no lost or repeated work; a part is reused only for

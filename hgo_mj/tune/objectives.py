@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import DesignError
-from .evaluate import Scores, Setup
+from .scoring import Scores, Setup
 
 Array = NDArray[np.float64]
 
@@ -150,7 +150,7 @@ def objective_values(objective: Objective, s: Setup, rounds: Sequence[Scores],
 
     Examples
     --------
-    >>> from hgo_mj.tune.evaluate import evaluate, setup
+    >>> from hgo_mj.tune.scoring import evaluate, setup
     >>> sc = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.3, 0.0]},
     ...       "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
     ...       "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],

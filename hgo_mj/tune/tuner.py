@@ -2,7 +2,7 @@
 
 The search (Optuna: TPE for one objective, NSGA-II for several, CMA-ES on request; every
 sampler seeded, so the same call gives the same trials) runs **ask and tell in rounds**: it asks
-for a round of trials, :func:`~hgo_mj.tune.evaluate.evaluate` scores the whole round as one
+for a round of trials, :func:`~hgo_mj.tune.scoring.evaluate` scores the whole round as one
 batch (one plant run replayed, every trial x seed a member with its own parameters), and tells
 the values back. The first trial is the constructor's parameters (the untuned default), so a
 tuning always reports the default beside the best.
@@ -38,7 +38,7 @@ import numpy as np
 from .._io import check_writable, write_bytes, write_text
 from ..exceptions import DesignError
 from ..observers.base import Dimension, Observer
-from .evaluate import Scores, Setup, evaluate, setup
+from .scoring import Scores, Setup, evaluate, setup
 from .objectives import AGGREGATES, Objective, objective_values
 
 __all__ = ["SAMPLERS", "TuneResult", "check_space", "tune"]

@@ -199,7 +199,7 @@ def test_resume_after_a_kill_loses_no_trial_and_repeats_none(tmp_path):
     ({"states": ["cart"]}, r"states to score must be plant states the observer 'hgo' estimates"),
 ])
 def test_bad_input_is_one_line_before_any_work(kw, match, monkeypatch):
-    ev = sys.modules["hgo_mj.tune.evaluate"]
+    ev = sys.modules["hgo_mj.tune.scoring"]
 
     def no_work(*a, **k):
         raise AssertionError("evaluated before the input was checked")
