@@ -6,8 +6,8 @@ its command."""
 
 from __future__ import annotations
 
-from .scoring import Scores, Setup, evaluate, setup
 from .objectives import OBJECTIVES, Objective, objective_values
+from .scoring import Scores, Setup, evaluate, setup
 from .tuner import SAMPLERS, TuneResult, best_toml, check_space, tune
 
 __all__ = ["OBJECTIVES", "SAMPLERS", "Objective", "Scores", "Setup", "TuneResult", "best_toml",

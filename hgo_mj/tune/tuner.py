@@ -38,8 +38,8 @@ import numpy as np
 from .._io import check_writable, write_bytes, write_text
 from ..exceptions import DesignError
 from ..observers.base import Dimension, Observer
-from .scoring import Scores, Setup, evaluate, setup
 from .objectives import AGGREGATES, Objective, objective_values
+from .scoring import Scores, Setup, evaluate, setup
 
 __all__ = ["SAMPLERS", "TuneResult", "check_space", "tune"]
 
