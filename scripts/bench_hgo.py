@@ -265,7 +265,7 @@ def bench_integrate(rev: str, rounds: int) -> list[tuple[str, float, float, bool
     old then new, alternating which goes first), and whether the rows are identical."""
     from hgo_mj.observers import adaptive_gain, bastin_gevers, high_gain, jo_son, q_integral, riccati
 
-    now = {"high_gain": high_gain, "riccati": riccati, "q_integral": q_integral,
+    now: dict[str, object] = {"high_gain": high_gain, "riccati": riccati, "q_integral": q_integral,
            "adaptive_gain": adaptive_gain, "bastin_gevers": bastin_gevers, "jo_son": jo_son}
     old = old_modules(rev)
     rng = np.random.default_rng(0)
