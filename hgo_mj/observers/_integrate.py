@@ -6,9 +6,13 @@ one to the other without changing a bit):
 * over the batch in numpy, :func:`euler`, :func:`heun`, :func:`rk4`: ``f(z) -> dz`` takes and
   returns ``(B, n)`` arrays (any shape, in fact: the schemes are elementwise);
 * inside numba kernels, :func:`euler_step`, :func:`heun_step`, :func:`rk4_step` on one state
-  (a 1-D array), ``f`` a jitted right-hand side ``f(v, *args, out)`` that writes ``dv/dt`` into
-  ``out`` (numba's first-class dispatcher argument: the caller compiles one specialisation per
-  right-hand side, inlined, and ``cache=True`` keeps working), built on the stage helpers
+  (a 1-D array), ``f`` a jitted right-hand side ``f(v, args, out)`` that writes ``dv/dt`` into
+  ``out``, ``args`` a tuple of its other arguments (numba's first-class dispatcher argument).
+  These are ``inline="always"``: inlined into the calling kernel, ``f`` is a plain call of a
+  global function there, so that the kernel keeps ``cache=True`` (not inlined, a function
+  argument makes numba refuse to cache the caller: "uses dynamic globals"); ``f`` is called
+  with ``args`` as one tuple, not ``*args``, because numba cannot inline a call with ``*args``
+  into an ``inline="always"`` right-hand side. They are built on the stage helpers
   :func:`axpy` (a stage state, ``s + a k``) and :func:`rk4_sum` / :func:`heun_sum` (the step).
 
 The arithmetic, identical in both forms (``h`` the step):
@@ -215,12 +219,12 @@ def heun_sum(s: Array, h2: float, k1: Array, k2: Array, out: Array) -> None:  # 
 @njit(cache=True, inline="always")
 def euler_step(f: Any, s: Array, h: float, args: Any, k1: Array,
                out: Array) -> None:  # pragma: no cover - jit
-    """One forward-Euler step of ``s' = f(s)``: ``f(s, *args, k1)``, ``out = s + h k1``.
+    """One forward-Euler step of ``s' = f(s)``: ``f(s, args, k1)``, ``out = s + h k1``.
 
     Parameters
     ----------
     f : numba dispatcher
-        The right-hand side ``f(v, *args, out)``, writing ``dv/dt`` into ``out``.
+        The right-hand side ``f(v, args, out)``, writing ``dv/dt`` into ``out``.
     s : ndarray
         The state at the start of the step, 1-D (not modified unless ``out`` is ``s``).
     h : float
@@ -237,14 +241,14 @@ def euler_step(f: Any, s: Array, h: float, args: Any, k1: Array,
     >>> import numpy as np
     >>> from numba import njit
     >>> @njit
-    ... def decay(v, a, out):
-    ...     out[:] = -a * v
+    ... def decay(v, args, out):
+    ...     out[:] = -args[0] * v
     >>> s, k, out = np.ones(1), np.empty(1), np.empty(1)
     >>> euler_step(decay, s, 0.1, (1.0,), k, out)
     >>> out
     array([0.9])
     """
-    f(s, *args, k1)
+    f(s, args, k1)
     axpy(s, h, k1, out)
 
 
@@ -256,7 +260,7 @@ def heun_step(f: Any, s: Array, h: float, args: Any, k1: Array, k2: Array, tmp: 
     Parameters
     ----------
     f : numba dispatcher
-        The right-hand side ``f(v, *args, out)``, writing ``dv/dt`` into ``out``.
+        The right-hand side ``f(v, args, out)``, writing ``dv/dt`` into ``out``.
     s : ndarray
         The state at the start of the step, 1-D (not modified unless ``out`` is ``s``).
     h : float
@@ -273,16 +277,16 @@ def heun_step(f: Any, s: Array, h: float, args: Any, k1: Array, k2: Array, tmp: 
     >>> import numpy as np
     >>> from numba import njit
     >>> @njit
-    ... def decay(v, a, out):
-    ...     out[:] = -a * v
+    ... def decay(v, args, out):
+    ...     out[:] = -args[0] * v
     >>> s, w = np.ones(1), np.empty((3, 1))
     >>> heun_step(decay, s, 0.1, (1.0,), w[0], w[1], w[2], s)
     >>> s
     array([0.905])
     """
-    f(s, *args, k1)
+    f(s, args, k1)
     axpy(s, h, k1, tmp)
-    f(tmp, *args, k2)
+    f(tmp, args, k2)
     heun_sum(s, h / 2, k1, k2, out)
 
 
@@ -296,7 +300,7 @@ def rk4_step(f: Any, s: Array, h: float, args: Any, k1: Array, k2: Array, k3: Ar
     Parameters
     ----------
     f : numba dispatcher
-        The right-hand side ``f(v, *args, out)``, writing ``dv/dt`` into ``out``.
+        The right-hand side ``f(v, args, out)``, writing ``dv/dt`` into ``out``.
     s : ndarray
         The state at the start of the step, 1-D (not modified unless ``out`` is ``s``).
     h : float
@@ -313,19 +317,19 @@ def rk4_step(f: Any, s: Array, h: float, args: Any, k1: Array, k2: Array, k3: Ar
     >>> import numpy as np
     >>> from numba import njit
     >>> @njit
-    ... def decay(v, a, out):
-    ...     out[:] = -a * v
+    ... def decay(v, args, out):
+    ...     out[:] = -args[0] * v
     >>> s, w = np.ones(1), np.empty((5, 1))
     >>> rk4_step(decay, s, 0.1, (1.0,), w[0], w[1], w[2], w[3], w[4], s)
     >>> s.round(7)
     array([0.9048375])
     """
     h2 = h / 2
-    f(s, *args, k1)
+    f(s, args, k1)
     axpy(s, h2, k1, tmp)
-    f(tmp, *args, k2)
+    f(tmp, args, k2)
     axpy(s, h2, k2, tmp)
-    f(tmp, *args, k3)
+    f(tmp, args, k3)
     axpy(s, h, k3, tmp)
-    f(tmp, *args, k4)
+    f(tmp, args, k4)
     rk4_sum(s, h / 6.0, k1, k2, k3, k4, out)

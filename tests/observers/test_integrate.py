@@ -75,9 +75,9 @@ def test_batch_shapes_and_rows_independent(method: str) -> None:
 
 
 @njit(cache=True)
-def _osc_rhs(v, w2, out):  # pragma: no cover - jit
+def _osc_rhs(v, args, out):  # pragma: no cover - jit
     out[0] = v[1]
-    out[1] = -w2 * v[0]
+    out[1] = -args[0] * v[0]
 
 
 @njit(cache=True)
