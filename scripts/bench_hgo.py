@@ -2,7 +2,11 @@
 ``mj_step``.
 
 Usage: ``python scripts/bench_hgo.py [--write BENCHMARKS.md]`` (``--write`` replaces the block
-between ``<!-- bench_hgo: begin/end -->``).
+between ``<!-- bench_hgo: begin/end -->``); ``python scripts/bench_hgo.py --integrate REV
+[--write BENCHMARKS.md]`` times instead each family's integration through
+``hgo_mj.observers._integrate`` against the hand-unrolled version it replaced (the family
+modules as they were at the git revision ``REV``, loaded side by side), CPU time, interleaved,
+and checks that both give the same rows bit for bit (block ``bench_integrate``).
 
 Every observer's ``update`` is measured in the same process as a bare ``mujoco.mj_step`` of the
 shipped pendulum, round-robin (each round times every candidate once, so that they share the
@@ -173,12 +177,168 @@ def bench_lmi(repeat: int) -> dict[str, float]:
             "t62": t62, "delta_max_62": r62["delta_max"]}
 
 
+#: the family modules whose integration moved to ``_integrate`` (in import order)
+CHANGED = ("high_gain", "riccati", "q_integral", "adaptive_gain", "bastin_gevers", "jo_son")
+
+
+def old_modules(rev: str) -> dict[str, object]:
+    """The modules of :data:`CHANGED` as they were at the git revision ``rev``, loaded as
+    ``hgo_mj.observers._old_<name>`` (importing each other's old versions, the rest of the
+    package as it is now; their classes not registered)."""
+    import importlib.util
+    import subprocess
+    import tempfile
+
+    import hgo_mj.observers.base as base
+
+    tmp = tempfile.mkdtemp(prefix="bench_integrate_")
+    out: dict[str, object] = {}
+    register = base.register
+    base.register = lambda cls: cls  # type: ignore[assignment]  # the names are taken
+    try:
+        for name in CHANGED:
+            src = subprocess.run(["git", "show", f"{rev}:hgo_mj/observers/{name}.py"],
+                                 check=True, capture_output=True, text=True).stdout
+            for other in CHANGED:
+                src = src.replace(f"from .{other} import", f"from ._old_{other} import")
+            path = os.path.join(tmp, f"_old_{name}.py")
+            with open(path, "w") as fh:
+                fh.write(src)
+            full = f"hgo_mj.observers._old_{name}"
+            spec = importlib.util.spec_from_file_location(full, path)
+            mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+            sys.modules[full] = mod
+            spec.loader.exec_module(mod)  # type: ignore[union-attr]
+            out[name] = mod
+    finally:
+        base.register = register  # type: ignore[assignment]
+    return out
+
+
+def integrate_cases() -> list[tuple[str, Callable[[dict[str, object]], object], int, int, int,
+                                    int, float, float]]:
+    """``(label, factory(modules), B, T, outputs, inputs, dt, level)``: the paths whose integration
+    moved, each with the ``method`` that takes it."""
+    from hgo_mj.systems.papers import BioreactorBastinGevers, JoSonExample
+
+    def chain_phi(z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return np.array([-np.sin(z[0]), -z[2] + 0.1 * u[0]])
+
+    return [
+        ("HGO model term rk4, n=2", lambda m: m["high_gain"].HighGainObserver(  # type: ignore[attr-defined]
+            Pendulum(), k=20.0, model=True, method="rk4"), 1024, 20, 1, 1, DT, 0.3),
+        ("HGO model term rk4, n=4", lambda m: m["high_gain"].HighGainObserver(  # type: ignore[attr-defined]
+            ElasticJoint(), k=100.0, model=True, method="rk4"), 1024, 20, 1, 1, DT, 0.3),
+        ("multi-output HGO phi rk4 (B=1)", lambda m: m["high_gain"].MultiOutputHighGainObserver(  # type: ignore[attr-defined]
+            k=20.0, orders=(2, 2), phi=chain_phi, method="rk4"), 1, 200, 2, 1, DT, 0.3),
+        ("Riccati model term rk4, n=2", lambda m: m["riccati"].RiccatiObserver(  # type: ignore[attr-defined]
+            Pendulum(), gamma=20.0, method="rk4"), 1024, 20, 1, 1, DT, 0.3),
+        ("q-integral q=1 rk4, n=2", lambda m: m["q_integral"].QIntegralObserver(  # type: ignore[attr-defined]
+            Pendulum(), gamma=20.0, q=1, method="rk4"), 1024, 20, 1, 1, DT, 0.3),
+        ("adaptive model-free rk4, n=2", lambda m: m["adaptive_gain"].AdaptiveGainObserver(  # type: ignore[attr-defined]
+            Pendulum(), lam=1e-3, lam_hat=1e-2, gamma=1.0, k0=20.0, method="rk4"),
+            1024, 100, 1, 1, DT, 0.3),
+        ("adaptive model-free euler, n=2", lambda m: m["adaptive_gain"].AdaptiveGainObserver(  # type: ignore[attr-defined]
+            Pendulum(), lam=1e-3, lam_hat=1e-2, gamma=1.0, k0=20.0, method="euler"),
+            1024, 100, 1, 1, DT, 0.3),
+        ("adaptive model term rk4, n=2", lambda m: m["adaptive_gain"].AdaptiveGainObserver(  # type: ignore[attr-defined]
+            Pendulum(), model=True, lam=1e-3, lam_hat=1e-2, gamma=1.0, k0=20.0, method="rk4"),
+            1024, 20, 1, 1, DT, 0.3),
+        ("Bastin-Gevers bioreactor rk4", lambda m: m["bastin_gevers"].BastinGeversObserver(  # type: ignore[attr-defined]
+            BioreactorBastinGevers(), c1=5.0, gamma=2.0, c2=1.0, excitation_window=None,
+            theta_hat0=[-3.0, -0.1, -0.1], z_hat0=[1.0, 1.0]), 256, 50, 1, 2, 0.01, 1.0),
+        ("Bastin-Gevers bioreactor euler x3", lambda m: m["bastin_gevers"].BastinGeversObserver(  # type: ignore[attr-defined]
+            BioreactorBastinGevers(), c1=5.0, gamma=2.0, c2=1.0, method="euler", substeps=3,
+            excitation_window=None, theta_hat0=[-3.0, -0.1, -0.1], z_hat0=[1.0, 1.0]),
+            256, 50, 1, 2, 0.01, 1.0),
+        ("Jo-Son example rk4", lambda m: m["jo_son"].JoSonObserver(  # type: ignore[attr-defined]
+            JoSonExample(), lam=2.0, gamma=5.0, excitation_window=None), 1024, 20, 1, 1, 0.01, 1.0),
+        ("Jo-Son example euler x3", lambda m: m["jo_son"].JoSonObserver(  # type: ignore[attr-defined]
+            JoSonExample(), lam=2.0, gamma=5.0, method="euler", substeps=3,
+            excitation_window=None), 1024, 20, 1, 1, 0.01, 1.0),
+    ]
+
+
+def bench_integrate(rev: str, rounds: int) -> list[tuple[str, float, float, bool, float]]:
+    """For each case of :func:`integrate_cases`: ``(label, old, new, same, rel)``, the best CPU
+    seconds per observer-step of ``advance`` at ``rev`` and now (interleaved: each round times
+    old then new, alternating which goes first), whether the rows are identical and the
+    largest relative difference of ``z_hat``."""
+    from hgo_mj.observers import adaptive_gain, bastin_gevers, high_gain, jo_son, q_integral, riccati
+
+    now: dict[str, object] = {"high_gain": high_gain, "riccati": riccati, "q_integral": q_integral,
+           "adaptive_gain": adaptive_gain, "bastin_gevers": bastin_gevers, "jo_son": jo_son}
+    old = old_modules(rev)
+    rng = np.random.default_rng(0)
+    results = []
+    for label, make, B, T, p, m, dt, level in integrate_cases():
+        t = dt * np.arange(T)
+        phase = rng.uniform(0, 2 * np.pi, (B, 1))
+        Y = (level + 0.3 * level * np.sin(1.3 * t[:, None] * (1 + np.arange(p)) + phase[:, :, None])
+             + 0.01 * rng.normal(size=(B, T, p)))
+        Y[rng.random((B, T, p)) < 0.05] = np.nan  # dropouts: the prediction path too
+        U = np.ascontiguousarray(np.broadcast_to(
+            0.5 + 0.4 * np.sin(0.7 * t[None, :, None] * (1 + np.arange(m)) + phase[:, :, None]),
+            (B, T, m)))
+        obs = {"old": make(old), "new": make(now)}
+        rows = {}
+        for key, ob in obs.items():
+            ob.reset(batch=B)  # type: ignore[attr-defined]
+            rows[key] = advance(ob, Y, U, dt)  # compiles; the rows compared below
+        same = all(np.array_equal(getattr(rows["old"], f), getattr(rows["new"], f), equal_nan=True)
+                   for f in ("x_hat", "z_hat", "diagnostics"))
+        zo, zn = rows["old"].z_hat, rows["new"].z_hat  # type: ignore[attr-defined]
+        rel = float(np.nanmax(np.abs(zn - zo) / np.maximum(np.abs(zo), 1e-300)))
+        best = {"old": float("inf"), "new": float("inf")}
+        for r in range(rounds):
+            for key in (("old", "new") if r % 2 == 0 else ("new", "old")):
+                ob = obs[key]
+                ob.reset(batch=B)  # type: ignore[attr-defined]
+                t0 = time.process_time()
+                advance(ob, Y, U, dt)
+                best[key] = min(best[key], (time.process_time() - t0) / (B * T))
+        results.append((label, best["old"], best["new"], same, rel))
+    return results
+
+
+def integrate_section(rev: str, rounds: int) -> str:
+    res = bench_integrate(rev, rounds)
+    lines = [
+        "## Issue item 3: one `_integrate.py` for Euler, Heun and RK4",
+        "",
+        *header(f"`python scripts/bench_hgo.py --integrate {rev} --rounds {rounds}` (CPU time "
+                f"of one `advance` over the block, old and new interleaved, best of {rounds} "
+                "rounds)"),
+        "",
+        f"\"old\": the family modules at `{rev}` (each integrator hand-unrolled), loaded side "
+        "by side with the current ones (which call `hgo_mj.observers._integrate`); same "
+        "observer, same block (5 % dropouts), same start. \"same rows\": `x_hat`, `z_hat` and "
+        "the diagnostics identical bit for bit.",
+        "",
+        "| path | B x T | old [ns/obs-step] | new [ns/obs-step] | new / old | same rows "
+        "(else max rel. diff of z_hat) |",
+        "|---|---|---:|---:|---:|---|",
+    ]
+    for (label, o, n, same, rel), case in zip(res, integrate_cases()):
+        lines.append(f"| {label} | {case[2]} x {case[3]} | {o * 1e9:.0f} | {n * 1e9:.0f} | "
+                     f"{n / o:.2f} | {'yes' if same else f'no: {rel:.1e}'} |")
+    return "\n".join(lines)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", help="replace the bench_hgo block of this markdown file")
     ap.add_argument("--number", type=int, default=500, help="calls per round")
     ap.add_argument("--rounds", type=int, default=60)
+    ap.add_argument("--integrate", metavar="REV",
+                    help="time the families' _integrate calls against their versions at REV")
     args = ap.parse_args()
+    if args.integrate:
+        text = integrate_section(args.integrate, args.rounds)
+        print(text)
+        if args.write:
+            write_section(args.write, "bench_integrate", text)
+        return 0
 
     bare, upd = bench_updates(args.number, args.rounds)
     lmi = bench_lmi(5)

@@ -38,6 +38,7 @@ from .._validate import boolean, finite_scalar
 from ..design import binomial_coefficients, check_hurwitz
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
+from ._integrate import euler_step, rk4_step
 from .base import Array, Observer, Params, State, batch_rows, register
 from .high_gain import (
     MAP_CACHE,
@@ -229,6 +230,13 @@ def _stops(code, stop):  # pragma: no cover - compiled
     return code >= 2 and stop
 
 
+@njit(cache=True, inline="always")
+def joint_rhs_args(s, a, ds):  # pragma: no cover - compiled
+    """:func:`joint_rhs` with its other arguments as one tuple ``a = (y, phi, vecs, lam,
+    lam_hat, gamma)``: the right-hand side form of :mod:`hgo_mj.observers._integrate`."""
+    joint_rhs(s, a[0], a[1], a[2], a[3], a[4], a[5], ds)
+
+
 @njit(cache=True)
 def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, mats, vecs,
                  bounds, Z, D, lim):  # pragma: no cover - compiled
@@ -241,8 +249,10 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
     * ``exact`` (``method`` 0): ``z+ = Phi z + Ld(k) e + g0 phi`` with the pole-matched gain at
       the start-of-sample ``k`` (``Ld = W c(k dt)``, :func:`matched_coefficients`; reused
       while ``k`` does not change) and ``k+ = k + dt gamma d^2(e)``, ``e = y - z_1``;
-    * ``euler`` (1): ``s+ = s + dt f(s)`` (:func:`joint_rhs`), plus ``dt phi`` in the last row;
-    * ``rk4`` (2): classical RK4 of :func:`joint_rhs` (without the model term: with it, the
+    * ``euler`` (1): ``s+ = s + dt f(s)`` (:func:`joint_rhs`, by
+      :func:`~hgo_mj.observers._integrate.euler_step`), plus ``dt phi`` in the last row;
+    * ``rk4`` (2): classical RK4 of :func:`joint_rhs`
+      (:func:`~hgo_mj.observers._integrate.rk4_step`; without the model term: with it, the
       stages are driven from Python, :meth:`AdaptiveGainObserver._step`);
 
     then :func:`gain_limits` (``lim`` ``(B, 3)``); ``sat(z)`` into ``Z[:, j]``, ``k`` into
@@ -260,7 +270,6 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
     Tc = PHI.shape[1]
     lo, hi = bounds[0], bounds[1]
     dt, lam, lam_hat, gamma = par[0], par[1], par[2], par[3]
-    h, h6 = dt / 2, dt / 6.0
     s = np.empty(n + 1)
     t = np.empty(n + 1)
     d1, d2, d3, d4 = np.empty(n + 1), np.empty(n + 1), np.empty(n + 1), np.empty(n + 1)
@@ -300,24 +309,12 @@ def adaptive_run(S, Y, PHI, j0, model, method, mode, nr, npair, stop, sat, par, 
                     t[1 + r] = _plus(v, vecs[1, r], phi, model)
                 t[0] = k + dt * adaptation_rate(e, lam, lam_hat, gamma)
             elif method == 1:
-                joint_rhs(s, y, 0.0, vecs, lam, lam_hat, gamma, d1)
-                for q in range(n + 1):
-                    t[q] = s[q] + dt * d1[q]
+                euler_step(joint_rhs_args, s, dt, (y, 0.0, vecs, lam, lam_hat, gamma), d1, t)
                 if model:
                     t[n] = t[n] + dt * phi
             else:
-                joint_rhs(s, y, 0.0, vecs, lam, lam_hat, gamma, d1)
-                for q in range(n + 1):
-                    t[q] = s[q] + h * d1[q]
-                joint_rhs(t, y, 0.0, vecs, lam, lam_hat, gamma, d2)
-                for q in range(n + 1):
-                    t[q] = s[q] + h * d2[q]
-                joint_rhs(t, y, 0.0, vecs, lam, lam_hat, gamma, d3)
-                for q in range(n + 1):
-                    t[q] = s[q] + dt * d3[q]
-                joint_rhs(t, y, 0.0, vecs, lam, lam_hat, gamma, d4)
-                for q in range(n + 1):
-                    t[q] = s[q] + h6 * (d1[q] + 2.0 * (d2[q] + d3[q]) + d4[q])
+                rk4_step(joint_rhs_args, s, dt, (y, 0.0, vecs, lam, lam_hat, gamma), d1, d2, d3, d4,
+                         t, t)
             if y == y:
                 code = gain_limits(t, j, par, lim[i])
                 status |= code

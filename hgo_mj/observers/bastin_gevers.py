@@ -92,6 +92,7 @@ from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, v
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.aocf import AOCF, Rebuildable, _callable, _names
 from ..systems.base import System
+from ._integrate import euler_step, rk4_step
 from .base import Array, Observer, Params, State, _batch_of, _batch_size, batch_rows, register
 
 __all__ = ["AOCF", "BastinGeversObserver", "Rebuildable", "SlidingGram", "advance_3_1",
@@ -318,22 +319,6 @@ def initial_estimate(n: int, q: int, x_hat0: Any, z_hat0: Any, theta_hat0: Any,
     return np.zeros(n), th
 
 
-def rk_step(rhs: Callable[..., list[float]], s: list[float], h: float, method: str,
-            substeps: int, *args: Any) -> list[float]:
-    """``substeps`` steps of RK4 (or Euler) of ``ds/dt = rhs(s, *args)`` in plain floats."""
-    h2, h6 = 0.5 * h, h / 6.0
-    for _ in range(substeps):
-        k1 = rhs(s, *args)
-        if method == "euler":
-            s = [a + h * b for a, b in zip(s, k1)]
-            continue
-        k2 = rhs([a + h2 * b for a, b in zip(s, k1)], *args)
-        k3 = rhs([a + h2 * b for a, b in zip(s, k2)], *args)
-        k4 = rhs([a + h * b for a, b in zip(s, k3)], *args)
-        s = [a + h6 * (b + 2.0 * (c + d) + f) for a, b, c, d, f in zip(s, k1, k2, k3, k4)]
-    return s
-
-
 # ======================================================================================
 # the kernels: eq. 2.2, 3.1, 4.5, 4.11, on the flat state s = (x_hat, theta_hat, vec V)
 # ======================================================================================
@@ -413,30 +398,25 @@ def rhs_3_1(s: Array, y: float, c: float, Om: Array, g: Array, R: Array, gamma: 
             out[v0 + i * m + j] = acc + Om[1 + i, j]
 
 
+@njit(cache=True, inline="always")
+def rhs_3_1_args(s: Array, a: Any, out: Array) -> None:  # pragma: no cover - jit
+    """:func:`rhs_3_1` with its other arguments as one tuple ``a = (y, c, Om, g, R, gamma, c1,
+    phi)``: the right-hand side form of :mod:`hgo_mj.observers._integrate`."""
+    rhs_3_1(s, a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], out)
+
+
 @njit(cache=True)
 def _step(s: Array, y: float, c: float, Om: Array, g: Array, R: Array, gamma: Array,
           c1: float, h: float, substeps: int, euler: bool, phi: Array, k1: Array, k2: Array,
           k3: Array, k4: Array, tmp: Array) -> None:
-    """``substeps`` steps of classical RK4 (or Euler) of :func:`rhs_3_1`, ``s`` in place."""
-    ns = s.shape[0]
-    h2, h6 = 0.5 * h, h / 6.0
+    """``substeps`` steps of classical RK4 (or Euler) of :func:`rhs_3_1`, ``s`` in place
+    (:func:`~hgo_mj.observers._integrate.rk4_step`, :func:`~hgo_mj.observers._integrate.euler_step`)."""
+    args = (y, c, Om, g, R, gamma, c1, phi)
     for _ in range(substeps):
-        rhs_3_1(s, y, c, Om, g, R, gamma, c1, phi, k1)
         if euler:
-            for i in range(ns):
-                s[i] = s[i] + h * k1[i]
-            continue
-        for i in range(ns):
-            tmp[i] = s[i] + h2 * k1[i]
-        rhs_3_1(tmp, y, c, Om, g, R, gamma, c1, phi, k2)
-        for i in range(ns):
-            tmp[i] = s[i] + h2 * k2[i]
-        rhs_3_1(tmp, y, c, Om, g, R, gamma, c1, phi, k3)
-        for i in range(ns):
-            tmp[i] = s[i] + h * k3[i]
-        rhs_3_1(tmp, y, c, Om, g, R, gamma, c1, phi, k4)
-        for i in range(ns):
-            s[i] = s[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+            euler_step(rhs_3_1_args, s, h, args, k1, s)
+        else:
+            rk4_step(rhs_3_1_args, s, h, args, k1, k2, k3, k4, tmp, s)
 
 
 @njit(cache=True)

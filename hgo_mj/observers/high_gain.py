@@ -60,6 +60,7 @@ from .._validate import boolean, finite_scalar, one_of, vector
 from ..design import binomial_coefficients, check_hurwitz, hgo_gains
 from ..exceptions import DesignError, DimensionError
 from ..systems.base import System, derivative_names
+from ._integrate import rk4
 from .base import Array, Dimension, Observer, Params, State, batch_rows, register
 
 __all__ = ["METHODS", "HighGainObserver", "MultiOutputHighGainObserver", "matched_gain",
@@ -693,12 +694,7 @@ class HighGainObserver(_Chains, Observer):
                 dz[:, -1] = phi(self._sat(z), Uo)
                 return dz + L * (yo - z[:, :1])
 
-            z = Z[ok]
-            k1 = rhs(z)
-            k2 = rhs(z + dt / 2 * k1)
-            k3 = rhs(z + dt / 2 * k2)
-            k4 = rhs(z + dt * k3)
-            Z[ok] = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            Z[ok] = rk4(rhs, Z[ok], dt)
         Zout[:, j] = self._sat(Z)
 
     def _sat(self, z: Array) -> Array:
@@ -1082,11 +1078,7 @@ class MultiOutputHighGainObserver(_Chains, Observer):
             dz[:, top] += self._phi_rows(z, u)
             return dz + Lfull * (yv - z[:, first])[:, chain_of]
 
-        k1 = rhs(z)
-        k2 = rhs(z + dt / 2 * k1)
-        k3 = rhs(z + dt / 2 * k2)
-        k4 = rhs(z + dt * k3)
-        return np.ascontiguousarray(z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
+        return np.ascontiguousarray(rk4(rhs, z, dt))
 
     def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         """``x_hat = z_hat`` (model-free: outputs and derivatives, see the class docstring)."""

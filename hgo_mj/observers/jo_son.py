@@ -76,6 +76,7 @@ from .._validate import finite_scalar, one_of, positive_int, symmetric_matrix, v
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 from ..systems.jo_son_form import JoSonForm
+from ._integrate import euler, rk4
 from .base import Array, Observer, Params, State, batch_rows, check_outputs, register
 from .bastin_gevers import check_rk_period, sym_eigvals
 
@@ -193,25 +194,6 @@ def eq27(S: Array, y: Array, c: Array, go: Array, be: Array, fo: Array, gb: Arra
             for k in range(p):
                 g += G[m, k] * be[i, k]
             out[i, n + m] = g * e
-
-
-@njit(cache=True)
-def axpy(S: Array, a: float, k: Array, out: Array) -> None:  # pragma: no cover - jit
-    """``out = S + a k``: a stage of the Runge-Kutta scheme (Euler: the step itself)."""
-    B, w = S.shape
-    for i in range(B):
-        for m in range(w):
-            out[i, m] = S[i, m] + a * k[i, m]
-
-
-@njit(cache=True)
-def rk4_combine(S: Array, h6: float, k1: Array, k2: Array, k3: Array, k4: Array,
-                out: Array) -> None:  # pragma: no cover - jit
-    """``out = S + h/6 (k1 + 2 (k2 + k3) + k4)``: the classical RK4 step."""
-    B, w = S.shape
-    for i in range(B):
-        for m in range(w):
-            out[i, m] = S[i, m] + h6 * (k1[i, m] + 2.0 * (k2[i, m] + k3[i, m]) + k4[i, m])
 
 
 @njit(cache=True)
@@ -629,25 +611,17 @@ class JoSonObserver(Observer):
         return self._eq27(S, y, cc, go, be, gb, self.K_, self.gamma, np.empty_like(S))
 
     def _integrate(self, S: Array, y: Array, c: Array, go: Array, be: Array, gb: Array,
-                   K: Array, G: Array, h: float, k: Array) -> Array:
-        """``substeps`` steps of RK4 (or Euler) of eq. 27 over ``h`` each, the signals held;
-        ``k`` ``(5, B, n + p)`` holds the stages and the stage state. Returns a new array."""
-        h2, h6 = 0.5 * h, h / 6.0
-        St = k[4]
+                   K: Array, G: Array, h: float) -> Array:
+        """``substeps`` steps of RK4 (or Euler) of eq. 27 over ``h`` each, the signals held
+        (:func:`~hgo_mj.observers._integrate.rk4`, :func:`~hgo_mj.observers._integrate.euler`
+        over the batch). Returns a new array."""
+        step = euler if self.method == "euler" else rk4
+
+        def f(V: Array) -> Array:
+            return self._eq27(V, y, c, go, be, gb, K, G, np.empty_like(V))
+
         for _ in range(self.substeps):
-            nxt = np.empty_like(S)
-            self._eq27(S, y, c, go, be, gb, K, G, k[0])
-            if self.method == "euler":
-                axpy(S, h, k[0], nxt)
-            else:
-                axpy(S, h2, k[0], St)
-                self._eq27(St, y, c, go, be, gb, K, G, k[1])
-                axpy(S, h2, k[1], St)
-                self._eq27(St, y, c, go, be, gb, K, G, k[2])
-                axpy(S, h, k[2], St)
-                self._eq27(St, y, c, go, be, gb, K, G, k[3])
-                rk4_combine(S, h6, k[0], k[1], k[2], k[3], nxt)
-            S = nxt
+            S = step(f, S, h)
         return S
 
     def _window(self, s: State, dt: float) -> None:
@@ -737,7 +711,6 @@ class JoSonObserver(Observer):
         c = np.where(lost, 0.0, 1.0)
         h = dt / self.substeps
         S = s.S
-        k = np.empty((5, *S.shape))
         window = self.excitation_window is not None
         for j in range(T):
             y = yT[j]
@@ -747,7 +720,7 @@ class JoSonObserver(Observer):
                 go[j][m], be[j][m], gb[j][m] = self.signals(y[m], UU[j][m])
             if window:
                 self._excite(s, be[j], dt)
-            S = self._integrate(S, y, c[j], go[j], be[j], gb[j], K, G, h, k)
+            S = self._integrate(S, y, c[j], go[j], be[j], gb[j], K, G, h)
             Z[:, j] = S[:, :n]
             D[:, j, :np_] = S[:, n:]
             if window:

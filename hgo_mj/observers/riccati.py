@@ -16,7 +16,7 @@ designed from the Riccati equation (:func:`hgo_mj.design.riccati_gains`).
 This module also holds the kernels shared with the q-integral observer (paper 004, eq. 40,
 :mod:`hgo_mj.observers.q_integral`), whose update is an affine map of the same kind:
 ``s+ = M s + b y + g phi`` (:func:`affine_run`), or RK4 of the continuous observer with the
-model term at every stage (:func:`rk4_combine`).
+model term at every stage (:func:`model_rk4`).
 
 References
 ----------
@@ -46,6 +46,7 @@ from ..design import (
 )
 from ..exceptions import DesignError, DimensionError
 from ..systems.base import System
+from ._integrate import rk4
 from .base import Array, Observer, Params, State, batch_rows, register
 from .high_gain import (
     bounds_pair,
@@ -203,20 +204,19 @@ def chain_rhs(V, Y, j, PHI, L, D):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def rk4_combine(S, D1, D2, D3, D4, h, Y, j, lead, M0, g0, PHI1):  # pragma: no cover
-    """Classical RK4 ``s+ = s + h/6 (d1 + 2 (d2 + d3) + d4)`` for the members whose ``y_j`` is
-    finite; the others take the prediction without correction ``s[lead:]+ = M0 s[lead:] + g0
-    phi(s)`` (the model term held at its start-of-sample value ``PHI1``; columns before
-    ``lead`` held). ``S`` is updated in place."""
+def accept_step(S, New, Y, j, lead, M0, g0, PHI1):  # pragma: no cover - compiled
+    """``S = New`` (a step of the continuous observer, :func:`model_rk4`) for the members whose
+    ``y_j`` is finite; the others take the prediction without correction ``s[lead:]+ = M0
+    s[lead:] + g0 phi(s)`` (the model term held at its start-of-sample value ``PHI1``; columns
+    before ``lead`` held). ``S`` is updated in place."""
     B, N = S.shape
     m = N - lead
-    h6 = h / 6.0
     t = np.empty(m)
     for i in range(B):
         y = Y[i, j, 0]
         if y == y:
             for r in range(N):
-                S[i, r] = S[i, r] + h6 * (D1[i, r] + 2.0 * (D2[i, r] + D3[i, r]) + D4[i, r])
+                S[i, r] = New[i, r]
         else:
             for r in range(m):
                 acc = 0.0
@@ -233,17 +233,15 @@ def model_rk4(S: Array, Y: Array, j: int, dt: float, lead: int, M0: Array, g0: A
     """One RK4 sample (``S`` updated in place) of an observer whose model term is evaluated at
     every stage: ``phi(V)`` is the model term at the stage state ``V`` (from
     ``system.phi_batch``, hence the stages are driven from here), ``stage(V, phi_V)`` the
-    derivative (a kernel such as :func:`chain_rhs`). Members without a measurement take the
-    prediction without correction (:func:`rk4_combine`)."""
+    derivative (a kernel such as :func:`chain_rhs`); the step is
+    :func:`hgo_mj.observers._integrate.rk4`. Members without a measurement take the
+    prediction without correction (:func:`accept_step`)."""
     p1 = phi(S)
-    D1 = stage(S, p1)
-    V = S + (dt / 2) * D1
-    D2 = stage(V, phi(V))
-    V = S + (dt / 2) * D2
-    D3 = stage(V, phi(V))
-    V = S + dt * D3
-    D4 = stage(V, phi(V))
-    rk4_combine(S, D1, D2, D3, D4, dt, Y, j, lead, M0, g0, p1)
+
+    def f(V: Array) -> Array:
+        return stage(V, p1 if V is S else phi(V))  # rk4 calls f on S itself first
+
+    accept_step(S, rk4(f, S, dt), Y, j, lead, M0, g0, p1)
 
 
 class AffineObserver(Observer):
@@ -577,4 +575,4 @@ class RiccatiObserver(AffineObserver):
                 "z_bounds": None if self.z_bounds is None else [b.tolist() for b in self.z_bounds]}
 
 
-__all__ = ["RiccatiObserver", "affine_run", "chain_rhs", "rk4_combine"]
+__all__ = ["RiccatiObserver", "accept_step", "affine_run", "chain_rhs"]
