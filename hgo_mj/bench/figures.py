@@ -74,8 +74,8 @@ def score_matrix(board: Any) -> Any:
     ax.set_xticks(range(len(tasks)), [t.replace("/", "/\n") for t in tasks], fontsize=7,
                   rotation=60, ha="right")
     ax.set_yticks(range(len(observers)), observers, fontsize=8)
-    ax.set_title("normalized steady-state RMSE (tuned)\ncolour: rank on the task (green "
-                 "best, red worst, grey: not applicable)", fontsize=9)
+    ax.set_title("normalized steady-state RMSE (tuned)\ncolour: rank on the task\n(green "
+                 "best, red worst, grey: n/a)", fontsize=9)
     return fig
 
 
