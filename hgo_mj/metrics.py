@@ -40,8 +40,73 @@ from .exceptions import DesignError
 
 Array = NDArray[np.float64]
 
-__all__ = ["PER_STATE", "RunningMetrics", "all_metrics", "format_table", "metrics_frame",
-           "observer_metrics", "settling_time"]
+__all__ = ["PER_STATE", "RunningMetrics", "all_metrics", "chi2_band", "format_table",
+           "metrics_frame", "nees", "observer_metrics", "settling_time"]
+
+
+def nees(err: Array, P: Array) -> Array:
+    """The normalized estimation error squared :math:`\\varepsilon = e^T P^{-1} e` of each
+    member: ``err`` ``(B, d)`` (truth minus estimate) and the filter's covariance of that
+    estimate ``P`` ``(B, d, d)`` (Bar-Shalom, Li and Kirubarajan, *Estimation with
+    Applications to Tracking and Navigation*, Wiley 2001, sec. 5.4.2, eq. 5.4.2-1). For a
+    consistent filter it is :math:`\\chi^2_d` distributed (mean ``d``). A member whose ``P``
+    is singular or not finite gets NaN.
+
+    Parameters
+    ----------
+    err : ndarray
+        ``(B, d)``.
+    P : ndarray
+        ``(B, d, d)``, symmetric positive definite.
+
+    Returns
+    -------
+    ndarray
+        ``(B,)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> nees(np.array([[1.0, 2.0]]), np.array([np.diag([1.0, 4.0])])).tolist()
+    [2.0]
+    """
+    e = np.asarray(err, dtype=float)
+    out = np.full(e.shape[0], np.nan)
+    ok = np.isfinite(e).all(axis=1) & np.isfinite(P).all(axis=(1, 2))
+    if ok.any():
+        try:
+            sol = np.linalg.solve(P[ok], e[ok][:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:  # one singular member: solve them one by one
+            sol = np.full(e[ok].shape, np.nan)
+            for i, (Pi, ei) in enumerate(zip(P[ok], e[ok])):
+                try:
+                    sol[i] = np.linalg.solve(Pi, ei)
+                except np.linalg.LinAlgError:
+                    pass
+        out[ok] = np.einsum("bi,bi->b", e[ok], sol)
+    return out
+
+
+def chi2_band(dof: int | Array, confidence: float = 0.95) -> tuple[Array, Array]:
+    """The two-sided ``confidence`` band ``(low, high)`` of one :math:`\\chi^2_{dof}`
+    sample: where a consistent filter's NEES (``dof`` states) or NIS (``dof`` measured
+    channels) lies with that probability (Bar-Shalom et al. 2001, sec. 5.4.2). ``dof`` 0
+    gives the empty band ``(inf, -inf)``.
+
+    Examples
+    --------
+    >>> lo, hi = chi2_band(1)
+    >>> round(float(lo), 5), round(float(hi), 3)
+    (0.00098, 5.024)
+    """
+    from scipy.stats import chi2
+
+    d = np.asarray(dof, dtype=float)
+    a = (1.0 - confidence) / 2.0
+    with np.errstate(invalid="ignore"):
+        lo = np.where(d > 0, chi2.ppf(a, np.maximum(d, 1)), np.inf)
+        hi = np.where(d > 0, chi2.ppf(1.0 - a, np.maximum(d, 1)), -np.inf)
+    return lo, hi
 
 
 def settling_time(t: Array, err: Array, band: float | Array) -> Array:

@@ -160,8 +160,7 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
     if folder is not None:
         for name, frame in (("scores", scores), ("leaderboard", board)):
             buf = io.BytesIO()
-            frame.astype({c: str for c in frame.columns if frame[c].dtype == object}).to_parquet(
-                buf, index=False)
+            frame.to_parquet(buf, index=False)  # numbers stay numbers, text text
             write_bytes(folder / f"{name}.parquet", buf.getvalue())
         write_text(folder / "leaderboard.md", table + "\n")
         from .figures import write_figures
@@ -247,7 +246,7 @@ def markdown(board: Any, tasks: Sequence[Task], budget: int) -> str:
             continue
         lines += ["", f"## {t.name}", "", f"{t.description} (hash `{task_hash(t)[:12]}`)", "",
                   "| rank | observer | RMSE (tuned) | RMSE (default) | transient IAE [s] | "
-                  "peaking | settling [s] | NIS | diverged | cost/update [us] | "
+                  "peaking | settling [s] | NIS; NEES (in 95 % band) | diverged | cost/update [us] | "
                   "robustness | certified Ts [s] | tuned |",
                   "|---:|---|---|---:|---|---|---|---|---:|---:|---:|---:|---|"]
         scored = sel[sel["status"] == "scored"].sort_values("rank")
@@ -261,10 +260,21 @@ def markdown(board: Any, tasks: Sequence[Task], budget: int) -> str:
                 f"{_cell(r['iae'], r['iae_low'], r['iae_high'])} | "
                 f"{_cell(r['peaking'], r['peaking_low'], r['peaking_high'])} | "
                 f"{_cell(r['settling'], r['settling_low'], r['settling_high'], 'never')} | "
-                f"{_cell(r['nis'], None, None)} | {r['divergence_rate']:.2f} | "
+                f"{_consistency(r)} | {r['divergence_rate']:.2f} | "
                 f"{r['update_time'] * 1e6:.3f} | {_cell(rob, None, None)} | "
                 f"{_cell(cert, None, None)} | {r['parameters']} |")
         for _, r in sel[sel["status"] != "scored"].iterrows():
             lines.append(f"| - | {r['observer']} | not applicable: {r['reason']} | | | | | | | "
                          f"| | | |")
     return "\n".join(lines)
+
+
+def _consistency(r: Any) -> str:
+    """``NIS (share in band); NEES (share)`` of a filter, ``-`` for an observer without."""
+    out = []
+    for m, share in (("nis", "nis_band"), ("nees", "nees_band")):
+        v, f = r.get(m, math.nan), r.get(share, math.nan)
+        out.append("-" if v is None or not math.isfinite(v) else
+                   f"{v:.3g} ({100 * f:.0f} %)" if f is not None and math.isfinite(f) else
+                   f"{v:.3g}")
+    return "-" if out == ["-", "-"] else "; ".join(out)

@@ -1672,6 +1672,11 @@ class _KalmanFilter(Observer):
         """The time update of every member of ``s`` over one substep ``h`` (filter-specific)."""
         raise NotImplementedError
 
+    def covariance(self, state: State) -> Array:
+        """The covariance ``P`` of the estimate of the plant's states, ``(B, n, n)`` (the
+        block of ``P`` without the estimated parameters' rows and columns)."""
+        return state.P[:, :self.n, :self.n].copy()
+
     def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         x = s.x
         return (x[:, :self.n].copy(), x[:, :self.n].copy(),

@@ -501,13 +501,7 @@ def _runner(backend: str, jobs: int, address: str | None) -> Any:
         size = max(1, math.ceil(len(trials) / jobs))
         parts = [list(range(i, min(i + size, len(trials)))) for i in range(0, len(trials), size)]
         refs = [remote.remote(st, [trials[i] for i in p], seeds, mismatch) for p in parts]
-        got = ray.get(refs)
-        def cat(field: str) -> np.ndarray:
-            return np.concatenate([getattr(g, field) for g in got])
-
-        return Scores(cat("rmse"), cat("peak"), cat("settling"), cat("output_error"),
-                      cat("nis"), cat("iae"), cat("peaking"), cat("update_time"),
-                      [m for g in got for m in g.message])
+        return Scores.concat(ray.get(refs))
     return on_ray
 
 

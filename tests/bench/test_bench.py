@@ -182,6 +182,8 @@ def test_a_users_observer_and_task_enter_the_leaderboard(tmp_path, monkeypatch, 
     printed = capsys.readouterr().out
     assert "user_obs_mod:Hold" in printed and "mine/encoder-v1" in printed
     board = pd.read_parquet(out / "leaderboard.parquet")
+    assert str(board["rank"].dtype) == "Int64" and board["rmse_norm"].dtype == float
+    assert board["certified_period"].dtype == float and pd.api.types.is_string_dtype(board["task"])
     mine = board[(board["task"] == "mine/encoder-v1") & (board["observer"] == "user_obs_mod:Hold")]
     assert len(mine) == 1 and mine["status"].iloc[0] == "scored"
     scores = pd.read_parquet(out / "scores.parquet")
@@ -207,6 +209,12 @@ def test_the_quick_suite_scores_tuned_observers_better_than_their_defaults():
     sel = r.leaderboard[(r.leaderboard["task"] == "pendulum/encoder-v1")].set_index("observer")
     assert sel.loc["high_gain", "rmse_norm"] < sel.loc["high_gain", "default_rmse_norm"]
     assert (r.leaderboard["task"] == "overall").sum() == 2
+    # consistency: the filter's NIS and NEES with their band shares; none for the HGO
+    kf, hgo = sel.loc["ekf"], sel.loc["high_gain"]
+    assert all(np.isfinite(kf[c]) and kf[c] > 0 for c in ("nis", "nees"))
+    assert all(0.0 <= kf[c] <= 1.0 for c in ("nis_band", "nees_band"))
+    assert all(np.isnan(hgo[c]) for c in ("nis", "nis_band", "nees", "nees_band"))
+    assert r.scores.loc[r.scores["observer"] == "ekf", "nees"].notna().all()
 
 
 @pytest.mark.parametrize("text,match", [

@@ -1,0 +1,65 @@
+"""The consistency scores of :func:`hgo_mj.tune.scoring.evaluate` (``consistency=True``): the
+NIS band share and the NEES of a filter read from its covariance between segments, checked
+against a run of the same member read by hand; an observer without a covariance gets NaN."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hgo_mj.loop import Drive, Loop
+from hgo_mj.metrics import chi2_band, nees
+from hgo_mj.study.engine import ReplayPlant
+from hgo_mj.tune import scoring
+from hgo_mj.tune.scoring import _observer, evaluate, setup
+
+SC = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.3, 0.0]},
+      "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+      "observers": [{"type": "ekf", "name": "kf", "R": 1e-6},
+                    {"type": "high_gain", "name": "hgo", "k": 20.0}],
+      "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+      "run": {"duration": 4.0}}
+
+
+def test_nees_equals_a_hand_reading_at_the_same_instants(monkeypatch):
+    """NEES_POINTS = 8: the run of 400 samples is cut into segments of 50; after each segment
+    from the transient (0.8 s) on, the NEES of the estimate of the state at that instant with
+    the filter's covariance, read here from a loop of the same member stepped alike."""
+    monkeypatch.setattr(scoring, "NEES_POINTS", 8)
+    st = setup(SC, "kf")
+    sc = evaluate(st, [{}], [5], consistency=True)
+    kw = _observer(st, None)
+    ob = kw["observers"]["kf"]
+    plant = ReplayPlant(st.plant, st.X, st.Yc, np.zeros(1, dtype=np.intp))
+    loop = Loop(plant, kw["sensor"], {"kf": ob}, st.periods, exact=False)
+    drive = Drive.of(kw["inputs"], {"kf": ob}, plant, st.periods)
+    loop.reset(None, seed=[5], batch=1)
+    got = []
+    while loop.k < st.N:
+        seg = loop.segment(drive.inputs(loop, 50))
+        if loop.k >= 80:
+            e = st.X[0, loop.k][None] - seg.blocks["kf"].x_hat[:, -1]
+            got.append(nees(e, ob.covariance(loop.states["kf"]))[0])
+    lo, hi = chi2_band(2)
+    assert len(got) == 7
+    assert sc.nees[0, 0] == pytest.approx(np.mean(got), rel=1e-9)
+    assert sc.nees_band[0, 0] == pytest.approx(np.mean((np.array(got) >= lo) &
+                                                       (np.array(got) <= hi)), rel=1e-12)
+    assert 0.0 <= sc.nis_band[0, 0] <= 1.0 and np.isfinite(sc.nis[0, 0])
+
+
+def test_an_overconfident_filter_scores_a_larger_nees_and_a_smaller_band_share():
+    st = setup(SC, "kf")
+    sc = evaluate(st, [{"Q": np.diag([1e-3, 1e-3])}, {"Q": np.diag([1e-12, 1e-12]),
+                                                        "R": np.array([[1e-9]])}],
+                  [1, 2], consistency=True)
+    assert np.all(sc.nees[1] > 10 * sc.nees[0]), sc.nees
+    assert np.all(sc.nis[1] > 10 * sc.nis[0]), sc.nis
+    assert np.all(sc.nis_band[1] < sc.nis_band[0]), sc.nis_band
+
+
+def test_without_a_covariance_or_without_asking_the_nees_is_nan():
+    hgo = evaluate(setup(SC, "hgo"), [{}], [1], consistency=True)
+    assert np.isnan(hgo.nees).all() and np.isnan(hgo.nis_band).all()
+    kf = evaluate(setup(SC, "kf"), [{}], [1])
+    assert np.isnan(kf.nees).all() and np.isfinite(kf.nis_band).all()
