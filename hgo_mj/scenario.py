@@ -192,10 +192,12 @@ def build_plant(pl: dict[str, Any], name: str = "run") -> Plant:
                             params=pl.get("params"), x0=pl.get("x0"), name=name,
                             held_input=pl.get("held_input", False))()
         return OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
+    extra = {"model_fields": pl["model_fields"]} if "model_fields" in pl else {}
     if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
         return make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),
-                          outputs=pl["outputs"], inputs=pl.get("inputs"), **pl.get("params", {}))
-    return make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
+                          outputs=pl["outputs"], inputs=pl.get("inputs"), **extra,
+                          **pl.get("params", {}))
+    return make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"), **extra,
                       **pl.get("params", {}))
 
 

@@ -45,7 +45,8 @@ SCHEMA: dict[str, dict[str, str]] = {
     # given by states, f and h (with inputs and params)
     "plant": {"name": "string", "model": "string", "outputs": "names", "inputs": "names",
               "states": "names", "f": "names", "h": "string", "held_input": "bool",
-              "dt": "positive", "physics_dt": "positive", "params": "table", "x0": "numbers"},
+              "dt": "positive", "physics_dt": "positive", "params": "table", "x0": "numbers",
+              "model_fields": "table"},
     "sensor": {"stages": "tables"},
     "run": {"duration": "positive", "sample_period": "positive", "control_period": "positive",
             "seed": "seed", "seeds": "count", "out": "string", "t_transient": "nonneg",

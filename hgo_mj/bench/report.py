@@ -75,13 +75,20 @@ def default_observers() -> list[str]:
 
 
 def _nominal(tasks: Sequence[Task]) -> dict[str, str]:
-    """A mismatch task -> the nominal task of the same plant, sensor and input."""
+    """A task of the mismatch or friction tier -> the nominal task of the same plant, sensor
+    and input (the robustness score's reference)."""
+    def bare(t: Task) -> dict[str, Any]:
+        return {k: v for k, v in t.plant.items() if k != "model_fields"}
+
+    def tier(t: Task) -> bool:
+        return bool(t.mismatch or t.model_fields or t.plant.get("model_fields"))
+
     out = {}
     for t in tasks:
-        if not t.mismatch:
+        if not tier(t):
             continue
         for u in tasks:
-            if (not u.mismatch and u.plant == t.plant and u.sensor == t.sensor
+            if (not tier(u) and bare(u) == bare(t) and u.sensor == t.sensor
                     and u.sensor_params == t.sensor_params and u.input == t.input
                     and u.sample_period == t.sample_period):
                 out[t.name] = u.name

@@ -169,11 +169,13 @@ def run_task_observer(task: Task, kind: str, budget: int, *, out: Path | None = 
     sc = task.scenario()
     label = _label(kind)
     spec = observer_spec(kind, plant, label)
+    known = registered()
     if task.mismatch:
         spec["system_params"] = dict(task.mismatch)
+    if task.model_fields and getattr(known.get(kind), "backend", None) == "mujoco":
+        spec["model_fields"] = dict(task.model_fields)  # the same error in its MJCF copy
     sc["observers"] = [spec]
     reason = None
-    known = registered()
     if ":" not in kind and kind not in known:
         raise DesignError(f"unknown observer {kind!r}; valid: {sorted(known)}, or "
                           f"'module:Class'")

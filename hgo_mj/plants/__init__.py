@@ -34,7 +34,8 @@ def make_plant(name: str | os.PathLike[str], dt: float | None = None, *,
     physics_dt : float, optional
         Integration step (MuJoCo timestep, or the RK4 step); ``dt`` is a multiple of it.
     **params
-        MuJoCo: ``model_file``, ``outputs``, ``nthread``; an MJCF file: ``outputs``,
+        MuJoCo: ``model_file``, ``outputs``, ``nthread``, ``model_fields``; an MJCF file:
+        ``outputs``, ``model_fields``,
         ``inputs``, ``nthread``; ODE: the system's parameters.
 
     Returns
@@ -75,7 +76,7 @@ def make_plant(name: str | os.PathLike[str], dt: float | None = None, *,
         cls = SYSTEMS[name]
     if cls.model_file is not None:
         reject_unknown(f"plant {name!r} (MuJoCo: parameters come from {cls.model_file})",
-                       params, ["model_file", "outputs", "nthread"])
+                       params, ["model_file", "outputs", "nthread", "model_fields"])
         return MujocoPlant(cls, 0.001 if dt is None else dt, physics_dt=physics_dt, **params)
     check_call(f"plant {name!r}", cls.__init__, params)
     system = cls(**params)
@@ -87,13 +88,15 @@ def _mjcf_plant(path: Any, dt: float | None, physics_dt: float | None,
                 params: dict[str, Any]) -> Plant:
     from ..systems.mjcf import mjcf_system
 
-    reject_unknown(f"MJCF plant {str(path)!r}", params, ["outputs", "inputs", "nthread"])
+    reject_unknown(f"MJCF plant {str(path)!r}", params, ["outputs", "inputs", "nthread",
+                                                         "model_fields"])
     if "outputs" not in params:
         raise DesignError(f"MJCF plant {str(path)!r} needs outputs= (MJCF sensor or joint names)")
     cls = mjcf_system(path, params["outputs"], params.get("inputs"))
     if dt is None:
         dt = physics_dt if physics_dt is not None else float(cls.load_model().opt.timestep)
-    return MujocoPlant(cls, dt, physics_dt=physics_dt, nthread=params.get("nthread"))
+    return MujocoPlant(cls, dt, physics_dt=physics_dt, nthread=params.get("nthread"),
+                       model_fields=params.get("model_fields"))
 
 
 __all__ = ["MujocoPlant", "OdePlant", "Plant", "make_plant", "model_path"]
