@@ -574,8 +574,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--budget", default="64", metavar="N",
                    help="trials in all, the untuned default included (default 64)")
     t.add_argument("--objective", action="append", metavar="SCORE",
-                   help="rmse (default), peak, settling (ground truth), output_error, nis "
-                   "(no truth); repeat for a Pareto front")
+                   help="rmse (default), peak, settling (ground truth), output_error, "
+                   "whiteness, nis (no truth); repeat for a Pareto front")
     t.add_argument("--seeds", default="8", metavar="N", help="tuning seeds 1..N (default 8)")
     t.add_argument("--aggregate", choices=["mean", "worst"], default="mean",
                    help="over the seeds (and model mismatches): mean (default) or worst")

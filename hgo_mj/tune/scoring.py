@@ -18,7 +18,13 @@ What each member gives (:class:`Scores`):
   its peak and its settling time into a band of 5 % of the state's range;
 * without ground truth, what a user has on a rig: the output prediction error, the RMS over
   the samples after the transient of ``y_k - y_hat_k`` where ``y_hat_k`` is the output the
-  estimate *before* ``y_k`` predicts (:meth:`hgo_mj.observers.Observer.predicted_output`), and,
+  estimate *before* ``y_k`` predicts (:meth:`hgo_mj.observers.Observer.predicted_output`); the
+  **whiteness** of those errors (the innovations of a filter), the Box-Pierce statistic
+  :math:`Q = n \\sum_{l=1}^{L} \\hat\\rho_l^2` over :data:`WHITENESS_LAGS` lags divided by
+  :math:`L`, the mean over the channels (about 1 for white errors, :math:`Q \\sim \\chi^2_L`;
+  Box and Pierce, *J. Amer. Statist. Assoc.* 65, 1970; a correlated sequence, as an observer
+  too slow or too fast leaves, scores higher: the innovations of an optimal filter are white,
+  Mehra, *IEEE TAC* 15, 1970); and,
   for a filter that reports it (a diagnostic ``nis``), the mean normalized innovation squared
   and the fraction of samples inside its chi-square 95 % band.
 
@@ -53,10 +59,12 @@ from ..study.engine import Metrics, ReplayPlant, plant_rows, segment_length
 
 Array = NDArray[np.float64]
 
-__all__ = ["NEES_POINTS", "Scores", "Setup", "evaluate", "setup"]
+__all__ = ["NEES_POINTS", "WHITENESS_LAGS", "Scores", "Setup", "evaluate", "setup"]
 
 #: instants per run at which a filter's NEES is read (its run cut into as many segments)
 NEES_POINTS = 200
+#: lags of the whiteness score (Box-Pierce)
+WHITENESS_LAGS = 10
 
 
 @dataclass
@@ -127,6 +135,9 @@ class Scores:
     output_error : ndarray
         ``(R, S)``: RMS output prediction error after the transient (NaN: the observer
         predicts no output).
+    whiteness : ndarray
+        ``(R, S)``: the Box-Pierce statistic of those errors over its lags, divided by the
+        number of lags (about 1: white; NaN: no output predicted).
     nis : ndarray
         ``(R, S)``: mean normalized innovation squared (NaN: the observer reports none).
     nis_band : ndarray
@@ -163,6 +174,7 @@ class Scores:
     peak: Array
     settling: Array
     output_error: Array
+    whiteness: Array
     nis: Array
     nis_band: Array
     nees: Array
@@ -328,7 +340,8 @@ def evaluate(s: Setup, trials: Sequence[Mapping[str, Any]], seeds: Sequence[int]
     k = len(s.states)
     per, nan = (lambda: np.full((R, S, k), np.inf)), (lambda: np.full((R, S), np.nan))
     out = Scores(per(), per(), per(), np.full((R, S), np.inf), np.full((R, S), np.inf),
-                 nan(), nan(), nan(), np.full((R, S), np.inf), np.full((R, S), np.inf),
+                 np.full((R, S), np.inf), nan(), nan(), nan(), np.full((R, S), np.inf),
+                 np.full((R, S), np.inf),
                  np.full(R, np.nan), [[None] * S for _ in range(R)])
     if R == 0 or S == 0:
         return out
@@ -389,6 +402,7 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
     cols = list(ob.outputs)
     first = int(math.ceil(s.t_transient / Ts - 1e-9))
     sq, n_sq = np.zeros(B), 0
+    white = _Whiteness(B, len(cols))
     con = _Consistency(s, ob, B, consistency and ob.covariance(loop.states[name]) is not None)
     cap = min(segment_length(B), max(1, -(-s.N // NEES_POINTS))) if con.nees_on else (
         segment_length(B))
@@ -419,6 +433,7 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             e = np.where(np.isfinite(seg.y_meas[:, lo:, cols]), e, 0.0)
             sq += np.sum(e * e, axis=(1, 2))
             n_sq += (T - lo) * len(cols)
+            white.add(e)
         if lo < T:
             con.add_nis(blk.diagnostics[:, lo:], seg.y_meas[:, lo:, cols])
         if loop.k >= first:  # the estimate of the state at sample loop.k
@@ -429,6 +444,7 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
     res = acc.result(len(s.plant.state_names), 0.0)
     idx = [list(s.plant.state_names).index(st) for st in s.states]
     oe = np.sqrt(sq / max(n_sq, 1)) if n_sq else np.full(B, np.nan)
+    wh = white.result()
     with np.errstate(divide="ignore", invalid="ignore"):
         peaking = np.where(e0 > 0, peak_e / e0, np.nan) if e0 is not None else np.full(B, np.nan)
     wall = loop.wall[name] / (max(s.N, 1) * B)
@@ -440,6 +456,7 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             vals = res["settling_time" if key == "settling" else key][rows][:, idx]
             arr[r] = np.where(bad[:, None], np.inf, vals)
         out.output_error[r] = np.where(bad, np.inf, oe[rows])
+        out.whiteness[r] = np.where(bad, np.inf, wh[rows])
         out.nis[r] = np.where(bad, np.inf, nis[rows])
         out.nis_band[r] = np.where(bad, 0.0, nis_band[rows])
         out.nees[r] = np.where(bad, np.inf, nees_m[rows])
@@ -451,6 +468,37 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             if bad[j]:
                 out.message[r][j] = (f"observer {name!r} estimate left the finite numbers at "
                                      f"t={acc.bad_row[rows][j] * Ts:g}")
+
+
+class _Whiteness:
+    """The Box-Pierce statistic of each member's output errors over :data:`WHITENESS_LAGS`
+    lags, accumulated over segments (the last ``L`` errors of one carried into the next)."""
+
+    def __init__(self, B: int, p: int) -> None:
+        L = WHITENESS_LAGS
+        self.tail = np.zeros((B, L, p))  # zeros before the first error: no product
+        self.lag = np.zeros((B, L, p))  # sum_k e_k e_{k-l}, l = 1..L
+        self.s0 = np.zeros((B, p))
+        self.n = 0
+
+    def add(self, e: Array) -> None:
+        """The errors ``e`` ``(B, T, p)`` of the next samples (in order)."""
+        L, T = WHITENESS_LAGS, e.shape[1]
+        ext = np.concatenate([self.tail, e], axis=1)
+        for lag in range(1, L + 1):
+            self.lag[:, lag - 1] += np.einsum("btp,btp->bp", ext[:, L:], ext[:, L - lag:L - lag + T])
+        self.s0 += np.einsum("btp,btp->bp", e, e)
+        self.n += T
+        self.tail = ext[:, -L:]
+
+    def result(self) -> Array:
+        """``(B,)``: ``Q / L``, the mean over the channels (NaN: no error seen)."""
+        if self.n == 0:
+            return np.full(self.s0.shape[0], np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rho = self.lag / self.s0[:, None, :]
+        q = self.n * np.sum(rho * rho, axis=1) / WHITENESS_LAGS  # (B, p)
+        return np.asarray(np.mean(q, axis=1))
 
 
 class _Consistency:

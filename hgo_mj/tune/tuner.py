@@ -262,7 +262,8 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
         Bounds of the search variables (:func:`check_space`); default the family's space.
     objective : str, list or mapping
         The score(s) to minimize (:class:`~hgo_mj.tune.objectives.Objective`): ``"rmse"``,
-        ``"peak"``, ``"settling"`` (ground truth), ``"output_error"``, ``"nis"`` (no truth);
+        ``"peak"``, ``"settling"`` (ground truth), ``"output_error"``, ``"whiteness"``,
+        ``"nis"`` (no truth);
         a list is a multi-objective search (a Pareto front), a mapping a weighted sum.
     budget : int
         Trials in all (the default's included), >= 2.
@@ -335,9 +336,10 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
                           f"{list(built)}")
     ob: Observer = built[observer]
     dims = check_space(ob, space)
-    if not obj.needs_truth and "output_error" in obj.scores and ob.predicted_output(
-            np.zeros((1, len(ob.state_names))), np.zeros((1, ob.n))) is None:
-        raise DesignError(f"objective output_error: observer {ob.name!r} predicts no output")
+    for name in ("output_error", "whiteness"):
+        if name in obj.scores and ob.predicted_output(
+                np.zeros((1, len(ob.state_names))), np.zeros((1, ob.n))) is None:
+            raise DesignError(f"objective {name}: observer {ob.name!r} predicts no output")
     if "nis" in obj.scores and "nis" not in ob.diagnostic_names:
         raise DesignError(f"objective nis: observer {ob.name!r} reports no NIS (a Kalman "
                           f"filter does)")

@@ -63,3 +63,34 @@ def test_without_a_covariance_or_without_asking_the_nees_is_nan():
     assert np.isnan(hgo.nees).all() and np.isnan(hgo.nis_band).all()
     kf = evaluate(setup(SC, "kf"), [{}], [1])
     assert np.isnan(kf.nees).all() and np.isfinite(kf.nis_band).all()
+
+
+def test_whiteness_is_box_pierce_of_the_output_errors():
+    """The accumulator over segments of any lengths equals Box-Pierce computed at once: about 1
+    for white noise, far above it for an AR(1) sequence."""
+    from hgo_mj.tune.scoring import WHITENESS_LAGS, _Whiteness
+
+    rng = np.random.default_rng(0)
+    white = rng.standard_normal((1, 4000, 1))
+    ar = np.empty_like(white)
+    ar[:, 0] = white[:, 0]
+    for k in range(1, 4000):
+        ar[:, k] = 0.8 * ar[:, k - 1] + white[:, k]
+    L = WHITENESS_LAGS
+    for e, expect in ((white, (0.5, 1.6)), (ar, (50.0, np.inf))):
+        acc = _Whiteness(1, 1)
+        for a, b in ((0, 3), (3, 1000), (1000, 1001), (1001, 4000)):  # segments of any length
+            acc.add(e[:, a:b])
+        x = e[0, :, 0]
+        rho = [x[lag:] @ x[:-lag] / (x @ x) for lag in range(1, L + 1)]
+        assert acc.result()[0] == pytest.approx(len(x) * np.sum(np.square(rho)) / L, rel=1e-9)
+        assert expect[0] < acc.result()[0] < expect[1]
+
+
+def test_a_slow_observer_leaves_correlated_errors():
+    """A high-gain observer far too slow (k = 1: its estimate lags the swing) leaves output
+    errors far less white than a fast one (k = 200)."""
+    sc = {**SC, "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}]}
+    r = evaluate(setup(sc, "hgo"), [{"k": 1.0}, {"k": 200.0}], [1, 2])
+    w = r.whiteness.mean(axis=1)
+    assert w[0] > 10 * w[1], w
