@@ -278,13 +278,20 @@ def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] |
 
 def _with_model(scenario: Mapping[str, Any], observer: str,
                 mismatch: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The scenario with the tuned observer alone, its model's parameters overridden by
-    ``mismatch`` (``system_params`` of its spec)."""
+    """The scenario with the tuned observer alone, its model overridden by ``mismatch``: a
+    parameter name goes to its spec's ``system_params``, a MuJoCo model field
+    (``"body_mass[link1]"``, ``"opt.gravity"``: :mod:`hgo_mj.plants.fields`) to its
+    ``model_fields`` (the MuJoCo filters' copy of the MJCF)."""
     sc = copy.deepcopy(dict(scenario))
     specs = [o for o in sc.get("observers", []) if o.get("name", o.get("type")) == observer]
     if mismatch:
         spec = specs[0]
-        spec["system_params"] = {**(spec.get("system_params") or {}), **dict(mismatch)}
+        fields = {k: v for k, v in mismatch.items() if "[" in k or k.startswith("opt.")}
+        params = {k: v for k, v in mismatch.items() if k not in fields}
+        if params:
+            spec["system_params"] = {**(spec.get("system_params") or {}), **params}
+        if fields:
+            spec["model_fields"] = {**(spec.get("model_fields") or {}), **fields}
     sc["observers"] = specs
     return sc
 

@@ -270,8 +270,10 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
     seeds : int or list of int
         The tuning seeds of the sensor chain (a count: 1 .. N).
     mismatch : mapping or list of mappings, optional
-        Parameters of the observer's model (its ``system_params``), one table per model the
-        objective is aggregated over (robust tuning); ``{}`` is the nominal model.
+        Parameters of the observer's model (its ``system_params``; for a MuJoCo filter, model
+        fields ``"body_mass[link1]"`` written into its copy of the MJCF, its
+        ``model_fields``), one table per model the objective is aggregated over (robust
+        tuning); ``{}`` is the nominal model.
     aggregate : {"mean", "worst"}
         Over the seeds and the models.
     states : sequence of str, optional

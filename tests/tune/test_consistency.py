@@ -94,3 +94,22 @@ def test_a_slow_observer_leaves_correlated_errors():
     r = evaluate(setup(sc, "hgo"), [{"k": 1.0}, {"k": 200.0}], [1, 2])
     w = r.whiteness.mean(axis=1)
     assert w[0] > 10 * w[1], w
+
+
+def test_a_model_mismatch_goes_to_system_params_or_to_the_mjcf_fields():
+    """``mismatch`` tables: parameter names change the observer's system, MuJoCo model fields
+    its copy of the MJCF (model_fields); the MuJoCo EKF then steps the wrong MJCF."""
+    from hgo_mj.tune.scoring import _with_model
+
+    sc = {**SC, "observers": [{"type": "ekf_mujoco", "name": "m", "model_fields": {
+        "dof_damping[hinge]": 0.02}}]}
+    out = _with_model(sc, "m", {"damping": 0.02, "body_mass[pole]": 0.3, "opt.gravity": 9.0})
+    spec = out["observers"][0]
+    assert spec["system_params"] == {"damping": 0.02}
+    assert spec["model_fields"] == {"dof_damping[hinge]": 0.02, "body_mass[pole]": 0.3,
+                                    "opt.gravity": 9.0}
+    assert sc["observers"][0]["model_fields"] == {"dof_damping[hinge]": 0.02}  # not changed
+    st = setup({**SC, "observers": [{"type": "ekf_mujoco", "name": "m", "R": 1e-6}]}, "m")
+    right = evaluate(st, [{}], [1])
+    wrong = evaluate(st, [{}], [1], mismatch={"damping": 0.05, "dof_damping[hinge]": 0.05})
+    assert wrong.rmse[0, 0, 1] > 2 * right.rmse[0, 0, 1]
