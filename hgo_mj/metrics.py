@@ -7,7 +7,9 @@ by name):
 * ``rmse``: root mean square over ``t >= t_transient``;
 * ``peak``: the largest ``|e|`` over the whole run (peaking of high-gain observers);
 * ``settling_time``: the first time after which ``|e|`` stays inside ``band`` (absolute, or
-  relative to the range of the true state when ``relative=True``); ``inf`` if it never does;
+  relative to the range of the true state when ``relative=True``); ``inf`` if it never does,
+  and ``inf`` too when only the last sample is inside (one sample inside is no evidence of
+  having settled);
 * ``final``: ``|e|`` at the last sample;
 * ``update_time``: mean wall time of one observer update, seconds, warm: the loop spends the
   kernels' compilation or cache load on a throw-away sample before it starts timing
@@ -60,15 +62,25 @@ def settling_time(t: Array, err: Array, band: float | Array) -> Array:
     -------
     (n,) ndarray
         Per column the time of the first sample from which ``|err| <= band`` holds to the
-        end: ``t[0]`` if always inside, ``inf`` if the last sample is outside.
+        end: ``t[0]`` if always inside, ``inf`` if the last sample is outside, and ``inf``
+        if only the last sample is inside (a run of two samples or more).
 
     Examples
     --------
     >>> import numpy as np
-    >>> err = np.array([[1.0, 0.0], [0.5, 0.0], [0.01, 0.2], [0.02, 0.0], [0.0, 0.0]])
+    >>> err = np.array([[1.0, 0.0, 1.0], [0.5, 0.0, 1.0], [0.01, 0.2, 1.0],
+    ...                 [0.02, 0.0, 1.0], [0.0, 0.0, 0.0]])
     >>> settling_time(np.arange(5) * 0.1, err, 0.05)
-    array([0.2, 0.3])
+    array([0.2, 0.3, inf])
     """
+    found = _inside_from(t, err, band)
+    return np.where((found == t[-1]) & (t.size > 1), np.inf, found)
+
+
+def _inside_from(t: Array, err: Array, band: float | Array) -> Array:
+    """Per column the time of the first sample from which ``|err| <= band`` holds to the end
+    (``t[0]``: always inside, ``inf``: the last sample outside), the last sample alone
+    counting: the scan of one block of a run (:meth:`MetricsBatch.settle`)."""
     with np.errstate(invalid="ignore"):
         outside = ~(np.abs(err) <= np.asarray(band))
     T = t.size
@@ -428,6 +440,8 @@ class MetricsBatch:
         #: the first time of the block after the one being scanned (inf before the last)
         self.settled = np.full((B, k), np.nan)
         self._after = np.inf
+        #: the run's first and last times (:meth:`add`)
+        self.t_first, self.t_last = np.nan, np.nan
 
     @classmethod
     def of(cls, observer_states: Sequence[str], state_names: Sequence[str], B: int,
@@ -448,6 +462,9 @@ class MetricsBatch:
                     self.idx, self.cols, self.t_transient, self.band, self.sumsq, self.comp,
                     self.count, self.peak, self.undefined, self.settle_t, self.final, self.bad,
                     self.E, self.rows)
+        if self.rows == 0:
+            self.t_first = float(t[0])
+        self.t_last = float(t[-1])
         self.rows += X.shape[1]
 
     def settle(self, t: Array, E: Array, band: Array) -> bool:
@@ -455,7 +472,7 @@ class MetricsBatch:
         for the settling time, from the last block back; True when every one is found."""
         B, T, k = E.shape
         with np.errstate(invalid="ignore"):
-            found = settling_time(t, np.where(np.isfinite(E), E, np.inf)
+            found = _inside_from(t, np.where(np.isfinite(E), E, np.inf)
                                   .transpose(1, 0, 2).reshape(T, B * k),
                                   np.asarray(band).reshape(B * k)).reshape(B, k)
         # a state inside over the whole block settled at or before its first time; one
@@ -484,6 +501,8 @@ class MetricsBatch:
             settle = np.where(np.isnan(self.settle_t), np.inf, self.settle_t)
         else:
             settle = np.where(np.isnan(self.settled), self._after, self.settled)
+        # inside at the last sample only: not settled (settling_time)
+        settle = np.where((settle == self.t_last) & (self.t_last > self.t_first), np.inf, settle)
         out = {}
         for key, val in (("rmse", rmse), ("peak", peak), ("settling_time", settle),
                          ("final", self.final), ("undefined_samples", self.undefined)):
