@@ -446,11 +446,16 @@ def cmd_list() -> str:
         """The name column of a section: as wide as its longest name."""
         return max((len(n) for n in names), default=0)
 
-    w = width(SYSTEMS)
+    from .plants import LAB_PLANTS
+
+    w = width([*SYSTEMS, *LAB_PLANTS])
     lines = ["PLANTS (hgo-mj run --plant NAME)"]
     for name, system in SYSTEMS.items():
         kind = f"MuJoCo models/{system.model_file}" if system.model_file else "ODE"
         lines.append(f"  {name:<{w}} {system.summary}  [{kind}; {system.reference}]")
+    for name, (file, outputs, summary, reference) in LAB_PLANTS.items():
+        lines.append(f"  {name:<{w}} {summary}, measured by {', '.join(outputs)}  "
+                     f"[MuJoCo models/{file}, generic MJCF path; {reference}]")
     w = width(STAGES)
     lines.append("\nSENSOR STAGES (--sensor NAME:key=value,...; applied in the order given)")
     for name, stage in STAGES.items():

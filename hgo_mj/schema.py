@@ -194,11 +194,10 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
     ode = _check_plant_kind(plant, required)
     name = plant.get("name")
     if isinstance(name, str) and ":" not in name:  # a misspelt name before a missing key
-        from .systems import SYSTEMS
+        from .plants import plant_names, unknown_plant
 
-        if name not in SYSTEMS:
-            raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}, an MJCF file, "
-                              f"or 'module:Class' (a System subclass)")
+        if name not in plant_names():
+            raise unknown_plant(name)
     for path in REQUIRED if required else ():
         section, key = path.split(".")
         if path == "plant.name" and ("model" in plant or ode):

@@ -362,4 +362,4 @@ def test_a_misspelt_plant_is_named_before_a_missing_duration(capsys):
     assert main(["run", "--plant", "pendulumm"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(
-        "hgo-mj: error: unknown plant 'pendulumm'; valid: ['besancon_ex1'"), err
+        "hgo-mj: error: unknown plant 'pendulumm'; valid: ['acrobot'"), err

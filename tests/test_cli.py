@@ -86,7 +86,7 @@ def test_list_names_everything(capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["run", "--plant", "pendulm", "--duration", "1"],
-     "unknown plant 'pendulm'; valid: ['besancon_ex1'"),
+     "unknown plant 'pendulm'; valid: ['acrobot'"),
     (["run", "--plant", "pendulum", "--observer", "kalman:k=1", "--duration", "1"],
      "unknown observer 'kalman'; valid: ["),
     (["run", "--plant", "pendulum", "--observer", "high_gain:k=1,p=[-1,1]", "--duration", "1"],
@@ -139,6 +139,7 @@ def test_list_sizes_name_columns_to_the_longest_name(capsys):
     (``high_gain_multi`` used to run into its summary)."""
     from hgo_mj.inputs import SIGNALS
     from hgo_mj.observers import OBSERVERS
+    from hgo_mj.plants import LAB_PLANTS
     from hgo_mj.reproduce import REPRODUCTIONS
     from hgo_mj.sensors import STAGES
     from hgo_mj.systems import SYSTEMS
@@ -146,7 +147,7 @@ def test_list_sizes_name_columns_to_the_longest_name(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
     sections = dict(zip(("PLANTS", "SENSOR STAGES", "OBSERVERS", "INPUTS", "REPRODUCTIONS"),
-                        (SYSTEMS, STAGES, OBSERVERS, SIGNALS, REPRODUCTIONS)))
+                        ([*SYSTEMS, *LAB_PLANTS], STAGES, OBSERVERS, SIGNALS, REPRODUCTIONS)))
     blocks = out.split("\n\n")
     assert len(blocks) == len(sections)
     for block, (title, names) in zip(blocks, sections.items()):
