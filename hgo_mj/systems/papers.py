@@ -790,6 +790,11 @@ class BioreactorBastinGevers(System):
         parameters ``p1``, ``p2``, ``p3`` and the specific growth rate ``p0 = p1 z1``; it is NaN
         where it does not exist. The forward map is 6.4b with :math:`p_3 = -\\theta_3`.
 
+        The form's ``start`` (an observer's default initial estimate) is the nominal model at
+        the default state, eq. 6.4 at ``default_x0`` with this system's parameters: the zero
+        estimate lies outside the domain of 6.6 (:math:`\\theta_3 = -p_3 \\ne 0` and
+        :math:`z_2 \\ne 0` are needed), a nominal one inside it.
+
         References
         ----------
         Paper 002, eq. 6.4 (map), 6.5 (AOCF), 6.6 (inverse).
@@ -853,7 +858,8 @@ class BioreactorBastinGevers(System):
                     physical_param_names=("p1", "p2", "p3", "p0"), rows=True,
                     label=f"{type(self).__name__} eq. 6.5, c2={c2v:g}",
                     inverse_domain="theta3 = -p3 != 0, z2 != 0 and (c2 - 2) - theta1 != 0, "
-                                   "eq. 6.6"
+                                   "eq. 6.6",
+                    start=self.to_aocf(self.default_x0, c2v)
                     )._made_by(system_form, self, "aocf", c2=c2)
 
 
