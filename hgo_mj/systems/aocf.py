@@ -159,6 +159,15 @@ def _names(name: str, value: Sequence[str] | None, count: int, default: Sequence
 _UNDEFINED = (DesignError, ZeroDivisionError, FloatingPointError)
 
 
+def _start(start: Any, n: int, m: int) -> tuple[Array, Array] | None:
+    """An AOCF's ``start``: None, or the pair ``(x (n,), theta (m,))`` checked."""
+    if start is None:
+        return None
+    if not isinstance(start, tuple) or len(start) != 2:
+        raise DesignError(f"start must be a pair (x_hat0 (n,), theta_hat0 (m,)); found {start!r}")
+    return vector("start[0] (x_hat0)", start[0], n), vector("start[1] (theta_hat0)", start[1], m)
+
+
 class AOCF(Rebuildable):
     """Adaptive observer canonical form of paper 002, eq. 2.2-2.3.
 
@@ -302,12 +311,8 @@ class AOCF(Rebuildable):
         self.label = str(label)
         self.theta_true = None if theta_true is None else vector("theta_true", theta_true, m)
         self.inverse_domain = str(inverse_domain)
-        if start is not None and (not isinstance(start, tuple) or len(start) != 2):
-            raise DesignError(f"start must be a pair (x_hat0 (n,), theta_hat0 (m,)); found "
-                              f"{start!r}")
         #: the default initial estimate (x, theta), or None (zero)
-        self.start = None if start is None else (vector("start[0] (x_hat0)", start[0], n),
-                                                 vector("start[1] (theta_hat0)", start[1], m))
+        self.start = _start(start, n, m)
 
     @property
     def has_inverse(self) -> bool:
