@@ -43,7 +43,7 @@ from .exceptions import DesignError
 Array = NDArray[np.float64]
 
 __all__ = ["PER_STATE", "RunningMetrics", "all_metrics", "format_table", "metrics_frame",
-           "observer_metrics", "settling_time"]
+           "observer_metrics", "settling_time", "text_table"]
 
 
 def settling_time(t: Array, err: Array, band: float | Array) -> Array:
@@ -615,41 +615,98 @@ def metrics_frame(metrics: dict[str, dict[str, Any]],
     return pd.DataFrame(rows, columns=columns)
 
 
-def _cell(v: Any, width: int) -> str:
-    return f"{'-':>{width}}" if v is None else f"{v:>{width}.4g}"
+def text_table(frame: Any, left: Sequence[str]) -> str:
+    """A DataFrame as plain text, its columns sized by pandas to their longest cell: the
+    ``left`` (text) columns left-aligned, the others right-aligned, numbers to 4 significant
+    digits, ``None`` as ``-``.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The table (no index shown).
+    left : sequence of str
+        Its text columns, left-aligned under a left-aligned name.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> print(text_table(pd.DataFrame({"observer": ["high_gain_multi_1", "a"],
+    ...                                "rmse": [0.012345, None]}, dtype=object), ["observer"]))
+    observer              rmse
+    high_gain_multi_1  0.01235
+    a                        -
+    """
+    def cell(v: Any) -> str:
+        if v is None:
+            return "-"
+        if isinstance(v, (float, int, np.floating, np.integer)) and not isinstance(v, bool):
+            return f"{v:.4g}"
+        return str(v)
+
+    cols = {}
+    for c in frame.columns:
+        text = [cell(v) for v in frame[c]]
+        if c in left:
+            w = max([len(str(c)), *map(len, text)])
+            cols[str(c).ljust(w)] = [t.ljust(w) for t in text]
+        else:
+            cols[str(c)] = text
+    import pandas as pd
+
+    return str(pd.DataFrame(cols).to_string(index=False))
 
 
-def format_table(metrics: dict[str, dict[str, Any]]) -> str:
-    """A plain-text table: one row per observer and state (``-``: not estimated).
+def format_table(metrics: dict[str, dict[str, Any]], units: dict[str, str] | None = None,
+                 time_unit: str | None = "s") -> str:
+    """A plain-text table: one row per observer and state (``-``: not estimated), with the
+    units of each state's errors and of the settling time, columns sized to their longest cell
+    (:func:`text_table`).
 
     Parameters
     ----------
     metrics : dict
         What :func:`all_metrics` returns.
+    units : dict of str to str, optional
+        ``{state: unit}`` (:func:`hgo_mj.units.units_of`): the unit of the state's ``rmse``,
+        ``peak`` and ``final``; ``?`` where not known.
+    time_unit : str or None, default "s"
+        The run's time unit (``""``: dimensionless, ``None``: not known).
 
     Returns
     -------
     str
-        Columns observer, state, RMSE, peak, settling time [s], final error and the mean wall
-        time per update [us].
+        Columns observer, state, unit (of rmse, peak and final), rmse, peak, final, the
+        settling time and the mean wall time per update [us].
 
     Examples
     --------
     >>> m = {"hgo": {"states": ["angle"], "estimated": [True], "rmse": [0.1], "peak": [0.5],
     ...              "settling_time": [1.0], "final": [0.01], "update_time": 2e-6}}
-    >>> print(format_table(m))
-    observer         state                     rmse        peak  settle[s]       final update[us]
-    hgo              angle                      0.1         0.5          1        0.01          2
+    >>> print(format_table(m, {"angle": "rad"}))
+    observer state unit  rmse  peak  final  settle [s]  update [us]
+    hgo      angle rad    0.1   0.5   0.01           1            2
     """
-    lines = [f"{'observer':<16} {'state':<18} {'rmse':>11} {'peak':>11} {'settle[s]':>10} "
-             f"{'final':>11} {'update[us]':>10}"]
-    missing = False
+    import pandas as pd
+
+    from .units import bracket
+
+    units = units or {}
+    settle = f"settle {bracket(time_unit)}"
+    rows, missing = [], False
     for name, m in metrics.items():
         for i, s in enumerate(m["states"]):
             missing |= m["rmse"][i] is None
-            lines.append(f"{name:<16} {s:<18} {_cell(m['rmse'][i], 11)} {_cell(m['peak'][i], 11)} "
-                         f"{_cell(m['settling_time'][i], 10)} {_cell(m['final'][i], 11)} "
-                         f"{m['update_time'] * 1e6:>10.3g}")
+            rows.append({"observer": name, "state": s, "unit": units.get(s, "?") or "-",
+                         **{k: m[k][i] for k in ("rmse", "peak", "final")},
+                         settle: m["settling_time"][i],
+                         "update [us]": m["update_time"] * 1e6})
+    frame = pd.DataFrame(rows, columns=["observer", "state", "unit", "rmse", "peak", "final",
+                                        settle, "update [us]"], dtype=object)
+    lines = [text_table(frame, ["observer", "state", "unit"])]
     if missing:
         lines.append("- : not estimated (the observer has no estimate of that plant state)")
     for name, m in metrics.items():
