@@ -60,6 +60,19 @@ def test_same_seed_bit_identical_different_seed_differs(setup):
     assert not np.array_equal(runs[0].y_meas, runs[2].y_meas)
 
 
+def test_the_runs_seed_wins_over_the_chains(setup):
+    """README: ``SensorChain(..., seed=0)`` beside ``simulate(..., seed=1)``: simulate's seed
+    wins (the chain's is ignored); the chain's own seed is the default when simulate gets
+    none."""
+    def y(chain_seed, run_seed):
+        plant, sensor, obs = setup(chain_seed)
+        return simulate(plant, sensor, obs, Multisine([1.0], [1.0]), 0.2, seed=run_seed).y_meas
+
+    np.testing.assert_array_equal(y(0, 1), y(7, 1))
+    np.testing.assert_array_equal(y(0, 1), y(1, None))
+    assert not np.array_equal(y(0, 1), y(0, None))
+
+
 def test_save_load_round_trip(setup, tmp_path):
     plant, sensor, obs = setup()
     traj = simulate(plant, sensor, obs, Multisine([1.0], [1.0]), 0.3, seed=1,
