@@ -785,23 +785,26 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 def cmd_check(target: str, sample_period: float | None = None) -> int:
     """``hgo-mj check PLANT-OR-SCENARIO [--sample-period S]``: which observer applies to the
     plant, and why; the sample period (the flag, else the scenario's ``run.sample_period``, else
-    the plant's step) against paper 004's LMI bound."""
+    the plant's step) against paper 004's LMI bound, over the region of an ODE plant
+    (:func:`hgo_mj.check.scenario_plant`: ``[plant] region`` or the region a short simulation
+    visits, with a warning where ``x0`` or the run leaves a given region)."""
     from . import check
     from .scenario import build_plant
 
+    notes: list[str] = []
     if target.endswith(".toml"):
         sc = load_scenario_file(target)
         pl = sc.get("plant", {})
         if not any(k in pl for k in ("name", "model", "f")):
             raise DesignError(f"scenario {target!r} has no plant ([plant] name, model or f)")
-        plant = build_plant(pl, str(sc.get("name", "run")))
+        plant, notes = check.scenario_plant(sc)
         if sample_period is None:
             sample_period = sc.get("run", {}).get("sample_period")
     else:
         plant = build_plant({"name": target})
     if sample_period is None:
         sample_period = getattr(plant, "dt", None)
-    print(check.table(plant.system, sample_period))
+    print("\n".join([*notes, check.table(plant.system, sample_period)]))
     return 0
 
 
