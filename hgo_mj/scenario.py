@@ -190,8 +190,11 @@ def build_plant(pl: dict[str, Any], name: str = "run") -> Plant:
 
         system = ode_system(pl["states"], pl["f"], pl["h"], inputs=pl.get("inputs", ()),
                             params=pl.get("params"), x0=pl.get("x0"), name=name,
-                            held_input=pl.get("held_input", False))()
+                            held_input=pl.get("held_input", False), region=pl.get("region"))()
         return OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
+    if "region" in pl:
+        raise DesignError("[plant] region is the box of an ODE plant's observability rank and "
+                          "Lipschitz bound (states, f, h); a registered or MJCF plant has none")
     extra = {"model_fields": pl["model_fields"]} if "model_fields" in pl else {}
     if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
         return make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),

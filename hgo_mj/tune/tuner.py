@@ -597,10 +597,10 @@ def _summary(st: Setup, ob: Observer, default: Mapping[str, float], best: Mappin
 def _figures(study: Any, obj: Objective, frame: Any) -> dict[str, Any]:
     """The convergence (each trial's value and the best so far, log scale) and, for several
     objectives, the Pareto front of the first two."""
-    from matplotlib.figure import Figure
+    from ..plotting import new_figure
 
     figs: dict[str, Any] = {}
-    fig = Figure(figsize=(7.0, 4.0), layout="constrained")
+    fig = new_figure((7.0, 4.0), "constrained")
     ax = fig.add_subplot()
     name = obj.names[0]
     vals = frame[name].to_numpy(dtype=float)
@@ -617,7 +617,7 @@ def _figures(study: Any, obj: Objective, frame: Any) -> dict[str, Any]:
     ax.legend()
     figs["convergence"] = fig
     if len(obj.names) > 1:
-        fig2 = Figure(figsize=(5.5, 4.5), layout="constrained")
+        fig2 = new_figure((5.5, 4.5), "constrained")
         ax2 = fig2.add_subplot()
         a, b = obj.names[0], obj.names[1]
         x, y = frame[a].to_numpy(dtype=float), frame[b].to_numpy(dtype=float)
