@@ -128,8 +128,7 @@ def test_check_over_the_region_the_scenario_visits(tmp_path, capsys):
     small and the Riccati observer looks certified; ``hgo-mj check`` takes the box a short
     simulation visits instead (or ``[plant] region``), and warns where x0 or the run leaves a
     given region."""
-    from hgo_mj.check import scenario_plant
-    from hgo_mj.scenario import build_plant
+    from hgo_mj.scenario import build_plant, scenario_plant
     from hgo_mj.schema import check_scenario
 
     default = build_plant({k: v for k, v in {"states": ["x1", "x2"],
