@@ -247,6 +247,27 @@ TASKS: dict[str, Task] = {t.name: t for t in (
                    "velocity stalls at the turning points."),
 )}
 
+#: the lab plants (MJCF, two measured joints, one actuator): what a lab bench has
+LAB_TASKS: dict[str, Task] = {t.name: t for t in (
+    _t("furuta/encoder-v1", {"name": "furuta", "dt": 0.001, "x0": [0.0, 0.3, 0.0, 0.0]},
+       "encoder", input={"type": "multisine", "amplitudes": [1.0, 0.5],
+                         "frequencies": [0.4, 1.1]},
+       description="A Furuta (rotary) pendulum, arm and pendulum angles read by encoders, "
+                   "the arm driven by its motor voltage: the arm's motion couples into the "
+                   "pendulum through the Coriolis terms."),
+    _t("acrobot/encoder-v1", {"name": "acrobot", "dt": 0.001, "x0": [0.3, 0.0, 0.0, 0.0]},
+       "encoder", input={"type": "multisine", "amplitudes": [0.5, 0.25],
+                         "frequencies": [0.4, 1.1]},
+       description="The acrobot, both joint angles read by encoders, only the elbow driven: "
+                   "the shoulder's velocity comes from an unactuated joint."),
+    _t("cart_pole/encoder-v1", {"name": "cart_pole", "dt": 0.001, "x0": [0.0, 0.3, 0.0, 0.0]},
+       "encoder", input={"type": "multisine", "amplitudes": [0.3, 0.15],
+                         "frequencies": [0.4, 1.1]},
+       description="A cart-pole pushed by a multisine force, the cart's position (a linear "
+                   "encoder of 1.5 mm resolution) and the pole's angle measured."),
+)}
+TASKS.update(LAB_TASKS)
+
 #: superseded task -> its successor (kept by name, left out of the full suite)
 SUPERSEDED: dict[str, str] = {
     "pendulum/encoder-mismatch-v1": "pendulum/encoder-mismatch-v2",

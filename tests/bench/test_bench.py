@@ -55,6 +55,12 @@ FROZEN = {
         "56e3e8b9b37efd4ba4daa63301bc608be5bf4fcd51c3a4214ef4b8e613493453",
     "pendulum/encoder-friction-v1":
         "af9ac561f061bc840c816c24ac0f25468f87bac2a439cbe62a3aca0063e48848",
+    "furuta/encoder-v1":
+        "1a0266b879bb3bfd69040eab179ee368cfa5ef552402c4660c3727cdd8ad80fd",
+    "acrobot/encoder-v1":
+        "1947702885a1cc73d9a686b17a92f886436f29f4f0f79f01e45773d4a77cc5b6",
+    "cart_pole/encoder-v1":
+        "fcfb04733fde4f044ed1961c1d2a7f6f2bf5296bc22241c0a2143415f46d18e3",
 }
 
 
@@ -70,7 +76,7 @@ def test_the_full_suite_spans_the_plants_sensors_and_tiers():
     plants = {t.plant["name"] for t in TASKS.values()}
     assert {"pendulum", "cart_pendulum", "elastic_joint", "elastic_joint_2link",
             "bioreactor_bullinger", "bioreactor_bastin_gevers", "besancon_ex1",
-            "jo_son"} <= plants
+            "jo_son", "furuta", "acrobot", "cart_pole"} <= plants
     assert {t.sensor for t in TASKS.values()} == {"encoder", "mems", "vision", "analog"}
     assert any(t.mismatch for t in TASKS.values())
     assert any(t.sample_period for t in TASKS.values())
