@@ -15,6 +15,22 @@ from .exceptions import DesignError, DimensionError
 
 _T = TypeVar("_T")
 
+#: the one rule of divergence: a state or estimate beyond this magnitude (or not finite) has
+#: diverged. Below it an error's square (at most 4e200) summed over any run stays a float, so
+#: no metric of a run that did not diverge overflows.
+DIVERGED_ABOVE = 1e100
+
+
+def diverged_rows(z: Any, x: Any = None) -> Any:
+    """Per row of ``z`` ``(T, k)`` (and of ``x``, its ``x_hat``), whether it has diverged:
+    an entry of ``z`` not finite or beyond :data:`DIVERGED_ABOVE` in magnitude, or one of
+    ``x`` beyond it (a NaN ``x_hat``, an undefined inverse, is no divergence)."""
+    with np.errstate(invalid="ignore"):
+        bad = ~np.all(np.abs(z) <= DIVERGED_ABOVE, axis=-1)
+        if x is not None:
+            bad |= np.any(np.abs(x) > DIVERGED_ABOVE, axis=-1)
+    return bad
+
 
 def is_real(value: Any) -> bool:
     """Whether ``value`` is a real number: an int, a float, a numpy integer or float, or a 0-d

@@ -41,7 +41,7 @@ except ModuleNotFoundError:  # Python 3.10
 from ._io import atomic_path, check_disk, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
-from .exceptions import DesignError, DivergenceError, HgoError, RecordingError
+from .exceptions import DesignError, HgoError, RecordingError
 from .schema import check_scenario
 
 
@@ -269,7 +269,6 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
             traj = simulate(**kw, seed=seed, on_chunk=on_chunk,
                             store_every=run.get("store_every", 1), isolate=True)
             metrics = all_metrics(traj, **mkw)
-        check_metrics(metrics)
         if rec is not None:
             rec.log_metadata(traj.metadata)
             rec.log_metrics(metrics)
@@ -312,21 +311,6 @@ def output_bytes(kw: dict[str, Any], every: int, formats: tuple[str, ...]) -> fl
     :data:`BYTES_PER_VALUE` per format (:func:`output_shape`)."""
     rows, width = output_shape(kw, every)
     return rows * width * sum(BYTES_PER_VALUE[f] for f in formats)
-
-
-def check_metrics(metrics: dict[str, Any]) -> None:
-    """Raise :class:`DivergenceError` when an error metric overflowed to infinity (noise or
-    estimates so large that their squares leave the floats): such a result is reported, not
-    written as ``null`` metrics."""
-    import math
-
-    for ob, m in metrics.items():
-        for key in ("rmse", "peak", "final"):
-            for state, v in zip(m.get("states", ()), m.get(key, ())):
-                if isinstance(v, float) and math.isinf(v):
-                    raise DivergenceError(f"observer {ob!r}: the {key} of {state} overflowed to "
-                                          f"{v} (errors beyond the floats' range: is the noise or "
-                                          f"the gain too large?); nothing was written")
 
 
 #: the most seeds ``hgo-mj run --seeds`` runs; more are a study (``hgo-mj sweep``)

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._io import atomic_path
-from ._validate import finite_scalar, positive_int, vector
+from ._validate import DIVERGED_ABOVE, diverged_rows, finite_scalar, positive_int, vector
 from .exceptions import DesignError, DimensionError, DivergenceError, TrajectoryFileError
 from .loop import Drive, Loop, LoopFailure, Periods, Segment
 from .observers.base import Observer
@@ -835,7 +835,7 @@ def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None,
         if name in skip:
             continue
         # the observer's own coordinates decide; a NaN x_hat (inverse undefined) is allowed
-        bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
+        bad = diverged_rows(r.z_hat, r.x_hat)
         if bad.any():
             k = int(np.argmax(bad))
             exc = DivergenceError(f"observer {name!r} estimate left the finite numbers at "
@@ -856,7 +856,7 @@ def _isolate_nonfinite(traj: Trajectory, skip: Mapping[str, Any], first_row: int
     for name, r in traj.observers.items():
         if name in skip:
             continue
-        bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
+        bad = diverged_rows(r.z_hat, r.x_hat)
         if name not in stopped and not bad.any():
             continue
         k = 0 if name in stopped else int(np.argmax(bad))
@@ -867,7 +867,8 @@ def _isolate_nonfinite(traj: Trajectory, skip: Mapping[str, Any], first_row: int
                 v[k:] = np.nan
         if name not in stopped:
             found[name] = {"t": float(traj.t[k]), "row": first_row + k, "sample": None,
-                           "error": "DivergenceError: the estimate left the finite numbers"}
+                           "error": "DivergenceError: the estimate left the finite numbers "
+                                    f"(|entry| > {DIVERGED_ABOVE:g} or not finite)"}
     return found
 
 

@@ -4,6 +4,7 @@ bad input the issue found; the property-based suite is tests/test_fuzz_scenarios
 
 from __future__ import annotations
 
+import json
 import tracemalloc
 
 import numpy as np
@@ -162,10 +163,13 @@ def test_run_too_long_for_memory_refused_before_running(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- magnitudes
-def test_huge_noise_is_reported_not_written_as_null(tmp_path, capsys):
+def test_huge_noise_is_a_divergence_of_the_observer_not_null_metrics(tmp_path, capsys):
+    """Issue 27 item 1: an estimate beyond 1e100 is that observer's divergence, reported."""
     doc = BASE + '[sensor]\nstages = [{stage = "gaussian", std = 1e300}]\n'
-    code, err, out = _run(tmp_path, doc, capsys)
-    assert_one_line(code, err, out, "overflowed to inf")
+    code, err, out = _run(tmp_path, doc, capsys, "--quiet")
+    assert code == 0 and "diverged at t = 0.01 s" in err and "Traceback" not in err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["high_gain_0"]["diverged_at"] == 0.01
 
 
 def test_huge_gain_is_refused(tmp_path, capsys):

@@ -121,3 +121,66 @@ def test_isolate_is_checked():
     plant = make_plant("pendulum", dt=0.01)
     with pytest.raises(DesignError, match="isolate must be true or false"):
         Loop(plant, None, {}, Periods.of(plant), isolate=1)
+
+
+# ------------------------------------------------ issue 27 item 1: an overflowing estimate
+#: an observer whose estimate grows beyond the floats' squares (explicit Euler, k = 3000)
+#: beside a healthy one
+RUNAWAY = ["--plant", "pendulum", "--sensor", "gaussian:std=1e-3", "--observer",
+           "high_gain:name=unstable,k=3000,method=euler,on_unstable=ignore", "--observer",
+           "high_gain:name=ok,k=20", "--input", "multisine:amplitudes=[0.3],frequencies=[0.5]",
+           "--duration", "1", "--quiet"]
+
+
+def _runaway_parts():
+    plant = make_plant("pendulum", dt=0.01)
+    obs = {"unstable": HighGainObserver(plant.system, k=3000.0, method="euler",
+                                        on_unstable="ignore"),
+           "ok": HighGainObserver(plant.system, k=20.0)}
+    return plant, SensorChain([GaussianNoise(std=1e-3)]), obs
+
+
+def test_an_estimate_that_grows_huge_but_finite_stops_alone():
+    plant, sensor, obs = _runaway_parts()
+    tr = simulate(plant, sensor, obs, Multisine([0.3], [0.5]), 1.0, seed=1, isolate=True)
+    assert set(tr.diverged) == {"unstable"} and "1e+100" in tr.diverged["unstable"]["error"]
+    m = all_metrics(tr)
+    assert all(np.isfinite(v) for v in m["ok"]["rmse"])
+    assert m["unstable"]["diverged_at"] == tr.diverged["unstable"]["t"]
+    with pytest.raises(DivergenceError, match="observer 'unstable' estimate left"):
+        simulate(plant, sensor, _runaway_parts()[2], Multisine([0.3], [0.5]), 1.0, seed=1)
+
+
+def test_run_writes_the_healthy_observer_beside_an_overflowing_one(tmp_path, capsys):
+    assert main(["run", *RUNAWAY, "--seed", "1", "--out", str(tmp_path / "o")]) == 0
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert metrics["unstable"]["diverged_at"] is not None
+    assert all(v is not None and np.isfinite(v) for v in metrics["ok"]["rmse"])
+    assert "observer 'unstable' diverged" in capsys.readouterr().err
+
+
+def test_seeds_count_the_overflowing_observer_as_diverged_in_every_seed(tmp_path, capsys):
+    assert main(["run", *RUNAWAY, "--seed", "1", "--seeds", "3",
+                 "--out", str(tmp_path / "mc")]) == 0
+    rows = __import__("pandas").read_parquet(tmp_path / "mc" / "seeds" / "results.parquet")
+    bad = rows[rows["observer"] == "unstable"]
+    good = rows[rows["observer"] == "ok"]
+    assert len(bad) and bad["diverged"].all()
+    assert not good["diverged"].any() and np.isfinite(good["rmse"]).all()
+
+
+def test_a_sweep_marks_the_overflowing_observer_diverged(tmp_path, capsys):
+    from hgo_mj.study import Study
+
+    base = {"plant": {"name": "pendulum"},
+            "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+            "observers": [{"type": "high_gain", "name": "unstable", "k": 3000.0,
+                           "method": "euler", "on_unstable": "ignore"},
+                          {"type": "high_gain", "name": "ok", "k": 20.0}],
+            "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+            "run": {"duration": 1.0}}
+    table = Study(base, {"observers.ok.k": [10.0, 20.0]}, seeds=2).run(
+        tmp_path / "s", quiet=True).table
+    bad, good = table[table["observer"] == "unstable"], table[table["observer"] == "ok"]
+    assert len(bad) == 8 and bad["diverged"].all() and bad["rmse"].isna().all()
+    assert not good["diverged"].any() and np.isfinite(good["rmse"]).all()
