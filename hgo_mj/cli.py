@@ -38,6 +38,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from . import manifest
 from ._io import atomic_path, check_disk, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
@@ -261,6 +262,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         if stream:
             from .stream import stream_run
 
+            manifest.begin(out)  # the folder's files change from here on
             traj, metrics = stream_run({**kw, "store_every": run.get("store_every", 1)},
                                        out / "trajectory.parquet", seed=seed,
                                        chunk_seconds=chunk_s, **mkw,
@@ -276,13 +278,16 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         if rec is not None:
             rec.close()
     out.mkdir(parents=True, exist_ok=True)
-    write_results(traj, metrics, out, formats, table=not stream)
+    if not stream:
+        manifest.begin(out)  # the folder's files change from here on
+    written = write_results(traj, metrics, out, formats, table=not stream)
     every = traj.metadata.get("figure_every", 1)
     save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {plant_label(pl)}, seed {seed}"
                                 + (f" (every {every}-th sample shown)" if every > 1 else "")),
                 out / "figure.png")
     table = format_table(metrics)
     write_text(out / "summary.txt", table + "\n")
+    manifest.finish(out, [*written, "figure.png", "summary.txt"])
     for ob, d in traj.diverged.items():  # the run isolates a failing observer: say so
         print(f"hgo-mj: observer {ob!r} diverged at t = {d['t']:g} s ({d['error']}); its "
               f"estimate is NaN from there on, the other observers ran to the end",
@@ -387,11 +392,14 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
                                                resume=resume and folder.is_dir()).table
     done, runs, failed = seed_metrics(table, metrics)
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
+    first = manifest.listed(out)  # the first seed's files; the seeds/ study has its own
+    manifest.begin(out)
     write_json(out / "metrics_mc.json", mc.to_json())
     write_text(out / "summary_mc.txt", mc.table() + "\n")
     units, _ = units_of(traj)
     save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {plant_label(sc['plant'])}, "
                                  f"seeds {seeds[0]}..{seeds[-1]}", units=units), out / "mc.png")
+    manifest.finish(out, [*first, "metrics_mc.json", "summary_mc.txt", "mc.png"])
     return traj, metrics, out, mc
 
 

@@ -493,6 +493,9 @@ class Trajectory:
             missing, not numeric or larger than the file or the memory, metadata that is not
             its JSON, names repeated, columns of different lengths), named with what is wrong;
             columns of different lengths also raise it as a ``DimensionError``.
+        ManifestError
+            The file's folder has a manifest (:mod:`hgo_mj.manifest`) that it does not match:
+            the run writing the folder did not finish, or its files come from two runs.
         OSError
             The file cannot be opened.
 
@@ -510,7 +513,9 @@ class Trajectory:
         (11, ('angle', 'angular_velocity'), True)
         """
         from ._trajfile import read
+        from .manifest import check
 
+        check(path)  # a file of a folder that mixes two runs is refused
         z, meta = read(path)  # checked: a TrajectoryFileError naming the file and the problem
         observers = {
             name: ObserverRecord(

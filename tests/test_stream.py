@@ -223,7 +223,8 @@ def test_the_command_line_streams_the_same_results(tmp_path, monkeypatch, capsys
         assert a["high_gain_0"][key] == b["high_gain_0"][key], key
     np.testing.assert_allclose(a["high_gain_0"]["rmse"], b["high_gain_0"]["rmse"], rtol=1e-12)
     assert sorted(p.name for p in (tmp_path / "streamed").iterdir()) == [
-        "figure.png", "metrics.json", "metrics.parquet", "summary.txt", "trajectory.parquet"]
+        "figure.png", "manifest.json", "metrics.json", "metrics.parquet", "summary.txt",
+        "trajectory.parquet"]
 
 
 @pytest.mark.parametrize("extra,message", [

@@ -533,9 +533,11 @@ class Study:
             res.write(rows, self.spec, values, sch)
             progress.add(chunk.n_runs)
         progress.close()
+        res.seal()  # the rows are complete: readable from here on
         result = StudyResult(self, Path(out), time.perf_counter() - t0)
         result.write_summary()
         self._store_trajectories(Path(out))
+        res.seal()
         return result
 
     def _store_trajectories(self, out: Path) -> None:
@@ -690,7 +692,10 @@ class StudyResult:
         """
         from .figures import study_figures
 
-        return study_figures(self, out)
+        figs = study_figures(self, out)
+        if out is not None and Path(out) == self.out:
+            ResultsDir(self.out).seal()  # the figures join the folder's manifest
+        return figs
 
 
 __all__ = ["Plan", "Study", "StudyResult", "load_toml"]
