@@ -242,6 +242,11 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
     check_disk("--out (run.out)", out, output_bytes(kw, every, formats))
     if rrd is not None:
         check_writable("--rrd", rrd, folder=False)
+    if stream:
+        from .stream import check_no_parts
+
+        check_no_parts(out / "trajectory.parquet")
+    clear_stale(out, rrd)
     rec = None
     if rrd is not None:
         from .record import Recorder
@@ -293,6 +298,30 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
               f"estimate is NaN from there on, the other observers ran to the end",
               file=sys.stderr)
     return traj, metrics, out
+
+
+#: the files ``hgo-mj run`` may write into its folder
+RUN_FILES = ("trajectory.npz", "trajectory.parquet", "trajectory.csv", "metrics.parquet",
+             "metrics.csv", "metrics.json", "figure.png", "summary.txt", "manifest.json",
+             "metrics_mc.json", "summary_mc.txt", "mc.png")
+
+
+def clear_stale(out: Path, rrd: str | Path | None) -> None:
+    """Remove the temporaries a killed earlier run left of the files of ``out`` (saying so on
+    stderr); report, and keep, those of the recording ``rrd`` (the torn rows of a killed
+    recording, which :func:`hgo_mj.record.read` reads)."""
+    from ._io import stale_temporaries
+
+    stale = [f for name in RUN_FILES for f in stale_temporaries(out / name)]
+    for f in stale:
+        f.unlink(missing_ok=True)
+    if stale:
+        print(f"hgo-mj: removed {len(stale)} temporary file(s) a killed earlier run left in "
+              f"{out}: {', '.join(f.name for f in stale)}", file=sys.stderr)
+    torn = stale_temporaries(rrd) if rrd is not None else []
+    if torn:
+        print(f"hgo-mj: {', '.join(str(f) for f in torn)}: the recording of a killed earlier run "
+              f"(kept: hgo_mj.record.read reads its rows; remove it when done)", file=sys.stderr)
 
 
 #: bytes a stored value takes in each trajectory format (CSV: its text, about 20 characters)
