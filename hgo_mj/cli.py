@@ -238,7 +238,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         from .simulate import check_memory
 
         rows, width = output_shape(kw, every)
-        check_memory(8 * rows * width, int(rows))
+        check_memory(run_memory(rows, width), int(rows))
     check_disk("--out (run.out)", out, output_bytes(kw, every, formats))
     if rrd is not None:
         check_writable("--rrd", rrd, folder=False)
@@ -338,6 +338,22 @@ def output_shape(kw: dict[str, Any], every: int) -> tuple[float, int]:
     width += sum(2 * len(ob.state_names) + len(ob.diagnostic_names)
                  for ob in kw["observers"].values())
     return rows, width
+
+
+#: the memory a ``hgo-mj run`` keeping its rows adds at its peak (simulation, metrics, the
+#: files and the figure), per byte of its stored columns (``8 x rows x columns``), and what it
+#: adds whatever its length (the libraries loaded after the check: pandas, pyarrow,
+#: matplotlib, numba's kernels): measured by ``python scripts/memory_calibration.py``
+#: (BENCHMARKS.md: slopes of 4.0 to 4.6 and 228 to 254 MiB), rounded up
+RUN_MEMORY_FACTOR = 5.0
+RUN_MEMORY_BASE = 288 * 2**20
+
+
+def run_memory(rows: float, width: int) -> float:
+    """The bytes a ``hgo-mj run`` of ``rows`` rows and ``width`` columns (:func:`output_shape`)
+    needs beyond what the process holds before it: :data:`RUN_MEMORY_BASE` plus
+    :data:`RUN_MEMORY_FACTOR` times its stored columns' bytes."""
+    return RUN_MEMORY_BASE + RUN_MEMORY_FACTOR * 8 * rows * width
 
 
 def output_bytes(kw: dict[str, Any], every: int, formats: tuple[str, ...]) -> float:

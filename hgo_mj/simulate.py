@@ -1040,11 +1040,13 @@ def available_memory() -> float:
 
 
 def check_memory(nbytes: float, rows: int) -> None:
-    """Raise :class:`DesignError` before a run whose stored rows (``nbytes``) would not fit in
-    the memory available, naming the estimate and ``store_every`` (keep every k-th row)."""
+    """Raise :class:`DesignError` before a run that needs ``nbytes`` (its stored rows, or what
+    ``hgo-mj run`` needs for them: :func:`hgo_mj.cli.run_memory`) beyond the memory
+    available, naming the estimate and ``store_every`` (keep every k-th row)."""
     avail = available_memory()
     if nbytes > avail:
-        raise DesignError(f"the run would store {rows} rows, about {nbytes / 2**30:.3g} GiB; "
+        raise DesignError(f"the run would store {rows} rows and need about "
+                          f"{nbytes / 2**30:.3g} GiB; "
                           f"found {avail / 2**30:.3g} GiB of memory available: shorten the "
                           f"duration or keep every k-th row (store_every=k; hgo-mj run "
                           f"--store-every k, run.store_every)")

@@ -367,3 +367,29 @@ def test_a_misspelt_plant_is_named_before_a_missing_duration(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(
         "hgo-mj: error: unknown plant 'pendulumm'; valid: ['besancon_ex1'"), err
+
+
+def test_the_memory_check_asks_for_at_least_a_run_s_measured_peak(tmp_path):
+    """Issue 27 item 14: what the up-front check asks of a run kept in memory covers the
+    growth of the process's resident memory over that run (measured in a fresh process, from
+    after the imports to its peak; scripts/memory_calibration.py gives the figures)."""
+    import subprocess
+    import sys
+
+    from hgo_mj.cli import build_parser, output_shape, run_memory, scenario_from_args
+    from hgo_mj.scenario import scenario_run
+
+    flags = ["--plant", "pendulum", "--dt", "0.001", "--observer", "high_gain:k=20",
+             "--duration", "150", "--quiet", "--format", "npz", "--format", "parquet",
+             "--format", "csv"]
+    code = ("import resource, sys\nfrom hgo_mj.cli import main\n"
+            "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+            f"assert main(['run', *{flags!r}, '--out', {str(tmp_path / 'o')!r}]) == 0\n"
+            "print(before, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=600)
+    assert res.returncode == 0, res.stderr
+    before, peak = (1024 * int(v) for v in res.stdout.split()[-2:])
+    rows, width = output_shape(scenario_run(scenario_from_args(build_parser().parse_args(
+        ["run", *flags])), "m"), 1)
+    assert run_memory(rows, width) >= peak - before, (rows, width, (peak - before) / 2**20)
