@@ -136,9 +136,10 @@ class StudySpec:
         ...        "run": {"duration": 0.2, "seed": 5},
         ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
         ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
-        >>> doc["sweep"]["together"] = [{"run.duration": [0.2, 0.3], "run.seed": [1, 2]}]
+        >>> doc["sweep"]["together"] = [{"run.duration": [0.2, 0.3], "run.t_transient":
+        ...                              [0.05, 0.1]}]
         >>> [[a.path for a in u] for u in parse_study(doc).units()]
-        [['observers.hgo.k'], ['plant.x0'], ['run.duration', 'run.seed']]
+        [['observers.hgo.k'], ['plant.x0'], ['run.duration', 'run.t_transient']]
         """
         out: list[list[Axis]] = []
         groups: dict[int, list[Axis]] = {}
@@ -456,7 +457,23 @@ def _axes(scenario: Mapping[str, Any], sweep: Mapping[str, Any]) -> list[Axis]:
     if len(set(paths)) != len(paths):
         twice = sorted(p for p in set(paths) if paths.count(p) > 1)
         raise DesignError(f"a sweep axis is given twice: {twice}")
+    for a in paths:
+        for b in paths:
+            if b.startswith(a + "."):
+                raise DesignError(f"sweep axes {a!r} and {b!r} overlap ({b!r} sets a part of "
+                                  f"{a!r}): which value runs would depend on their order; "
+                                  f"sweep one of them")
     return axes
+
+
+#: paths a sweep axis may not take, and why (their cells would be duplicate runs)
+NOT_AN_AXIS = {
+    "run.seed": "the runs' seeds are the study's own, [sweep] seeds = N (or a list of seeds); "
+                "run.seed is only the first of N",
+    "run.seeds": "a study sets its seeds in [sweep] seeds = N (or a list of seeds)",
+    "run.out": "a study writes one folder, its --out",
+    "run.stream": "a study keeps each run's metrics, not its trajectory (nothing to stream)",
+}
 
 
 def _plain(v: Any) -> bool:
@@ -473,6 +490,9 @@ def _plain(v: Any) -> bool:
 def _axis(scenario: Mapping[str, Any], path: str, values: Any, group: int | None = None) -> Axis:
     """One axis, checked: its path names a value of the scenario, its values are a non-empty
     list (without repeats, unless it advances with others in a group)."""
+    key = next((k for k in NOT_AN_AXIS if path == k or path.startswith(f"{k}.")), None)
+    if key is not None:
+        raise DesignError(f"sweep axis {path!r} cannot change a run: {NOT_AN_AXIS[key]}")
     check_path(scenario, path)
     if not isinstance(values, list):
         raise DesignError(f"sweep axis {path!r} must be a list of values; found {values!r}")

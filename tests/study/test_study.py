@@ -513,3 +513,27 @@ def test_a_closed_loops_chunks_are_bounded_by_its_kept_errors():
     assert sum(sizes) == 1024 and max(sizes) * 10001 <= CLOSED_VALUES
     assert [c.n_runs for c in Study({**BASE, "run": {"duration": 10.0}}, seeds=1024).plan(
     ).chunks] == [1024]
+
+
+# ------------------------------------------------ issue 27 item 5: overlapping, useless axes
+OVERLAP_BASE = {"plant": {"name": "pendulum", "dt": 0.01},
+                "observers": [{"type": "high_gain", "name": "k20", "k": 20.0}],
+                "run": {"duration": 0.2, "seed": 3}}
+
+
+@pytest.mark.parametrize("sweep, message", [
+    ({"observers.k20": [{"type": "high_gain", "k": 5.0}], "observers.k20.k": [1.0]},
+     r"sweep axes 'observers.k20' and 'observers.k20.k' overlap"),
+    ({"observers.k20.k": [1.0], "observers.k20": [{"type": "high_gain", "k": 5.0}]},
+     r"sweep axes 'observers.k20' and 'observers.k20.k' overlap"),
+    ({"together": [{"run": [{"duration": 0.2}], "run.duration": [0.3]}]},
+     r"sweep axes 'run' and 'run.duration' overlap"),
+    ({"run.seed": [1, 2]}, r"'run.seed' cannot change a run: .*\[sweep\] seeds = N"),
+    ({"run.out": ["a", "b"]}, r"'run.out' cannot change a run: .*--out"),
+    ({"run.stream": [True, False]}, r"'run.stream' cannot change a run"),
+])
+def test_overlapping_or_useless_axes_are_refused(sweep, message):
+    from hgo_mj.study.spec import parse_study
+
+    with pytest.raises(DesignError, match=message):
+        parse_study({**OVERLAP_BASE, "sweep": sweep})
