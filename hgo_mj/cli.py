@@ -42,7 +42,7 @@ from . import manifest
 from ._io import atomic_path, check_disk, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
-from .exceptions import DesignError, HgoError, RecordingError
+from .exceptions import DesignError, DivergenceError, HgoError, RecordingError
 from .schema import check_scenario
 
 
@@ -436,7 +436,17 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=quiet,
                                                resume=resume and folder.is_dir()).table
     done, runs, failed = seed_metrics(table, metrics)
-    mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
+    if traj.diverged:  # the first seed counts as the others do: a diverged observer fails it
+        ob, d = next(iter(traj.diverged.items()))
+        failed = {seed: f"seed {seed}: observer {ob!r} diverged at t={d['t']:g}: {d['error']}",
+                  **failed}
+    else:
+        done, runs = [seed, *done], [metrics, *runs]
+    if not runs:
+        raise DivergenceError(f"every seed diverged ({n} of {n}): {failed[seed]}; nothing to "
+                              f"aggregate (the first seed's run is in {out}, every seed's rows "
+                              f"in {folder}/results.parquet)")
+    mc = MonteCarloResult.from_runs(done, runs, failed)
     first = manifest.listed(out)  # the first seed's files; the seeds/ study has its own
     manifest.begin(out)
     write_json(out / "metrics_mc.json", mc.to_json())

@@ -160,8 +160,14 @@ def test_run_writes_the_healthy_observer_beside_an_overflowing_one(tmp_path, cap
 
 
 def test_seeds_count_the_overflowing_observer_as_diverged_in_every_seed(tmp_path, capsys):
+    """Every seed has a diverged observer (the first one included): said so, the rows of
+    every seed and the first seed's run written."""
     assert main(["run", *RUNAWAY, "--seed", "1", "--seeds", "3",
-                 "--out", str(tmp_path / "mc")]) == 0
+                 "--out", str(tmp_path / "mc")]) == 2
+    err = capsys.readouterr().err
+    assert "every seed diverged (3 of 3): seed 1: observer 'unstable' diverged" in err
+    metrics = json.loads((tmp_path / "mc" / "metrics.json").read_text())
+    assert all(np.isfinite(v) for v in metrics["ok"]["rmse"])
     rows = __import__("pandas").read_parquet(tmp_path / "mc" / "seeds" / "results.parquet")
     bad = rows[rows["observer"] == "unstable"]
     good = rows[rows["observer"] == "ok"]
@@ -184,3 +190,56 @@ def test_a_sweep_marks_the_overflowing_observer_diverged(tmp_path, capsys):
     bad, good = table[table["observer"] == "unstable"], table[table["observer"] == "ok"]
     assert len(bad) == 8 and bad["diverged"].all() and bad["rmse"].isna().all()
     assert not good["diverged"].any() and np.isfinite(good["rmse"]).all()
+
+
+PICKY = '''
+import numpy as np
+
+from hgo_mj.exceptions import DivergenceError
+from hgo_mj.observers.high_gain import HighGainObserver
+
+
+class Picky(HighGainObserver):
+    """Fails when its first measurement is above 0.5005 (x0 = 0.5 plus noise > 5e-4: of the
+    seeds 6, 7, 8 at std 1e-3, only seed 6)."""
+
+    name = "picky"
+
+    def _init(self, p, x0, z0, u0):
+        return {**super()._init(p, x0, z0, u0), "count": np.zeros(u0.shape[0], dtype=int)}
+
+    def _step(self, p, s, Y, U, dt, X, Z, D):
+        if s.count.max() == 0 and (Y[:, 0, 0] > 0.5005).any():
+            raise DivergenceError("the first measurement is too high")
+        s.count += Y.shape[1]
+        super()._step(p, s, Y, U, dt, X, Z, D)
+'''
+
+
+def test_a_diverging_first_seed_is_counted_and_nan_has_no_spread(tmp_path, monkeypatch,
+                                                                 capsys):
+    """Issue 27 item 6: the first seed diverges (isolated in its own run) and is counted with
+    the others; a statistic of a NaN mean has a NaN spread, not 0."""
+    import importlib
+    import sys
+
+    from hgo_mj.study.montecarlo import _stats
+
+    (tmp_path / "hgo_picky_mod.py").write_text(PICKY)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    importlib.import_module("hgo_picky_mod")
+    try:
+        assert main(["run", "--plant", "pendulum", "--sensor", "gaussian:std=1e-3",
+                     "--observer", "hgo_picky_mod:Picky:name=picky,k=20", "--observer",
+                     "high_gain:name=ok,k=20", "--duration", "0.5", "--quiet", "--seed", "6",
+                     "--seeds", "3", "--out", "mc"]) == 0
+    finally:
+        sys.modules.pop("hgo_picky_mod", None)
+    data = json.loads((tmp_path / "mc" / "metrics_mc.json").read_text())
+    assert data["seeds"] == [7, 8] and [f["seed"] for f in data["failed"]] == [6]
+    summary = (tmp_path / "mc" / "summary_mc.txt").read_text()
+    assert "1 of 3 run(s) diverged" in summary and "seeds [6]" in summary
+    assert "± 0 " not in summary and "nan" not in summary
+    assert _stats([float("nan")])["std"] != _stats([float("nan")])["std"]  # NaN
+    assert _stats([0.5])["std"] == 0.0

@@ -184,7 +184,8 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
     """Per cell, observer and state over the seeds: ``runs``, ``diverged_fraction``,
     ``settled_fraction`` (of the runs that finished; NaN where not estimated), and per metric
     in :data:`SUMMARY_METRICS` its median, quartiles ``q25``, ``q75``, IQR (their
-    difference), mean, std (ddof=1; 0 for one run), min and max over the runs that finished
+    difference), mean, std (ddof=1; 0 for one run, NaN for none), min and max over the runs that
+    finished
     (a settling time of ``inf``, never settled, is left out of its statistics).
 
     Parameters
@@ -238,7 +239,8 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
     for m in metrics:
         c = g[m]
         q25, q75 = c.quantile(0.25), c.quantile(0.75)
-        std = c.std(ddof=1).where(c.count() > 1, 0.0)
+        # one finished run: no spread (0); none: NaN, as its mean
+        std = c.std(ddof=1).where(c.count() != 1, 0.0)
         for name, col in (("median", c.median()), ("q25", q25), ("q75", q75),
                           ("iqr", q75 - q25), ("mean", c.mean()), ("std", std),
                           ("min", c.min()), ("max", c.max())):

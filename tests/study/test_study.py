@@ -537,3 +537,19 @@ def test_overlapping_or_useless_axes_are_refused(sweep, message):
 
     with pytest.raises(DesignError, match=message):
         parse_study({**OVERLAP_BASE, "sweep": sweep})
+
+
+def test_summary_spread_of_no_finished_run_is_nan_not_zero():
+    """Issue 27 item 6: a cell whose runs all diverged has NaN statistics, its std included."""
+    import numpy as np
+    import pandas as pd
+
+    from hgo_mj.study.results import summarize
+
+    df = pd.DataFrame({"cell": [0, 0, 1], "seed": [0, 1, 0], "observer": "hgo",
+                       "state": "angle", "estimated": True, "rmse": [np.nan, np.nan, 0.1],
+                       "peak": 0.5, "settling_time": [np.nan, np.nan, 0.2], "final": 0.01,
+                       "diverged": [True, True, False]})
+    s = summarize(df, [])
+    assert np.isnan(s["rmse_mean"].iloc[0]) and np.isnan(s["rmse_std"].iloc[0])
+    assert s["rmse_std"].iloc[1] == 0.0
