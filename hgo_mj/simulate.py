@@ -777,6 +777,9 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
                           f"{periods.sample:g} s; a shorter run has a single row")
     every = positive_int("store_every", store_every, floats=False)
     N = int(round(duration / periods.sample))
+    if every > N:
+        raise DesignError(f"store_every = {every} keeps one row of a run of {N} samples: give "
+                          f"at most {N} (store_every = k keeps every k-th sample)")
     obs = _named_observers(observers)
     drive = Drive.of(inputs, obs, plant, periods)
     loop = Loop(plant, sensor, obs, periods, isolate=isolate)

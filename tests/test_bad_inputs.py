@@ -393,3 +393,10 @@ def test_the_memory_check_asks_for_at_least_a_run_s_measured_peak(tmp_path):
     rows, width = output_shape(scenario_run(scenario_from_args(build_parser().parse_args(
         ["run", *flags])), "m"), 1)
     assert run_memory(rows, width) >= peak - before, (rows, width, (peak - before) / 2**20)
+
+
+def test_store_every_beyond_the_run_is_refused(tmp_path, capsys):
+    """Issue 27 item 7: a store_every that keeps one row is refused, as dt = 1e9 is."""
+    assert_one_line(*_run(tmp_path, with_run("store_every = 1000000000"), capsys),
+                    "store_every = 1000000000 keeps one row of a run of 30 samples",
+                    "at most 30")
