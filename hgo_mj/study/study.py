@@ -30,6 +30,31 @@ from .spec import MAX_RUNS, Cell, parse_study
 #: core; scripts/bench_study.py on a 2-core machine)
 _PLANT_STEP_S = 5e-6
 _OBSERVER_STEP_S = 6.5e-8
+#: members and samples of the short batched run that measures a family's warm cost per update
+_COST_BATCH, _COST_SAMPLES = 32, 64
+
+
+def update_cost(kw: Mapping[str, Any], name: str) -> float:
+    """The warm cost of observer ``name`` of a built scenario ``kw``, seconds per update of one
+    member: measured on a short batched loop (:data:`_COST_BATCH` members, the second of two
+    segments of :data:`_COST_SAMPLES` samples; the first compiles and fills the caches). A
+    family whose update fails there (a short run it cannot take) costs as a high-gain one."""
+    import numpy as np
+
+    from ..loop import Loop, LoopFailure, Periods
+
+    plant = kw["plant"]
+    loop = Loop(plant, None, {name: kw["observers"][name]},
+                Periods.of(plant, kw.get("sample_period"), None))
+    m = len(plant.input_names)
+    try:
+        loop.reset(kw.get("x0"), batch=_COST_BATCH)
+        loop.segment(np.zeros((_COST_BATCH, _COST_SAMPLES, m)))
+        loop.wall[name] = 0.0
+        loop.segment(np.zeros((_COST_BATCH, _COST_SAMPLES, m)))
+    except (LoopFailure, HgoError, ArithmeticError, ValueError):
+        return _OBSERVER_STEP_S
+    return max(loop.wall[name] / (_COST_BATCH * _COST_SAMPLES), _OBSERVER_STEP_S)
 #: a closed loop's plant step (one control period a segment: MuJoCo's rollout called per step)
 #: and the cost of one segment of the loop (plant, sensor, observers, controller calls)
 _CLOSED_STEP_S = 4e-6
@@ -243,6 +268,10 @@ class Study:
                                 max_runs=max_runs)
         self.name = str(scenario.get("name", "study"))
         self._validated = False
+        #: measured warm cost per update of each observer family, and per cell the sum over
+        #: its observers (seconds per sample of one run; :meth:`validate` fills them)
+        self._family_cost: dict[str, float] = {}
+        self._cell_cost: dict[int, float] = {}
 
     @classmethod
     def from_toml(cls, path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Study:
@@ -354,8 +383,10 @@ class Study:
             try:
                 if key in built:
                     self._check_x0(cell.scenario["plant"].get("x0"), built[key]["plant"])
+                    self._cell_cost[cell.index] = self._cell_cost[built[key]["cell"]]
                     continue
-                kw = built[key] = scenario_run(cell.scenario, self.name)
+                kw = built[key] = {**scenario_run(cell.scenario, self.name),
+                                   "cell": cell.index}
                 self._check_x0(cell.scenario["plant"].get("x0"), kw["plant"])
                 self._check_memory(kw)
                 if "t_transient" in cell.scenario.get("run", {}):
@@ -368,10 +399,16 @@ class Study:
                 raise DesignError(f"cell {cell.index} ({cell.label()}): {exc}") from None
             except (TypeError, ValueError) as exc:
                 raise DesignError(f"cell {cell.index} ({cell.label()}): {exc}") from None
-            for ob in kw["observers"].values():
+            cost = 0.0
+            for name, ob in kw["observers"].items():
                 for d in ob.diagnostic_names:
                     if d not in names:
                         names.append(d)
+                family = type(ob).__qualname__
+                if family not in self._family_cost:  # each family measured once
+                    self._family_cost[family] = update_cost(kw, name)
+                cost += self._family_cost[family]
+            self._cell_cost[cell.index] = cost
         self._validated = True
         return names
 
@@ -432,7 +469,7 @@ class Study:
         """
         cells = self.cells
         chunks = plan(cells, self.spec.seeds, done=done, jobs=jobs, metric_kw=self._metric_kw())
-        trajectories, plant_steps, obs_steps, closed_steps = set(), 0.0, 0.0, 0.0
+        trajectories, plant_steps, obs_s, closed_steps = set(), 0.0, 0.0, 0.0
         closed_cells: set[int] = set()
         segments = 0.0
         for c in chunks:
@@ -441,7 +478,9 @@ class Study:
                 dur = float(sc["run"]["duration"])
                 dt = float(sc["plant"].get("dt") or 0.001)
                 steps = dur / float(sc["run"].get("sample_period") or dt)
-                obs_steps += steps * max(len(sc.get("observers", [])), 1)
+                # each family's measured warm cost (validate), else a high-gain one's
+                obs_s += steps * self._cell_cost.get(
+                    cell, _OBSERVER_STEP_S * max(len(sc.get("observers", [])), 1))
                 if "controller" in sc:  # a closed loop: every run its own plant trajectory
                     trajectories.add(json.dumps([cell, seed]))
                     closed_steps += dur / dt
@@ -455,7 +494,7 @@ class Study:
                 if key not in trajectories:
                     trajectories.add(key)
                     plant_steps += dur / dt
-        serial = (obs_steps * _OBSERVER_STEP_S + closed_steps * _CLOSED_STEP_S
+        serial = (obs_s + closed_steps * _CLOSED_STEP_S
                   + segments * _SEGMENT_S)
         est = plant_steps * _PLANT_STEP_S + serial / max(jobs, 1)
         todo = sum(c.n_runs for c in chunks)

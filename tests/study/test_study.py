@@ -553,3 +553,19 @@ def test_summary_spread_of_no_finished_run_is_nan_not_zero():
     s = summarize(df, [])
     assert np.isnan(s["rmse_mean"].iloc[0]) and np.isnan(s["rmse_std"].iloc[0])
     assert s["rmse_std"].iloc[1] == 0.0
+
+
+def test_the_time_estimate_counts_each_family_by_its_measured_cost():
+    """Issue 27 item 7: an EKF study is planned as slower than the same high-gain study (its
+    warm cost per update is measured), so --jobs is not silently one process."""
+    base = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+            "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+            "run": {"duration": 2.0}}
+    hgo = Study({**base, "observers": [{"type": "high_gain", "name": "o", "k": 20.0}]},
+                {"run.duration": [2.0, 3.0]}, seeds=4)
+    ekf = Study({**base, "observers": [{"type": "ekf", "name": "o"}]},
+                {"run.duration": [2.0, 3.0]}, seeds=4)
+    for s in (hgo, ekf):
+        s.validate()
+    assert ekf.plan().serial_s > 3 * hgo.plan().serial_s
+    assert set(ekf._family_cost) and all(c > 0 for c in ekf._family_cost.values())
