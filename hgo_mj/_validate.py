@@ -257,6 +257,11 @@ def import_class(what: str, spec: Any, base: type[_T]) -> type[_T]:
         sys.path.append(here)
     try:
         mod = importlib.import_module(module)
+    except SystemExit as exc:  # sys.exit() at import would end the run silently
+        sys.modules.pop(module, None)
+        raise DesignError(f"{what} {spec!r}: module {module!r} called sys.exit({exc.code!r}) "
+                          f"while it was imported; a module a scenario names must define the "
+                          f"class, not end the program") from None
     except Exception as exc:  # noqa: BLE001 - any failure of user code is reported, one line
         first = (str(exc).strip().splitlines() or [""])[0]
         raise DesignError(f"{what} {spec!r}: module {module!r} does not import "
