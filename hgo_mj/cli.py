@@ -611,7 +611,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="skip the (cell, seed) runs already in OUT/results.parquet (the same "
                     "study only)")
     sw.add_argument("--yes", action="store_true",
-                    help="run a study of more than 10 million runs")
+                    help="run a study of more than 10 million runs (one whose estimated memory "
+                    "exceeds the memory available is still refused)")
     sw.add_argument("--quiet", action="store_true", help="no plan line and no progress")
     t = sub.add_parser("tune", help="tune a scenario's observer with Optuna (see hgo_mj.tune)")
     t.add_argument("scenario", help="scenario TOML file (open-loop [input]; the observer in "

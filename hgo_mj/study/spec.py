@@ -588,7 +588,43 @@ def parse_study(doc: Mapping[str, Any], *, max_runs: int | None = MAX_RUNS) -> S
     if max_runs is not None and spec.n_runs > max_runs:
         raise DesignError(f"the study has {spec.n_runs:,} runs ({spec.n_cells:,} cells x "
                           f"{len(seeds):,} seeds), more than {max_runs:,}; confirm with --yes")
+    check_study_memory(spec)
     return spec
+
+
+#: bytes a cell's scenario takes in memory per character of its JSON (dicts, lists, floats;
+#: measured: about 1.9 KB for a 242-character scenario), plus a cell's fixed share
+CELL_BYTES_PER_CHAR, CELL_BYTES = 10, 512
+#: bytes a result row (a run's observer and state) takes in the results table and the plan
+ROW_BYTES, RUN_BYTES = 400, 200
+
+
+def study_memory(spec: StudySpec) -> float:
+    """An upper estimate of the memory a study holds, bytes: its cells' scenarios, the plan's
+    runs and the result rows (one per run, observer and plant state; the states counted from
+    ``plant.x0`` where given, else 8)."""
+    scenario = spec.scenario
+    n_obs = max(len(scenario.get("observers", []) or []), 1)
+    x0 = scenario.get("plant", {}).get("x0") if isinstance(scenario.get("plant"), Mapping) \
+        else None
+    n_states = len(x0) if isinstance(x0, list) and x0 else 8
+    per_cell = CELL_BYTES + CELL_BYTES_PER_CHAR * len(json.dumps(scenario, default=str))
+    return (spec.n_cells * per_cell + spec.n_runs * RUN_BYTES
+            + spec.n_runs * n_obs * n_states * (ROW_BYTES + 8 * len(spec.axes)))
+
+
+def check_study_memory(spec: StudySpec) -> None:
+    """Refuse, before any cell is built, a study whose estimate (:func:`study_memory`) exceeds
+    the memory available; a bound that ``--yes`` (``max_runs=None``) keeps."""
+    from ..simulate import available_memory
+
+    need, avail = study_memory(spec), available_memory()
+    if need > avail:
+        raise DesignError(f"the study has {spec.n_runs:,} runs ({spec.n_cells:,} cells x "
+                          f"{len(spec.seeds):,} seeds) and would hold about "
+                          f"{need / 2**30:.3g} GiB (cells, plan and result rows); found "
+                          f"{avail / 2**30:.3g} GiB of memory available (a bound --yes keeps): "
+                          f"fewer cells or seeds, or split the study")
 
 
 def axis_kind(values: Sequence[Any]) -> str:

@@ -30,6 +30,8 @@ from .spec import MAX_RUNS, Cell, parse_study
 #: core; scripts/bench_study.py on a 2-core machine)
 _PLANT_STEP_S = 5e-6
 _OBSERVER_STEP_S = 6.5e-8
+#: cells from which a study says its size and memory before checking and planning them
+LARGE_CELLS = 10_000
 #: members and samples of the short batched run that measures a family's warm cost per update
 _COST_BATCH, _COST_SAMPLES = 32, 64
 
@@ -374,7 +376,7 @@ class Study:
         hgo_mj.exceptions.DesignError: cell 1 (observers.hgo.k = -1.0): ...
         """
         names: list[str] = []
-        built: dict[str, Any] = {}
+        built: dict[str, tuple[int, int]] = {}
         for cell in self.cells:
             # cells that differ only in x0 are built once; each x0 is checked on its own
             rest = {**cell.scenario, "plant": {k: v for k, v in cell.scenario["plant"].items()
@@ -382,12 +384,14 @@ class Study:
             key = json.dumps(rest, sort_keys=True)
             try:
                 if key in built:
-                    self._check_x0(cell.scenario["plant"].get("x0"), built[key]["plant"])
-                    self._cell_cost[cell.index] = self._cell_cost[built[key]["cell"]]
+                    n, first = built[key]
+                    self._check_x0(cell.scenario["plant"].get("x0"), n)
+                    self._cell_cost[cell.index] = self._cell_cost[first]
                     continue
-                kw = built[key] = {**scenario_run(cell.scenario, self.name),
-                                   "cell": cell.index}
-                self._check_x0(cell.scenario["plant"].get("x0"), kw["plant"])
+                kw = scenario_run(cell.scenario, self.name)
+                # only the state count is kept: a plant per distinct cell would not fit
+                built[key] = (len(kw["plant"].state_names), cell.index)
+                self._check_x0(cell.scenario["plant"].get("x0"), built[key][0])
                 self._check_memory(kw)
                 if "t_transient" in cell.scenario.get("run", {}):
                     t_tr = cell.scenario["run"]["t_transient"]
@@ -430,9 +434,9 @@ class Study:
                               f"available: shorten run.duration or sample less often")
 
     @staticmethod
-    def _check_x0(x0: Any, plant: Any) -> None:
+    def _check_x0(x0: Any, n: int) -> None:
         if x0 is not None:
-            vector("plant.x0", x0, len(plant.state_names))
+            vector("plant.x0", x0, n)
 
     def _metric_kw(self) -> dict[str, Any]:
         run = self.spec.scenario.get("run", {})
@@ -554,6 +558,13 @@ class Study:
 
         jobs = positive_int("jobs", jobs, floats=False)
         backend_for(backend, address=address, jobs=jobs)  # Ray importable, address reachable
+        say = echo or (lambda s: print(s, file=sys.stderr))
+        if not quiet and self.spec.n_cells >= LARGE_CELLS:  # its checks and plan take a while
+            from .spec import study_memory
+
+            say(f"study: {self.spec.n_runs:,} runs ({self.spec.n_cells:,} cells x "
+                f"{len(self.spec.seeds):,} seeds), up to {study_memory(self.spec) / 2**30:.2g} "
+                f"GiB of memory; checking every cell and planning ...")
         diagnostics = self.validate()
         res = ResultsDir(out)
         done = res.start(self.spec, resume)
@@ -561,7 +572,6 @@ class Study:
             jobs = local_jobs(jobs, self.plan(jobs=1, done=done).serial_s)
         the_plan = self.plan(jobs=jobs, done=done, out=out)
         run_backend = backend_for(backend, address=address, jobs=jobs)
-        say = echo or (lambda s: print(s, file=sys.stderr))
         if not quiet:
             say(the_plan.describe())
         sch = schema(self.spec, diagnostics)

@@ -569,3 +569,44 @@ def test_the_time_estimate_counts_each_family_by_its_measured_cost():
         s.validate()
     assert ekf.plan().serial_s > 3 * hgo.plan().serial_s
     assert set(ekf._family_cost) and all(c > 0 for c in ekf._family_cost.values())
+
+
+def test_a_study_too_large_for_memory_is_refused_even_with_yes(monkeypatch):
+    """Issue 27 item 12: the size and memory of a study are estimated before any cell is
+    built, and the memory bound holds without max_runs (--yes)."""
+    import hgo_mj.simulate
+    from hgo_mj.study.spec import parse_study, study_memory
+
+    doc = {**OVERLAP_BASE, "sweep": {"seeds": 100,
+                                     "observers.k20.k": [float(i + 1) for i in range(100_000)]}}
+    monkeypatch.setattr(hgo_mj.simulate, "available_memory", lambda: 2.0**30)
+    with pytest.raises(DesignError, match=r"10,000,000 runs .* would hold about [\d.]+ GiB .* "
+                                          r"found 1 GiB .*a bound --yes keeps"):
+        parse_study(doc, max_runs=None)
+    small = parse_study({**OVERLAP_BASE, "sweep": {"observers.k20.k": [1.0, 2.0]}})
+    assert 0 < study_memory(small) < 2**20
+
+
+def test_validate_keeps_no_plant_per_cell():
+    """The check of every cell builds each distinct one and lets it go (100,000 MuJoCo plants
+    held at once did not fit)."""
+    import gc
+    import weakref
+
+    from hgo_mj.plants.mujoco import MujocoPlant as Plant
+
+    seen = []
+    original = Plant.__init__
+
+    def tracked(self, *a, **kw):
+        original(self, *a, **kw)
+        seen.append(weakref.ref(self))
+
+    study = Study(OVERLAP_BASE, {"observers.k20.k": [float(i + 1) for i in range(20)]})
+    Plant.__init__ = tracked
+    try:
+        study.validate()
+    finally:
+        Plant.__init__ = original
+    gc.collect()
+    assert len(seen) >= 20 and sum(r() is not None for r in seen) <= 2
