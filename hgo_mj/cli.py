@@ -97,6 +97,9 @@ def load_scenario_file(name: str) -> dict[str, Any]:
             sc = tomllib.load(fh)
         except tomllib.TOMLDecodeError as exc:
             raise DesignError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
+        except UnicodeDecodeError as exc:
+            raise DesignError(f"scenario file {str(path)!r} is not UTF-8 text (a binary file?): "
+                              f"{exc}") from None
         except RecursionError:
             raise DesignError(f"scenario file {str(path)!r} is nested too deeply (arrays or "
                               f"tables inside each other beyond Python's recursion limit)"
@@ -735,7 +738,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .study.spec import MAX_RUNS
 
     study = Study.from_toml(args.study, max_runs=None if args.yes else MAX_RUNS)
-    out = Path(args.out or f"runs/{Path(args.study).stem}")
+    out = check_writable("--out", args.out or f"runs/{Path(args.study).stem}", folder=True)
     jobs = _flag_int(args.jobs, "--jobs")
     result = study.run(out, jobs=jobs, backend=args.backend, address=args.address,
                        resume=args.resume, quiet=args.quiet)

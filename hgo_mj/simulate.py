@@ -576,6 +576,9 @@ def _named_observers(observers: Any) -> dict[str, Observer]:
         return {}
     if isinstance(observers, Observer):
         observers = [observers]
+    if not isinstance(observers, (Mapping, list, tuple)):
+        raise DesignError(f"observers must be an Observer, a list of them or a dict name -> "
+                          f"Observer; found {type(observers).__name__} {observers!r:.60}")
     if isinstance(observers, Mapping):
         items = list(observers.items())
     else:
@@ -770,6 +773,12 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
          duration: float, *, sample_period: Any, control_period: Any, x0: Any, seeds: Any,
          batch: int | None, metadata: Mapping[str, Any] | None, on_chunk: Any,
          store_every: Any, isolate: bool = False, keep: bool = True) -> list[Trajectory]:
+    if not isinstance(plant, Plant):
+        raise DesignError(f"plant must be a Plant (hgo_mj.plants.make_plant({plant!r:.40}) "
+                          f"makes one); found {type(plant).__name__}")
+    if metadata is not None and not isinstance(metadata, Mapping):
+        raise DesignError(f"metadata must be a dict; found {type(metadata).__name__} "
+                          f"{metadata!r:.60}")
     periods = Periods.of(plant, sample_period, control_period)
     duration = finite_scalar("duration", duration, positive=True)
     if duration < periods.sample:

@@ -400,3 +400,50 @@ def test_store_every_beyond_the_run_is_refused(tmp_path, capsys):
     assert_one_line(*_run(tmp_path, with_run("store_every = 1000000000"), capsys),
                     "store_every = 1000000000 keeps one row of a run of 30 samples",
                     "at most 30")
+
+
+@pytest.mark.parametrize("case, message", [
+    ("plant", r"plant must be a Plant \(hgo_mj.plants.make_plant\('pendulum'\) makes one\); "
+              r"found str"),
+    ("observers", r"observers must be an Observer, a list of them or a dict .*found int 5"),
+    ("metadata", r"metadata must be a dict; found int 5"),
+    ("input", r"u\(t\) must return a number or a 1-D array of numbers; found str 'abc' at t=0"),
+    ("controller", r"input must be numbers, 1 channel\(s\) .*found 'abc'"),
+])
+def test_simulate_bad_arguments_are_clear_errors(case, message):
+    """Issue 27 item 13: simulate's arguments of the wrong kind are named, not raw errors."""
+    from hgo_mj.control import LinearFeedback
+    from hgo_mj.observers import HighGainObserver
+    from hgo_mj.plants import make_plant
+    from hgo_mj.simulate import simulate
+
+    plant = make_plant("pendulum", dt=0.01)
+    obs = {"o": HighGainObserver(plant.system, k=20.0)}
+    law = LinearFeedback([[1.0, 1.0]])
+    law.act = lambda t, x: "abc"
+    kw = {"plant": plant, "sensor": None, "observers": obs, "inputs": lambda t: [0.0],
+          "duration": 0.1}
+    kw.update({"plant": {"plant": "pendulum"}, "observers": {"observers": 5},
+               "metadata": {"metadata": 5}, "input": {"inputs": lambda t: "abc"},
+               "controller": {"inputs": law}}[case])
+    with pytest.raises(HgoError, match=message):
+        simulate(**kw)
+
+
+def test_cli_leftovers_name_the_parameter_or_file(tmp_path, capsys):
+    """Issue 27 item 13: plant outputs and z_bounds of the wrong kind name the parameter, a
+    binary scenario file is named, and `sweep --out FILE` exits 2 as `run` does."""
+    base = BASE.replace('name = "pendulum"\n', 'name = "pendulum"\nparams = {outputs = 5}\n', 1)
+    assert_one_line(*_run(tmp_path, base, capsys), "outputs must be a list of sensor names")
+    assert_one_line(*_run(tmp_path, with_observer("z_bounds = 5"), capsys),
+                    "z_bounds must be a pair (lower, upper)")
+    binary = tmp_path / "bin.toml"
+    binary.write_bytes(b"\xff\xfe\x00\x01binary")
+    assert main(["run", str(binary), "--out", str(tmp_path / "o")]) == 2
+    assert "scenario file" in capsys.readouterr().err
+    study = tmp_path / "s.toml"
+    study.write_text(BASE.replace("k = 20.0", 'name = "h"\nk = 20.0')
+                     + '[sweep]\n"observers.h.k" = [1.0, 2.0]\n')
+    (tmp_path / "afile").write_text("")
+    assert main(["sweep", str(study), "--out", str(tmp_path / "afile"), "--quiet"]) == 2
+    assert "--out must be a folder; found the existing file" in capsys.readouterr().err

@@ -160,6 +160,9 @@ class MujocoPlant(Plant):
                             slice(int(self._vadr[0]), int(self._vadr[-1]) + 1))
         self._aid = [_id(mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator") for a in system.actuators]
         self._nq = len(jids)
+        if outputs is not None and (not isinstance(outputs, (list, tuple))
+                                    or not all(isinstance(o, str) for o in outputs)):
+            raise DesignError(f"outputs must be a list of sensor names; found {outputs!r:.60}")
         self._output_names = tuple(outputs) if outputs is not None else system.output_names
         self._sensor_src: list[tuple[str, int]] = []
         self._needs_forward = False

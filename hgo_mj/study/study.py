@@ -125,6 +125,9 @@ def load_toml(path: str | Path) -> dict[str, Any]:
             return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise DesignError(f"study file {str(p)!r} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise DesignError(f"study file {str(p)!r} is not UTF-8 text (a binary file?): "
+                          f"{exc}") from None
     except RecursionError:
         raise DesignError(f"study file {str(p)!r} is nested too deeply (arrays or tables "
                           f"inside each other beyond Python's recursion limit)") from None
