@@ -267,8 +267,10 @@ class Study:
             raise DesignError(f"scenario must be a table; found {type(scenario).__name__}")
         if axes is not None and not isinstance(axes, Mapping):
             raise DesignError(f"axes must map dotted paths to lists of values; found {axes!r}")
+        # parse_study checks the kinds (a list of tables each) and names what it found
         sweep = {"seeds": seeds, "mode": mode, "store": list(store),
-                 "together": [dict(t) for t in together], **dict(axes or {})}
+                 "together": [dict(t) if isinstance(t, Mapping) else t for t in together],
+                 **dict(axes or {})}
         self.spec = parse_study({**copy.deepcopy(dict(scenario)), "sweep": sweep},
                                 max_runs=max_runs)
         self.name = str(scenario.get("name", "study"))
