@@ -1185,6 +1185,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
 
     def _options(self, options: Mapping[str, Any], x0: list[float], goal: tuple[float, ...]
                  ) -> tuple[list[float], tuple[float, ...]]:
+        if not isinstance(options, Mapping):
+            raise DesignError(f"reset options must be a dict (keys 'goal', 'x0'); found "
+                              f"{type(options).__name__} {options!r}")
         unknown = [k for k in options if k not in ("x0", "goal")]
         if unknown:
             raise DesignError(f"unknown reset option(s) {unknown}; valid: ['goal', 'x0']")
@@ -1193,6 +1196,11 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         if options.get("goal") is not None:
             names = self.task.goal_names
             g = vector("options['goal']", options["goal"], len(names))
+            b = self.task.goal_bound
+            if np.any(np.abs(g) > b):  # the observation space's bound on the goal
+                raise DesignError(f"options['goal'] must lie in [-{b:g}, {b:g}] (the goal's "
+                                  f"bound in the observation space) for {list(names)}; found "
+                                  f"{g.tolist()}")
             goal = tuple(g.tolist())
         return x0, goal
 

@@ -198,7 +198,15 @@ class GhostRenderer:
         self._adr = np.asarray(qpos_adr, dtype=np.intp)
         self._true, self._ghost = mujoco.MjData(model), mujoco.MjData(model)
         self._ctx, self.backend = gl_context()
-        self._con = mujoco.MjrContext(model, int(mujoco.mjtFontScale.mjFONTSCALE_100))
+        try:
+            self._con = mujoco.MjrContext(model, int(mujoco.mjtFontScale.mjFONTSCALE_100))
+        except Exception as exc:  # noqa: BLE001 - a context made without a usable GL (glfw)
+            raise RenderError(f"the OpenGL backend MUJOCO_GL = {self.backend} made a context "
+                              f"MuJoCo cannot draw with ({type(exc).__name__}: "
+                              f"{' '.join(str(exc).split())[:160]}). Install EGL (Debian: "
+                              f"libegl1 libegl-mesa0 libopengl0 libgl1-mesa-dri) or OSMesa "
+                              f"(libosmesa6), or set MUJOCO_GL to a backend this machine has"
+                              ) from None
         mujoco.mjr_setBuffer(int(mujoco.mjtFramebuffer.mjFB_OFFSCREEN), self._con)
         self._scene = mujoco.MjvScene(model, maxgeom=4 * max(model.ngeom, 10) + 100)
         self._opt, self._pert = mujoco.MjvOption(), mujoco.MjvPerturb()

@@ -41,6 +41,15 @@ def temporary_beside(path: Path) -> str:
     return tmp
 
 
+def stale_temporaries(path: str | Path) -> list[Path]:
+    """The temporaries of ``path`` (:func:`temporary_beside`'s ``.NAME.XXXX.tmp``) that a
+    killed write left beside it."""
+    import glob
+
+    path = Path(path)
+    return sorted(path.parent.glob(f".{glob.escape(path.name)}.*.tmp"))
+
+
 def check_writable(name: str, path: str | Path, *, folder: bool) -> Path:
     """Raise :class:`~hgo_mj.exceptions.DesignError` unless ``path`` can be written: a folder
     (``folder=True``) that exists or can be created, or a file that is not a folder and whose

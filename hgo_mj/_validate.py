@@ -15,6 +15,22 @@ from .exceptions import DesignError, DimensionError
 
 _T = TypeVar("_T")
 
+#: the one rule of divergence: a state or estimate beyond this magnitude (or not finite) has
+#: diverged. Below it an error's square (at most 4e200) summed over any run stays a float, so
+#: no metric of a run that did not diverge overflows.
+DIVERGED_ABOVE = 1e100
+
+
+def diverged_rows(z: Any, x: Any = None) -> Any:
+    """Per row of ``z`` ``(T, k)`` (and of ``x``, its ``x_hat``), whether it has diverged:
+    an entry of ``z`` not finite or beyond :data:`DIVERGED_ABOVE` in magnitude, or one of
+    ``x`` beyond it (a NaN ``x_hat``, an undefined inverse, is no divergence)."""
+    with np.errstate(invalid="ignore"):
+        bad = ~np.all(np.abs(z) <= DIVERGED_ABOVE, axis=-1)
+        if x is not None:
+            bad |= np.any(np.abs(x) > DIVERGED_ABOVE, axis=-1)
+    return bad
+
 
 def is_real(value: Any) -> bool:
     """Whether ``value`` is a real number: an int, a float, a numpy integer or float, or a 0-d
@@ -241,6 +257,11 @@ def import_class(what: str, spec: Any, base: type[_T]) -> type[_T]:
         sys.path.append(here)
     try:
         mod = importlib.import_module(module)
+    except SystemExit as exc:  # sys.exit() at import would end the run silently
+        sys.modules.pop(module, None)
+        raise DesignError(f"{what} {spec!r}: module {module!r} called sys.exit({exc.code!r}) "
+                          f"while it was imported; a module a scenario names must define the "
+                          f"class, not end the program") from None
     except Exception as exc:  # noqa: BLE001 - any failure of user code is reported, one line
         first = (str(exc).strip().splitlines() or [""])[0]
         raise DesignError(f"{what} {spec!r}: module {module!r} does not import "

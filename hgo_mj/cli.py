@@ -40,6 +40,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from . import manifest
 from ._io import atomic_path, check_disk, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
@@ -110,6 +111,9 @@ def load_scenario_file(name: str) -> dict[str, Any]:
             sc = tomllib.load(fh)
         except tomllib.TOMLDecodeError as exc:
             raise DesignError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
+        except UnicodeDecodeError as exc:
+            raise DesignError(f"scenario file {str(path)!r} is not UTF-8 text (a binary file?): "
+                              f"{exc}") from None
         except RecursionError:
             raise DesignError(f"scenario file {str(path)!r} is nested too deeply (arrays or "
                               f"tables inside each other beyond Python's recursion limit)"
@@ -251,10 +255,15 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         from .simulate import check_memory
 
         rows, width = output_shape(kw, every)
-        check_memory(8 * rows * width, int(rows))
+        check_memory(run_memory(rows, width), int(rows))
     check_disk("--out (run.out)", out, output_bytes(kw, every, formats))
     if rrd is not None:
         check_writable("--rrd", rrd, folder=False)
+    if stream:
+        from .stream import check_no_parts
+
+        check_no_parts(out / "trajectory.parquet")
+    clear_stale(out, rrd)
     rec = None
     if rrd is not None:
         from .record import Recorder
@@ -275,6 +284,7 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         if stream:
             from .stream import stream_run
 
+            manifest.begin(out)  # the folder's files change from here on
             traj, metrics = stream_run({**kw, "store_every": run.get("store_every", 1)},
                                        out / "trajectory.parquet", seed=seed,
                                        chunk_seconds=chunk_s, **mkw,
@@ -283,7 +293,6 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
             traj = simulate(**kw, seed=seed, on_chunk=on_chunk,
                             store_every=run.get("store_every", 1), isolate=True)
             metrics = all_metrics(traj, **mkw)
-        check_metrics(metrics)
         if rec is not None:
             rec.log_metadata(traj.metadata)
             rec.log_metrics(metrics)
@@ -291,7 +300,9 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
         if rec is not None:
             rec.close()
     out.mkdir(parents=True, exist_ok=True)
-    write_results(traj, metrics, out, formats, table=not stream)
+    if not stream:
+        manifest.begin(out)  # the folder's files change from here on
+    written = write_results(traj, metrics, out, formats, table=not stream)
     every = traj.metadata.get("figure_every", 1)
     save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {plant_label(pl)}, seed {seed}"
                                 + (f" (every {every}-th sample shown)" if every > 1 else "")),
@@ -299,11 +310,36 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
     from .units import units_of
 
     write_text(out / "summary.txt", format_table(metrics, *units_of(traj)) + "\n")
+    manifest.finish(out, [*written, "figure.png", "summary.txt"])
     for ob, d in traj.diverged.items():  # the run isolates a failing observer: say so
         print(f"hgo-mj: observer {ob!r} diverged at t = {d['t']:g} s ({d['error']}); its "
               f"estimate is NaN from there on, the other observers ran to the end",
               file=sys.stderr)
     return traj, metrics, out
+
+
+#: the files ``hgo-mj run`` may write into its folder
+RUN_FILES = ("trajectory.npz", "trajectory.parquet", "trajectory.csv", "metrics.parquet",
+             "metrics.csv", "metrics.json", "figure.png", "summary.txt", "manifest.json",
+             "metrics_mc.json", "summary_mc.txt", "mc.png")
+
+
+def clear_stale(out: Path, rrd: str | Path | None) -> None:
+    """Remove the temporaries a killed earlier run left of the files of ``out`` (saying so on
+    stderr); report, and keep, those of the recording ``rrd`` (the torn rows of a killed
+    recording, which :func:`hgo_mj.record.read` reads)."""
+    from ._io import stale_temporaries
+
+    stale = [f for name in RUN_FILES for f in stale_temporaries(out / name)]
+    for f in stale:
+        f.unlink(missing_ok=True)
+    if stale:
+        print(f"hgo-mj: removed {len(stale)} temporary file(s) a killed earlier run left in "
+              f"{out}: {', '.join(f.name for f in stale)}", file=sys.stderr)
+    torn = stale_temporaries(rrd) if rrd is not None else []
+    if torn:
+        print(f"hgo-mj: {', '.join(str(f) for f in torn)}: the recording of a killed earlier run "
+              f"(kept: hgo_mj.record.read reads its rows; remove it when done)", file=sys.stderr)
 
 
 #: bytes a stored value takes in each trajectory format (CSV: its text, about 20 characters)
@@ -322,26 +358,27 @@ def output_shape(kw: dict[str, Any], every: int) -> tuple[float, int]:
     return rows, width
 
 
+#: the memory a ``hgo-mj run`` keeping its rows adds at its peak (simulation, metrics, the
+#: files and the figure), per byte of its stored columns (``8 x rows x columns``), and what it
+#: adds whatever its length (the libraries loaded after the check: pandas, pyarrow,
+#: matplotlib, numba's kernels): measured by ``python scripts/memory_calibration.py``
+#: (BENCHMARKS.md: slopes of 4.0 to 4.6 and 228 to 254 MiB), rounded up
+RUN_MEMORY_FACTOR = 5.0
+RUN_MEMORY_BASE = 288 * 2**20
+
+
+def run_memory(rows: float, width: int) -> float:
+    """The bytes a ``hgo-mj run`` of ``rows`` rows and ``width`` columns (:func:`output_shape`)
+    needs beyond what the process holds before it: :data:`RUN_MEMORY_BASE` plus
+    :data:`RUN_MEMORY_FACTOR` times its stored columns' bytes."""
+    return RUN_MEMORY_BASE + RUN_MEMORY_FACTOR * 8 * rows * width
+
+
 def output_bytes(kw: dict[str, Any], every: int, formats: tuple[str, ...]) -> float:
     """An upper estimate of the bytes the trajectory files of a run take: rows x columns x
     :data:`BYTES_PER_VALUE` per format (:func:`output_shape`)."""
     rows, width = output_shape(kw, every)
     return rows * width * sum(BYTES_PER_VALUE[f] for f in formats)
-
-
-def check_metrics(metrics: dict[str, Any]) -> None:
-    """Raise :class:`DivergenceError` when an error metric overflowed to infinity (noise or
-    estimates so large that their squares leave the floats): such a result is reported, not
-    written as ``null`` metrics."""
-    import math
-
-    for ob, m in metrics.items():
-        for key in ("rmse", "peak", "final"):
-            for state, v in zip(m.get("states", ()), m.get(key, ())):
-                if isinstance(v, float) and math.isinf(v):
-                    raise DivergenceError(f"observer {ob!r}: the {key} of {state} overflowed to "
-                                          f"{v} (errors beyond the floats' range: is the noise or "
-                                          f"the gain too large?); nothing was written")
 
 
 #: the most seeds ``hgo-mj run --seeds`` runs; more are a study (``hgo-mj sweep``)
@@ -417,12 +454,25 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=quiet,
                                                resume=resume and folder.is_dir()).table
     done, runs, failed = seed_metrics(table, metrics)
-    mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
+    if traj.diverged:  # the first seed counts as the others do: a diverged observer fails it
+        ob, d = next(iter(traj.diverged.items()))
+        failed = {seed: f"seed {seed}: observer {ob!r} diverged at t={d['t']:g}: {d['error']}",
+                  **failed}
+    else:
+        done, runs = [seed, *done], [metrics, *runs]
+    if not runs:
+        raise DivergenceError(f"every seed diverged ({n} of {n}): {failed[seed]}; nothing to "
+                              f"aggregate (the first seed's run is in {out}, every seed's rows "
+                              f"in {folder}/results.parquet)")
+    mc = MonteCarloResult.from_runs(done, runs, failed)
+    first = manifest.listed(out)  # the first seed's files; the seeds/ study has its own
+    manifest.begin(out)
     write_json(out / "metrics_mc.json", mc.to_json())
     units, t_unit = units_of(traj)
     write_text(out / "summary_mc.txt", mc.table(units, t_unit) + "\n")
     save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {plant_label(sc['plant'])}, "
                                  f"seeds {seeds[0]}..{seeds[-1]}", units=units), out / "mc.png")
+    manifest.finish(out, [*first, "metrics_mc.json", "summary_mc.txt", "mc.png"])
     return traj, metrics, out, mc
 
 
@@ -607,7 +657,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="skip the (cell, seed) runs already in OUT/results.parquet (the same "
                     "study only)")
     sw.add_argument("--yes", action="store_true",
-                    help="run a study of more than 10 million runs")
+                    help="run a study of more than 10 million runs (one whose estimated memory "
+                    "exceeds the memory available is still refused)")
     sw.add_argument("--quiet", action="store_true", help="no plan line and no progress")
     t = sub.add_parser("tune", help="tune a scenario's observer with Optuna (see hgo_mj.tune)")
     t.add_argument("scenario", help="scenario TOML file (open-loop [input]; the observer in "
@@ -731,7 +782,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .study.spec import MAX_RUNS
 
     study = Study.from_toml(args.study, max_runs=None if args.yes else MAX_RUNS)
-    out = Path(args.out or f"runs/{Path(args.study).stem}")
+    out = check_writable("--out", args.out or f"runs/{Path(args.study).stem}", folder=True)
     jobs = _flag_int(args.jobs, "--jobs")
     result = study.run(out, jobs=jobs, backend=args.backend, address=args.address,
                        resume=args.resume, quiet=args.quiet)

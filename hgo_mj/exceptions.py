@@ -6,8 +6,8 @@ errors a caller would catch anyway (``ValueError``, ``RuntimeError``).
 
 from __future__ import annotations
 
-__all__ = ["DesignError", "DimensionError", "DivergenceError", "HgoError", "ModelError",
-           "RecordingError", "TrajectoryFileError"]
+__all__ = ["DesignError", "DimensionError", "DivergenceError", "HgoError", "ManifestError",
+           "ModelError", "RecordingError", "TrajectoryFileError"]
 
 
 class HgoError(Exception):
@@ -104,6 +104,19 @@ class TrajectoryFileError(HgoError, ValueError):
     Examples
     --------
     >>> err = TrajectoryFileError("run.npz: no column 't'")
+    >>> isinstance(err, HgoError), isinstance(err, ValueError)
+    (True, True)
+    """
+
+
+class ManifestError(HgoError, ValueError):
+    """A folder hgo_mj wrote does not match its manifest (:mod:`hgo_mj.manifest`): the run
+    writing it did not finish, or its files come from two runs; the message names the folder,
+    the file and what differs.
+
+    Examples
+    --------
+    >>> err = ManifestError("runs/a: metrics.json differs from the manifest")
     >>> isinstance(err, HgoError), isinstance(err, ValueError)
     (True, True)
     """

@@ -132,7 +132,15 @@ class FunctionSignal(Signal):
         self.fn = fn
 
     def values(self, t: Array) -> Array:
-        rows = [np.atleast_1d(np.asarray(self.fn(float(ti)), dtype=float)) for ti in t]
+        rows = []
+        for ti in t:
+            u = self.fn(float(ti))
+            try:
+                rows.append(np.atleast_1d(np.asarray(u, dtype=float)))
+            except (TypeError, ValueError):
+                raise DimensionError(f"u(t) must return a number or a 1-D array of numbers; "
+                                     f"found {type(u).__name__} {u!r:.60} at t={float(ti):g}"
+                                     ) from None
         widths = {r.shape for r in rows}
         if len(widths) != 1 or any(r.ndim != 1 for r in rows):
             raise DimensionError(f"u(t) must return 1-D arrays of one length; found shapes "

@@ -739,7 +739,12 @@ class Drive:
         return np.broadcast_to(self._held[:, None], (loop.batch, T, self.m)).copy()
 
     def _check(self, vals: Any, rows: int, t: float) -> Array:
-        vals = np.asarray(vals, dtype=float)
+        try:
+            vals = np.asarray(vals, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise DimensionError(f"input must be numbers, {self.m} channel(s) "
+                                 f"{self.input_names}; found {_short_repr(vals)} at t={t:g} "
+                                 f"({exc})") from None
         if vals.shape != (rows, self.m):
             found = vals.shape[1:] if vals.ndim == 2 else vals.shape
             raise DimensionError(f"input must have {self.m} channel(s) {self.input_names}; "
@@ -750,6 +755,12 @@ class Drive:
         src = self.controller if self.controller is not None else self.signal
         params = src.params() if src is not None and hasattr(src, "params") else {}
         return {"type": type(src).__name__, **params}
+
+
+def _short_repr(value: Any, n: int = 60) -> str:
+    """``repr(value)``, cut to ``n`` characters."""
+    text = repr(value)
+    return text if len(text) <= n else text[:n] + "..."
 
 
 class _Found(Exception):

@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from ._validate import finite_scalar
+from ._validate import DIVERGED_ABOVE, finite_scalar
 from .exceptions import DesignError
 
 Array = NDArray[np.float64]
@@ -421,13 +421,15 @@ _NO_Z_ROWS = np.empty((1, 0, 0))
 def _accumulate(t: Array, X: Array, px: Array, pz: Array, BX: Array, BZ: Array, idx: Any,
                 cols: Any, t_tr: float, band: Array, sumsq: Array, comp: Array, count: Any,
                 peak: Array, undefined: Any, settle: Array, final: Array, bad: Any,
-                E: Array, r0: int) -> None:  # pragma: no cover - compiled
+                E: Array, r0: int, above: float) -> None:  # pragma: no cover - compiled
     """One pass over the rows ``0 ... T - 1`` of a block of B members (:class:`MetricsBatch`):
     the estimate of row ``j`` is ``px``/``pz`` for ``j = 0``, else ``BX``/``BZ``'s row
     ``j - 1``. The squares are summed with Neumaier's compensation. ``settle`` holds the time
     of the row after the last one outside the band (NaN: the next row's, still to come).
     The block's first row is row ``r0`` of the run: ``bad`` holds rows, and where ``E`` has
-    rows, each error is also written there (``E[b, r0 + j, s]``)."""
+    rows, each error is also written there (``E[b, r0 + j, s]``). ``above``: the magnitude
+    past which an estimate has diverged (:data:`hgo_mj._validate.DIVERGED_ABOVE`, an argument:
+    a compiled global would outlive a change in the cache)."""
     keep = E.shape[1] > 0
     B, T, nz, nx = X.shape[0], X.shape[1], pz.shape[1], px.shape[1]
     for b in range(B):
@@ -435,11 +437,11 @@ def _accumulate(t: Array, X: Array, px: Array, pz: Array, BX: Array, BZ: Array, 
             if bad[b] < 0:
                 for q in range(nz):
                     v = pz[b, q] if j == 0 else BZ[b, j - 1, q]
-                    if not np.isfinite(v):
+                    if not abs(v) <= above:
                         bad[b] = r0 + j
                 for q in range(nx):
                     v = px[b, q] if j == 0 else BX[b, j - 1, q]
-                    if np.isinf(v):
+                    if abs(v) > above:  # a NaN x_hat (undefined inverse) is no fault
                         bad[b] = r0 + j
             inwin = t[j] >= t_tr
             for s in range(idx.size):
@@ -479,7 +481,7 @@ class MetricsBatch:
     last block back (kept here when ``rows`` > 0, or handed over again). RMSE: the squares in
     the window ``t >= t_transient`` summed with Neumaier's compensation (equal to
     ``numpy.mean``'s pairwise sum to rounding). ``bad`` per member: the first row whose
-    estimate is infinite or whose ``z_hat`` is not finite (-1: none).
+    estimate has diverged (:func:`hgo_mj._validate.diverged_rows`; -1: none).
     """
 
     def __init__(self, idx: Any, cols: Any, B: int, t_transient: float,
@@ -526,7 +528,7 @@ class MetricsBatch:
         _accumulate(np.ascontiguousarray(t, dtype=np.float64), X, prev[0], prev[1], BX, BZ,
                     self.idx, self.cols, self.t_transient, self.band, self.sumsq, self.comp,
                     self.count, self.peak, self.undefined, self.settle_t, self.final, self.bad,
-                    self.E, self.rows)
+                    self.E, self.rows, DIVERGED_ABOVE)
         if self.rows == 0:
             self.t_first = float(t[0])
         self.t_last = float(t[-1])

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._io import atomic_path
-from ._validate import finite_scalar, positive_int, vector
+from ._validate import DIVERGED_ABOVE, diverged_rows, finite_scalar, positive_int, vector
 from .exceptions import DesignError, DimensionError, DivergenceError, TrajectoryFileError
 from .loop import Drive, Loop, LoopFailure, Periods, Segment
 from .observers.base import Observer
@@ -493,6 +493,9 @@ class Trajectory:
             missing, not numeric or larger than the file or the memory, metadata that is not
             its JSON, names repeated, columns of different lengths), named with what is wrong;
             columns of different lengths also raise it as a ``DimensionError``.
+        ManifestError
+            The file's folder has a manifest (:mod:`hgo_mj.manifest`) that it does not match:
+            the run writing the folder did not finish, or its files come from two runs.
         OSError
             The file cannot be opened.
 
@@ -510,7 +513,9 @@ class Trajectory:
         (11, ('angle', 'angular_velocity'), True)
         """
         from ._trajfile import read
+        from .manifest import check
 
+        check(path)  # a file of a folder that mixes two runs is refused
         z, meta = read(path)  # checked: a TrajectoryFileError naming the file and the problem
         observers = {
             name: ObserverRecord(
@@ -571,6 +576,9 @@ def _named_observers(observers: Any) -> dict[str, Observer]:
         return {}
     if isinstance(observers, Observer):
         observers = [observers]
+    if not isinstance(observers, (Mapping, list, tuple)):
+        raise DesignError(f"observers must be an Observer, a list of them or a dict name -> "
+                          f"Observer; found {type(observers).__name__} {observers!r:.60}")
     if isinstance(observers, Mapping):
         items = list(observers.items())
     else:
@@ -768,6 +776,12 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
          duration: float, *, sample_period: Any, control_period: Any, x0: Any, seeds: Any,
          batch: int | None, metadata: Mapping[str, Any] | None, on_chunk: Any,
          store_every: Any, isolate: bool = False, keep: bool = True) -> list[Trajectory]:
+    if not isinstance(plant, Plant):
+        raise DesignError(f"plant must be a Plant (hgo_mj.plants.make_plant({plant!r:.40}) "
+                          f"makes one); found {type(plant).__name__}")
+    if metadata is not None and not isinstance(metadata, Mapping):
+        raise DesignError(f"metadata must be a dict; found {type(metadata).__name__} "
+                          f"{metadata!r:.60}")
     periods = Periods.of(plant, sample_period, control_period)
     duration = finite_scalar("duration", duration, positive=True)
     if duration < periods.sample:
@@ -775,6 +789,9 @@ def _run(plant: Plant, sensor: SensorChain | None, observers: Any, inputs: Any,
                           f"{periods.sample:g} s; a shorter run has a single row")
     every = positive_int("store_every", store_every, floats=False)
     N = int(round(duration / periods.sample))
+    if every > N:
+        raise DesignError(f"store_every = {every} keeps one row of a run of {N} samples: give "
+                          f"at most {N} (store_every = k keeps every k-th sample)")
     obs = _named_observers(observers)
     drive = Drive.of(inputs, obs, plant, periods)
     loop = Loop(plant, sensor, obs, periods, isolate=isolate)
@@ -838,7 +855,7 @@ def _raise_on_divergence(traj: Trajectory, failure: LoopFailure | None,
         if name in skip:
             continue
         # the observer's own coordinates decide; a NaN x_hat (inverse undefined) is allowed
-        bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
+        bad = diverged_rows(r.z_hat, r.x_hat)
         if bad.any():
             k = int(np.argmax(bad))
             exc = DivergenceError(f"observer {name!r} estimate left the finite numbers at "
@@ -859,7 +876,7 @@ def _isolate_nonfinite(traj: Trajectory, skip: Mapping[str, Any], first_row: int
     for name, r in traj.observers.items():
         if name in skip:
             continue
-        bad = ~np.all(np.isfinite(r.z_hat), axis=1) | np.any(np.isinf(r.x_hat), axis=1)
+        bad = diverged_rows(r.z_hat, r.x_hat)
         if name not in stopped and not bad.any():
             continue
         k = 0 if name in stopped else int(np.argmax(bad))
@@ -870,7 +887,8 @@ def _isolate_nonfinite(traj: Trajectory, skip: Mapping[str, Any], first_row: int
                 v[k:] = np.nan
         if name not in stopped:
             found[name] = {"t": float(traj.t[k]), "row": first_row + k, "sample": None,
-                           "error": "DivergenceError: the estimate left the finite numbers"}
+                           "error": "DivergenceError: the estimate left the finite numbers "
+                                    f"(|entry| > {DIVERGED_ABOVE:g} or not finite)"}
     return found
 
 
@@ -1037,11 +1055,13 @@ def available_memory() -> float:
 
 
 def check_memory(nbytes: float, rows: int) -> None:
-    """Raise :class:`DesignError` before a run whose stored rows (``nbytes``) would not fit in
-    the memory available, naming the estimate and ``store_every`` (keep every k-th row)."""
+    """Raise :class:`DesignError` before a run that needs ``nbytes`` (its stored rows, or what
+    ``hgo-mj run`` needs for them: :func:`hgo_mj.cli.run_memory`) beyond the memory
+    available, naming the estimate and ``store_every`` (keep every k-th row)."""
     avail = available_memory()
     if nbytes > avail:
-        raise DesignError(f"the run would store {rows} rows, about {nbytes / 2**30:.3g} GiB; "
+        raise DesignError(f"the run would store {rows} rows and need about "
+                          f"{nbytes / 2**30:.3g} GiB; "
                           f"found {avail / 2**30:.3g} GiB of memory available: shorten the "
                           f"duration or keep every k-th row (store_every=k; hgo-mj run "
                           f"--store-every k, run.store_every)")

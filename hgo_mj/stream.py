@@ -8,30 +8,84 @@ the file's row groups from the end for the settling times) and keeps every k-th 
 figure (at most :data:`FIGURE_ROWS`). The memory of the run does not grow with its duration:
 ``python scripts/reliability.py`` measures it (docs/reliability.md).
 
-The table goes to a temporary file in the output folder, renamed into place when the run
-has finished and its metadata is written: a killed run leaves no torn ``trajectory.parquet``
-(an earlier one stays).
+Each chunk is a closed Parquet file of its own in ``trajectory.parquet.parts/``, joined into
+``trajectory.parquet`` (written to a temporary and renamed into place) when the run has
+finished: a killed run (SIGKILL, Ctrl-C) leaves no torn ``trajectory.parquet`` (an earlier one
+stays) and its rows up to the last chunk readable in the parts folder, which the next run
+reports (:func:`check_no_parts`) rather than overwrites.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ._io import temporary_beside
+from ._io import atomic_path
 from ._json import strict_json
 from .exceptions import DesignError
 
 #: the most rows a streamed run keeps for its figure (every k-th row)
 FIGURE_ROWS = 20_000
 
-__all__ = ["FIGURE_ROWS", "ParquetChunks", "stream_run"]
+__all__ = ["FIGURE_ROWS", "ParquetChunks", "check_no_parts", "parts_folder", "stream_run"]
+
+
+def parts_folder(path: str | Path) -> Path:
+    """The folder of a streamed table's chunks while it is written: ``PATH.parts``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The streamed table (``trajectory.parquet``).
+
+    Returns
+    -------
+    Path
+        ``path`` with ``.parts`` appended to its name.
+
+    Examples
+    --------
+    >>> parts_folder("runs/a/trajectory.parquet").name
+    'trajectory.parquet.parts'
+    """
+    path = Path(path)
+    return path.with_name(path.name + ".parts")
+
+
+def check_no_parts(path: str | Path) -> None:
+    """Raise :class:`~hgo_mj.exceptions.DesignError` when the chunks of a killed streamed run
+    lie in ``PATH.parts``: its rows (readable) are reported, not overwritten.
+
+    Parameters
+    ----------
+    path : str or Path
+        The streamed table a run is about to write.
+
+    Raises
+    ------
+    DesignError
+        The parts folder holds chunks; the message gives their rows and how to read them.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     check_no_parts(Path(tmp) / "trajectory.parquet")  # none: passes
+    """
+    import pyarrow.parquet as pq
+
+    parts = parts_folder(path)
+    files = sorted(parts.glob("*.parquet")) if parts.is_dir() else []
+    if files:
+        rows = sum(pq.ParquetFile(f).metadata.num_rows for f in files)
+        raise DesignError(f"{parts} holds {len(files)} chunk(s), {rows} rows, of a streamed run "
+                          f"that was killed: read them with pandas.read_parquet({str(parts)!r}), "
+                          f"then remove the folder (or choose another --out)")
 
 
 class ParquetChunks:
@@ -40,8 +94,12 @@ class ParquetChunks:
     Parameters
     ----------
     path : str or Path
-        The file to write; written to a temporary file beside it, renamed onto it by
-        :meth:`close` (the folder is created).
+        The file to write. Each chunk is first a closed Parquet file of its own in the
+        folder ``PATH.parts`` (:func:`parts_folder`), written atomically; :meth:`close`
+        joins them into ``path`` (one row group per chunk, atomically) and removes the
+        folder. A killed run leaves its chunks there, readable
+        (``pandas.read_parquet(PATH.parts)``); a new run refuses to start over them
+        (:func:`check_no_parts`).
 
     Examples
     --------
@@ -65,9 +123,10 @@ class ParquetChunks:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(temporary_beside(self.path))
-        self.writer: Any = None
+        self.parts = parts_folder(self.path)
+        check_no_parts(self.path)
+        self.parts.mkdir(parents=True, exist_ok=True)
+        self.schema: Any = None
         self.row_groups = 0
 
     def write(self, chunk: Any) -> None:
@@ -101,13 +160,14 @@ class ParquetChunks:
         from .tidy import wide_columns
 
         cols, units = wide_columns(chunk)
-        if self.writer is None:
+        if self.schema is None:
             fields = [pa.field(c, pa.float64(), metadata=None if units.get(c) is None
                                else {"unit": units[c]}) for c in cols]
             self.schema = pa.schema(fields)
             self.units = units
-            self.writer = pq.ParquetWriter(str(self.tmp), self.schema)
-        self.writer.write_table(pa.table(cols, schema=self.schema))
+        # a closed file per chunk: a kill leaves every chunk before it readable
+        with atomic_path(self.parts / f"part-{self.row_groups:06d}.parquet") as tmp:
+            pq.write_table(pa.table(cols, schema=self.schema), str(tmp))
         self.row_groups += 1
 
     def close(self, traj: Any) -> Path:
@@ -148,22 +208,25 @@ class ParquetChunks:
         >>> units["hgo/angular_velocity"]
         'rad/s'
         """
+        import pyarrow.parquet as pq
+
         from .tidy import schema_metadata
 
-        if self.writer is None:
+        if self.schema is None:
             self.abort()
             raise DesignError("no rows were written to the streamed table")
         meta = schema_metadata(traj, "wide", self.units)
-        self.writer.add_key_value_metadata({"hgo_mj": json.dumps(strict_json(meta),
+        schema = self.schema.with_metadata({"hgo_mj": json.dumps(strict_json(meta),
                                                                  allow_nan=False)})
-        self.writer.close()
-        self.writer = None
-        os.replace(self.tmp, self.path)
+        with atomic_path(self.path) as tmp, pq.ParquetWriter(str(tmp), schema) as writer:
+            for i in range(self.row_groups):  # one part in memory at a time
+                writer.write_table(pq.read_table(self.parts / f"part-{i:06d}.parquet")
+                                   .replace_schema_metadata(schema.metadata))
+        shutil.rmtree(self.parts)
         return self.path
 
     def abort(self) -> None:
-        """Close and remove the temporary file (the run failed: nothing is renamed into
-        place).
+        """Remove the parts (the run failed: nothing is written in place).
 
         Examples
         --------
@@ -176,12 +239,7 @@ class ParquetChunks:
         >>> left
         []
         """
-        if self.writer is not None:
-            with contextlib.suppress(Exception):
-                self.writer.close()
-            self.writer = None
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(self.tmp)
+        shutil.rmtree(self.parts, ignore_errors=True)
 
 
 class _Thinned:
@@ -335,6 +393,8 @@ def stream_run(kw: dict[str, Any], path: str | Path, *, seed: Any, chunk_seconds
         traj = simulate(**kw, seed=seed, on_chunk=(chunk_seconds, take), keep=False,
                         isolate=True)
         table.close(traj)
+    except KeyboardInterrupt:
+        raise  # the chunks written stay readable in the parts folder (check_no_parts)
     except BaseException:
         table.abort()
         raise

@@ -99,9 +99,22 @@ SUITES = ("tests/test_fuzz_scenarios.py", "tests/test_bad_inputs.py",
           "tests/test_trajectory_file.py",
           "tests/systems/test_symbolic.py::test_oversized_or_non_real_expressions_are_one_line_in_seconds",
           "tests/test_faults.py", "tests/test_isolation.py", "tests/test_stream.py",
-          "tests/study/test_ray.py")
+          "tests/test_manifest.py", "tests/study/test_ray.py")
 FAULT_SUITES = ("tests/test_faults.py", "tests/test_isolation.py", "tests/test_stream.py",
-                "tests/study/test_ray.py")
+                "tests/test_manifest.py", "tests/study/test_ray.py")
+
+
+def totals(counts: dict[str, str]) -> tuple[int, int]:
+    """The tests run and those that failed, summed over pytest's summary lines ``counts``
+    (each test fails on a traceback, a silent accept or a file lost)."""
+    import re
+
+    run = failed = 0
+    for line in counts.values():
+        for n, what in re.findall(r"(\d+) (passed|failed|error)", line):
+            run += int(n)
+            failed += int(n) if what != "passed" else 0
+    return run, failed
 
 
 def suites(paths: Sequence[str] = SUITES) -> tuple[dict[str, str], list[dict[str, str]]]:
@@ -203,13 +216,22 @@ def page(rows: list[dict], soaks: dict[str, dict], steps: int, counts: dict[str,
               "exit 2 and no output files; each mutated trajectory file (120 examples) loads or "
               "is one `TrajectoryFileError` naming the file; each oversized or non-real ODE "
               "expression (`9**9**9`, 100,000 minus signs, a 200,000-term sum, `sqrt(-1)`) is "
-              "one `ModelError` line within seconds. The fault tests kill during a save, fill "
-              "the disk under a recording, kill and Ctrl-C multi-run commands, stop a streamed "
-              "run, make an observer fail in a run, SIGKILL the driver of a local Ray instance "
+              "one `ModelError` line within seconds, and so is each generated ODE expression "
+              "that does not build (issue 27). The fault tests kill during a save, fill "
+              "the disk under a recording (the earlier recording kept), SIGKILL a recording, "
+              "a streamed run (its chunks readable) and a run between two files (its folder "
+              "refused by the manifest), kill and Ctrl-C multi-run commands, "
+              "make an observer fail or overflow in a run, SIGKILL the driver of a local Ray instance "
               "(none of its processes left after 10 s) and list that instance's listening "
               "sockets in a network namespace with a non-loopback address (127.0.0.1 only).",
               "", "| suite | pytest |", "|---|---|"]
     lines += [f"| `{k}` | {v} |" for k, v in counts.items()]
+    run, failed = totals(counts)
+    lines += ["", f"Cases tried: {run} tests (each hypothesis property among them runs 150 "
+              f"generated documents, trajectory files or ODE expressions). Tracebacks, silent "
+              f"accepts and files lost: {failed} (every test fails on any of the three: a "
+              f"traceback or an exception of another kind, a bad input that runs, a file or "
+              f"row a kill or a full disk destroyed). Target: 0, 0, 0."]
     if faults:
         lines += ["", "### Faults injected, one test each", "",
                   "| test | what it injects and asserts | result |", "|---|---|---|"]

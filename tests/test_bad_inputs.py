@@ -4,6 +4,7 @@ bad input the issue found; the property-based suite is tests/test_fuzz_scenarios
 
 from __future__ import annotations
 
+import json
 import tracemalloc
 
 import numpy as np
@@ -162,10 +163,13 @@ def test_run_too_long_for_memory_refused_before_running(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- magnitudes
-def test_huge_noise_is_reported_not_written_as_null(tmp_path, capsys):
+def test_huge_noise_is_a_divergence_of_the_observer_not_null_metrics(tmp_path, capsys):
+    """Issue 27 item 1: an estimate beyond 1e100 is that observer's divergence, reported."""
     doc = BASE + '[sensor]\nstages = [{stage = "gaussian", std = 1e300}]\n'
-    code, err, out = _run(tmp_path, doc, capsys)
-    assert_one_line(code, err, out, "overflowed to inf")
+    code, err, out = _run(tmp_path, doc, capsys, "--quiet")
+    assert code == 0 and "diverged at t = 0.01 s" in err and "Traceback" not in err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["high_gain_0"]["diverged_at"] == 0.01
 
 
 def test_huge_gain_is_refused(tmp_path, capsys):
@@ -363,3 +367,83 @@ def test_a_misspelt_plant_is_named_before_a_missing_duration(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(
         "hgo-mj: error: unknown plant 'pendulumm'; valid: ['acrobot'"), err
+
+
+def test_the_memory_check_asks_for_at_least_a_run_s_measured_peak(tmp_path):
+    """Issue 27 item 14: what the up-front check asks of a run kept in memory covers the
+    growth of the process's resident memory over that run (measured in a fresh process, from
+    after the imports to its peak; scripts/memory_calibration.py gives the figures)."""
+    import subprocess
+    import sys
+
+    from hgo_mj.cli import build_parser, output_shape, run_memory, scenario_from_args
+    from hgo_mj.scenario import scenario_run
+
+    flags = ["--plant", "pendulum", "--dt", "0.001", "--observer", "high_gain:k=20",
+             "--duration", "150", "--quiet", "--format", "npz", "--format", "parquet",
+             "--format", "csv"]
+    code = ("import resource, sys\nfrom hgo_mj.cli import main\n"
+            "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+            f"assert main(['run', *{flags!r}, '--out', {str(tmp_path / 'o')!r}]) == 0\n"
+            "print(before, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=600)
+    assert res.returncode == 0, res.stderr
+    before, peak = (1024 * int(v) for v in res.stdout.split()[-2:])
+    rows, width = output_shape(scenario_run(scenario_from_args(build_parser().parse_args(
+        ["run", *flags])), "m"), 1)
+    assert run_memory(rows, width) >= peak - before, (rows, width, (peak - before) / 2**20)
+
+
+def test_store_every_beyond_the_run_is_refused(tmp_path, capsys):
+    """Issue 27 item 7: a store_every that keeps one row is refused, as dt = 1e9 is."""
+    assert_one_line(*_run(tmp_path, with_run("store_every = 1000000000"), capsys),
+                    "store_every = 1000000000 keeps one row of a run of 30 samples",
+                    "at most 30")
+
+
+@pytest.mark.parametrize("case, message", [
+    ("plant", r"plant must be a Plant \(hgo_mj.plants.make_plant\('pendulum'\) makes one\); "
+              r"found str"),
+    ("observers", r"observers must be an Observer, a list of them or a dict .*found int 5"),
+    ("metadata", r"metadata must be a dict; found int 5"),
+    ("input", r"u\(t\) must return a number or a 1-D array of numbers; found str 'abc' at t=0"),
+    ("controller", r"input must be numbers, 1 channel\(s\) .*found 'abc'"),
+])
+def test_simulate_bad_arguments_are_clear_errors(case, message):
+    """Issue 27 item 13: simulate's arguments of the wrong kind are named, not raw errors."""
+    from hgo_mj.control import LinearFeedback
+    from hgo_mj.observers import HighGainObserver
+    from hgo_mj.plants import make_plant
+    from hgo_mj.simulate import simulate
+
+    plant = make_plant("pendulum", dt=0.01)
+    obs = {"o": HighGainObserver(plant.system, k=20.0)}
+    law = LinearFeedback([[1.0, 1.0]])
+    law.act = lambda t, x: "abc"
+    kw = {"plant": plant, "sensor": None, "observers": obs, "inputs": lambda t: [0.0],
+          "duration": 0.1}
+    kw.update({"plant": {"plant": "pendulum"}, "observers": {"observers": 5},
+               "metadata": {"metadata": 5}, "input": {"inputs": lambda t: "abc"},
+               "controller": {"inputs": law}}[case])
+    with pytest.raises(HgoError, match=message):
+        simulate(**kw)
+
+
+def test_cli_leftovers_name_the_parameter_or_file(tmp_path, capsys):
+    """Issue 27 item 13: plant outputs and z_bounds of the wrong kind name the parameter, a
+    binary scenario file is named, and `sweep --out FILE` exits 2 as `run` does."""
+    base = BASE.replace('name = "pendulum"\n', 'name = "pendulum"\nparams = {outputs = 5}\n', 1)
+    assert_one_line(*_run(tmp_path, base, capsys), "outputs must be a list of sensor names")
+    assert_one_line(*_run(tmp_path, with_observer("z_bounds = 5"), capsys),
+                    "z_bounds must be a pair (lower, upper)")
+    binary = tmp_path / "bin.toml"
+    binary.write_bytes(b"\xff\xfe\x00\x01binary")
+    assert main(["run", str(binary), "--out", str(tmp_path / "o")]) == 2
+    assert "scenario file" in capsys.readouterr().err
+    study = tmp_path / "s.toml"
+    study.write_text(BASE.replace("k = 20.0", 'name = "h"\nk = 20.0')
+                     + '[sweep]\n"observers.h.k" = [1.0, 2.0]\n')
+    (tmp_path / "afile").write_text("")
+    assert main(["sweep", str(study), "--out", str(tmp_path / "afile"), "--quiet"]) == 2
+    assert "--out must be a folder; found the existing file" in capsys.readouterr().err

@@ -20,78 +20,106 @@ import pytest
 
 from hgo_mj.cli import main
 from hgo_mj.exceptions import DesignError, RecordingError
-from hgo_mj.record import Recorder
 
 RUN = ["run", "--plant", "pendulum", "--dt", "0.001", "--observer", "high_gain:k=20",
        "--duration", "3", "--quiet"]
 
 
-def rerun_binary() -> str:
-    """The ``rerun`` command installed with rerun-sdk (beside this interpreter, else on PATH)."""
+def rerun_command() -> list[str]:
+    """The ``rerun`` command installed with rerun-sdk: beside this interpreter, else on PATH,
+    else ``python -m rerun`` (the same binary, found through the package)."""
     beside = Path(sys.executable).parent / "rerun"
     found = str(beside) if beside.is_file() else shutil.which("rerun")
-    assert found, "rerun-sdk installs the `rerun` command"
-    return found
+    return [found] if found else [sys.executable, "-m", "rerun"]
 
 
-def full_file(tmp_path: Path) -> Path:
-    """A path ending in .rrd on which every write fails with ENOSPC (a full disk)."""
-    assert Path("/dev/full").exists(), "Linux provides /dev/full"
-    link = tmp_path / "full.rrd"
-    link.symlink_to("/dev/full")
-    return link
+def verify(rrd: Path) -> subprocess.CompletedProcess[str]:
+    """``rerun rrd verify`` on ``rrd``."""
+    return subprocess.run([*rerun_command(), "rrd", "verify", str(rrd)], capture_output=True,
+                          text=True, timeout=120)
 
 
-def test_recorder_on_a_full_disk_raises_recording_error(tmp_path):
-    with pytest.raises(RecordingError, match=r"full\.rrd.*No space left on device"):
-        Recorder(full_file(tmp_path), state_names=["x"], output_names=["y"], input_names=["u"])
-
-
-def test_cli_recording_on_a_full_disk_exits_1_with_one_line(tmp_path, capsys):
-    rrd = full_file(tmp_path)
-    code = main([*RUN, "--out", str(tmp_path / "out"), "--rrd", str(rrd)])
-    err = capsys.readouterr()
-    assert code == 1
-    lines = err.err.strip().splitlines()
-    assert len(lines) == 1 and "No space left on device" in lines[0], err.err
-    assert "wrote" not in err.out
-    assert not (tmp_path / "out" / "trajectory.npz").exists()
-
-
-def test_recording_whose_sink_fails_part_way_is_an_error(tmp_path):
-    """The file sink fails after 40 kB (a file size limit: the disk fills during the run):
-    the command exits 1 naming the recording and reports nothing as written."""
+def limited_run(tmp_path: Path, limit: int, rrd: Path) -> subprocess.CompletedProcess[str]:
+    """``hgo-mj run --rrd rrd`` in a process whose files cannot grow past ``limit`` bytes (a
+    disk that fills: writes beyond fail with EFBIG), after the same run once without a limit
+    (numba's cache then holds its kernels). Output after the line ``LIMITED`` is the run's."""
     script = tmp_path / "limited.py"
     script.write_text(textwrap.dedent(f"""
         import resource, signal, sys
         import hgo_mj.record.recorder as recorder
         from hgo_mj.cli import main
         recorder.CLOSE_TIMEOUT_S = 3.0
-        # the same run once without a limit, so that numba's cache holds its kernels
         assert main({[*RUN, "--out", str(tmp_path / "warm")]!r}) == 0
         print("LIMITED", flush=True)
         print("LIMITED", file=sys.stderr, flush=True)
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes beyond the limit fail (EFBIG)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (40_000, 40_000))
-        sys.exit(main({[*RUN, "--out", str(tmp_path / "out"), "--rrd",
-                        str(tmp_path / "run.rrd")]!r}))
+        resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))
+        sys.exit(main({[*RUN, "--out", str(tmp_path / "out"), "--rrd", str(rrd)]!r}))
     """))
-    res = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                         timeout=300)
+    return subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=300)
+
+
+def temporaries(folder: Path) -> list[Path]:
+    """The hidden temporaries hgo_mj left in ``folder``."""
+    return sorted(folder.glob(".*.tmp"))
+
+
+def test_a_full_disk_keeps_the_earlier_recording_and_leaves_no_empty_file(tmp_path, capsys):
+    """Issue 27 item 2: no byte can be written; exit 1 in one line, the earlier recording at
+    the path untouched (rerun accepts it), no temporary left."""
+    rrd = tmp_path / "run.rrd"
+    assert main([*RUN, "--out", str(tmp_path / "first"), "--rrd", str(rrd)]) == 0
+    before = rrd.read_bytes()
+    res = limited_run(tmp_path, 0, rrd)
+    assert res.returncode == 1, res.stderr
+    ours = [ln for ln in res.stderr.split("LIMITED")[1].splitlines() if ln.startswith("hgo-mj:")]
+    assert len(ours) == 1 and "run.rrd" in ours[0] and "File too large" in ours[0], res.stderr
+    assert rrd.read_bytes() == before and verify(rrd).returncode == 0
+    assert temporaries(tmp_path) == []
+
+
+def test_a_killed_run_leaves_the_earlier_recording_intact(tmp_path, capsys):
+    """Issue 27 item 2: SIGKILL while the new recording is written: the earlier one is still
+    at the path and passes ``rerun rrd verify``; the torn rows are in a hidden temporary."""
+    rrd = tmp_path / "run.rrd"
+    assert main([*RUN, "--out", str(tmp_path / "first"), "--rrd", str(rrd)]) == 0
+    before = rrd.read_bytes()
+    long = [a if a != "3" else "600" for a in RUN]
+    proc = subprocess.Popen([sys.executable, "-c", f"from hgo_mj.cli import main; "
+                             f"main({[*long, '--out', str(tmp_path / 'o'), '--rrd', str(rrd)]!r})"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not any(p.stat().st_size > 50_000 for p in temporaries(tmp_path)):
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert rrd.read_bytes() == before and verify(rrd).returncode == 0
+    assert len(temporaries(tmp_path)) == 1
+
+
+def test_recording_whose_sink_fails_part_way_is_an_error(tmp_path):
+    """The file sink fails after 40 kB (a file size limit: the disk fills during the run):
+    the command exits 1 naming the recording and reports nothing as written; no recording
+    and no temporary are left."""
+    res = limited_run(tmp_path, 40_000, tmp_path / "run.rrd")
     assert res.returncode == 1, res.stderr
     out, err = res.stdout.split("LIMITED")[1], res.stderr.split("LIMITED")[1]
     ours = [ln for ln in err.splitlines() if ln.startswith("hgo-mj:")]
     assert len(ours) == 1 and "run.rrd" in ours[0] and "could not be written" in ours[0], err
     assert "Traceback" not in err and "wrote" not in out, err
     assert not (tmp_path / "out" / "trajectory.npz").exists()
+    assert not (tmp_path / "run.rrd").exists() and temporaries(tmp_path) == []
 
 
 def test_finished_recording_passes_rerun_rrd_verify(tmp_path, capsys):
     rrd = tmp_path / "run.rrd"
     assert main([*RUN, "--out", str(tmp_path / "out"), "--rrd", str(rrd)]) == 0
     assert str(rrd) in capsys.readouterr().out
-    res = subprocess.run([rerun_binary(), "rrd", "verify", str(rrd)], capture_output=True,
-                         text=True, timeout=120)
+    res = verify(rrd)
     assert res.returncode == 0, res.stderr
 
 
@@ -103,7 +131,7 @@ def test_verify_rejects_a_torn_recording_as_the_recorder_does(tmp_path, capsys):
     assert main([*RUN, "--out", str(tmp_path / "out"), "--rrd", str(rrd)]) == 0
     torn = tmp_path / "torn.rrd"
     torn.write_bytes(rrd.read_bytes()[: rrd.stat().st_size // 2])
-    res = subprocess.run([rerun_binary(), "rrd", "verify", str(torn)], capture_output=True,
+    res = subprocess.run([*rerun_command(), "rrd", "verify", str(torn)], capture_output=True,
                          text=True, timeout=120)
     assert res.returncode != 0
     with pytest.raises(RecordingError, match="torn.rrd"):

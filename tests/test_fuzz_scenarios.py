@@ -214,7 +214,10 @@ VALID_STUDY: dict[str, Any] = {**VALID, "sweep": {"seeds": 2, "observers.hgo.k":
 #: sweep keys: the table's own, axis paths that exist, and ones that do not
 SWEEP_KEYS = ["seeds", "mode", "observers.hgo.k", "sensor.stages.0.std", "plant.x0",
               "run.duration", "plant.name", "observers.hgo", "observers.nobody.k",
-              "plant.nokey", "sensor.stages.5.std", "run", ""]
+              "plant.nokey", "sensor.stages.5.std", "run", "",
+              # issue 27: axes that cannot change a run, overlapping axes, the rest of [sweep]
+              "run.seed", "run.out", "run.stream", "run.store_every", "sensor",
+              "sensor.stages", "together", "store"]
 
 
 @st.composite
@@ -266,3 +269,35 @@ def test_malformed_studies_are_a_study_or_one_line(mutations):
         else:
             doc["sweep"][key] = copy.deepcopy(value)
     run_sweep(doc)
+
+
+# ------------------------------------------------------------- ODE expressions (issue 27)
+#: the pieces of generated right-hand sides: names the system knows and does not, numbers of
+#: every size, operators, functions, brackets and text that is not Python
+ODE_TOKENS = ["x1", "x2", "u", "p", "nobody", "0", "1", "2.5", "-3", "1e300", "1e-300",
+              "9**9", "10**400", "inf", "nan", "I", "pi", "+", "-", "*", "/", "**", "(", ")",
+              "sin(", "cos(", "exp(", "log(", "sqrt(", "Abs(", "acos(", "__import__(", "'os'",
+              "lambda", ";", ",", "[", "]", "=", "x1.real", "Heaviside(", "Piecewise(",
+              " ", "\\", "#", "é", "\x00"]
+
+
+@settings(FUZZ, max_examples=150, deadline=datetime.timedelta(seconds=30))
+@given(st.lists(st.sampled_from(ODE_TOKENS), min_size=1, max_size=25))
+def test_ode_expressions_build_or_are_one_model_error_line(tokens):
+    """A generated right-hand side either builds a system whose dynamics give finite floats or
+    is refused as one :class:`~hgo_mj.exceptions.ModelError` line (within the deadline): no
+    other exception, no hang, no multi-line message."""
+    import numpy as np
+
+    from hgo_mj.exceptions import ModelError
+    from hgo_mj.systems.symbolic import ode_system
+
+    f1 = "".join(tokens)
+    try:
+        cls = ode_system(["x1", "x2"], ["x2", f1], "x1", inputs=["u"], params={"p": 1.0})
+    except ModelError as exc:
+        assert "\n" not in str(exc) and len(str(exc)) < 400, str(exc)
+        return
+    with np.errstate(all="ignore"):
+        dx = np.asarray(cls().f(0.0, np.array([0.1, 0.2]), np.array([0.3])), dtype=float)
+    assert dx.shape == (2,)

@@ -121,3 +121,125 @@ def test_isolate_is_checked():
     plant = make_plant("pendulum", dt=0.01)
     with pytest.raises(DesignError, match="isolate must be true or false"):
         Loop(plant, None, {}, Periods.of(plant), isolate=1)
+
+
+# ------------------------------------------------ issue 27 item 1: an overflowing estimate
+#: an observer whose estimate grows beyond the floats' squares (explicit Euler, k = 3000)
+#: beside a healthy one
+RUNAWAY = ["--plant", "pendulum", "--sensor", "gaussian:std=1e-3", "--observer",
+           "high_gain:name=unstable,k=3000,method=euler,on_unstable=ignore", "--observer",
+           "high_gain:name=ok,k=20", "--input", "multisine:amplitudes=[0.3],frequencies=[0.5]",
+           "--duration", "1", "--quiet"]
+
+
+def _runaway_parts():
+    plant = make_plant("pendulum", dt=0.01)
+    obs = {"unstable": HighGainObserver(plant.system, k=3000.0, method="euler",
+                                        on_unstable="ignore"),
+           "ok": HighGainObserver(plant.system, k=20.0)}
+    return plant, SensorChain([GaussianNoise(std=1e-3)]), obs
+
+
+def test_an_estimate_that_grows_huge_but_finite_stops_alone():
+    plant, sensor, obs = _runaway_parts()
+    tr = simulate(plant, sensor, obs, Multisine([0.3], [0.5]), 1.0, seed=1, isolate=True)
+    assert set(tr.diverged) == {"unstable"} and "1e+100" in tr.diverged["unstable"]["error"]
+    m = all_metrics(tr)
+    assert all(np.isfinite(v) for v in m["ok"]["rmse"])
+    assert m["unstable"]["diverged_at"] == tr.diverged["unstable"]["t"]
+    with pytest.raises(DivergenceError, match="observer 'unstable' estimate left"):
+        simulate(plant, sensor, _runaway_parts()[2], Multisine([0.3], [0.5]), 1.0, seed=1)
+
+
+def test_run_writes_the_healthy_observer_beside_an_overflowing_one(tmp_path, capsys):
+    assert main(["run", *RUNAWAY, "--seed", "1", "--out", str(tmp_path / "o")]) == 0
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert metrics["unstable"]["diverged_at"] is not None
+    assert all(v is not None and np.isfinite(v) for v in metrics["ok"]["rmse"])
+    assert "observer 'unstable' diverged" in capsys.readouterr().err
+
+
+def test_seeds_count_the_overflowing_observer_as_diverged_in_every_seed(tmp_path, capsys):
+    """Every seed has a diverged observer (the first one included): said so, the rows of
+    every seed and the first seed's run written."""
+    assert main(["run", *RUNAWAY, "--seed", "1", "--seeds", "3",
+                 "--out", str(tmp_path / "mc")]) == 2
+    err = capsys.readouterr().err
+    assert "every seed diverged (3 of 3): seed 1: observer 'unstable' diverged" in err
+    metrics = json.loads((tmp_path / "mc" / "metrics.json").read_text())
+    assert all(np.isfinite(v) for v in metrics["ok"]["rmse"])
+    rows = __import__("pandas").read_parquet(tmp_path / "mc" / "seeds" / "results.parquet")
+    bad = rows[rows["observer"] == "unstable"]
+    good = rows[rows["observer"] == "ok"]
+    assert len(bad) and bad["diverged"].all()
+    assert not good["diverged"].any() and np.isfinite(good["rmse"]).all()
+
+
+def test_a_sweep_marks_the_overflowing_observer_diverged(tmp_path, capsys):
+    from hgo_mj.study import Study
+
+    base = {"plant": {"name": "pendulum"},
+            "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+            "observers": [{"type": "high_gain", "name": "unstable", "k": 3000.0,
+                           "method": "euler", "on_unstable": "ignore"},
+                          {"type": "high_gain", "name": "ok", "k": 20.0}],
+            "input": {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+            "run": {"duration": 1.0}}
+    table = Study(base, {"observers.ok.k": [10.0, 20.0]}, seeds=2).run(
+        tmp_path / "s", quiet=True).table
+    bad, good = table[table["observer"] == "unstable"], table[table["observer"] == "ok"]
+    assert len(bad) == 8 and bad["diverged"].all() and bad["rmse"].isna().all()
+    assert not good["diverged"].any() and np.isfinite(good["rmse"]).all()
+
+
+PICKY = '''
+import numpy as np
+
+from hgo_mj.exceptions import DivergenceError
+from hgo_mj.observers.high_gain import HighGainObserver
+
+
+class Picky(HighGainObserver):
+    """Fails when its first measurement is above 0.5005 (x0 = 0.5 plus noise > 5e-4: of the
+    seeds 6, 7, 8 at std 1e-3, only seed 6)."""
+
+    name = "picky"
+
+    def _init(self, p, x0, z0, u0):
+        return {**super()._init(p, x0, z0, u0), "count": np.zeros(u0.shape[0], dtype=int)}
+
+    def _step(self, p, s, Y, U, dt, X, Z, D):
+        if s.count.max() == 0 and (Y[:, 0, 0] > 0.5005).any():
+            raise DivergenceError("the first measurement is too high")
+        s.count += Y.shape[1]
+        super()._step(p, s, Y, U, dt, X, Z, D)
+'''
+
+
+def test_a_diverging_first_seed_is_counted_and_nan_has_no_spread(tmp_path, monkeypatch,
+                                                                 capsys):
+    """Issue 27 item 6: the first seed diverges (isolated in its own run) and is counted with
+    the others; a statistic of a NaN mean has a NaN spread, not 0."""
+    import importlib
+    import sys
+
+    from hgo_mj.study.montecarlo import _stats
+
+    (tmp_path / "hgo_picky_mod.py").write_text(PICKY)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    importlib.import_module("hgo_picky_mod")
+    try:
+        assert main(["run", "--plant", "pendulum", "--sensor", "gaussian:std=1e-3",
+                     "--observer", "hgo_picky_mod:Picky:name=picky,k=20", "--observer",
+                     "high_gain:name=ok,k=20", "--duration", "0.5", "--quiet", "--seed", "6",
+                     "--seeds", "3", "--out", "mc"]) == 0
+    finally:
+        sys.modules.pop("hgo_picky_mod", None)
+    data = json.loads((tmp_path / "mc" / "metrics_mc.json").read_text())
+    assert data["seeds"] == [7, 8] and [f["seed"] for f in data["failed"]] == [6]
+    summary = (tmp_path / "mc" / "summary_mc.txt").read_text()
+    assert "1 of 3 run(s) diverged" in summary and "seeds [6]" in summary
+    assert "± 0 " not in summary and "nan" not in summary
+    assert _stats([float("nan")])["std"] != _stats([float("nan")])["std"]  # NaN
+    assert _stats([0.5])["std"] == 0.0

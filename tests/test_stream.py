@@ -5,6 +5,7 @@ takes the metrics chunk by chunk, with the same table and metrics as the run kep
 from __future__ import annotations
 
 import json
+import shutil
 import tracemalloc
 
 import numpy as np
@@ -184,7 +185,7 @@ def test_stream_run_writes_the_table_and_the_metrics_of_the_kept_run(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["t.parquet"]
 
 
-def test_a_stopped_stream_leaves_the_earlier_file_and_no_temporary(tmp_path):
+def test_a_stopped_stream_leaves_the_earlier_file_and_its_chunks(tmp_path):
     path = tmp_path / "t.parquet"
     path.write_bytes(b"the earlier result")
     plant = make_plant("pendulum", dt=0.01)
@@ -198,7 +199,12 @@ def test_a_stopped_stream_leaves_the_earlier_file_and_no_temporary(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         stream_run(kw, path, seed=0, chunk_seconds=1.0, also=interrupt)
     assert path.read_bytes() == b"the earlier result"
-    assert [p.name for p in tmp_path.iterdir()] == ["t.parquet"]
+    # Ctrl-C keeps the chunks written (closed files), and the next run reports them
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.parquet", "t.parquet.parts"]
+    assert len(pd.read_parquet(tmp_path / "t.parquet.parts")) == 200
+    with pytest.raises(DesignError, match=r"t.parquet.parts holds 2 chunk\(s\), 200 rows"):
+        stream_run(kw, path, seed=0, chunk_seconds=1.0)
+    shutil.rmtree(tmp_path / "t.parquet.parts")
     with pytest.raises(DesignError, match="t_transient = 9 leaves no samples"):
         stream_run(kw, path, seed=0, chunk_seconds=1.0, t_transient=9.0)
     table = ParquetChunks(tmp_path / "u.parquet")
@@ -223,7 +229,8 @@ def test_the_command_line_streams_the_same_results(tmp_path, monkeypatch, capsys
         assert a["high_gain_0"][key] == b["high_gain_0"][key], key
     np.testing.assert_allclose(a["high_gain_0"]["rmse"], b["high_gain_0"]["rmse"], rtol=1e-12)
     assert sorted(p.name for p in (tmp_path / "streamed").iterdir()) == [
-        "figure.png", "metrics.json", "metrics.parquet", "summary.txt", "trajectory.parquet"]
+        "figure.png", "manifest.json", "metrics.json", "metrics.parquet", "summary.txt",
+        "trajectory.parquet"]
 
 
 @pytest.mark.parametrize("extra,message", [
@@ -248,3 +255,47 @@ def test_run_stream_in_a_scenario_is_a_bool(tmp_path, monkeypatch, capsys):
     assert main(["run", "s.toml", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "run.stream" in err[0] and "'yes'" in err[0]
+
+
+# ------------------------------------------- issue 27 item 3: a killed stream keeps its rows
+def test_a_killed_stream_leaves_readable_chunks_the_next_run_reports(tmp_path):
+    """SIGKILL of `hgo-mj run --stream` part-way: its chunks are closed Parquet files in
+    trajectory.parquet.parts (rows from t = 0 on, whole chunks), the next run into the folder
+    refuses to overwrite them, naming them; stale temporaries of killed saves are removed and
+    said so."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from hgo_mj.stream import parts_folder
+
+    out = tmp_path / "o"
+    parts = parts_folder(out / "trajectory.parquet")
+    argv = ["run", "--plant", "pendulum", "--dt", "0.001", "--observer", "high_gain:k=20",
+            "--quiet", "--stream", "--out", str(out)]
+    proc = subprocess.Popen([sys.executable, "-m", "hgo_mj.cli", *argv, "--duration", "3000"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(parts.glob("part-*.parquet"))) < 3:
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert not (out / "trajectory.parquet").exists()
+    df = pd.read_parquet(parts)
+    assert len(df) >= 3 and df["t"].iloc[0] == 0.0 and (np.diff(df["t"]) > 0).all()
+    stale = out / ".metrics.json.abc123.tmp"  # what a kill inside a save leaves
+    stale.write_text("{")
+    res = subprocess.run([sys.executable, "-m", "hgo_mj.cli", *argv, "--duration", "1"],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2
+    assert "trajectory.parquet.parts holds" in res.stderr and f"{len(df)} rows" in res.stderr
+    parts.rename(tmp_path / "kept.parts")
+    res = subprocess.run([sys.executable, "-m", "hgo_mj.cli", *argv, "--duration", "1"],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert "removed 1 temporary file(s)" in res.stderr and not stale.exists()
+    assert len(pd.read_parquet(out / "trajectory.parquet")) == 1001 and not parts.exists()

@@ -38,9 +38,10 @@ def user_module(tmp_path, monkeypatch):
     import) in a folder that is the current one, as a user's project would be."""
     (tmp_path / "hgo_user_mod.py").write_text(USER_MODULE)
     (tmp_path / "hgo_user_broken.py").write_text('raise RuntimeError("boom\\nsecond line")\n')
+    (tmp_path / "hgo_user_exits.py").write_text("import sys\nsys.exit(0)\n")
     monkeypatch.chdir(tmp_path)
     yield tmp_path
-    for name in ("hgo_user_mod", "hgo_user_broken"):
+    for name in ("hgo_user_mod", "hgo_user_broken", "hgo_user_exits"):
         sys.modules.pop(name, None)
 
 
@@ -69,6 +70,9 @@ def test_command_line_and_scenario_run_the_users_classes(user_module, capsys):
      "No module named 'hgo_user_nomod')"),
     ("--plant", "hgo_user_broken:X",
      "plant 'hgo_user_broken:X': module 'hgo_user_broken' does not import (RuntimeError: boom)"),
+    ("--plant", "hgo_user_exits:X",  # issue 27 item 10: not a silent exit 0
+     "plant 'hgo_user_exits:X': module 'hgo_user_exits' called sys.exit(0) while it was "
+     "imported"),
     ("--plant", "hgo_user_mod:Nope", "plant 'hgo_user_mod:Nope': module 'hgo_user_mod' has no "
                                      "'Nope'"),
     ("--plant", "hgo_user_mod:MyHGO", "plant 'hgo_user_mod:MyHGO' must name a subclass of "

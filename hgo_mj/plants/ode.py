@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import finite_scalar, integer_multiple, vector
+from .._validate import DIVERGED_ABOVE, finite_scalar, integer_multiple, vector
 from ..exceptions import DesignError
 from ..systems.base import System
 from .base import Array, Plant, check_block, divergence, initial_states
@@ -142,7 +142,7 @@ class OdePlant(Plant):
                 u = U[b, j]
                 for s in range(steps):
                     x, t = _rk4(f, p, x, u, st[j * steps + s], h, sub)
-                    if not np.all(np.isfinite(x)):
+                    if not np.all(np.abs(x) <= DIVERGED_ABOVE):
                         fails.append((j, b, self._fail_message(x, t)))
                         break
                 else:
@@ -175,7 +175,7 @@ class OdePlant(Plant):
                 u = U[:, j]
                 for s in range(steps):
                     xn, t = _rk4(f, p, x, u, st[j * steps + s], h, sub)
-                    broke = alive & ~np.all(np.isfinite(xn), axis=1)
+                    broke = alive & ~np.all(np.abs(xn) <= DIVERGED_ABOVE, axis=1)
                     for b in np.flatnonzero(broke).tolist():
                         fails.append((j, b, self._fail_message(xn[b], t)))
                     alive &= ~broke

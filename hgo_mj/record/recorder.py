@@ -957,8 +957,13 @@ class Recorder:
             self._send_poses()
             self._send_pending()
             self._sink.close(CLOSE_TIMEOUT_S)
-            if self.path is not None and self._sink.footer:
-                check_finalized(self.path)
+            if self._sink.file is not None and self._sink.footer:
+                try:
+                    check_finalized(self._sink.file, name=self.path)
+                except RecordingError:
+                    self._sink.discard()
+                    raise
+            self._sink.publish()
 
     def __enter__(self) -> Recorder:
         return self
@@ -968,7 +973,7 @@ class Recorder:
         self.close()
 
 
-def check_finalized(path: Any) -> None:
+def check_finalized(path: Any, name: Any = None) -> None:
     """Raise :class:`RecordingError` unless ``path`` is a recording that ends in rerun's
     footer (what ``rerun rrd verify`` checks first); the footer alone is read.
 
@@ -976,6 +981,9 @@ def check_finalized(path: Any) -> None:
     ----------
     path : str or Path
         The ``.rrd`` file to check.
+    name : str or Path, optional
+        The file named in the message (default ``path``; the recorder checks its temporary
+        and names the recording).
 
     Raises
     ------
@@ -1008,9 +1016,10 @@ def check_finalized(path: Any) -> None:
         try:
             RrdReader(path)
         except Exception as exc:  # rerun's own errors: not a readable recording
-            raise RecordingError(f"the recording {str(path)!r} is not readable: {exc}") from None
+            raise RecordingError(f"the recording {str(name or path)!r} is not readable: "
+                                 f"{exc}") from None
     if any("footer" in str(w.message) for w in caught):
-        raise RecordingError(f"the recording {str(path)!r} was not finalized (no rerun footer: "
+        raise RecordingError(f"the recording {str(name or path)!r} was not finalized (no rerun footer: "
                              f"a write failed or the file was changed while it was written)")
 
 

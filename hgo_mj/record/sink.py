@@ -1,7 +1,8 @@
 """The row sink: the one place where a recording talks to rerun.
 
 :class:`RowSink` owns an explicit :class:`rerun.RecordingStream` (never rerun's global or
-thread default) with a file sink, and sends what the recorder computed: columns of rows
+thread default) with a file sink (a temporary beside the ``.rrd`` path, renamed onto it when
+closed and checked, as every file hgo_mj writes), and sends what the recorder computed: columns of rows
 (``rr.send_columns`` with ``rr.TimeColumn`` indexes, one call per entity and block), static
 styles and geometry (``rr.log(..., static=True)``), text documents, recording properties and
 the blueprint. It decides nothing about what is sent (:mod:`hgo_mj.record.rows`,
@@ -13,6 +14,8 @@ Internal: :class:`hgo_mj.record.Recorder` is the public interface.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import signal
 import threading
 import time
@@ -25,6 +28,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from .._io import temporary_beside
 from ..exceptions import DesignError, RecordingError
 from .layout import EPISODE, SIM_TIME, STEP
 
@@ -93,13 +97,17 @@ class RowSink:
         elif not isinstance(stream, rr.RecordingStream):
             raise DesignError(f"stream must be a rerun.RecordingStream; found "
                               f"{type(stream).__name__}")
+        #: the file written: a temporary beside ``path``, renamed onto it by :meth:`publish`
+        self.file: Path | None = None
         if path is not None:
             if path.suffix != ".rrd":
                 raise DesignError(f"a recording path must end in .rrd; found {str(path)!r}")
-            path.parent.mkdir(parents=True, exist_ok=True)
             try:
-                stream.save(path, write_footer=self.footer)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self.file = Path(temporary_beside(path))
+                stream.save(self.file, write_footer=self.footer)
             except (RuntimeError, OSError) as exc:  # the header could not be written
+                self.discard()
                 raise RecordingError(f"cannot write the recording {str(path)!r}: "
                                      f"{exc}") from None
         self.stream = stream
@@ -174,10 +182,25 @@ class RowSink:
 
             STUCK.append(self.stream)
             atexit.unregister(rr.rerun_shutdown)
+            self.discard()
             raise RecordingError(f"the recording {str(self.path)!r} could not be written "
-                                 f"({exc}: is the disk full?); the file is incomplete"
+                                 f"({exc}: is the disk full?); an earlier file there is kept"
                                  ) from None
         self.stream.disconnect()  # the file sink writes its footer and closes the file
+
+    def publish(self) -> None:
+        """Rename the closed temporary onto ``path`` (the earlier recording there, if any, is
+        replaced only now: a kill or a failed write before leaves it intact)."""
+        if self.file is not None:
+            os.replace(self.file, self.path)  # type: ignore[arg-type]
+            self.file = None
+
+    def discard(self) -> None:
+        """Remove the temporary of a recording that failed."""
+        if self.file is not None:
+            with contextlib.suppress(FileNotFoundError):
+                self.file.unlink()
+            self.file = None
 
 
 __all__: list[str] = []

@@ -310,8 +310,10 @@ class MonteCarloResult:
 def _stats(vals: Sequence[float]) -> dict[str, float]:
     a = np.asarray(vals, dtype=float)
     with np.errstate(invalid="ignore", over="ignore"):
-        return {"mean": float(np.mean(a)),
-                "std": float(np.std(a, ddof=1)) if a.size > 1 else 0.0,
+        mean = float(np.mean(a))
+        # one run has no spread; an undefined mean (a NaN among the runs) has none either
+        return {"mean": mean,
+                "std": float(np.std(a, ddof=1)) if a.size > 1 else 0.0 * mean,
                 "min": float(np.min(a)), "median": float(np.median(a)),
                 "max": float(np.max(a))}
 

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import manifest
 from .._io import atomic_path, write_text
 from ..exceptions import DesignError
 from .engine import METRICS, RUN_METRICS
@@ -95,8 +96,16 @@ class ResultsDir:
                                   f"another --out")
             done = set()
         self.parts.mkdir(parents=True, exist_ok=True)
+        manifest.begin(self.out)  # the folder's files change from here on
         write_text(self.out / "study.json", json.dumps(spec.to_json(), indent=2) + "\n")
         return done
+
+    def seal(self) -> None:
+        """Write the folder's manifest (:mod:`hgo_mj.manifest`) naming every file in it."""
+        manifest.finish(self.out, [str(f.relative_to(self.out)) for f in self.out.rglob("*")
+                                   if f.is_file() and not any(p.startswith(".") for p in
+                                                              f.relative_to(self.out).parts)
+                                   and f.name != manifest.MANIFEST])
 
     def done(self) -> set[tuple[int, int]]:
         import pyarrow.parquet as pq
@@ -134,6 +143,7 @@ class ResultsDir:
         """Every row written, as a pandas DataFrame (cell, seed, observer, state order)."""
         import pandas as pd
 
+        manifest.check(self.parts)  # a folder mixing two studies is refused
         files = sorted(self.parts.glob("*.parquet"))
         if not files:
             raise DesignError(f"no results in {self.parts}")
@@ -174,7 +184,8 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
     """Per cell, observer and state over the seeds: ``runs``, ``diverged_fraction``,
     ``settled_fraction`` (of the runs that finished; NaN where not estimated), and per metric
     in :data:`SUMMARY_METRICS` its median, quartiles ``q25``, ``q75``, IQR (their
-    difference), mean, std (ddof=1; 0 for one run), min and max over the runs that finished
+    difference), mean, std (ddof=1; 0 for one run, NaN for none), min and max over the runs that
+    finished
     (a settling time of ``inf``, never settled, is left out of its statistics).
 
     Parameters
@@ -228,7 +239,8 @@ def summarize(df: Any, axes: Sequence[str]) -> Any:
     for m in metrics:
         c = g[m]
         q25, q75 = c.quantile(0.25), c.quantile(0.75)
-        std = c.std(ddof=1).where(c.count() > 1, 0.0)
+        # one finished run: no spread (0); none: NaN, as its mean
+        std = c.std(ddof=1).where(c.count() != 1, 0.0)
         for name, col in (("median", c.median()), ("q25", q25), ("q75", q75),
                           ("iqr", q75 - q25), ("mean", c.mean()), ("std", std),
                           ("min", c.min()), ("max", c.max())):

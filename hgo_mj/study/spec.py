@@ -136,9 +136,10 @@ class StudySpec:
         ...        "run": {"duration": 0.2, "seed": 5},
         ...        "sweep": {"seeds": 2, "observers.hgo.k": [10.0, 40.0],
         ...                  "plant.x0": [[0.1, 0.0], [0.2, 0.0]]}}
-        >>> doc["sweep"]["together"] = [{"run.duration": [0.2, 0.3], "run.seed": [1, 2]}]
+        >>> doc["sweep"]["together"] = [{"run.duration": [0.2, 0.3], "run.t_transient":
+        ...                              [0.05, 0.1]}]
         >>> [[a.path for a in u] for u in parse_study(doc).units()]
-        [['observers.hgo.k'], ['plant.x0'], ['run.duration', 'run.seed']]
+        [['observers.hgo.k'], ['plant.x0'], ['run.duration', 'run.t_transient']]
         """
         out: list[list[Axis]] = []
         groups: dict[int, list[Axis]] = {}
@@ -456,7 +457,23 @@ def _axes(scenario: Mapping[str, Any], sweep: Mapping[str, Any]) -> list[Axis]:
     if len(set(paths)) != len(paths):
         twice = sorted(p for p in set(paths) if paths.count(p) > 1)
         raise DesignError(f"a sweep axis is given twice: {twice}")
+    for a in paths:
+        for b in paths:
+            if b.startswith(a + "."):
+                raise DesignError(f"sweep axes {a!r} and {b!r} overlap ({b!r} sets a part of "
+                                  f"{a!r}): which value runs would depend on their order; "
+                                  f"sweep one of them")
     return axes
+
+
+#: paths a sweep axis may not take, and why (their cells would be duplicate runs)
+NOT_AN_AXIS = {
+    "run.seed": "the runs' seeds are the study's own, [sweep] seeds = N (or a list of seeds); "
+                "run.seed is only the first of N",
+    "run.seeds": "a study sets its seeds in [sweep] seeds = N (or a list of seeds)",
+    "run.out": "a study writes one folder, its --out",
+    "run.stream": "a study keeps each run's metrics, not its trajectory (nothing to stream)",
+}
 
 
 def _plain(v: Any) -> bool:
@@ -473,6 +490,9 @@ def _plain(v: Any) -> bool:
 def _axis(scenario: Mapping[str, Any], path: str, values: Any, group: int | None = None) -> Axis:
     """One axis, checked: its path names a value of the scenario, its values are a non-empty
     list (without repeats, unless it advances with others in a group)."""
+    key = next((k for k in NOT_AN_AXIS if path == k or path.startswith(f"{k}.")), None)
+    if key is not None:
+        raise DesignError(f"sweep axis {path!r} cannot change a run: {NOT_AN_AXIS[key]}")
     check_path(scenario, path)
     if not isinstance(values, list):
         raise DesignError(f"sweep axis {path!r} must be a list of values; found {values!r}")
@@ -568,7 +588,43 @@ def parse_study(doc: Mapping[str, Any], *, max_runs: int | None = MAX_RUNS) -> S
     if max_runs is not None and spec.n_runs > max_runs:
         raise DesignError(f"the study has {spec.n_runs:,} runs ({spec.n_cells:,} cells x "
                           f"{len(seeds):,} seeds), more than {max_runs:,}; confirm with --yes")
+    check_study_memory(spec)
     return spec
+
+
+#: bytes a cell's scenario takes in memory per character of its JSON (dicts, lists, floats;
+#: measured: about 1.9 KB for a 242-character scenario), plus a cell's fixed share
+CELL_BYTES_PER_CHAR, CELL_BYTES = 10, 512
+#: bytes a result row (a run's observer and state) takes in the results table and the plan
+ROW_BYTES, RUN_BYTES = 400, 200
+
+
+def study_memory(spec: StudySpec) -> float:
+    """An upper estimate of the memory a study holds, bytes: its cells' scenarios, the plan's
+    runs and the result rows (one per run, observer and plant state; the states counted from
+    ``plant.x0`` where given, else 8)."""
+    scenario = spec.scenario
+    n_obs = max(len(scenario.get("observers", []) or []), 1)
+    x0 = scenario.get("plant", {}).get("x0") if isinstance(scenario.get("plant"), Mapping) \
+        else None
+    n_states = len(x0) if isinstance(x0, list) and x0 else 8
+    per_cell = CELL_BYTES + CELL_BYTES_PER_CHAR * len(json.dumps(scenario, default=str))
+    return (spec.n_cells * per_cell + spec.n_runs * RUN_BYTES
+            + spec.n_runs * n_obs * n_states * (ROW_BYTES + 8 * len(spec.axes)))
+
+
+def check_study_memory(spec: StudySpec) -> None:
+    """Refuse, before any cell is built, a study whose estimate (:func:`study_memory`) exceeds
+    the memory available; a bound that ``--yes`` (``max_runs=None``) keeps."""
+    from ..simulate import available_memory
+
+    need, avail = study_memory(spec), available_memory()
+    if need > avail:
+        raise DesignError(f"the study has {spec.n_runs:,} runs ({spec.n_cells:,} cells x "
+                          f"{len(spec.seeds):,} seeds) and would hold about "
+                          f"{need / 2**30:.3g} GiB (cells, plan and result rows); found "
+                          f"{avail / 2**30:.3g} GiB of memory available (a bound --yes keeps): "
+                          f"fewer cells or seeds, or split the study")
 
 
 def axis_kind(values: Sequence[Any]) -> str:

@@ -30,6 +30,33 @@ from .spec import MAX_RUNS, Cell, parse_study
 #: core; scripts/bench_study.py on a 2-core machine)
 _PLANT_STEP_S = 5e-6
 _OBSERVER_STEP_S = 6.5e-8
+#: cells from which a study says its size and memory before checking and planning them
+LARGE_CELLS = 10_000
+#: members and samples of the short batched run that measures a family's warm cost per update
+_COST_BATCH, _COST_SAMPLES = 32, 64
+
+
+def update_cost(kw: Mapping[str, Any], name: str) -> float:
+    """The warm cost of observer ``name`` of a built scenario ``kw``, seconds per update of one
+    member: measured on a short batched loop (:data:`_COST_BATCH` members, the second of two
+    segments of :data:`_COST_SAMPLES` samples; the first compiles and fills the caches). A
+    family whose update fails there (a short run it cannot take) costs as a high-gain one."""
+    import numpy as np
+
+    from ..loop import Loop, LoopFailure, Periods
+
+    plant = kw["plant"]
+    loop = Loop(plant, None, {name: kw["observers"][name]},
+                Periods.of(plant, kw.get("sample_period"), None))
+    m = len(plant.input_names)
+    try:
+        loop.reset(kw.get("x0"), batch=_COST_BATCH)
+        loop.segment(np.zeros((_COST_BATCH, _COST_SAMPLES, m)))
+        loop.wall[name] = 0.0
+        loop.segment(np.zeros((_COST_BATCH, _COST_SAMPLES, m)))
+    except (LoopFailure, HgoError, ArithmeticError, ValueError):
+        return _OBSERVER_STEP_S
+    return max(loop.wall[name] / (_COST_BATCH * _COST_SAMPLES), _OBSERVER_STEP_S)
 #: a closed loop's plant step (one control period a segment: MuJoCo's rollout called per step)
 #: and the cost of one segment of the loop (plant, sensor, observers, controller calls)
 _CLOSED_STEP_S = 4e-6
@@ -98,6 +125,9 @@ def load_toml(path: str | Path) -> dict[str, Any]:
             return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise DesignError(f"study file {str(p)!r} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise DesignError(f"study file {str(p)!r} is not UTF-8 text (a binary file?): "
+                          f"{exc}") from None
     except RecursionError:
         raise DesignError(f"study file {str(p)!r} is nested too deeply (arrays or tables "
                           f"inside each other beyond Python's recursion limit)") from None
@@ -237,12 +267,18 @@ class Study:
             raise DesignError(f"scenario must be a table; found {type(scenario).__name__}")
         if axes is not None and not isinstance(axes, Mapping):
             raise DesignError(f"axes must map dotted paths to lists of values; found {axes!r}")
+        # parse_study checks the kinds (a list of tables each) and names what it found
         sweep = {"seeds": seeds, "mode": mode, "store": list(store),
-                 "together": [dict(t) for t in together], **dict(axes or {})}
+                 "together": [dict(t) if isinstance(t, Mapping) else t for t in together],
+                 **dict(axes or {})}
         self.spec = parse_study({**copy.deepcopy(dict(scenario)), "sweep": sweep},
                                 max_runs=max_runs)
         self.name = str(scenario.get("name", "study"))
         self._validated = False
+        #: measured warm cost per update of each observer family, and per cell the sum over
+        #: its observers (seconds per sample of one run; :meth:`validate` fills them)
+        self._family_cost: dict[str, float] = {}
+        self._cell_cost: dict[int, float] = {}
 
     @classmethod
     def from_toml(cls, path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Study:
@@ -345,7 +381,7 @@ class Study:
         hgo_mj.exceptions.DesignError: cell 1 (observers.hgo.k = -1.0): ...
         """
         names: list[str] = []
-        built: dict[str, Any] = {}
+        built: dict[str, tuple[int, int]] = {}
         for cell in self.cells:
             # cells that differ only in x0 are built once; each x0 is checked on its own
             rest = {**cell.scenario, "plant": {k: v for k, v in cell.scenario["plant"].items()
@@ -353,10 +389,14 @@ class Study:
             key = json.dumps(rest, sort_keys=True)
             try:
                 if key in built:
-                    self._check_x0(cell.scenario["plant"].get("x0"), built[key]["plant"])
+                    n, first = built[key]
+                    self._check_x0(cell.scenario["plant"].get("x0"), n)
+                    self._cell_cost[cell.index] = self._cell_cost[first]
                     continue
-                kw = built[key] = scenario_run(cell.scenario, self.name)
-                self._check_x0(cell.scenario["plant"].get("x0"), kw["plant"])
+                kw = scenario_run(cell.scenario, self.name)
+                # only the state count is kept: a plant per distinct cell would not fit
+                built[key] = (len(kw["plant"].state_names), cell.index)
+                self._check_x0(cell.scenario["plant"].get("x0"), built[key][0])
                 self._check_memory(kw)
                 if "t_transient" in cell.scenario.get("run", {}):
                     t_tr = cell.scenario["run"]["t_transient"]
@@ -368,10 +408,16 @@ class Study:
                 raise DesignError(f"cell {cell.index} ({cell.label()}): {exc}") from None
             except (TypeError, ValueError) as exc:
                 raise DesignError(f"cell {cell.index} ({cell.label()}): {exc}") from None
-            for ob in kw["observers"].values():
+            cost = 0.0
+            for name, ob in kw["observers"].items():
                 for d in ob.diagnostic_names:
                     if d not in names:
                         names.append(d)
+                family = type(ob).__qualname__
+                if family not in self._family_cost:  # each family measured once
+                    self._family_cost[family] = update_cost(kw, name)
+                cost += self._family_cost[family]
+            self._cell_cost[cell.index] = cost
         self._validated = True
         return names
 
@@ -393,9 +439,9 @@ class Study:
                               f"available: shorten run.duration or sample less often")
 
     @staticmethod
-    def _check_x0(x0: Any, plant: Any) -> None:
+    def _check_x0(x0: Any, n: int) -> None:
         if x0 is not None:
-            vector("plant.x0", x0, len(plant.state_names))
+            vector("plant.x0", x0, n)
 
     def _metric_kw(self) -> dict[str, Any]:
         run = self.spec.scenario.get("run", {})
@@ -432,7 +478,7 @@ class Study:
         """
         cells = self.cells
         chunks = plan(cells, self.spec.seeds, done=done, jobs=jobs, metric_kw=self._metric_kw())
-        trajectories, plant_steps, obs_steps, closed_steps = set(), 0.0, 0.0, 0.0
+        trajectories, plant_steps, obs_s, closed_steps = set(), 0.0, 0.0, 0.0
         closed_cells: set[int] = set()
         segments = 0.0
         for c in chunks:
@@ -441,7 +487,9 @@ class Study:
                 dur = float(sc["run"]["duration"])
                 dt = float(sc["plant"].get("dt") or 0.001)
                 steps = dur / float(sc["run"].get("sample_period") or dt)
-                obs_steps += steps * max(len(sc.get("observers", [])), 1)
+                # each family's measured warm cost (validate), else a high-gain one's
+                obs_s += steps * self._cell_cost.get(
+                    cell, _OBSERVER_STEP_S * max(len(sc.get("observers", [])), 1))
                 if "controller" in sc:  # a closed loop: every run its own plant trajectory
                     trajectories.add(json.dumps([cell, seed]))
                     closed_steps += dur / dt
@@ -455,7 +503,7 @@ class Study:
                 if key not in trajectories:
                     trajectories.add(key)
                     plant_steps += dur / dt
-        serial = (obs_steps * _OBSERVER_STEP_S + closed_steps * _CLOSED_STEP_S
+        serial = (obs_s + closed_steps * _CLOSED_STEP_S
                   + segments * _SEGMENT_S)
         est = plant_steps * _PLANT_STEP_S + serial / max(jobs, 1)
         todo = sum(c.n_runs for c in chunks)
@@ -515,6 +563,13 @@ class Study:
 
         jobs = positive_int("jobs", jobs, floats=False)
         backend_for(backend, address=address, jobs=jobs)  # Ray importable, address reachable
+        say = echo or (lambda s: print(s, file=sys.stderr))
+        if not quiet and self.spec.n_cells >= LARGE_CELLS:  # its checks and plan take a while
+            from .spec import study_memory
+
+            say(f"study: {self.spec.n_runs:,} runs ({self.spec.n_cells:,} cells x "
+                f"{len(self.spec.seeds):,} seeds), up to {study_memory(self.spec) / 2**30:.2g} "
+                f"GiB of memory; checking every cell and planning ...")
         diagnostics = self.validate()
         res = ResultsDir(out)
         done = res.start(self.spec, resume)
@@ -522,7 +577,6 @@ class Study:
             jobs = local_jobs(jobs, self.plan(jobs=1, done=done).serial_s)
         the_plan = self.plan(jobs=jobs, done=done, out=out)
         run_backend = backend_for(backend, address=address, jobs=jobs)
-        say = echo or (lambda s: print(s, file=sys.stderr))
         if not quiet:
             say(the_plan.describe())
         sch = schema(self.spec, diagnostics)
@@ -533,9 +587,11 @@ class Study:
             res.write(rows, self.spec, values, sch)
             progress.add(chunk.n_runs)
         progress.close()
+        res.seal()  # the rows are complete: readable from here on
         result = StudyResult(self, Path(out), time.perf_counter() - t0)
         result.write_summary()
         self._store_trajectories(Path(out))
+        res.seal()
         return result
 
     def _store_trajectories(self, out: Path) -> None:
@@ -690,7 +746,10 @@ class StudyResult:
         """
         from .figures import study_figures
 
-        return study_figures(self, out)
+        figs = study_figures(self, out)
+        if out is not None and Path(out) == self.out:
+            ResultsDir(self.out).seal()  # the figures join the folder's manifest
+        return figs
 
 
 __all__ = ["Plan", "Study", "StudyResult", "load_toml"]

@@ -65,3 +65,21 @@ def test_documented(env):
     doc = type(env).__doc__
     assert "Bad actions and starting states raise" in doc
     assert "Raises" in type(env).reset.__doc__ and "Raises" in type(env).step.__doc__
+
+
+def test_reset_options_not_a_dict_is_a_clear_error(env):
+    """Issue 27 item 13: reset(options=5) names what it expected, not Python's TypeError."""
+    with pytest.raises(DesignError, match=r"reset options must be a dict .*found int 5"):
+        env.reset(options=5)
+
+
+@pytest.mark.parametrize("goal", [1e300, -4.0, float("nan")])
+def test_reach_goal_beyond_its_bound_is_refused(goal):
+    """Issue 27 item 7: a goal outside the observation space's bound (pi) is refused."""
+    env = gym.make("hgo_mj/ElasticJointReach-v0").unwrapped
+    with pytest.raises(DesignError, match=r"options\['goal'\] must (lie in \[-3.14159, "
+                                          r"3.14159\]|be finite)"):
+        env.reset(options={"goal": [goal]})
+    obs, _ = env.reset(options={"goal": [1.0]})
+    assert obs[-1] == 1.0 or 1.0 in obs.tolist()
+    env.close()

@@ -238,3 +238,25 @@ def test_two_renderers_interleaved_each_draw_their_own_frame():
     np.testing.assert_array_equal(a.render(), first)
     a.close()
     b.close()
+
+
+@pytest.mark.parametrize("backend", ["osmesa", "glfw", "bogus"])
+def test_a_named_backend_this_machine_lacks_is_a_render_error(backend):
+    """Issue 27 item 13: MUJOCO_GL naming a backend that is missing or cannot draw gives the
+    documented RenderError (or a frame where the backend works), never MuJoCo's FatalError."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import gymnasium as gym, hgo_mj.envs\n"
+            "from hgo_mj.envs.render import RenderError\n"
+            "env = gym.make('hgo_mj/PendulumSwingUp-v0', render_mode='rgb_array')\n"
+            "env.reset(seed=0)\n"
+            "try:\n    frame = env.render()\n    print('FRAME', frame.shape)\n"
+            "except RenderError as exc:\n    print('RENDERERROR', exc)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, env={**os.environ, "MUJOCO_GL": backend})
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.startswith(("FRAME", "RENDERERROR")), res.stdout
+    if backend == "bogus":
+        assert "not one of ['egl', 'glfw', 'osmesa']" in res.stdout

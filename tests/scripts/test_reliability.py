@@ -24,6 +24,8 @@ def test_memory_soak_and_page(tmp_path):
     text = rel.page(rows, soaks, 1001, {"tests/x.py": "1 passed"}, "cmd", faults)
     assert "| `test_kill` | A kill during a save. | passed |" in text
     assert "1 of 1 fault tests passed." in text
+    assert "Cases tried: 1 tests" in text and "files lost: 0 " in text
+    assert rel.totals({"a": "3 passed, 1 failed in 2s", "b": "2 passed in 1s"}) == (6, 1)
     assert "| 2 | stream | 2001 |" in text and "flat with the duration" in text
     assert "| hgo_mj/PendulumSwingUp-v0 |" in text
     rel.figure(rows, tmp_path / "m.png")

@@ -513,3 +513,100 @@ def test_a_closed_loops_chunks_are_bounded_by_its_kept_errors():
     assert sum(sizes) == 1024 and max(sizes) * 10001 <= CLOSED_VALUES
     assert [c.n_runs for c in Study({**BASE, "run": {"duration": 10.0}}, seeds=1024).plan(
     ).chunks] == [1024]
+
+
+# ------------------------------------------------ issue 27 item 5: overlapping, useless axes
+OVERLAP_BASE = {"plant": {"name": "pendulum", "dt": 0.01},
+                "observers": [{"type": "high_gain", "name": "k20", "k": 20.0}],
+                "run": {"duration": 0.2, "seed": 3}}
+
+
+@pytest.mark.parametrize("sweep, message", [
+    ({"observers.k20": [{"type": "high_gain", "k": 5.0}], "observers.k20.k": [1.0]},
+     r"sweep axes 'observers.k20' and 'observers.k20.k' overlap"),
+    ({"observers.k20.k": [1.0], "observers.k20": [{"type": "high_gain", "k": 5.0}]},
+     r"sweep axes 'observers.k20' and 'observers.k20.k' overlap"),
+    ({"together": [{"run": [{"duration": 0.2}], "run.duration": [0.3]}]},
+     r"sweep axes 'run' and 'run.duration' overlap"),
+    ({"run.seed": [1, 2]}, r"'run.seed' cannot change a run: .*\[sweep\] seeds = N"),
+    ({"run.out": ["a", "b"]}, r"'run.out' cannot change a run: .*--out"),
+    ({"run.stream": [True, False]}, r"'run.stream' cannot change a run"),
+])
+def test_overlapping_or_useless_axes_are_refused(sweep, message):
+    from hgo_mj.study.spec import parse_study
+
+    with pytest.raises(DesignError, match=message):
+        parse_study({**OVERLAP_BASE, "sweep": sweep})
+
+
+def test_summary_spread_of_no_finished_run_is_nan_not_zero():
+    """Issue 27 item 6: a cell whose runs all diverged has NaN statistics, its std included."""
+    import numpy as np
+    import pandas as pd
+
+    from hgo_mj.study.results import summarize
+
+    df = pd.DataFrame({"cell": [0, 0, 1], "seed": [0, 1, 0], "observer": "hgo",
+                       "state": "angle", "estimated": True, "rmse": [np.nan, np.nan, 0.1],
+                       "peak": 0.5, "settling_time": [np.nan, np.nan, 0.2], "final": 0.01,
+                       "diverged": [True, True, False]})
+    s = summarize(df, [])
+    assert np.isnan(s["rmse_mean"].iloc[0]) and np.isnan(s["rmse_std"].iloc[0])
+    assert s["rmse_std"].iloc[1] == 0.0
+
+
+def test_the_time_estimate_counts_each_family_by_its_measured_cost():
+    """Issue 27 item 7: an EKF study is planned as slower than the same high-gain study (its
+    warm cost per update is measured), so --jobs is not silently one process."""
+    base = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+            "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+            "run": {"duration": 2.0}}
+    hgo = Study({**base, "observers": [{"type": "high_gain", "name": "o", "k": 20.0}]},
+                {"run.duration": [2.0, 3.0]}, seeds=4)
+    ekf = Study({**base, "observers": [{"type": "ekf", "name": "o"}]},
+                {"run.duration": [2.0, 3.0]}, seeds=4)
+    for s in (hgo, ekf):
+        s.validate()
+    assert ekf.plan().serial_s > 3 * hgo.plan().serial_s
+    assert set(ekf._family_cost) and all(c > 0 for c in ekf._family_cost.values())
+
+
+def test_a_study_too_large_for_memory_is_refused_even_with_yes(monkeypatch):
+    """Issue 27 item 12: the size and memory of a study are estimated before any cell is
+    built, and the memory bound holds without max_runs (--yes)."""
+    import hgo_mj.simulate
+    from hgo_mj.study.spec import parse_study, study_memory
+
+    doc = {**OVERLAP_BASE, "sweep": {"seeds": 100,
+                                     "observers.k20.k": [float(i + 1) for i in range(100_000)]}}
+    monkeypatch.setattr(hgo_mj.simulate, "available_memory", lambda: 2.0**30)
+    with pytest.raises(DesignError, match=r"10,000,000 runs .* would hold about [\d.]+ GiB .* "
+                                          r"found 1 GiB .*a bound --yes keeps"):
+        parse_study(doc, max_runs=None)
+    small = parse_study({**OVERLAP_BASE, "sweep": {"observers.k20.k": [1.0, 2.0]}})
+    assert 0 < study_memory(small) < 2**20
+
+
+def test_validate_keeps_no_plant_per_cell():
+    """The check of every cell builds each distinct one and lets it go (100,000 MuJoCo plants
+    held at once did not fit)."""
+    import gc
+    import weakref
+
+    from hgo_mj.plants.mujoco import MujocoPlant as Plant
+
+    seen = []
+    original = Plant.__init__
+
+    def tracked(self, *a, **kw):
+        original(self, *a, **kw)
+        seen.append(weakref.ref(self))
+
+    study = Study(OVERLAP_BASE, {"observers.k20.k": [float(i + 1) for i in range(20)]})
+    Plant.__init__ = tracked
+    try:
+        study.validate()
+    finally:
+        Plant.__init__ = original
+    gc.collect()
+    assert len(seen) >= 20 and sum(r() is not None for r in seen) <= 2
