@@ -898,12 +898,20 @@ class Recorder:
                     step=self._step_next, episode=int(episode), extra=extra)
 
     # ------------------------------------------------------------------ lifetime
+    @property
+    def writing(self) -> Path | None:
+        """The file being written: a temporary beside :attr:`path` until :meth:`close`
+        checks it and renames it onto :attr:`path` (an earlier recording there is kept until
+        then); None for a recorder without a path."""
+        return self._sink.file
+
     def flush(self) -> None:
-        """Send the queued poses and wait until everything recorded so far is written.
+        """Send the queued poses and wait until everything recorded so far is written (to
+        :attr:`writing` until the recorder is closed).
 
         Examples
         --------
-        A file readable while the recorder is still open:
+        The file readable while the recorder is still open:
 
         >>> import tempfile
         >>> import warnings
@@ -918,7 +926,7 @@ class Recorder:
         ...     rec.flush()
         ...     with warnings.catch_warnings():  # no footer yet: rerun warns
         ...         warnings.simplefilter("ignore")
-        ...         rows = len(read(Path(tmp) / "run.rrd"))
+        ...         rows = len(read(rec.writing))
         ...     rec.close()
         >>> rows
         3
