@@ -4,6 +4,7 @@ bad input the issue found; the property-based suite is tests/test_fuzz_scenarios
 
 from __future__ import annotations
 
+import json
 import tracemalloc
 
 import numpy as np
@@ -163,9 +164,14 @@ def test_run_too_long_for_memory_refused_before_running(tmp_path, capsys):
 
 # ---------------------------------------------------------------- magnitudes
 def test_huge_noise_is_reported_not_written_as_null(tmp_path, capsys):
+    """A measurement beyond the observers' bound (MAX_MEASUREMENT) is that observer's
+    divergence at its first sample, said on one line; nothing is written as a silent null."""
     doc = BASE + '[sensor]\nstages = [{stage = "gaussian", std = 1e300}]\n'
     code, err, out = _run(tmp_path, doc, capsys)
-    assert_one_line(code, err, out, "overflowed to inf")
+    assert code == 0 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert "diverged at t = 0 s" in err and "beyond +-1e+10" in err, err
+    metrics = json.loads((out / "metrics.json").read_text())["high_gain_0"]
+    assert metrics["diverged_at"] == 0.0 and metrics["undefined_samples"] == [30, 30], metrics
 
 
 def test_huge_gain_is_refused(tmp_path, capsys):

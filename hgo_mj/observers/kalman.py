@@ -1057,6 +1057,18 @@ _FIELDS = {"tendon_stiffness": mujoco.mjtObj.mjOBJ_TENDON,
            "body_mass": mujoco.mjtObj.mjOBJ_BODY}
 
 
+#: MuJoCo's warnings of a reset to the reference pose (an unstable qpos, qvel or qacc)
+_RESET_WARNINGS = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS,
+                                         mujoco.mjtWarning.mjWARN_BADQVEL,
+                                         mujoco.mjtWarning.mjWARN_BADQACC))
+
+
+def _resets(d: Any) -> int:
+    """The number of resets MuJoCo has counted in ``d`` (:data:`_RESET_WARNINGS`)."""
+    w = d.warning
+    return sum(int(w[i].number) for i in _RESET_WARNINGS)
+
+
 def _kalman_fields(system: System) -> dict[str, str]:
     """The system's aliases ``{parameter name: "field[element]" or "opt.gravity"}`` (its
     ``"kalman_fields"`` form), or none if it declares no such form."""
@@ -1266,13 +1278,22 @@ class MujocoModel:
         return int(k)
 
     def _step_row(self, xa: Array, u: Array, h: float) -> Array:
-        """MuJoCo's own step(s) over ``h`` from one augmented row with ``u`` held."""
+        """MuJoCo's own step(s) over ``h`` from one augmented row with ``u`` held.
+
+        MuJoCo answers a row it calls unstable (NaN, or beyond ``mjMAXVAL`` in ``qpos``,
+        ``qvel`` or ``qacc``) by resetting ``MjData`` to the model's reference pose and
+        counting a warning; stepping on from there would give a silent estimate of zeros, so a
+        warning counted during the step is a :class:`DivergenceError`."""
         if self.q:
             self._set_params(xa[self.n:])
         d = self.d
         self._load(d, xa, u)
+        warned = _resets(d)
         for _ in range(self._steps(h)):
             mujoco.mj_step(self.m, d)
+        if _resets(d) != warned:
+            raise DivergenceError(f"MuJoCo reset the filter's model: the row {xa.tolist()} is "
+                                  f"unstable (NaN or beyond mjMAXVAL in qpos, qvel or qacc)")
         out = xa.copy()
         nj = self.n // 2
         out[:nj] = d.qpos[self.qadr]
