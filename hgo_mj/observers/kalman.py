@@ -38,19 +38,19 @@ against a textbook Kalman filter, and against the exact discretization as :math:
 
 **The model** comes from the system (:class:`SystemModel`): ``dynamics`` and, where given,
 the analytic ``jacobian(t, x, u, p)`` and ``param_jacobian(t, x, u, p, names)``, else central
-finite differences. Three ways to evaluate it over a batch, chosen once at construction:
+finite differences. Two ways to evaluate it over a batch, chosen once at construction by
+what the system declares (nothing is probed):
 
 * *compiled* (every system of the package): the system's
   :class:`~hgo_mj.systems.base.CompiledModel`, its ODE and Jacobians written once as rows that
   numba kernels call (:func:`_model_step`, :func:`_model_jacobian`, :func:`_ekf_predict`); the
-  EKF then runs a whole block of samples in one call (:func:`_ekf_block`). The same operations
-  as the Python ``dynamics``, so the numbers are those of the two paths below, bit for bit;
-* *columns* (vectorized): a ``dynamics`` written as an array expression of the components
-  ``x[i]``, ``u[j]`` and the parameters (numpy ufuncs, no ``float()`` or ``math.*``; the
-  bioreactors of :mod:`hgo_mj.systems.papers` are) is called once on the columns of the whole
-  batch, ``x`` of shape ``(n, K)``; detected by evaluating it on three rows at once and
-  comparing with the rows one by one;
-* *rows*: one Python call per member (a ``dynamics`` that reads floats).
+  EKF then runs a whole block of samples in one call (:func:`_ekf_block`);
+* *Python* (a system without a compiled model, e.g. a user's): one ``dynamics`` call per
+  member and stage, the RK4 and Euler arithmetic of :mod:`hgo_mj.observers._integrate` over
+  the rows.
+
+Both do the same operations in the same order (the RK4 of :func:`_rk4_row` is that of
+:func:`hgo_mj.observers._integrate.rk4`), so they give the same numbers bit for bit (tested).
 
 The MuJoCo variants (:class:`MujocoExtendedKalmanFilter`, :class:`MujocoUnscentedKalmanFilter`,
 model :class:`MujocoModel`) use the MJCF itself: the mean by stepping an ``MjData`` of a copy of
@@ -130,6 +130,7 @@ from ..systems.base import (
     model_jacobian,
     model_param_jacobian,
 )
+from . import _integrate
 from .base import Array, Observer, Params, State, batch_rows, register
 
 IntArray = NDArray[np.int64]
@@ -504,23 +505,6 @@ def _ekf_covariance(P: Array, F: Array, h: float, rk4: bool, Qh: Array) -> None:
 
 
 @njit(cache=True)
-def _axpy(x: Array, a: float, k: Array) -> Array:  # pragma: no cover - numba
-    """``x + a k`` (an RK4 stage of one row)."""
-    out = np.empty(x.shape[0])
-    for i in range(x.shape[0]):
-        out[i] = x[i] + a * k[i]
-    return out
-
-
-@njit(cache=True)
-def _rk4_final(x: Array, k1: Array, k2: Array, k3: Array, k4: Array, h6: float,
-               out: Array) -> None:  # pragma: no cover - numba
-    """``out = x + h/6 (k1 + 2 (k2 + k3) + k4)`` (RK4's combination of one row)."""
-    for i in range(x.shape[0]):
-        out[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
-
-
-@njit(cache=True)
 def _first_nonfinite(X: Array) -> int:  # pragma: no cover - numba
     """The first row of ``X`` with a non-finite entry, or -1."""
     for b in range(X.shape[0]):
@@ -843,9 +827,9 @@ class SystemModel:
 
     Attributes
     ----------
-    vectorized : bool
-        Whether ``dynamics`` is evaluated once on the columns of all rows (an array
-        expression, see the module docstring) rather than once per row.
+    compiled : CompiledModel or None
+        The system's compiled ODE the kernels call, or None: its Python ``dynamics``, one
+        call per row (see the module docstring).
     """
 
     kind = "system"
@@ -877,7 +861,6 @@ class SystemModel:
         self.state_names = tuple(system.state_names)
         self.output_names = tuple(system.output_names)
         self.n_inputs = len(system.input_names)
-        self.vectorized = self._columns_work()
         #: the system's ODE compiled for the kernels (:class:`CompiledModel`), where it has
         #: one with the Jacobians this filter asks for; ``None``: its Python ``dynamics``
         self.compiled = self._compiled(system)
@@ -903,50 +886,16 @@ class SystemModel:
             p[nm] = float(xa[n + j])
         return p
 
-    def _columns_work(self) -> bool:
-        """Whether ``dynamics`` evaluated on columns ``(n, K)`` (parameters ``(K,)``) gives the
-        rows' values: probed once at three random rows."""
-        rng = np.random.default_rng(2024)
-        X = np.empty((3, self.N))
-        X[:, :self.n] = rng.uniform(-1.0, 1.0, (3, self.n))
-        for j, nm in enumerate(self.names):
-            X[:, self.n + j] = self.base[nm] * rng.uniform(0.8, 1.2, 3)
-        U = rng.uniform(-1.0, 1.0, (3, self.n_inputs))
-        try:
-            rows = np.array([np.asarray(self.system.dynamics(0.0, x[:self.n], u, self.params(x)),
-                                        dtype=float) for x, u in zip(X, U)])
-        except Exception:  # noqa: BLE001 - a model that fails here is used row by row
-            return False
-        try:
-            with np.errstate(all="ignore"):
-                cols = self._f_columns(X, U)
-        except Exception:  # noqa: BLE001 - not an array expression: row by row
-            return False
-        return bool(cols.shape == rows.shape and np.allclose(cols, rows, rtol=1e-12, atol=1e-14))
-
-    def _columns(self, X: Array, U: Array) -> tuple[Array, Array, Mapping[str, Any]]:
-        """The rows ``X``, ``U`` as contiguous columns ``(n, K)``, ``(m, K)`` and the parameters
-        (estimated ones as ``(K,)`` arrays)."""
-        n = self.n
-        p: Mapping[str, Any] = self.base
-        if self.q:
-            p = dict(self.base)
-            for j, nm in enumerate(self.names):
-                p[nm] = np.ascontiguousarray(X[:, n + j])
-        return np.ascontiguousarray(X[:, :n].T), np.ascontiguousarray(U.T), p
-
-    def _fc(self, Xc: Array, Uc: Array, p: Mapping[str, Any]) -> Array:
-        """``f`` on columns, ``(n, K)``."""
-        out = np.asarray(self.system.dynamics(0.0, Xc, Uc, p), dtype=float)
-        if out.shape != Xc.shape:
-            raise DesignError(f"dynamics on columns {Xc.shape} returned shape {out.shape}")
+    # --------------------------------------------------------------------- dynamics
+    def _f(self, Z: Array, U: Array, ps: Sequence[Mapping[str, float]]) -> Array:
+        """The Python ``dynamics`` of the rows ``Z`` ``(K, n)`` (row ``k`` with the input
+        ``U[k]`` and the parameters ``ps[k]``), ``(K, n)``: one call per row."""
+        dyn = self.system.dynamics
+        out = np.empty(Z.shape)
+        for k in range(Z.shape[0]):
+            out[k] = dyn(0.0, Z[k], U[k], ps[k])
         return out
 
-    def _f_columns(self, X: Array, U: Array) -> Array:
-        """``f`` of the rows ``X`` from one call on the columns, ``(K, n)``."""
-        return self._fc(*self._columns(X, U)).T
-
-    # --------------------------------------------------------------------- dynamics
     def deriv(self, X: Array, U: Array) -> Array:
         """:math:`(f(x, u, \\theta), 0)` of the rows, shape (K, N)."""
         out = np.zeros(X.shape)
@@ -955,12 +904,7 @@ class SystemModel:
             _model_deriv(self.compiled, np.ascontiguousarray(X, dtype=float),
                          np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, out)
             return out
-        if self.vectorized:
-            out[:, :n] = self._f_columns(X, U)
-            return out
-        dyn = self.system.dynamics
-        for k in range(X.shape[0]):
-            out[k, :n] = dyn(0.0, X[k, :n], U[k], self.params(X[k]))
+        out[:, :n] = self._f(X[:, :n], U, [self.params(x) for x in X])
         return out
 
     def jac(self, X: Array, U: Array) -> Array:
@@ -973,25 +917,7 @@ class SystemModel:
                             self.analytic, A)
             return A
         if not self.analytic:
-            if not self.vectorized:
-                A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
-                return A
-            # central differences on columns: the 2N perturbed evaluations of the whole batch
-            Xc, Uc, p = self._columns(X, U)
-            for j in range(N):
-                e = 1e-6 * np.maximum(1.0, np.abs(X[:, j]))
-                if j < n:
-                    Xp, Xm = Xc.copy(), Xc.copy()
-                    Xp[j] += e
-                    Xm[j] -= e
-                    fp, fm = self._fc(Xp, Uc, p), self._fc(Xm, Uc, p)
-                else:
-                    nm = self.names[j - n]
-                    pp, pm = dict(p), dict(p)
-                    pp[nm] = p[nm] + e
-                    pm[nm] = p[nm] - e
-                    fp, fm = self._fc(Xc, Uc, pp), self._fc(Xc, Uc, pm)
-                A[:, :n, j] = ((fp - fm) / (2.0 * e)).T
+            A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
             return A
         jx = self.system.jacobian  # type: ignore[attr-defined]
         jp = getattr(self.system, "param_jacobian", None)
@@ -1005,8 +931,10 @@ class SystemModel:
     def step(self, X: Array, U: Array, h: float, method: str,
              members: Array | None = None) -> Array:
         """One RK4 (or Euler) step of ``h`` of the rows with ``u`` held (``members`` unused):
-        on columns (vectorized) or row by row, the same arithmetic
-        :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`, :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`..."""
+        :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`,
+        :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`, ... (:func:`hgo_mj.observers._integrate.rk4`;
+        the compiled kernel :func:`_rk4_row` does the same operations); the parameters
+        ``X[:, n:]`` are kept."""
         n = self.n
         out = np.array(X, dtype=float, order="C")
         if self.compiled is not None:
@@ -1014,30 +942,9 @@ class SystemModel:
                         np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, h,
                         method == "rk4", out)
             return out
-        hh, h6 = 0.5 * h, h / 6.0
-        if self.vectorized:
-            Xc, Uc, p = self._columns(X, U)
-            f = self._fc
-            k1 = f(Xc, Uc, p)
-            if method == "euler":
-                out[:, :n] = (Xc + h * k1).T
-                return out
-            k2 = f(Xc + hh * k1, Uc, p)
-            k3 = f(Xc + hh * k2, Uc, p)
-            k4 = f(Xc + h * k3, Uc, p)
-            out[:, :n] = (Xc + h6 * (k1 + 2.0 * (k2 + k3) + k4)).T
-            return out
-        dyn = self.system.dynamics
-        for r in range(X.shape[0]):
-            x, u, p = X[r, :n], U[r], self.params(X[r])
-            k1 = np.asarray(dyn(0.0, x, u, p), dtype=float)
-            if method == "euler":
-                out[r, :n] = _axpy(x, h, k1)
-                continue
-            k2 = np.asarray(dyn(0.0, _axpy(x, hh, k1), u, p), dtype=float)
-            k3 = np.asarray(dyn(0.0, _axpy(x, hh, k2), u, p), dtype=float)
-            k4 = np.asarray(dyn(0.0, _axpy(x, h, k3), u, p), dtype=float)
-            _rk4_final(x, k1, k2, k3, k4, h6, out[r, :n])
+        ps = [self.params(x) for x in X]
+        scheme = _integrate.rk4 if method == "rk4" else _integrate.euler
+        out[:, :n] = scheme(lambda Z: self._f(Z, U, ps), out[:, :n], h)
         return out
 
     def output(self, xa: Array) -> Array:
@@ -1122,7 +1029,6 @@ class MujocoModel:
     """
 
     kind = "mujoco"
-    vectorized = False
 
     def __init__(self, system: System, model: Any = None, estimate: Sequence[str] = (),
                  jacobian: str = "transition_fd") -> None:
@@ -1721,8 +1627,7 @@ class _KalmanFilter(Observer):
         return {"model": self.model.kind, "estimate": list(self.estimate),
                 "Q": self.Qc.tolist(), "R": self.R.tolist(), "P0": self.P0.tolist(),
                 "outputs": list(self.outputs), "method": self.method, "substeps": self.substeps,
-                "jacobian": self.model.jacobian_kind, "vectorized": bool(self.model.vectorized),
-                "on_unstable": self.on_unstable}
+                "jacobian": self.model.jacobian_kind, "on_unstable": self.on_unstable}
 
 
 @register
