@@ -114,6 +114,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from .._binding import Binding
 from .._validate import (
     finite_scalar,
     one_of,
@@ -122,7 +123,7 @@ from .._validate import (
     positive_semidefinite,
     vector,
 )
-from ..exceptions import DesignError, DivergenceError
+from ..exceptions import DesignError, DivergenceError, ModelError
 from ..systems.base import (
     CompiledModel,
     System,
@@ -956,12 +957,9 @@ class SystemModel:
         return _probe_selection(self.system.output, self.base, self.n, channels)
 
 
-#: MJCF fields an augmented MuJoCo filter may estimate, by the object kind naming the element
-_FIELDS = {"tendon_stiffness": mujoco.mjtObj.mjOBJ_TENDON,
-           "actuator_gear": mujoco.mjtObj.mjOBJ_ACTUATOR,
-           "dof_damping": mujoco.mjtObj.mjOBJ_JOINT,
-           "dof_armature": mujoco.mjtObj.mjOBJ_JOINT,
-           "body_mass": mujoco.mjtObj.mjOBJ_BODY}
+#: MJCF fields an augmented MuJoCo filter may estimate, by the element kind naming the element
+_FIELDS = {"tendon_stiffness": "tendon", "actuator_gear": "actuator", "dof_damping": "joint",
+           "dof_armature": "joint", "body_mass": "body"}
 
 
 #: MuJoCo's warnings of a reset to the reference pose (an unstable qpos, qvel or qacc)
@@ -1055,28 +1053,17 @@ class MujocoModel:
         self.d = mujoco.MjData(m)
         self.ts = float(m.opt.timestep)
         joints = system.joints
-        jids = []
-        for j in joints:
-            i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-            if i < 0:
-                raise DesignError(f"the model has no joint named {j!r} (needed by "
-                                  f"{type(system).__name__})")
-            jids.append(i)
+        #: the model's names bound to ids and addresses (the one binding)
+        self.binding = names = Binding(m, "the model")
+        self.qadr, self.vadr = names.qpos(joints), names.dofs(joints)
         if m.nq != m.nv or m.nv != len(joints) or m.na != 0:
             raise DesignError(f"the MuJoCo filter needs a model whose only degrees of freedom are "
                               f"the hinge/slide joints {list(joints)} and no activations; found "
                               f"nq={m.nq}, nv={m.nv}, na={m.na}")
-        self.qadr = np.array([m.jnt_qposadr[i] for i in jids], dtype=np.intp)
-        self.vadr = np.array([m.jnt_dofadr[i] for i in jids], dtype=np.intp)
         nv = m.nv
         #: our state index -> index in MuJoCo's tangent state (dq, dv)
         self.perm = np.concatenate((self.vadr, nv + self.vadr))
-        self.aid = []
-        for a in system.actuators:
-            i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a)
-            if i < 0:
-                raise DesignError(f"the model has no actuator named {a!r}")
-            self.aid.append(int(i))
+        self.aid = names.ids("actuator", system.actuators).tolist()
         self.n = 2 * len(joints)
         self.state_names = tuple(system.state_names)
         self.output_names = tuple(system.output_names)
@@ -1123,13 +1110,12 @@ class MujocoModel:
                               f"{sorted(_FIELDS)}[element name] or 'opt.gravity', or one of the "
                               f"aliases {sorted(aliases)}; found {spec!r}")
         field, elem = mt.group(1), mt.group(2)
-        i = mujoco.mj_name2id(m, _FIELDS[field], elem)
-        if i < 0:
-            raise DesignError(f"cannot estimate {name!r}: the model has no "
-                              f"{_FIELDS[field].name[6:].lower()} named {elem!r}")
-        if field in ("dof_damping", "dof_armature"):
-            i = int(m.jnt_dofadr[i])
-        return (field, int(i))
+        try:
+            if field in ("dof_damping", "dof_armature"):
+                return (field, int(self.binding.dofs([elem])[0]))
+            return (field, self.binding.id(_FIELDS[field], elem))
+        except ModelError as exc:
+            raise ModelError(f"cannot estimate {name!r}: {exc}") from None
 
     # --------------------------------------------------------------------- parameters
     def get_params(self) -> Array:
