@@ -628,6 +628,8 @@ class Observer(ABC):
         self._cols_index: slice | NDArray[np.intp] = (slice(lo, hi) if self.outputs == tuple(range(lo, hi))
                                            else self._cols)
         self._held: tuple[Params, State] | None = None
+        #: the rows :meth:`update` writes, reused while B stays (it returns a copy of x_hat)
+        self._rows: Block | None = None
         self._batched = False
 
     #: the observer form a system must declare (:meth:`System.form`), and the paper's words
@@ -1473,8 +1475,8 @@ class Observer(ABC):
                                  f"{np.shape(u)}")
         if not (type(dt) is float and dt > 0 and dt < math.inf):
             dt = _positive_dt(dt)
-        x = self._step_checked(params, state, ya, ua, dt).x_hat[:, 0]
-        return self._public(x)  # type: ignore[no-any-return]
+        rows = self._rows = self._step_checked(params, state, ya, ua, dt, self._rows)
+        return self._public(rows.x_hat[:, 0].copy())  # type: ignore[no-any-return]
 
     def filtered(self, y: Any) -> Array:
         """The estimate at the present instant given also ``y``, measured at this instant,
@@ -1591,7 +1593,7 @@ class Observer(ABC):
         if self._batched:
             return a
         v = a[0]
-        return v.item() if np.ndim(v) == 0 else v
+        return v.item() if v.ndim == 0 else v
 
     @property
     def z_hat(self) -> Array:
@@ -1647,7 +1649,10 @@ class Observer(ABC):
     def _inputs(self, value: Any, what: str = "u") -> Array:
         """The input as a float array: real numbers, finite (an input is never a dropout)."""
         a = self._floats(what, value)
-        if not (math.isfinite(a.item()) if a.size == 1 else np.isfinite(a).all()):
+        size = a.size
+        if size == 0:  # no inputs (a model-free observer): nothing to check
+            return a
+        if not (math.isfinite(a.item()) if size == 1 else np.isfinite(a).all()):
             at = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
             raise DesignError(f"{self.name}: {what} must be finite; found {what}{list(at)} = "
                               f"{a[at]}")
