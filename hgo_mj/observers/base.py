@@ -630,6 +630,8 @@ class Observer(ABC):
         self._held: tuple[Params, State] | None = None
         #: the rows :meth:`update` writes, reused while B stays (it returns a copy of x_hat)
         self._rows: Block | None = None
+        #: whether the family shapes a state before a block (:meth:`_prepare`): else not called
+        self._prepares = type(self)._prepare is not Observer._prepare
         self._batched = False
 
     #: the observer form a system must declare (:meth:`System.form`), and the paper's words
@@ -1189,8 +1191,9 @@ class Observer(ABC):
         lost = self._lost(Yo)
         if not U.flags.c_contiguous:
             U = np.ascontiguousarray(U)
-        self._prepare(s, dt)
-        groups = self._groups(params)
+        if self._prepares:
+            self._prepare(s, dt)
+        groups = params.groups() if self.grouped else [(slice(None), params)]  # (_groups)
         if len(groups) == 1:
             self._step(groups[0][1], s, Yo, U, dt, X, Z, D[..., :nd])
         else:
