@@ -317,14 +317,15 @@ def mjcf_system(path: Any, outputs: Any, inputs: Any = None) -> type[MjcfSystem]
     bad = [a for a in inputs if a not in anames]
     if bad:
         raise ModelError(f"{p.name}: no actuator named {bad[0]!r}; actuators: {list(anames)}")
-    sensors = {m.sensor(i).name: i for i in range(m.nsensor)}
+    bound = Binding(m, p.name)
+    sensors = set(bound.names("sensor"))
     added: list[tuple[str, str]] = []
     measured: dict[str, int] = {}
     out_names: list[str] = []
     adrs: list[int] = []
     for name in outputs:
         if name in sensors:
-            s = sensors[name]
+            s = bound.id("sensor", name)
             dim, adr = int(m.sensor_dim[s]), int(m.sensor_adr[s])
             chans = [name] if dim == 1 else [f"{name}[{k}]" for k in range(dim)]
             if int(m.sensor_type[s]) == _JOINTPOS and int(m.sensor_objtype[s]) == _JOINT:
@@ -344,8 +345,8 @@ def mjcf_system(path: Any, outputs: Any, inputs: Any = None) -> type[MjcfSystem]
         out_names += chans
         adrs += [adr + k for k in range(len(chans))] if adr >= 0 else [-1]
     m = _compile(_edited_spec(str(p), (jnames, anames), tuple(added)), str(p))
-    names = Binding(m, p.name)
-    adrs = [a if a >= 0 else names.sensordata(c) for a, c in zip(adrs, out_names)]
+    bound = Binding(m, p.name)  # the model compiled with the added sensors
+    adrs = [a if a >= 0 else bound.sensordata(c) for a, c in zip(adrs, out_names)]
     cls = _make_class(p, m, jnames, anames, inputs, tuple(out_names), tuple(adrs),
                       tuple(added), measured)
     cls.mjcf = {"model": str(p), "outputs": list(outputs), "inputs": list(inputs)}
