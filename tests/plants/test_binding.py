@@ -78,9 +78,13 @@ def test_every_reader_by_name_goes_through_it():
     f = make_observer("ekf_mujoco", Pendulum(), R=1e-4)
     assert isinstance(f.model.binding, Binding)
     assert f.model.aid == f.model.binding.ids("actuator", Pendulum.actuators).tolist()
-    with pytest.raises(ModelError, match=r"cannot estimate 'body_mass\[nope\]': the model has no "
-                                         r"body named 'nope'; its body names: \['world', 'pole'\]"):
+    with pytest.raises(ModelError, match=r"cannot estimate 'body_mass\[nope\]' .*: the model has "
+                                         r"no body named 'nope'; its body names: \['world', "
+                                         r"'pole'\]"):
         make_observer("ekf_mujoco", Pendulum(), estimate=("body_mass[nope]",), theta_hat0=[1.0])
+    with pytest.raises(ModelError, match=r"the model has no joint named 'elbow'; its joint names: "
+                                         r"\['hinge'\]"):
+        MujocoPlant(Pendulum, model_fields={"dof_frictionloss[elbow]": 0.1})
     with pytest.raises(ModelError, match="pendulum.xml has no sensor named 'speed'; its sensor "
                                          "names: \\['angle'"):
         MujocoPlant(Pendulum, outputs=("angle", "speed"))
