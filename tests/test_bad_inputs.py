@@ -163,13 +163,15 @@ def test_run_too_long_for_memory_refused_before_running(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- magnitudes
-def test_huge_noise_is_a_divergence_of_the_observer_not_null_metrics(tmp_path, capsys):
-    """Issue 27 item 1: an estimate beyond 1e100 is that observer's divergence, reported."""
+def test_huge_noise_is_reported_not_written_as_null(tmp_path, capsys):
+    """A measurement beyond the observers' bound (MAX_MEASUREMENT) is that observer's
+    divergence at its first sample, said on one line; nothing is written as a silent null."""
     doc = BASE + '[sensor]\nstages = [{stage = "gaussian", std = 1e300}]\n'
-    code, err, out = _run(tmp_path, doc, capsys, "--quiet")
-    assert code == 0 and "diverged at t = 0.01 s" in err and "Traceback" not in err
-    metrics = json.loads((out / "metrics.json").read_text())
-    assert metrics["high_gain_0"]["diverged_at"] == 0.01
+    code, err, out = _run(tmp_path, doc, capsys)
+    assert code == 0 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert "diverged at t = 0 s" in err and "beyond +-1e+10" in err, err
+    metrics = json.loads((out / "metrics.json").read_text())["high_gain_0"]
+    assert metrics["diverged_at"] == 0.0 and metrics["undefined_samples"] == [30, 30], metrics
 
 
 def test_huge_gain_is_refused(tmp_path, capsys):

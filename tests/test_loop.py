@@ -161,3 +161,24 @@ def test_initial_states_alone_make_a_batch():
         simulate(plant, None, obs, Multisine([0.2], [0.5]), 0.05, x0=x0)
     with pytest.raises(DesignError, match=r"seed must be an integer or None; found \[1, 2\]"):
         simulate(plant, None, obs, Multisine([0.2], [0.5]), 0.05, seed=[1, 2])
+
+
+def test_reset_validates_once_and_again_only_when_something_changed():
+    """An environment's reset does not rebuild or recheck the parameters: the same read-only
+    Params serve while B and the observer's constructor values stay; a new B or a changed
+    constructor value builds and checks them again (and the run uses the new value)."""
+    from hgo_mj.loop import Loop, Periods
+
+    plant = make_plant("pendulum", dt=0.01)
+    ob = HighGainObserver(plant.system, k=10.0)
+    loop = Loop(plant, None, {"hgo": ob}, Periods.of(plant))
+    loop.reset()
+    first = loop.params["hgo"]
+    loop.reset()
+    assert loop.params["hgo"] is first
+    loop.reset(batch=2)
+    assert loop.params["hgo"] is not first and loop.params["hgo"].batch == 2
+    two = loop.params["hgo"]
+    ob.k_ = 30.0  # the constructor's value changed in place
+    loop.reset(batch=2)
+    assert loop.params["hgo"] is not two and loop.params["hgo"].k.tolist() == [30.0, 30.0]

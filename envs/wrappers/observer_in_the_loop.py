@@ -14,6 +14,7 @@ from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 from numpy.typing import NDArray
 
+from hgo_mj._binding import Binding
 from hgo_mj._validate import one_of
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import check_fits
@@ -285,7 +286,9 @@ class MujocoTap:
         self.joints = tuple(joints)
         self.system = mjcf_system(u.fullpath, list(joints))()
         m = u.model
-        self.qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in joints], dtype=np.intp)
+        #: the environment's model names bound to ids and addresses (the one binding)
+        self.binding = Binding(m, f"the model of {u.fullpath!r}")
+        self.qadr = self.binding.qpos(self.joints)
         self.h = float(m.opt.timestep)
         own = self.system.model
         if (own.nq, own.nv, own.nu, float(own.opt.timestep)) != (m.nq, m.nv, m.nu, self.h):
@@ -294,8 +297,8 @@ class MujocoTap:
                               f"against {(own.nq, own.nv, own.nu, float(own.opt.timestep))}): the "
                               f"observers could not model it")
         #: qpos and qvel addresses of the system's joints (its state: positions, velocities)
-        self.state_qpos = [int(m.jnt_qposadr[m.joint(j).id]) for j in self.system.joints]
-        self.state_qvel = [int(m.jnt_dofadr[m.joint(j).id]) for j in self.system.joints]
+        self.state_qpos = self.binding.qpos(self.system.joints).tolist()
+        self.state_qvel = self.binding.dofs(self.system.joints).tolist()
         self.entries = self._probe()
 
     def fresh(self) -> Any:
@@ -1031,7 +1034,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
             raise ResetNeeded("ObserverInTheLoop: call reset() before render()")
         tap = self.tap
         m = tap.env.model
-        adr = [m.jnt_qposadr[m.joint(j).id] for j in tap.system.joints]
+        adr = tap.binding.qpos(tap.system.joints).tolist()
         if self._renderer is None:
             from ..render import GhostRenderer
 

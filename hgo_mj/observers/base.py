@@ -47,9 +47,17 @@ outputs and their derivatives, an adaptive one appends parameter estimates. Traj
 metrics, figures and recordings match the estimate to the plant's states *by name*. An initial
 estimate ``x_hat0`` always has this layout, ``(n_x,)`` for every member or ``(B, n_x)``.
 
-**Dropouts.** A NaN measurement (a sensor dropout) is never propagated: the observer integrates
-its prediction without output injection over that sample; the step counts it in the state's
-``dropouts`` (per member). An infinite measurement raises :class:`DivergenceError`.
+**Measurements.** A measurement row holds the system's measured channels (never more: a wider
+``y`` is a :class:`DimensionError`, at every public entry). Each value is a number of magnitude
+at most :data:`MAX_MEASUREMENT` or NaN; the rule is the base's, checked once per call on the
+whole block, so every family gets it:
+
+* NaN (a sensor dropout) is never propagated: the observer integrates its prediction without
+  output injection over that sample; the step counts it in the state's ``dropouts`` (per
+  member);
+* an infinite value, or one beyond :data:`MAX_MEASUREMENT`, raises :class:`DivergenceError`
+  naming the channel, the member, the sample and the bound, before the family sees the block
+  (no sample is ignored silently, and no family overflows on it).
 
 **Undefined inverse map.** ``x_hat`` is the image of ``z_hat`` under the inverse normal-form
 map, which may be undefined there (the bioreactor's ``Phi^-1`` needs ``m > 0``). Then ``x_hat``
@@ -87,6 +95,10 @@ _F64 = np.dtype(np.float64)
 
 #: the reactions to a sample period at which the observer's update is unstable
 ON_UNSTABLE = ("raise", "warn", "ignore")
+#: the largest measurement magnitude an observer accepts (MuJoCo's ``mjMAXVAL``, beyond which
+#: MuJoCo calls a value "huge" and resets its simulation): a value beyond it is no measurement
+#: of a plant but a fault, and the gains and covariances would carry it to overflow
+MAX_MEASUREMENT = 1e10
 #: from this many member-samples on, a new :class:`Block`'s three arrays share one allocation
 ONE_BUFFER = 4096
 
@@ -609,11 +621,17 @@ class Observer(ABC):
         self.n = self._order(system, order)
         self._cols = np.array(self.outputs, dtype=np.intp)
         self._max_col = max(self.outputs)
+        #: the widest measurement row: the system's outputs (None: no system, any width)
+        self._max_width = None if system is None else len(system.output_names)
         #: the channels as a slice where they are consecutive (no fancy-index copy)
         lo, hi = self.outputs[0], self.outputs[-1] + 1
         self._cols_index: slice | NDArray[np.intp] = (slice(lo, hi) if self.outputs == tuple(range(lo, hi))
                                            else self._cols)
         self._held: tuple[Params, State] | None = None
+        #: the rows :meth:`update` writes, reused while B stays (it returns a copy of x_hat)
+        self._rows: Block | None = None
+        #: whether the family shapes a state before a block (:meth:`_prepare`): else not called
+        self._prepares = type(self)._prepare is not Observer._prepare
         self._batched = False
 
     #: the observer form a system must declare (:meth:`System.form`), and the paper's words
@@ -1131,7 +1149,8 @@ class Observer(ABC):
             ``dt`` not a positive finite number, a non-finite input, or ``params`` and
             ``state`` of different batches.
         DivergenceError
-            An infinite measurement, or (from the family) a state that blows up.
+            An infinite measurement or one beyond :data:`MAX_MEASUREMENT`, or (from the
+            family) a state that blows up.
 
         Examples
         --------
@@ -1162,9 +1181,9 @@ class Observer(ABC):
             raise DesignError(f"{self.name}: params of {_batch_of(params)} member(s) for a state "
                               f"of {B}")
         Y, U = self._floats("y", Y), self._inputs(U)
-        if Y.ndim != 3 or Y.shape[0] != B or Y.shape[2] <= self._max_col:
+        if Y.ndim != 3 or Y.shape[0] != B or not self._width_ok(Y.shape[2]):
             raise DimensionError(f"{self.name}: y must have shape (B={B}, T, p) with "
-                                 f"channel(s) {list(self.outputs)}; found shape {Y.shape}")
+                                 f"{self._width_words()}; found shape {Y.shape}")
         m = self.n_inputs
         if U.ndim != 3 or U.shape[:2] != (B, Y.shape[1]) or (m is not None and U.shape[2] != m):
             raise DimensionError(f"{self.name}: u must have shape ({B}, {Y.shape[1]}, "
@@ -1194,20 +1213,12 @@ class Observer(ABC):
         else:
             out = _one_buffer(B, T, nx, self.n, nd + 1)
             X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        finite = (math.isfinite(Yo.item()) if Yo.size == 1  # one sample of one channel: cheap
-                  else bool(np.isfinite(Yo).all()))
-        if not finite:  # dropouts (NaN) counted; an infinite value refused
-            if np.isinf(Yo).any():
-                b, j, c = (int(v[0]) for v in np.nonzero(np.isinf(Yo)))
-                raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
-                                      f"{Yo[b, j, c]} (member {b}, sample {j})")
-            lost = np.cumsum(np.isnan(Yo).any(axis=2), axis=1)
-        else:
-            lost = None
+        lost = self._lost(Yo)
         if not U.flags.c_contiguous:
             U = np.ascontiguousarray(U)
-        self._prepare(s, dt)
-        groups = self._groups(params)
+        if self._prepares:
+            self._prepare(s, dt)
+        groups = params.groups() if self.grouped else [(slice(None), params)]  # (_groups)
         if len(groups) == 1:
             self._step(groups[0][1], s, Yo, U, dt, X, Z, D[..., :nd])
         else:
@@ -1229,6 +1240,37 @@ class Observer(ABC):
             D[:, :, nd] = dropouts[:, None] + lost
             dropouts += lost[:, -1]
         return out
+
+    def _lost(self, Yo: Array) -> NDArray[np.int64] | None:
+        """The measurement rule (module docstring) on the observer's channels ``Yo``
+        ``(B, T, c)``, one pass over the block: None where every value is a number within
+        :data:`MAX_MEASUREMENT`; else the running count of dropped samples ``(B, T)`` (NaN);
+        an infinite value or one beyond the bound raises :class:`DivergenceError`."""
+        if Yo.size == 1:  # one sample of one channel: a Python comparison (False for NaN)
+            if -MAX_MEASUREMENT <= Yo.item() <= MAX_MEASUREMENT:
+                return None
+        elif bool((np.abs(Yo) <= MAX_MEASUREMENT).all()):
+            return None
+        bad = np.abs(Yo) > MAX_MEASUREMENT  # (NaN compares False: a dropout)
+        if bad.any():
+            b, j, c = (int(v[0]) for v in np.nonzero(bad))
+            beyond = "" if np.isinf(Yo[b, j, c]) else f", beyond +-{MAX_MEASUREMENT:g}"
+            raise DivergenceError(f"{self.name}: measurement y[{self.outputs[c]}] is "
+                                  f"{Yo[b, j, c]} (member {b}, sample {j}){beyond}")
+        return np.cumsum(np.isnan(Yo).any(axis=2), axis=1)
+
+    def _width_ok(self, width: int) -> bool:
+        """Whether a measurement row of ``width`` channels holds the observer's channels and
+        no more than the system's outputs."""
+        return self._max_col < width and (self._max_width is None or width <= self._max_width)
+
+    def _width_words(self) -> str:
+        words = f"channel(s) {list(self.outputs)} (the measured outputs this observer reads)"
+        if self._max_width is None:
+            return words
+        names = list(self.system.output_names)  # type: ignore[union-attr]
+        return (f"{words} and p <= {self._max_width}, the outputs {names} of "
+                f"{type(self.system).__name__}")
 
     def current(self, params: Params, state: State) -> tuple[Array, Array, Array]:
         """The estimate of ``state`` now: ``x_hat`` ``(B, n_x)``, ``z_hat`` ``(B, n)`` and the
@@ -1425,9 +1467,13 @@ class Observer(ABC):
         Raises
         ------
         DimensionError
-            ``y`` without the observer's channels, or ``u`` of the wrong width.
+            ``y`` without the observer's channels or wider than the system's outputs, or ``u``
+            of the wrong width.
         DesignError
             ``dt`` not a positive finite number.
+        DivergenceError
+            A measurement that is infinite or beyond :data:`MAX_MEASUREMENT` (NaN is a
+            dropout), or (from the family) a state that blows up.
 
         Examples
         --------
@@ -1445,11 +1491,10 @@ class Observer(ABC):
         else:
             ya, ua = ya.reshape(1, 1, -1) if ya.ndim == 1 else ya, (
                 ua.reshape(1, 1, -1) if ua.ndim == 1 else ua)
-        if ya.ndim != 3 or ya.shape[:2] != (B, 1) or ya.shape[2] <= self._max_col:
+        if ya.ndim != 3 or ya.shape[:2] != (B, 1) or not self._width_ok(ya.shape[2]):
             want = f"({B}, p)" if self._batched else "(p,)"
-            raise DimensionError(f"{self.name}: y must be {want} with channel(s) "
-                                 f"{list(self.outputs)} (the measured outputs this observer "
-                                 f"reads); found {y!r}")
+            raise DimensionError(f"{self.name}: y must be {want} with {self._width_words()}; "
+                                 f"found {y!r}")
         m = self.n_inputs
         if ua.ndim != 3 or ua.shape[:2] != (B, 1) or (m is not None and ua.shape[2] != m):
             want = f"({B}, {'m' if m is None else m})" if self._batched else \
@@ -1458,8 +1503,8 @@ class Observer(ABC):
                                  f"{np.shape(u)}")
         if not (type(dt) is float and dt > 0 and dt < math.inf):
             dt = _positive_dt(dt)
-        x = self._step_checked(params, state, ya, ua, dt).x_hat[:, 0]
-        return self._public(x)  # type: ignore[no-any-return]
+        rows = self._rows = self._step_checked(params, state, ya, ua, dt, self._rows)
+        return self._public(rows.x_hat[:, 0].copy())  # type: ignore[no-any-return]
 
     def filtered(self, y: Any) -> Array:
         """The estimate at the present instant given also ``y``, measured at this instant,
@@ -1489,7 +1534,10 @@ class Observer(ABC):
         Raises
         ------
         DimensionError
-            ``y`` of the wrong shape or not real numbers.
+            ``y`` of the wrong shape (without the observer's channels, or wider than the
+            system's outputs) or not real numbers.
+        DivergenceError
+            A measurement that is infinite or beyond :data:`MAX_MEASUREMENT`.
 
         Examples
         --------
@@ -1504,10 +1552,11 @@ class Observer(ABC):
         Y = self._floats("y", y)
         if Y.ndim == 1 and not self._batched:
             Y = Y.reshape(1, -1)
-        if Y.ndim != 2 or Y.shape[0] != state.batch or Y.shape[1] <= self._max_col:
+        if Y.ndim != 2 or Y.shape[0] != state.batch or not self._width_ok(Y.shape[1]):
             want = f"({state.batch}, p)" if self._batched else "(p,)"
-            raise DimensionError(f"{self.name}: y must have shape {want} with channel(s) "
-                                 f"{list(self.outputs)}; found shape {Y.shape}")
+            raise DimensionError(f"{self.name}: y must have shape {want} with "
+                                 f"{self._width_words()}; found shape {Y.shape}")
+        self._lost(Y[:, None, self._cols_index])  # the measurement rule of a step
         return self._public(self._filtered_of(params, state, Y))  # type: ignore[no-any-return]
 
     def _filtered_of(self, params: Params, state: State, Y: Array) -> Array:
@@ -1572,7 +1621,7 @@ class Observer(ABC):
         if self._batched:
             return a
         v = a[0]
-        return v.item() if np.ndim(v) == 0 else v
+        return v.item() if v.ndim == 0 else v
 
     @property
     def z_hat(self) -> Array:
@@ -1628,7 +1677,10 @@ class Observer(ABC):
     def _inputs(self, value: Any, what: str = "u") -> Array:
         """The input as a float array: real numbers, finite (an input is never a dropout)."""
         a = self._floats(what, value)
-        if not (math.isfinite(a.item()) if a.size == 1 else np.isfinite(a).all()):
+        size = a.size
+        if size == 0:  # no inputs (a model-free observer): nothing to check
+            return a
+        if not (math.isfinite(a.item()) if size == 1 else np.isfinite(a).all()):
             at = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
             raise DesignError(f"{self.name}: {what} must be finite; found {what}{list(at)} = "
                               f"{a[at]}")
@@ -1740,7 +1792,7 @@ def _empty_rows(value: Any, B: int) -> Any:
 
 ObserverT = TypeVar("ObserverT", bound=type[Observer])
 
-__all__ = ["ON_UNSTABLE", "OBSERVERS", "Block", "Dimension", "Observer", "Params", "State",
+__all__ = ["MAX_MEASUREMENT", "ON_UNSTABLE", "OBSERVERS", "Block", "Dimension", "Observer", "Params", "State",
            "register", "registered"]
 
 #: registry name -> observer class (filled by :func:`register`)

@@ -38,19 +38,19 @@ against a textbook Kalman filter, and against the exact discretization as :math:
 
 **The model** comes from the system (:class:`SystemModel`): ``dynamics`` and, where given,
 the analytic ``jacobian(t, x, u, p)`` and ``param_jacobian(t, x, u, p, names)``, else central
-finite differences. Three ways to evaluate it over a batch, chosen once at construction:
+finite differences. Two ways to evaluate it over a batch, chosen once at construction by
+what the system declares (nothing is probed):
 
 * *compiled* (every system of the package): the system's
   :class:`~hgo_mj.systems.base.CompiledModel`, its ODE and Jacobians written once as rows that
   numba kernels call (:func:`_model_step`, :func:`_model_jacobian`, :func:`_ekf_predict`); the
-  EKF then runs a whole block of samples in one call (:func:`_ekf_block`). The same operations
-  as the Python ``dynamics``, so the numbers are those of the two paths below, bit for bit;
-* *columns* (vectorized): a ``dynamics`` written as an array expression of the components
-  ``x[i]``, ``u[j]`` and the parameters (numpy ufuncs, no ``float()`` or ``math.*``; the
-  bioreactors of :mod:`hgo_mj.systems.papers` are) is called once on the columns of the whole
-  batch, ``x`` of shape ``(n, K)``; detected by evaluating it on three rows at once and
-  comparing with the rows one by one;
-* *rows*: one Python call per member (a ``dynamics`` that reads floats).
+  EKF then runs a whole block of samples in one call (:func:`_ekf_block`);
+* *Python* (a system without a compiled model, e.g. a user's): one ``dynamics`` call per
+  member and stage, the RK4 and Euler arithmetic of :mod:`hgo_mj.observers._integrate` over
+  the rows.
+
+Both do the same operations in the same order (the RK4 of :func:`_rk4_row` is that of
+:func:`hgo_mj.observers._integrate.rk4`), so they give the same numbers bit for bit (tested).
 
 The MuJoCo variants (:class:`MujocoExtendedKalmanFilter`, :class:`MujocoUnscentedKalmanFilter`,
 model :class:`MujocoModel`) use the MJCF itself: the mean by stepping an ``MjData`` of a copy of
@@ -113,6 +113,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from .._binding import Binding
 from .._validate import (
     finite_scalar,
     one_of,
@@ -130,6 +131,7 @@ from ..systems.base import (
     model_jacobian,
     model_param_jacobian,
 )
+from . import _integrate
 from .base import Array, Observer, Params, State, batch_rows, register
 
 IntArray = NDArray[np.int64]
@@ -504,23 +506,6 @@ def _ekf_covariance(P: Array, F: Array, h: float, rk4: bool, Qh: Array) -> None:
 
 
 @njit(cache=True)
-def _axpy(x: Array, a: float, k: Array) -> Array:  # pragma: no cover - numba
-    """``x + a k`` (an RK4 stage of one row)."""
-    out = np.empty(x.shape[0])
-    for i in range(x.shape[0]):
-        out[i] = x[i] + a * k[i]
-    return out
-
-
-@njit(cache=True)
-def _rk4_final(x: Array, k1: Array, k2: Array, k3: Array, k4: Array, h6: float,
-               out: Array) -> None:  # pragma: no cover - numba
-    """``out = x + h/6 (k1 + 2 (k2 + k3) + k4)`` (RK4's combination of one row)."""
-    for i in range(x.shape[0]):
-        out[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
-
-
-@njit(cache=True)
 def _first_nonfinite(X: Array) -> int:  # pragma: no cover - numba
     """The first row of ``X`` with a non-finite entry, or -1."""
     for b in range(X.shape[0]):
@@ -843,9 +828,9 @@ class SystemModel:
 
     Attributes
     ----------
-    vectorized : bool
-        Whether ``dynamics`` is evaluated once on the columns of all rows (an array
-        expression, see the module docstring) rather than once per row.
+    compiled : CompiledModel or None
+        The system's compiled ODE the kernels call, or None: its Python ``dynamics``, one
+        call per row (see the module docstring).
     """
 
     kind = "system"
@@ -877,7 +862,6 @@ class SystemModel:
         self.state_names = tuple(system.state_names)
         self.output_names = tuple(system.output_names)
         self.n_inputs = len(system.input_names)
-        self.vectorized = self._columns_work()
         #: the system's ODE compiled for the kernels (:class:`CompiledModel`), where it has
         #: one with the Jacobians this filter asks for; ``None``: its Python ``dynamics``
         self.compiled = self._compiled(system)
@@ -903,50 +887,16 @@ class SystemModel:
             p[nm] = float(xa[n + j])
         return p
 
-    def _columns_work(self) -> bool:
-        """Whether ``dynamics`` evaluated on columns ``(n, K)`` (parameters ``(K,)``) gives the
-        rows' values: probed once at three random rows."""
-        rng = np.random.default_rng(2024)
-        X = np.empty((3, self.N))
-        X[:, :self.n] = rng.uniform(-1.0, 1.0, (3, self.n))
-        for j, nm in enumerate(self.names):
-            X[:, self.n + j] = self.base[nm] * rng.uniform(0.8, 1.2, 3)
-        U = rng.uniform(-1.0, 1.0, (3, self.n_inputs))
-        try:
-            rows = np.array([np.asarray(self.system.dynamics(0.0, x[:self.n], u, self.params(x)),
-                                        dtype=float) for x, u in zip(X, U)])
-        except Exception:  # noqa: BLE001 - a model that fails here is used row by row
-            return False
-        try:
-            with np.errstate(all="ignore"):
-                cols = self._f_columns(X, U)
-        except Exception:  # noqa: BLE001 - not an array expression: row by row
-            return False
-        return bool(cols.shape == rows.shape and np.allclose(cols, rows, rtol=1e-12, atol=1e-14))
-
-    def _columns(self, X: Array, U: Array) -> tuple[Array, Array, Mapping[str, Any]]:
-        """The rows ``X``, ``U`` as contiguous columns ``(n, K)``, ``(m, K)`` and the parameters
-        (estimated ones as ``(K,)`` arrays)."""
-        n = self.n
-        p: Mapping[str, Any] = self.base
-        if self.q:
-            p = dict(self.base)
-            for j, nm in enumerate(self.names):
-                p[nm] = np.ascontiguousarray(X[:, n + j])
-        return np.ascontiguousarray(X[:, :n].T), np.ascontiguousarray(U.T), p
-
-    def _fc(self, Xc: Array, Uc: Array, p: Mapping[str, Any]) -> Array:
-        """``f`` on columns, ``(n, K)``."""
-        out = np.asarray(self.system.dynamics(0.0, Xc, Uc, p), dtype=float)
-        if out.shape != Xc.shape:
-            raise DesignError(f"dynamics on columns {Xc.shape} returned shape {out.shape}")
+    # --------------------------------------------------------------------- dynamics
+    def _f(self, Z: Array, U: Array, ps: Sequence[Mapping[str, float]]) -> Array:
+        """The Python ``dynamics`` of the rows ``Z`` ``(K, n)`` (row ``k`` with the input
+        ``U[k]`` and the parameters ``ps[k]``), ``(K, n)``: one call per row."""
+        dyn = self.system.dynamics
+        out = np.empty(Z.shape)
+        for k in range(Z.shape[0]):
+            out[k] = dyn(0.0, Z[k], U[k], ps[k])
         return out
 
-    def _f_columns(self, X: Array, U: Array) -> Array:
-        """``f`` of the rows ``X`` from one call on the columns, ``(K, n)``."""
-        return self._fc(*self._columns(X, U)).T
-
-    # --------------------------------------------------------------------- dynamics
     def deriv(self, X: Array, U: Array) -> Array:
         """:math:`(f(x, u, \\theta), 0)` of the rows, shape (K, N)."""
         out = np.zeros(X.shape)
@@ -955,12 +905,7 @@ class SystemModel:
             _model_deriv(self.compiled, np.ascontiguousarray(X, dtype=float),
                          np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, out)
             return out
-        if self.vectorized:
-            out[:, :n] = self._f_columns(X, U)
-            return out
-        dyn = self.system.dynamics
-        for k in range(X.shape[0]):
-            out[k, :n] = dyn(0.0, X[k, :n], U[k], self.params(X[k]))
+        out[:, :n] = self._f(X[:, :n], U, [self.params(x) for x in X])
         return out
 
     def jac(self, X: Array, U: Array) -> Array:
@@ -973,25 +918,7 @@ class SystemModel:
                             self.analytic, A)
             return A
         if not self.analytic:
-            if not self.vectorized:
-                A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
-                return A
-            # central differences on columns: the 2N perturbed evaluations of the whole batch
-            Xc, Uc, p = self._columns(X, U)
-            for j in range(N):
-                e = 1e-6 * np.maximum(1.0, np.abs(X[:, j]))
-                if j < n:
-                    Xp, Xm = Xc.copy(), Xc.copy()
-                    Xp[j] += e
-                    Xm[j] -= e
-                    fp, fm = self._fc(Xp, Uc, p), self._fc(Xm, Uc, p)
-                else:
-                    nm = self.names[j - n]
-                    pp, pm = dict(p), dict(p)
-                    pp[nm] = p[nm] + e
-                    pm[nm] = p[nm] - e
-                    fp, fm = self._fc(Xc, Uc, pp), self._fc(Xc, Uc, pm)
-                A[:, :n, j] = ((fp - fm) / (2.0 * e)).T
+            A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
             return A
         jx = self.system.jacobian  # type: ignore[attr-defined]
         jp = getattr(self.system, "param_jacobian", None)
@@ -1005,8 +932,10 @@ class SystemModel:
     def step(self, X: Array, U: Array, h: float, method: str,
              members: Array | None = None) -> Array:
         """One RK4 (or Euler) step of ``h`` of the rows with ``u`` held (``members`` unused):
-        on columns (vectorized) or row by row, the same arithmetic
-        :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`, :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`..."""
+        :math:`x + \\tfrac{h}{6}(k_1 + 2 (k_2 + k_3) + k_4)`,
+        :math:`k_2 = f(x + \\tfrac{h}{2} k_1)`, ... (:func:`hgo_mj.observers._integrate.rk4`;
+        the compiled kernel :func:`_rk4_row` does the same operations); the parameters
+        ``X[:, n:]`` are kept."""
         n = self.n
         out = np.array(X, dtype=float, order="C")
         if self.compiled is not None:
@@ -1014,30 +943,9 @@ class SystemModel:
                         np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, h,
                         method == "rk4", out)
             return out
-        hh, h6 = 0.5 * h, h / 6.0
-        if self.vectorized:
-            Xc, Uc, p = self._columns(X, U)
-            f = self._fc
-            k1 = f(Xc, Uc, p)
-            if method == "euler":
-                out[:, :n] = (Xc + h * k1).T
-                return out
-            k2 = f(Xc + hh * k1, Uc, p)
-            k3 = f(Xc + hh * k2, Uc, p)
-            k4 = f(Xc + h * k3, Uc, p)
-            out[:, :n] = (Xc + h6 * (k1 + 2.0 * (k2 + k3) + k4)).T
-            return out
-        dyn = self.system.dynamics
-        for r in range(X.shape[0]):
-            x, u, p = X[r, :n], U[r], self.params(X[r])
-            k1 = np.asarray(dyn(0.0, x, u, p), dtype=float)
-            if method == "euler":
-                out[r, :n] = _axpy(x, h, k1)
-                continue
-            k2 = np.asarray(dyn(0.0, _axpy(x, hh, k1), u, p), dtype=float)
-            k3 = np.asarray(dyn(0.0, _axpy(x, hh, k2), u, p), dtype=float)
-            k4 = np.asarray(dyn(0.0, _axpy(x, h, k3), u, p), dtype=float)
-            _rk4_final(x, k1, k2, k3, k4, h6, out[r, :n])
+        ps = [self.params(x) for x in X]
+        scheme = _integrate.rk4 if method == "rk4" else _integrate.euler
+        out[:, :n] = scheme(lambda Z: self._f(Z, U, ps), out[:, :n], h)
         return out
 
     def output(self, xa: Array) -> Array:
@@ -1072,6 +980,18 @@ def _check_model_matches(system: System, m: Any, estimate: Sequence[str]) -> Non
             f"system_params do not reach the MJCF. Give model_fields= to change the filter's "
             f"copy of it (e.g. {{'body_mass[body]': value, 'dof_damping[joint]': value}}), or "
             f"model= a modified MjModel")
+
+
+#: MuJoCo's warnings of a reset to the reference pose (an unstable qpos, qvel or qacc)
+_RESET_WARNINGS = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS,
+                                         mujoco.mjtWarning.mjWARN_BADQVEL,
+                                         mujoco.mjtWarning.mjWARN_BADQACC))
+
+
+def _resets(d: Any) -> int:
+    """The number of resets MuJoCo has counted in ``d`` (:data:`_RESET_WARNINGS`)."""
+    w = d.warning
+    return sum(int(w[i].number) for i in _RESET_WARNINGS)
 
 
 def _kalman_fields(system: System) -> dict[str, str]:
@@ -1133,7 +1053,6 @@ class MujocoModel:
     """
 
     kind = "mujoco"
-    vectorized = False
 
     def __init__(self, system: System, model: Any = None, estimate: Sequence[str] = (),
                  jacobian: str = "transition_fd",
@@ -1166,28 +1085,17 @@ class MujocoModel:
         self.d = mujoco.MjData(m)
         self.ts = float(m.opt.timestep)
         joints = system.joints
-        jids = []
-        for j in joints:
-            i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-            if i < 0:
-                raise DesignError(f"the model has no joint named {j!r} (needed by "
-                                  f"{type(system).__name__})")
-            jids.append(i)
+        #: the model's names bound to ids and addresses (the one binding)
+        self.binding = names = Binding(m, "the model")
+        self.qadr, self.vadr = names.qpos(joints), names.dofs(joints)
         if m.nq != m.nv or m.nv != len(joints) or m.na != 0:
             raise DesignError(f"the MuJoCo filter needs a model whose only degrees of freedom are "
                               f"the hinge/slide joints {list(joints)} and no activations; found "
                               f"nq={m.nq}, nv={m.nv}, na={m.na}")
-        self.qadr = np.array([m.jnt_qposadr[i] for i in jids], dtype=np.intp)
-        self.vadr = np.array([m.jnt_dofadr[i] for i in jids], dtype=np.intp)
         nv = m.nv
         #: our state index -> index in MuJoCo's tangent state (dq, dv)
         self.perm = np.concatenate((self.vadr, nv + self.vadr))
-        self.aid = []
-        for a in system.actuators:
-            i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a)
-            if i < 0:
-                raise DesignError(f"the model has no actuator named {a!r}")
-            self.aid.append(int(i))
+        self.aid = names.ids("actuator", system.actuators).tolist()
         self.n = 2 * len(joints)
         self.state_names = tuple(system.state_names)
         self.output_names = tuple(system.output_names)
@@ -1273,13 +1181,22 @@ class MujocoModel:
         return int(k)
 
     def _step_row(self, xa: Array, u: Array, h: float) -> Array:
-        """MuJoCo's own step(s) over ``h`` from one augmented row with ``u`` held."""
+        """MuJoCo's own step(s) over ``h`` from one augmented row with ``u`` held.
+
+        MuJoCo answers a row it calls unstable (NaN, or beyond ``mjMAXVAL`` in ``qpos``,
+        ``qvel`` or ``qacc``) by resetting ``MjData`` to the model's reference pose and
+        counting a warning; stepping on from there would give a silent estimate of zeros, so a
+        warning counted during the step is a :class:`DivergenceError`."""
         if self.q:
             self._set_params(xa[self.n:])
         d = self.d
         self._load(d, xa, u)
+        warned = _resets(d)
         for _ in range(self._steps(h)):
             mujoco.mj_step(self.m, d)
+        if _resets(d) != warned:
+            raise DivergenceError(f"MuJoCo reset the filter's model: the row {xa.tolist()} is "
+                                  f"unstable (NaN or beyond mjMAXVAL in qpos, qvel or qacc)")
         out = xa.copy()
         nj = self.n // 2
         out[:nj] = d.qpos[self.qadr]
@@ -1715,8 +1632,7 @@ class _KalmanFilter(Observer):
         return {"model": self.model.kind, "estimate": list(self.estimate),
                 "Q": self.Qc.tolist(), "R": self.R.tolist(), "P0": self.P0.tolist(),
                 "outputs": list(self.outputs), "method": self.method, "substeps": self.substeps,
-                "jacobian": self.model.jacobian_kind, "vectorized": bool(self.model.vectorized),
-                "on_unstable": self.on_unstable}
+                "jacobian": self.model.jacobian_kind, "on_unstable": self.on_unstable}
 
 
 @register

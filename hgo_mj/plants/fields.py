@@ -16,21 +16,18 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
-import mujoco
 import numpy as np
 
+from .._binding import Binding
 from ..exceptions import DesignError
 
 __all__ = ["FIELDS", "get_field", "resolve", "set_field", "set_fields"]
 
-#: field -> the kind of element it is indexed by (a dof field by its joint's name)
-FIELDS = {"tendon_stiffness": mujoco.mjtObj.mjOBJ_TENDON,
-          "actuator_gear": mujoco.mjtObj.mjOBJ_ACTUATOR,
-          "dof_damping": mujoco.mjtObj.mjOBJ_JOINT,
-          "dof_armature": mujoco.mjtObj.mjOBJ_JOINT,
-          "dof_frictionloss": mujoco.mjtObj.mjOBJ_JOINT,
-          "body_mass": mujoco.mjtObj.mjOBJ_BODY,
-          "body_inertia": mujoco.mjtObj.mjOBJ_BODY}
+#: field -> the kind of element it is indexed by (a dof field by its joint's name), a kind of
+#: :class:`hgo_mj._binding.Binding`
+FIELDS = {"tendon_stiffness": "tendon", "actuator_gear": "actuator", "dof_damping": "joint",
+          "dof_armature": "joint", "dof_frictionloss": "joint", "body_mass": "body",
+          "body_inertia": "body"}
 
 #: fields holding a vector per element
 VECTOR = {"body_inertia": 3}
@@ -72,13 +69,10 @@ def resolve(model: Any, spec: str, what: str = "field") -> tuple[str, int]:
         raise DesignError(f"{what}: give a model field {sorted(FIELDS)}[element name] or "
                           f"'opt.gravity'; found {spec!r}")
     field, elem = mt.group(1), mt.group(2)
-    i = mujoco.mj_name2id(model, FIELDS[field], elem)
-    if i < 0:
-        raise DesignError(f"{what}: the model has no {FIELDS[field].name[6:].lower()} named "
-                          f"{elem!r}")
+    names = Binding(model, f"{what}: the model")  # an unknown name: one error, names listed
     if field.startswith("dof_"):
-        i = int(model.jnt_dofadr[i])
-    return (field, int(i))
+        return (field, int(names.dofs([elem])[0]))
+    return (field, names.id(FIELDS[field], elem))
 
 
 def get_field(model: Any, field: str, i: int) -> Any:

@@ -32,6 +32,7 @@ import mujoco.batch
 import mujoco.rollout
 import numpy as np
 
+from .._binding import Binding
 from .._validate import finite_scalar, integer_multiple, vector
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
@@ -76,18 +77,6 @@ def _constraint_free(m: Any) -> bool:
     contact = not flags & int(d.mjDSBL_CONTACT) and (
         m.npair > 0 or getattr(m, "nflex", 0) > 0 or (contype & conaff) != 0)
     return not (limits or equality or friction or contact)
-
-
-def sensor_channel(m: Any, name: str) -> tuple[str, int]:
-    """``(sensor name, channel)`` of an output: a sensor's name (channel 0), or
-    ``<name>[k]`` for channel ``k`` of a multi-dimensional sensor (``framepos``: 3)."""
-    if name.endswith("]") and "[" in name and mujoco.mj_name2id(
-            m, mujoco.mjtObj.mjOBJ_SENSOR, name) < 0:
-        base, _, k = name[:-1].rpartition("[")
-        s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, base)
-        if s >= 0 and k.isdigit() and int(k) < int(m.sensor_dim[s]):
-            return base, int(k)
-    return name, 0
 
 
 class MujocoPlant(Plant):
@@ -151,24 +140,32 @@ class MujocoPlant(Plant):
         self.data = mujoco.MjData(self.model)
         self.system = system.from_mjmodel(self.model)
         m = self.model
-
-        def _id(kind: Any, name: str, what: str) -> int:
-            i = mujoco.mj_name2id(m, kind, name)
-            if i < 0:
-                raise DesignError(f"{path.name} has no {what} named {name!r}")
-            return i
-
-        jids = [_id(mujoco.mjtObj.mjOBJ_JOINT, j, "joint") for j in system.joints]
-        self._qadr = np.array([m.jnt_qposadr[j] for j in jids], dtype=np.intp)
-        self._vadr = np.array([m.jnt_dofadr[j] for j in jids], dtype=np.intp)
+        #: the model's names bound to ids and addresses (the one binding)
+        self.binding = names = Binding(m, path.name)
+        self._qadr, self._vadr = names.qpos(system.joints), names.dofs(system.joints)
         # contiguous joints (the usual case) are read with slices, cheaper than fancy indexing
         self._slices = None
         if np.all(np.diff(self._qadr) == 1) and np.all(np.diff(self._vadr) == 1):
             self._slices = (slice(int(self._qadr[0]), int(self._qadr[-1]) + 1),
                             slice(int(self._vadr[0]), int(self._vadr[-1]) + 1))
-        self._aid = [_id(mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator") for a in system.actuators]
-        self._nq = len(jids)
-        self._read_outputs(outputs, system, _id)
+        self._aid = names.ids("actuator", system.actuators).tolist()
+        self._nq = len(system.joints)
+        if outputs is not None and (not isinstance(outputs, (list, tuple))
+                                    or not all(isinstance(o, str) for o in outputs)):
+            raise DesignError(f"outputs must be a list of sensor names; found {outputs!r:.60}")
+        self._output_names = tuple(outputs) if outputs is not None else system.output_names
+        self._sensor_src: list[tuple[str, int]] = []
+        self._needs_forward = False
+        for name in self._output_names:
+            s, _ = names.sensor(name)
+            kind = _DIRECT_SENSORS.get(int(m.sensor_type[s]))
+            if kind is not None and m.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_JOINT:
+                j = m.sensor_objid[s]
+                adr = m.jnt_qposadr[j] if kind == "qpos" else m.jnt_dofadr[j]
+                self._sensor_src.append((kind, int(adr)))
+            else:
+                self._sensor_src.append(("sensordata", names.sensordata(name)))
+                self._needs_forward = True
         self._x0 = vector("system.default_x0", system.default_x0, 2 * self._nq)
         if nthread is None:
             nthread = min(2, os.cpu_count() or 1)
@@ -184,28 +181,6 @@ class MujocoPlant(Plant):
         self._mjbatch: Any = None
         self._cache()
         self.reset()
-
-    def _read_outputs(self, outputs: Any, system: type[System], _id: Any) -> None:
-        """Where each output is read: ``qpos``/``qvel`` straight for a joint sensor, else
-        ``sensordata`` (after ``mj_forward``)."""
-        m = self.model
-        if outputs is not None and (not isinstance(outputs, (list, tuple))
-                                    or not all(isinstance(o, str) for o in outputs)):
-            raise DesignError(f"outputs must be a list of sensor names; found {outputs!r:.60}")
-        self._output_names = tuple(outputs) if outputs is not None else system.output_names
-        self._sensor_src: list[tuple[str, int]] = []
-        self._needs_forward = False
-        for name in self._output_names:
-            base, k = sensor_channel(m, name)
-            s = _id(mujoco.mjtObj.mjOBJ_SENSOR, base, "sensor")
-            kind = _DIRECT_SENSORS.get(int(m.sensor_type[s]))
-            if kind is not None and m.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_JOINT:
-                j = m.sensor_objid[s]
-                adr = m.jnt_qposadr[j] if kind == "qpos" else m.jnt_dofadr[j]
-                self._sensor_src.append((kind, int(adr)))
-            else:
-                self._sensor_src.append(("sensordata", int(m.sensor_adr[s]) + k))
-                self._needs_forward = True
 
     def _batch_layout(self) -> None:
         """The batched paths' addresses, looked up once: in the full physics state (time
@@ -226,7 +201,7 @@ class MujocoPlant(Plant):
             elif kind == "qvel":
                 self._batch_src.append(("state", 1 + m.nq + a))
             else:
-                s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, sensor_channel(m, name)[0])
+                s = self.binding.sensor(name)[0]
                 stage = "acc" if int(m.sensor_needstage[s]) >= acc else "sensor"
                 self._batch_src.append((stage, a))
         self._batch_map = self._batch_mapping() if self._rollout_ok else None

@@ -23,6 +23,7 @@ import numpy as np
 import rerun as rr
 from numpy.typing import NDArray
 
+from .._binding import Binding
 from ..exceptions import DesignError
 from ..models import model_path
 from .layout import GHOST_ALPHA, TRUE_ROOT, body_path, geom_path
@@ -170,8 +171,8 @@ class Poses:
     Raises
     ------
     DesignError
-        ``model`` has no joint of one of the names, or one of them is neither a hinge nor a
-        slide joint.
+        ``model`` has no joint of one of the names (a :class:`~hgo_mj.exceptions.ModelError`
+        listing its joints), or one of them is neither a hinge nor a slide joint.
 
     Examples
     --------
@@ -182,7 +183,7 @@ class Poses:
     >>> Poses(make_plant("pendulum", 0.01).model, ["elbow"])
     Traceback (most recent call last):
     ...
-    hgo_mj.exceptions.DesignError: the model has no joint named 'elbow'; joints: ['hinge']
+    hgo_mj.exceptions.ModelError: the model has no joint named 'elbow'; its joint names: ['hinge']
     """
 
     def __init__(self, model: Any, joints: Sequence[str]) -> None:
@@ -192,19 +193,16 @@ class Poses:
         self.joints = tuple(joints)
         self.njoints = len(self.joints)
         hinge, slide = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
-        adr, bodies = [], set()
+        names = Binding(model)
+        bodies = set()
         for name in self.joints:
-            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if j < 0:
-                raise DesignError(f"the model has no joint named {name!r}; joints: "
-                                  f"{[model.joint(i).name for i in range(model.njnt)]}")
+            j = names.id("joint", name)
             jtype = int(model.jnt_type[j])
             if jtype not in (hinge, slide):
                 raise DesignError(f"joint {name!r} must be a hinge or slide joint to be posed; "
                                   f"found {mujoco.mjtJoint(jtype).name}")
-            adr.append(int(model.jnt_qposadr[j]))
             bodies.add(int(model.jnt_bodyid[j]))
-        self._adr = np.array(adr, dtype=np.intp)
+        self._adr = names.qpos(self.joints)
         moving = np.zeros(model.nbody, dtype=bool)
         for b in range(1, model.nbody):  # a parent's id is below its children's
             moving[b] = moving[model.body_parentid[b]] or b in bodies

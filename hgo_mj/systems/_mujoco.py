@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from .._binding import Binding
 from .._validate import vector
 from ..exceptions import DesignError
 from .base import Array, System
@@ -33,6 +34,7 @@ class _MjReader:
             raise DesignError(f"{where}: expected a mujoco.MjModel; found {type(model).__name__}")
         self.m = model
         self.where = where
+        self.binding = Binding(model, f"{where}: the MJCF")
         self.d = mujoco.MjData(model)
         self.d.qpos[:] = 0.0
         mujoco.mj_kinematics(model, self.d)
@@ -43,14 +45,8 @@ class _MjReader:
         #: unit vector along gravity
         self.down = gvec / self.g
 
-    def _id(self, kind: Any, name: str, what: str) -> int:
-        i = mujoco.mj_name2id(self.m, kind, name)
-        if i < 0:
-            raise DesignError(f"{self.where}: the MJCF has no {what} named {name!r}")
-        return int(i)
-
     def body(self, name: str) -> int:
-        return self._id(mujoco.mjtObj.mjOBJ_BODY, name, "body")
+        return self.binding.id("body", name)
 
     def parent(self, body: str, parent: str | None) -> None:
         """Require ``body``'s parent to be ``parent`` (``None``: the world)."""
@@ -64,7 +60,7 @@ class _MjReader:
 
     def joint(self, name: str, kind: str = "hinge") -> tuple[int, int, Array, Array]:
         """``(joint id, dof address, world anchor, world unit axis)`` of a hinge or slide."""
-        j = self._id(mujoco.mjtObj.mjOBJ_JOINT, name, "joint")
+        j = self.binding.id("joint", name)
         want = {"hinge": mujoco.mjtJoint.mjJNT_HINGE, "slide": mujoco.mjtJoint.mjJNT_SLIDE}[kind]
         if self.m.jnt_type[j] != want:
             raise DesignError(f"{self.where}: joint {name!r} must be a {kind} joint; "
@@ -118,8 +114,8 @@ class _MjReader:
 
     def gear(self, actuator: str, joint: str) -> float:
         """Generalized force per unit control of a ``<motor>`` on ``joint`` (gear times gain)."""
-        a = self._id(mujoco.mjtObj.mjOBJ_ACTUATOR, actuator, "actuator")
-        j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")
+        a = self.binding.id("actuator", actuator)
+        j = self.binding.id("joint", joint)
         m = self.m
         if m.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT or m.actuator_trnid[a, 0] != j:
             raise DesignError(f"{self.where}: actuator {actuator!r} must drive joint {joint!r}")
@@ -132,13 +128,13 @@ class _MjReader:
 
     def spring(self, tendon: str, plus: str, minus: str) -> float:
         """Stiffness of a fixed tendon of length ``q_plus - q_minus`` with rest length 0."""
-        t = self._id(mujoco.mjtObj.mjOBJ_TENDON, tendon, "tendon")
+        t = self.binding.id("tendon", tendon)
         m = self.m
         adr, num = int(m.tendon_adr[t]), int(m.tendon_num[t])
         coef = {int(m.wrap_objid[k]): float(m.wrap_prm[k]) for k in range(adr, adr + num)
                 if m.wrap_type[k] == mujoco.mjtWrap.mjWRAP_JOINT}
-        want = {self._id(mujoco.mjtObj.mjOBJ_JOINT, plus, "joint"): 1.0,
-                self._id(mujoco.mjtObj.mjOBJ_JOINT, minus, "joint"): -1.0}
+        want = {self.binding.id("joint", plus): 1.0,
+                self.binding.id("joint", minus): -1.0}
         if num != 2 or coef != want:
             raise DesignError(f"{self.where}: tendon {tendon!r} must be a fixed tendon "
                               f"{plus} - {minus} (coef +1, -1)")

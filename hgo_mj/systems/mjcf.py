@@ -42,6 +42,7 @@ import mujoco
 import mujoco.batch
 import numpy as np
 
+from .._binding import Binding
 from ..exceptions import ModelError
 from .base import Array, System, derivative_names
 
@@ -93,10 +94,10 @@ class MjcfSystem(System):
         super().__init__()
         self.model = type(self).load_model() if model is None else model
         self.data = mujoco.MjData(self.model)
-        m = self.model
-        self._qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in self.joints], dtype=np.intp)
-        self._vadr = np.array([m.jnt_dofadr[m.joint(j).id] for j in self.joints], dtype=np.intp)
-        self._aid = np.array([m.actuator(a).id for a in self.actuators], dtype=np.intp)
+        #: the model's names bound to ids and addresses (the one binding)
+        self.binding = names = Binding(self.model, f"{type(self).__name__}: the MJCF")
+        self._qadr, self._vadr = names.qpos(self.joints), names.dofs(self.joints)
+        self._aid = names.ids("actuator", self.actuators)
         self._sadr = np.array(self._sensor_adr, dtype=np.intp)
         self._batch: Any = None  # mujoco.batch.Batch of chain_phi_batch, made per batch size
 
@@ -316,14 +317,15 @@ def mjcf_system(path: Any, outputs: Any, inputs: Any = None) -> type[MjcfSystem]
     bad = [a for a in inputs if a not in anames]
     if bad:
         raise ModelError(f"{p.name}: no actuator named {bad[0]!r}; actuators: {list(anames)}")
-    sensors = {m.sensor(i).name: i for i in range(m.nsensor)}
+    bound = Binding(m, p.name)
+    sensors = set(bound.names("sensor"))
     added: list[tuple[str, str]] = []
     measured: dict[str, int] = {}
     out_names: list[str] = []
     adrs: list[int] = []
     for name in outputs:
         if name in sensors:
-            s = sensors[name]
+            s = bound.id("sensor", name)
             dim, adr = int(m.sensor_dim[s]), int(m.sensor_adr[s])
             chans = [name] if dim == 1 else [f"{name}[{k}]" for k in range(dim)]
             if int(m.sensor_type[s]) == _JOINTPOS and int(m.sensor_objtype[s]) == _JOINT:
@@ -343,8 +345,8 @@ def mjcf_system(path: Any, outputs: Any, inputs: Any = None) -> type[MjcfSystem]
         out_names += chans
         adrs += [adr + k for k in range(len(chans))] if adr >= 0 else [-1]
     m = _compile(_edited_spec(str(p), (jnames, anames), tuple(added)), str(p))
-    adrs = [a if a >= 0 else int(m.sensor_adr[m.sensor(c).id])
-            for a, c in zip(adrs, out_names)]
+    bound = Binding(m, p.name)  # the model compiled with the added sensors
+    adrs = [a if a >= 0 else bound.sensordata(c) for a, c in zip(adrs, out_names)]
     cls = _make_class(p, m, jnames, anames, inputs, tuple(out_names), tuple(adrs),
                       tuple(added), measured)
     cls.mjcf = {"model": str(p), "outputs": list(outputs), "inputs": list(inputs)}

@@ -151,10 +151,11 @@ def test_a_changed_period_restarts_the_window_and_divergence_names_the_member():
     advance(ob, Y, U, 0.01)
     advance(ob, Y, U, 0.02)  # a new period: a window of round(0.3 / 0.02) = 15 samples
     assert ob.state.ring.shape == (2, 15, 2)
-    Y[1, 10] = 1e308  # g(y) overflows: the state leaves the finite numbers at that sample
-    with np.errstate(over="ignore"), pytest.raises(
-            DivergenceError, match=r"left the finite numbers.*\(member 1, sample 10\)"):
+    Y[1, 10] = 1e308  # (g(y) would overflow) refused before the family sees the block
+    with pytest.raises(DivergenceError, match=r"measurement y\[0\] is 1e\+308 \(member 1, "
+                                              r"sample 10\), beyond"):
         advance(ob, Y, U, 0.02)
+    assert ob.state.ring.shape == (2, 15, 2) and ob.dropouts_.tolist() == [0, 0]
 
 
 # (id, constructor keywords but the gains, input width, output around, three gains c1, gamma)

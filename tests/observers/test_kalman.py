@@ -1,5 +1,5 @@
 """Extended and unscented Kalman filters (hgo_mj/observers/kalman.py): against the exact Kalman
-filter on linear systems, the vectorized model path against the row-by-row one, the MuJoCo
+filter on linear systems, the one Python model path (nothing probed), the MuJoCo
 variants, and every validation. (Batch against single runs: tests/observers/test_kalman_batch.py.)"""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.inputs import Multisine
-from hgo_mj.observers import OBSERVERS, make_observer
+from hgo_mj.observers import OBSERVERS, _integrate, make_observer
 from hgo_mj.observers.kalman import (
     ExtendedKalmanFilter,
     MujocoExtendedKalmanFilter,
@@ -114,7 +114,7 @@ def test_linear_system_equals_exact_kalman_filter(cls, case, method, substeps):
     P0 = np.eye(n) * 0.5
     x0 = RNG.normal(size=n) * 0.1
     f = cls(s, Q=Q, R=R, P0=P0, x_hat0=x0, method=method, substeps=substeps)
-    assert f.model.vectorized  # A @ x + B @ u is an array expression
+    assert f.model.compiled is None  # a user's system: the one Python model path
     dt = 0.05
     xs = np.zeros(n)
     ys, us, est = [], [], []
@@ -246,27 +246,40 @@ def _run(f, ys, us, dt):
 
 
 @pytest.mark.parametrize("cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
-def test_vectorized_model_equals_rows(cls):
-    """The bioreactor's dynamics is an array expression: evaluated once on the columns of the
-    batch (the vectorized path) it gives the filter of the row-by-row path, with an augmented
-    parameter and a dropout; the Pendulum's (floats) is used row by row."""
-    s = BioreactorBullinger()
-    kw = dict(estimate=("a1",), theta_hat0=[0.8 * s.params["a1"]], Q=[1e-6, 1e-4],
-              Q_theta=1e-5, R=1e-4, x_hat0=[0.9, 0.4])
-    fast = cls(s, **kw)
-    slow = cls(s, **kw)
-    slow.model.vectorized = False
-    assert fast.model.vectorized and fast.params()["vectorized"]
-    assert not cls(Pendulum()).model.vectorized
-    dt = 0.05
-    us = [np.array([0.1 + 0.05 * math.sin(0.3 * k * dt)]) for k in range(300)]
-    ys = [np.array([1.0 + 0.1 * math.sin(0.2 * k * dt)]) for k in range(300)]
-    ys[100] = np.array([np.nan])
-    np.testing.assert_allclose(_run(fast, ys, us, dt), _run(slow, ys, us, dt), rtol=1e-9,
-                               atol=1e-12)
-    np.testing.assert_allclose(fast.theta_hat_, slow.theta_hat_, rtol=1e-9)
-    np.testing.assert_allclose(fast.P_, slow.P_, rtol=1e-7, atol=1e-14)
-    assert fast.dropouts_ == slow.dropouts_ == 1
+def test_one_python_model_path_nothing_probed(cls):
+    """A system without a compiled model has one model path, chosen by what it declares: the
+    filter's construction calls its ``dynamics`` not once (no probing), and the RK4 (Euler)
+    step of a batch is :func:`hgo_mj.observers._integrate.rk4` (``euler``) of its rows, bit
+    for bit, with the estimated parameter read from each row."""
+    s, A, B, _ = linear_system(*OSC)
+    calls = []
+    dyn = type(s).dynamics
+
+    def counted(t, x, u, p_):
+        calls.append(np.shape(x))
+        return dyn(t, x, u, p_)
+
+    type(s).dynamics = staticmethod(counted)
+    f = cls(s, R=1e-3)
+    assert f.model.compiled is None and calls == []
+    rng = np.random.default_rng(3)
+    X, U = rng.normal(size=(5, 2)), rng.normal(size=(5, 1))
+    for method, scheme in (("rk4", _integrate.rk4), ("euler", _integrate.euler)):
+        want = scheme(lambda Z: np.array([A @ z + B @ u for z, u in zip(Z, U)]), X, 0.05)
+        np.testing.assert_array_equal(f.model.step(X, U, 0.05, method), want)
+    assert all(shape == (2,) for shape in calls)  # one row per call
+    b = BioreactorBullinger()  # an augmented parameter read from each row
+    m = ExtendedKalmanFilter(b, estimate=("a1",), theta_hat0=[0.8]).model
+    m.compiled = None
+    Xa = np.array([[0.9, 0.4, 0.8], [0.7, 0.3, 1.1]])
+    Ua = np.array([[0.1], [0.2]])
+    got = m.step(Xa, Ua, 0.5, "rk4")
+    for r in range(2):
+        p = dict(b.params, a1=Xa[r, 2])
+        one = _integrate.rk4(lambda z, u=Ua[r], p=p: np.asarray(b.dynamics(0.0, z[0], u, p))[None],
+                             Xa[r:r + 1, :2], 0.5)
+        np.testing.assert_array_equal(got[r, :2], one[0])
+    np.testing.assert_array_equal(got[:, 2], Xa[:, 2])
 
 
 @pytest.mark.parametrize("cls", [ExtendedKalmanFilter, UnscentedKalmanFilter,

@@ -8,7 +8,9 @@ rely on.
   counted in ``diagnostics()["dropouts"]``;
 * the same inputs give the same estimates (two instances), and ``reset()`` starts over exactly;
 * ``diagnostics()`` are plain floats with the same keys at every sample; ``params()`` is JSON;
-* unknown keyword arguments and wrongly sized measurements are refused with clear errors.
+* unknown keyword arguments and wrongly sized measurements are refused with clear errors;
+* a measurement beyond ``MAX_MEASUREMENT`` or infinite is refused before any work, and a row
+  MuJoCo resets is a divergence (the base's one rule for every family).
 """
 
 from __future__ import annotations
@@ -19,8 +21,9 @@ import numpy as np
 import pytest
 from observer_cases import CASES, DT, advance, signals
 
-from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.observers import OBSERVERS, make_observer
+from hgo_mj.observers.base import MAX_MEASUREMENT
 from hgo_mj.systems import Pendulum
 
 PARAMS = [pytest.param(kind, make, p, m, id=f"{kind}-{cid}") for kind, cid, make, p, m in CASES]
@@ -76,6 +79,83 @@ def test_wrong_measurement_size_is_refused(kind, make, p, m):
     _, u = signals(0, p, m)
     with pytest.raises(DimensionError, match="y"):
         ob.update(np.zeros(0), u, DT)
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_a_measurement_wider_than_the_systems_outputs_is_refused(kind, make, p, m):
+    """Every public entry (``update``, ``step``, ``run``, ``filtered``) refuses a row with
+    more channels than the system measures; without a system (a form), any row holding the
+    observer's channels is one."""
+    ob = make()
+    y, u = signals(0, p, m)
+    wide = np.r_[y, 0.0]
+    if ob.system is None:
+        assert ob.update(wide, u, DT).shape == (len(ob.state_names),)
+        return
+    assert len(ob.system.output_names) == p
+    match = rf"{ob.name}: y .*and p <= {p}, the outputs"
+    with pytest.raises(DimensionError, match=match):
+        ob.update(wide, u, DT)
+    with pytest.raises(DimensionError, match=match):
+        ob.filtered(wide)
+    params, state = ob._own()
+    with pytest.raises(DimensionError, match=match):
+        ob.step(params, state, wide[None, None], u[None, None], DT)
+    with pytest.raises(DimensionError, match=match):
+        ob.run(wide[None], u[None], DT)
+    ob.update(y, u, DT)  # a row of the system's width goes on
+
+
+@pytest.mark.parametrize("bad", [1e300, -1e300, 2e10, np.inf, -np.inf])
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_a_measurement_beyond_the_bound_is_refused_before_any_work(kind, make, p, m, bad):
+    """One rule in the base for every family: an infinite measurement, or one beyond
+    ``MAX_MEASUREMENT``, is a ``DivergenceError`` naming channel, member and sample, raised
+    before the family sees the block (the state is unchanged: the next samples give what a
+    fresh observer gives); the bound itself is a measurement; ``filtered`` applies the same
+    rule."""
+    ob, ref = make(), make()
+    y0, u0 = signals(0, p, m)
+    np.testing.assert_array_equal(ob.update(y0, u0, DT), ref.update(y0, u0, DT))
+    y, u = signals(1, p, m)
+    y[0] = bad
+    with pytest.raises(DivergenceError, match=rf"{ob.name}: measurement y\[{ob.outputs[0]}\] is "
+                                              rf".*\(member 0, sample 0\)"):
+        ob.update(y, u, DT)
+    with pytest.raises(DivergenceError, match="measurement"):
+        ob.filtered(y)
+    for k in range(1, 4):  # nothing was consumed
+        y, u = signals(k, p, m)
+        np.testing.assert_array_equal(ob.update(y, u, DT), ref.update(y, u, DT))
+    assert ob.diagnostics()["dropouts"] == 0.0
+    # a block: member 1's sample 2 is refused by name; the others are not stepped either
+    ob.reset(batch=3)
+    Y = np.empty((3, 4, p))
+    U = np.empty((3, 4, m))
+    for k in range(4):
+        Y[:, k], U[:, k] = signals(k, p, m)
+    Y[1, 2, 0] = bad
+    params, state = ob._own()
+    with pytest.raises(DivergenceError, match=r"member 1, sample 2"):
+        ob.step(params, state, Y, U, DT)
+
+
+def test_the_bound_itself_is_a_measurement():
+    ob = make_observer("high_gain", Pendulum(), k=10.0)
+    assert np.all(np.isfinite(ob.update([MAX_MEASUREMENT], [0.0], DT)))
+    ob.reset(batch=2)
+    assert np.all(np.isfinite(ob.update([[-MAX_MEASUREMENT], [np.nan]], [[0.0], [0.0]], DT)))
+    assert ob.diagnostics()["dropouts"].tolist() == [0.0, 1.0]
+
+
+@pytest.mark.parametrize("kind", ["ekf_mujoco", "ukf_mujoco"])
+def test_a_row_mujoco_resets_is_a_divergence_not_a_silent_zero(kind):
+    """MuJoCo resets ``MjData`` to the reference pose on a row beyond ``mjMAXVAL``; the
+    filters' model step reports it instead of returning zeros."""
+    ob = make_observer(kind, Pendulum(), R=1e-4)
+    ob.reset([0.1, 2e10])  # a velocity the measured angle does not pull back
+    with pytest.raises(DivergenceError, match="MuJoCo reset the filter's model"):
+        ob.update([0.1], [0.0], DT)
 
 
 @pytest.mark.parametrize("kind", sorted(OBSERVERS))
