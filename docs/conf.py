@@ -120,12 +120,21 @@ BACKREFERENCES = os.path.join(os.path.dirname(__file__), "gen_modules", "backref
 def example_backlinks(app, what, name, obj, options, lines):  # noqa: ARG001 (Sphinx's hook)
     """Append "Examples using this" (sphinx-gallery's minigallery) to the docstring of a
     function or class that some gallery example uses: sphinx-gallery writes
-    ``gen_modules/backreferences/NAME.examples`` before autodoc runs, empty where none does."""
+    ``gen_modules/backreferences/NAME.examples`` before autodoc runs, empty where none does,
+    under the shortest name it is importable by (``hgo_mj.NAME`` for a re-export)."""
     if what not in ("function", "class"):
         return
-    path = os.path.join(BACKREFERENCES, f"{name}.examples")
-    if os.path.isfile(path) and os.path.getsize(path) > 0:
-        lines += ["", ".. rubric:: Examples using this", "", f".. minigallery:: {name}", ""]
+    import hgo_mj
+
+    short = f"hgo_mj.{name.rsplit('.', 1)[-1]}"  # sphinx-gallery names a re-export so
+    for candidate in (name, short):
+        if candidate == short and getattr(hgo_mj, short[7:], None) is not obj:
+            continue
+        path = os.path.join(BACKREFERENCES, f"{candidate}.examples")
+        if os.path.isfile(path) and os.path.getsize(path) > 0:
+            lines += ["", ".. rubric:: Examples using this", "", f".. minigallery:: {candidate}",
+                      ""]
+            return
 
 
 # The environment classes keep Gymnasium's docstring sections, written in Markdown as

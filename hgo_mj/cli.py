@@ -824,10 +824,10 @@ def cmd_check(target: str, sample_period: float | None = None) -> int:
     """``hgo-mj check PLANT-OR-SCENARIO [--sample-period S]``: which observer applies to the
     plant, and why; the sample period (the flag, else the scenario's ``run.sample_period``, else
     the plant's step) against paper 004's LMI bound, over the region of an ODE plant
-    (:func:`hgo_mj.check.scenario_plant`: ``[plant] region`` or the region a short simulation
+    (:func:`hgo_mj.scenario.region_plant`: ``[plant] region`` or the region a short simulation
     visits, with a warning where ``x0`` or the run leaves a given region)."""
     from . import check
-    from .scenario import build_plant
+    from .scenario import build_plant, region_plant
 
     notes: list[str] = []
     if target.endswith(".toml"):
@@ -835,7 +835,7 @@ def cmd_check(target: str, sample_period: float | None = None) -> int:
         pl = sc.get("plant", {})
         if not any(k in pl for k in ("name", "model", "f")):
             raise DesignError(f"scenario {target!r} has no plant ([plant] name, model or f)")
-        plant, notes = check.scenario_plant(sc)
+        plant, notes = region_plant(sc)
         if sample_period is None:
             sample_period = sc.get("run", {}).get("sample_period")
     else:

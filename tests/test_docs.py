@@ -266,3 +266,11 @@ def test_api_pages_link_the_examples_that_use_each_name(monkeypatch, tmp_path):
         lines = ["Doc."]
         conf.example_backlinks(None, "function", name, None, {}, lines)
         assert lines == ["Doc."]
+    import hgo_mj
+    from hgo_mj.metrics import format_table
+
+    (tmp_path / "hgo_mj.format_table.examples").write_text(".. thumbnail\n")
+    lines = ["Doc."]  # documented under its module, found under its re-export
+    conf.example_backlinks(None, "function", "hgo_mj.metrics.format_table", format_table, {},
+                           lines)
+    assert ".. minigallery:: hgo_mj.format_table" in lines and hgo_mj.format_table is format_table

@@ -160,6 +160,21 @@ def varying_axes(result: Any) -> list[str]:
     -------
     list of str
         In the order of :attr:`~hgo_mj.study.StudyResult.plot_axes`.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from hgo_mj.study import Study
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "run": {"duration": 0.5, "t_transient": 0.1}}
+    >>> axes = {"observers.hgo.k": [10.0, 20.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-2]}
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     result = Study(scenario, axes).run(tmp, quiet=True)
+    ...     varying = varying_axes(result)
+    >>> varying
+    ['observers.hgo.k', 'sensor.stages.0.std']
     """
     t = result.table[result.table["estimated"]]
     g = t.groupby(["observer", "state"])
@@ -182,6 +197,21 @@ def axis_figure(result: Any, axis: str, *, axes: Any = None) -> Any:
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from hgo_mj.study import Study
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "run": {"duration": 0.5, "t_transient": 0.1}}
+    >>> axes = {"observers.hgo.k": [10.0, 20.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-2]}
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     result = Study(scenario, axes).run(tmp, quiet=True)
+    ...     fig = axis_figure(result, "observers.hgo.k")
+    >>> [ln.get_label() for ln in fig.axes[0].get_lines()]
+    ['std = 0.0001', 'std = 0.01']
     """
     from .._validate import one_of
 
@@ -300,6 +330,21 @@ def heatmap_figure(result: Any, a: str, b: str, *, axes: Any = None) -> Any:
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from hgo_mj.study import Study
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "run": {"duration": 0.5, "t_transient": 0.1}}
+    >>> axes = {"observers.hgo.k": [10.0, 20.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-2]}
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     result = Study(scenario, axes).run(tmp, quiet=True)
+    ...     fig = heatmap_figure(result, "observers.hgo.k", "sensor.stages.0.std")
+    >>> [ax.get_title() for ax in fig.axes if ax.get_title()]
+    ['hgo: angle', 'hgo: angular_velocity']
     """
     from matplotlib.colors import LogNorm
 
@@ -423,6 +468,26 @@ def best_gains(result: Any) -> Any:
         level ``sigma``, ``k_star``, ``interior``, ``rmse_min``, and per group the fitted
         ``slope`` of ``log k*`` against ``log sigma`` (NaN with fewer than two interior
         minima) and ``order`` (the plant's normal-form order n, NaN where unknown).
+
+    Raises
+    ------
+    DesignError
+        The study sweeps no observer gain or no noise level.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from hgo_mj.study import Study
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "run": {"duration": 0.5, "t_transient": 0.1}}
+    >>> axes = {"observers.hgo.k": [10.0, 20.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-2]}
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     result = Study(scenario, axes).run(tmp, quiet=True)
+    ...     bg = best_gains(result)
+    >>> bg[["state", "sigma"]].values.tolist()[:2]
+    [['angle', 0.0001], ['angle', 0.01]]
     """
     import pandas as pd
 
@@ -477,6 +542,21 @@ def best_gain_figure(result: Any, *, axes: Any = None) -> Any:
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from hgo_mj.study import Study
+    >>> scenario = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.5, 0.0]},
+    ...             "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+    ...             "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+    ...             "run": {"duration": 0.5, "t_transient": 0.1}}
+    >>> axes = {"observers.hgo.k": [10.0, 20.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-2]}
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     result = Study(scenario, axes).run(tmp, quiet=True)
+    ...     fig = best_gain_figure(result)
+    >>> fig.axes[0].get_ylabel()
+    'best gain k* [1/s]'
     """
     bg = best_gains(result)
     gain, noise = gain_noise_axes(list(result.axes))  # type: ignore[misc]
