@@ -481,9 +481,13 @@ def test_stored_cells_keep_their_trajectories_as_npz(tmp_path):
         Study(BASE, {"observers.hgo.k": [20.0]}, store=[{"plant.x0": [0.5, 0.0]}])
 
 
-def test_many_curves_are_pooled_and_every_plant_gives_its_units(tmp_path):
-    """Beyond eight observer x other-axis curves a panel draws one curve per observer pooled
-    over the other axes; each state's unit comes from the plant that has it."""
+def test_many_facets_are_pooled_and_every_plant_gives_its_units(tmp_path, monkeypatch):
+    """A facet per observer, value of the other axes and state (the plant group is a facet:
+    each plant has its own states), one line per noise level against the gain; beyond
+    MAX_FACETS facets the other axes are pooled, said in the title; each state's unit comes
+    from the plant that has it."""
+    from hgo_mj.study import figures
+
     sc = {**BASE, "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
           "run": {"duration": 0.3, "seed": 0}}
     study = Study(sc, {"observers.hgo.k": [10.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-3,
@@ -491,20 +495,19 @@ def test_many_curves_are_pooled_and_every_plant_gives_its_units(tmp_path):
                   seeds=1, together=[{"plant.name": ["pendulum", "elastic_joint"],
                                       "plant.x0": [[0.5, 0.0], [0.3, 0.3, 0.0, 0.0]]}])
     result = study.run(tmp_path / "pool", quiet=True)
-    figs = result.plot()
-    k_fig = figs[0]  # against the gain: 3 noise levels x 2 plants = 6 curves
-    labels = k_fig.legends[0].get_texts()
-    assert len(labels) == 6 and "std=0.0001" in labels[0].get_text()
-    pooled = [f for f in figs if "pooled" in f._suptitle.get_text()]
-    assert not pooled
-    many = Study(sc, {"observers.hgo.k": [10.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-3,
-                                                                              1e-2, 2e-2, 3e-2]},
-                 seeds=1, together=[{"plant.name": ["pendulum", "elastic_joint"],
-                                     "plant.x0": [[0.5, 0.0], [0.3, 0.3, 0.0, 0.0]]}])
-    fig = many.run(tmp_path / "many", quiet=True).plot()[0]
-    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["hgo (pooled)"]
-    ylabels = {ax.get_title(): ax.get_ylabel() for ax in fig.axes[::3]}
-    assert ylabels["motor_velocity"].endswith("[rad/s]") and ylabels["angle"].endswith("[rad]")
+    k_fig = result.plot()[0]  # against the gain: a line per noise level
+    assert [t.get_text() for t in k_fig.legends[0].get_texts()] == [
+        "std = 0.0001", "std = 0.001", "std = 0.01"]
+    titles = [ax.get_title() for ax in k_fig.axes[::3]]
+    assert titles[0] == "hgo, plant = pendulum, angle" and len(titles) == 2 + 4
+    assert "pooled" not in k_fig._suptitle.get_text()
+    ylabels = {ax.get_title(): ax.get_ylabel() for ax in k_fig.axes[::3]}
+    assert ylabels["hgo, plant = elastic_joint, motor_velocity"].endswith("[rad/s]")
+    assert ylabels["hgo, plant = pendulum, angle"].endswith("[rad]")
+    monkeypatch.setattr(figures, "MAX_FACETS", 4)
+    fig = figures.axis_figure(result, "observers.hgo.k")
+    assert "pooled over plant.name" in fig._suptitle.get_text()
+    assert [ax.get_title() for ax in fig.axes[::3]][:2] == ["hgo, angle", "hgo, angular_velocity"]
 
 
 def test_a_closed_loops_chunks_are_bounded_by_its_kept_errors():
