@@ -24,7 +24,32 @@ extensions = [
     "numpydoc",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
+    "sphinx.ext.intersphinx",
 ]
+
+#: the projects whose API hgo_mj's pages link to (``:class:`numpy.ndarray```, Gymnasium's
+#: ``Env``, MuJoCo's ``MjModel``): each one only when its inventory can be fetched now, so that
+#: a build without the network (``-W``) has no inventory warning, only plain names
+INTERSPHINX = {"numpy": "https://numpy.org/doc/stable/",
+               "gymnasium": "https://gymnasium.farama.org/",
+               "mujoco": "https://mujoco.readthedocs.io/en/stable/"}
+
+
+def reachable(url: str, timeout: float = 3.0) -> bool:
+    """Whether ``url`` + ``objects.inv`` (a Sphinx inventory) answers now."""
+    import urllib.request
+
+    if os.environ.get("HGO_MJ_DOCS_OFFLINE"):  # said so: no attempt
+        return False
+    try:
+        with urllib.request.urlopen(url + "objects.inv", timeout=timeout) as resp:
+            return resp.status == 200
+    except (OSError, ValueError):  # no network, no DNS, a timeout, a refusal
+        return False
+
+
+intersphinx_mapping = {name: (url, None) for name, url in INTERSPHINX.items() if reachable(url)}
+intersphinx_timeout = 5
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "benchmark/results/*", "gallery/*.py", "gallery/GALLERY_HEADER.rst",
@@ -82,7 +107,34 @@ sphinx_gallery_conf = {
     "image_scrapers": ("matplotlib", "conf.figure_scraper"),
     "reset_modules": ("matplotlib", "conf.reset_figures"),
     "show_memory": False,
+    # "examples using this": the examples that call each hgo_mj function or class, listed
+    # under it in the API pages (example_backlinks below)
+    "backreferences_dir": "gen_modules/backreferences",
+    "doc_module": ("hgo_mj",),
+    "inspect_global_variables": True,
 }
+
+BACKREFERENCES = os.path.join(os.path.dirname(__file__), "gen_modules", "backreferences")
+
+
+def example_backlinks(app, what, name, obj, options, lines):  # noqa: ARG001 (Sphinx's hook)
+    """Append "Examples using this" (sphinx-gallery's minigallery) to the docstring of a
+    function or class that some gallery example uses: sphinx-gallery writes
+    ``gen_modules/backreferences/NAME.examples`` before autodoc runs, empty where none does,
+    under the shortest name it is importable by (``hgo_mj.NAME`` for a re-export)."""
+    if what not in ("function", "class"):
+        return
+    import hgo_mj
+
+    short = f"hgo_mj.{name.rsplit('.', 1)[-1]}"  # sphinx-gallery names a re-export so
+    for candidate in (name, short):
+        if candidate == short and getattr(hgo_mj, short[7:], None) is not obj:
+            continue
+        path = os.path.join(BACKREFERENCES, f"{candidate}.examples")
+        if os.path.isfile(path) and os.path.getsize(path) > 0:
+            lines += ["", ".. rubric:: Examples using this", "", f".. minigallery:: {candidate}",
+                      ""]
+            return
 
 
 # The environment classes keep Gymnasium's docstring sections, written in Markdown as
@@ -129,3 +181,4 @@ def markdown_sections(app, what, name, obj, options, lines):  # noqa: ARG001 (Sp
 
 def setup(app):
     app.connect("autodoc-process-docstring", markdown_sections, priority=100)
+    app.connect("autodoc-process-docstring", example_backlinks, priority=900)

@@ -786,11 +786,49 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     jobs = _flag_int(args.jobs, "--jobs")
     result = study.run(out, jobs=jobs, backend=args.backend, address=args.address,
                        resume=args.resume, quiet=args.quiet)
-    result.plot(out)
-    print((out / "summary.md").read_text())
-    print(f"wrote {out}/results.parquet ({len(result.table)} rows), summary.parquet, summary.md, "
-          f"the figures (axis_*.png) and study.json in {result.seconds:.1f} s")
+    figures = result.plot(out)
+    print(sweep_summary(result))
+    names = sorted(p.name for p in out.glob("*.png"))
+    print(f"\nthe whole table: {out / 'summary.md'}\n"
+          f"wrote {out}/results.parquet ({len(result.table)} rows), summary.parquet, summary.md, "
+          f"study.json and {len(figures)} figure(s) ({', '.join(names)}) in "
+          f"{result.seconds:.1f} s")
     return 0
+
+
+def sweep_summary(result: Any) -> str:
+    """What ``hgo-mj sweep`` prints: per observer and state the best cell (least median RMSE
+    over the seeds) with its swept values and units, and, for a gain x noise study, the fitted
+    power law of the best gain (:func:`hgo_mj.study.figures.best_gains`)."""
+    import pandas as pd
+
+    from .metrics import text_table
+    from .study.figures import _units_of, best_gains, gain_noise_axes
+
+    unit_of, _ = _units_of(result)
+    s = result.summary()
+    s = s[s["estimated"] & s["rmse_median"].notna()]
+    best = s.loc[s.groupby(["observer", "state"], sort=False)["rmse_median"].idxmin()]
+    rows = [{"observer": r["observer"], "state": r["state"],
+             "unit": unit_of(r["state"]) or "-", "rmse median": r["rmse_median"],
+             "rmse iqr": r["rmse_iqr"], "best cell": ", ".join(
+                 f"{a} = {r[a]:g}" if isinstance(r[a], float) else f"{a} = {r[a]}"
+                 for a in result.axes)} for _, r in best.iterrows()]
+    text = (f"{result.study.name}: the best cell per observer and state (least median RMSE "
+            f"over the seeds)\n" + text_table(pd.DataFrame(rows, dtype=object),
+                                               ["observer", "state", "unit", "best cell"]))
+    if gain_noise_axes(list(result.axes)) is not None:
+        per = ["sigma", "k_star", "interior", "rmse_min"]
+        bg = best_gains(result)
+        bg = bg.drop_duplicates([c for c in bg.columns if c not in per])
+        groups = [c for c in bg.columns if c not in (*per, "observer", "state", "slope", "order")]
+        lines = [f"  {r['observer']}, " + "".join(f"{c} = {r[c]}, " for c in groups)
+                 + f"{r['state']}: k* ~ sigma^{r['slope']:.2f}"
+                 + (f" (theory {-1 / r['order']:.2f})" if r["order"] == r["order"] else "")
+                 for _, r in bg.iterrows()]
+        text += ("\n\nthe best gain per noise level (best_gain.png), its fitted power law:\n"
+                 + "\n".join(lines))
+    return text
 
 
 def _reproduction_kwargs(name: str, rrd: Path | None, quiet: bool = False) -> dict[str, Any]:
@@ -837,10 +875,10 @@ def cmd_check(target: str, sample_period: float | None = None) -> int:
     """``hgo-mj check PLANT-OR-SCENARIO [--sample-period S]``: which observer applies to the
     plant, and why; the sample period (the flag, else the scenario's ``run.sample_period``, else
     the plant's step) against paper 004's LMI bound, over the region of an ODE plant
-    (:func:`hgo_mj.scenario.scenario_plant`: ``[plant] region`` or the region a short simulation
+    (:func:`hgo_mj.scenario.region_plant`: ``[plant] region`` or the region a short simulation
     visits, with a warning where ``x0`` or the run leaves a given region)."""
     from . import check
-    from .scenario import build_plant, scenario_plant
+    from .scenario import build_plant, region_plant
 
     notes: list[str] = []
     if target.endswith(".toml"):
@@ -848,7 +886,7 @@ def cmd_check(target: str, sample_period: float | None = None) -> int:
         pl = sc.get("plant", {})
         if not any(k in pl for k in ("name", "model", "f")):
             raise DesignError(f"scenario {target!r} has no plant ([plant] name, model or f)")
-        plant, notes = scenario_plant(sc)
+        plant, notes = region_plant(sc)
         if sample_period is None:
             sample_period = sc.get("run", {}).get("sample_period")
     else:

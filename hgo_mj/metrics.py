@@ -736,7 +736,8 @@ def text_table(frame: Any, left: Sequence[str]) -> str:
             cols[str(c)] = text
     import pandas as pd
 
-    return str(pd.DataFrame(cols).to_string(index=False))
+    table = str(pd.DataFrame(cols).to_string(index=False))
+    return "\n".join(line.rstrip() for line in table.splitlines())
 
 
 def format_table(metrics: dict[str, dict[str, Any]], units: dict[str, str] | None = None,

@@ -215,15 +215,11 @@ def observer_system(system: Any, params: Any, label: str) -> Any:
     return type(system)(**{**system.params, **params})
 
 
-__all__ = ["REGION_SECONDS", "SCENARIO_KEYS", "build_observers", "build_plant", "scenario_plant",
-           "scenario_run"]
-
-
-#: the longest simulation :func:`scenario_plant` runs to find the region a scenario visits
+#: the longest simulation :func:`region_plant` runs to find the region a scenario visits
 REGION_SECONDS = 10.0
 
 
-def scenario_plant(sc: dict[str, Any], name: str = "run") -> tuple[Any, list[str]]:
+def region_plant(sc: dict[str, Any], name: str = "run") -> tuple[Any, list[str]]:
     """The plant of a scenario for ``hgo-mj check``, and notes on the region its Lipschitz
     bound and observability rank are taken over (an ODE plant's; others have none).
 
@@ -249,7 +245,7 @@ def scenario_plant(sc: dict[str, Any], name: str = "run") -> tuple[Any, list[str
     --------
     >>> sc = {"plant": {"states": ["x1", "x2"], "f": ["x2", "(1 - x1**2)*x2 - x1"],
     ...                 "h": "x1", "x0": [2.0, 0.0]}, "run": {"duration": 10.0}}
-    >>> plant, notes = scenario_plant(sc)
+    >>> plant, notes = region_plant(sc)
     >>> notes[0][:60]
     'region: the box visited by a 10 s simulation of the scenario'
     >>> plant.system.lipschitz > 10
@@ -257,7 +253,6 @@ def scenario_plant(sc: dict[str, Any], name: str = "run") -> tuple[Any, list[str
     """
     import numpy as np
 
-    from .inputs import signal_from_spec
     from .simulate import simulate
 
     label = str(sc.get("name", name))
@@ -288,3 +283,7 @@ def scenario_plant(sc: dict[str, Any], name: str = "run") -> tuple[Any, list[str
                      f"(it visits {visited}): the Lipschitz bound and the observability rank "
                      f"hold over the region only")
     return plant, notes
+
+
+__all__ = ["REGION_SECONDS", "SCENARIO_KEYS", "build_observers", "build_plant", "region_plant",
+           "scenario_run"]

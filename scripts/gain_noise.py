@@ -27,6 +27,7 @@ import numpy as np
 from hgo_mj._bench import machine_line, versions_line
 from hgo_mj._io import atomic_path, write_text
 from hgo_mj.study import Study
+from hgo_mj.study.figures import best_gain
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "gain_noise.toml"
@@ -34,19 +35,6 @@ DOC = ROOT / "docs" / "results" / "gain_noise.md"
 FIG = ROOT / "docs" / "results" / "gain_noise.png"
 ORDER = {"pendulum": 2, "elastic_joint": 4}
 K, SIGMA, PLANT = "observers.hgo.k", "sensor.stages.0.std", "plant.name"
-
-
-def best_gain(k: np.ndarray, rmse: np.ndarray) -> tuple[float, bool]:
-    """``(k*, interior)``: the gain of least RMSE, refined by a parabola in (log k, log RMSE)
-    through the grid minimum and its neighbours; ``interior`` is False at the grid's edge."""
-    i = int(np.nanargmin(rmse))
-    if i == 0 or i == len(k) - 1:
-        return float(k[i]), False
-    x, y = np.log(k[i - 1:i + 2]), np.log(rmse[i - 1:i + 2])
-    a, b, _ = np.polyfit(x, y, 2)
-    if a <= 0:
-        return float(k[i]), True
-    return float(np.exp(np.clip(-b / (2 * a), x[0], x[2]))), True
 
 
 def analyse(summary, table) -> dict:

@@ -128,7 +128,7 @@ def test_check_over_the_region_the_scenario_visits(tmp_path, capsys):
     small and the Riccati observer looks certified; ``hgo-mj check`` takes the box a short
     simulation visits instead (or ``[plant] region``), and warns where x0 or the run leaves a
     given region."""
-    from hgo_mj.scenario import build_plant, scenario_plant
+    from hgo_mj.scenario import build_plant, region_plant
     from hgo_mj.schema import check_scenario
 
     default = build_plant({k: v for k, v in {"states": ["x1", "x2"],
@@ -151,7 +151,7 @@ def test_check_over_the_region_the_scenario_visits(tmp_path, capsys):
     assert float(re.search(r"lipschitz: ([\d.]+)", out).group(1)) == pytest.approx(default)
     wide = {"states": ["x1", "x2"], "f": ["x2", "(1 - x1**2)*x2 - x1"], "h": "x1",
             "x0": [2.0, 0.0], "region": [[-3.0, 3.0], [-4.0, 4.0]]}
-    plant, notes = scenario_plant({"plant": wide, "run": {"duration": 5.0}})
+    plant, notes = region_plant({"plant": wide, "run": {"duration": 5.0}})
     assert notes == ["region: [plant] region [[-3.0, 3.0], [-4.0, 4.0]]"]
     with pytest.raises(DesignError, match=r"plant.region must be a list of \[lo, hi\] pairs"):
         check_scenario({"plant": {**wide, "region": [[1.0, -1.0], [0.0, 1.0]]}}, required=False)

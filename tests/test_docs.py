@@ -194,3 +194,83 @@ def test_every_module_has_every_section_and_its_doctests_pass(module, tmp_path,
     # constants or re-exports only; a reproduction's run (a minute) is shown, not run
     assert ran > 0 or not list(checker.public_objects(mod)) or module.startswith(
         "hgo_mj.reproduce.")
+
+
+def test_gallery_examples_are_text_and_code_cells():
+    """scikit-learn's layout: every example alternates titled text cells (``# %%``) and code,
+    so its figure sits under the text and code that make it, not above all of it."""
+    for path in sorted((DOCS / "gallery").glob("plot_*.py")):
+        text = path.read_text()
+        cells = re.findall(r"^# %%\n# (.+)\n# (-+)\n", text, re.M)
+        assert len(cells) >= 1 and text.count("\n# %%\n") >= 1, path.name
+        for title, rule in cells:
+            assert len(rule) >= len(title), (path.name, title)
+        first_cell = text.index("\n# %%\n")
+        fig = re.search(r"^fig\b[^=\n]* = ", text, re.M)
+        assert fig and fig.start() > first_cell, path.name
+        assert "subplots(" not in text or "layout=\"constrained\"" in text, path.name
+
+
+def _conf(monkeypatch):
+    monkeypatch.setenv("HGO_MJ_DOCS_OFFLINE", "1")
+    spec = importlib.util.spec_from_file_location("docs_conf", DOCS / "conf.py")
+    conf = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(conf)
+    return conf
+
+
+def test_intersphinx_only_to_reachable_inventories(monkeypatch):
+    """Offline (no network, or HGO_MJ_DOCS_OFFLINE) no inventory is configured, so a -W build
+    has no fetch warning; online numpy, Gymnasium and MuJoCo are linked."""
+    import urllib.request
+
+    conf = _conf(monkeypatch)
+    assert "sphinx.ext.intersphinx" in conf.extensions and conf.intersphinx_mapping == {}
+    assert set(conf.INTERSPHINX) == {"numpy", "gymnasium", "mujoco"}
+    monkeypatch.delenv("HGO_MJ_DOCS_OFFLINE")
+
+    def unreachable(url, timeout):
+        raise OSError("Temporary failure in name resolution")
+
+    class Answer:
+        status = 200
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(urllib.request, "urlopen", unreachable)
+    assert not conf.reachable("https://numpy.org/doc/stable/")
+    asked = []
+    monkeypatch.setattr(urllib.request, "urlopen",
+                        lambda url, timeout: asked.append(url) or Answer())
+    assert conf.reachable("https://numpy.org/doc/stable/")
+    assert asked == ["https://numpy.org/doc/stable/objects.inv"]
+
+
+def test_api_pages_link_the_examples_that_use_each_name(monkeypatch, tmp_path):
+    """sphinx-gallery's back-references (``backreferences_dir``, ``doc_module``): a function
+    some example uses gets "Examples using this" (a minigallery) under its docstring."""
+    conf = _conf(monkeypatch)
+    assert conf.sphinx_gallery_conf["doc_module"] == ("hgo_mj",)
+    assert conf.sphinx_gallery_conf["backreferences_dir"] == "gen_modules/backreferences"
+    monkeypatch.setattr(conf, "BACKREFERENCES", str(tmp_path))
+    (tmp_path / "hgo_mj.plotting.plot_trajectory.examples").write_text(".. thumbnail\n")
+    (tmp_path / "hgo_mj.plotting.subplots.examples").write_text("")
+    lines = ["Doc."]
+    conf.example_backlinks(None, "function", "hgo_mj.plotting.plot_trajectory", None, {}, lines)
+    assert ".. minigallery:: hgo_mj.plotting.plot_trajectory" in lines
+    for name in ("hgo_mj.plotting.subplots", "hgo_mj.plotting.new_figure"):
+        lines = ["Doc."]
+        conf.example_backlinks(None, "function", name, None, {}, lines)
+        assert lines == ["Doc."]
+    import hgo_mj
+    from hgo_mj.metrics import format_table
+
+    (tmp_path / "hgo_mj.format_table.examples").write_text(".. thumbnail\n")
+    lines = ["Doc."]  # documented under its module, found under its re-export
+    conf.example_backlinks(None, "function", "hgo_mj.metrics.format_table", format_table, {},
+                           lines)
+    assert ".. minigallery:: hgo_mj.format_table" in lines and hgo_mj.format_table is format_table

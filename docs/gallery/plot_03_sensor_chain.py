@@ -20,11 +20,17 @@ from hgo_mj.sensors import (
     SensorChain,
 )
 
+# %%
+# A clean sine, then one stage more in each panel
+# -----------------------------------------------
+#
+# Each chain is seeded, so every panel draws the same noise for the stages it shares.
+
 t = np.arange(0.0, 1.0, 0.001)
 y = np.sin(2 * np.pi * t)[None, :, None]  # (B, T, p) = (1, 1000, 1)
 stages = [GaussianNoise(std=0.02), Quantization(counts_per_rev=64), SampleHold(period=0.05),
           Delay(delay=0.03), Dropout(p=0.1)]
-fig, axes = subplots(len(stages), 1, figsize=(7, 8), sharex=True)
+fig, axes = subplots(len(stages), 1, figsize=(7, 8), layout="constrained", sharex=True)
 for i, ax in enumerate(axes):
     chain = SensorChain(stages[: i + 1], seed=0)
     ax.plot(t, y[0, :, 0], color="0.6", lw=1, label="clean")

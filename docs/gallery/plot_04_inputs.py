@@ -13,6 +13,12 @@ import numpy as np
 from hgo_mj.inputs import make_signal
 from hgo_mj.plotting import subplots
 
+# %%
+# Four signals by name
+# --------------------
+#
+# The same keywords as a scenario's ``[input]`` table.
+
 t = np.arange(0.0, 4.0, 0.002)
 signals = {
     "multisine": make_signal("multisine", amplitudes=[0.3, 0.1], frequencies=[0.5, 2.0]),
@@ -20,7 +26,7 @@ signals = {
     "prbs": make_signal("prbs", amplitude=0.3, period=0.1, nbits=5),
     "telegraph": make_signal("telegraph", amplitude=0.3, period=0.1, seed=0),
 }
-fig, axes = subplots(len(signals), 1, figsize=(7, 6), sharex=True)
+fig, axes = subplots(len(signals), 1, figsize=(7, 6), layout="constrained", sharex=True)
 for ax, (name, signal) in zip(axes, signals.items()):
     ax.plot(t, [np.ravel(signal(ti))[0] for ti in t], lw=1)
     ax.set_ylabel("u [N m]")

@@ -15,6 +15,11 @@ from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.study import format_mc_table, monte_carlo
 from hgo_mj.units import system_units
 
+# %%
+# One run, as a function of nothing
+# ---------------------------------
+#
+# ``make_run`` builds fresh objects for each seed; the seed is the Monte Carlo's.
 
 def make_run():
     plant = make_plant("pendulum", dt=0.001)
@@ -26,7 +31,18 @@ def make_run():
             "duration": 3.0, "x0": [0.5, 0.0]}
 
 
+# %%
+# Eight seeds, aggregated
+# -----------------------
+#
+# The table: RMSE mean, std, median and max per observer and state, with units.
+
 result = monte_carlo(make_run, seeds=range(8), t_transient=1.0)
-print(format_mc_table(result.aggregate))
-fig = plot_monte_carlo(result, title="pendulum, 8 seeds",
-                       units=system_units(type(make_run()["plant"].system)))
+units = system_units(type(make_run()["plant"].system))
+print(format_mc_table(result.aggregate, units))
+
+# %%
+# Every seed's RMSE, on one axis per state
+# ----------------------------------------
+
+fig = plot_monte_carlo(result, title="pendulum, 8 seeds", units=units)

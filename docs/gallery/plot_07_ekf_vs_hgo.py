@@ -14,10 +14,22 @@ from hgo_mj.plotting import plot_trajectory
 from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
 
+# %%
+# Two observers, one measurement stream
+# -------------------------------------
+#
+# The EKF is given the noise variance ``R`` and a process noise ``Q``; the high-gain observer only
+# its gain.
+
 plant = make_plant("pendulum", dt=0.001)
-sensor = SensorChain([GaussianNoise(std=2e-3)], seed=0)
+sensor = SensorChain([GaussianNoise(std=2e-3)])
 observers = {"hgo": HighGainObserver(plant.system, k=40.0),
              "ekf": ExtendedKalmanFilter(plant.system, Q=1e-2, R=(2e-3) ** 2)}
 traj = simulate(plant, sensor, observers, Multisine(amplitudes=[0.3], frequencies=[0.5]),
                 duration=3.0, x0=[0.5, 0.0], sample_period=0.005, seed=0)
+
+# %%
+# Their errors on shared axes
+# ---------------------------
+
 fig = plot_trajectory(traj, title="pendulum: EKF and high-gain observer")

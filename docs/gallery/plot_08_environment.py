@@ -14,6 +14,12 @@ import numpy as np
 
 from hgo_mj.plotting import subplots
 
+# %%
+# An energy-pumping policy on the estimate
+# ----------------------------------------
+#
+# The observation is ``(cos, sin, angular velocity)`` of the estimate; ``info`` holds the truth.
+
 env = gymnasium.make("hgo_mj/PendulumSwingUp-v0", info_level="full")
 obs, info = env.reset(seed=0)
 t, true, est = [], [], []
@@ -27,7 +33,11 @@ for _ in range(150):
 env.close()
 true, est = np.array(true), np.array(est)
 
-fig, axes = subplots(2, 1, figsize=(7, 5), sharex=True)
+# %%
+# The estimate the agent saw, against the truth
+# ---------------------------------------------
+
+fig, axes = subplots(2, 1, figsize=(7, 5), layout="constrained", sharex=True)
 for i, (ax, label) in enumerate(zip(axes, ["angle [rad]", "angular velocity [rad/s]"])):
     ax.plot(t, est[:, i], color="C1", lw=1, label="estimate")
     ax.plot(t, true[:, i], color="k", lw=1, ls="--", label="true")

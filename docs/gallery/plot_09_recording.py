@@ -19,6 +19,12 @@ from hgo_mj.record import read, record_trajectory
 from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
 
+# %%
+# Record a run, read it back
+# --------------------------
+#
+# The recording is written to a temporary folder here; the DataFrame outlives it.
+
 plant = make_plant("pendulum", dt=0.001)
 traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0),
                 {"k40": HighGainObserver(plant.system, k=40.0)},
@@ -29,7 +35,11 @@ with tempfile.TemporaryDirectory() as tmp:
 velocity = [c for c in df.columns if "angular_velocity" in c and "error" not in c]
 print(velocity)
 
-fig, ax = subplots(figsize=(7, 3.5))
+# %%
+# The truth and the estimate, from the table
+# ------------------------------------------
+
+fig, ax = subplots(figsize=(7, 3.5), layout="constrained")
 for column in velocity:
     ax.plot(df["sim_time"], df[column], lw=1, label=column)
 ax.set_xlabel("sim_time [s]")

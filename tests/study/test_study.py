@@ -153,10 +153,10 @@ def test_the_summary_holds_the_statistics_over_seeds(mixed):
 def test_figures_have_units_and_one_file_per_axis(mixed, tmp_path):
     _, result = mixed
     figs = result.plot(tmp_path)
-    assert len(figs) == 3  # three axes: one figure each (a heatmap only for two axes)
+    assert len(figs) == 4  # three axes: one figure each (a heatmap only for two axes)
     names = sorted(p.name for p in tmp_path.glob("*.png"))
     assert names == ["axis_observers.hgo.k.png", "axis_plant.x0.png",
-                     "axis_sensor.stages.0.std.png"]
+                     "axis_sensor.stages.0.std.png", "best_gain.png"]
     ax = figs[0].axes[0]
     assert ax.get_xlabel() == "observers.hgo.k [1/s]" and ax.get_xscale() == "linear"
     assert ax.get_ylabel().endswith("[rad]")
@@ -273,7 +273,11 @@ def test_the_sweep_command(tmp_path, capsys):
     out = tmp_path / "o"
     assert main(["sweep", str(f), "--out", str(out), "--quiet"]) == 0
     text = capsys.readouterr().out
-    assert "| observers.hgo.k |" in text and "wrote" in text
+    assert "| observers.hgo.k |" not in text and f"the whole table: {out / 'summary.md'}" in text
+    head, row = text.splitlines()[1:3]
+    assert head.split()[:5] == ["observer", "state", "unit", "rmse", "median"]
+    assert row.split()[:3] == ["hgo", "angle", "rad"] and "observers.hgo.k = " in row
+    assert len(text.splitlines()) < 12
     assert (out / "axis_observers.hgo.k.png").stat().st_size > 10_000
     assert main(["sweep", str(f), "--out", str(out), "--quiet"]) == 2
     assert "resume it with --resume" in capsys.readouterr().err
@@ -477,9 +481,13 @@ def test_stored_cells_keep_their_trajectories_as_npz(tmp_path):
         Study(BASE, {"observers.hgo.k": [20.0]}, store=[{"plant.x0": [0.5, 0.0]}])
 
 
-def test_many_curves_are_pooled_and_every_plant_gives_its_units(tmp_path):
-    """Beyond eight observer x other-axis curves a panel draws one curve per observer pooled
-    over the other axes; each state's unit comes from the plant that has it."""
+def test_many_facets_are_pooled_and_every_plant_gives_its_units(tmp_path, monkeypatch):
+    """A facet per observer, value of the other axes and state (the plant group is a facet:
+    each plant has its own states), one line per noise level against the gain; beyond
+    MAX_FACETS facets the other axes are pooled, said in the title; each state's unit comes
+    from the plant that has it."""
+    from hgo_mj.study import figures
+
     sc = {**BASE, "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
           "run": {"duration": 0.3, "seed": 0}}
     study = Study(sc, {"observers.hgo.k": [10.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-3,
@@ -487,20 +495,19 @@ def test_many_curves_are_pooled_and_every_plant_gives_its_units(tmp_path):
                   seeds=1, together=[{"plant.name": ["pendulum", "elastic_joint"],
                                       "plant.x0": [[0.5, 0.0], [0.3, 0.3, 0.0, 0.0]]}])
     result = study.run(tmp_path / "pool", quiet=True)
-    figs = result.plot()
-    k_fig = figs[0]  # against the gain: 3 noise levels x 2 plants = 6 curves
-    labels = k_fig.legends[0].get_texts()
-    assert len(labels) == 6 and "std=0.0001" in labels[0].get_text()
-    pooled = [f for f in figs if "pooled" in f._suptitle.get_text()]
-    assert not pooled
-    many = Study(sc, {"observers.hgo.k": [10.0, 40.0], "sensor.stages.0.std": [1e-4, 1e-3,
-                                                                              1e-2, 2e-2, 3e-2]},
-                 seeds=1, together=[{"plant.name": ["pendulum", "elastic_joint"],
-                                     "plant.x0": [[0.5, 0.0], [0.3, 0.3, 0.0, 0.0]]}])
-    fig = many.run(tmp_path / "many", quiet=True).plot()[0]
-    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["hgo (pooled)"]
-    ylabels = {ax.get_title(): ax.get_ylabel() for ax in fig.axes[::3]}
-    assert ylabels["motor_velocity"].endswith("[rad/s]") and ylabels["angle"].endswith("[rad]")
+    k_fig = result.plot()[0]  # against the gain: a line per noise level
+    assert [t.get_text() for t in k_fig.legends[0].get_texts()] == [
+        "std = 0.0001", "std = 0.001", "std = 0.01"]
+    titles = [ax.get_title() for ax in k_fig.axes[::3]]
+    assert titles[0] == "hgo, plant = pendulum, angle" and len(titles) == 2 + 4
+    assert "pooled" not in k_fig._suptitle.get_text()
+    ylabels = {ax.get_title(): ax.get_ylabel() for ax in k_fig.axes[::3]}
+    assert ylabels["hgo, plant = elastic_joint, motor_velocity"].endswith("[rad/s]")
+    assert ylabels["hgo, plant = pendulum, angle"].endswith("[rad]")
+    monkeypatch.setattr(figures, "MAX_FACETS", 4)
+    fig = figures.axis_figure(result, "observers.hgo.k")
+    assert "pooled over plant.name" in fig._suptitle.get_text()
+    assert [ax.get_title() for ax in fig.axes[::3]][:2] == ["hgo, angle", "hgo, angular_velocity"]
 
 
 def test_a_closed_loops_chunks_are_bounded_by_its_kept_errors():
@@ -610,3 +617,55 @@ def test_validate_keeps_no_plant_per_cell():
         Plant.__init__ = original
     gc.collect()
     assert len(seen) >= 20 and sum(r() is not None for r in seen) <= 2
+
+
+def test_study_figures_answer_the_gain_noise_question(tmp_path):
+    """Each metric against each axis with one line per value of the next axis and a facet per
+    observer, value of the other axes and state; an axis that changes the states
+    (plant.name) is a facet, not an x-axis; the best gain per noise level with its fitted
+    power law (best_gain.png), drawn on the user's axes on request."""
+    from hgo_mj.plotting import subplots
+    from hgo_mj.study.figures import axis_figure, best_gain, best_gain_figure, best_gains, varying_axes
+
+    sc = {"name": "gn", "plant": {"name": "pendulum", "dt": 0.002},
+          "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+          "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+          "input": {"type": "multisine", "amplitudes": [0.8, 0.3], "frequencies": [0.4, 1.5]},
+          "run": {"duration": 3.0, "t_transient": 1.0}}
+    axes = {"plant.name": ["pendulum", "elastic_joint"],
+            "observers.hgo.k": [5.0, 20.0, 80.0, 320.0, 1280.0],
+            "sensor.stages.0.std": [1e-5, 1e-3, 1e-2]}
+    result = Study(sc, axes, seeds=2).run(tmp_path / "gn", quiet=True)
+    assert varying_axes(result) == ["observers.hgo.k", "sensor.stages.0.std"]
+    names = sorted(p.name for p in (tmp_path / "gn").glob("*.png"))
+    assert names == []  # Study.run writes no figure; plot does
+    figs = result.plot(tmp_path / "figs")
+    assert sorted(p.name for p in (tmp_path / "figs").glob("*.png")) == [
+        "axis_observers.hgo.k.png", "axis_sensor.stages.0.std.png", "best_gain.png"]
+    fig = figs[0]
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(panels) == 3 * 6  # rmse, peak, settling x (2 + 4 states of the two plants)
+    assert panels[0].get_title() == "hgo, plant = pendulum, angle"
+    assert [ln.get_label() for ln in panels[0].get_lines()] == [
+        "std = 1e-05", "std = 0.001", "std = 0.01"]
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == [
+        "std = 1e-05", "std = 0.001", "std = 0.01"]
+    assert [ln.get_label() for ln in figs[1].axes[0].get_lines()][:2] == ["k = 5", "k = 20"]
+    bg = best_gains(result)
+    s = result.summary()
+    for _, r in bg.iterrows():  # k* is best_gain of that noise level's RMSE over the gains
+        g = s[(s["observer"] == "hgo") & (s["state"] == r["state"])
+              & (s["plant.name"] == r["plant.name"])
+              & (s["sensor.stages.0.std"] == r["sigma"])].sort_values("observers.hgo.k")
+        assert (r["k_star"], r["interior"]) == best_gain(g["observers.hgo.k"], g["rmse_median"])
+    pend = bg[(bg["plant.name"] == "pendulum") & (bg["state"] == "angle")]
+    assert pend["order"].iloc[0] == 2 and -0.8 < pend["slope"].iloc[0] < -0.3
+    fit = [ln.get_label() for ln in figs[2].axes[0].get_lines()]
+    assert any(lb.startswith("fit k* ~ sigma^") for lb in fit) and any(
+        lb.startswith("theory sigma^-0.50") for lb in fit)
+    mine, grid = subplots(1, 6)
+    assert best_gain_figure(result, axes=grid) is mine
+    mine, grid = subplots(6, 3)
+    assert axis_figure(result, "observers.hgo.k", axes=grid) is mine
+    with pytest.raises(DesignError, match="axis must be one of"):
+        axis_figure(result, "plant.name")
