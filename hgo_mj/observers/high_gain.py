@@ -399,10 +399,12 @@ def bounds_pair(z_bounds: Any, n: int) -> tuple[Array, Array] | None:
     """``z_bounds = (lower, upper)`` as two length-``n`` arrays with lower < upper, or None."""
     if z_bounds is None:
         return None
-    if not isinstance(z_bounds, (list, tuple)) or len(z_bounds) != 2:
+    try:
+        lower, upper = z_bounds
+    except (TypeError, ValueError):
         raise DesignError(f"z_bounds must be a pair (lower, upper) of {n} numbers each; found "
-                          f"{z_bounds!r:.60}")
-    lo, hi = (vector("z_bounds[0]", z_bounds[0], n), vector("z_bounds[1]", z_bounds[1], n))
+                          f"{z_bounds!r:.60}") from None
+    lo, hi = (vector("z_bounds[0]", lower, n), vector("z_bounds[1]", upper, n))
     if np.any(lo >= hi):
         raise DesignError(f"z_bounds need lower < upper; found lower {lo.tolist()}, "
                           f"upper {hi.tolist()}")
