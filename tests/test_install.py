@@ -25,7 +25,7 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
     (wheel,) = dist.glob("hgo_mj-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     assert "hgo_mj/models/elastic_joint.xml" in names
-    assert "hgo_mj/envs/__init__.py" in names
+    assert "hgo_mj/envs/__init__.py" in names and "hgo_mj/py.typed" in names
     assert not any(n.startswith("envs/") or n.startswith("models/") for n in names)
     # PEP 639: an SPDX license expression and the license file in the wheel's metadata
     (meta,) = [n for n in names if n.endswith(".dist-info/METADATA")]

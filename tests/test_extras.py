@@ -1,0 +1,84 @@
+"""The lean install (issue 28, item 1): what is optional sits in an extra, and a feature whose
+extra is missing fails with one line naming it (``hgo_mj._extras.require``)."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+from hgo_mj._extras import EXTRAS, require
+from hgo_mj.cli import main
+from hgo_mj.exceptions import MissingExtraError
+
+ROOT = Path(__file__).resolve().parents[1]
+PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+
+
+def _names(reqs: list[str]) -> set[str]:
+    return {re.split(r"[\[<>=;! ]", r, maxsplit=1)[0].lower() for r in reqs}
+
+
+def test_the_extras_are_those_of_pyproject_and_the_runtime_holds_none_of_them():
+    extras = PROJECT["optional-dependencies"]
+    assert set(EXTRAS) == set(extras)
+    runtime = _names(PROJECT["dependencies"])
+    assert not runtime & {"cvxpy", "clarabel", "sympy", "ray", "moviepy", "imageio", "pytest"}
+    assert {"mujoco", "numba", "rerun-sdk", "optuna", "cmaes", "pyarrow"} <= runtime
+    # make test installs dev: every extra the tests import but docs and rl
+    assert "hgo_mj[lmi,symbolic,gym,ray]" in extras["dev"]
+
+
+def test_a_missing_package_is_one_line_naming_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "cvxpy", None)  # `import cvxpy` raises ImportError
+    with pytest.raises(MissingExtraError) as err:
+        require("cvxpy", "lmi", "LMI (62)")
+    assert str(err.value) == "LMI (62) needs the optional dependency cvxpy: pip install 'hgo_mj[lmi]'"
+    assert isinstance(err.value, ImportError) and err.value.extra == "lmi"
+    with pytest.raises(ValueError, match="unknown extra 'lmii'"):
+        require("numpy", "lmii", "x")
+
+
+def test_a_package_whose_own_import_fails_is_not_called_missing(tmp_path, monkeypatch):
+    (tmp_path / "half_installed.py").write_text("import no_such_dependency_of_it\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ModuleNotFoundError, match="no_such_dependency_of_it"):
+        require("half_installed", "lmi", "x")
+
+
+def test_the_lmi_design_without_cvxpy_names_the_lmi_extra(monkeypatch):
+    from hgo_mj.design import max_sampling_period
+
+    monkeypatch.setitem(sys.modules, "cvxpy", None)
+    M = np.array([[0.0], [2.0]])
+    with pytest.raises(MissingExtraError, match=r"pip install 'hgo_mj\[lmi\]'$"):
+        max_sampling_period([2.0, 1.0], 5.0, M, np.eye(2))
+
+
+def test_check_without_cvxpy_still_reports_and_names_the_extra(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "cvxpy", None)
+    assert main(["check", str(ROOT / "scenarios" / "ode_pendulum.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "no sampling bound: LMI (63)/(65) of paper 004 needs the optional dependency cvxpy: " \
+           "pip install 'hgo_mj[lmi]'" in out
+
+
+def test_an_ode_plant_without_sympy_is_one_line_naming_the_symbolic_extra(tmp_path, monkeypatch,
+                                                                           capsys):
+    monkeypatch.setitem(sys.modules, "sympy", None)
+    for mod in [m for m in sys.modules if m.startswith("hgo_mj.systems.symbolic")]:
+        monkeypatch.delitem(sys.modules, mod)
+    out = tmp_path / "o"
+    assert main(["run", str(ROOT / "scenarios" / "ode_pendulum.toml"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == ("hgo-mj: error: an ODE plant given as text (hgo_mj.systems.symbolic) needs the "
+                   "optional dependency sympy: pip install 'hgo_mj[symbolic]'\n")
+    assert not out.exists()
