@@ -1,4 +1,6 @@
-"""The built wheel works on its own: models and envs are inside it, `hgo-mj demo` runs."""
+"""The built wheel works on its own: models and envs are inside it, `hgo-mj demo` runs; with only
+the runtime installed (no extra), the README's code blocks run but those marked as needing an
+extra, which fail (issue 28, item 1)."""
 
 from __future__ import annotations
 
@@ -51,7 +53,28 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
              "assert importlib.util.find_spec('envs') is None;"
              "print('ok')")
     assert _run([str(py), "-c", probe], cwd=work).stdout.strip() == "ok"
+    _readme_blocks_run_after_the_runtime_install(py, tmp_path / "readme")
     _kernels_cache_outside_a_read_only_install(venv, py, tmp_path)
+
+
+def _readme_blocks_run_after_the_runtime_install(py: Path, work: Path) -> None:
+    """The README's Python blocks in order, in the venv with only the runtime: each one that
+    needs no extra runs; each one marked ``<!-- needs: EXTRA -->`` fails there (else its mark
+    is wrong), and no extra is installed."""
+    from readme_blocks import blocks, runtime_script
+
+    work.mkdir()
+    (work / "readme.py").write_text(runtime_script())
+    out = _run([str(py), "readme.py"], cwd=work).stdout
+    assert "k80" in out and "[0.3] {'dropouts': 0.0}" in out
+    marked = [b for b in blocks() if b.needs and b.lang in ("python", "py")]
+    assert marked, "no README block is marked as needing an extra"
+    for b in marked:
+        assert f"NEEDS {','.join(b.needs)} {b.line}: " in out, (b.line, out[-2000:])
+    assert "RAN " not in out
+    probe = ("import importlib.util as u; print([m for m in ('cvxpy', 'clarabel', 'sympy', 'ray', "
+             "'imageio', 'moviepy') if u.find_spec(m)])")
+    assert _run([str(py), "-c", probe], cwd=work).stdout.strip() == "[]"
 
 
 def _kernels_cache_outside_a_read_only_install(venv: Path, py: Path, tmp_path: Path) -> None:
