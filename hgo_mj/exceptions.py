@@ -113,6 +113,15 @@ class MissingExtraError(HgoError, ImportError):
     """A feature needs an optional dependency that is not installed; the one-line message
     names the extra of ``pyproject.toml`` that installs it (:func:`hgo_mj._extras.require`).
 
+    Parameters
+    ----------
+    package : str
+        The missing distribution's import name (``"sympy"``); also ``ImportError.name``.
+    extra : str
+        The extra that installs it (``"symbolic"``); also the attribute ``extra``.
+    feature : str
+        What needs it, the message's first words.
+
     Examples
     --------
     >>> err = MissingExtraError("sympy", "symbolic", "an ODE plant given as text")
