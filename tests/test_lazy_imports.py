@@ -90,3 +90,12 @@ def test_the_registries_name_each_family_where_it_lives():
     assert named | {"FAMILIES", "SYSTEMS", "System"} == set(systems.__all__)
     assert {getattr(observers, n).__name__ for n in observers.__all__
             if n[0].isupper() and n != "OBSERVERS"} <= set(observers.__all__)
+
+
+
+def test_dir_lists_the_lazy_names_before_their_import(tmp_path):
+    """Sphinx's autodoc documents only the names ``dir(module)`` shows."""
+    got = _loaded("import hgo_mj.observers as o, hgo_mj.systems as s\n"
+                  "assert set(o.__all__) <= set(dir(o)), set(o.__all__) - set(dir(o))\n"
+                  "assert set(s.__all__) <= set(dir(s)), set(s.__all__) - set(dir(s))", tmp_path)
+    assert got["families"] == []

@@ -48,6 +48,12 @@ def __getattr__(name: str) -> Any:
     return value
 
 
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported ones (so ``dir`` and Sphinx's autodoc list
+    them)."""
+    return sorted(set(globals()) | set(__all__))
+
+
 def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:
     """Build a registered observer by name (a family of this package, or one registered by
     another package through the entry-point group ``hgo_mj.observers``).

@@ -51,6 +51,12 @@ def __getattr__(name: str) -> Any:
     return value
 
 
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported ones (so ``dir`` and Sphinx's autodoc list
+    them)."""
+    return sorted(set(globals()) | set(__all__))
+
+
 __all__ = ["FAMILIES", "SYSTEMS", "System", "Pendulum", "CartPendulum", "ElasticJoint",
            "ElasticJoint2Link", "BioreactorBullinger", "BioreactorBastinGevers", "BesanconExample1",
            "BesanconExample2", "JoSonExample"]
