@@ -82,3 +82,49 @@ def test_an_ode_plant_without_sympy_is_one_line_naming_the_symbolic_extra(tmp_pa
     assert err == ("hgo-mj: error: an ODE plant given as text (hgo_mj.systems.symbolic) needs the "
                    "optional dependency sympy: pip install 'hgo_mj[symbolic]'\n")
     assert not out.exists()
+
+
+def _dry_run(target: str, tmp_path: Path) -> list[str]:
+    """The commands ``make -n TARGET`` would run from nothing (a folder with the Makefile and
+    what its rules depend on, no .venv)."""
+    import shutil
+    import subprocess
+
+    for name in ("Makefile", "pyproject.toml", "constraints.txt"):
+        shutil.copy(ROOT / name, tmp_path / name)
+    res = subprocess.run(["make", "-n", target], cwd=tmp_path, capture_output=True, text=True,
+                         timeout=60, check=True)
+    return res.stdout.splitlines()
+
+
+def test_make_demo_installs_the_runtime_only_and_says_each_step(tmp_path):
+    lines = _dry_run("demo", tmp_path)
+    installs = [ln for ln in lines if "pip install" in ln and not ln.startswith("echo")]
+    assert installs == [".venv/bin/python -m pip install --no-compile -e ."]
+    steps = [ln for ln in lines if ln.startswith('echo "[')]
+    assert [s[6:11] for s in steps] == ["[1/3]", "[2/3]", "[3/3]"]
+    assert any("hgo-mj bench --suite quick" in ln for ln in lines)
+    assert lines[-1] == f'echo "done: open {tmp_path}/runs/demo/leaderboard.md and ' \
+                        f'{tmp_path}/runs/demo/score_matrix.png"'
+
+
+def test_make_test_installs_dev_within_the_constraints(tmp_path):
+    lines = _dry_run("test", tmp_path)
+    assert '.venv/bin/python -m pip install -e ".[dev]" -c constraints.txt' in lines
+    assert lines[-1] == ".venv/bin/python -m pytest -q -ra"
+
+
+def test_constraints_pin_every_distribution_of_the_test_environment():
+    pins = {}
+    for line in (ROOT / "constraints.txt").read_text().splitlines():
+        if line and not line.startswith("#"):
+            name, _, ver = line.partition("==")
+            assert ver and re.fullmatch(r"[0-9][0-9A-Za-z.+!-]*", ver), line
+            pins[re.sub(r"[-_.]+", "-", name).lower()] = ver
+    assert "hgo-mj" not in pins
+    wanted = _names(PROJECT["dependencies"]) | {
+        n for extra in ("lmi", "symbolic", "gym", "ray", "docs") for n in
+        _names(PROJECT["optional-dependencies"][extra])} | _names(
+        [r for r in PROJECT["optional-dependencies"]["dev"] if not r.startswith("hgo_mj")])
+    wanted = {re.sub(r"[-_.]+", "-", n) for n in wanted} - {"tomli"}  # tomli: Python 3.10 only
+    assert wanted <= set(pins), sorted(wanted - set(pins))
