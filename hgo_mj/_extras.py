@@ -8,7 +8,7 @@ from types import ModuleType
 
 from .exceptions import MissingExtraError
 
-#: extra -> what it enables (README.md, "Install", names each with the same words)
+#: extra -> what it enables (README.md, "Install", has a row per extra)
 EXTRAS = {
     "lmi": "the LMI designs (cvxpy, Clarabel): hgo_mj.design's LMI gain bounds, paper 004's reproduction",
     "symbolic": "ODE plants given as text (sympy): [plant] f = [...], hgo_mj.systems.symbolic",

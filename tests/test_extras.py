@@ -35,6 +35,9 @@ def test_the_extras_are_those_of_pyproject_and_the_runtime_holds_none_of_them():
     assert {"mujoco", "numba", "rerun-sdk", "optuna", "cmaes", "pyarrow"} <= runtime
     # make test installs dev: every extra the tests import but docs and rl
     assert "hgo_mj[lmi,symbolic,gym,ray]" in extras["dev"]
+    readme = (ROOT / "README.md").read_text()
+    install = readme[readme.index("## Install"):readme.index("\n## ", readme.index("## Install") + 3)]
+    assert re.findall(r"^\| `(\w+)` \|", install, re.M) == list(extras)  # a row per extra
 
 
 def test_a_missing_package_is_one_line_naming_the_extra(monkeypatch):
