@@ -53,15 +53,16 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
              "assert importlib.util.find_spec('envs') is None;"
              "print('ok')")
     assert _run([str(py), "-c", probe], cwd=work).stdout.strip() == "ok"
-    _readme_blocks_run_after_the_runtime_install(py, tmp_path / "readme")
+    _readme_blocks_run_after_the_runtime_install(py, wheel, tmp_path / "readme")
     _kernels_cache_outside_a_read_only_install(venv, py, tmp_path)
 
 
-def _readme_blocks_run_after_the_runtime_install(py: Path, work: Path) -> None:
+def _readme_blocks_run_after_the_runtime_install(py: Path, wheel: Path, work: Path) -> None:
     """The README's Python blocks in order, in the venv with only the runtime: each one that
     needs no extra runs; each one marked ``<!-- needs: EXTRA -->`` fails there (else its mark
-    is wrong), and no extra is installed."""
-    from readme_blocks import blocks, runtime_script
+    is wrong), and no extra is installed. Then, extra by extra, that extra is installed and the
+    blocks that need it run."""
+    from readme_blocks import blocks, extra_script, runtime_script
 
     work.mkdir()
     (work / "readme.py").write_text(runtime_script())
@@ -75,6 +76,13 @@ def _readme_blocks_run_after_the_runtime_install(py: Path, work: Path) -> None:
     probe = ("import importlib.util as u; print([m for m in ('cvxpy', 'clarabel', 'sympy', 'ray', "
              "'imageio', 'moviepy') if u.find_spec(m)])")
     assert _run([str(py), "-c", probe], cwd=work).stdout.strip() == "[]"
+    # then each extra a block needs, alone: the block runs
+    for extra in sorted({e for b in marked for e in b.needs}):
+        _run([str(py), "-m", "pip", "install", "--quiet", f"{wheel}[{extra}]"], cwd=work)
+        (work / f"{extra}.py").write_text(extra_script(extra))
+        out = _run([str(py), f"{extra}.py"], cwd=work).stdout
+        ran = [ln for ln in out.splitlines() if ln.startswith("RAN ")]
+        assert ran == [f"RAN {b.line}" for b in marked if b.needs == (extra,)], out
 
 
 def _kernels_cache_outside_a_read_only_install(venv: Path, py: Path, tmp_path: Path) -> None:

@@ -166,3 +166,13 @@ def test_the_runtime_script_runs_the_unmarked_blocks_and_tries_the_marked(tmp_pa
     assert capsys.readouterr().out == ("NEEDS lmi,gym 9: ModuleNotFoundError: No module named "
                                        "'no_such_module_here'\nx = 1\n")
     assert (tmp_path / "scenario.toml").read_text() == "name = 's'\n"
+
+
+def test_the_extra_script_runs_a_marked_block_after_its_section(tmp_path, capsys):
+    from readme_blocks import extra_script
+
+    text = ("## One\n```py\nraise SystemExit('another section: not run')\n```\n"
+            "## Two\n```py\nx = 2\n```\n<!-- needs: gym -->\n```py\nprint('x =', x)\n```\n"
+            "<!-- needs: lmi -->\n```py\nraise SystemExit('another extra: not run')\n```\n")
+    exec(compile(extra_script("gym", text), "script", "exec"), {})
+    assert capsys.readouterr().out == "x = 2\nRAN 10\n"  # the line of its fence
