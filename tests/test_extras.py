@@ -131,3 +131,12 @@ def test_constraints_pin_every_distribution_of_the_test_environment():
         [r for r in PROJECT["optional-dependencies"]["dev"] if not r.startswith("hgo_mj")])
     wanted = {re.sub(r"[-_.]+", "-", n) for n in wanted} - {"tomli"}  # tomli: Python 3.10 only
     assert wanted <= set(pins), sorted(wanted - set(pins))
+
+
+def test_the_lmi_reproduction_without_cvxpy_stops_before_any_work(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "cvxpy", None)
+    out = tmp_path / "ibrir"
+    assert main(["reproduce", "ibrir2007", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == ("hgo-mj: error: the ibrir2007 reproduction needs the optional "
+                                       "dependency cvxpy: pip install 'hgo_mj[lmi]'\n")
+    assert not out.exists()
