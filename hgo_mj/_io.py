@@ -109,8 +109,12 @@ def write_text(path: str | Path, text: str) -> Path:
 
 def save_figure(fig: Any, path: str | Path, dpi: int = 110) -> Path:
     """Save a matplotlib figure atomically, in the format of ``path``'s suffix (PNG when it
-    has none); returns ``path``."""
+    has none), and close it if pyplot manages it; returns ``path``."""
     fmt = Path(path).suffix.lstrip(".") or "png"
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=fmt, dpi=dpi)
+    if getattr(fig.canvas, "manager", None) is not None:  # pyplot's (plotting.new_figure):
+        import matplotlib.pyplot as plt  # written, so released (no pile of open figures)
+
+        plt.close(fig)
     return Path(path)

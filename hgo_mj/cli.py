@@ -1,4 +1,5 @@
-"""The ``hgo-mj`` command: ``run``, ``sweep``, ``list``, ``reproduce``, ``demo``.
+"""The ``hgo-mj`` command: ``run``, ``sweep``, ``tune``, ``bench``, ``check``, ``list``,
+``reproduce``, ``demo`` (:data:`DESCRIPTION` says each in ``hgo-mj --help``).
 
 ``hgo-mj sweep STUDY.toml --out DIR`` runs a study (a scenario with a ``[sweep]`` table; see
 :mod:`hgo_mj.study`) and writes ``results.parquet``, ``summary.parquet``, ``summary.md`` and its
@@ -8,8 +9,8 @@ figures into ``DIR``; Ctrl-C leaves every finished partition, and ``--resume`` g
 headless study and writes ``trajectory.npz``, ``trajectory.parquet`` and ``metrics.parquet``
 (tidy tables with units in the schema, :mod:`hgo_mj.tidy`; ``--format npz|parquet|csv``,
 repeatable, chooses), ``metrics.json``, ``figure.png`` and ``summary.txt`` into ``--out``;
-``--rrd [FILE]`` also records it to a rerun file (default
-``OUT/run.rrd``), written in chunks of ``RRD_CHUNK_SECONDS`` (2) simulated seconds as the run
+``--rrd FILE.rrd`` also records it to that rerun file (the name must end in ``.rrd``),
+written in chunks of ``RRD_CHUNK_SECONDS`` (2) simulated seconds as the run
 goes, so a run stopped with Ctrl-C (exit status 130) leaves a readable recording up to its last
 chunk. ``--seeds N`` (or ``seeds = N`` in the scenario's ``[run]``) repeats the run at the seeds
 ``SEED ... SEED+N-1`` (the seeds after the first as a study, :mod:`hgo_mj.study`, ``--jobs J``)
@@ -29,6 +30,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -44,10 +46,15 @@ from ._validate import positive_int
 from .exceptions import DesignError, DivergenceError, HgoError, RecordingError
 from .schema import check_scenario
 
+#: a bare word in a value (not a number's exponent, not inside a quoted string)
+_BARE_WORD = re.compile(r"(?<![\w.+\-\"'])([A-Za-z_][\w\-]*)(?![\w\"'])")
+_TOML_WORDS = {"true", "false", "inf", "nan"}
+
 
 def parse_value(text: str) -> Any:
     """Parse one ``key=value`` value as a TOML value (``1e-3``, ``[1, 2]``, ``true``, ``"s"``);
-    a bare word that is no TOML value is taken as a string."""
+    a bare word that is no TOML value is taken as a string, alone or inside a list or table
+    (``[stiffness, damping]`` is ``["stiffness", "damping"]``)."""
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except RecursionError:
@@ -55,8 +62,15 @@ def parse_value(text: str) -> Any:
     except tomllib.TOMLDecodeError:
         if text.replace("_", "").replace("-", "").isalnum():
             return text
-        raise DesignError(f"cannot parse value {text!r}; expected a number, [list], true/false "
-                          f"or a word") from None
+    if '"' not in text and "'" not in text:  # bare words quoted, then TOML again
+        quoted = _BARE_WORD.sub(lambda m: m.group(1) if m.group(1) in _TOML_WORDS
+                                else f'"{m.group(1)}"', text)
+        try:
+            return tomllib.loads(f"v = {quoted}")["v"]
+        except (tomllib.TOMLDecodeError, RecursionError):
+            pass
+    raise DesignError(f"cannot parse value {text!r}; expected a number, [list], true/false "
+                      f"or a word (alone or in a list)")
 
 
 def parse_spec(spec: str, key: str) -> dict[str, Any]:
@@ -282,8 +296,9 @@ def run_scenario(sc: dict[str, Any], name: str = "run", rrd: str | Path | None =
     save_figure(plot_trajectory(traj, title=f"{sc.get('name', name)}: {plant_label(pl)}, seed {seed}"
                                 + (f" (every {every}-th sample shown)" if every > 1 else "")),
                 out / "figure.png")
-    table = format_table(metrics)
-    write_text(out / "summary.txt", table + "\n")
+    from .units import units_of
+
+    write_text(out / "summary.txt", format_table(metrics, *units_of(traj)) + "\n")
     for ob, d in traj.diverged.items():  # the run isolates a failing observer: say so
         print(f"hgo-mj: observer {ob!r} diverged at t = {d['t']:g} s ({d['error']}); its "
               f"estimate is NaN from there on, the other observers ran to the end",
@@ -404,8 +419,8 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     done, runs, failed = seed_metrics(table, metrics)
     mc = MonteCarloResult.from_runs([seed, *done], [metrics, *runs], failed)
     write_json(out / "metrics_mc.json", mc.to_json())
-    write_text(out / "summary_mc.txt", mc.table() + "\n")
-    units, _ = units_of(traj)
+    units, t_unit = units_of(traj)
+    write_text(out / "summary_mc.txt", mc.table(units, t_unit) + "\n")
     save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {plant_label(sc['plant'])}, "
                                  f"seeds {seeds[0]}..{seeds[-1]}", units=units), out / "mc.png")
     return traj, metrics, out, mc
@@ -440,17 +455,22 @@ def cmd_list() -> str:
         return ", ".join(p.name if p.default is p.empty else f"{p.name}={p.default!r}"
                          for p in ps)
 
-    from .reproduce import REPRODUCTIONS
+    from .reproduce import PAPERS, REPRODUCTIONS
 
     def width(names: Any) -> int:
         """The name column of a section: as wide as its longest name."""
         return max((len(n) for n in names), default=0)
 
-    w = width(SYSTEMS)
+    from .plants import LAB_PLANTS
+
+    w = width([*SYSTEMS, *LAB_PLANTS])
     lines = ["PLANTS (hgo-mj run --plant NAME)"]
     for name, system in SYSTEMS.items():
         kind = f"MuJoCo models/{system.model_file}" if system.model_file else "ODE"
         lines.append(f"  {name:<{w}} {system.summary}  [{kind}; {system.reference}]")
+    for name, (file, outputs, summary, reference) in LAB_PLANTS.items():
+        lines.append(f"  {name:<{w}} {summary}, measured by {', '.join(outputs)}  "
+                     f"[MuJoCo models/{file}, generic MJCF path; {reference}]")
     w = width(STAGES)
     lines.append("\nSENSOR STAGES (--sensor NAME:key=value,...; applied in the order given)")
     for name, stage in STAGES.items():
@@ -468,6 +488,9 @@ def cmd_list() -> str:
     lines.append("\nREPRODUCTIONS (hgo-mj reproduce NAME --out DIR)")
     for name, (_, line) in REPRODUCTIONS.items():
         lines.append(f"  {name:<{w}} {line}")
+    lines.append("\nPAPERS (cited above as paper NNN)")
+    for number, citation in PAPERS.items():
+        lines.append(f"  {number} {citation}")
     return "\n".join(lines)
 
 
@@ -481,15 +504,35 @@ def _version() -> str:
         return "unknown"
 
 
+#: ``hgo-mj --help``'s description: what the tool is, and every command (plain text)
+DESCRIPTION = (
+    "MuJoCo plants, a sensor-noise chain and nonlinear observers. Commands: run (a scenario, "
+    "or flags), sweep (a study over axes and seeds), tune (an observer's gains, with Optuna), "
+    "bench (the observer benchmark), check (which observer applies to a plant), list (plants, "
+    "sensor stages, observers, inputs, reproductions, papers), reproduce (a paper's example), "
+    "demo (a first run to look at).")
+
+
+def _rrd_path(text: str) -> Path:
+    """``--rrd FILE``: a path whose name ends in ``.rrd`` (so that a scenario file or a folder
+    is never taken for the recording)."""
+    if not text.endswith(".rrd"):
+        raise argparse.ArgumentTypeError(f"expected a rerun file name ending in .rrd; found "
+                                         f"{text!r}")
+    return Path(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="hgo-mj", description=__doc__.splitlines()[0])
+    from .reproduce import REPRODUCTIONS
+
+    ap = argparse.ArgumentParser(prog="hgo-mj", description=DESCRIPTION)
     ap.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
                     help="print the installed version of hgo_mj and exit")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
-                            help="what to do (`hgo-mj COMMAND --help` for its flags)")
+                            help="what to do (hgo-mj COMMAND --help for its flags)")
     r = sub.add_parser("run", help="run a scenario (TOML file and/or flags)")
     r.add_argument("scenario", nargs="?", help="TOML scenario file")
-    r.add_argument("--plant", help="plant name (see `hgo-mj list`)")
+    r.add_argument("--plant", help="plant name (see hgo-mj list)")
     r.add_argument("--model", metavar="FILE.xml",
                    help="any MJCF file as the plant (plant.model), with --outputs")
     r.add_argument("--outputs", nargs="+", metavar="NAME",
@@ -539,8 +582,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "run as one batch, so workers start only for 10 s of work or more; results "
                    "do not depend on it)")
     r.add_argument("--out", help="output folder (default runs/run)")
-    r.add_argument("--rrd", nargs="?", const="", metavar="FILE",
-                   help="also record to a rerun .rrd file (default OUT/run.rrd)")
+    r.add_argument("--rrd", metavar="FILE.rrd", type=_rrd_path,
+                   help="also record to this rerun file (its name ends in .rrd)")
     r.add_argument("--format", dest="formats", action="append", choices=FORMATS,
                    help="files of the trajectory and metrics (repeatable): npz "
                    "(trajectory.npz), parquet (trajectory.parquet and metrics.parquet, units in "
@@ -574,8 +617,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--budget", default="64", metavar="N",
                    help="trials in all, the untuned default included (default 64)")
     t.add_argument("--objective", action="append", metavar="SCORE",
-                   help="rmse (default), peak, settling (ground truth), output_error, nis "
-                   "(no truth); repeat for a Pareto front")
+                   help="rmse (default), peak, settling (ground truth), output_error, "
+                   "whiteness, nis (no truth); repeat for a Pareto front")
     t.add_argument("--seeds", default="8", metavar="N", help="tuning seeds 1..N (default 8)")
     t.add_argument("--aggregate", choices=["mean", "worst"], default="mean",
                    help="over the seeds (and model mismatches): mean (default) or worst")
@@ -615,20 +658,21 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quiet", action="store_true", help="no progress on stderr")
     c = sub.add_parser("check", help="which observer applies to a plant, and why")
     c.add_argument("target", metavar="PLANT-OR-SCENARIO",
-                   help="a registered plant name (see `hgo-mj list`) or a scenario TOML file")
+                   help="a registered plant name (see hgo-mj list) or a scenario TOML file")
     c.add_argument("--sample-period", type=float, default=None, metavar="S",
                    help="sample period [s] to check against paper 004's LMI bound (default: "
                         "the scenario's run.sample_period, else the plant's step)")
-    sub.add_parser("list", help="plants, sensor stages, observers, inputs and reproductions")
-    rp = sub.add_parser("reproduce", help="reproduce a paper's example (see `hgo-mj list`)")
-    rp.add_argument("name", help="reproduction name")
+    sub.add_parser("list", help="plants, sensor stages, observers, inputs, reproductions and papers")
+    rp = sub.add_parser("reproduce", help="reproduce a paper's example (see hgo-mj list)")
+    rp.add_argument("name", help="the reproduction: " + ", ".join(REPRODUCTIONS))
     rp.add_argument("--out", help="output folder (default runs/reproduce/NAME)")
-    rp.add_argument("--rrd", nargs="?", const="", metavar="FILE",
-                    help="also record to a rerun .rrd file (default OUT/NAME.rrd)")
+    rp.add_argument("--rrd", metavar="FILE.rrd", type=_rrd_path,
+                    help="also record to this rerun file (its name ends in .rrd)")
     rp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     d = sub.add_parser("demo", help="elastic joint, encoder noise, high-gain observer at two gains")
     d.add_argument("--out", default="runs/demo-run", help="output folder (default runs/demo-run)")
-    d.add_argument("--rrd", metavar="FILE", help="rerun recording (default OUT/demo.rrd)")
+    d.add_argument("--rrd", metavar="FILE.rrd", type=_rrd_path,
+                   help="rerun recording (default OUT/demo.rrd)")
     d.add_argument("--no-rrd", dest="no_rrd", action="store_true", help="write no recording")
     return ap
 
@@ -729,7 +773,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     from .reproduce import run_reproduction
 
     out = Path(args.out or f"runs/reproduce/{args.name}")
-    rrd = None if args.rrd is None else Path(args.rrd or out / f"{args.name}.rrd")
+    rrd = args.rrd
     run_reproduction(args.name, out, **_reproduction_kwargs(args.name, rrd, args.quiet))
     if (out / "report.txt").is_file():  # the readable report (summary.json: the data)
         print((out / "report.txt").read_text().rstrip("\n"))
@@ -741,23 +785,26 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 def cmd_check(target: str, sample_period: float | None = None) -> int:
     """``hgo-mj check PLANT-OR-SCENARIO [--sample-period S]``: which observer applies to the
     plant, and why; the sample period (the flag, else the scenario's ``run.sample_period``, else
-    the plant's step) against paper 004's LMI bound."""
+    the plant's step) against paper 004's LMI bound, over the region of an ODE plant
+    (:func:`hgo_mj.scenario.scenario_plant`: ``[plant] region`` or the region a short simulation
+    visits, with a warning where ``x0`` or the run leaves a given region)."""
     from . import check
-    from .scenario import build_plant
+    from .scenario import build_plant, scenario_plant
 
+    notes: list[str] = []
     if target.endswith(".toml"):
         sc = load_scenario_file(target)
         pl = sc.get("plant", {})
         if not any(k in pl for k in ("name", "model", "f")):
             raise DesignError(f"scenario {target!r} has no plant ([plant] name, model or f)")
-        plant = build_plant(pl, str(sc.get("name", "run")))
+        plant, notes = scenario_plant(sc)
         if sample_period is None:
             sample_period = sc.get("run", {}).get("sample_period")
     else:
         plant = build_plant({"name": target})
     if sample_period is None:
         sample_period = getattr(plant, "dt", None)
-    print(check.table(plant.system, sample_period))
+    print("\n".join([*notes, check.table(plant.system, sample_period)]))
     return 0
 
 
@@ -809,16 +856,15 @@ def main(argv: list[str] | None = None) -> int:
             jobs, formats, quiet, resume = 1, DEFAULT_FORMATS, False, False
             sc["run"]["out"] = args.out
             name = "demo"
-            rrd = None if args.no_rrd else Path(args.rrd or Path(args.out) / "demo.rrd")
+            rrd = None if args.no_rrd else args.rrd or Path(args.out) / "demo.rrd"
         else:
             sc = scenario_from_args(args)
             jobs = _flag_int(args.jobs, "--jobs")
             formats, quiet, resume = args.formats, args.quiet, args.resume
             name = "run"
-            rrd = None if args.rrd is None else Path(
-                args.rrd or Path(sc["run"].get("out", "runs/run")) / "run.rrd")
-        _, metrics, out, mc = run_study(sc, name, rrd=rrd, jobs=jobs, formats=formats,
-                                        quiet=quiet, resume=resume)
+            rrd = args.rrd
+        traj, metrics, out, mc = run_study(sc, name, rrd=rrd, jobs=jobs, formats=formats,
+                                           quiet=quiet, resume=resume)
     except RecordingError as exc:  # a fault of the machine (full disk), not of the input
         print(f"hgo-mj: error: {exc}", file=sys.stderr)
         return 1
@@ -836,20 +882,22 @@ def main(argv: list[str] | None = None) -> int:
                  if args.command == "sweep" or getattr(args, "seeds", None) else ""),
               file=sys.stderr)
         return 130
-    print(_report(metrics, mc, out, rrd, formats, sc["run"].get("stream", False)))
+    print(_report(traj, metrics, mc, out, rrd, formats, sc["run"].get("stream", False)))
     return 0
 
 
-def _report(metrics: dict[str, Any], mc: Any, out: Path, rrd: Path | None, formats: Any,
-            stream: bool) -> str:
-    """What ``hgo-mj run`` prints at the end: the metrics table (and the Monte Carlo one), and
-    the files written."""
+def _report(traj: Any, metrics: dict[str, Any], mc: Any, out: Path, rrd: Path | None,
+            formats: Any, stream: bool) -> str:
+    """What ``hgo-mj run`` prints at the end: the metrics table (and the Monte Carlo one), with
+    the plant's units, and the files written."""
     from .metrics import format_table
+    from .units import units_of
 
-    text = format_table(metrics)
+    units, t_unit = units_of(traj)
+    text = format_table(metrics, units, t_unit)
     if mc is not None:
         text += (f"\n\nMonte Carlo over the seeds {mc.seeds[0]}..{mc.seeds[-1]} (the table "
-                 f"above: seed {mc.seeds[0]})\n" + mc.table())
+                 f"above: seed {mc.seeds[0]})\n" + mc.table(units, t_unit))
     if formats is None:
         formats = STREAM_FORMATS if stream else DEFAULT_FORMATS
     files = [f for f in ("trajectory.npz", "trajectory.parquet", "metrics.parquet",

@@ -7,7 +7,9 @@ by name):
 * ``rmse``: root mean square over ``t >= t_transient``;
 * ``peak``: the largest ``|e|`` over the whole run (peaking of high-gain observers);
 * ``settling_time``: the first time after which ``|e|`` stays inside ``band`` (absolute, or
-  relative to the range of the true state when ``relative=True``); ``inf`` if it never does;
+  relative to the range of the true state when ``relative=True``); ``inf`` if it never does,
+  and ``inf`` too when only the last sample is inside (one sample inside is no evidence of
+  having settled);
 * ``final``: ``|e|`` at the last sample;
 * ``update_time``: mean wall time of one observer update, seconds, warm: the loop spends the
   kernels' compilation or cache load on a throw-away sample before it starts timing
@@ -40,8 +42,73 @@ from .exceptions import DesignError
 
 Array = NDArray[np.float64]
 
-__all__ = ["PER_STATE", "RunningMetrics", "all_metrics", "format_table", "metrics_frame",
-           "observer_metrics", "settling_time"]
+__all__ = ["PER_STATE", "RunningMetrics", "all_metrics", "chi2_band", "format_table",
+           "metrics_frame", "nees", "observer_metrics", "settling_time", "text_table"]
+
+
+def nees(err: Array, P: Array) -> Array:
+    """The normalized estimation error squared :math:`\\varepsilon = e^T P^{-1} e` of each
+    member: ``err`` ``(B, d)`` (truth minus estimate) and the filter's covariance of that
+    estimate ``P`` ``(B, d, d)`` (Bar-Shalom, Li and Kirubarajan, *Estimation with
+    Applications to Tracking and Navigation*, Wiley 2001, sec. 5.4.2, eq. 5.4.2-1). For a
+    consistent filter it is :math:`\\chi^2_d` distributed (mean ``d``). A member whose ``P``
+    is singular or not finite gets NaN.
+
+    Parameters
+    ----------
+    err : ndarray
+        ``(B, d)``.
+    P : ndarray
+        ``(B, d, d)``, symmetric positive definite.
+
+    Returns
+    -------
+    ndarray
+        ``(B,)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> nees(np.array([[1.0, 2.0]]), np.array([np.diag([1.0, 4.0])])).tolist()
+    [2.0]
+    """
+    e = np.asarray(err, dtype=float)
+    out = np.full(e.shape[0], np.nan)
+    ok = np.isfinite(e).all(axis=1) & np.isfinite(P).all(axis=(1, 2))
+    if ok.any():
+        try:
+            sol = np.linalg.solve(P[ok], e[ok][:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:  # one singular member: solve them one by one
+            sol = np.full(e[ok].shape, np.nan)
+            for i, (Pi, ei) in enumerate(zip(P[ok], e[ok])):
+                try:
+                    sol[i] = np.linalg.solve(Pi, ei)
+                except np.linalg.LinAlgError:
+                    pass
+        out[ok] = np.einsum("bi,bi->b", e[ok], sol)
+    return out
+
+
+def chi2_band(dof: int | Array, confidence: float = 0.95) -> tuple[Array, Array]:
+    """The two-sided ``confidence`` band ``(low, high)`` of one :math:`\\chi^2_{dof}`
+    sample: where a consistent filter's NEES (``dof`` states) or NIS (``dof`` measured
+    channels) lies with that probability (Bar-Shalom et al. 2001, sec. 5.4.2). ``dof`` 0
+    gives the empty band ``(inf, -inf)``.
+
+    Examples
+    --------
+    >>> lo, hi = chi2_band(1)
+    >>> round(float(lo), 5), round(float(hi), 3)
+    (0.00098, 5.024)
+    """
+    from scipy.stats import chi2
+
+    d = np.asarray(dof, dtype=float)
+    a = (1.0 - confidence) / 2.0
+    with np.errstate(invalid="ignore"):
+        lo = np.where(d > 0, chi2.ppf(a, np.maximum(d, 1)), np.inf)
+        hi = np.where(d > 0, chi2.ppf(1.0 - a, np.maximum(d, 1)), -np.inf)
+    return lo, hi
 
 
 def settling_time(t: Array, err: Array, band: float | Array) -> Array:
@@ -60,15 +127,25 @@ def settling_time(t: Array, err: Array, band: float | Array) -> Array:
     -------
     (n,) ndarray
         Per column the time of the first sample from which ``|err| <= band`` holds to the
-        end: ``t[0]`` if always inside, ``inf`` if the last sample is outside.
+        end: ``t[0]`` if always inside, ``inf`` if the last sample is outside, and ``inf``
+        if only the last sample is inside (a run of two samples or more).
 
     Examples
     --------
     >>> import numpy as np
-    >>> err = np.array([[1.0, 0.0], [0.5, 0.0], [0.01, 0.2], [0.02, 0.0], [0.0, 0.0]])
+    >>> err = np.array([[1.0, 0.0, 1.0], [0.5, 0.0, 1.0], [0.01, 0.2, 1.0],
+    ...                 [0.02, 0.0, 1.0], [0.0, 0.0, 0.0]])
     >>> settling_time(np.arange(5) * 0.1, err, 0.05)
-    array([0.2, 0.3])
+    array([0.2, 0.3, inf])
     """
+    found = _inside_from(t, err, band)
+    return np.where((found == t[-1]) & (t.size > 1), np.inf, found)
+
+
+def _inside_from(t: Array, err: Array, band: float | Array) -> Array:
+    """Per column the time of the first sample from which ``|err| <= band`` holds to the end
+    (``t[0]``: always inside, ``inf``: the last sample outside), the last sample alone
+    counting: the scan of one block of a run (:meth:`MetricsBatch.settle`)."""
     with np.errstate(invalid="ignore"):
         outside = ~(np.abs(err) <= np.asarray(band))
     T = t.size
@@ -428,6 +505,8 @@ class MetricsBatch:
         #: the first time of the block after the one being scanned (inf before the last)
         self.settled = np.full((B, k), np.nan)
         self._after = np.inf
+        #: the run's first and last times (:meth:`add`)
+        self.t_first, self.t_last = np.nan, np.nan
 
     @classmethod
     def of(cls, observer_states: Sequence[str], state_names: Sequence[str], B: int,
@@ -448,6 +527,9 @@ class MetricsBatch:
                     self.idx, self.cols, self.t_transient, self.band, self.sumsq, self.comp,
                     self.count, self.peak, self.undefined, self.settle_t, self.final, self.bad,
                     self.E, self.rows)
+        if self.rows == 0:
+            self.t_first = float(t[0])
+        self.t_last = float(t[-1])
         self.rows += X.shape[1]
 
     def settle(self, t: Array, E: Array, band: Array) -> bool:
@@ -455,7 +537,7 @@ class MetricsBatch:
         for the settling time, from the last block back; True when every one is found."""
         B, T, k = E.shape
         with np.errstate(invalid="ignore"):
-            found = settling_time(t, np.where(np.isfinite(E), E, np.inf)
+            found = _inside_from(t, np.where(np.isfinite(E), E, np.inf)
                                   .transpose(1, 0, 2).reshape(T, B * k),
                                   np.asarray(band).reshape(B * k)).reshape(B, k)
         # a state inside over the whole block settled at or before its first time; one
@@ -484,6 +566,8 @@ class MetricsBatch:
             settle = np.where(np.isnan(self.settle_t), np.inf, self.settle_t)
         else:
             settle = np.where(np.isnan(self.settled), self._after, self.settled)
+        # inside at the last sample only: not settled (settling_time)
+        settle = np.where((settle == self.t_last) & (self.t_last > self.t_first), np.inf, settle)
         out = {}
         for key, val in (("rmse", rmse), ("peak", peak), ("settling_time", settle),
                          ("final", self.final), ("undefined_samples", self.undefined)):
@@ -596,41 +680,98 @@ def metrics_frame(metrics: dict[str, dict[str, Any]],
     return pd.DataFrame(rows, columns=columns)
 
 
-def _cell(v: Any, width: int) -> str:
-    return f"{'-':>{width}}" if v is None else f"{v:>{width}.4g}"
+def text_table(frame: Any, left: Sequence[str]) -> str:
+    """A DataFrame as plain text, its columns sized by pandas to their longest cell: the
+    ``left`` (text) columns left-aligned, the others right-aligned, numbers to 4 significant
+    digits, ``None`` as ``-``.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The table (no index shown).
+    left : sequence of str
+        Its text columns, left-aligned under a left-aligned name.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> print(text_table(pd.DataFrame({"observer": ["high_gain_multi_1", "a"],
+    ...                                "rmse": [0.012345, None]}, dtype=object), ["observer"]))
+    observer              rmse
+    high_gain_multi_1  0.01235
+    a                        -
+    """
+    def cell(v: Any) -> str:
+        if v is None:
+            return "-"
+        if isinstance(v, (float, int, np.floating, np.integer)) and not isinstance(v, bool):
+            return f"{v:.4g}"
+        return str(v)
+
+    cols = {}
+    for c in frame.columns:
+        text = [cell(v) for v in frame[c]]
+        if c in left:
+            w = max([len(str(c)), *map(len, text)])
+            cols[str(c).ljust(w)] = [t.ljust(w) for t in text]
+        else:
+            cols[str(c)] = text
+    import pandas as pd
+
+    return str(pd.DataFrame(cols).to_string(index=False))
 
 
-def format_table(metrics: dict[str, dict[str, Any]]) -> str:
-    """A plain-text table: one row per observer and state (``-``: not estimated).
+def format_table(metrics: dict[str, dict[str, Any]], units: dict[str, str] | None = None,
+                 time_unit: str | None = "s") -> str:
+    """A plain-text table: one row per observer and state (``-``: not estimated), with the
+    units of each state's errors and of the settling time, columns sized to their longest cell
+    (:func:`text_table`).
 
     Parameters
     ----------
     metrics : dict
         What :func:`all_metrics` returns.
+    units : dict of str to str, optional
+        ``{state: unit}`` (:func:`hgo_mj.units.units_of`): the unit of the state's ``rmse``,
+        ``peak`` and ``final``; ``?`` where not known.
+    time_unit : str or None, default "s"
+        The run's time unit (``""``: dimensionless, ``None``: not known).
 
     Returns
     -------
     str
-        Columns observer, state, RMSE, peak, settling time [s], final error and the mean wall
-        time per update [us].
+        Columns observer, state, unit (of rmse, peak and final), rmse, peak, final, the
+        settling time and the mean wall time per update [us].
 
     Examples
     --------
     >>> m = {"hgo": {"states": ["angle"], "estimated": [True], "rmse": [0.1], "peak": [0.5],
     ...              "settling_time": [1.0], "final": [0.01], "update_time": 2e-6}}
-    >>> print(format_table(m))
-    observer         state                     rmse        peak  settle[s]       final update[us]
-    hgo              angle                      0.1         0.5          1        0.01          2
+    >>> print(format_table(m, {"angle": "rad"}))
+    observer state unit  rmse  peak  final  settle [s]  update [us]
+    hgo      angle rad    0.1   0.5   0.01           1            2
     """
-    lines = [f"{'observer':<16} {'state':<18} {'rmse':>11} {'peak':>11} {'settle[s]':>10} "
-             f"{'final':>11} {'update[us]':>10}"]
-    missing = False
+    import pandas as pd
+
+    from .units import bracket
+
+    units = units or {}
+    settle = f"settle {bracket(time_unit)}"
+    rows, missing = [], False
     for name, m in metrics.items():
         for i, s in enumerate(m["states"]):
             missing |= m["rmse"][i] is None
-            lines.append(f"{name:<16} {s:<18} {_cell(m['rmse'][i], 11)} {_cell(m['peak'][i], 11)} "
-                         f"{_cell(m['settling_time'][i], 10)} {_cell(m['final'][i], 11)} "
-                         f"{m['update_time'] * 1e6:>10.3g}")
+            rows.append({"observer": name, "state": s, "unit": units.get(s, "?") or "-",
+                         **{k: m[k][i] for k in ("rmse", "peak", "final")},
+                         settle: m["settling_time"][i],
+                         "update [us]": m["update_time"] * 1e6})
+    frame = pd.DataFrame(rows, columns=["observer", "state", "unit", "rmse", "peak", "final",
+                                        settle, "update [us]"], dtype=object)
+    lines = [text_table(frame, ["observer", "state", "unit"])]
     if missing:
         lines.append("- : not estimated (the observer has no estimate of that plant state)")
     for name, m in metrics.items():

@@ -1,8 +1,11 @@
 """Figures of a trajectory and of a Monte Carlo study, as :class:`matplotlib.figure.Figure`.
 
-The functions build their figures without pyplot and never change the user's matplotlib
-backend, so they work in a notebook, a script and headless alike: show a figure in a notebook
-by leaving it as the cell's value, save it with ``fig.savefig(path)`` (or atomically with
+The functions never import pyplot nor change the user's matplotlib backend. Each takes
+``axes=`` (the grid of :class:`~matplotlib.axes.Axes` to draw on, as python-control's and
+scikit-learn's ``plot(ax=...)``); without it, it makes its own figure (:func:`new_figure`):
+pyplot-managed when the user has imported ``matplotlib.pyplot`` (so ``plt.show()`` shows it),
+else a :class:`~matplotlib.figure.Figure` without pyplot (no global state: a notebook shows it
+as the cell's value, ``fig.savefig(path)`` saves it, or atomically
 :func:`hgo_mj._io.save_figure`, as the command line does).
 
 Estimates are matched to the plant's states by name (:meth:`~hgo_mj.simulate.Trajectory.
@@ -21,6 +24,7 @@ Every axis label carries a unit in brackets, taken from the plant's system
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any
 
 import numpy as np
@@ -29,7 +33,7 @@ from .units import bracket, units_of
 
 TRUE_COLOR = "black"
 
-__all__ = ["plot_monte_carlo", "plot_trajectory", "subplots"]
+__all__ = ["axes_grid", "new_figure", "plot_monte_carlo", "plot_trajectory", "subplots"]
 
 
 def _finite_range(*arrays: Any) -> tuple[float, float] | None:
@@ -48,10 +52,42 @@ def _colors() -> list[str]:
     return list(matplotlib.rcParams["axes.prop_cycle"].by_key()["color"])
 
 
+def new_figure(figsize: tuple[float, float] | None = None, layout: Any = None) -> Any:
+    """A new figure: pyplot-managed when the user has imported ``matplotlib.pyplot`` (so that
+    ``plt.show()`` shows it), else a :class:`~matplotlib.figure.Figure` without pyplot (no
+    backend, no global state). hgo_mj itself never imports pyplot.
+
+    Parameters
+    ----------
+    figsize : tuple of float, optional
+        ``(width, height)`` in inches; default matplotlib's ``figure.figsize``.
+    layout : str or LayoutEngine, optional
+        The figure's layout engine (``"constrained"``, ``"tight"``); default none.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import sys
+    >>> fig = new_figure((4, 3))
+    >>> ("matplotlib.pyplot" in sys.modules) == (fig.canvas.manager is not None)
+    True
+    """
+    if "matplotlib.pyplot" in sys.modules:  # the user's: its figures are shown by plt.show()
+        import matplotlib.pyplot as plt
+
+        return plt.figure(figsize=figsize, layout=layout)
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize, layout=layout)
+
+
 def subplots(*args: Any, figsize: tuple[float, float] | None = None, layout: Any = None,
              **kw: Any) -> tuple[Any, Any]:
-    """``pyplot.subplots`` without pyplot: a :class:`~matplotlib.figure.Figure` (no backend,
-    no global state) and its axes (``Figure.subplots(*args, **kw)``).
+    """``pyplot.subplots`` on :func:`new_figure`: a figure (pyplot's when the user has
+    imported pyplot, else one without it) and its axes (``Figure.subplots(*args, **kw)``).
 
     Parameters
     ----------
@@ -68,7 +104,7 @@ def subplots(*args: Any, figsize: tuple[float, float] | None = None, layout: Any
     Returns
     -------
     fig : matplotlib.figure.Figure
-        Not attached to pyplot (save it with ``fig.savefig(path)``).
+        Save it with ``fig.savefig(path)``.
     axes : matplotlib.axes.Axes or numpy.ndarray of Axes
         One axes, or the ``(nrows, ncols)`` array of them (squeezed as by pyplot).
 
@@ -79,13 +115,66 @@ def subplots(*args: Any, figsize: tuple[float, float] | None = None, layout: Any
     ((2,), [4.0, 3.0])
     >>> line, = axes[0].plot([0.0, 1.0], [0.0, 2.0])
     """
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize, layout=layout)
+    fig = new_figure(figsize, layout)
     return fig, fig.subplots(*args, **kw)
 
 
-def plot_trajectory(traj: Any, *, title: str = "") -> Any:
+def axes_grid(axes: Any, shape: tuple[int, int], figsize: tuple[float, float],
+              what: str, **kw: Any) -> tuple[Any, Any]:
+    """The figure and ``(rows, cols)`` array of axes a plotting function draws on: the user's
+    ``axes`` (any array-like of that many :class:`~matplotlib.axes.Axes`, in row order), or a
+    new figure's (:func:`new_figure`, constrained layout) when ``axes`` is None.
+
+    Parameters
+    ----------
+    axes : Axes, array_like of Axes, or None
+        Where to draw.
+    shape : (int, int)
+        The grid the function draws.
+    figsize : (float, float)
+        The size of a new figure, inches.
+    what : str
+        The function, for the message.
+    **kw
+        ``sharex``/``sharey`` of a new figure's grid.
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    grid : numpy.ndarray of Axes, shape ``shape``
+
+    Raises
+    ------
+    DesignError
+        ``axes`` of another count, or not Axes.
+
+    Examples
+    --------
+    >>> fig, grid = axes_grid(None, (2, 3), (6, 4), "plot")
+    >>> grid.shape, len(fig.axes)
+    ((2, 3), 6)
+    >>> axes_grid(grid[0], (2, 3), (6, 4), "plot")
+    Traceback (most recent call last):
+    ...
+    hgo_mj.exceptions.DesignError: plot: axes= must hold 6 Axes (a grid of 2 x 3); found 3
+    """
+    from matplotlib.axes import Axes
+
+    from .exceptions import DesignError
+
+    if axes is None:
+        fig = new_figure(figsize, "constrained")
+        return fig, fig.subplots(*shape, squeeze=False, **kw)
+    flat = np.ravel(np.asarray(axes, dtype=object))
+    if flat.size != shape[0] * shape[1] or not all(isinstance(a, Axes) for a in flat):
+        found = (f"{flat.size}" if all(isinstance(a, Axes) for a in flat)
+                 else f"{type(axes).__name__} {axes!r}")
+        raise DesignError(f"{what}: axes= must hold {shape[0] * shape[1]} Axes (a grid of "
+                          f"{shape[0]} x {shape[1]}); found {found}")
+    return flat[0].figure, flat.reshape(shape)
+
+
+def plot_trajectory(traj: Any, *, title: str = "", axes: Any = None) -> Any:
     """A figure of one run: one row per plant state, left the truth (black, drawn on top) and
     every estimate, right the estimation error; then one row per estimated quantity that is
     not a plant state (estimates only). Returns a :class:`matplotlib.figure.Figure`.
@@ -96,12 +185,15 @@ def plot_trajectory(traj: Any, *, title: str = "") -> Any:
         A run of :func:`hgo_mj.simulate.simulate`.
     title : str
         The figure's title.
+    axes : array_like of Axes, optional
+        Where to draw: ``2 * rows`` axes, the grid ``(rows, 2)`` (one row per plant state and
+        per estimated quantity that is not one); default a new figure (:func:`new_figure`).
 
     Returns
     -------
     matplotlib.figure.Figure
-        Not attached to pyplot: save it with ``fig.savefig(path)``, or leave it as a notebook
-        cell's value.
+        The figure drawn on: save it with ``fig.savefig(path)``, or leave it as a notebook
+        cell's value (``plt.show()`` shows it when pyplot is imported).
 
     Examples
     --------
@@ -123,16 +215,14 @@ def plot_trajectory(traj: Any, *, title: str = "") -> Any:
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     fig.savefig(Path(tmp) / "pendulum.png")
     """
-    from matplotlib.figure import Figure
-
     n = traj.x.shape[1]
     extra: list[str] = []
     for oname in traj.observers:
         extra += [s for s in traj.extra_states(oname) if s not in extra]
     rows = n + len(extra)
     units, t_unit = units_of(traj)
-    fig = Figure(figsize=(11, 2.0 * rows + 1.0), layout="constrained")
-    axes = fig.subplots(rows, 2, sharex=True, squeeze=False)
+    fig, axes = axes_grid(axes, (rows, 2), (11, 2.0 * rows + 1.0), "plot_trajectory",
+                          sharex=True)
     colors = _colors()
     late = len(traj.t) // 5
     est = {oname: traj.estimate(oname) for oname in traj.observers}
@@ -197,7 +287,8 @@ def plot_trajectory(traj: Any, *, title: str = "") -> Any:
     return fig
 
 
-def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | None = None) -> Any:
+def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | None = None,
+                     axes: Any = None) -> Any:
     """A figure of a Monte Carlo study (:class:`hgo_mj.study.MonteCarloResult`): one panel per
     plant state that some observer estimates, the observers side by side on the panel's one
     y-axis (logarithmic where the RMSEs span a decade or more), the RMSE of every seed as a dot
@@ -213,11 +304,14 @@ def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | No
         The figure's title.
     units : dict of str to str, optional
         ``{state: unit}``, e.g. :func:`hgo_mj.units.system_units` of the plant's system.
+    axes : Axes or array_like of Axes, optional
+        Where to draw: one axes per estimated state (in the plant's order); default a new
+        figure (:func:`new_figure`) of at most 4 panels a row.
 
     Returns
     -------
     matplotlib.figure.Figure
-        One panel per estimated state (at most 4 a row); not attached to pyplot.
+        The figure drawn on.
 
     Examples
     --------
@@ -231,8 +325,6 @@ def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | No
     >>> fig.axes[0].get_ylabel()
     'RMSE angle [rad]'
     """
-    from matplotlib.figure import Figure
-
     runs, agg = result.runs, result.aggregate
     observers = list(agg)
     states = list(next(iter(agg.values()))["states"]) if agg else []
@@ -240,9 +332,11 @@ def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | No
     shown = [i for i in range(len(states)) if any(agg[o]["estimated"][i] for o in observers)]
     cols = min(max(len(shown), 1), 4)
     rows = max(math.ceil(len(shown) / cols), 1)
+    if axes is not None:  # the user's: one per shown state
+        rows, cols = 1, max(len(shown), 1)
     width = max(1.0 + 0.9 * len(observers), 3.2)
-    fig = Figure(figsize=(width * cols + 0.6, 3.0 * rows + 0.9), layout="constrained")
-    grid = fig.subplots(rows, cols, squeeze=False)
+    fig, grid = axes_grid(axes, (rows, cols), (width * cols + 0.6, 3.0 * rows + 0.9),
+                          "plot_monte_carlo")
     colors = _colors()
     jitter = np.random.default_rng(0).uniform(-0.12, 0.12, len(runs))  # same figure every time
     for k, ax in enumerate(grid.ravel()):
@@ -258,6 +352,8 @@ def plot_monte_carlo(result: Any, *, title: str = "", units: dict[str, str] | No
         ax.set_ylabel(f"RMSE {states[i]} {bracket(units.get(states[i]))}", fontsize=8)
     hidden = [states[i] for i in range(len(states)) if i not in shown]
     head = f"{title}\n" if title else ""
+    if axes is not None and not title:  # the user's figure keeps its own title
+        return fig
     fig.suptitle(head + f"RMSE after the transient over {len(runs)} seeds"
                  + (f" (not estimated by any observer: {', '.join(hidden)})" if hidden else ""),
                  fontsize=10)

@@ -190,12 +190,17 @@ def build_plant(pl: dict[str, Any], name: str = "run") -> Plant:
 
         system = ode_system(pl["states"], pl["f"], pl["h"], inputs=pl.get("inputs", ()),
                             params=pl.get("params"), x0=pl.get("x0"), name=name,
-                            held_input=pl.get("held_input", False))()
+                            held_input=pl.get("held_input", False), region=pl.get("region"))()
         return OdePlant(system, pl.get("dt", 0.01), physics_dt=pl.get("physics_dt"))
+    if "region" in pl:
+        raise DesignError("[plant] region is the box of an ODE plant's observability rank and "
+                          "Lipschitz bound (states, f, h); a registered or MJCF plant has none")
+    extra = {"model_fields": pl["model_fields"]} if "model_fields" in pl else {}
     if "model" in pl:  # any MJCF file (hgo_mj.systems.mjcf)
         return make_plant(Path(pl["model"]), pl.get("dt"), physics_dt=pl.get("physics_dt"),
-                          outputs=pl["outputs"], inputs=pl.get("inputs"), **pl.get("params", {}))
-    return make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"),
+                          outputs=pl["outputs"], inputs=pl.get("inputs"), **extra,
+                          **pl.get("params", {}))
+    return make_plant(pl["name"], pl.get("dt"), physics_dt=pl.get("physics_dt"), **extra,
                       **pl.get("params", {}))
 
 
@@ -210,4 +215,76 @@ def observer_system(system: Any, params: Any, label: str) -> Any:
     return type(system)(**{**system.params, **params})
 
 
-__all__ = ["SCENARIO_KEYS", "build_observers", "build_plant", "scenario_run"]
+__all__ = ["REGION_SECONDS", "SCENARIO_KEYS", "build_observers", "build_plant", "scenario_plant",
+           "scenario_run"]
+
+
+#: the longest simulation :func:`scenario_plant` runs to find the region a scenario visits
+REGION_SECONDS = 10.0
+
+
+def scenario_plant(sc: dict[str, Any], name: str = "run") -> tuple[Any, list[str]]:
+    """The plant of a scenario for ``hgo-mj check``, and notes on the region its Lipschitz
+    bound and observability rank are taken over (an ODE plant's; others have none).
+
+    An ODE plant uses ``[plant] region`` when given, and warns when ``x0`` or a short
+    simulation of the scenario (its input, no noise, no observer, at most
+    :data:`REGION_SECONDS`) leaves it; without a region, the box that simulation visits
+    (widened by 5 % of its span) replaces the default ``[-1, 1]`` box.
+
+    Parameters
+    ----------
+    sc : dict
+        The scenario (its ``plant``, ``input`` and ``run.duration``).
+    name : str
+        Its name when it has none.
+
+    Returns
+    -------
+    plant : Plant
+    notes : list of str
+        Lines to print above the table (``warning: ...`` where the run leaves the region).
+
+    Examples
+    --------
+    >>> sc = {"plant": {"states": ["x1", "x2"], "f": ["x2", "(1 - x1**2)*x2 - x1"],
+    ...                 "h": "x1", "x0": [2.0, 0.0]}, "run": {"duration": 10.0}}
+    >>> plant, notes = scenario_plant(sc)
+    >>> notes[0][:60]
+    'region: the box visited by a 10 s simulation of the scenario'
+    >>> plant.system.lipschitz > 10
+    True
+    """
+    import numpy as np
+
+    from .inputs import signal_from_spec
+    from .simulate import simulate
+
+    label = str(sc.get("name", name))
+    pl = sc.get("plant", {})
+    plant = build_plant(pl, label)
+    if "f" not in pl:
+        return plant, []
+    system = plant.system
+    x0 = np.asarray(pl.get("x0", system.default_x0), dtype=float)
+    seconds = min(float(sc.get("run", {}).get("duration", REGION_SECONDS)), REGION_SECONDS)
+    u = signal_from_spec(sc.get("input"), len(system.input_names))
+    x = simulate(plant, None, {}, u, seconds, x0=x0).x
+    lo, hi = np.nanmin(x, axis=0), np.nanmax(x, axis=0)
+    if "region" not in pl:
+        pad = 0.05 * (hi - lo) + 1e-6
+        box = np.round(np.column_stack((lo - pad, hi + pad)), 4).tolist()
+        return build_plant({**pl, "region": box}, label), [
+            f"region: the box visited by a {seconds:g} s simulation of the scenario from x0 = "
+            f"{x0.tolist()}, {box} (set [plant] region to choose another)"]
+    box = np.asarray(pl["region"], dtype=float)
+    notes = [f"region: [plant] region {box.tolist()}"]
+    if np.any(x0 < box[:, 0]) or np.any(x0 > box[:, 1]):
+        notes.append(f"warning: x0 = {x0.tolist()} lies outside the region {box.tolist()}: "
+                     f"the Lipschitz bound and the observability rank hold over the region only")
+    if np.any(lo < box[:, 0]) or np.any(hi > box[:, 1]):
+        visited = np.round(np.column_stack((lo, hi)), 4).tolist()
+        notes.append(f"warning: a {seconds:g} s simulation of the scenario leaves the region "
+                     f"(it visits {visited}): the Lipschitz bound and the observability rank "
+                     f"hold over the region only")
+    return plant, notes

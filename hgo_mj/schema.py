@@ -35,6 +35,7 @@ KINDS: dict[str, str] = {
     "numbers": "a list of numbers",
     "names": "a non-empty list of strings",
     "bool": "true or false",
+    "box": "a list of [lo, hi] pairs of numbers, lo <= hi",
 }
 
 #: section -> key -> kind; ``None`` for a section means "a list of tables" (``observers``)
@@ -45,7 +46,10 @@ SCHEMA: dict[str, dict[str, str]] = {
     # given by states, f and h (with inputs and params)
     "plant": {"name": "string", "model": "string", "outputs": "names", "inputs": "names",
               "states": "names", "f": "names", "h": "string", "held_input": "bool",
-              "dt": "positive", "physics_dt": "positive", "params": "table", "x0": "numbers"},
+              "dt": "positive", "physics_dt": "positive", "params": "table", "x0": "numbers",
+              "model_fields": "table",
+              # an ODE's box for the observability rank and the Lipschitz bound (hgo-mj check)
+              "region": "box"},
     "sensor": {"stages": "tables"},
     "run": {"duration": "positive", "sample_period": "positive", "control_period": "positive",
             "seed": "seed", "seeds": "count", "out": "string", "t_transient": "nonneg",
@@ -67,6 +71,14 @@ OPEN = ("observers", "input", "controller", "stages")
 _TYPES: dict[str, type | tuple[type, ...]] = {"bool": bool, "string": str, "table": Mapping}
 
 
+def _is_box(value: Any) -> bool:
+    """A non-empty list of ``[lo, hi]`` pairs of numbers with ``lo <= hi``."""
+    if not isinstance(value, list) or not value:
+        return False
+    return all(isinstance(p, list) and len(p) == 2 and numbers_only(p) and p[0] <= p[1]
+               for p in value)
+
+
 def _ok(kind: str, value: Any) -> bool:
     if kind in _TYPES:
         return isinstance(value, _TYPES[kind])
@@ -76,6 +88,8 @@ def _ok(kind: str, value: Any) -> bool:
         return isinstance(value, list) and all(isinstance(v, Mapping) for v in value)
     if kind == "numbers":
         return isinstance(value, list) and numbers_only(value)
+    if kind == "box":
+        return _is_box(value)
     if kind == "names":
         return isinstance(value, list) and bool(value) and all(isinstance(v, str) for v in value)
     if kind in ("seed", "count"):
@@ -194,11 +208,10 @@ def check_scenario(sc: Any, *, required: bool = True) -> None:
     ode = _check_plant_kind(plant, required)
     name = plant.get("name")
     if isinstance(name, str) and ":" not in name:  # a misspelt name before a missing key
-        from .systems import SYSTEMS
+        from .plants import plant_names, unknown_plant
 
-        if name not in SYSTEMS:
-            raise DesignError(f"unknown plant {name!r}; valid: {sorted(SYSTEMS)}, an MJCF file, "
-                              f"or 'module:Class' (a System subclass)")
+        if name not in plant_names():
+            raise unknown_plant(name)
     for path in REQUIRED if required else ():
         section, key = path.split(".")
         if path == "plant.name" and ("model" in plant or ode):

@@ -595,7 +595,8 @@ def simulate(plant: Plant, sensor: SensorChain | None,
     plant : Plant
         The true plant; ``plant.dt`` is its step (a multiple of its physics step).
     sensor : SensorChain or None
-        Applied to the clean outputs at every sample (re-seeded with ``seed`` first);
+        Applied to the clean outputs at every sample (re-seeded with ``seed`` first: the run's
+        seed wins over the chain's own, which is used only when ``seed`` is None);
         ``None`` measures exactly.
     observers : mapping name -> Observer, sequence, single Observer, or None
         Every observer is reset to its own initial estimate and fed the same ``y_meas``.
@@ -609,7 +610,9 @@ def simulate(plant: Plant, sensor: SensorChain | None,
     x0 : array_like, optional
         Initial true state (default ``plant.system.default_x0``).
     seed : int, optional
-        Seed of the sensor chain's streams: the same seed gives a bit-identical run.
+        Seed of the sensor chain's streams: the same seed gives a bit-identical run, whatever
+        seed the chain was built with; None: the chain's own seed
+        (``SensorChain(..., seed=...)``; fresh entropy if that is None too).
     metadata : mapping, optional
         Extra JSON-ready entries for the trajectory's metadata (e.g. the scenario).
     on_chunk : (seconds, callback), optional

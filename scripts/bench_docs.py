@@ -56,8 +56,15 @@ Per observer, task, scoring seed and scored state (`scores.parquet`): the steady
 over the state's range; the noise amplification (the steady-state RMSE over the sensor's
 standard deviation, with its unit); the settling time into a 5 % band; the peak error. Per seed:
 the transient (the integral of the normalized error norm over the first second), the peaking
-(the largest normalized error over the initial one), a filter's mean NIS, the divergence, the
-warm cost per update (compile excluded). Per task: the robustness (the mismatch tier's RMSE
+(the largest normalized error over the initial one), the divergence, the warm cost per
+update (compile excluded), and for a filter (an observer that keeps a covariance) its
+**consistency**: the mean NIS (normalized innovation squared; expected: the number of measured
+channels) and the mean NEES (normalized estimation error squared over the plant states it
+estimates, read at about 200 instants after the transient; expected: the number of states),
+each with the share of its values inside one sample's chi-square 95 % band (about 0.95 for a
+consistent filter; Bar-Shalom, Li and Kirubarajan 2001, sec. 5.4.2). An over-confident filter
+has NIS and NEES above their expected values and a small share in the band. Per task: the
+robustness (the mismatch tier's RMSE
 over the nominal tier's) and, for the Riccati observer, the largest sample period paper 004's
 LMI certifies at its tuned gain. The leaderboard gives each as the mean over the scoring seeds
 with a 95 % bootstrap interval (BCa, the seeds resampled).

@@ -45,3 +45,15 @@ def integrator_chain(n: int) -> type[System]:
 @pytest.fixture
 def chain():
     return integrator_chain
+
+
+@pytest.fixture(autouse=True)
+def _close_pyplot_figures():
+    """Close what a test left open where pyplot is loaded: hgo_mj's figures are pyplot's when
+    the user has imported pyplot (so that ``plt.show()`` works), and pyplot keeps them."""
+    yield
+    import sys
+
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        plt.close("all")

@@ -198,9 +198,9 @@ def test_rrd_is_an_existing_folder_checked_before_the_run(tmp_path, capsys, monk
         raise AssertionError("the simulation must not start")
 
     monkeypatch.setattr(sim, "simulate", boom)
-    (tmp_path / "d").mkdir()
+    (tmp_path / "d.rrd").mkdir()
     code = main(["run", "--plant", "pendulum", "--duration", "0.2", "--out",
-                 str(tmp_path / "o"), "--rrd", str(tmp_path / "d")])
+                 str(tmp_path / "o"), "--rrd", str(tmp_path / "d.rrd")])
     err = capsys.readouterr().err
     assert code == 2 and "--rrd must be a file; found the existing folder" in err
     assert not (tmp_path / "o").exists()
@@ -362,4 +362,4 @@ def test_a_misspelt_plant_is_named_before_a_missing_duration(capsys):
     assert main(["run", "--plant", "pendulumm"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(
-        "hgo-mj: error: unknown plant 'pendulumm'; valid: ['besancon_ex1'"), err
+        "hgo-mj: error: unknown plant 'pendulumm'; valid: ['acrobot'"), err

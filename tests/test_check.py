@@ -107,3 +107,53 @@ def test_reachability_and_spr_are_checked_on_the_forms():
                                             "Corollary 3.3 needs b_r s^(r-1) + ... + b_1 Hurwitz")
     with pytest.raises(DesignError, match="does not apply to Ode_ode: the SPR condition"):
         check.refuse_inapplicable("jo_son", unstable, "js")
+
+
+VDP = """
+name = "vdp"
+[plant]
+states = ["x1", "x2"]
+f = ["x2", "(1 - x1**2)*x2 - x1"]
+h = "x1"
+x0 = [2.0, 0.0]
+dt = 0.01
+{region}
+[run]
+duration = 10.0
+"""
+
+
+def test_check_over_the_region_the_scenario_visits(tmp_path, capsys):
+    """Van der Pol from x0 = (2, 0): over the default box [-1, 1]^2 the Lipschitz bound is
+    small and the Riccati observer looks certified; ``hgo-mj check`` takes the box a short
+    simulation visits instead (or ``[plant] region``), and warns where x0 or the run leaves a
+    given region."""
+    from hgo_mj.scenario import build_plant, scenario_plant
+    from hgo_mj.schema import check_scenario
+
+    default = build_plant({k: v for k, v in {"states": ["x1", "x2"],
+                                              "f": ["x2", "(1 - x1**2)*x2 - x1"],
+                                              "h": "x1"}.items()}).system.lipschitz
+    visited = tmp_path / "vdp.toml"
+    visited.write_text(VDP.format(region=""))
+    assert main(["check", str(visited)]) == 0
+    out = capsys.readouterr().out
+    rho = float(re.search(r"lipschitz: ([\d.]+)", out).group(1))
+    assert out.startswith("region: the box visited by a 10 s simulation") and rho > 4 * default
+    assert "warning" not in out
+    assert re.search(r"riccati +applies +sample period 0.01 s exceeds", out)
+    given = tmp_path / "given.toml"
+    given.write_text(VDP.format(region="region = [[-1.0, 1.0], [-1.0, 1.0]]"))
+    assert main(["check", str(given)]) == 0
+    out = capsys.readouterr().out
+    assert "warning: x0 = [2.0, 0.0] lies outside the region [[-1.0, 1.0], [-1.0, 1.0]]" in out
+    assert "warning: a 10 s simulation of the scenario leaves the region" in out
+    assert float(re.search(r"lipschitz: ([\d.]+)", out).group(1)) == pytest.approx(default)
+    wide = {"states": ["x1", "x2"], "f": ["x2", "(1 - x1**2)*x2 - x1"], "h": "x1",
+            "x0": [2.0, 0.0], "region": [[-3.0, 3.0], [-4.0, 4.0]]}
+    plant, notes = scenario_plant({"plant": wide, "run": {"duration": 5.0}})
+    assert notes == ["region: [plant] region [[-3.0, 3.0], [-4.0, 4.0]]"]
+    with pytest.raises(DesignError, match=r"plant.region must be a list of \[lo, hi\] pairs"):
+        check_scenario({"plant": {**wide, "region": [[1.0, -1.0], [0.0, 1.0]]}}, required=False)
+    with pytest.raises(DesignError, match="a registered or MJCF plant has none"):
+        build_plant({"name": "pendulum", "region": [[-1.0, 1.0], [-1.0, 1.0]]})

@@ -86,7 +86,7 @@ def test_list_names_everything(capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["run", "--plant", "pendulm", "--duration", "1"],
-     "unknown plant 'pendulm'; valid: ['besancon_ex1'"),
+     "unknown plant 'pendulm'; valid: ['acrobot'"),
     (["run", "--plant", "pendulum", "--observer", "kalman:k=1", "--duration", "1"],
      "unknown observer 'kalman'; valid: ["),
     (["run", "--plant", "pendulum", "--observer", "high_gain:k=1,p=[-1,1]", "--duration", "1"],
@@ -139,14 +139,17 @@ def test_list_sizes_name_columns_to_the_longest_name(capsys):
     (``high_gain_multi`` used to run into its summary)."""
     from hgo_mj.inputs import SIGNALS
     from hgo_mj.observers import OBSERVERS
-    from hgo_mj.reproduce import REPRODUCTIONS
+    from hgo_mj.plants import LAB_PLANTS
+    from hgo_mj.reproduce import PAPERS, REPRODUCTIONS
     from hgo_mj.sensors import STAGES
     from hgo_mj.systems import SYSTEMS
 
     assert main(["list"]) == 0
     out = capsys.readouterr().out
-    sections = dict(zip(("PLANTS", "SENSOR STAGES", "OBSERVERS", "INPUTS", "REPRODUCTIONS"),
-                        (SYSTEMS, STAGES, OBSERVERS, SIGNALS, REPRODUCTIONS)))
+    sections = dict(zip(("PLANTS", "SENSOR STAGES", "OBSERVERS", "INPUTS", "REPRODUCTIONS",
+                         "PAPERS"),
+                        ([*SYSTEMS, *LAB_PLANTS], STAGES, OBSERVERS, SIGNALS, REPRODUCTIONS,
+                         PAPERS)))
     blocks = out.split("\n\n")
     assert len(blocks) == len(sections)
     for block, (title, names) in zip(blocks, sections.items()):
@@ -232,3 +235,111 @@ def test_bad_t_transient_flag_exits_2(tmp_path, capsys):
     assert main(["run", "--plant", "pendulum", "--observer", "high_gain:k=10", "--duration", "1",
                  "--t-transient", "-1", "--out", str(tmp_path / "o")]) == 2
     assert "t_transient" in capsys.readouterr().err
+
+
+def test_list_cites_papers_by_authors_year_title_venue(capsys):
+    """``hgo-mj list`` names no paper file (the hash names exist nowhere in the repository):
+    every ``paper NNN`` it mentions is cited in its PAPERS section by authors, year, title and
+    venue."""
+    import re
+
+    from hgo_mj.reproduce import PAPERS
+
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert not re.search(r"\d{3}_[0-9a-f]{16}", out)
+    body, papers = out.split("\nPAPERS")
+    cited = set(re.findall(r"paper (\d{3})", body))
+    assert cited and cited <= set(PAPERS)
+    for number in cited:
+        line = next(r for r in papers.splitlines() if r.startswith(f"  {number} "))
+        authors, rest = line[6:].split(" (", 1)
+        year, title_venue = rest.split("), ", 1)
+        assert "." in authors and year.isdigit() and len(title_venue.split(", ")) >= 2, line
+
+
+def _help(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 0
+    return capsys.readouterr().out
+
+
+def test_help_is_plain_text_and_lists_every_command(capsys):
+    """``hgo-mj --help``: no reStructuredText or Markdown markup, and every command both in
+    the description and in the list of commands; ``reproduce --help`` names every
+    reproduction."""
+    import argparse
+
+    from hgo_mj.cli import build_parser
+    from hgo_mj.reproduce import REPRODUCTIONS
+
+    text = _help(["--help"], capsys)
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    assert {"run", "sweep", "tune", "bench", "check", "list", "reproduce", "demo"} <= set(
+        sub.choices)
+    description = text.split("positional arguments")[0]
+    for command in sub.choices:
+        assert f"{command} (" in description, command
+        assert f"\n    {command}" in text, command
+        assert "`" not in _help([command, "--help"], capsys), command
+    assert "`" not in text
+    reproduce = " ".join(_help(["reproduce", "--help"], capsys).split())
+    for name in REPRODUCTIONS:
+        assert name in reproduce
+
+
+@pytest.mark.parametrize("argv", [["run", "--rrd", "scenario.toml"],
+                                  ["run", "scenario.toml", "--rrd"],
+                                  ["reproduce", "ibrir2007", "--rrd", "out"],
+                                  ["demo", "--rrd", "runs/demo"]])
+def test_rrd_takes_a_file_ending_in_rrd_only(argv, capsys):
+    """``--rrd FILE.rrd``: a flag without a value, or a value not ending in ``.rrd`` (a
+    scenario file, a folder), is refused before any work; it never takes the positional."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "--rrd" in err
+    from hgo_mj.cli import build_parser
+
+    args = build_parser().parse_args(["run", "s.toml", "--rrd", "r.rrd"])
+    assert args.scenario == "s.toml" and str(args.rrd) == "r.rrd"
+
+
+def test_bare_words_inside_lists():
+    """A bare word is a string alone or inside a list or table, as the message says; numbers,
+    inf and true stay what they are."""
+    from hgo_mj.cli import parse_value
+    from hgo_mj.exceptions import DesignError
+
+    assert parse_spec("ekf:estimate=[stiffness],Q=1e-3", "type") == {
+        "type": "ekf", "estimate": ["stiffness"], "Q": 1e-3}
+    assert parse_value("[stiffness, damping_ratio, 1e-3, inf, true]") == [
+        "stiffness", "damping_ratio", 1e-3, float("inf"), True]
+    assert parse_value("{a = b, c = [d, 2]}") == {"a": "b", "c": ["d", 2]}
+    with pytest.raises(DesignError, match=r"cannot parse value '\[1,,2\]'; .* a word \(alone "
+                                          r"or in a list\)"):
+        parse_value("[1,,2]")
+
+
+def test_printed_tables_have_units_and_columns_sized_to_their_longest_cell():
+    """format_table and the Monte Carlo table: a unit column and the settling time's unit;
+    a name longer than 16 characters keeps every column aligned."""
+    from hgo_mj.metrics import format_table
+    from hgo_mj.study.montecarlo import aggregate, format_mc_table
+
+    m = {name: {"states": ["angle", "angular_velocity"], "estimated": [True, False],
+                "rmse": [0.125, None], "peak": [1.5, None], "settling_time": [0.25, None],
+                "final": [1e-3, None], "undefined_samples": [0, None], "update_time": 3e-6}
+         for name in ("high_gain_multi_1", "a")}
+    units = {"angle": "rad", "angular_velocity": "rad/s"}
+    for text, unit_col in ((format_table(m, units, "h"), "settle [h]"),
+                           (format_mc_table(aggregate([m, m]), units), "settle med [s]")):
+        lines = [r for r in text.splitlines() if r.startswith(("observer", "high_gain", "a "))]
+        head, rows = lines[0], lines[1:]
+        assert unit_col in head and len(rows) == 4
+        for col in ("state", "unit"):
+            assert {r[head.index(col) - 1] for r in rows} == {" "}  # the column starts there
+        assert {r.split()[2] for r in rows} == {"rad", "rad/s"}
+        ends = {len(r) for r in lines}
+        assert len(ends) == 1, text  # every row as wide as the header

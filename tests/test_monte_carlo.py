@@ -80,7 +80,7 @@ def test_runs_are_single_runs_and_aggregate_is_their_statistics(study):
     assert all(v == [None, None] for v in free["settling_time"].values())
     json.loads(json.dumps(study.to_json()))  # JSON-ready
     table = study.table()
-    assert "k60" in table and "±" in table and "not estimated" in table
+    assert "k60" in table and "rmse std" in table and "not estimated" in table
 
 
 def test_settling_statistics_over_the_runs_that_settled():
@@ -133,7 +133,7 @@ FLAGS = ["run", "--plant", "pendulum", "--sensor", "gaussian:std=1e-3",
 def test_cli_seeds_writes_the_study_and_the_first_seed(tmp_path, capsys):
     assert main([*FLAGS, "--seed", "7", "--seeds", "3", "--out", str(tmp_path / "mc")]) == 0
     printed = capsys.readouterr().out
-    assert "Monte Carlo over the seeds 7..9" in printed and "±" in printed
+    assert "Monte Carlo over the seeds 7..9" in printed and "rmse std" in printed
     assert main([*FLAGS, "--seed", "7", "--out", str(tmp_path / "one")]) == 0
     mc, one = tmp_path / "mc", tmp_path / "one"
     for f in ("metrics_mc.json", "summary_mc.txt", "mc.png", "trajectory.npz", "metrics.json",

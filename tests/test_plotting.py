@@ -170,3 +170,65 @@ def test_the_monte_carlo_axis_is_logarithmic_where_values_span_decades():
     assert p.get_ylabel() == "RMSE p [?]"  # no units given
     lo, hi = p.get_ylim()
     assert lo <= 1e-3 and hi >= 0.6  # both observers on the one axis
+
+
+def test_every_plotting_function_draws_on_given_axes(pend_run):
+    """``axes=`` / ``ax=`` (python-control's and scikit-learn's ``plot(ax=...)``): each public
+    plotting function draws on the user's axes and returns their figure; axes of another
+    count are refused, naming the grid expected."""
+    import json
+
+    import pandas as pd
+
+    from hgo_mj.bench.figures import interval_chart, score_matrix
+    from hgo_mj.exceptions import DesignError
+    from hgo_mj.plotting import plot_monte_carlo, plot_trajectory, subplots
+    from hgo_mj.study import MonteCarloResult
+
+    traj = Trajectory.load(pend_run / "trajectory.npz")
+    fig, grid = subplots(3, 2)  # 2 plant states + the multi-output chain's extra row
+    assert plot_trajectory(traj, axes=grid) is fig and len(fig.axes) == 6
+    assert grid[0, 0].get_ylabel() == "angle [rad]" and grid[0, 0].get_lines()
+    with pytest.raises(DesignError, match=r"plot_trajectory: axes= must hold 6 Axes \(a grid "
+                                          r"of 3 x 2\); found 4"):
+        plot_trajectory(traj, axes=subplots(2, 2)[1])
+    mcj = json.loads((pend_run / "metrics_mc.json").read_text())
+    mc = MonteCarloResult.from_runs(mcj["seeds"], [r["metrics"] for r in mcj["runs"]], {})
+    fig, (a, b) = subplots(1, 2)
+    assert plot_monte_carlo(mc, axes=[a, b]) is fig and a.get_title() == "angle"
+    board = pd.DataFrame([{"task": "a-v1", "observer": "x", "status": "scored", "rank": 1,
+                           "normalized_rank": 0.0, "rmse_norm": 0.01, "rmse_norm_low": 0.009,
+                           "rmse_norm_high": 0.011, "default_rmse_norm": 0.05}])
+    fig, (a, b) = subplots(1, 2)
+    assert score_matrix(board, ax=a) is fig and interval_chart(board, "a-v1", ax=b) is fig
+    assert a.get_images() and b.get_title() == "a-v1"
+    with pytest.raises(DesignError, match="score_matrix: axes= must hold 1 Axes"):
+        score_matrix(board, ax="left")
+
+
+def test_figures_are_pyplots_when_the_user_imported_pyplot(tmp_path):
+    """Without ``axes=``: a figure pyplot manages (``plt.show()`` shows it) once the user has
+    imported pyplot, and a Figure without pyplot otherwise; the command line never imports
+    pyplot, and closes a pyplot figure it saved."""
+    code = """
+import sys
+import matplotlib
+matplotlib.use("Agg")
+from hgo_mj.inputs import Constant
+from hgo_mj.plants import make_plant
+from hgo_mj.plotting import plot_trajectory
+from hgo_mj.simulate import simulate
+traj = simulate(make_plant("pendulum", 0.01), None, {}, Constant(0.0), duration=0.05)
+fig = plot_trajectory(traj)
+assert fig.canvas.manager is None and "matplotlib.pyplot" not in sys.modules
+import matplotlib.pyplot as plt
+fig = plot_trajectory(traj)
+assert plt.get_fignums() == [fig.number] and plt.gcf() is fig
+from hgo_mj._io import save_figure
+save_figure(fig, sys.argv[1])
+assert plt.get_fignums() == []
+print("ok")
+"""
+    res = subprocess.run([sys.executable, "-c", code, str(tmp_path / "f.png")],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr[-3000:]

@@ -60,6 +60,19 @@ def test_same_seed_bit_identical_different_seed_differs(setup):
     assert not np.array_equal(runs[0].y_meas, runs[2].y_meas)
 
 
+def test_the_runs_seed_wins_over_the_chains(setup):
+    """README: ``SensorChain(..., seed=0)`` beside ``simulate(..., seed=1)``: simulate's seed
+    wins (the chain's is ignored); the chain's own seed is the default when simulate gets
+    none."""
+    def y(chain_seed, run_seed):
+        plant, sensor, obs = setup(chain_seed)
+        return simulate(plant, sensor, obs, Multisine([1.0], [1.0]), 0.2, seed=run_seed).y_meas
+
+    np.testing.assert_array_equal(y(0, 1), y(7, 1))
+    np.testing.assert_array_equal(y(0, 1), y(1, None))
+    assert not np.array_equal(y(0, 1), y(0, None))
+
+
 def test_save_load_round_trip(setup, tmp_path):
     plant, sensor, obs = setup()
     traj = simulate(plant, sensor, obs, Multisine([1.0], [1.0]), 0.3, seed=1,
@@ -158,6 +171,30 @@ def test_metrics_on_a_known_error():
     err = np.where(t < 2, 1.0, 0.01)[:, None]
     np.testing.assert_array_equal(settling_time(t, err, 0.05), [2.0])
     np.testing.assert_array_equal(settling_time(t, np.ones((1001, 1)), 0.05), [np.inf])
+
+
+@pytest.mark.parametrize("band", [None, 0.05])
+@pytest.mark.parametrize("chunks", [[5], [2, 3], [4, 1]])
+def test_inside_at_the_last_sample_only_is_not_settled(band, chunks):
+    """A run inside the band at its last sample only has not settled (inf), whether the band
+    is known on the way or scanned back chunk by chunk; inside at the last two it has."""
+    from hgo_mj.metrics import MetricsBatch
+
+    t = np.arange(5) * 1.25
+    err = np.array([[1.0, 1.0], [1.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
+    np.testing.assert_array_equal(settling_time(t, err, 0.05), [np.inf, t[3]])
+    np.testing.assert_array_equal(settling_time(t[:1], err[-1:], 0.05), [0.0, 0.0])
+    acc = MetricsBatch([0, 1], [0, 1], 1, 0.0, None if band is None else np.full((1, 2), band))
+    X = err[None]  # true state = error, estimate 0
+    starts = np.cumsum([0] + chunks)
+    for a, b in zip(starts[:-1], starts[1:]):
+        acc.add(t[a:b], np.ascontiguousarray(X[:, a:b]), (np.zeros((1, 2)), np.zeros((1, 0))),
+                np.zeros((1, b - a, 2)), np.zeros((1, b - a, 0)))
+    if band is None:
+        for a, b in zip(starts[::-1][1:], starts[::-1][:-1]):
+            if acc.settle(t[a:b], X[:, a:b], np.full((1, 2), 0.05)):
+                break
+    np.testing.assert_array_equal(acc.arrays(2)["settling_time"], [[np.inf, t[3]]])
 
 
 def test_observer_metrics(setup):

@@ -22,7 +22,7 @@ def _slug(name: str) -> str:
     return name.replace("/", "__").replace(":", "_")
 
 
-def score_matrix(board: Any) -> Any:
+def score_matrix(board: Any, *, ax: Any = None) -> Any:
     """Observers x tasks, each cell coloured by the observer's normalized rank on the task
     (0 best, green; 1 worst, red; grey: not applicable) with its normalized RMSE written in.
 
@@ -30,10 +30,13 @@ def score_matrix(board: Any) -> Any:
     ----------
     board : pandas.DataFrame
         :func:`~hgo_mj.bench.scores.leaderboard`.
+    ax : matplotlib.axes.Axes, optional
+        Where to draw; default a new figure (:func:`hgo_mj.plotting.new_figure`).
 
     Returns
     -------
     matplotlib.figure.Figure
+        The figure drawn on.
 
     Examples
     --------
@@ -47,15 +50,16 @@ def score_matrix(board: Any) -> Any:
     'Figure'
     """
     from matplotlib import colormaps
-    from matplotlib.figure import Figure
+
+    from ..plotting import axes_grid
 
     cells = board[board["task"] != "overall"]
     tasks = list(dict.fromkeys(cells["task"]))
     overall = board[board["task"] == "overall"].sort_values("rank")
     observers = list(overall["observer"]) + sorted(set(cells["observer"]) - set(overall["observer"]))
-    fig = Figure(figsize=(1.2 + 0.9 * len(tasks), 1.0 + 0.42 * len(observers)),
-                 layout="constrained")
-    ax = fig.add_subplot()
+    fig, grid = axes_grid(ax, (1, 1), (1.2 + 0.9 * len(tasks), 1.0 + 0.42 * len(observers)),
+                          "score_matrix")
+    ax = grid[0, 0]
     cmap = colormaps["RdYlGn_r"]
     M = np.full((len(observers), len(tasks)), np.nan)
     for _, r in cells.iterrows():
@@ -79,7 +83,7 @@ def score_matrix(board: Any) -> Any:
     return fig
 
 
-def interval_chart(board: Any, task: str) -> Any:
+def interval_chart(board: Any, task: str, *, ax: Any = None) -> Any:
     """One task: each scored observer's normalized RMSE (tuned, a dot with its 95 %
     interval) and the untuned default's (a hollow marker), log scale, best at the top.
 
@@ -87,10 +91,13 @@ def interval_chart(board: Any, task: str) -> Any:
     ----------
     board : pandas.DataFrame
     task : str
+    ax : matplotlib.axes.Axes, optional
+        Where to draw; default a new figure (:func:`hgo_mj.plotting.new_figure`).
 
     Returns
     -------
     matplotlib.figure.Figure
+        The figure drawn on.
 
     Examples
     --------
@@ -101,11 +108,11 @@ def interval_chart(board: Any, task: str) -> Any:
     >>> type(interval_chart(board, "a-v1")).__name__
     'Figure'
     """
-    from matplotlib.figure import Figure
+    from ..plotting import axes_grid
 
     sel = board[(board["task"] == task) & (board["status"] == "scored")].sort_values("rank")
-    fig = Figure(figsize=(6.5, 0.9 + 0.38 * max(len(sel), 1)), layout="constrained")
-    ax = fig.add_subplot()
+    fig, grid = axes_grid(ax, (1, 1), (6.5, 0.9 + 0.38 * max(len(sel), 1)), "interval_chart")
+    ax = grid[0, 0]
     names = list(sel["observer"])[::-1]
     for y, (_, r) in enumerate(sel.iloc[::-1].iterrows()):
         m = float(r["rmse_norm"])

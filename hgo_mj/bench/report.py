@@ -75,13 +75,20 @@ def default_observers() -> list[str]:
 
 
 def _nominal(tasks: Sequence[Task]) -> dict[str, str]:
-    """A mismatch task -> the nominal task of the same plant, sensor and input."""
+    """A task of the mismatch or friction tier -> the nominal task of the same plant, sensor
+    and input (the robustness score's reference)."""
+    def bare(t: Task) -> dict[str, Any]:
+        return {k: v for k, v in t.plant.items() if k != "model_fields"}
+
+    def tier(t: Task) -> bool:
+        return bool(t.mismatch or t.model_fields or t.plant.get("model_fields"))
+
     out = {}
     for t in tasks:
-        if not t.mismatch:
+        if not tier(t):
             continue
         for u in tasks:
-            if (not u.mismatch and u.plant == t.plant and u.sensor == t.sensor
+            if (not tier(u) and bare(u) == bare(t) and u.sensor == t.sensor
                     and u.sensor_params == t.sensor_params and u.input == t.input
                     and u.sample_period == t.sample_period):
                 out[t.name] = u.name
@@ -160,8 +167,7 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
     if folder is not None:
         for name, frame in (("scores", scores), ("leaderboard", board)):
             buf = io.BytesIO()
-            frame.astype({c: str for c in frame.columns if frame[c].dtype == object}).to_parquet(
-                buf, index=False)
+            frame.to_parquet(buf, index=False)  # numbers stay numbers, text text
             write_bytes(folder / f"{name}.parquet", buf.getvalue())
         write_text(folder / "leaderboard.md", table + "\n")
         from .figures import write_figures
@@ -247,7 +253,7 @@ def markdown(board: Any, tasks: Sequence[Task], budget: int) -> str:
             continue
         lines += ["", f"## {t.name}", "", f"{t.description} (hash `{task_hash(t)[:12]}`)", "",
                   "| rank | observer | RMSE (tuned) | RMSE (default) | transient IAE [s] | "
-                  "peaking | settling [s] | NIS | diverged | cost/update [us] | "
+                  "peaking | settling [s] | NIS; NEES (in 95 % band) | diverged | cost/update [us] | "
                   "robustness | certified Ts [s] | tuned |",
                   "|---:|---|---|---:|---|---|---|---|---:|---:|---:|---:|---|"]
         scored = sel[sel["status"] == "scored"].sort_values("rank")
@@ -261,10 +267,21 @@ def markdown(board: Any, tasks: Sequence[Task], budget: int) -> str:
                 f"{_cell(r['iae'], r['iae_low'], r['iae_high'])} | "
                 f"{_cell(r['peaking'], r['peaking_low'], r['peaking_high'])} | "
                 f"{_cell(r['settling'], r['settling_low'], r['settling_high'], 'never')} | "
-                f"{_cell(r['nis'], None, None)} | {r['divergence_rate']:.2f} | "
+                f"{_consistency(r)} | {r['divergence_rate']:.2f} | "
                 f"{r['update_time'] * 1e6:.3f} | {_cell(rob, None, None)} | "
                 f"{_cell(cert, None, None)} | {r['parameters']} |")
         for _, r in sel[sel["status"] != "scored"].iterrows():
             lines.append(f"| - | {r['observer']} | not applicable: {r['reason']} | | | | | | | "
                          f"| | | |")
     return "\n".join(lines)
+
+
+def _consistency(r: Any) -> str:
+    """``NIS (share in band); NEES (share)`` of a filter, ``-`` for an observer without."""
+    out = []
+    for m, share in (("nis", "nis_band"), ("nees", "nees_band")):
+        v, f = r.get(m, math.nan), r.get(share, math.nan)
+        out.append("-" if v is None or not math.isfinite(v) else
+                   f"{v:.3g} ({100 * f:.0f} %)" if f is not None and math.isfinite(f) else
+                   f"{v:.3g}")
+    return "-" if out == ["-", "-"] else "; ".join(out)

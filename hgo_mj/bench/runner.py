@@ -138,7 +138,8 @@ def run_task_observer(task: Task, kind: str, budget: int, *, out: Path | None = 
         ``task``, ``hash``, ``observer``, ``status`` (``"scored"`` or ``"not applicable"``),
         ``reason``, and when scored: ``states``, ``units``, ``ranges``, ``sensor_std``,
         ``default`` and ``tuned`` (per variant: ``rmse``, ``peak``, ``settling`` per seed and
-        state; ``iae``, ``peaking``, ``nis``, ``diverged``, ``message`` per seed;
+        state; ``iae``, ``peaking``, ``nis``, ``nis_band``, ``nees``, ``nees_band``,
+        ``diverged``, ``message`` per seed;
         ``update_time``), ``parameters`` (the tuned ones), ``tune_seconds``,
         ``certified_period`` (paper 004's LMI bound for the Riccati observer, else None).
 
@@ -168,11 +169,13 @@ def run_task_observer(task: Task, kind: str, budget: int, *, out: Path | None = 
     sc = task.scenario()
     label = _label(kind)
     spec = observer_spec(kind, plant, label)
+    known = registered()
     if task.mismatch:
         spec["system_params"] = dict(task.mismatch)
+    if task.model_fields and getattr(known.get(kind), "backend", None) == "mujoco":
+        spec["model_fields"] = dict(task.model_fields)  # the same error in its MJCF copy
     sc["observers"] = [spec]
     reason = None
-    known = registered()
     if ":" not in kind and kind not in known:
         raise DesignError(f"unknown observer {kind!r}; valid: {sorted(known)}, or "
                           f"'module:Class'")
@@ -192,11 +195,12 @@ def run_task_observer(task: Task, kind: str, budget: int, *, out: Path | None = 
     try:
         st = setup(sc, label, t_transient=task.t_transient,
                    states=list(task.states) or None)
-        default = evaluate(st, [{}], list(task.scoring_seeds))
+        default = evaluate(st, [{}], list(task.scoring_seeds), consistency=True)
         tuned = tune(sc, label, budget=budget, seeds=list(task.tuning_seeds),
                      t_transient=task.t_transient, states=list(task.states) or None,
                      backend=backend, jobs=jobs, progress=False)
-        scored = evaluate(st, [tuned.best_parameters], list(task.scoring_seeds))
+        scored = evaluate(st, [tuned.best_parameters], list(task.scoring_seeds),
+                          consistency=True)
     except HgoError as exc:
         part = {**base, "status": "not applicable", "reason": f"failed: {exc}"}
         _keep(path, part)
@@ -231,6 +235,8 @@ def _variant(sc: Any) -> dict[str, Any]:
             "settling": [[None if math.isinf(v) else float(v) for v in sc.settling[0, j]]
                          for j in range(S)],
             "iae": clean(sc.iae[0]), "peaking": clean(sc.peaking[0]), "nis": clean(sc.nis[0]),
+            "nis_band": clean(sc.nis_band[0]), "nees": clean(sc.nees[0]),
+            "nees_band": clean(sc.nees_band[0]),
             "diverged": [m is not None for m in sc.message[0]], "message": sc.message[0],
             "update_time": float(sc.update_time[0]), "n_states": k}
 

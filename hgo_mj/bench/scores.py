@@ -14,7 +14,12 @@ untuned default and the tuned observer as ``variant``):
 Per observer, task and seed (the same in each state's row): ``iae`` (the integral of the
 normalized error norm over the first second: the transient), ``peaking`` (the largest
 normalized error norm over the initial one), ``nis`` (a filter's mean normalized innovation
-squared), ``diverged``, ``update_time`` (seconds per update, warm, compile excluded).
+squared) and ``nis_band`` (the share of its samples inside the chi-square 95 % band), ``nees``
+(a filter's mean normalized estimation error squared over the plant states it estimates, read
+at about 200 instants after the transient: :func:`hgo_mj.metrics.nees`) and ``nees_band``
+(the share of those instants inside the band; a consistent filter has NIS and NEES near their
+number of channels and states, and about 0.95 inside the band), ``diverged``,
+``update_time`` (seconds per update, warm, compile excluded).
 
 The **leaderboard** gives per task and observer the mean over the scoring seeds of each score
 with a 95 % bootstrap confidence interval (:func:`bootstrap_ci`: the seeds resampled, the BCa
@@ -39,6 +44,8 @@ import numpy as np
 __all__ = ["bootstrap_ci", "leaderboard", "score_rows"]
 
 CONFIDENCE = 0.95
+#: the consistency scores of a filter (NaN for an observer without a covariance)
+CONSISTENCY = ("nis", "nis_band", "nees", "nees_band")
 RESAMPLES = 2000
 
 
@@ -135,6 +142,8 @@ def score_rows(parts: Sequence[Mapping[str, Any]], seeds: Mapping[str, Sequence[
                         "settling": _num(v["settling"][j][i]),
                         "peak_norm": peak / rng, "iae": _num(v["iae"][j]),
                         "peaking": _num(v["peaking"][j]), "nis": _num(v["nis"][j], math.nan),
+                        **{c: _num((v.get(c) or [None] * (j + 1))[j], math.nan)
+                           for c in ("nis_band", "nees", "nees_band")},
                         "diverged": bool(v["diverged"][j]),
                         "update_time": float(v["update_time"])})
     return rows
@@ -194,19 +203,20 @@ def leaderboard(rows: Sequence[Mapping[str, Any]], parts: Sequence[Mapping[str, 
                 vals = per_seed[col].mean().to_numpy()
                 m, lo, hi = bootstrap_ci(vals)
                 entry.update({col: m, f"{col}_low": lo, f"{col}_high": hi})
-            for col in ("iae", "peaking", "nis"):
+            for col in ("iae", "peaking") + CONSISTENCY:
                 vals = per_seed[col].first().to_numpy()
-                m, lo, hi = bootstrap_ci(vals) if col != "nis" or np.isfinite(vals).all() else (
-                    math.nan, math.nan, math.nan)
+                m, lo, hi = bootstrap_ci(vals) if col not in CONSISTENCY or np.isfinite(
+                    vals).all() else (math.nan, math.nan, math.nan)
                 entry.update({col: m, f"{col}_low": lo, f"{col}_high": hi})
             default = sel[sel["variant"] == "default"].groupby("seed")["rmse_norm"].mean()
             entry["default_rmse_norm"] = float(default.mean()) if len(default) else math.nan
             entry["divergence_rate"] = float(per_seed["diverged"].first().mean())
             entry["update_time"] = float(tuned["update_time"].iloc[0])
-            entry["certified_period"] = part.get("certified_period")
+            cert = part.get("certified_period")
+            entry["certified_period"] = math.nan if cert is None else float(cert)
             entry["parameters"] = ", ".join(
                 f"{k} = {_short(v)}" for k, v in part.get("parameters", {}).items())
-            entry["tune_seconds"] = part.get("tune_seconds")
+            entry["tune_seconds"] = float(part.get("tune_seconds") or math.nan)
         out.append(entry)
     board = pd.DataFrame(out)
     if board.empty:
@@ -235,7 +245,9 @@ def leaderboard(rows: Sequence[Mapping[str, Any]], parts: Sequence[Mapping[str, 
                         "divergence_rate": float(grp["divergence_rate"].mean())})
     ov = pd.DataFrame(overall).sort_values(["normalized_rank", "observer"])
     ov["rank"] = range(1, len(ov) + 1)
-    return pd.concat([board, ov], ignore_index=True)
+    out_frame = pd.concat([board, ov], ignore_index=True)
+    out_frame["rank"] = out_frame["rank"].astype("Int64")  # NA: not applicable
+    return out_frame
 
 
 def _short(v: Any) -> str:

@@ -7,6 +7,15 @@ observers' ``system_params``, empty for the nominal tier), the duration and the 
 window, disjoint **tuning seeds** and **scoring seeds**, and the states scored. Its definition
 is frozen: :func:`task_hash` is the SHA-256 of its canonical JSON, and ``tests/bench`` holds
 each version's hash, so a change of a task is a new version (``-v2``), never a silent edit.
+A field added to :class:`Task` after the first tasks (:data:`_LATER`) enters the hash only
+where a task sets it, so adding a field changes no existing task's hash.
+
+**Tiers.** Nominal; *parameter mismatch* (``mismatch``: the observers' model 10 % off, given
+to the observers that step an MJCF as ``model_fields``, the same error written into their copy
+of the model, since ``system_params`` do not reach an MJCF); *unmodelled Coulomb friction* (the
+plant's ``model_fields``: ``dof_frictionloss`` the observers' equations do not have); and the
+*sampled* tier. A task that a later version replaces is kept by name (its results stay
+reproducible) but left out of the full suite (:data:`SUPERSEDED`).
 
 A user's task is a TOML file of the same tables (:func:`load_task`) and is scored next to the
 built-in ones.
@@ -25,7 +34,8 @@ from typing import Any
 from ..exceptions import DesignError
 from .presets import preset
 
-__all__ = ["SUITES", "SUITE_OBSERVERS", "TASKS", "Task", "load_task", "task_hash", "tasks_of"]
+__all__ = ["SUITES", "SUITE_OBSERVERS", "SUPERSEDED", "TASKS", "Task", "load_task", "task_hash",
+           "tasks_of"]
 
 MECH_INPUT = {"type": "multisine", "amplitudes": [0.3, 0.15], "frequencies": [0.4, 1.1]}
 
@@ -54,6 +64,9 @@ class Task:
         The observers' sample period (None: the plant's step).
     mismatch : dict
         Parameters of the observers' model that differ from the plant's (empty: nominal).
+    model_fields : dict
+        The same mismatch for the observers whose model is the MJCF (``ekf_mujoco``,
+        ``ukf_mujoco``): ``"field[element]"`` -> value written into their copy of the model.
     tuning_seeds, scoring_seeds : tuple of int
         Disjoint.
     states : tuple of str
@@ -81,6 +94,7 @@ class Task:
     scoring_seeds: tuple[int, ...] = (101, 102, 103, 104, 105, 106, 107, 108)
     states: tuple[str, ...] = ()
     description: str = ""
+    model_fields: dict[str, Any] = field(default_factory=dict)
 
     def scenario(self) -> dict[str, Any]:
         """The task as a scenario without observers (``hgo-mj run``'s tables).
@@ -125,7 +139,11 @@ def task_hash(task: Task) -> str:
     >>> task_hash(TASKS["pendulum/encoder-v1"]) == task_hash(TASKS["pendulum/encoder-v1"])
     True
     """
-    doc = json.dumps(asdict(task), sort_keys=True, separators=(",", ":"))
+    fields = asdict(task)
+    for key, default in _LATER.items():
+        if fields[key] == default:
+            del fields[key]
+    doc = json.dumps(fields, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(doc.encode()).hexdigest()
 
 
@@ -133,7 +151,17 @@ def _t(name: str, plant: dict[str, Any], sensor: str, **kw: Any) -> Task:
     return Task(name=name, plant=plant, input=kw.pop("input", MECH_INPUT), sensor=sensor, **kw)
 
 
+#: fields added to Task after its first version -> their default (left out of the hash there)
+_LATER: dict[str, Any] = {"model_fields": {}}
+
 _PEND = {"name": "pendulum", "dt": 0.001, "x0": [0.5, 0.0]}
+#: the pendulum's model 10 % heavier (mass and inertia about the centre of mass: the inertia
+#: about the hinge too) and 10 % more damped, as system parameters and as MJCF fields
+_PEND_WRONG = {"mass": 0.275, "inertia": 0.05963867708333334, "damping": 0.011}
+_PEND_WRONG_MJCF = {"body_mass[pole]": 0.275,
+                    "body_inertia[pole]": [0.003951177083333334, 0.003951177083333334,
+                                           5.568750000000002e-05],
+                    "dof_damping[hinge]": 0.011}
 _CART = {"name": "cart_pendulum", "dt": 0.001, "x0": [0.1, 0.0]}
 _EJ = {"name": "elastic_joint", "dt": 0.001, "x0": [0.3, 0.3, 0.0, 0.0]}
 _EJ2 = {"name": "elastic_joint_2link", "dt": 0.001}
@@ -203,13 +231,54 @@ TASKS: dict[str, Task] = {t.name: t for t in (
     _t("cart_pendulum/vision-v1", _CART, "vision", duration=15.0, t_transient=3.0,
        input={"type": "multisine", "amplitudes": [0.5, 0.25], "frequencies": [0.4, 1.1]},
        description="The cart pendulum tracked by a slow, late camera."),
+    _t("pendulum/encoder-mismatch-v2", _PEND, "encoder", mismatch=_PEND_WRONG,
+       model_fields=_PEND_WRONG_MJCF,
+       description="The encoder task with the observers' model 10 % heavier and more damped "
+                   "than the plant, the MJCF filters' model too (v1 gave them the true MJCF)."),
+    _t("elastic_joint/encoder-mismatch-v2", _EJ, "encoder",
+       sensor_params={"counts_per_rev": 16384}, mismatch={"stiffness": 9.0},
+       model_fields={"tendon_stiffness[spring]": 9.0},
+       description="The elastic joint with the observers' stiffness 10 % low, the MJCF "
+                   "filters' too (v1 gave them the true MJCF)."),
+    _t("pendulum/encoder-friction-v1", {**_PEND, "model_fields": {
+        "dof_frictionloss[hinge]": 0.02}}, "encoder",
+       description="The encoder task on a pendulum with 0.02 N m of Coulomb friction in its "
+                   "bearing (MuJoCo's frictionloss), which no observer's model has: the "
+                   "velocity stalls at the turning points."),
 )}
+
+#: the lab plants (MJCF, two measured joints, one actuator): what a lab bench has
+LAB_TASKS: dict[str, Task] = {t.name: t for t in (
+    _t("furuta/encoder-v1", {"name": "furuta", "dt": 0.001, "x0": [0.0, 0.3, 0.0, 0.0]},
+       "encoder", input={"type": "multisine", "amplitudes": [1.0, 0.5],
+                         "frequencies": [0.4, 1.1]},
+       description="A Furuta (rotary) pendulum, arm and pendulum angles read by encoders, "
+                   "the arm driven by its motor voltage: the arm's motion couples into the "
+                   "pendulum through the Coriolis terms."),
+    _t("acrobot/encoder-v1", {"name": "acrobot", "dt": 0.001, "x0": [0.3, 0.0, 0.0, 0.0]},
+       "encoder", input={"type": "multisine", "amplitudes": [0.5, 0.25],
+                         "frequencies": [0.4, 1.1]},
+       description="The acrobot, both joint angles read by encoders, only the elbow driven: "
+                   "the shoulder's velocity comes from an unactuated joint."),
+    _t("cart_pole/encoder-v1", {"name": "cart_pole", "dt": 0.001, "x0": [0.0, 0.3, 0.0, 0.0]},
+       "encoder", input={"type": "multisine", "amplitudes": [0.3, 0.15],
+                         "frequencies": [0.4, 1.1]},
+       description="A cart-pole pushed by a multisine force, the cart's position (a linear "
+                   "encoder of 1.5 mm resolution) and the pole's angle measured."),
+)}
+TASKS.update(LAB_TASKS)
+
+#: superseded task -> its successor (kept by name, left out of the full suite)
+SUPERSEDED: dict[str, str] = {
+    "pendulum/encoder-mismatch-v1": "pendulum/encoder-mismatch-v2",
+    "elastic_joint/encoder-mismatch-v1": "elastic_joint/encoder-mismatch-v2",
+}
 
 #: suite -> task names
 SUITES: dict[str, tuple[str, ...]] = {
     "quick": ("pendulum/encoder-v1", "pendulum/vision-v1", "elastic_joint/encoder-v1",
               "bioreactor_bullinger/analog-v1"),
-    "full": tuple(TASKS),
+    "full": tuple(t for t in TASKS if t not in SUPERSEDED),
 }
 
 #: the observers a suite runs when none are named: the quick suite leaves out the filters that
@@ -221,7 +290,8 @@ SUITE_OBSERVERS: dict[str, tuple[str, ...]] = {
 }
 
 _FIELDS = {"name", "plant", "input", "sensor", "sensor_params", "duration", "t_transient",
-           "sample_period", "mismatch", "tuning_seeds", "scoring_seeds", "states", "description"}
+           "sample_period", "mismatch", "tuning_seeds", "scoring_seeds", "states", "description",
+           "model_fields"}
 
 
 def load_task(path: str | Path) -> Task:

@@ -799,6 +799,31 @@ class Observer(ABC):
         """
         return {"outputs": list(self.outputs)}
 
+    def covariance(self, state: State) -> Array | None:
+        """The covariance the observer keeps of its estimate ``x_hat`` of ``state``, ``(B,
+        n_x, n_x)`` in the layout of :attr:`state_names` (a new array), for a family that
+        keeps one (the Kalman filters); None for one that does not. With the true state it
+        gives the NEES (:func:`hgo_mj.metrics.nees`), the benchmark's consistency score.
+
+        Parameters
+        ----------
+        state : State
+            The state to read.
+
+        Returns
+        -------
+        ndarray or None
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> ob = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> ob.covariance(ob.init(1, [0.3, 0.0])) is None
+        True
+        """
+        return None
+
     def predicted_output(self, x_hat: Array, z_hat: Array) -> Array | None:
         """The measured outputs an estimate predicts, ``(..., len(outputs))`` from rows
         ``x_hat`` ``(..., n_x)`` and ``z_hat`` ``(..., n)``: what tuning without ground truth

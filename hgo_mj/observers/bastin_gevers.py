@@ -687,10 +687,13 @@ class BastinGeversObserver(Observer):
     outputs : tuple of int
         The measured channel that is ``y = x1``, a 1-tuple.
     theta_hat0 : array_like (m,) or (B, m), optional
-        Initial parameter estimate (default zero).
+        Initial parameter estimate (default: the form's ``start``, else zero).
     x_hat0, z_hat0 : array_like, optional
         Initial estimate in physical coordinates (needs the form's ``from_physical``) or in
-        AOCF coordinates (default zero).
+        AOCF coordinates (default: the form's ``start``, else zero). A form whose inverse map
+        is undefined at zero declares a start inside its domain: the bioreactor's is its
+        nominal model at its default state (eq. 6.4; 6.6 needs :math:`\\theta_3 \\ne 0`,
+        :math:`z_2 \\ne 0`), so ``BastinGeversObserver(BioreactorBastinGevers())`` runs.
     method : {"rk4", "euler"}
         Integration of one sample.
     substeps : int
@@ -849,10 +852,12 @@ class BastinGeversObserver(Observer):
 
     # ------------------------------------------------------------------ the state
     def _theta_rows(self, theta_hat0: Any, B: int) -> Array:
-        """``theta_hat0`` (``(m,)`` for every member or ``(B, m)``; None: zero) as ``(B, m)``."""
+        """``theta_hat0`` (``(m,)`` for every member or ``(B, m)``; None: the form's start, else
+        zero) as ``(B, m)``."""
         m = self.form.m
         if theta_hat0 is None:
-            return np.zeros((B, m))
+            start = self.form.start
+            return np.zeros((B, m)) if start is None else np.tile(start[1], (B, 1))
         if np.ndim(theta_hat0) == 1:  # one estimate for every member
             return np.tile(batch_rows("theta_hat0", theta_hat0, m, None), (B, 1))
         return batch_rows("theta_hat0", theta_hat0, m, B)
@@ -874,8 +879,9 @@ class BastinGeversObserver(Observer):
     def _fields(self, x0: Array | None, z0: Array | None, u0: Array,
                 th: Array) -> dict[str, Any]:
         """The state of ``B = len(u0)`` members from ``x0`` (physical) or ``z0`` (AOCF
-        coordinates; neither: zero) and the parameter estimate ``th`` ``(B, m)``; the filter
-        starts at ``V(0) = 0``. (The initial state does not depend on the gains.)"""
+        coordinates; neither: the form's ``start``, else zero) and the parameter estimate
+        ``th`` ``(B, m)``; the filter starts at ``V(0) = 0``. (The initial state does not
+        depend on the gains.)"""
         f = self.form
         B, n, m = u0.shape[0], f.n, f.m
         if x0 is not None:
@@ -884,8 +890,10 @@ class BastinGeversObserver(Observer):
                                   f"map; {f.label} has none: give z_hat0 (AOCF coordinates)")
             z = np.array([vector("from_physical(x_hat0)", f.from_physical(x, t, u), n)
                           for x, t, u in zip(x0, th, u0)]).reshape(B, n)
-        else:
-            z = np.zeros((B, n)) if z0 is None else z0
+        elif z0 is not None:
+            z = z0
+        else:  # the form's start (inside the inverse map's domain), else zero
+            z = np.zeros((B, n)) if f.start is None else np.tile(f.start[0], (B, 1))
         p_held = np.full((B, len(f.physical_param_names)), np.nan)
         xp = z.copy()
         if f.has_inverse:
@@ -937,8 +945,8 @@ class BastinGeversObserver(Observer):
              params: Params | None = None, theta_hat0: Any = None) -> State:
         """A new state of ``batch`` members (:meth:`Observer.init`), with the parameter
         estimate ``theta_hat0`` (``(m,)`` for every member or ``(B, m)``) where given: then
-        from ``x_hat0`` or ``z_hat0`` (default zero). All three left out: the constructor's
-        initial estimate. The filter starts at ``V(0) = 0``.
+        from ``x_hat0`` or ``z_hat0`` (default: the form's ``start``, else zero). All three
+        left out: the constructor's initial estimate. The filter starts at ``V(0) = 0``.
 
         Parameters
         ----------
@@ -952,8 +960,8 @@ class BastinGeversObserver(Observer):
         params : Params, optional
             The members' parameters (the initial state does not depend on them).
         theta_hat0 : array_like, optional
-            Initial parameter estimate, ``(m,)`` or ``(B, m)``; default zero (or the
-            constructor's, with neither initial estimate given).
+            Initial parameter estimate, ``(m,)`` or ``(B, m)``; default the form's ``start``
+            (zero without one), or the constructor's, with neither initial estimate given.
 
         Returns
         -------

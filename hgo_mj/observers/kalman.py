@@ -105,7 +105,6 @@ from __future__ import annotations
 import copy
 import functools
 import math
-import re
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -124,6 +123,7 @@ from .._validate import (
     vector,
 )
 from ..exceptions import DesignError, DivergenceError
+from ..plants.fields import VECTOR, get_field, resolve, set_field, set_fields
 from ..systems.base import CompiledModel, System
 from .base import Array, Observer, Params, State, batch_rows, register
 
@@ -1084,11 +1084,28 @@ class SystemModel:
 
 
 #: MJCF fields an augmented MuJoCo filter may estimate, by the object kind naming the element
-_FIELDS = {"tendon_stiffness": mujoco.mjtObj.mjOBJ_TENDON,
-           "actuator_gear": mujoco.mjtObj.mjOBJ_ACTUATOR,
-           "dof_damping": mujoco.mjtObj.mjOBJ_JOINT,
-           "dof_armature": mujoco.mjtObj.mjOBJ_JOINT,
-           "body_mass": mujoco.mjtObj.mjOBJ_BODY}
+def _check_model_matches(system: System, m: Any, estimate: Sequence[str]) -> None:
+    """Refuse a shipped MJCF (with its ``model_fields``) whose parameters, read back by the
+    system's ``from_mjmodel``, are not the system's: ``system_params`` change the system, not
+    the MJCF the filter steps, so the filter would silently get the plant's true model.
+    Parameters being estimated are exempt (the system holds their initial guess)."""
+    try:
+        read = type(system).from_mjmodel(m).params
+    except (DesignError, NotImplementedError):  # a system that reads nothing back
+        return
+    skip = set(estimate)
+    diff = [k for k, v in system.params.items()
+            if k in read and k not in skip and not np.allclose(
+                np.asarray(v, dtype=float), np.asarray(read[k], dtype=float), rtol=1e-6,
+                atol=1e-12)]
+    if diff:
+        said = ", ".join(f"{k} = {system.params[k]!r}" for k in diff)
+        has = ", ".join(f"{k} = {read[k]!r}" for k in diff)
+        raise DesignError(
+            f"the MuJoCo filter steps the MJCF, whose {has} differ from the system's {said}: "
+            f"system_params do not reach the MJCF. Give model_fields= to change the filter's "
+            f"copy of it (e.g. {{'body_mass[body]': value, 'dof_damping[joint]': value}}), or "
+            f"model= a modified MjModel")
 
 
 def _kalman_fields(system: System) -> dict[str, str]:
@@ -1123,6 +1140,12 @@ class MujocoModel:
     model : mujoco.MjModel, MujocoPlant or None
         The model (copied: the filter never touches the plant's); default the system's shipped
         MJCF. A deliberately wrong copy models a parameter error.
+    model_fields : mapping, optional
+        Values written into the filter's copy of the model, ``"field[element]"`` (the fields of
+        :data:`hgo_mj.plants.fields.FIELDS`, ``"body_inertia[body]"`` three moments) or the
+        system's aliases -> value: a wrong model without writing an MJCF (the benchmark's
+        mismatch tier). With the shipped MJCF, the model (after these) must hold the system's
+        parameters, or the filter is refused: ``system_params`` alone do not reach the MJCF.
     estimate : sequence of str
         Parameters to estimate, each a model field ``"tendon_stiffness[spring]"``,
         ``"actuator_gear[torque]"``, ``"dof_damping[joint]"``, ``"dof_armature[joint]"``,
@@ -1147,7 +1170,8 @@ class MujocoModel:
     vectorized = False
 
     def __init__(self, system: System, model: Any = None, estimate: Sequence[str] = (),
-                 jacobian: str = "transition_fd") -> None:
+                 jacobian: str = "transition_fd",
+                 model_fields: Mapping[str, Any] | None = None) -> None:
         from ..plants.mujoco import MujocoPlant
 
         if not isinstance(system, System):
@@ -1155,6 +1179,7 @@ class MujocoModel:
         if system.model_file is None:
             raise DesignError(f"{type(system).__name__} is not a MuJoCo system (model_file is None); "
                               f"use the System-based filter")
+        shipped = model is None
         if model is None:
             model = type(system).load_model()
         elif isinstance(model, MujocoPlant):
@@ -1167,6 +1192,10 @@ class MujocoModel:
         self.jacobian_kind = jacobian
         self.system = system
         m = copy.deepcopy(model)
+        if model_fields:
+            set_fields(m, model_fields, _kalman_fields(system))
+        if shipped:
+            _check_model_matches(system, m, estimate)
         self.m = m
         self.d = mujoco.MjData(m)
         self.ts = float(m.opt.timestep)
@@ -1228,36 +1257,16 @@ class MujocoModel:
             self._down = g / np.linalg.norm(g)
 
     def _resolve(self, spec: str, name: str, aliases: dict[str, str]) -> tuple[str, int]:
-        m = self.m
-        if spec == "opt.gravity":
-            if not np.linalg.norm(m.opt.gravity) > 0:
-                raise DesignError("estimating g needs a model with gravity")
-            return ("gravity", 0)
-        mt = re.fullmatch(r"(\w+)\[(\w+)\]", spec)
-        if mt is None or mt.group(1) not in _FIELDS:
-            raise DesignError(f"cannot estimate {name!r}: give a model field "
-                              f"{sorted(_FIELDS)}[element name] or 'opt.gravity', or one of the "
-                              f"aliases {sorted(aliases)}; found {spec!r}")
-        field, elem = mt.group(1), mt.group(2)
-        i = mujoco.mj_name2id(m, _FIELDS[field], elem)
-        if i < 0:
-            raise DesignError(f"cannot estimate {name!r}: the model has no "
-                              f"{_FIELDS[field].name[6:].lower()} named {elem!r}")
-        if field in ("dof_damping", "dof_armature"):
-            i = int(m.jnt_dofadr[i])
-        return (field, int(i))
+        field, i = resolve(self.m, spec, f"cannot estimate {name!r} (or one of the aliases "
+                                         f"{sorted(aliases)})")
+        if field in VECTOR:
+            raise DesignError(f"cannot estimate {name!r}: {field} holds a vector per element; "
+                              f"estimate a scalar field")
+        return field, i
 
     # --------------------------------------------------------------------- parameters
     def get_params(self) -> Array:
-        out = np.zeros(self.q)
-        for j, (field, i) in enumerate(self._specs):
-            if field == "gravity":
-                out[j] = float(np.linalg.norm(self.m.opt.gravity))
-            elif field == "actuator_gear":
-                out[j] = float(self.m.actuator_gear[i, 0])
-            else:
-                out[j] = float(getattr(self.m, field)[i])
-        return out
+        return np.array([get_field(self.m, field, i) for field, i in self._specs], dtype=float)
 
     def _set_params(self, th: Array, twin: bool = False) -> None:
         """Write the parameter values into the stepping model (and the Jacobian twin); each
@@ -1269,13 +1278,11 @@ class MujocoModel:
                 continue
             self._last[slot] = key
             for (field, i), v in zip(self._specs, key):
-                if field == "gravity":
+                if field == "gravity":  # along the model's own direction, even through g = 0
                     g = self._down * v  # type: ignore[operator]
                     mm.opt.gravity[0], mm.opt.gravity[1], mm.opt.gravity[2] = g[0], g[1], g[2]
-                elif field == "actuator_gear":
-                    mm.actuator_gear[i, 0] = v
                 else:
-                    getattr(mm, field)[i] = v
+                    set_field(mm, field, i, v)
 
     def _load(self, d: Any, x: Array, u: Array) -> None:
         """Put the row ``x`` and input ``u`` into ``d`` (time 0, no warm start)."""
@@ -1447,7 +1454,9 @@ class _KalmanFilter(Observer):
                  Q: Any = 1e-4, Q_theta: Any = 1e-6, R: Any = None, sensor: Any = None,
                  P0: Any = 1.0, P0_theta: Any = 1.0, x_hat0: Any = None, theta_hat0: Any = None,
                  outputs: Any = None, method: str = "rk4", substeps: int = 1,
-                 jacobian: str = "auto", model: Any = None, on_unstable: str = "raise") -> None:
+                 jacobian: str = "auto", model: Any = None,
+                 model_fields: Mapping[str, Any] | None = None,
+                 on_unstable: str = "raise") -> None:
         if system is None or not isinstance(system, System):
             raise DesignError(f"{type(self).__name__} needs a System; found "
                               f"{type(system).__name__}")
@@ -1456,10 +1465,11 @@ class _KalmanFilter(Observer):
         self.model: SystemModel | MujocoModel
         if self.backend == "mujoco":
             jac = "transition_fd" if jacobian == "auto" else jacobian
-            self.model = MujocoModel(system, model, estimate, jac)
+            self.model = MujocoModel(system, model, estimate, jac, model_fields)
         else:
-            if model is not None:
-                raise DesignError("model= is for the MuJoCo filters (ekf_mujoco, ukf_mujoco)")
+            if model is not None or model_fields is not None:
+                raise DesignError("model= and model_fields= are for the MuJoCo filters "
+                                  "(ekf_mujoco, ukf_mujoco); give system_params= instead")
             self.model = SystemModel(system, estimate, jacobian)
         mdl = self.model
         n_out = len(system.output_names)
@@ -1705,6 +1715,11 @@ class _KalmanFilter(Observer):
     def _predict(self, t: _Tuning, s: State, U: Array, h: float, Qh: Array) -> None:
         """The time update of every member of ``s`` over one substep ``h`` (filter-specific)."""
         raise NotImplementedError
+
+    def covariance(self, state: State) -> Array:
+        """The covariance ``P`` of the estimate of the plant's states, ``(B, n, n)`` (the
+        block of ``P`` without the estimated parameters' rows and columns)."""
+        return state.P[:, :self.n, :self.n].copy()
 
     def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         x = s.x
@@ -2019,6 +2034,9 @@ class MujocoExtendedKalmanFilter(ExtendedKalmanFilter):
     model : mujoco.MjModel, MujocoPlant or None
         The model (copied: the filter never touches the plant's); default the system's
         shipped MJCF. A deliberately wrong copy models a parameter error.
+    model_fields : mapping, optional
+        Values written into the filter's copy of the model (:class:`MujocoModel`), e.g.
+        ``{"body_mass[pole]": 0.275, "dof_damping[hinge]": 0.011}``.
     estimate : sequence of str
         Parameters to estimate, each a model field ``"tendon_stiffness[spring]"``,
         ``"actuator_gear[torque]"``, ``"dof_damping[joint]"``, ``"dof_armature[joint]"``,
@@ -2056,7 +2074,7 @@ class MujocoUnscentedKalmanFilter(UnscentedKalmanFilter):
 
     Parameters
     ----------
-    system, model, estimate, jacobian
+    system, model, model_fields, estimate, jacobian
         As :class:`MujocoExtendedKalmanFilter` (``jacobian`` is not used).
     alpha, beta, kappa
         As :class:`UnscentedKalmanFilter`.

@@ -110,6 +110,10 @@ class MujocoPlant(Plant):
     nthread : int, optional
         Threads of the batched rollout (``mujoco.rollout.Rollout``); default
         ``min(2, os.cpu_count())``.
+    model_fields : mapping, optional
+        Values written into the compiled model before anything else, ``"field[element]"`` ->
+        value (:mod:`hgo_mj.plants.fields`), e.g. ``{"dof_frictionloss[hinge]": 0.02}``: Coulomb
+        friction the system's equations (and so the observers' model) do not have.
 
     Notes
     -----
@@ -129,12 +133,16 @@ class MujocoPlant(Plant):
 
     def __init__(self, system: type[System], dt: float = 0.001, *, physics_dt: float | None = None,
                  outputs: Any = None, model_file: str | Path | None = None,
-                 nthread: int | None = None) -> None:
+                 nthread: int | None = None, model_fields: Any = None) -> None:
         if system.model_file is None:
             raise DesignError(f"{system.__name__} is not a MuJoCo system; use OdePlant")
         path = Path(model_file) if model_file is not None else Path(system.model_file)
         self.model = (mujoco.MjModel.from_xml_path(str(path)) if model_file is not None
                       else system.load_model())
+        if model_fields:
+            from .fields import set_fields
+
+            set_fields(self.model, model_fields)
         if physics_dt is not None:
             self.model.opt.timestep = finite_scalar("physics_dt", physics_dt, positive=True)
         self.physics_dt = float(self.model.opt.timestep)

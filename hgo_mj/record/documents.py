@@ -105,7 +105,8 @@ def scenario_properties(metadata: Mapping[str, Any]) -> dict[str, str]:
             for k in _PROPERTY_KEYS if k in metadata}
 
 
-def metrics_document(metrics: Mapping[str, Mapping[str, Any]]) -> str:
+def metrics_document(metrics: Mapping[str, Mapping[str, Any]],
+                     units: Mapping[str, str] | None = None) -> str:
     """The ``/metrics`` document of a run: :func:`hgo_mj.metrics.format_table`, then JSON.
 
     Parameters
@@ -113,6 +114,8 @@ def metrics_document(metrics: Mapping[str, Mapping[str, Any]]) -> str:
     metrics : mapping observer -> mapping
         As :func:`hgo_mj.metrics.all_metrics` returns them (keys ``states``, ``rmse``,
         ``peak``, ``settling_time``, ``final``, ``update_time``, ...).
+    units : mapping of str to str, optional
+        ``{state: unit}`` for the table's unit column.
 
     Returns
     -------
@@ -125,9 +128,9 @@ def metrics_document(metrics: Mapping[str, Mapping[str, Any]]) -> str:
     >>> m = {"hgo": {"states": ["angle"], "estimated": [True], "rmse": [0.1],
     ...              "peak": [float("nan")], "settling_time": [1.0], "final": [0.01],
     ...              "update_time": 2e-6}}
-    >>> doc = metrics_document(m)
+    >>> doc = metrics_document(m, {"angle": "rad"})
     >>> print(doc.splitlines()[6])
-    hgo              angle                      0.1         nan          1        0.01          2
+    hgo      angle rad    0.1   nan   0.01           1            2
     >>> import json
     >>> json.loads(doc.split("```json")[1].split("```")[0])["hgo"]["peak"]
     [None]
@@ -136,7 +139,7 @@ def metrics_document(metrics: Mapping[str, Mapping[str, Any]]) -> str:
 
     table = {str(k): dict(v) for k, v in metrics.items()}
     return ("# Metrics\n\nerror e = x - x_hat per observer and state\n\n```\n"
-            + format_table(table) + "\n```\n\n```json\n"
+            + format_table(table, dict(units or {})) + "\n```\n\n```json\n"
             + json.dumps(strict_json(table), indent=2, default=float) + "\n```\n")
 
 

@@ -383,9 +383,9 @@ class Recorder:
         ...                                  "update_time": 2e-6}})
         ...     doc = read(Path(tmp) / "run.rrd").attrs["static"]["/metrics"]
         >>> print(doc["TextDocument:text"][0].splitlines()[6])
-        k40              angle                      0.1         0.5          1        0.01          2
+        k40      angle ?      0.1   0.5   0.01           1            2
         """
-        self._sink.document("/metrics", documents.metrics_document(metrics))
+        self._sink.document("/metrics", documents.metrics_document(metrics, self.units))
 
     def log_episode_metrics(self, episodes: Sequence[Mapping[str, Any]]) -> None:
         """Log the metrics of an environment's episodes as ``/metrics``

@@ -7,8 +7,8 @@ showing its progress on stderr unless ``quiet`` (:class:`hgo_mj.progress.Progres
 part or run); ``hgo-mj reproduce`` prints ``report.txt``. Its test asserts the summary's
 numbers against the paper within stated tolerances.
 
-Recording (``hgo-mj reproduce NAME --rrd [FILE]``): the command passes ``rrd=Path`` (default
-``OUT/NAME.rrd``) only when asked, and refuses a reproduction whose ``run`` has no ``rrd``
+Recording (``hgo-mj reproduce NAME --rrd FILE.rrd``): the command passes ``rrd=Path`` only
+when asked, and refuses a reproduction whose ``run`` has no ``rrd``
 parameter. With ``rrd`` given, ``run`` writes its main simulation(s) to that one file and
 leaves it closed, e.g. ``hgo_mj.record.record_trajectory(traj, rrd)`` for one trajectory, or
 for several runs ``with Recorder.for_trajectory(rrd, traj_a) as rec:
@@ -40,6 +40,23 @@ import numpy as np
 from .._io import write_text
 from .._json import write_json
 from ..exceptions import DesignError
+
+#: the papers hgo_mj implements, cited as "paper NNN" by the plants, observers and
+#: reproductions (``hgo-mj list`` prints them): number -> authors (year), title, venue
+PAPERS: dict[str, str] = {
+    "000": "E. Bullinger, A. Ilchmann, F. Allgöwer (1998), A simple adaptive observer for "
+           "nonlinear systems, 4th IFAC Symposium on Nonlinear Control Systems Design "
+           "(NOLCOS '98), Enschede, vol. 2, pp. 781-786",
+    "001": "G. Besançon, Q. Zhang, H. Hammouri (2004), High-gain observer based state and "
+           "parameter estimation in nonlinear systems, IFAC Symposium on Nonlinear Control "
+           "Systems (NOLCOS 2004)",
+    "002": "G. Bastin, M. Gevers (1988), Stable adaptive observers for nonlinear time-varying "
+           "systems, IEEE Transactions on Automatic Control 33(7) (presented at Lund, 1986)",
+    "003": "N.-H. Jo, Y.-I. Son (2004), Adaptive observer design for nonlinear systems using "
+           "generalized nonlinear observer canonical form, KSME International Journal 18(7)",
+    "004": "S. Ibrir (2007), On observer design for nonlinear systems, International Journal "
+           "of Control",
+}
 
 #: name -> (module, one line)
 REPRODUCTIONS: dict[str, tuple[str, str]] = {
@@ -202,4 +219,4 @@ def run_reproduction(name: str, out: str | Path, **kw: Any) -> dict[str, Any]:
     return module.run(Path(out), **kw)  # each run creates out, after checking what it needs
 
 
-__all__ = ["REPRODUCTIONS", "read_summary", "run_reproduction"]
+__all__ = ["PAPERS", "REPRODUCTIONS", "read_summary", "run_reproduction"]

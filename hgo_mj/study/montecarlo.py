@@ -41,7 +41,6 @@ import numpy as np
 from .._json import strict_json
 from .._validate import positive_int
 from ..exceptions import DesignError, DivergenceError
-from ..metrics import _cell
 
 #: the metrics aggregated with mean, std, min, median, max
 SPREAD_METRICS = ("rmse", "peak", "final")
@@ -266,9 +265,16 @@ class MonteCarloResult:
             "aggregate": self.aggregate,
             "failed": [{"seed": s, "error": e} for s, e in self.failed.items()]})
 
-    def table(self) -> str:
+    def table(self, units: Mapping[str, str] | None = None, time_unit: str | None = "s") -> str:
         """The aggregate as a plain-text table (:func:`format_mc_table`), and the runs that
         diverged.
+
+        Parameters
+        ----------
+        units : mapping of str to str, optional
+            ``{state: unit}`` (:func:`hgo_mj.units.units_of`).
+        time_unit : str or None, default "s"
+            The runs' time unit.
 
         Returns
         -------
@@ -288,12 +294,12 @@ class MonteCarloResult:
         >>> done, runs, _ = run_seeds(make_run, [1, 2])
         >>> print(MonteCarloResult.from_runs(done, runs, {7: "seed 7: diverged"}).table())
         2 run(s) per observer
-        observer  state  rmse mean ± std  rmse med  rmse max  peak med  settled  settle med[s]
-        hgo       angle  ...
-        hgo       angular_velocity  ...
+        observer state            unit  rmse mean  rmse std  rmse med ...
+        hgo      angle            ? ...
+        hgo      angular_velocity ? ...
         1 of 3 run(s) diverged and are left out of the statistics: seeds [7]
         """
-        text = format_mc_table(self.aggregate)
+        text = format_mc_table(self.aggregate, units, time_unit)
         if self.failed:
             total = len(self.seeds) + len(self.failed)
             text += (f"\n{len(self.failed)} of {total} run(s) diverged and are left out of the "
@@ -522,15 +528,21 @@ def run_seeds(make_run: Callable[[], Mapping[str, Any]], seeds: Iterable[int], *
     return [s for s, _ in done], [r for _, r in done], failed
 
 
-def format_mc_table(agg: Mapping[str, Mapping[str, Any]]) -> str:
-    """A plain-text table, one row per observer and state: RMSE mean ± std, median and max,
-    the median peak error, the fraction of runs that settled and their median settling time
-    (``-``: not estimated).
+def format_mc_table(agg: Mapping[str, Mapping[str, Any]], units: Mapping[str, str] | None = None,
+                    time_unit: str | None = "s") -> str:
+    """A plain-text table, one row per observer and state: RMSE mean, std, median and max,
+    the median peak error (in the state's unit), the fraction of runs that settled and their
+    median settling time (``-``: not estimated); columns sized to their longest cell
+    (:func:`hgo_mj.metrics.text_table`).
 
     Parameters
     ----------
     agg : mapping
         Per observer, :func:`aggregate`'s statistics.
+    units : mapping of str to str, optional
+        ``{state: unit}`` (:func:`hgo_mj.units.units_of`); ``?`` where not known.
+    time_unit : str or None, default "s"
+        The runs' time unit (``""``: dimensionless, ``None``: not known).
 
     Returns
     -------
@@ -549,30 +561,37 @@ def format_mc_table(agg: Mapping[str, Mapping[str, Any]]) -> str:
     ...             "observers": {"hgo": HighGainObserver(plant.system, k=20.0)},
     ...             "inputs": lambda t: [0.0], "duration": 0.2, "x0": [0.5, 0.0]}
     >>> _, runs, _ = run_seeds(make_run, [1, 2])
-    >>> print(format_mc_table(aggregate(runs)))
+    >>> print(format_mc_table(aggregate(runs), {"angle": "rad"}))
     2 run(s) per observer
-    observer  state  rmse mean ± std  rmse med  rmse max  peak med  settled  settle med[s]
-    hgo       angle  ...
-    hgo       angular_velocity  ...
+    observer state            unit  rmse mean  rmse std  rmse med  rmse max  peak med  settled  settle med [s]
+    hgo      angle            rad ...
+    hgo      angular_velocity ?   ...
     """
+    import pandas as pd
+
+    from ..metrics import text_table
+    from ..units import bracket
+
+    units = units or {}
     n = max((a["runs"] for a in agg.values()), default=0)
-    lines = [f"{n} run(s) per observer",
-             f"{'observer':<16} {'state':<18} {'rmse mean ± std':>23} {'rmse med':>10} "
-             f"{'rmse max':>10} {'peak med':>10} {'settled':>8} {'settle med[s]':>13}"]
-    missing = False
+    settle = f"settle med {bracket(time_unit)}"
+    rows, missing = [], False
     for name, a in agg.items():
         for i, s in enumerate(a["states"]):
             r, st = a["rmse"], a["settling_time"]
-            if r["mean"][i] is None:
-                missing = True
-                ms = f"{'-':>23}"
-                frac = f"{'-':>8}"
-            else:
-                ms = f"{r['mean'][i]:>10.4g} ± {r['std'][i]:<10.3g}"
-                frac = f"{st['settled_fraction'][i]:>8.0%}"
-            lines.append(f"{name:<16} {s:<18} {ms} {_cell(r['median'][i], 10)} "
-                         f"{_cell(r['max'][i], 10)} {_cell(a['peak']['median'][i], 10)} "
-                         f"{frac} {_cell(st['median'][i], 13)}")
+            missing |= r["mean"][i] is None
+
+            rows.append({"observer": name, "state": s, "unit": units.get(s, "?") or "-",
+                         "rmse mean": r["mean"][i], "rmse std": r["std"][i],
+                         "rmse med": r["median"][i], "rmse max": r["max"][i],
+                         "peak med": a["peak"]["median"][i],
+                         "settled": ("-" if st["settled_fraction"][i] is None
+                                     else f"{st['settled_fraction'][i]:.0%}"),
+                         settle: st["median"][i]})
+    frame = pd.DataFrame(rows, columns=["observer", "state", "unit", "rmse mean", "rmse std",
+                                        "rmse med", "rmse max", "peak med", "settled", settle],
+                         dtype=object)
+    lines = [f"{n} run(s) per observer", text_table(frame, ["observer", "state", "unit"])]
     if missing:
         lines.append("- : not estimated (the observer has no estimate of that plant state)")
     return "\n".join(lines)

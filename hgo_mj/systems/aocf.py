@@ -159,6 +159,15 @@ def _names(name: str, value: Sequence[str] | None, count: int, default: Sequence
 _UNDEFINED = (DesignError, ZeroDivisionError, FloatingPointError)
 
 
+def _start(start: Any, n: int, m: int) -> tuple[Array, Array] | None:
+    """An AOCF's ``start``: None, or the pair ``(x (n,), theta (m,))`` checked."""
+    if start is None:
+        return None
+    if not isinstance(start, tuple) or len(start) != 2:
+        raise DesignError(f"start must be a pair (x_hat0 (n,), theta_hat0 (m,)); found {start!r}")
+    return vector("start[0] (x_hat0)", start[0], n), vector("start[1] (theta_hat0)", start[1], m)
+
+
 class AOCF(Rebuildable):
     """Adaptive observer canonical form of paper 002, eq. 2.2-2.3.
 
@@ -209,6 +218,10 @@ class AOCF(Rebuildable):
         where :math:`\\theta` is constant (a reference for tests and reproductions).
     inverse_domain : str
         Where the inverse map exists, for the message of a start outside it.
+    start : (array_like (n,), array_like (m,)), optional
+        The default initial estimate ``(x_hat0, theta_hat0)`` in AOCF coordinates of an
+        observer given none, inside the inverse map's domain (default: zero, which a form
+        whose inverse needs a non-zero parameter, such as the bioreactor's eq. 6.6, cannot use).
 
     Raises
     ------
@@ -248,7 +261,8 @@ class AOCF(Rebuildable):
                  from_physical: Callable[..., Any] | None = None,
                  state_names: Sequence[str] | None = None,
                  physical_param_names: Sequence[str] = (), label: str = "AOCF",
-                 rows: bool = False, theta_true: Any = None, inverse_domain: str = "") -> None:
+                 rows: bool = False, theta_true: Any = None, inverse_domain: str = "",
+                 start: Any = None) -> None:
         R = np.array(R, dtype=float)
         if R.ndim != 2 or R.shape[0] != R.shape[1] or R.shape[0] < 1:
             raise DimensionError(f"R must be a square n x n matrix (eq. 2.3); found shape {R.shape}")
@@ -297,6 +311,8 @@ class AOCF(Rebuildable):
         self.label = str(label)
         self.theta_true = None if theta_true is None else vector("theta_true", theta_true, m)
         self.inverse_domain = str(inverse_domain)
+        #: the default initial estimate (x, theta), or None (zero)
+        self.start = _start(start, n, m)
 
     @property
     def has_inverse(self) -> bool:

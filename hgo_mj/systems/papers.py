@@ -248,7 +248,7 @@ class BioreactorBullinger(System):
     name: ClassVar[str] = "bioreactor_bullinger"
     summary: ClassVar[str] = "Bioreactor m, s with growth a1 m s/(a2 m + s), y = m (paper 000, eq. 15)"
     reference: ClassVar[str] = ("Bullinger, Ilchmann, Allgöwer, NOLCOS 1998 "
-                                "(000_76f8d44710f783d2.txt), eq. 15 (model), eq. 16 (normal form)")
+                                "(paper 000), eq. 15 (model), eq. 16 (normal form)")
     state_names: ClassVar[tuple[str, ...]] = ("m", "s")
     #: concentrations; the paper states no unit for them ("conc."), time in hours
     state_units: ClassVar[tuple[str, ...]] = ("conc.", "conc.")
@@ -564,7 +564,7 @@ class BioreactorBastinGevers(System):
     name: ClassVar[str] = "bioreactor_bastin_gevers"
     summary: ClassVar[str] = ("CSTR substrate/biomass with yield and maintenance, y = substrate "
                               "(paper 002, eq. 6.1)")
-    reference: ClassVar[str] = ("Bastin, Gevers 1986/88 (002_7adafa82055be9d3.txt), eq. 6.1 "
+    reference: ClassVar[str] = ("Bastin, Gevers 1986/88 (paper 002), eq. 6.1 "
                                 "(dilution -z1 restored), 6.2-6.3, AOCF 6.4-6.5, inverse 6.6 "
                                 "(sign of 6.6b corrected)")
     state_names: ClassVar[tuple[str, ...]] = ("z1", "z2")
@@ -790,6 +790,11 @@ class BioreactorBastinGevers(System):
         parameters ``p1``, ``p2``, ``p3`` and the specific growth rate ``p0 = p1 z1``; it is NaN
         where it does not exist. The forward map is 6.4b with :math:`p_3 = -\\theta_3`.
 
+        The form's ``start`` (an observer's default initial estimate) is the nominal model at
+        the default state, eq. 6.4 at ``default_x0`` with this system's parameters: the zero
+        estimate lies outside the domain of 6.6 (:math:`\\theta_3 = -p_3 \\ne 0` and
+        :math:`z_2 \\ne 0` are needed), a nominal one inside it.
+
         References
         ----------
         Paper 002, eq. 6.4 (map), 6.5 (AOCF), 6.6 (inverse).
@@ -853,7 +858,8 @@ class BioreactorBastinGevers(System):
                     physical_param_names=("p1", "p2", "p3", "p0"), rows=True,
                     label=f"{type(self).__name__} eq. 6.5, c2={c2v:g}",
                     inverse_domain="theta3 = -p3 != 0, z2 != 0 and (c2 - 2) - theta1 != 0, "
-                                   "eq. 6.6"
+                                   "eq. 6.6",
+                    start=self.to_aocf(self.default_x0, c2v)
                     )._made_by(system_form, self, "aocf", c2=c2)
 
 
@@ -1065,7 +1071,7 @@ class BesanconExample1(System):
     name: ClassVar[str] = "besancon_ex1"
     summary: ClassVar[str] = ("x1' = x2 + u, x2' = -x1 - 2 sin x2 + atan(x2) th1 + cos(x1 x2) th2 "
                               "(paper 001, sec. 4)")
-    reference: ClassVar[str] = ("Besançon, Zhang, Hammouri, IFAC 2004 (001_fa1af3b6b9a222a1.txt), "
+    reference: ClassVar[str] = ("Besançon, Zhang, Hammouri, NOLCOS 2004 (paper 001), "
                                 "section 4 first example, form eq. 9")
     state_names: ClassVar[tuple[str, ...]] = ("x1", "x2")
     #: a mathematical example: dimensionless states and time (the paper states no units)
@@ -1245,7 +1251,7 @@ class BesanconExample2(System):
     name: ClassVar[str] = "besancon_ex2"
     summary: ClassVar[str] = ("y'' = sin(y y') + cos(y y') th1 + u' u^2 th2 with outputs (y, u) "
                               "(paper 001, sec. 4)")
-    reference: ClassVar[str] = ("Besançon, Zhang, Hammouri, IFAC 2004 (001_fa1af3b6b9a222a1.txt), "
+    reference: ClassVar[str] = ("Besançon, Zhang, Hammouri, NOLCOS 2004 (paper 001), "
                                 "section 4 second example, form eq. 6 / 21")
     state_names: ClassVar[tuple[str, ...]] = ("y", "y_dot", "u", "u_dot")
     #: a mathematical example: dimensionless states and time (the paper states no units)
@@ -1499,7 +1505,7 @@ class JoSonExample(System):
 
     name: ClassVar[str] = "jo_son"
     summary: ClassVar[str] = "Not-observable 3-state system with unknown theta (paper 003, eq. 28)"
-    reference: ClassVar[str] = ("Jo, Son, KSME Int. J. 2004 (003_bd61d49996cbe973.txt), eq. 28 "
+    reference: ClassVar[str] = ("Jo, Son, KSME Int. J. 2004 (paper 003), eq. 28 "
                                 "(system), eq. 30 (transformation), eq. 31 (canonical form)")
     state_names: ClassVar[tuple[str, ...]] = ("x1", "x2", "x3")
     #: a mathematical example: dimensionless states; time in seconds ("after approximately

@@ -11,6 +11,10 @@ Without ground truth (what a user has on a real rig):
 
 * ``output_error``: the RMS output prediction error after the transient (output units),
   :meth:`hgo_mj.observers.Observer.predicted_output` against the next measurement;
+* ``whiteness``: how far those errors (a filter's innovations) are from white, the Box-Pierce
+  statistic over 10 lags divided by 10 (about 1 for white errors; an observer too slow leaves
+  its errors positively correlated, one too fast, chasing the noise, negatively): on its own
+  or weighted beside ``output_error`` (:mod:`hgo_mj.tune.scoring`);
 * ``nis``: ``|log(mean NIS / p)|``, how far a filter's mean normalized innovation squared is
   from its expected value ``p`` (the number of measured outputs; Bar-Shalom, Li and
   Kirubarajan, *Estimation with Applications to Tracking and Navigation*, sec. 5.4.2): zero for
@@ -37,7 +41,7 @@ Array = NDArray[np.float64]
 __all__ = ["AGGREGATES", "NO_TRUTH", "OBJECTIVES", "TRUTH", "Objective", "objective_values"]
 
 TRUTH = ("rmse", "peak", "settling")
-NO_TRUTH = ("output_error", "nis")
+NO_TRUTH = ("output_error", "whiteness", "nis")
 OBJECTIVES = TRUTH + NO_TRUTH
 AGGREGATES = ("mean", "worst")
 
@@ -120,7 +124,7 @@ def member_scores(s: Setup, sc: Scores) -> dict[str, Array]:
         peak = np.mean(sc.peak / s.ranges, axis=2)
         nis = np.abs(np.log(sc.nis / s.n_outputs))
     return {"rmse": rmse, "peak": peak, "settling": np.max(sc.settling, axis=2),
-            "output_error": sc.output_error, "nis": nis}
+            "output_error": sc.output_error, "whiteness": sc.whiteness, "nis": nis}
 
 
 def objective_values(objective: Objective, s: Setup, rounds: Sequence[Scores],

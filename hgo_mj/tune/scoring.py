@@ -18,8 +18,22 @@ What each member gives (:class:`Scores`):
   its peak and its settling time into a band of 5 % of the state's range;
 * without ground truth, what a user has on a rig: the output prediction error, the RMS over
   the samples after the transient of ``y_k - y_hat_k`` where ``y_hat_k`` is the output the
-  estimate *before* ``y_k`` predicts (:meth:`hgo_mj.observers.Observer.predicted_output`), and,
-  for a filter that reports it (a diagnostic ``nis``), the mean normalized innovation squared.
+  estimate *before* ``y_k`` predicts (:meth:`hgo_mj.observers.Observer.predicted_output`); the
+  **whiteness** of those errors (the innovations of a filter), the Box-Pierce statistic
+  :math:`Q = n \\sum_{l=1}^{L} \\hat\\rho_l^2` over :data:`WHITENESS_LAGS` lags divided by
+  :math:`L`, the mean over the channels (about 1 for white errors, :math:`Q \\sim \\chi^2_L`;
+  Box and Pierce, *J. Amer. Statist. Assoc.* 65, 1970; a correlated sequence, as an observer
+  too slow or too fast leaves, scores higher: the innovations of an optimal filter are white,
+  Mehra, *IEEE TAC* 15, 1970); and,
+  for a filter that reports it (a diagnostic ``nis``), the mean normalized innovation squared
+  and the fraction of samples inside its chi-square 95 % band.
+
+A filter that keeps a covariance of its estimate (:meth:`hgo_mj.observers.Observer.covariance`)
+also gets, with ground truth and ``consistency=True`` (the benchmark), its NEES
+(:func:`hgo_mj.metrics.nees`, every estimated plant state): the covariance is read between
+segments, so such an observer's run is cut into about
+:data:`NEES_POINTS` segments and the NEES is the mean over those instants after the transient
+(instants far apart, so nearly independent), with the fraction inside the chi-square 95 % band.
 
 A member whose observer fails (an exception in its update) or whose estimate leaves the finite
 numbers scores ``inf``; the trials of a round that fails are split in halves until each failing
@@ -31,7 +45,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -39,12 +53,18 @@ from numpy.typing import NDArray
 
 from ..exceptions import DesignError
 from ..loop import Drive, Loop, LoopFailure, Periods
+from ..metrics import chi2_band, nees
 from ..observers.base import Observer
 from ..study.engine import Metrics, ReplayPlant, plant_rows, segment_length
 
 Array = NDArray[np.float64]
 
-__all__ = ["Scores", "Setup", "evaluate", "setup"]
+__all__ = ["NEES_POINTS", "WHITENESS_LAGS", "Scores", "Setup", "evaluate", "setup"]
+
+#: instants per run at which a filter's NEES is read (its run cut into as many segments)
+NEES_POINTS = 200
+#: lags of the whiteness score (Box-Pierce)
+WHITENESS_LAGS = 10
 
 
 @dataclass
@@ -115,8 +135,19 @@ class Scores:
     output_error : ndarray
         ``(R, S)``: RMS output prediction error after the transient (NaN: the observer
         predicts no output).
+    whiteness : ndarray
+        ``(R, S)``: the Box-Pierce statistic of those errors over its lags, divided by the
+        number of lags (about 1: white; NaN: no output predicted).
     nis : ndarray
         ``(R, S)``: mean normalized innovation squared (NaN: the observer reports none).
+    nis_band : ndarray
+        ``(R, S)``: the fraction of its samples inside the chi-square 95 % band of their
+        number of measured channels (NaN: no NIS).
+    nees : ndarray
+        ``(R, S)``: the mean NEES over the estimated plant states (NaN: the observer keeps no
+        covariance).
+    nees_band : ndarray
+        ``(R, S)``: the fraction of the NEES instants inside the chi-square 95 % band.
     iae : ndarray
         ``(R, S)``: the integral over the first second of the norm of the error normalized by
         each scored state's range (seconds; the transient score of the benchmark).
@@ -143,11 +174,22 @@ class Scores:
     peak: Array
     settling: Array
     output_error: Array
+    whiteness: Array
     nis: Array
+    nis_band: Array
+    nees: Array
+    nees_band: Array
     iae: Array
     peaking: Array
     update_time: Array
     message: list[list[str | None]]
+
+    @classmethod
+    def concat(cls, parts: Sequence[Scores]) -> Scores:
+        """The scores of several rounds' trials as one, in order (the same seeds)."""
+        arrays = {f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                  for f in fields(cls) if f.name != "message"}
+        return cls(**arrays, message=[m for p in parts for m in p.message])
 
 
 def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] | None = None,
@@ -236,13 +278,20 @@ def setup(scenario: Mapping[str, Any], observer: str, *, states: Sequence[str] |
 
 def _with_model(scenario: Mapping[str, Any], observer: str,
                 mismatch: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The scenario with the tuned observer alone, its model's parameters overridden by
-    ``mismatch`` (``system_params`` of its spec)."""
+    """The scenario with the tuned observer alone, its model overridden by ``mismatch``: a
+    parameter name goes to its spec's ``system_params``, a MuJoCo model field
+    (``"body_mass[link1]"``, ``"opt.gravity"``: :mod:`hgo_mj.plants.fields`) to its
+    ``model_fields`` (the MuJoCo filters' copy of the MJCF)."""
     sc = copy.deepcopy(dict(scenario))
     specs = [o for o in sc.get("observers", []) if o.get("name", o.get("type")) == observer]
     if mismatch:
         spec = specs[0]
-        spec["system_params"] = {**(spec.get("system_params") or {}), **dict(mismatch)}
+        fields = {k: v for k, v in mismatch.items() if "[" in k or k.startswith("opt.")}
+        params = {k: v for k, v in mismatch.items() if k not in fields}
+        if params:
+            spec["system_params"] = {**(spec.get("system_params") or {}), **params}
+        if fields:
+            spec["model_fields"] = {**(spec.get("model_fields") or {}), **fields}
     sc["observers"] = specs
     return sc
 
@@ -255,7 +304,7 @@ def _observer(s: Setup, mismatch: Mapping[str, Any] | None) -> Any:
 
 
 def evaluate(s: Setup, trials: Sequence[Mapping[str, Any]], seeds: Sequence[int],
-             mismatch: Mapping[str, Any] | None = None) -> Scores:
+             mismatch: Mapping[str, Any] | None = None, *, consistency: bool = False) -> Scores:
     """Score ``R`` trials (each: parameter values for :meth:`Observer.parameters`, one
     member's values) over ``S`` seeds as one batch of ``R x S`` members (module docstring).
 
@@ -269,6 +318,10 @@ def evaluate(s: Setup, trials: Sequence[Mapping[str, Any]], seeds: Sequence[int]
         The sensor chain's seeds.
     mismatch : mapping, optional
         Parameters of the observer's model that differ from the plant's (``system_params``).
+    consistency : bool
+        Also score the NEES of an observer that keeps a covariance (its run then cut into
+        :data:`NEES_POINTS` segments: slower; the tuner's objectives do not need it, the
+        benchmark's scores do). Otherwise ``nees`` and ``nees_band`` are NaN.
 
     Returns
     -------
@@ -292,21 +345,23 @@ def evaluate(s: Setup, trials: Sequence[Mapping[str, Any]], seeds: Sequence[int]
     """
     R, S = len(trials), len(seeds)
     k = len(s.states)
-    out = Scores(np.full((R, S, k), np.inf), np.full((R, S, k), np.inf),
-                 np.full((R, S, k), np.inf), np.full((R, S), np.inf), np.full((R, S), np.inf),
-                 np.full((R, S), np.inf), np.full((R, S), np.inf), np.full(R, np.nan),
-                 [[None] * S for _ in range(R)])
+    per, nan = (lambda: np.full((R, S, k), np.inf)), (lambda: np.full((R, S), np.nan))
+    out = Scores(per(), per(), per(), np.full((R, S), np.inf), np.full((R, S), np.inf),
+                 np.full((R, S), np.inf), nan(), nan(), nan(), np.full((R, S), np.inf),
+                 np.full((R, S), np.inf),
+                 np.full(R, np.nan), [[None] * S for _ in range(R)])
     if R == 0 or S == 0:
         return out
-    _evaluate(s, list(trials), list(seeds), mismatch, list(range(R)), out)
+    _evaluate(s, list(trials), list(seeds), mismatch, list(range(R)), out, consistency)
     return out
 
 
 def _evaluate(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
-              mismatch: Mapping[str, Any] | None, which: list[int], out: Scores) -> None:
+              mismatch: Mapping[str, Any] | None, which: list[int], out: Scores,
+              consistency: bool) -> None:
     """Score the trials ``which`` as one batch; on a failure, halves (module docstring)."""
     try:
-        _batch(s, [trials[r] for r in which], seeds, mismatch, which, out)
+        _batch(s, [trials[r] for r in which], seeds, mismatch, which, out, consistency)
     except LoopFailure as failure:
         if len(which) == 1:
             msg = (f"observer {s.observer!r} failed in its update at t={failure.t:g} (row "
@@ -315,8 +370,8 @@ def _evaluate(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
                 out.message[which[0]][j] = msg
             return
         half = len(which) // 2
-        _evaluate(s, trials, seeds, mismatch, which[:half], out)
-        _evaluate(s, trials, seeds, mismatch, which[half:], out)
+        _evaluate(s, trials, seeds, mismatch, which[:half], out, consistency)
+        _evaluate(s, trials, seeds, mismatch, which[half:], out, consistency)
 
 
 def _member_values(ob: Observer, trials: list[Mapping[str, Any]], S: int) -> dict[str, Array]:
@@ -334,7 +389,8 @@ def _member_values(ob: Observer, trials: list[Mapping[str, Any]], S: int) -> dic
 
 
 def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
-           mismatch: Mapping[str, Any] | None, which: list[int], out: Scores) -> None:
+           mismatch: Mapping[str, Any] | None, which: list[int], out: Scores,
+           consistency: bool) -> None:
     kw = _observer(s, mismatch)
     name = s.observer
     ob: Observer = kw["observers"][name]
@@ -353,15 +409,17 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
     cols = list(ob.outputs)
     first = int(math.ceil(s.t_transient / Ts - 1e-9))
     sq, n_sq = np.zeros(B), 0
-    nis_col = ob.diagnostic_names.index("nis") if "nis" in ob.diagnostic_names else None
-    nis_sum, nis_n = np.zeros(B), np.zeros(B)
+    white = _Whiteness(B, len(cols))
+    con = _Consistency(s, ob, B, consistency and ob.covariance(loop.states[name]) is not None)
+    cap = min(segment_length(B), max(1, -(-s.N // NEES_POINTS))) if con.nees_on else (
+        segment_length(B))
     pidx = [list(s.plant.state_names).index(st) for st in s.states]
     oidx = [list(ob.state_names).index(st) for st in s.states]
     n_first = int(round(1.0 / Ts))  # the samples of the first second
     iae, peak_e = np.zeros(B), np.zeros(B)
     e0 = None
     while loop.k < s.N:
-        k0, T = loop.k, drive.length(loop.k, s.N, segment_length(B))
+        k0, T = loop.k, drive.length(loop.k, s.N, cap)
         seg = loop.segment(drive.inputs(loop, T))
         blk = seg.blocks[name]
         acc.add(k0, seg.x, prev, blk.x_hat, blk.z_hat)
@@ -382,21 +440,22 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             e = np.where(np.isfinite(seg.y_meas[:, lo:, cols]), e, 0.0)
             sq += np.sum(e * e, axis=(1, 2))
             n_sq += (T - lo) * len(cols)
-        if nis_col is not None and lo < T:  # a sample with every channel lost has no NIS
-            v = blk.diagnostics[:, lo:, nis_col]
-            nis_sum += np.nansum(v, axis=1)
-            nis_n += np.sum(~np.isnan(v), axis=1)
+            white.add(e)
+        if lo < T:
+            con.add_nis(blk.diagnostics[:, lo:], seg.y_meas[:, lo:, cols])
+        if loop.k >= first:  # the estimate of the state at sample loop.k
+            con.add_nees(plant.state, blk.x_hat[:, -1], loop.states[name])
         prev = (blk.x_hat[:, -1].copy(), blk.z_hat[:, -1].copy())
     Xl = np.reshape(plant.state, (B, 1, -1))
     acc.add(s.N, Xl, prev, prev[0][:, None], prev[1][:, None])
     res = acc.result(len(s.plant.state_names), 0.0)
     idx = [list(s.plant.state_names).index(st) for st in s.states]
     oe = np.sqrt(sq / max(n_sq, 1)) if n_sq else np.full(B, np.nan)
+    wh = white.result()
     with np.errstate(divide="ignore", invalid="ignore"):
         peaking = np.where(e0 > 0, peak_e / e0, np.nan) if e0 is not None else np.full(B, np.nan)
     wall = loop.wall[name] / (max(s.N, 1) * B)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        nis = nis_sum / nis_n if nis_col is not None else np.full(B, np.nan)
+    nis, nis_band, nees_m, nees_band = con.result()
     for i, r in enumerate(which):
         rows = slice(i * S, (i + 1) * S)
         bad = acc.bad_row[rows] >= 0
@@ -404,7 +463,11 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             vals = res["settling_time" if key == "settling" else key][rows][:, idx]
             arr[r] = np.where(bad[:, None], np.inf, vals)
         out.output_error[r] = np.where(bad, np.inf, oe[rows])
+        out.whiteness[r] = np.where(bad, np.inf, wh[rows])
         out.nis[r] = np.where(bad, np.inf, nis[rows])
+        out.nis_band[r] = np.where(bad, 0.0, nis_band[rows])
+        out.nees[r] = np.where(bad, np.inf, nees_m[rows])
+        out.nees_band[r] = np.where(bad, 0.0, nees_band[rows])
         out.iae[r] = np.where(bad, np.inf, iae[rows])
         out.peaking[r] = np.where(bad, np.inf, peaking[rows])
         out.update_time[r] = wall
@@ -412,6 +475,88 @@ def _batch(s: Setup, trials: list[Mapping[str, Any]], seeds: list[int],
             if bad[j]:
                 out.message[r][j] = (f"observer {name!r} estimate left the finite numbers at "
                                      f"t={acc.bad_row[rows][j] * Ts:g}")
+
+
+class _Whiteness:
+    """The Box-Pierce statistic of each member's output errors over :data:`WHITENESS_LAGS`
+    lags, accumulated over segments (the last ``L`` errors of one carried into the next)."""
+
+    def __init__(self, B: int, p: int) -> None:
+        L = WHITENESS_LAGS
+        self.tail = np.zeros((B, L, p))  # zeros before the first error: no product
+        self.lag = np.zeros((B, L, p))  # sum_k e_k e_{k-l}, l = 1..L
+        self.s0 = np.zeros((B, p))
+        self.n = 0
+
+    def add(self, e: Array) -> None:
+        """The errors ``e`` ``(B, T, p)`` of the next samples (in order)."""
+        L, T = WHITENESS_LAGS, e.shape[1]
+        ext = np.concatenate([self.tail, e], axis=1)
+        for lag in range(1, L + 1):
+            self.lag[:, lag - 1] += np.einsum("btp,btp->bp", ext[:, L:], ext[:, L - lag:L - lag + T])
+        self.s0 += np.einsum("btp,btp->bp", e, e)
+        self.n += T
+        self.tail = ext[:, -L:]
+
+    def result(self) -> Array:
+        """``(B,)``: ``Q / L``, the mean over the channels (NaN: no error seen)."""
+        if self.n == 0:
+            return np.full(self.s0.shape[0], np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rho = self.lag / self.s0[:, None, :]
+        q = self.n * np.sum(rho * rho, axis=1) / WHITENESS_LAGS  # (B, p)
+        return np.asarray(np.mean(q, axis=1))
+
+
+class _Consistency:
+    """A filter's NIS over the samples after the transient and its NEES at the instants after
+    it, per member, with the shares inside one sample's chi-square 95 % band (module
+    docstring); NaN for an observer without a ``nis`` diagnostic or covariance."""
+
+    def __init__(self, s: Setup, ob: Observer, B: int, nees_on: bool) -> None:
+        self.ob, self.B, self.nees_on = ob, B, nees_on
+        names = ob.diagnostic_names
+        self.nis_col = names.index("nis") if "nis" in names else None
+        self.nis_lo, self.nis_hi = chi2_band(np.arange(len(ob.outputs) + 1.0))  # by channels
+        plant = list(s.plant.state_names)
+        both = [(plant.index(st), j) for j, st in enumerate(ob.state_names) if st in plant]
+        self.pidx, self.oidx = [a for a, _ in both], [b for _, b in both]
+        self.nees_lo, self.nees_hi = chi2_band(len(both))
+        self.sums = np.zeros((4, B))  # nis, nis in band, nees, nees in band
+        self.nis_n, self.nees_n = np.zeros(B), 0
+
+    def add_nis(self, D: Array, Y: Array) -> None:
+        """The diagnostics ``D`` ``(B, T, d)`` of samples ``Y`` ``(B, T, channels)`` (a sample
+        with every channel lost has no NIS; the band is that of the channels present)."""
+        if self.nis_col is None:
+            return
+        v = D[:, :, self.nis_col]
+        dof = np.sum(np.isfinite(Y), axis=2)
+        self.sums[0] += np.nansum(v, axis=1)
+        self.sums[1] += np.sum((v >= self.nis_lo[dof]) & (v <= self.nis_hi[dof]), axis=1)
+        self.nis_n += np.sum(~np.isnan(v), axis=1)
+
+    def add_nees(self, x: Array, x_hat: Array, state: Any) -> None:
+        """The true state ``x`` ``(B, n)`` and the estimate of it ``x_hat`` ``(B, n_x)``,
+        with the covariance of ``state``."""
+        P = self.ob.covariance(state) if self.nees_on else None
+        if P is None:
+            return
+        o = self.oidx
+        v = nees(x[:, self.pidx] - x_hat[:, o], P[:, o][:, :, o])
+        self.sums[2] += v
+        self.sums[3] += (v >= self.nees_lo) & (v <= self.nees_hi)
+        self.nees_n += 1
+
+    def result(self) -> tuple[Array, Array, Array, Array]:
+        """``(nis, nis_band, nees, nees_band)``, each ``(B,)``."""
+        nan = np.full(self.B, np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            nis = (self.sums[0] / self.nis_n, self.sums[1] / self.nis_n) if (
+                self.nis_col is not None) else (nan, nan)
+            ne = (self.sums[2] / self.nees_n, self.sums[3] / self.nees_n) if (
+                self.nees_on and self.nees_n) else (nan, nan)
+        return nis[0], nis[1], ne[0], ne[1]
 
 
 def _full_ranges(s: Setup) -> Array:

@@ -262,15 +262,18 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
         Bounds of the search variables (:func:`check_space`); default the family's space.
     objective : str, list or mapping
         The score(s) to minimize (:class:`~hgo_mj.tune.objectives.Objective`): ``"rmse"``,
-        ``"peak"``, ``"settling"`` (ground truth), ``"output_error"``, ``"nis"`` (no truth);
+        ``"peak"``, ``"settling"`` (ground truth), ``"output_error"``, ``"whiteness"``,
+        ``"nis"`` (no truth);
         a list is a multi-objective search (a Pareto front), a mapping a weighted sum.
     budget : int
         Trials in all (the default's included), >= 2.
     seeds : int or list of int
         The tuning seeds of the sensor chain (a count: 1 .. N).
     mismatch : mapping or list of mappings, optional
-        Parameters of the observer's model (its ``system_params``), one table per model the
-        objective is aggregated over (robust tuning); ``{}`` is the nominal model.
+        Parameters of the observer's model (its ``system_params``; for a MuJoCo filter, model
+        fields ``"body_mass[link1]"`` written into its copy of the MJCF, its
+        ``model_fields``), one table per model the objective is aggregated over (robust
+        tuning); ``{}`` is the nominal model.
     aggregate : {"mean", "worst"}
         Over the seeds and the models.
     states : sequence of str, optional
@@ -335,9 +338,10 @@ def tune(scenario: Mapping[str, Any], observer: str, *, space: Mapping[str, Any]
                           f"{list(built)}")
     ob: Observer = built[observer]
     dims = check_space(ob, space)
-    if not obj.needs_truth and "output_error" in obj.scores and ob.predicted_output(
-            np.zeros((1, len(ob.state_names))), np.zeros((1, ob.n))) is None:
-        raise DesignError(f"objective output_error: observer {ob.name!r} predicts no output")
+    for name in ("output_error", "whiteness"):
+        if name in obj.scores and ob.predicted_output(
+                np.zeros((1, len(ob.state_names))), np.zeros((1, ob.n))) is None:
+            raise DesignError(f"objective {name}: observer {ob.name!r} predicts no output")
     if "nis" in obj.scores and "nis" not in ob.diagnostic_names:
         raise DesignError(f"objective nis: observer {ob.name!r} reports no NIS (a Kalman "
                           f"filter does)")
@@ -501,13 +505,7 @@ def _runner(backend: str, jobs: int, address: str | None) -> Any:
         size = max(1, math.ceil(len(trials) / jobs))
         parts = [list(range(i, min(i + size, len(trials)))) for i in range(0, len(trials), size)]
         refs = [remote.remote(st, [trials[i] for i in p], seeds, mismatch) for p in parts]
-        got = ray.get(refs)
-        def cat(field: str) -> np.ndarray:
-            return np.concatenate([getattr(g, field) for g in got])
-
-        return Scores(cat("rmse"), cat("peak"), cat("settling"), cat("output_error"),
-                      cat("nis"), cat("iae"), cat("peaking"), cat("update_time"),
-                      [m for g in got for m in g.message])
+        return Scores.concat(ray.get(refs))
     return on_ray
 
 
@@ -599,10 +597,10 @@ def _summary(st: Setup, ob: Observer, default: Mapping[str, float], best: Mappin
 def _figures(study: Any, obj: Objective, frame: Any) -> dict[str, Any]:
     """The convergence (each trial's value and the best so far, log scale) and, for several
     objectives, the Pareto front of the first two."""
-    from matplotlib.figure import Figure
+    from ..plotting import new_figure
 
     figs: dict[str, Any] = {}
-    fig = Figure(figsize=(7.0, 4.0), layout="constrained")
+    fig = new_figure((7.0, 4.0), "constrained")
     ax = fig.add_subplot()
     name = obj.names[0]
     vals = frame[name].to_numpy(dtype=float)
@@ -619,7 +617,7 @@ def _figures(study: Any, obj: Objective, frame: Any) -> dict[str, Any]:
     ax.legend()
     figs["convergence"] = fig
     if len(obj.names) > 1:
-        fig2 = Figure(figsize=(5.5, 4.5), layout="constrained")
+        fig2 = new_figure((5.5, 4.5), "constrained")
         ax2 = fig2.add_subplot()
         a, b = obj.names[0], obj.names[1]
         x, y = frame[a].to_numpy(dtype=float), frame[b].to_numpy(dtype=float)

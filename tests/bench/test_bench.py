@@ -9,8 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hgo_mj.bench import TASKS, bench, bootstrap_ci, load_task, preset, task_hash, tasks_of
+from hgo_mj.bench import SUITES, TASKS, bench, bootstrap_ci, load_task, preset, task_hash, tasks_of
 from hgo_mj.bench.scores import leaderboard, score_rows
+from hgo_mj.bench.tasks import SUPERSEDED
 from hgo_mj.cli import main
 from hgo_mj.exceptions import DesignError
 
@@ -48,6 +49,18 @@ FROZEN = {
         "458a9cbc46d8734ca10ed7a529c08524b404babbbffef9005017f707847702e8",
     "cart_pendulum/vision-v1":
         "4cb7dc7529e69c004ab0be168314355c0f5d143b35d5a341c9afa635d126f6ea",
+    "pendulum/encoder-mismatch-v2":
+        "1d3c423607d0b149d29c66428c91dda5e0a8cf4807ee4c01c40a7848c6e2cd19",
+    "elastic_joint/encoder-mismatch-v2":
+        "56e3e8b9b37efd4ba4daa63301bc608be5bf4fcd51c3a4214ef4b8e613493453",
+    "pendulum/encoder-friction-v1":
+        "af9ac561f061bc840c816c24ac0f25468f87bac2a439cbe62a3aca0063e48848",
+    "furuta/encoder-v1":
+        "1a0266b879bb3bfd69040eab179ee368cfa5ef552402c4660c3727cdd8ad80fd",
+    "acrobot/encoder-v1":
+        "1947702885a1cc73d9a686b17a92f886436f29f4f0f79f01e45773d4a77cc5b6",
+    "cart_pole/encoder-v1":
+        "fcfb04733fde4f044ed1961c1d2a7f6f2bf5296bc22241c0a2143415f46d18e3",
 }
 
 
@@ -63,10 +76,43 @@ def test_the_full_suite_spans_the_plants_sensors_and_tiers():
     plants = {t.plant["name"] for t in TASKS.values()}
     assert {"pendulum", "cart_pendulum", "elastic_joint", "elastic_joint_2link",
             "bioreactor_bullinger", "bioreactor_bastin_gevers", "besancon_ex1",
-            "jo_son"} <= plants
+            "jo_son", "furuta", "acrobot", "cart_pole"} <= plants
     assert {t.sensor for t in TASKS.values()} == {"encoder", "mems", "vision", "analog"}
     assert any(t.mismatch for t in TASKS.values())
     assert any(t.sample_period for t in TASKS.values())
+    full = [TASKS[n] for n in SUITES["full"]]
+    assert len(full) >= 16 and not set(SUPERSEDED) & set(SUITES["full"])
+    assert all(SUPERSEDED[n] in SUITES["full"] for n in SUPERSEDED)
+    # the mismatch tier reaches the MJCF filters, the friction tier is in the plant
+    assert all(t.model_fields for t in full if t.mismatch)
+    assert any("dof_frictionloss" in str(t.plant.get("model_fields")) for t in full)
+
+
+def test_a_field_added_later_leaves_the_old_hashes_alone():
+    import dataclasses
+
+    t = TASKS["pendulum/encoder-v1"]
+    assert task_hash(dataclasses.replace(t, model_fields={})) == FROZEN[t.name]
+    assert task_hash(dataclasses.replace(t, model_fields={"dof_damping[hinge]": 0.02})) != (
+        FROZEN[t.name])
+
+
+def test_the_mjcf_filters_get_the_tasks_wrong_model_and_are_refused_without_it():
+    """On the v2 mismatch task the MuJoCo EKF's copy of the MJCF holds the task's wrong
+    values; on v1 (system_params only, which do not reach an MJCF) it is not applicable,
+    with the reason, instead of silently stepping the true model."""
+    from hgo_mj.bench.runner import observer_spec, run_task_observer
+    from hgo_mj.scenario import scenario_run
+
+    t = TASKS["pendulum/encoder-mismatch-v2"]
+    spec = {**observer_spec("ekf_mujoco", "pendulum", "ekf_mujoco"),
+            "system_params": t.mismatch, "model_fields": t.model_fields}
+    ob = scenario_run({**t.scenario(), "observers": [spec]})["observers"]["ekf_mujoco"]
+    m = ob.model.m
+    assert m.body_mass[1] == 0.275 and m.dof_damping[0] == 0.011
+    assert np.allclose(m.body_inertia[1], t.model_fields["body_inertia[pole]"])
+    old = run_task_observer(TASKS["pendulum/encoder-mismatch-v1"], "ekf_mujoco", 2)
+    assert old["status"] == "not applicable" and "do not reach the MJCF" in old["reason"]
 
 
 def test_the_encoder_presets_noise_is_its_quantization_and_noise():
@@ -182,6 +228,8 @@ def test_a_users_observer_and_task_enter_the_leaderboard(tmp_path, monkeypatch, 
     printed = capsys.readouterr().out
     assert "user_obs_mod:Hold" in printed and "mine/encoder-v1" in printed
     board = pd.read_parquet(out / "leaderboard.parquet")
+    assert str(board["rank"].dtype) == "Int64" and board["rmse_norm"].dtype == float
+    assert board["certified_period"].dtype == float and pd.api.types.is_string_dtype(board["task"])
     mine = board[(board["task"] == "mine/encoder-v1") & (board["observer"] == "user_obs_mod:Hold")]
     assert len(mine) == 1 and mine["status"].iloc[0] == "scored"
     scores = pd.read_parquet(out / "scores.parquet")
@@ -207,6 +255,12 @@ def test_the_quick_suite_scores_tuned_observers_better_than_their_defaults():
     sel = r.leaderboard[(r.leaderboard["task"] == "pendulum/encoder-v1")].set_index("observer")
     assert sel.loc["high_gain", "rmse_norm"] < sel.loc["high_gain", "default_rmse_norm"]
     assert (r.leaderboard["task"] == "overall").sum() == 2
+    # consistency: the filter's NIS and NEES with their band shares; none for the HGO
+    kf, hgo = sel.loc["ekf"], sel.loc["high_gain"]
+    assert all(np.isfinite(kf[c]) and kf[c] > 0 for c in ("nis", "nees"))
+    assert all(0.0 <= kf[c] <= 1.0 for c in ("nis_band", "nees_band"))
+    assert all(np.isnan(hgo[c]) for c in ("nis", "nis_band", "nees", "nees_band"))
+    assert r.scores.loc[r.scores["observer"] == "ekf", "nees"].notna().all()
 
 
 @pytest.mark.parametrize("text,match", [

@@ -326,6 +326,29 @@ def test_registry_and_physical_start():
         make_observer("bastin_gevers", sys_, c2=1.0, kk=1)
 
 
+def test_defaults_start_inside_the_inverse_domain_on_its_own_plant(tmp_path):
+    """With no initial estimate the observer starts at its form's ``start``: the bioreactor's
+    nominal model at its default state (eq. 6.4), inside the domain of the inverse 6.6
+    (theta3 != 0, z2 != 0), so that the defaults run on the registered plant, the command line
+    included; an estimate given in part takes the rest from the start."""
+    from hgo_mj.cli import main
+
+    sys_ = BioreactorBastinGevers()
+    x0, th0 = sys_.to_aocf(sys_.default_x0, sys_.default_c2)
+    ob = BastinGeversObserver(sys_)
+    np.testing.assert_allclose(ob.z_hat, x0)
+    np.testing.assert_allclose(ob.theta_hat_, th0)
+    np.testing.assert_allclose(ob.x_hat, sys_.default_x0)
+    s = ob.init(2, z_hat0=[1.0, -0.2])
+    np.testing.assert_allclose(s.S[:, 2:5], [th0, th0])
+    assert make_observer("bastin_gevers", sys_, c2=1.0).form.start[1][0] == pytest.approx(
+        sys_.to_aocf(sys_.default_x0, 1.0)[1][0])
+    assert main(["run", "--plant", "bioreactor_bastin_gevers", "--observer", "bastin_gevers",
+                 "--duration", "2", "--out", str(tmp_path)]) == 0
+    with pytest.raises(DesignError, match=r"start must be a pair"):
+        AOCF([[0.0]], np.ones((1, 1, 1)), lambda y, u: np.array([y]), start=[0.0])
+
+
 # ------------------------------------------------------------------ bad input
 def test_system_without_a_canonical_form_is_named():
     sys_ = ElasticJoint.from_mjmodel(make_plant("elastic_joint").model)
@@ -404,7 +427,7 @@ def test_bad_forms_and_settings():
             _bio_observer(**kw)
     with pytest.raises(DesignError, match=r"initial estimate .* lies where the inverse map is "
                                           r"undefined: .*it needs theta3 = -p3 != 0"):
-        BastinGeversObserver(BioreactorBastinGevers(), c2=1.0)  # theta_hat0 = 0: theta3 = 0
+        BastinGeversObserver(BioreactorBastinGevers(), c2=1.0, theta_hat0=[0.0, 0.0, 0.0])
     with pytest.raises(DesignError, match="x_hat0 in physical coordinates needs the form's "
                                           "from_physical map"):
         BastinGeversObserver(aocf=form, x_hat0=[1.0, 2.0])

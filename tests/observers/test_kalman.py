@@ -203,7 +203,7 @@ def test_validation_messages():
 
     with pytest.raises(DesignError, match=r"jacobian='analytic' needs NoJac.jacobian"):
         ExtendedKalmanFilter(NoJac(), jacobian="analytic")
-    with pytest.raises(DesignError, match="model= is for the MuJoCo filters"):
+    with pytest.raises(DesignError, match="model= and model_fields= are for the MuJoCo filters"):
         ExtendedKalmanFilter(s, model=object())
     with pytest.raises(DesignError, match="is not a MuJoCo system"):
         MujocoExtendedKalmanFilter(NoJac())

@@ -98,6 +98,38 @@ def test_consistent_filter_has_chi_square_nis(p):
     np.testing.assert_allclose(_nis(u, Y[:500]), nis[:500], rtol=1e-8)
 
 
+def test_consistent_filter_has_chi_square_nees():
+    """The NEES of the same consistent filter (Q, R, P0 and x0's spread those of the
+    simulated plant), from its covariance (:meth:`Observer.covariance`) and the true state of
+    B = 2000 independent runs at one instant: the mean over the runs lies in the 95 % band of a
+    mean of B chi2(2), and about 95 % of the runs in one sample's band (Bar-Shalom et al.
+    2001, sec. 5.4.2: the NEES over Monte Carlo runs; over one run's samples the NEES is
+    correlated in time, unlike the NIS). A filter told Q 100x too small is overconfident."""
+    from hgo_mj.metrics import chi2_band, nees
+
+    B, T, C, r = 2000, 300, np.eye(2)[:1], 1e-2
+    rng = np.random.default_rng(3)
+    Phi, Lq = _taylor4(DT * A), np.linalg.cholesky(QC * DT)
+    x = math.sqrt(0.5) * rng.standard_normal((B, 2))
+    Y = np.empty((B, T, 1))
+    for k in range(T):
+        Y[:, k] = x @ C.T + math.sqrt(r) * rng.standard_normal((B, 1))
+        x = x @ Phi.T + rng.standard_normal((B, 2)) @ Lq.T
+    means = {}
+    for scale in (1.0, 0.01):
+        f = ExtendedKalmanFilter(_linear(C), Q=QC * scale, R=[[r]], P0=0.5, x_hat0=[0.0, 0.0])
+        p = f.parameters(B)
+        st, blk = f.step(p, f.init(B, params=p), Y, np.zeros((B, T, 1)), DT)
+        eps = nees(x - blk.x_hat[:, -1], f.covariance(st))  # x_T and its prediction
+        means[scale] = eps.mean()
+        if scale == 1.0:
+            lo, hi = chi2.ppf(0.025, 2 * B) / B, chi2.ppf(0.975, 2 * B) / B
+            assert lo <= eps.mean() <= hi, (eps.mean(), lo, hi)
+            blo, bhi = chi2_band(2)
+            assert 0.93 <= np.mean((eps >= blo) & (eps <= bhi)) <= 0.97
+    assert means[0.01] > 4.0, means
+
+
 def test_wrong_R_moves_the_mean_nis():
     """A filter told R 4x too small is overconfident (mean NIS well above p = 1), 4x too large
     underconfident (well below)."""

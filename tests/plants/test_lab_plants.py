@@ -82,3 +82,27 @@ def test_velocities_from_quantized_encoders(name):
     for k in observers:
         rms = np.sqrt(np.mean(tr.error(k)[late][:, 2:] ** 2, axis=0))
         assert np.all(rms < 0.5 * rms_bd), (k, rms, rms_bd)
+
+
+@pytest.mark.parametrize("name", ["furuta", "acrobot", "cart_pole"])
+def test_lab_plants_are_plant_names(name):
+    """``make_plant(name)`` and a scenario's ``[plant] name`` build the lab plant: the MJCF
+    file measured by its encoders, as the generic path builds it from the file."""
+    from hgo_mj.cli import cmd_list
+    from hgo_mj.plants import LAB_PLANTS, plant_names
+    from hgo_mj.scenario import build_plant
+    from hgo_mj.schema import check_scenario
+
+    file = LAB_PLANTS[name][0]
+    outputs, *_ = LAB[file]
+    by_file = make_plant(model_path(file), outputs=outputs)
+    for plant in (make_plant(name), build_plant({"name": name})):
+        assert plant.system.output_names == tuple(outputs)
+        assert plant.state_names == by_file.state_names and plant.dt == by_file.dt == 0.001
+    check_scenario({"plant": {"name": name}, "run": {"duration": 1.0}}, required=True)
+    assert name in plant_names() and f"  {name} " in cmd_list()
+    assert make_plant(name, 0.002, outputs=[outputs[1]]).system.output_names == (outputs[1],)
+    with pytest.raises(Exception, match=rf"unknown plant 'furuta_x'; valid: \[.*'{name}'"):
+        make_plant("furuta_x")
+    with pytest.raises(Exception, match=rf"unknown plant 'furuta_x'; valid: \[.*'{name}'"):
+        check_scenario({"plant": {"name": "furuta_x"}})

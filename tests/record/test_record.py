@@ -576,9 +576,6 @@ def test_cli_run_rrd(tmp_path, capsys):
     assert not any(c.endswith("/dropouts") for c in df.columns), list(df.columns)
     assert "rmse" in df.attrs["static"]["/metrics"]["TextDocument:text"][0]
     assert '"seed": 4' in df.attrs["static"]["/scenario"]["TextDocument:text"][0]
-    # a bare --rrd writes OUT/run.rrd
-    assert main([*RUN, "--duration", "0.1", "--out", str(tmp_path / "p"), "--rrd"]) == 0
-    assert (tmp_path / "p" / "run.rrd").stat().st_size > 0
 
 
 def test_cli_reproduce_rrd_contract(tmp_path, capsys, monkeypatch):
@@ -601,8 +598,9 @@ def test_cli_reproduce_rrd_contract(tmp_path, capsys, monkeypatch):
         monkeypatch.setitem(reproduce.REPRODUCTIONS, name, (f"hgo_mj.reproduce.{name}", "fake"))
     assert main(["reproduce", "fake_rec", "--out", str(tmp_path)]) == 0
     assert seen["rrd"] is None
-    assert main(["reproduce", "fake_rec", "--out", str(tmp_path), "--rrd"]) == 0
-    assert seen["rrd"] == tmp_path / "fake_rec.rrd"
+    assert main(["reproduce", "fake_rec", "--out", str(tmp_path), "--rrd",
+                 str(tmp_path / "f.rrd")]) == 0
+    assert seen["rrd"] == tmp_path / "f.rrd"
     assert main(["reproduce", "fake_old", "--out", str(tmp_path), "--rrd", "x.rrd"]) == 2
     assert "cannot record: expected run(out, *, rrd=None)" in capsys.readouterr().err
 

@@ -24,10 +24,11 @@ def test_run_takes_rrd(name):
 
 @pytest.mark.slow
 def test_reproduce_cli_rrd(tmp_path, capsys):
-    """``--rrd`` without a file writes ``OUT/NAME.rrd`` (and, for a second example with other
-    states, a file next to it), listed in the summary and the report."""
+    """``--rrd FILE`` writes that file (and, for a second example with other states, a file
+    next to it), listed in the summary and the report."""
     out = tmp_path / "out"
-    assert main(["reproduce", "besancon2004", "--out", str(out), "--rrd"]) == 0
+    assert main(["reproduce", "besancon2004", "--out", str(out), "--rrd",
+                 str(out / "besancon2004.rrd")]) == 0
     rrd = out / "besancon2004.rrd"
     assert str(rrd) in capsys.readouterr().out
     summary = read_summary(out)

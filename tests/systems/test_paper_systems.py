@@ -8,6 +8,7 @@ the trajectories.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -64,7 +65,8 @@ def simulate(system: System, inp, dt: float, horizon: float, *, physics_dt=None,
 @pytest.mark.parametrize("cls", ALL)
 def test_class_attributes_are_consistent(cls: type[System]) -> None:
     assert cls.name and cls.summary and cls.model_file is None
-    assert "_" in cls.reference and "txt" in cls.reference and "eq." in cls.reference
+    assert re.search(r"\(paper 00\d\)", cls.reference) and re.search(r"eq\.|section",
+                                                                       cls.reference)
     assert len(cls.default_x0) == len(cls.state_names)
     assert tuple(cls.default_params) == cls.param_names
     sys_ = cls()

@@ -19,6 +19,7 @@ from hgo_mj.plants import OdePlant
 from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
 from hgo_mj.systems import System
+from hgo_mj.units import units_of
 
 
 # --- a plant: the analytic model as a System; OdePlant integrates it as the true plant -----
@@ -106,7 +107,7 @@ traj = simulate(plant, SensorChain([GaussianNoise(std=1e-3)], seed=0), observers
                 Multisine(amplitudes=[0.5], frequencies=[0.3]), duration=10.0,
                 x0=[2.0, 0.0], seed=0)
 metrics = all_metrics(traj, t_transient=2.0)
-print(format_table(metrics))
+print(format_table(metrics, *units_of(traj)))
 assert all(np.all(np.asarray(m["rmse"]) < 0.05) for m in metrics.values())
 
 # --- many tunings as one batch: member i runs with w[i], each equal to its single run -------
