@@ -128,6 +128,7 @@ from ..systems.base import CompiledModel, System
 from .base import Array, Observer, Params, State, batch_rows, register
 
 IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 # ------------------------------------------ a system's CompiledModel, called from the kernels
@@ -167,7 +168,7 @@ def _model_overload(attr: str) -> Any:
 for _fn, _attr in ((model_dynamics, "dynamics"), (model_jacobian, "jacobian"),
                    (model_param_jacobian, "param_jacobian")):
     overload(_fn, inline="always")(_model_overload(_attr))
-BoolArray = NDArray[np.bool_]
+
 
 # the filters' process models (SystemModel, MujocoModel) are plumbing: a user builds a filter
 __all__ = ["ExtendedKalmanFilter", "MujocoExtendedKalmanFilter", "MujocoUnscentedKalmanFilter",
