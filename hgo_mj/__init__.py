@@ -4,7 +4,8 @@ The names of :data:`__all__` are the entry points a user starts from; each lives
 module (``hgo_mj.make_plant`` is ``hgo_mj.plants.make_plant``) and is imported from there on
 first use, so ``import hgo_mj`` stays cheap. ``simulate`` is not among them: ``hgo_mj.simulate``
 is its module, so it is ``from hgo_mj.simulate import simulate``. The documentation's API
-reference lists these names and the rest of each module.
+reference lists these names and the rest of each module. ``hgo_mj.__version__`` is read from
+the installed package's metadata on first use.
 """
 
 from __future__ import annotations
@@ -74,7 +75,13 @@ __all__ = sorted(_HOME)
 
 
 def __getattr__(name: str) -> Any:
-    """Import a public name from its module on first use (PEP 562)."""
+    """Import a public name from its module on first use (PEP 562); ``__version__`` is the
+    installed distribution's version (its one source: ``version`` in pyproject.toml)."""
+    if name == "__version__":
+        from importlib.metadata import version
+
+        globals()[name] = version("hgo_mj")
+        return globals()[name]
     if name not in _HOME:
         raise AttributeError(f"module 'hgo_mj' has no attribute {name!r}; public: {__all__}")
     value = getattr(importlib.import_module(_HOME[name]), name)

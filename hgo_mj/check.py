@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
-from .exceptions import DesignError
+from .exceptions import DesignError, MissingExtraError
 
 
 class Applicability(NamedTuple):
@@ -138,6 +138,8 @@ def sampling_note(system: Any, sample_period: float | None) -> str:
         bound = max_sampling_period(alpha, gamma, M, np.eye(n))["delta_max"]
     except DesignError as exc:
         return f"the LMI (63) of paper 004 has no solution here ({exc})"
+    except MissingExtraError as exc:
+        return f"no sampling bound: {exc}"
     where = (f"the bound delta_max = {bound:.3g} s of paper 004 (Theorem 2, LMI (63)/(65)) "
              f"for gamma = min_gamma = {gamma:.3g}, Lipschitz rho = {rho:.3g}")
     if sample_period <= bound:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ._extras import require
 from ._validate import finite_scalar, vector
 from .exceptions import DesignError, DimensionError
 
@@ -625,6 +626,12 @@ def _compress(Mm: Array, Nm: Array) -> tuple[Array, Array]:
     return Mm[:, keep_m], Nm[keep_n, :]
 
 
+def _cvxpy(feature: str) -> Any:
+    """cvxpy with the Clarabel solver the LMIs are solved by (the ``lmi`` extra)."""
+    require("clarabel", "lmi", feature)
+    return require("cvxpy", "lmi", feature)
+
+
 def _lmi63_problem(alpha: Any, gamma: float, M: Any, N: Any) -> tuple[Any, Any, Any, Any, float]:
     """cvxpy variables and the scaled matrix of LMI (65) (see :func:`max_sampling_period`).
 
@@ -633,7 +640,7 @@ def _lmi63_problem(alpha: Any, gamma: float, M: Any, N: Any) -> tuple[Any, Any, 
     block of unit norm: same sign as ``L``, better conditioned. The variable ``tau`` returned
     is ``tau s3^2``; multiply its value by the returned factor ``1 / s3^2`` to get ``tau``.
     """
-    import cvxpy as cp
+    cp = _cvxpy("LMI (63)/(65) of paper 004")
 
     P = riccati_P(alpha, gamma)
     n = P.shape[0]
@@ -833,7 +840,7 @@ def sampling_lmi_62(M: Any, N: Any, delta: float, *, order: int | None = None,
         margin = min(margin, float(np.linalg.eigvalsh(0.5 * (Xn + Xn.T)).min()))
         return {"feasible": margin > 0, "margin": margin, "X": Xn, "epsilon": e,
                 "gain": np.linalg.solve(Xn, C.T).ravel(), "status": "given"}
-    import cvxpy as cp
+    cp = _cvxpy("LMI (62) of paper 004")
 
     Xv = cp.Variable((n, n), symmetric=True)
     ev = cp.Variable()

@@ -7,7 +7,7 @@ errors a caller would catch anyway (``ValueError``, ``RuntimeError``).
 from __future__ import annotations
 
 __all__ = ["DesignError", "DimensionError", "DivergenceError", "HgoError", "ManifestError",
-           "ModelError", "RecordingError", "TrajectoryFileError"]
+           "MissingExtraError", "ModelError", "RecordingError", "TrajectoryFileError"]
 
 
 class HgoError(Exception):
@@ -120,3 +120,31 @@ class ManifestError(HgoError, ValueError):
     >>> isinstance(err, HgoError), isinstance(err, ValueError)
     (True, True)
     """
+
+
+class MissingExtraError(HgoError, ImportError):
+    """A feature needs an optional dependency that is not installed; the one-line message
+    names the extra of ``pyproject.toml`` that installs it (:func:`hgo_mj._extras.require`).
+
+    Parameters
+    ----------
+    package : str
+        The missing distribution's import name (``"sympy"``); also ``ImportError.name``.
+    extra : str
+        The extra that installs it (``"symbolic"``); also the attribute ``extra``.
+    feature : str
+        What needs it, the message's first words.
+
+    Examples
+    --------
+    >>> err = MissingExtraError("sympy", "symbolic", "an ODE plant given as text")
+    >>> print(err)
+    an ODE plant given as text needs the optional dependency sympy: pip install 'hgo_mj[symbolic]'
+    >>> isinstance(err, ImportError), err.name, err.extra
+    (True, 'sympy', 'symbolic')
+    """
+
+    def __init__(self, package: str, extra: str, feature: str) -> None:
+        super().__init__(f"{feature} needs the optional dependency {package}: "
+                         f"pip install 'hgo_mj[{extra}]'", name=package)
+        self.extra = extra

@@ -42,6 +42,7 @@ import mujoco
 import numpy as np
 
 from hgo_mj._bench import header, write_section
+from hgo_mj._extras import require
 from hgo_mj.inputs import Multisine
 from hgo_mj.observers import AdaptiveGainObserver, HighGainObserver, QIntegralObserver, RiccatiObserver
 from hgo_mj.plants import make_plant, model_path
@@ -155,7 +156,7 @@ def bench_batched(B: int = 1024, rounds: int = 3) -> dict[int, dict[str, tuple[f
 
 def bench_lmi(repeat: int) -> dict[str, float]:
     t0 = time.perf_counter()
-    import cvxpy  # noqa: F401
+    require("cvxpy", "lmi", "scripts/bench_hgo.py's LMI bound")
 
     t_import = time.perf_counter() - t0
     from hgo_mj.design import max_sampling_period

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from hgo_mj._bench import header, write_section
+from hgo_mj._extras import require
 
 BASE = {
     "name": "bench",
@@ -218,7 +219,7 @@ def memory(tmp: Path) -> dict[str, float]:
 
 
 def on_ray(tmp: Path, t_local: float, local_df) -> dict[str, float]:
-    import ray
+    ray = require("ray", "ray", "scripts/bench_study.py's Ray run")
 
     from hgo_mj.study import Study
 

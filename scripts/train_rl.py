@@ -54,8 +54,10 @@ from typing import Any
 import numpy as np
 
 from hgo_mj._bench import machine_line, versions_line
+from hgo_mj._extras import require
 from hgo_mj._io import save_figure, write_text
 from hgo_mj._json import write_json
+from hgo_mj.exceptions import MissingExtraError
 from hgo_mj.progress import track
 
 ENVS = ("hgo_mj/PendulumSwingUp-v0", "hgo_mj/ElasticJointReach-v0")
@@ -571,11 +573,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.out}")
         return 0
     try:
-        import sb3_contrib  # noqa: F401
-        import stable_baselines3  # noqa: F401
-    except ImportError:
-        print("stable-baselines3 or sb3-contrib is missing: pip install -e '.[rl]' (CPU torch "
-              "first: pip install torch==2.13.0)", file=sys.stderr)
+        for module in ("stable_baselines3", "sb3_contrib"):
+            require(module, "rl", "scripts/train_rl.py")
+    except MissingExtraError as exc:
+        print(f"{exc} (CPU torch first: pip install torch==2.13.0)", file=sys.stderr)
         return 2
     preset = FULL if args.full else SMALL
     steps = args.steps or preset["steps"]

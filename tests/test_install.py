@@ -1,4 +1,6 @@
-"""The built wheel works on its own: models and envs are inside it, `hgo-mj demo` runs."""
+"""The built wheel works on its own: models and envs are inside it, `hgo-mj demo` runs; with only
+the runtime installed (no extra), the README's code blocks run but those marked as needing an
+extra, which fail (issue 28, item 1)."""
 
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
     (wheel,) = dist.glob("hgo_mj-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     assert "hgo_mj/models/elastic_joint.xml" in names
-    assert "hgo_mj/envs/__init__.py" in names
+    assert "hgo_mj/envs/__init__.py" in names and "hgo_mj/py.typed" in names
     assert not any(n.startswith("envs/") or n.startswith("models/") for n in names)
     # PEP 639: an SPDX license expression and the license file in the wheel's metadata
     (meta,) = [n for n in names if n.endswith(".dist-info/METADATA")]
@@ -51,7 +53,36 @@ def test_wheel_installs_and_runs_demo_outside_the_source_tree(tmp_path):
              "assert importlib.util.find_spec('envs') is None;"
              "print('ok')")
     assert _run([str(py), "-c", probe], cwd=work).stdout.strip() == "ok"
+    _readme_blocks_run_after_the_runtime_install(py, wheel, tmp_path / "readme")
     _kernels_cache_outside_a_read_only_install(venv, py, tmp_path)
+
+
+def _readme_blocks_run_after_the_runtime_install(py: Path, wheel: Path, work: Path) -> None:
+    """The README's Python blocks in order, in the venv with only the runtime: each one that
+    needs no extra runs; each one marked ``<!-- needs: EXTRA -->`` fails there (else its mark
+    is wrong), and no extra is installed. Then, extra by extra, that extra is installed and the
+    blocks that need it run."""
+    from readme_blocks import blocks, extra_script, runtime_script
+
+    work.mkdir()
+    (work / "readme.py").write_text(runtime_script())
+    out = _run([str(py), "readme.py"], cwd=work).stdout
+    assert "k80" in out and "[0.3] {'dropouts': 0.0}" in out
+    marked = [b for b in blocks() if b.needs and b.lang in ("python", "py")]
+    assert marked, "no README block is marked as needing an extra"
+    for b in marked:
+        assert f"NEEDS {','.join(b.needs)} {b.line}: " in out, (b.line, out[-2000:])
+    assert "RAN " not in out
+    probe = ("import importlib.util as u; print([m for m in ('cvxpy', 'clarabel', 'sympy', 'ray', "
+             "'imageio', 'moviepy') if u.find_spec(m)])")
+    assert _run([str(py), "-c", probe], cwd=work).stdout.strip() == "[]"
+    # then each extra a block needs, alone: the block runs
+    for extra in sorted({e for b in marked for e in b.needs}):
+        _run([str(py), "-m", "pip", "install", "--quiet", f"{wheel}[{extra}]"], cwd=work)
+        (work / f"{extra}.py").write_text(extra_script(extra))
+        out = _run([str(py), f"{extra}.py"], cwd=work).stdout
+        ran = [ln for ln in out.splitlines() if ln.startswith("RAN ")]
+        assert ran == [f"RAN {b.line}" for b in marked if b.needs == (extra,)], out
 
 
 def _kernels_cache_outside_a_read_only_install(venv: Path, py: Path, tmp_path: Path) -> None:

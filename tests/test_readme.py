@@ -135,3 +135,44 @@ def test_the_input_per_actuator_example_drives_the_two_link_arm(tmp_path):
     traj = Trajectory.load(tmp_path / "o" / "trajectory.npz")
     assert traj.u.shape[1] == 2
     assert np.ptp(traj.u[:, 0]) > 0.3 and np.ptp(traj.u[:, 1]) == 0.1
+
+
+def test_every_block_marked_as_needing_an_extra_names_one_that_exists():
+    """``<!-- needs: EXTRA -->`` before a block names extras of pyproject.toml; Gymnasium's own
+    MuJoCo environment needs ``gym`` (the wheel test runs the unmarked blocks with only the
+    runtime and checks that each marked one fails there)."""
+    from readme_blocks import blocks
+
+    from hgo_mj._extras import EXTRAS
+
+    marked = [b for b in blocks() if b.needs]
+    assert all(set(b.needs) <= set(EXTRAS) for b in marked), [b.needs for b in marked]
+    (gym,) = [b for b in marked if "InvertedPendulum-v5" in b.code]
+    assert gym.needs == ("gym",) and gym.lang == "py"
+    assert not [b for b in blocks() if "InvertedPendulum-v5" in b.code and not b.needs]
+
+
+def test_the_runtime_script_runs_the_unmarked_blocks_and_tries_the_marked(tmp_path, monkeypatch,
+                                                                          capsys):
+    from readme_blocks import blocks, runtime_script
+
+    text = ("intro\n```toml\nname = 's'\n```\n```python\nx = 1\n```\n"
+            "<!-- needs: lmi,gym -->\n```py\nimport no_such_module_here\n```\n"
+            "```py\nprint('x =', x)\n```\n")
+    assert [(b.lang, b.needs, b.line) for b in blocks(text)] == [
+        ("toml", (), 2), ("python", (), 5), ("py", ("lmi", "gym"), 9), ("py", (), 12)]
+    monkeypatch.chdir(tmp_path)
+    exec(compile(runtime_script(text), "script", "exec"), {})
+    assert capsys.readouterr().out == ("NEEDS lmi,gym 9: ModuleNotFoundError: No module named "
+                                       "'no_such_module_here'\nx = 1\n")
+    assert (tmp_path / "scenario.toml").read_text() == "name = 's'\n"
+
+
+def test_the_extra_script_runs_a_marked_block_after_its_section(tmp_path, capsys):
+    from readme_blocks import extra_script
+
+    text = ("## One\n```py\nraise SystemExit('another section: not run')\n```\n"
+            "## Two\n```py\nx = 2\n```\n<!-- needs: gym -->\n```py\nprint('x =', x)\n```\n"
+            "<!-- needs: lmi -->\n```py\nraise SystemExit('another extra: not run')\n```\n")
+    exec(compile(extra_script("gym", text), "script", "exec"), {})
+    assert capsys.readouterr().out == "x = 2\nRAN 10\n"  # the line of its fence

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from .._io import write_text
-from ..exceptions import DesignError, HgoError
+from ..exceptions import DesignError, HgoError, MissingExtraError
 from .tasks import Task, task_hash
 
 __all__ = ["DEFAULTS", "observer_spec", "run_task_observer"]
@@ -244,7 +244,7 @@ def _variant(sc: Any) -> dict[str, Any]:
 def _certified(ob: Any, params: Mapping[str, Any], system: Any) -> float | None:
     """Paper 004's LMI (63)/(65) bound on the Euler sampling period of the Riccati observer
     at its tuned ``gamma`` and ``alpha`` (Lipschitz structure ``M = rho e_n``, ``N = I``), or
-    None for another family or without a finite Lipschitz constant."""
+    None for another family, without a finite Lipschitz constant, or without the ``lmi`` extra."""
     if getattr(ob, "name", "") != "riccati":
         return None
     rho = getattr(system, "lipschitz", float("nan"))
@@ -259,7 +259,7 @@ def _certified(ob: Any, params: Mapping[str, Any], system: Any) -> float | None:
     M[-1, 0] = rho
     try:
         return float(max_sampling_period(alpha, gamma, M, np.eye(n))["delta_max"])
-    except (DesignError, ImportError):
+    except (DesignError, MissingExtraError):  # no LMI solution, or no `lmi` extra
         return None
 
 

@@ -1,38 +1,57 @@
-"""Observers, one module per family. ``OBSERVERS`` maps registry names to classes (filled by
-:func:`~hgo_mj.observers.base.register`)."""
+"""Observers, one module per family. ``OBSERVERS`` maps registry names to classes; a family's
+module is imported on first use (its name looked up in ``OBSERVERS``, its class imported from
+here), so ``import hgo_mj.observers`` loads no family."""
 
 from __future__ import annotations
 
+import importlib
 import inspect
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .._validate import check_call, import_class
 from ..exceptions import DesignError
-from .adaptive_gain import AdaptiveGainObserver
-from .bank import ObserverBank
-from .base import Observer, register, registered
-from .bastin_gevers import AOCF, BastinGeversObserver
-from .besancon import AffineForm, BesanconObserver
-from .extended_luenberger import ExtendedLuenbergerObserver
-from .finite_difference import FiniteDifferenceObserver
-from .high_gain import HighGainObserver, MultiOutputHighGainObserver
-from .jo_son import JoSonForm, JoSonObserver
-from .kalman import (
-    ExtendedKalmanFilter,
-    MujocoExtendedKalmanFilter,
-    MujocoUnscentedKalmanFilter,
-    UnscentedKalmanFilter,
-)
-from .mhe import MovingHorizonEstimator
-from .q_integral import QIntegralObserver
-from .riccati import RiccatiObserver
-from .super_twisting import SuperTwistingObserver
+from .base import FAMILIES, OBSERVERS, Observer, register, registered
 
-#: registry name -> observer class: every family module registers its class with
-#: :func:`register` when it is imported; observers of other packages register through the
-#: entry-point group ``hgo_mj.observers`` (loaded by :func:`registered`, which
-#: :func:`make_observer` calls)
-OBSERVERS = registered()
+if TYPE_CHECKING:  # imported on first use (module __getattr__), so a run loads its family only
+    from .adaptive_gain import AdaptiveGainObserver
+    from .bank import ObserverBank
+    from .bastin_gevers import AOCF, BastinGeversObserver
+    from .besancon import AffineForm, BesanconObserver
+    from .extended_luenberger import ExtendedLuenbergerObserver
+    from .finite_difference import FiniteDifferenceObserver
+    from .high_gain import HighGainObserver, MultiOutputHighGainObserver
+    from .jo_son import JoSonForm, JoSonObserver
+    from .kalman import (
+        ExtendedKalmanFilter,
+        MujocoExtendedKalmanFilter,
+        MujocoUnscentedKalmanFilter,
+        UnscentedKalmanFilter,
+    )
+    from .mhe import MovingHorizonEstimator
+    from .q_integral import QIntegralObserver
+    from .riccati import RiccatiObserver
+    from .super_twisting import SuperTwistingObserver
+
+#: the names this package exports that are not observer families: name -> module
+_OTHER_HOMES = {"AOCF": "hgo_mj.observers.bastin_gevers", "AffineForm": "hgo_mj.observers.besancon",
+                "JoSonForm": "hgo_mj.observers.jo_son", "ObserverBank": "hgo_mj.observers.bank"}
+
+
+def __getattr__(name: str) -> Any:
+    """A family's class (``HighGainObserver``, ...), imported from its module on first use
+    (PEP 562)."""
+    homes = {**{h.split(":")[1]: h.split(":")[0] for h in FAMILIES.values()}, **_OTHER_HOMES}
+    if name not in homes:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(homes[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported ones (so ``dir`` and Sphinx's autodoc list
+    them)."""
+    return sorted(set(globals()) | set(__all__))
 
 
 def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:

@@ -85,6 +85,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from .._registry import LazyRegistry
 from .._validate import one_of
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
@@ -1792,11 +1793,35 @@ def _empty_rows(value: Any, B: int) -> Any:
 
 ObserverT = TypeVar("ObserverT", bound=type[Observer])
 
-__all__ = ["MAX_MEASUREMENT", "ON_UNSTABLE", "OBSERVERS", "Block", "Dimension", "Observer", "Params", "State",
-           "register", "registered"]
+__all__ = ["FAMILIES", "MAX_MEASUREMENT", "ON_UNSTABLE", "OBSERVERS", "Block", "Dimension",
+           "Observer", "Params", "State", "register", "registered"]
 
-#: registry name -> observer class (filled by :func:`register`)
-OBSERVERS: dict[str, type[Observer]] = {}
+#: the package's families: registry name -> ``"module:Class"`` (each module registers its
+#: classes with :func:`register` when it is imported: on first lookup in :data:`OBSERVERS`)
+FAMILIES = {
+    "high_gain": "hgo_mj.observers.high_gain:HighGainObserver",
+    "high_gain_multi": "hgo_mj.observers.high_gain:MultiOutputHighGainObserver",
+    "riccati": "hgo_mj.observers.riccati:RiccatiObserver",
+    "adaptive_gain": "hgo_mj.observers.adaptive_gain:AdaptiveGainObserver",
+    "bastin_gevers": "hgo_mj.observers.bastin_gevers:BastinGeversObserver",
+    "besancon": "hgo_mj.observers.besancon:BesanconObserver",
+    "finite_difference": "hgo_mj.observers.finite_difference:FiniteDifferenceObserver",
+    "extended_luenberger": "hgo_mj.observers.extended_luenberger:ExtendedLuenbergerObserver",
+    "jo_son": "hgo_mj.observers.jo_son:JoSonObserver",
+    "ekf": "hgo_mj.observers.kalman:ExtendedKalmanFilter",
+    "ukf": "hgo_mj.observers.kalman:UnscentedKalmanFilter",
+    "ekf_mujoco": "hgo_mj.observers.kalman:MujocoExtendedKalmanFilter",
+    "ukf_mujoco": "hgo_mj.observers.kalman:MujocoUnscentedKalmanFilter",
+    "mhe": "hgo_mj.observers.mhe:MovingHorizonEstimator",
+    "q_integral": "hgo_mj.observers.q_integral:QIntegralObserver",
+    "super_twisting": "hgo_mj.observers.super_twisting:SuperTwistingObserver",
+}
+
+#: registry name -> observer class: the package's :data:`FAMILIES`, each imported on first
+#: lookup, then the classes of other packages (the entry points :func:`registered` loads,
+#: before a name outside the families is looked up) and those given to :func:`register`
+OBSERVERS: LazyRegistry[type[Observer]] = LazyRegistry("observer", FAMILIES,
+                                                       discover=lambda: registered())
 
 
 def register(cls: ObserverT) -> ObserverT:
@@ -1832,9 +1857,12 @@ def register(cls: ObserverT) -> ObserverT:
         raise DesignError(f"register takes an Observer subclass; found {cls!r}")
     if not cls.name:
         raise DesignError(f"{cls.__name__} needs a registry name (class attribute 'name')")
-    if cls.name in OBSERVERS and OBSERVERS[cls.name] is not cls:
-        raise DesignError(f"an observer named {cls.name!r} is registered already "
-                          f"({OBSERVERS[cls.name].__module__}.{OBSERVERS[cls.name].__name__})")
+    home = FAMILIES.get(cls.name)
+    there = OBSERVERS.loaded(cls.name)
+    if (home is not None and home != f"{cls.__module__}:{cls.__qualname__}") or (
+            there is not None and there is not cls):
+        held = home or f"{there.__module__}:{there.__qualname__}"  # type: ignore[union-attr]
+        raise DesignError(f"an observer named {cls.name!r} is registered already ({held})")
     OBSERVERS[cls.name] = cls
     return cls
 
@@ -1842,15 +1870,16 @@ def register(cls: ObserverT) -> ObserverT:
 _ENTRY_POINTS_LOADED = False
 
 
-def registered() -> dict[str, type[Observer]]:
+def registered() -> LazyRegistry[type[Observer]]:
     """:data:`OBSERVERS`, after loading the entry-point group ``hgo_mj.observers`` once (each
     entry point names an :class:`Observer` subclass; one that fails to import is an error
     naming it).
 
     Returns
     -------
-    dict
-        Registry name -> Observer subclass (the same object as :data:`OBSERVERS`).
+    LazyRegistry
+        Registry name -> Observer subclass (the same object as :data:`OBSERVERS`; a family's
+        module is imported on first lookup).
 
     Raises
     ------

@@ -111,6 +111,7 @@ from typing import Any
 import mujoco
 import numpy as np
 from numba import njit
+from numba.extending import overload
 from numpy.typing import NDArray
 
 from .._binding import Binding
@@ -124,18 +125,52 @@ from .._validate import (
 )
 from ..exceptions import DesignError, DivergenceError
 from ..plants.fields import VECTOR, get_field, resolve, set_field, set_fields
-from ..systems.base import (
-    CompiledModel,
-    System,
-    model_dynamics,
-    model_jacobian,
-    model_param_jacobian,
-)
+from ..systems.base import CompiledModel, System
 from . import _integrate
 from .base import Array, Observer, Params, State, batch_rows, register
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
+
+
+# ------------------------------------------ a system's CompiledModel, called from the kernels
+def model_dynamics(model: CompiledModel, x: Array, u: Array, c: Array, out: Array) -> None:
+    """``model``'s ``dynamics`` of one row (from Python and from numba kernels)."""
+    type(model).dynamics(x, u, c, out)
+
+
+def model_jacobian(model: CompiledModel, x: Array, u: Array, c: Array, out: Array) -> None:
+    """``model``'s ``jacobian`` of one row (from Python and from numba kernels)."""
+    type(model).jacobian(x, u, c, out)
+
+
+def model_param_jacobian(model: CompiledModel, x: Array, u: Array, c: Array,
+                         out: Array) -> None:
+    """``model``'s ``param_jacobian`` of one row (from Python and from numba kernels)."""
+    type(model).param_jacobian(x, u, c, out)
+
+
+def _model_overload(attr: str) -> Any:
+    """The numba implementation of ``model_<attr>``: the function ``attr`` of the model's
+    class (a model without it: an implementation that raises, never called by the filters,
+    which check :attr:`CompiledModel.jacobian` before asking for it)."""
+
+    # no annotations: numba compares the typer's signature with the implementation's
+    def typer(model, x, u, c, out):  # type: ignore[no-untyped-def]
+        fn = getattr(getattr(model, "instance_class", None), attr, None)
+        if fn is None:
+            def missing(model, x, u, c, out):  # type: ignore[no-untyped-def]
+                raise NotImplementedError("the compiled model has no such function")
+            return missing
+        return lambda model, x, u, c, out: fn(x, u, c, out)
+
+    return typer
+
+
+for _fn, _attr in ((model_dynamics, "dynamics"), (model_jacobian, "jacobian"),
+                   (model_param_jacobian, "param_jacobian")):
+    overload(_fn, inline="always")(_model_overload(_attr))
+
 
 # the filters' process models (SystemModel, MujocoModel) are plumbing: a user builds a filter
 __all__ = ["ExtendedKalmanFilter", "MujocoExtendedKalmanFilter", "MujocoUnscentedKalmanFilter",

@@ -216,9 +216,7 @@ def run_reproduction(name: str, out: str | Path, **kw: Any) -> dict[str, Any]:
     if name not in REPRODUCTIONS:
         raise DesignError(f"unknown reproduction {name!r}; valid: {sorted(REPRODUCTIONS)}")
     module = importlib.import_module(REPRODUCTIONS[name][0])
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    return module.run(out, **kw)
+    return module.run(Path(out), **kw)  # each run creates out, after checking what it needs
 
 
 __all__ = ["PAPERS", "REPRODUCTIONS", "read_summary", "run_reproduction"]

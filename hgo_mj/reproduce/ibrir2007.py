@@ -78,6 +78,7 @@ from typing import Any
 
 import numpy as np
 
+from .._extras import require
 from .._io import save_figure
 from ..design import (
     binomial_coefficients,
@@ -559,6 +560,8 @@ def run(out: Path, *, rrd: Path | None = None, quiet: bool = False) -> dict[str,
     >>> from hgo_mj.reproduce.ibrir2007 import run
     >>> summary = run(Path("runs/reproduce/ibrir2007"), quiet=True)  # doctest: +SKIP
     """
+    for module in ("cvxpy", "clarabel"):  # its LMIs (the `lmi` extra), checked before any work
+        require(module, "lmi", "the ibrir2007 reproduction")
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -34,6 +34,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
 
+from .._extras import require
 from ..exceptions import DesignError
 from .engine import Chunk, run_chunk
 
@@ -62,10 +63,7 @@ def backend_for(name: Any, *, address: str | None = None, jobs: int = 1) -> Back
         if address is not None:
             raise DesignError("--address is for --backend ray")
         return lambda chunks: _local(chunks, jobs)
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        raise DesignError('--backend ray needs Ray: pip install "hgo_mj[ray]"') from None
+    require("ray", "ray", "--backend ray")
     if address is not None:
         _check_reachable(address)
     return lambda chunks: _ray(chunks, jobs, address)
@@ -237,7 +235,7 @@ def ray_init(jobs: int, address: str | None) -> None:
     driver and the workers with the raylet; a reaper (:data:`_REAPER`) ends its agents, which
     would otherwise wait a minute on the dead GCS.
     """
-    import ray
+    ray = require("ray", "ray", "--backend ray")
 
     if ray.is_initialized():
         return

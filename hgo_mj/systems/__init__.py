@@ -1,24 +1,62 @@
-"""Analytic systems, one module per plant family; ``SYSTEMS`` maps registry names to classes."""
+"""Analytic systems, one module per plant family; ``SYSTEMS`` maps registry names to classes.
+
+A family's module is imported on first use (its name looked up in ``SYSTEMS``, its class
+imported from here), so ``import hgo_mj.systems`` loads no family."""
 
 from __future__ import annotations
 
-from .base import System
-from .cart_pendulum import CartPendulum
-from .elastic_joint import ElasticJoint
-from .elastic_joint_2link import ElasticJoint2Link
-from .papers import (
-    BesanconExample1,
-    BesanconExample2,
-    BioreactorBastinGevers,
-    BioreactorBullinger,
-    JoSonExample,
-)
-from .pendulum import Pendulum
+import importlib
+from typing import TYPE_CHECKING, Any
 
-SYSTEMS: dict[str, type[System]] = {
-    cls.name: cls
-    for cls in (Pendulum, CartPendulum, ElasticJoint, ElasticJoint2Link, BioreactorBullinger,
-                BioreactorBastinGevers, BesanconExample1, BesanconExample2, JoSonExample)
+from .._registry import LazyRegistry
+from .base import System
+
+if TYPE_CHECKING:  # imported on first use (module __getattr__)
+    from .cart_pendulum import CartPendulum
+    from .elastic_joint import ElasticJoint
+    from .elastic_joint_2link import ElasticJoint2Link
+    from .papers import (
+        BesanconExample1,
+        BesanconExample2,
+        BioreactorBastinGevers,
+        BioreactorBullinger,
+        JoSonExample,
+    )
+    from .pendulum import Pendulum
+
+#: registry name -> ``"module:Class"`` of the package's systems
+FAMILIES = {
+    "pendulum": "hgo_mj.systems.pendulum:Pendulum",
+    "cart_pendulum": "hgo_mj.systems.cart_pendulum:CartPendulum",
+    "elastic_joint": "hgo_mj.systems.elastic_joint:ElasticJoint",
+    "elastic_joint_2link": "hgo_mj.systems.elastic_joint_2link:ElasticJoint2Link",
+    "bioreactor_bullinger": "hgo_mj.systems.papers:BioreactorBullinger",
+    "bioreactor_bastin_gevers": "hgo_mj.systems.papers:BioreactorBastinGevers",
+    "besancon_ex1": "hgo_mj.systems.papers:BesanconExample1",
+    "besancon_ex2": "hgo_mj.systems.papers:BesanconExample2",
+    "jo_son": "hgo_mj.systems.papers:JoSonExample",
 }
 
-__all__ = ["SYSTEMS", "System", *(c.__name__ for c in SYSTEMS.values())]
+#: registry name -> System subclass, each module imported on first lookup
+SYSTEMS: LazyRegistry[type[System]] = LazyRegistry("system", FAMILIES)
+
+
+def __getattr__(name: str) -> Any:
+    """A system class (``Pendulum``, ...), imported from its module on first use (PEP 562)."""
+    homes = {h.split(":")[1]: h.split(":")[0] for h in FAMILIES.values()}
+    if name not in homes:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(homes[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported ones (so ``dir`` and Sphinx's autodoc list
+    them)."""
+    return sorted(set(globals()) | set(__all__))
+
+
+__all__ = ["FAMILIES", "SYSTEMS", "System", "Pendulum", "CartPendulum", "ElasticJoint",
+           "ElasticJoint2Link", "BioreactorBullinger", "BioreactorBastinGevers", "BesanconExample1",
+           "BesanconExample2", "JoSonExample"]

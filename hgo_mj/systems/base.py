@@ -24,7 +24,6 @@ from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
-from numba.extending import overload
 from numpy.typing import NDArray
 
 from .._validate import check_params, vector
@@ -53,9 +52,9 @@ class CompiledModel(namedtuple("CompiledModel", ())):
     * ``param_jacobian(x, u, c, out)`` (optional): ``out (n, len(param_names)) = df/dc``.
 
     A kernel takes the instance as an argument: its numba type names the subclass, so the
-    kernel is compiled (and cached) once per system, and :func:`model_dynamics`,
-    :func:`model_jacobian` and :func:`model_param_jacobian` resolve to the subclass's
-    functions at compile time.
+    kernel is compiled (and cached) once per system, and the Kalman filters'
+    ``model_dynamics``, ``model_jacobian`` and ``model_param_jacobian``
+    (:mod:`hgo_mj.observers.kalman`) resolve to the subclass's functions at compile time.
 
     Parameters
     ----------
@@ -82,44 +81,6 @@ class CompiledModel(namedtuple("CompiledModel", ())):
     dynamics: ClassVar[Any] = None
     jacobian: ClassVar[Any] = None
     param_jacobian: ClassVar[Any] = None
-
-
-def model_dynamics(model: CompiledModel, x: Array, u: Array, c: Array, out: Array) -> None:
-    """``model``'s ``dynamics`` of one row (from Python and from numba kernels)."""
-    type(model).dynamics(x, u, c, out)
-
-
-def model_jacobian(model: CompiledModel, x: Array, u: Array, c: Array, out: Array) -> None:
-    """``model``'s ``jacobian`` of one row (from Python and from numba kernels)."""
-    type(model).jacobian(x, u, c, out)
-
-
-def model_param_jacobian(model: CompiledModel, x: Array, u: Array, c: Array,
-                         out: Array) -> None:
-    """``model``'s ``param_jacobian`` of one row (from Python and from numba kernels)."""
-    type(model).param_jacobian(x, u, c, out)
-
-
-def _model_overload(attr: str) -> Any:
-    """The numba implementation of ``model_<attr>``: the function ``attr`` of the model's
-    class (a model without it: an implementation that raises, never called by the filters,
-    which check :attr:`CompiledModel.jacobian` before asking for it)."""
-
-    # no annotations: numba compares the typer's signature with the implementation's
-    def typer(model, x, u, c, out):  # type: ignore[no-untyped-def]
-        fn = getattr(getattr(model, "instance_class", None), attr, None)
-        if fn is None:
-            def missing(model, x, u, c, out):  # type: ignore[no-untyped-def]
-                raise NotImplementedError("the compiled model has no such function")
-            return missing
-        return lambda model, x, u, c, out: fn(x, u, c, out)
-
-    return typer
-
-
-for _fn, _attr in ((model_dynamics, "dynamics"), (model_jacobian, "jacobian"),
-                   (model_param_jacobian, "param_jacobian")):
-    overload(_fn, inline="always")(_model_overload(_attr))
 
 
 _DERIVATIVE_WORDS = {"_angle": ("_angle", "_velocity", "_acceleration", "_jerk"),

@@ -49,12 +49,18 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
-import sympy
-from numba import njit
 
-from ..exceptions import ModelError
-from ._codegen import row_function
-from .base import Array, CompiledModel, System
+from .._extras import require
+
+# the `symbolic` extra, named in one line before the imports that need it
+require("sympy", "symbolic", "an ODE plant given as text (hgo_mj.systems.symbolic)")
+
+import sympy  # noqa: E402
+from numba import njit  # noqa: E402
+
+from ..exceptions import ModelError  # noqa: E402
+from ._codegen import row_function  # noqa: E402
+from .base import Array, CompiledModel, System  # noqa: E402
 
 #: the functions an expression may call: name -> (sympy function, numpy function)
 FUNCTIONS: dict[str, tuple[Any, Callable[[Any], Any]]] = {

@@ -459,7 +459,8 @@ def test_ray_not_installed_names_the_extra(tmp_path, monkeypatch, capsys):
     f = tmp_path / "s.toml"
     f.write_text('[plant]\nname = "pendulum"\n[run]\nduration = 0.1\n')
     assert main(["sweep", str(f), "--out", str(tmp_path / "o"), "--backend", "ray"]) == 2
-    assert 'pip install "hgo_mj[ray]"' in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--backend ray needs the optional dependency ray: pip install 'hgo_mj[ray]'" in err
     assert not (tmp_path / "o").exists()
 
 
