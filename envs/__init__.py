@@ -10,6 +10,9 @@ id                                            class
 ``hgo_mj/FurutaSwingUp-v0``                   :class:`FurutaSwingUpEnv`
 ``hgo_mj/AcrobotSwingUp-v0``                  :class:`AcrobotSwingUpEnv`
 ``hgo_mj/CartPoleSwingUp-v0``                 :class:`CartPoleSwingUpEnv`
+``hgo_mj/FurutaBalance-v0``                   :class:`FurutaBalanceEnv`
+``hgo_mj/AcrobotBalance-v0``                  :class:`AcrobotBalanceEnv`
+``hgo_mj/CartPoleBalance-v0``                 :class:`CartPoleBalanceEnv`
 ============================================  ==========================================
 
 Each is a MuJoCo plant, a sensor chain and an observer in the loop (:class:`HgoEnv`) under a
@@ -32,11 +35,14 @@ import gymnasium
 
 from .core import INFO_LEVELS, OBSERVATION_MODES, HgoEnv, Task, sensor_chain
 from .environments import (
+    AcrobotBalanceEnv,
     AcrobotSwingUpEnv,
     CartPendulumBalanceEnv,
+    CartPoleBalanceEnv,
     CartPoleSwingUpEnv,
     ElasticJoint2LinkReachEnv,
     ElasticJointReachEnv,
+    FurutaBalanceEnv,
     FurutaSwingUpEnv,
     PendulumSwingUpEnv,
 )
@@ -45,7 +51,8 @@ from .vector import HgoVectorEnv, vector_entry_point
 #: registered id -> environment class
 ENVIRONMENTS: dict[str, type[HgoEnv]] = {str(cls.env_id): cls for cls in (
     PendulumSwingUpEnv, CartPendulumBalanceEnv, ElasticJointReachEnv, ElasticJoint2LinkReachEnv,
-    FurutaSwingUpEnv, AcrobotSwingUpEnv, CartPoleSwingUpEnv)}
+    FurutaSwingUpEnv, AcrobotSwingUpEnv, CartPoleSwingUpEnv, FurutaBalanceEnv, AcrobotBalanceEnv,
+    CartPoleBalanceEnv)}
 
 
 def register_all() -> None:
@@ -53,8 +60,8 @@ def register_all() -> None:
 
     Each id of :data:`ENVIRONMENTS` gets its class as entry point, the task's
     ``max_episode_steps`` (Gymnasium's ``TimeLimit``) and :func:`vector_entry_point` (the
-    native :class:`HgoVectorEnv` of ``gymnasium.make_vec``); an id already registered is left
-    as it is.
+    native :class:`HgoVectorEnv` of ``gymnasium.make_vec``) and the task's
+    ``reward_threshold``; an id already registered is left as it is.
 
     Examples
     --------
@@ -71,13 +78,15 @@ def register_all() -> None:
             continue
         gymnasium.register(id=env_id, entry_point=f"{__name__}.environments:{cls.__name__}",
                            max_episode_steps=cls.task_class.max_episode_steps,  # type: ignore[union-attr]
+                           reward_threshold=cls.task_class.reward_threshold,  # type: ignore[union-attr]
                            vector_entry_point=vector_entry_point(cls))
 
 
 register_all()
 
-__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "AcrobotSwingUpEnv",
-           "CartPendulumBalanceEnv", "CartPoleSwingUpEnv", "FurutaSwingUpEnv",
+__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "AcrobotBalanceEnv",
+           "AcrobotSwingUpEnv", "CartPendulumBalanceEnv", "CartPoleBalanceEnv",
+           "CartPoleSwingUpEnv", "FurutaBalanceEnv", "FurutaSwingUpEnv",
            "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "HgoVectorEnv",
            "PendulumSwingUpEnv",
            "Task", "register_all", "sensor_chain"]

@@ -230,6 +230,9 @@ class Task:
     #: MuJoCo integrator to use instead of the MJCF's (``None``: keep the MJCF's)
     integrator: ClassVar[str | None] = None
     max_episode_steps: ClassVar[int] = 1000
+    #: return from which an episode counts as solved (the registered spec's
+    #: ``reward_threshold``, as Gymnasium's ``CartPole-v1`` has 475); each task documents its own
+    reward_threshold: ClassVar[float] = 0.0
     #: observer used when none is given, and per-kind parameters used unless overridden
     default_observer: ClassVar[str] = "high_gain"
     observer_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
