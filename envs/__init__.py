@@ -31,6 +31,8 @@ The time limit is Gymnasium's ``TimeLimit``, added by ``gymnasium.make`` from
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium
 
 from .core import INFO_LEVELS, OBSERVATION_MODES, HgoEnv, Task, sensor_chain
@@ -59,8 +61,9 @@ def register_all() -> None:
     """Register every environment with Gymnasium (done on import; idempotent).
 
     Each id of :data:`ENVIRONMENTS` gets its class as entry point, the task's
-    ``max_episode_steps`` (Gymnasium's ``TimeLimit``) and :func:`vector_entry_point` (the
-    native :class:`HgoVectorEnv` of ``gymnasium.make_vec``) and the task's
+    ``max_episode_steps`` (Gymnasium's ``TimeLimit``) and :func:`vector_entry_point` by name
+    (``"hgo_mj.envs:make_<EnvClass>_vector"``: the native :class:`HgoVectorEnv` of
+    ``gymnasium.make_vec``) and the task's
     ``reward_threshold``; an id already registered is left as it is.
 
     Examples
@@ -79,7 +82,16 @@ def register_all() -> None:
         gymnasium.register(id=env_id, entry_point=f"{__name__}.environments:{cls.__name__}",
                            max_episode_steps=cls.task_class.max_episode_steps,  # type: ignore[union-attr]
                            reward_threshold=cls.task_class.reward_threshold,  # type: ignore[union-attr]
-                           vector_entry_point=vector_entry_point(cls))
+                           vector_entry_point=f"{__name__}:make_{cls.__name__}_vector")
+
+
+def __getattr__(name: str) -> Any:
+    """``make_<EnvClass>_vector``: the registered vector entry points by name (a string in
+    the spec, so that ``spec.to_json()`` works), made by :func:`vector_entry_point`."""
+    for cls in ENVIRONMENTS.values():
+        if name == f"make_{cls.__name__}_vector":
+            return vector_entry_point(cls)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 register_all()

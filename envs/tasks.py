@@ -118,6 +118,10 @@ class SwingUpTask(Task):
                                               "reward_velocity": velocity,
                                               "reward_control": control}
 
+    def target_state(self, x: Any, goal: Any) -> list[float]:
+        """Upright, still."""
+        return [math.pi, 0.0]
+
     def params(self) -> dict[str, Any]:
         return {"max_torque": self.max_torque, "start_noise": self.start_noise}
 
@@ -191,6 +195,10 @@ class BalanceTask(Task):
 
     def termination(self, x: Any) -> Any:
         return _outside(x[0], self.max_angle)
+
+    def target_state(self, x: Any, goal: Any) -> list[float]:
+        """Upright (``x1 = 0``), still."""
+        return [0.0, 0.0]
 
     def params(self) -> dict[str, Any]:
         return {"max_acceleration": self.max_acceleration, "max_angle": self.max_angle,
@@ -278,6 +286,10 @@ class ReachTask(Task):
         terms = {"reward_tracking": -e * e, "reward_velocity": -0.01 * x[2] * x[2],
                  "reward_vibration": -0.01 * defl * defl, "reward_control": -0.001 * a * a}
         return np.maximum(_total(terms), -self.max_cost), terms
+
+    def target_state(self, x: Any, goal: Any) -> list[float]:
+        """Link and motor at the target angle, still."""
+        return [goal[0], goal[0], 0.0, 0.0]
 
     def params(self) -> dict[str, Any]:
         return {"max_torque": self.max_torque, "target_range": self.target_range,
@@ -376,6 +388,10 @@ class Reach2LinkTask(Task):
                  "reward_control": -0.001 * (a1 * a1 + a2 * a2)}
         return np.maximum(_total(terms), -self.max_cost), terms
 
+    def target_state(self, x: Any, goal: Any) -> list[float]:
+        """Both links and motors at their targets, still."""
+        return [goal[0], goal[1], goal[0], goal[1], 0.0, 0.0, 0.0, 0.0]
+
     def params(self) -> dict[str, Any]:
         return {"max_torque": list(self.max_torque), "target_range": self.target_range,
                 "start_noise": self.start_noise, "max_cost": self.max_cost}
@@ -468,6 +484,14 @@ class LabSwingUpTask(Task):
         for i, limit in self.limits:
             out = out | _outside(x[i], limit)
         return out
+
+    def target_state(self, x: Any, goal: Any) -> list[float]:
+        """Each target coordinate at its target (the others where they are), still."""
+        n = len(x) // 2
+        t = [float(v) for v in x[:n]] + [0.0] * n
+        for i, value, _ in self.targets:
+            t[i] = value
+        return t
 
     def params(self) -> dict[str, Any]:
         return {"max_input": self.max_input, "start_noise": self.start_noise}

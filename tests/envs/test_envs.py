@@ -336,6 +336,41 @@ def test_environment_docstring_has_gymnasium_sections(env_id):
     assert f"* {env_id.rsplit('-', 1)[1]}:" in parts[-1]
 
 
+# --------------------------------------------------------------------------- specs
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_spec_has_threshold_observer_and_sensor_and_goes_to_json(env_id):
+    """Every registered spec has a reward threshold; a made environment's spec holds the
+    observer and sensor chain it runs, ``to_json`` works and ``make(spec)`` rebuilds it."""
+    assert isinstance(gym.spec(env_id).reward_threshold, float)
+    env = gym.make(env_id)
+    kwargs = env.spec.kwargs
+    u = env.unwrapped
+    assert kwargs["observer"]["type"] == u.observer.name
+    assert kwargs["sensor"] == u.sensor.describe() and kwargs["sensor"]
+    raw = json.loads(env.spec.to_json())
+    assert raw["kwargs"]["observer"]["type"] == u.observer.name
+    assert raw["vector_entry_point"].startswith("hgo_mj.envs:make_")
+    again = gym.make(env.spec)
+    assert again.unwrapped.observer.params() == u.observer.params()
+    assert again.unwrapped.sensor.describe() == kwargs["sensor"]
+
+
+def test_spec_of_an_instance_no_observer_and_a_custom_sensor():
+    sensor = [{"stage": "gaussian", "std": 0.02}, {"stage": "quantize", "counts_per_rev": 4096}]
+    env = gym.make("hgo_mj/PendulumSwingUp-v0", observer="riccati",
+                   observer_kwargs={"gamma": 9.0}, sensor=sensor)
+    assert env.spec.kwargs["observer"] == {"type": "riccati", "gamma": 9.0}
+    assert "observer_kwargs" not in env.spec.kwargs
+    assert env.spec.kwargs["sensor"] == sensor
+    inst = envs.PendulumSwingUpEnv(observer="besancon").observer
+    env = gym.make("hgo_mj/PendulumSwingUp-v0", observer=inst)
+    assert env.spec.kwargs["observer"] == {"type": "besancon", **inst.params()}
+    json.loads(env.spec.to_json())
+    env = gym.make("hgo_mj/PendulumSwingUp-v0", observer=None, observation="true", sensor=None)
+    assert env.spec.kwargs["observer"] is None and env.spec.kwargs["sensor"] == []
+    assert envs.PendulumSwingUpEnv().spec is None  # made directly: no spec
+
+
 # --------------------------------------------------------------------------- behaviour
 #: the balance tasks: (id, index and target of the bounded coordinate, its band [rad],
 #: a limit (index, bound) or None)
