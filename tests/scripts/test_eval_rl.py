@@ -41,6 +41,13 @@ def test_table_and_refusals(tmp_path):
     assert ("| hgo_mj/CartPoleBalance-v0 | estimate | 0 | 100,000 | 80 | 400.0 ± 100.0 | 50% |"
             in ev.table(rows))
     assert "Machine:" in ev.report(rows, 2, 3.0)
+    rows.append(ev.Row("y", "hgo_mj/CartPoleBalance-v0", "true", 0, 100_000, 50.0,
+                       [500.0, 500.0], [True, True]))
+    assert ("- hgo_mj/CartPoleBalance-v0: estimate 50%, true 100%; the estimate agent solves "
+            "50% as many episodes as the true-state agent (target 90%: not met).") in \
+        ev.findings(rows)
+    rows[1].solved = [False, False]
+    assert "the true-state agent solves none" in ev.findings(rows)
     with pytest.raises(SystemExit, match="found 0 zip"):
         ev.main(["--policies", str(tmp_path)])
     (tmp_path / "a.zip").write_bytes(b"")
