@@ -628,7 +628,8 @@ class LabBalanceTask(LabSwingUpTask):
 
     Reward ``+1`` per step while upright, the alive bonus of Gymnasium's ``CartPole-v1`` and
     ``InvertedPendulum`` (Barto, Sutton and Anderson 1983); the episode ends when a target
-    coordinate leaves ``max_angle`` of its target (wrapped angles) or a coordinate its limit.
+    angle leaves ``max_angle`` of its target (wrapped) or a coordinate its limit (a position
+    target, the cart's, is bounded by its limit only).
     A return of ``max_episode_steps`` (500) is an episode balanced to the end: that is the
     *solved* criterion, and ``reward_threshold`` is 95 % of it (``CartPole-v1``: 475 of 500).
 
@@ -682,8 +683,8 @@ class LabBalanceTask(LabSwingUpTask):
     def termination(self, x: Any) -> Any:
         out: Any = super().termination(x)
         for i, value, wrapped in self.targets:
-            e = x[i] - value
-            out = out | _outside(_wrap(e) if wrapped else e, self.max_angle)
+            if wrapped:  # an angle; a position target (the cart's) is bounded by its limit
+                out = out | _outside(_wrap(x[i] - value), self.max_angle)
         return out
 
     def params(self) -> dict[str, Any]:

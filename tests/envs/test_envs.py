@@ -407,6 +407,14 @@ def test_balance_tasks_start_upright_pay_alive_and_end_outside_the_band(env_id, 
     np.testing.assert_array_equal(task.termination(np.array([up, x]).T), [False, True])
 
 
+def test_the_cart_is_bounded_by_its_track_only():
+    """CartPole-v1: the cart may go anywhere on its 2.4 m track (its centring target is not
+    held to the pole's 12-degree band)."""
+    task = gym.make("hgo_mj/CartPoleBalance-v0").unwrapped.task
+    assert not task.terminated([1.0, np.pi, 0.0, 0.0])
+    assert task.terminated([2.5, np.pi, 0.0, 0.0])
+
+
 def test_the_acrobot_balance_bounds_the_elbow_too():
     task = gym.make("hgo_mj/AcrobotBalance-v0").unwrapped.task
     assert not task.terminated([np.pi, 0.3, 0.0, 0.0])
