@@ -77,6 +77,8 @@ def check_args(args: argparse.Namespace) -> None:
         raise SystemExit(f"--env must be a registered hgo_mj id; found {args.env!r}")
     if args.agent not in AGENTS:
         raise SystemExit(f"--agent must be one of {list(AGENTS)}; found {args.agent!r}")
+    if args.gamma is not None and not 0.0 < args.gamma < 1.0:
+        raise SystemExit(f"--gamma must be in (0, 1); found {args.gamma}")
     if args.steps < 1 or args.checkpoint_every <= 0:
         raise SystemExit(f"--steps must be >= 1 and --checkpoint-every > 0; found "
                          f"{args.steps} and {args.checkpoint_every}")
@@ -107,6 +109,8 @@ def train(args: argparse.Namespace) -> Path:
         print(f"resuming {name} at {model.num_timesteps} steps", flush=True)
     else:
         settings = {k: _schedule(v) for k, v in PPO_CARTPOLE.items()}
+        if args.gamma is not None:
+            settings["gamma"] = args.gamma
         model = PPO("MlpPolicy", venv, seed=args.seed, device="cpu", verbose=0, **settings)
     start = time.monotonic()
 
@@ -136,8 +140,10 @@ def train(args: argparse.Namespace) -> Path:
     _save_model(model, path)
     write_json(args.out / f"{name}.json", {
         "env_id": args.env, "agent": args.agent, "seed": args.seed, "algorithm": "PPO",
-        "settings": {**PPO_CARTPOLE, "n_envs": N_ENVS, "source": "rl-baselines3-zoo "
-                     "hyperparams/ppo.yml, CartPole-v1"},
+        "settings": {**PPO_CARTPOLE, "gamma": float(model.gamma), "n_envs": N_ENVS,
+                     "source": "rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"
+                     + ("" if model.gamma == PPO_CARTPOLE["gamma"] else
+                        f", gamma {model.gamma:g} (--gamma)")},
         "steps": int(model.num_timesteps), "train_seconds": round(seconds, 1),
         "cpu_note": "one torch thread, nice 15, on a 2-core machine shared with other jobs"})
     venv.close()
@@ -154,6 +160,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "policies")
     ap.add_argument("--checkpoints", type=Path, default=ROOT / "runs" / "rl_checkpoints")
     ap.add_argument("--checkpoint-every", type=float, default=120.0, help="seconds")
+    ap.add_argument("--gamma", type=float, default=None,
+                    help="discount instead of RL Zoo's 0.98 (a new run only; a resumed run keeps "
+                         "its own)")
     args = ap.parse_args(argv)
     check_args(args)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

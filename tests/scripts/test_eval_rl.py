@@ -38,8 +38,8 @@ def test_table_and_refusals(tmp_path):
     ev = _load("eval_rl")
     rows = [ev.Row("x", "hgo_mj/CartPoleBalance-v0", "estimate", 0, 100_000, 80.4,
                    [500.0, 300.0], [True, False])]
-    assert ("| hgo_mj/CartPoleBalance-v0 | estimate | 0 | 100,000 | 80 | 400.0 ± 100.0 | 50% |"
-            in ev.table(rows))
+    assert ("| hgo_mj/CartPoleBalance-v0 | estimate | 0 | 0.98 | 100,000 | 80 | 400.0 ± 100.0 | "
+            "50% |" in ev.table(rows))
     assert "Machine:" in ev.report(rows, 2, 3.0)
     rows.append(ev.Row("y", "hgo_mj/CartPoleBalance-v0", "true", 0, 100_000, 50.0,
                        [500.0, 500.0], [True, True]))
@@ -63,6 +63,8 @@ def test_train_policy_refuses_bad_arguments():
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "lstm"])
     with pytest.raises(SystemExit, match="registered hgo_mj id; found 'CartPole-v1'"):
         tp.main(["--env", "CartPole-v1"])
+    with pytest.raises(SystemExit, match=r"--gamma must be in \(0, 1\); found 1.5"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--gamma", "1.5"])
     with pytest.raises(SystemExit, match="--steps must be >= 1"):
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--steps", "0"])
 
@@ -79,7 +81,14 @@ def test_train_stop_resume_and_evaluate(tmp_path, capsys):
     assert "resuming CartPoleBalance-v0_true_seed0 at 256 steps" in capsys.readouterr().out
     meta = json.loads((tmp_path / "pol" / "CartPoleBalance-v0_true_seed0.json").read_text())
     assert meta["steps"] == 512 and meta["algorithm"] == "PPO"
+    assert meta["settings"]["gamma"] == 0.98
+    assert tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "estimate", "--steps", "256",
+                    "--gamma", "0.99", "--out", str(tmp_path / "g"), "--checkpoints",
+                    str(tmp_path / "ckg")]) == 0
+    meta = json.loads((tmp_path / "g" / "CartPoleBalance-v0_estimate_seed0.json").read_text())
+    assert meta["settings"]["gamma"] == 0.99 and "gamma 0.99 (--gamma)" in \
+        meta["settings"]["source"]
     out = tmp_path / "rl_policies.md"
     assert ev.main(["--policies", str(tmp_path / "pol"), "--episodes", "1", "--write",
                     str(out)]) == 0
-    assert "| hgo_mj/CartPoleBalance-v0 | true | 0 | 512 |" in out.read_text()
+    assert "| hgo_mj/CartPoleBalance-v0 | true | 0 | 0.98 | 512 |" in out.read_text()
