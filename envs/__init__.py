@@ -10,6 +10,9 @@ id                                            class
 ``hgo_mj/FurutaSwingUp-v0``                   :class:`FurutaSwingUpEnv`
 ``hgo_mj/AcrobotSwingUp-v0``                  :class:`AcrobotSwingUpEnv`
 ``hgo_mj/CartPoleSwingUp-v0``                 :class:`CartPoleSwingUpEnv`
+``hgo_mj/FurutaBalance-v0``                   :class:`FurutaBalanceEnv`
+``hgo_mj/AcrobotBalance-v0``                  :class:`AcrobotBalanceEnv`
+``hgo_mj/CartPoleBalance-v0``                 :class:`CartPoleBalanceEnv`
 ============================================  ==========================================
 
 Each is a MuJoCo plant, a sensor chain and an observer in the loop (:class:`HgoEnv`) under a
@@ -28,15 +31,20 @@ The time limit is Gymnasium's ``TimeLimit``, added by ``gymnasium.make`` from
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium
 
 from .core import INFO_LEVELS, OBSERVATION_MODES, HgoEnv, Task, sensor_chain
 from .environments import (
+    AcrobotBalanceEnv,
     AcrobotSwingUpEnv,
     CartPendulumBalanceEnv,
+    CartPoleBalanceEnv,
     CartPoleSwingUpEnv,
     ElasticJoint2LinkReachEnv,
     ElasticJointReachEnv,
+    FurutaBalanceEnv,
     FurutaSwingUpEnv,
     PendulumSwingUpEnv,
 )
@@ -45,16 +53,18 @@ from .vector import HgoVectorEnv, vector_entry_point
 #: registered id -> environment class
 ENVIRONMENTS: dict[str, type[HgoEnv]] = {str(cls.env_id): cls for cls in (
     PendulumSwingUpEnv, CartPendulumBalanceEnv, ElasticJointReachEnv, ElasticJoint2LinkReachEnv,
-    FurutaSwingUpEnv, AcrobotSwingUpEnv, CartPoleSwingUpEnv)}
+    FurutaSwingUpEnv, AcrobotSwingUpEnv, CartPoleSwingUpEnv, FurutaBalanceEnv, AcrobotBalanceEnv,
+    CartPoleBalanceEnv)}
 
 
 def register_all() -> None:
     """Register every environment with Gymnasium (done on import; idempotent).
 
     Each id of :data:`ENVIRONMENTS` gets its class as entry point, the task's
-    ``max_episode_steps`` (Gymnasium's ``TimeLimit``) and :func:`vector_entry_point` (the
-    native :class:`HgoVectorEnv` of ``gymnasium.make_vec``); an id already registered is left
-    as it is.
+    ``max_episode_steps`` (Gymnasium's ``TimeLimit``) and :func:`vector_entry_point` by name
+    (``"hgo_mj.envs:make_<EnvClass>_vector"``: the native :class:`HgoVectorEnv` of
+    ``gymnasium.make_vec``) and the task's
+    ``reward_threshold``; an id already registered is left as it is.
 
     Examples
     --------
@@ -71,13 +81,24 @@ def register_all() -> None:
             continue
         gymnasium.register(id=env_id, entry_point=f"{__name__}.environments:{cls.__name__}",
                            max_episode_steps=cls.task_class.max_episode_steps,  # type: ignore[union-attr]
-                           vector_entry_point=vector_entry_point(cls))
+                           reward_threshold=cls.task_class.reward_threshold,  # type: ignore[union-attr]
+                           vector_entry_point=f"{__name__}:make_{cls.__name__}_vector")
+
+
+def __getattr__(name: str) -> Any:
+    """``make_<EnvClass>_vector``: the registered vector entry points by name (a string in
+    the spec, so that ``spec.to_json()`` works), made by :func:`vector_entry_point`."""
+    for cls in ENVIRONMENTS.values():
+        if name == f"make_{cls.__name__}_vector":
+            return vector_entry_point(cls)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 register_all()
 
-__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "AcrobotSwingUpEnv",
-           "CartPendulumBalanceEnv", "CartPoleSwingUpEnv", "FurutaSwingUpEnv",
+__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "AcrobotBalanceEnv",
+           "AcrobotSwingUpEnv", "CartPendulumBalanceEnv", "CartPoleBalanceEnv",
+           "CartPoleSwingUpEnv", "FurutaBalanceEnv", "FurutaSwingUpEnv",
            "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "HgoVectorEnv",
            "PendulumSwingUpEnv",
            "Task", "register_all", "sensor_chain"]

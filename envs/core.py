@@ -32,6 +32,7 @@ with the same seed every mode sees the same sensor noise.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import inspect
 import math
 import pickle
@@ -43,6 +44,7 @@ import gymnasium
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.error import ResetNeeded
 from gymnasium.utils import EzPickle
 from numpy.typing import NDArray
@@ -230,6 +232,9 @@ class Task:
     #: MuJoCo integrator to use instead of the MJCF's (``None``: keep the MJCF's)
     integrator: ClassVar[str | None] = None
     max_episode_steps: ClassVar[int] = 1000
+    #: return from which an episode counts as solved (the registered spec's
+    #: ``reward_threshold``, as Gymnasium's ``CartPole-v1`` has 475); each task documents its own
+    reward_threshold: ClassVar[float] = 0.0
     #: observer used when none is given, and per-kind parameters used unless overridden
     default_observer: ClassVar[str] = "high_gain"
     observer_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
@@ -321,6 +326,31 @@ class Task:
         ()
         """
         return ()
+
+    def target_state(self, x: Sequence[float], goal: Sequence[float]) -> list[float] | None:
+        """The pose the task drives the plant to, for the frames (:meth:`HgoEnv.render`).
+
+        Parameters
+        ----------
+        x : sequence of float
+            The true state (coordinates the task leaves free keep their value).
+        goal : sequence of float
+            The episode's goal.
+
+        Returns
+        -------
+        list of float or None
+            A state at the target, velocities zero; None (here): no target pose to draw.
+
+        Examples
+        --------
+        >>> from hgo_mj.envs.tasks import ReachTask, SwingUpTask
+        >>> SwingUpTask().target_state([0.1, 0.2], ())
+        [3.141592653589793, 0.0]
+        >>> ReachTask().target_state([0.0, 0.0, 0.0, 0.0], (0.5,))
+        [0.5, 0.5, 0.0, 0.0]
+        """
+        return None
 
     def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
         """The reward and its terms, written once for one member and for B members at once.
@@ -909,6 +939,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 50}
+    _spec: EnvSpec | None = None
+    #: the observer as built by name, ``{"type": kind, **parameters}`` (None: an instance)
+    _observer_spec: dict[str, Any] | None = None
     task_class: ClassVar[type[Task] | None] = None
     #: the id the class is registered under (:data:`hgo_mj.envs.ENVIRONMENTS`); None: none
     env_id: ClassVar[str | None] = None
@@ -1052,7 +1085,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             raise DesignError(f"observer must be a registered name (one of {sorted(OBSERVERS)}), a "
                               f"mapping {{'type': name, ...}}, an Observer or None; found "
                               f"{type(observer).__name__}")
-        return self.build_observer(kind, system, params)
+        built = self.build_observer(kind, system, params)
+        self._observer_spec = {"type": kind, **self.observer_params(kind), **params}
+        return built
 
     def default_observer_kind(self) -> str:
         """The observer used by ``observer="default"`` (the task's, if registered).
@@ -1320,10 +1355,11 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         return info
 
     def render(self) -> NDArray[np.uint8] | None:
-        """The current frame (``render_mode="rgb_array"``): the true pose and a translucent
+        """The current frame (``render_mode="rgb_array"``): the true pose, a translucent
         ghost posed from the observer's estimate (:class:`hgo_mj.envs.render.GhostRenderer`;
-        a joint position the observer does not estimate is drawn at its true value), shape
-        ``(480, 480, 3)`` uint8. ``None`` (with Gymnasium's warning) without a render mode.
+        a joint position the observer does not estimate is drawn at its true value) and the
+        task's target pose in translucent yellow (:meth:`Task.target_state`), over a floor,
+        shape ``(480, 480, 3)`` uint8. ``None`` (with Gymnasium's warning) without a render mode.
         With ``render_mode="human"`` the scene goes to MuJoCo's viewer
         (:class:`hgo_mj.envs.render.HumanViewer`; ``reset`` and ``step`` call this) and
         ``None`` is returned.
@@ -1347,18 +1383,26 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                               if self.render_mode == "rgb_array" else
                               HumanViewer(self.plant.model, self.plant._qadr,
                                           fps=self.metadata["render_fps"]))
-        x, x_hat = self._last[1], self._last[5]
-        nq = len(self.plant._qadr)
-        q = np.array(x[:nq], dtype=float)
-        ghost = q.copy()
-        if x_hat is not None:  # the estimated joint positions (the states matched by name)
-            for j, e in self._err_pairs:
-                if j < nq:
-                    ghost[j] = x_hat[e]
+        q, ghost, target = self._poses(self._last[1], self._last[5], self._goal)
         if self.render_mode == "human":
             self._renderer.show(q, ghost)
             return None
-        return self._renderer.render(q, ghost)
+        return self._renderer.render(q, ghost, target)
+
+    def _poses(self, x: Any, x_hat: Any, goal: Any
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+        """The joint positions of a frame: the true ones, the ghost's (the estimated joint
+        positions, the states matched by name; the others at their true value) and the
+        task's target (:meth:`Task.target_state`; None: none)."""
+        nq = len(self.plant._qadr)
+        q = np.array(x[:nq], dtype=float)
+        ghost = q.copy()
+        if x_hat is not None:
+            for j, e in self._err_pairs:
+                if j < nq:
+                    ghost[j] = x_hat[e]
+        t = self.task.target_state([float(v) for v in x], tuple(float(g) for g in goal))
+        return q, ghost, None if t is None else np.array(t[:nq], dtype=float)
 
     def close(self) -> None:
         """Free the renderer's buffers, if one was made."""
@@ -1439,6 +1483,49 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             "observers": observers,
             "versions": package_versions(),
         }
+
+    @property  # type: ignore[override]
+    def spec(self) -> EnvSpec | None:
+        """Gymnasium's ``EnvSpec`` of the environment (set by ``gymnasium.make``), with the
+        observer and the sensor chain this environment runs in ``spec.kwargs``.
+
+        ``kwargs["observer"]`` is ``{"type": name, **parameters}`` (the task's defaults for
+        that observer merged with the ones given; ``observer_kwargs`` is folded in), or, for
+        an observer instance, its name and :meth:`~hgo_mj.observers.Observer.params`, or
+        None; ``kwargs["sensor"]`` is the chain's stages
+        (:meth:`~hgo_mj.sensors.SensorChain.describe`). ``spec.to_json()`` works, and
+        ``gymnasium.make(env.spec)`` makes the same environment for an observer given by name.
+
+        Returns
+        -------
+        gymnasium.envs.registration.EnvSpec or None
+            None before ``gymnasium.make`` set one (a class made directly).
+
+        Examples
+        --------
+        >>> import gymnasium
+        >>> import hgo_mj.envs
+        >>> env = gymnasium.make("hgo_mj/PendulumSwingUp-v0", observer_kwargs={"k": 12.0})
+        >>> env.spec.kwargs["observer"]
+        {'type': 'high_gain', 'k': 12.0, 'model': True}
+        >>> env.spec.kwargs["sensor"]
+        [{'stage': 'gaussian', 'std': 0.01}]
+        >>> '"observer": {"type": "high_gain"' in env.spec.to_json()
+        True
+        """
+        return self._spec
+
+    @spec.setter
+    def spec(self, spec: EnvSpec | None) -> None:
+        if spec is not None:
+            kwargs = {k: v for k, v in spec.kwargs.items() if k != "observer_kwargs"}
+            obs = self.observer
+            kwargs["observer"] = (None if obs is None else self._observer_spec
+                                  if self._observer_spec is not None else
+                                  {"type": obs.name or type(obs).__name__, **obs.params()})
+            kwargs["sensor"] = self.sensor.describe()
+            spec = dataclasses.replace(spec, kwargs=kwargs)
+        self._spec = spec
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict[str, Any]:

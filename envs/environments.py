@@ -11,9 +11,12 @@ from __future__ import annotations
 
 from .core import HgoEnv
 from .tasks import (
+    AcrobotBalanceTask,
     AcrobotSwingUpTask,
     BalanceTask,
+    CartPoleBalanceTask,
     CartPoleSwingUpTask,
+    FurutaBalanceTask,
     FurutaSwingUpTask,
     Reach2LinkTask,
     ReachTask,
@@ -582,6 +585,91 @@ class CartPoleSwingUpEnv(HgoEnv):
     env_id = "hgo_mj/CartPoleSwingUp-v0"
 
 
-__all__ = ["AcrobotSwingUpEnv", "CartPendulumBalanceEnv", "CartPoleSwingUpEnv",
-           "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "FurutaSwingUpEnv",
+def _balance_doc(title: str, plant: str, swing_up: str, band: str, source: str,
+                 max_input: str, obs_shape: str) -> str:
+    """The docstring of a lab plant's balance environment: the swing-up environment's plant,
+    sensors and observer, the balance task (:class:`~hgo_mj.envs.tasks.LabBalanceTask`)."""
+    env_id = f"hgo_mj/{title}-v0"
+    return f"""Balance the {plant} upright from a start near upright, on an estimate.
+
+    ## Description
+    The plant, its encoders, the default sensor chain and observer of :class:`{swing_up}`
+    (read its Description); the agent starts near upright and keeps it there. {source}
+
+    ## Action Space
+    `Box(-1, 1, (1,), float32)`: the input over `max_input`, as in :class:`{swing_up}`.
+
+    ## Observation Space
+    `Box(float64)`, shape `{obs_shape}` for `observation="estimate"` (default) and `"true"`,
+    as in :class:`{swing_up}` (angles as cosine and sine; `observation_names` lists them).
+
+    ## Rewards
+    `+1` per step (the alive bonus of Gymnasium's `CartPole-v1` and `InvertedPendulum`),
+    term `reward_alive` in `info` with `info_level="full"`. The registered
+    `reward_threshold` is 475: an episode balanced to the end returns 500, and that is the
+    *solved* criterion of `scripts/eval_rl.py`.
+
+    ## Starting State
+    Every state uniform in [-`start_noise`, `start_noise`] around upright (the targets of
+    :class:`{swing_up}`).
+
+    ## Episode End
+    Terminated when {band}; truncated after 500 steps (5 s) by `TimeLimit` (registration).
+
+    ## Arguments
+    | Parameter     | Default | Description                              |
+    |---------------|---------|------------------------------------------|
+    | `max_input`   | `{max_input}` | input per unit action (plant units) |
+    | `start_noise` | `0.05`  | half width of the initial state draw     |
+    | `max_angle`   | see Episode End | termination band [rad]           |
+""" + _ARGUMENTS + """
+    Defaults here: those of the swing-up environment.
+
+    ## Version History
+    * v0: initial version.
+""" + _sections(env_id, f"""\
+    max_input : float, default {max_input}
+        Input per unit action (plant units).
+    start_noise : float, default 0.05
+        Half width of the initial state draw around upright.
+    max_angle : float
+        Termination band around upright [rad] (see Episode End).""", obs_shape, "1.0")
+
+
+class FurutaBalanceEnv(HgoEnv):
+    __doc__ = _balance_doc(
+        "FurutaBalance", "QUBE-Servo 2 rotary pendulum", "FurutaSwingUpEnv",
+        "the pendulum is beyond `max_angle` = 20 degrees of upright or the arm beyond 90 "
+        "degrees", "Termination as Quanser's balance controller's and the Qube balance "
+        "environment's (quanser-openai-driver, `QubeBalanceEnv`).", "10.0", "(6,)")
+    task_class = FurutaBalanceTask
+    env_id = "hgo_mj/FurutaBalance-v0"
+
+
+class AcrobotBalanceEnv(HgoEnv):
+    __doc__ = _balance_doc(
+        "AcrobotBalance", "acrobot", "AcrobotSwingUpEnv",
+        "the shoulder is beyond `max_angle` = 20 degrees of upright or the elbow beyond 20 "
+        "degrees of straight", "Gymnasium's and dm_control's acrobots are swing-ups; Spong "
+        "(1995) hands over to a balancing controller near upright, which this task trains.",
+        "20.0", "(6,)")
+    task_class = AcrobotBalanceTask
+    env_id = "hgo_mj/AcrobotBalance-v0"
+
+
+class CartPoleBalanceEnv(HgoEnv):
+    __doc__ = _balance_doc(
+        "CartPoleBalance", "cart-pole", "CartPoleSwingUpEnv",
+        "the pole is beyond `max_angle` = 12 degrees of upright or the cart beyond 2.4 m "
+        "(`CartPole-v1`'s limits)", "Gymnasium's `CartPole-v1` (Barto, Sutton and Anderson "
+        "1983) with a continuous force of up to 10 N; dm_control's `cartpole.balance` starts "
+        "the same way.", "10.0", "(5,)")
+    task_class = CartPoleBalanceTask
+    env_id = "hgo_mj/CartPoleBalance-v0"
+
+
+__all__ = ["AcrobotBalanceEnv", "AcrobotSwingUpEnv", "CartPendulumBalanceEnv",
+           "CartPoleBalanceEnv", "CartPoleSwingUpEnv",
+           "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "FurutaBalanceEnv",
+           "FurutaSwingUpEnv",
            "PendulumSwingUpEnv"]

@@ -40,6 +40,10 @@ from hgo_mj.exceptions import HgoError
 _BACKENDS = {"egl": "mujoco.egl", "osmesa": "mujoco.osmesa", "glfw": "mujoco.glfw"}
 #: the ghost's colour: a translucent green
 GHOST_RGBA = (0.1, 0.9, 0.5, 0.45)
+#: the task's target pose: a translucent yellow
+TARGET_RGBA = (1.0, 0.8, 0.1, 0.35)
+#: the floor drawn under a model without one: a grey plane
+FLOOR_RGBA = (0.45, 0.45, 0.5, 1.0)
 _DYNAMIC = int(mujoco.mjtCatBit.mjCAT_DYNAMIC)
 _ALL = int(mujoco.mjtCatBit.mjCAT_ALL)
 
@@ -114,6 +118,45 @@ def gl_context() -> tuple[Any, str]:
         f"(libosmesa6), or set MUJOCO_GL to a backend this machine has")
 
 
+def _reach(model: Any) -> tuple[NDArray[np.float64], float]:
+    """The first joint's anchor (the model's centre without joints) and the reach ``R``: the
+    largest distance of a moving geom's bounding sphere from it at ``qpos0``."""
+    d = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, d)
+    root = np.array(d.xanchor[0] if model.njnt else model.stat.center, dtype=float)
+    moving = [g for g in range(model.ngeom) if model.geom_bodyid[g] > 0]
+    reach = max((float(np.linalg.norm(d.geom_xpos[g] - root)) + float(model.geom_rbound[g])
+                 for g in moving), default=float(model.stat.extent))
+    return root, reach
+
+
+def floor_height(model: Any) -> float | None:
+    """Height [m] of the floor drawn under ``model``: the reach ``R`` (see
+    :func:`framing_camera`) below the first joint's anchor, 5 % lower, so that no pose goes
+    through it; None for a model that has a plane of its own.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+        The model (only read).
+
+    Returns
+    -------
+    float or None
+
+    Examples
+    --------
+    >>> from hgo_mj.plants import make_plant
+    >>> from hgo_mj.envs.render import floor_height
+    >>> round(floor_height(make_plant("pendulum").model), 3)
+    -0.551
+    """
+    if np.any(model.geom_type == int(mujoco.mjtGeom.mjGEOM_PLANE)):
+        return None
+    root, reach = _reach(model)
+    return float(root[2] - 1.05 * reach)
+
+
 def framing_camera(model: Any) -> Any:
     """A free camera looking at the first joint's anchor from the side (perpendicular to the
     hinges of the planar mechanisms), far enough that every moving geom stays in view
@@ -140,12 +183,7 @@ def framing_camera(model: Any) -> Any:
     >>> cam.lookat.tolist(), round(cam.distance, 3), cam.azimuth, cam.elevation
     ([0.0, 0.0, 0.0], 1.365, 90.0, -10.0)
     """
-    d = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, d)
-    root = np.array(d.xanchor[0] if model.njnt else model.stat.center, dtype=float)
-    moving = [g for g in range(model.ngeom) if model.geom_bodyid[g] > 0]
-    reach = max((float(np.linalg.norm(d.geom_xpos[g] - root)) + float(model.geom_rbound[g])
-                 for g in moving), default=float(model.stat.extent))
+    root, reach = _reach(model)
     cam = mujoco.MjvCamera()
     mujoco.mjv_defaultFreeCamera(model, cam)
     cam.lookat[:] = root
@@ -165,6 +203,9 @@ class GhostRenderer:
         ``qpos`` address of each joint whose position is a plant state, in state order.
     width, height : int
         Frame size in pixels (at most the model's offscreen buffer, 640 x 480 by default).
+    floor : bool, default True
+        Draw a grey floor (:data:`FLOOR_RGBA`) at :func:`floor_height` under a model without
+        a plane of its own.
 
     Raises
     ------
@@ -185,9 +226,11 @@ class GhostRenderer:
     """
 
     def __init__(self, model: Any, qpos_adr: Sequence[int] | NDArray[np.intp], *, width: int = 480,
-                 height: int = 480) -> None:
+                 height: int = 480, floor: bool = True) -> None:
         if not isinstance(model, mujoco.MjModel):
             raise RenderError(f"model must be a mujoco.MjModel; found {type(model).__name__}")
+        #: height of the drawn floor [m] (None: none drawn)
+        self.floor = floor_height(model) if floor else None
         w = min(int(width), int(model.vis.global_.offwidth))
         h = min(int(height), int(model.vis.global_.offheight))
         model = copy.deepcopy(model)  # lit for rendering; the plant's model is not touched
@@ -197,6 +240,8 @@ class GhostRenderer:
         self.model = model
         self._adr = np.asarray(qpos_adr, dtype=np.intp)
         self._true, self._ghost = mujoco.MjData(model), mujoco.MjData(model)
+        self._target = mujoco.MjData(model)
+        self._floor_size = 3.0 * _reach(model)[1]
         self._ctx, self.backend = gl_context()
         try:
             self._con = mujoco.MjrContext(model, int(mujoco.mjtFontScale.mjFONTSCALE_100))
@@ -214,9 +259,11 @@ class GhostRenderer:
         self._rect = mujoco.MjrRect(0, 0, w, h)
         self._rgb = np.zeros((h, w, 3), dtype=np.uint8)
 
-    def render(self, q_true: NDArray[np.float64], q_ghost: NDArray[np.float64]) -> NDArray[np.uint8]:
-        """One ``(height, width, 3)`` uint8 frame: the model at the joint positions ``q_true``
-        and its ghost at ``q_ghost`` (both in state order).
+    def render(self, q_true: NDArray[np.float64], q_ghost: NDArray[np.float64],
+               q_target: NDArray[np.float64] | None = None) -> NDArray[np.uint8]:
+        """One ``(height, width, 3)`` uint8 frame: the model at the joint positions ``q_true``,
+        its ghost at ``q_ghost`` and the task's target pose at ``q_target`` (all in state
+        order), over the floor.
 
         Parameters
         ----------
@@ -224,6 +271,9 @@ class GhostRenderer:
             True joint positions, one per ``qpos_adr`` entry [rad or m].
         q_ghost : (k,) array
             Joint positions of the ghost (the estimate), the same layout.
+        q_target : (k,) array, optional
+            Joint positions of the task's target, drawn translucent yellow
+            (:data:`TARGET_RGBA`); None: no target drawn.
 
         Returns
         -------
@@ -246,15 +296,26 @@ class GhostRenderer:
         # every renderer has its own offscreen buffer: bind this one (another renderer made
         # since bound its own, and this one's frames were read from it)
         mujoco.mjr_setBuffer(int(mujoco.mjtFramebuffer.mjFB_OFFSCREEN), self._con)
-        for d, q in ((self._true, q_true), (self._ghost, q_ghost)):
+        posed = [(self._true, q_true), (self._ghost, q_ghost)]
+        if q_target is not None:
+            posed.append((self._target, q_target))
+        for d, q in posed:
             d.qpos[self._adr] = q
             mujoco.mj_kinematics(m, d)
         scn = self._scene
         mujoco.mjv_updateScene(m, self._true, self._opt, self._pert, self.camera, _ALL, scn)
-        n0 = scn.ngeom
-        mujoco.mjv_addGeoms(m, self._ghost, self._opt, self._pert, _DYNAMIC, scn)
-        for i in range(n0, scn.ngeom):
-            scn.geoms[i].rgba[:] = GHOST_RGBA
+        for d, rgba in ((self._ghost, GHOST_RGBA), (self._target, TARGET_RGBA))[:len(posed) - 1]:
+            n0 = scn.ngeom
+            mujoco.mjv_addGeoms(m, d, self._opt, self._pert, _DYNAMIC, scn)
+            for i in range(n0, scn.ngeom):
+                scn.geoms[i].rgba[:] = rgba
+        if self.floor is not None and scn.ngeom < scn.maxgeom:
+            c = self.camera.lookat
+            mujoco.mjv_initGeom(scn.geoms[scn.ngeom], int(mujoco.mjtGeom.mjGEOM_PLANE),
+                                np.array([self._floor_size, self._floor_size, 0.1]),
+                                np.array([c[0], c[1], self.floor]), np.eye(3).ravel(),
+                                np.array(FLOOR_RGBA, dtype=np.float32))
+            scn.ngeom += 1
         mujoco.mjr_render(self._rect, scn, self._con)
         mujoco.mjr_readPixels(self._rgb, None, self._rect, self._con)
         return np.flipud(self._rgb).copy()
@@ -433,5 +494,5 @@ class HumanViewer:
             atexit.unregister(self.close)
 
 
-__all__ = ["GHOST_RGBA", "GhostRenderer", "HumanViewer", "RenderError", "check_display",
-           "framing_camera", "gl_context"]
+__all__ = ["FLOOR_RGBA", "GHOST_RGBA", "TARGET_RGBA", "GhostRenderer", "HumanViewer",
+           "RenderError", "check_display", "floor_height", "framing_camera", "gl_context"]

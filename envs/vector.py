@@ -385,17 +385,9 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
 
             env._renderer = GhostRenderer(env.plant.model, env.plant._qadr)
         X, x_hat = self._frame_state
-        nq = len(env.plant._qadr)
-        frames = []
-        for b in range(self.num_envs):
-            q = np.array(X[b, :nq], dtype=float)
-            ghost = q.copy()
-            if x_hat is not None:
-                for j, e in env._err_pairs:
-                    if j < nq:
-                        ghost[j] = x_hat[b, e]
-            frames.append(env._renderer.render(q, ghost))
-        return tuple(frames)
+        return tuple(env._renderer.render(*env._poses(X[b], None if x_hat is None else x_hat[b],
+                                                      self._goals[b]))
+                     for b in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
         self.env.close()

@@ -18,6 +18,10 @@ environment steps per second of the native vector environment
 (``gymnasium.make_vec(id, num_envs=64)``, the one loop at B = 64, MuJoCo's batched step on
 its thread pool) against Gymnasium's ``SyncVectorEnv`` of 64 of the same environment and of 64
 InvertedPendulum-v5, zero actions, autoresets included; interleaved bursts, the best of each.
+Beside them, the physics limit: a bare batched ``mj_step`` loop over 64 ``MjData`` of the
+environment's own model (its integrator, contacts off where it has no collidable geom), each
+advanced by the environment's physics steps per control period (``mj_step(m, d, nstep)``), and
+the native environment's CPU time per step against it (the issue's target: at most 1.3x).
 The native environment runs MuJoCo on two threads, so it is timed with the process's CPU
 clock (``time.process_time``: every thread's time counts, the second thread's included) and
 with the wall clock; the SyncVectorEnvs are single-threaded (the same clocks).
@@ -272,6 +276,34 @@ def _vec_burst(venv: gym.vector.VectorEnv, n: int) -> tuple[float, float]:
     return n * venv.num_envs / max(c1 - c0, 1e-9), n * venv.num_envs / (w1 - w0)
 
 
+class BarePhysics:
+    """The physics limit of an environment at N members: ``N`` ``MjData`` of its own model,
+    each advanced by its physics steps per control period (``mj_step(m, d, nstep)``), one
+    after the other in this thread; ``num_envs``, ``step`` as a vector environment's."""
+
+    def __init__(self, env_id: str, num_envs: int) -> None:
+        env = gym.make(env_id).unwrapped
+        self.model = env.plant.model
+        self.nstep = int(round(env.control_period / env.physics_dt))
+        self.num_envs = num_envs
+        self.datas = [mujoco.MjData(self.model) for _ in range(num_envs)]
+        self.action_space = gym.spaces.Box(-1, 1, (num_envs, self.model.nu), np.float64)
+        env.close()
+
+    def reset(self, seed: int | None = None) -> None:
+        for d in self.datas:
+            mujoco.mj_resetData(self.model, d)
+
+    def step(self, actions: Any) -> None:
+        m, k = self.model, self.nstep
+        for d, a in zip(self.datas, actions):
+            d.ctrl[:] = a
+            mujoco.mj_step(m, d, k)
+
+    def close(self) -> None:
+        self.datas = []
+
+
 def run_vector(rounds: int, steps: int) -> dict[str, tuple[float, float]]:
     """``{label: (steps per CPU s, steps per wall s)}`` at N = 64, interleaved, best burst."""
     venvs: dict[str, gym.vector.VectorEnv] = {
@@ -282,6 +314,7 @@ def run_vector(rounds: int, steps: int) -> dict[str, tuple[float, float]]:
                                                  vectorization_mode="vector_entry_point")
         venvs[f"{env_id} SyncVectorEnv"] = gym.make_vec(env_id, num_envs=VEC_N,
                                                         vectorization_mode="sync")
+        venvs[f"{env_id} bare mj_step"] = BarePhysics(env_id, VEC_N)  # type: ignore[assignment]
     venvs[f"{TARGET_ID} native, nthread=1"] = gym.make_vec(
         TARGET_ID, num_envs=VEC_N, vectorization_mode="vector_entry_point", nthread=1)
     n = max(2, steps // 20)
@@ -308,16 +341,18 @@ def vector_table(res: dict[str, tuple[float, float]], rounds: int, steps: int) -
                 f"steps = environment steps, all 64 members)"),
         "",
         "| environment | native steps / CPU s | SyncVectorEnv(64) steps / CPU s | native / sync "
-        "(CPU) | native / sync (wall) | native / SyncVectorEnv(64) of IPv5 (CPU) |",
-        "|---|---:|---:|---:|---:|---:|",
+        "(CPU) | native / sync (wall) | native / SyncVectorEnv(64) of IPv5 (CPU) | bare "
+        "mj_step x64 steps / CPU s | native CPU per step / bare |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
-    ok = {}
+    ok, limit = {}, {}
     for env_id in VEC_IDS:
         nc, nw = res[f"{env_id} native"]
         sc, sw = res[f"{env_id} SyncVectorEnv"]
-        ok[env_id] = nc / sc
+        bc = res[f"{env_id} bare mj_step"][0]
+        ok[env_id], limit[env_id] = nc / sc, bc / nc
         lines.append(f"| {env_id} | {nc:,.0f} | {sc:,.0f} | {nc / sc:.1f}x | {nw / sw:.1f}x | "
-                     f"{nc / ref_cpu:.2f}x |")
+                     f"{nc / ref_cpu:.2f}x | {bc:,.0f} | {bc / nc:.2f}x |")
     one = res[f"{TARGET_ID} native, nthread=1"]
     lines += [
         f"| {VEC_REFERENCE} (Gymnasium), SyncVectorEnv(64) | | {ref_cpu:,.0f} | | | 1.00x |",
@@ -331,6 +366,12 @@ def vector_table(res: dict[str, tuple[float, float]], rounds: int, steps: int) -
         "|---|---|",
         *(f"| {env_id}: at least 10x | {'met' if r >= 10 else 'NOT met'} ({r:.1f}x CPU) |"
           for env_id, r in ok.items()),
+        "",
+        "| target (issue 29: native at N = 64 against the bare batched mj_step, CPU time per "
+        "step) | status |",
+        "|---|---|",
+        *(f"| {env_id}: at most 1.3x | {'met' if r <= 1.3 else 'NOT met'} ({r:.2f}x) |"
+          for env_id, r in limit.items()),
     ]
     return "\n".join(lines) + "\n"
 

@@ -13,7 +13,7 @@ chain), three seeds per agent, five agents:
   ``RecurrentPPO``, ``MlpLstmPolicy``).
 
 The first three train on the native vector environment (``gymnasium.make_vec(id,
-num_envs=N)``, the one loop at B = N) through :func:`sb3_vec_env`, stable-baselines3's
+num_envs=N)``, the one loop at B = N) through :func:`hgo_mj.envs.sb3.sb3_vec_env`, stable-baselines3's
 ``VecEnv`` over it; the stacked agent on stable-baselines3's ``DummyVecEnv`` of single
 environments wrapped in ``FrameStackObservation``. Every policy is evaluated (deterministic
 actions, the same environment seeds in every cell) on its own observation; the first three
@@ -127,73 +127,12 @@ def make_env(env_id: str, mode: str, seed: int | None = None) -> Any:
     return env
 
 
-def same_step(venv: Any, actions: Any) -> tuple[Any, Any, Any, list[dict[str, Any]]]:
-    """One step of an hgo_mj vector environment (NEXT_STEP autoreset) as stable-baselines3
-    wants it (the same step): a member that ended is reset at once (``reset_mask``), its
-    observation is the new episode's first, ``info["terminal_observation"]`` the last one and
-    ``info["TimeLimit.truncated"]`` says whether the time limit ended it."""
-    obs, rewards, terminated, truncated, _ = venv.step(actions)
-    dones = terminated | truncated
-    infos: list[dict[str, Any]] = [{} for _ in range(venv.num_envs)]
-    if dones.any():
-        for i in np.flatnonzero(dones).tolist():
-            infos[i] = {"terminal_observation": obs[i].copy(),
-                        "TimeLimit.truncated": bool(truncated[i] and not terminated[i])}
-        fresh, _ = venv.reset(options={"reset_mask": dones})
-        obs = obs.copy()
-        obs[dones] = fresh[dones]
-    return obs, rewards.astype(np.float32), dones, infos
-
-
-def sb3_vec_env(venv: Any) -> Any:
-    """stable-baselines3's ``VecEnv`` over an hgo_mj vector environment (:func:`same_step`).
-    ``seed(s)`` then ``reset()`` seeds member ``i`` with ``s + i``."""
-    from stable_baselines3.common.vec_env import VecEnv
-
-    class HgoSb3VecEnv(VecEnv):  # type: ignore[misc]
-        def __init__(self) -> None:
-            super().__init__(venv.num_envs, venv.single_observation_space,
-                             venv.single_action_space)
-            self.venv = venv
-            self._actions: Any = None
-
-        def reset(self) -> Any:
-            seeds = self._seeds
-            obs, _ = venv.reset(seed=None if all(s is None for s in seeds) else list(seeds))
-            self._reset_seeds()
-            return obs
-
-        def step_async(self, actions: Any) -> None:
-            self._actions = actions
-
-        def step_wait(self) -> Any:
-            return same_step(venv, self._actions)
-
-        def close(self) -> None:
-            venv.close()
-
-        def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
-            return [getattr(venv.env, attr_name)] * len(self._get_indices(indices))
-
-        def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
-            raise AttributeError("the members of an hgo_mj vector environment share one "
-                                 "configuration")
-
-        def env_method(self, method_name: str, *args: Any, indices: Any = None,
-                       **kwargs: Any) -> list[Any]:
-            raise AttributeError("an hgo_mj vector environment has no per-member methods")
-
-        def env_is_wrapped(self, wrapper_class: Any, indices: Any = None) -> list[bool]:
-            return [False] * len(self._get_indices(indices))
-
-    return HgoSb3VecEnv()
-
-
 def train_env(env_id: str, agent: str, seed: int) -> Any:
     """The training environment of an agent, seeded: the native vector environment of
     :data:`N_ENVS` members, or a ``DummyVecEnv`` of stacked single environments."""
     import gymnasium as gym
     import hgo_mj.envs  # noqa: F401
+    from hgo_mj.envs.sb3 import sb3_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     if agent.endswith("+stack"):

@@ -63,7 +63,8 @@ _INCOMPATIBLE: dict[tuple[str, str], tuple[type[Exception], str]] = {
         DesignError, "the Jo-Son observer needs the adaptive observer canonical form"),
     # the lab plants: two encoders, one chain per joint (high_gain_multi) and the filters
     **{(f"hgo_mj/{env}-v0", kind): (DesignError, why)
-       for env in ("FurutaSwingUp", "AcrobotSwingUp", "CartPoleSwingUp")
+       for env in ("FurutaSwingUp", "AcrobotSwingUp", "CartPoleSwingUp", "FurutaBalance",
+                   "AcrobotBalance", "CartPoleBalance")
        for kind, why in (
            ("adaptive_gain", "needs a single-output normal form"),
            ("high_gain", "needs a single-output normal form"),
@@ -335,7 +336,96 @@ def test_environment_docstring_has_gymnasium_sections(env_id):
     assert f"* {env_id.rsplit('-', 1)[1]}:" in parts[-1]
 
 
+# --------------------------------------------------------------------------- specs
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_spec_has_threshold_observer_and_sensor_and_goes_to_json(env_id):
+    """Every registered spec has a reward threshold; a made environment's spec holds the
+    observer and sensor chain it runs, ``to_json`` works and ``make(spec)`` rebuilds it."""
+    assert isinstance(gym.spec(env_id).reward_threshold, float)
+    env = gym.make(env_id)
+    kwargs = env.spec.kwargs
+    u = env.unwrapped
+    assert kwargs["observer"]["type"] == u.observer.name
+    assert kwargs["sensor"] == u.sensor.describe() and kwargs["sensor"]
+    raw = json.loads(env.spec.to_json())
+    assert raw["kwargs"]["observer"]["type"] == u.observer.name
+    assert raw["vector_entry_point"].startswith("hgo_mj.envs:make_")
+    again = gym.make(env.spec)
+    assert again.unwrapped.observer.params() == u.observer.params()
+    assert again.unwrapped.sensor.describe() == kwargs["sensor"]
+
+
+def test_spec_of_an_instance_no_observer_and_a_custom_sensor():
+    sensor = [{"stage": "gaussian", "std": 0.02}, {"stage": "quantize", "counts_per_rev": 4096}]
+    env = gym.make("hgo_mj/PendulumSwingUp-v0", observer="riccati",
+                   observer_kwargs={"gamma": 9.0}, sensor=sensor)
+    assert env.spec.kwargs["observer"] == {"type": "riccati", "gamma": 9.0}
+    assert "observer_kwargs" not in env.spec.kwargs
+    assert env.spec.kwargs["sensor"] == sensor
+    inst = envs.PendulumSwingUpEnv(observer="besancon").observer
+    env = gym.make("hgo_mj/PendulumSwingUp-v0", observer=inst)
+    assert env.spec.kwargs["observer"] == {"type": "besancon", **inst.params()}
+    json.loads(env.spec.to_json())
+    env = gym.make("hgo_mj/PendulumSwingUp-v0", observer=None, observation="true", sensor=None)
+    assert env.spec.kwargs["observer"] is None and env.spec.kwargs["sensor"] == []
+    assert envs.PendulumSwingUpEnv().spec is None  # made directly: no spec
+
+
 # --------------------------------------------------------------------------- behaviour
+#: the balance tasks: (id, index and target of the bounded coordinate, its band [rad],
+#: a limit (index, bound) or None)
+_BALANCE = [("hgo_mj/CartPoleBalance-v0", 1, np.pi, np.radians(12.0), (0, 2.4)),
+            ("hgo_mj/FurutaBalance-v0", 1, np.pi, np.radians(20.0), (0, np.pi / 2)),
+            ("hgo_mj/AcrobotBalance-v0", 0, np.pi, np.radians(20.0), None)]
+
+
+@pytest.mark.parametrize("env_id,i,target,band,limit", _BALANCE)
+def test_balance_tasks_start_upright_pay_alive_and_end_outside_the_band(env_id, i, target,
+                                                                         band, limit):
+    """Gymnasium's CartPole-v1 rules (start within 0.05 of upright, +1 per step, the episode
+    ends outside the band or the track), the registered threshold 475 of 500 steps."""
+    env = gym.make(env_id, observation="true", info_level="full")
+    assert env.spec.max_episode_steps == 500 and env.spec.reward_threshold == 475.0
+    for seed in range(5):
+        _, info = env.reset(seed=seed)
+        up = np.zeros(4)
+        for j, value, _ in env.unwrapped.task.targets:
+            up[j] = value
+        assert np.all(np.abs(info["state"] - up) <= 0.05)
+    _, r, term, _, info = env.step(np.zeros(1, np.float32))
+    assert (r, term, info["reward_alive"]) == (1.0, False, 1.0)
+    task = env.unwrapped.task
+    x = up.copy()
+    x[i] = target + 0.99 * band
+    assert not task.terminated(list(x))
+    x[i] = target - 1.01 * band
+    assert task.terminated(list(x))
+    if limit is not None:
+        x = up.copy()
+        x[limit[0]] = 1.01 * limit[1]
+        assert task.terminated(list(x))
+    np.testing.assert_array_equal(task.termination(np.array([up, x]).T), [False, True])
+
+
+def test_the_cart_is_bounded_by_its_track_only():
+    """CartPole-v1: the cart may go anywhere on its 2.4 m track (its centring target is not
+    held to the pole's 12-degree band)."""
+    task = gym.make("hgo_mj/CartPoleBalance-v0").unwrapped.task
+    assert not task.terminated([1.0, np.pi, 0.0, 0.0])
+    assert task.terminated([2.5, np.pi, 0.0, 0.0])
+
+
+def test_the_acrobot_balance_bounds_the_elbow_too():
+    task = gym.make("hgo_mj/AcrobotBalance-v0").unwrapped.task
+    assert not task.terminated([np.pi, 0.3, 0.0, 0.0])
+    assert task.terminated([np.pi, -0.4, 0.0, 0.0])
+
+
+def test_a_balance_start_noise_beyond_the_band_is_refused():
+    with pytest.raises(DesignError, match="start_noise must be at most 0.2"):
+        gym.make("hgo_mj/CartPoleBalance-v0", start_noise=0.3, max_angle=0.2)
+
+
 def test_info_error_is_state_minus_estimate():
     env = gym.make("hgo_mj/ElasticJointReach-v0")
     _, info = env.reset(seed=0)

@@ -1,6 +1,6 @@
-"""scripts/train_rl.py without torch: cross-mode deployment by observation names, the
-stable-baselines3 step over the native vector environment, the solved criterion, the report
-and its learning-curve figure."""
+"""scripts/train_rl.py without torch: cross-mode deployment by observation names, the solved
+criterion, the report and its learning-curve figure (the stable-baselines3 step over the
+native vector environment is tests/envs/test_sb3.py's)."""
 
 from __future__ import annotations
 
@@ -67,30 +67,6 @@ def test_report_table_and_findings(tmp_path):
     assert "estimate 86%, measurement+stack 57%, measurement+lstm 43%" in text
     png = train_rl.figure(runs, tmp_path / "curves.png")
     assert png.stat().st_size > 10_000
-
-
-def test_same_step_resets_ended_members_at_once():
-    """stable-baselines3's semantics over the NEXT_STEP vector environment: the observation
-    after an episode's end is the next episode's first, the last one is in the info."""
-    venv = gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=3, max_episode_steps=4)
-    singles = [gym.make("hgo_mj/PendulumSwingUp-v0", max_episode_steps=4) for _ in range(3)]
-    obs, _ = venv.reset(seed=[1, 2, 3])
-    for i, env in enumerate(singles):
-        env.reset(seed=i + 1)
-    a = np.full((3, 1), 0.3, dtype=np.float32)
-    for step in range(10):
-        obs, rew, dones, infos = train_rl.same_step(venv, a)
-        assert rew.dtype == np.float32 and dones.dtype == bool
-        for i, env in enumerate(singles):
-            o, r, term, trunc, _ = env.step(a[i])
-            assert np.float32(r) == rew[i]
-            if term or trunc:
-                assert dones[i] and infos[i]["TimeLimit.truncated"]
-                assert np.array_equal(infos[i]["terminal_observation"], o)
-                o, _ = env.reset()  # the generators go on, as the member's
-            else:
-                assert not dones[i] and infos[i] == {}
-            assert np.array_equal(obs[i], o), (step, i)
 
 
 def test_solved_criterion():

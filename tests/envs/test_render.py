@@ -49,6 +49,36 @@ def test_the_ghost_shows_where_the_estimate_is_off():
     env.close()
 
 
+def test_frames_have_a_floor_and_the_tasks_target():
+    """The hanging pendulum: the frame is the renderer's with the ghost and the upright target
+    (translucent yellow where the pendulum is not) over a grey floor under the lowest pose."""
+    from hgo_mj.envs.render import FLOOR_RGBA, GhostRenderer, floor_height
+
+    env = envs.PendulumSwingUpEnv(render_mode="rgb_array", observer=None, observation="true")
+    env.reset(seed=0, options={"x0": [0.0, 0.0]})
+    frame = env.render()
+    r, q = env._renderer, np.array([0.0])
+    np.testing.assert_array_equal(frame, r.render(q, q, np.array([np.pi])))
+    bare = r.render(q, q)
+    diff = np.abs(frame.astype(int) - bare).sum(-1) > 30
+    yellow = (frame[..., 0] > 120) & (frame[..., 1] > 90) & (frame[..., 2].astype(int) <
+                                                             frame[..., 1] - 40)
+    assert (diff & yellow).sum() > 200  # the target, above the pivot
+    rows = np.flatnonzero((diff & yellow).any(1))
+    assert rows.max() < frame.shape[0] // 2
+    assert r.floor == floor_height(env.plant.model) < -0.45  # below the hanging pendulum
+    plain = GhostRenderer(env.plant.model, env.plant._qadr, floor=False)
+    assert plain.floor is None
+    no_floor = plain.render(q, q)
+    bottom = bare[-40:].astype(int)  # the floor, lit: grey-blue as FLOOR_RGBA, darker
+    assert (bottom.sum(-1) > 90).mean() > 0.9
+    assert (np.abs(bottom[..., 2] - bottom[..., 0] - 255 * (FLOOR_RGBA[2] - FLOOR_RGBA[0]))
+            < 12).mean() > 0.9
+    assert (np.abs(no_floor[-40:].astype(int) - bottom).sum(-1) > 30).mean() > 0.9
+    plain.close()
+    env.close()
+
+
 def test_render_without_a_mode_warns_and_before_reset_raises():
     env = envs.PendulumSwingUpEnv()
     with pytest.warns(UserWarning, match="without a render_mode"):

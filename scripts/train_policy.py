@@ -1,0 +1,174 @@
+"""Train one policy (stable-baselines3 PPO) on an hgo_mj task, with checkpoints and resume.
+
+The policies a reviewer loads (``docs/results/policies/``, evaluated by
+``scripts/eval_rl.py``) come from here: one task, one agent (the observation it sees:
+``true`` state or the observer's ``estimate``), one seed. The balance tasks
+(``hgo_mj/{Furuta,Acrobot,CartPole}Balance-v0``) train with RL Zoo's tuned PPO settings of
+``CartPole-v1`` (``hyperparams/ppo.yml`` of rl-baselines3-zoo: 8 environments, n_steps 32,
+batch 256, 20 epochs, gamma 0.98, GAE 0.8, learning rate and clip range decaying linearly
+from 1e-3 and 0.2, no entropy bonus), the nearest balance task RL Zoo tunes; the
+continuous action gets SB3's Gaussian policy. PPO rather than SAC: a balance task is solved
+within RL Zoo's 1e5 steps by PPO, and PPO's batched rollouts use the native vector
+environment (:func:`hgo_mj.envs.sb3.sb3_vec_env`, one loop at B = 8).
+
+Checkpoints: the model is saved every ``--checkpoint-every`` seconds (and at the end) to
+``<checkpoints>/<name>.zip`` with ``<name>.json`` (steps done, training seconds so far); a
+run started again with the same arguments loads them and trains the remaining steps, so a
+stop loses at most one interval. The finished policy goes to ``<out>/<name>.zip`` with
+``<name>.json`` (environment, agent, seed, algorithm and settings, steps, training seconds).
+Every file is written atomically.
+
+Usage::
+
+    python scripts/train_policy.py --env hgo_mj/CartPoleBalance-v0 --agent estimate --seed 0
+    python scripts/train_policy.py --env hgo_mj/FurutaBalance-v0 --agent true --steps 4096 \\
+        --out /tmp/policies --checkpoints /tmp/ckpt                       # smoke run
+
+Install the ``rl`` extra (stable-baselines3 and torch; on a CPU machine the CPU torch wheel).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from hgo_mj._io import atomic_path
+from hgo_mj._json import write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+AGENTS = ("true", "estimate")
+#: members of the native vector environment a policy trains on (RL Zoo's n_envs)
+N_ENVS = 8
+#: RL Zoo's tuned PPO for CartPole-v1 (``lin_x``: decaying linearly from x to 0)
+PPO_CARTPOLE = {"n_steps": 32, "batch_size": 256, "gae_lambda": 0.8, "gamma": 0.98,
+                "n_epochs": 20, "ent_coef": 0.0, "learning_rate": "lin_0.001",
+                "clip_range": "lin_0.2"}
+#: the steps of RL Zoo's CartPole-v1 budget
+DEFAULT_STEPS = 100_000
+
+
+def policy_name(env_id: str, agent: str, seed: int) -> str:
+    """File stem of a policy: ``FurutaBalance-v0_estimate_seed0``."""
+    return f"{env_id.split('/')[-1]}_{agent}_seed{seed}"
+
+
+def _schedule(value: Any) -> Any:
+    """RL Zoo's ``lin_x`` as a function of SB3's remaining progress; a number as it is."""
+    if isinstance(value, str) and value.startswith("lin_"):
+        start = float(value[4:])
+
+        def linear(progress_remaining: float) -> float:
+            return progress_remaining * start
+        return linear
+    return value
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Refuse bad arguments before any work, naming what was expected and found."""
+    import gymnasium as gym
+    import hgo_mj.envs  # noqa: F401  (registers the environments)
+
+    if args.env not in gym.registry or not args.env.startswith("hgo_mj/"):
+        raise SystemExit(f"--env must be a registered hgo_mj id; found {args.env!r}")
+    if args.agent not in AGENTS:
+        raise SystemExit(f"--agent must be one of {list(AGENTS)}; found {args.agent!r}")
+    if args.gamma is not None and not 0.0 < args.gamma < 1.0:
+        raise SystemExit(f"--gamma must be in (0, 1); found {args.gamma}")
+    if args.steps < 1 or args.checkpoint_every <= 0:
+        raise SystemExit(f"--steps must be >= 1 and --checkpoint-every > 0; found "
+                         f"{args.steps} and {args.checkpoint_every}")
+
+
+def _save_model(model: Any, path: Path) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:  # SB3 would append ".zip" to a bare temporary name
+            model.save(fh)
+
+
+def train(args: argparse.Namespace) -> Path:
+    """Train (or resume) one policy and write it to ``args.out``; returns the policy path."""
+    import torch
+    from hgo_mj.envs.sb3 import sb3_vec_env
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    torch.set_num_threads(1)
+    name = policy_name(args.env, args.agent, args.seed)
+    ckpt, ckpt_meta = args.checkpoints / f"{name}.zip", args.checkpoints / f"{name}.json"
+    venv = sb3_vec_env(args.env, num_envs=N_ENVS, observation=args.agent, nthread=1)
+    venv.seed(args.seed)
+    done_seconds = 0.0
+    if ckpt.exists() and ckpt_meta.exists():
+        model = PPO.load(ckpt, env=venv, device="cpu")
+        done_seconds = float(json.loads(ckpt_meta.read_text())["train_seconds"])
+        print(f"resuming {name} at {model.num_timesteps} steps", flush=True)
+    else:
+        settings = {k: _schedule(v) for k, v in PPO_CARTPOLE.items()}
+        if args.gamma is not None:
+            settings["gamma"] = args.gamma
+        model = PPO("MlpPolicy", venv, seed=args.seed, device="cpu", verbose=0, **settings)
+    start = time.monotonic()
+
+    def checkpoint() -> None:
+        _save_model(model, ckpt)
+        write_json(ckpt_meta, {"steps": int(model.num_timesteps),
+                               "train_seconds": done_seconds + time.monotonic() - start})
+
+    class Every(BaseCallback):  # type: ignore[misc]
+        last = time.monotonic()
+
+        def _on_step(self) -> bool:
+            if time.monotonic() - self.last >= args.checkpoint_every:
+                checkpoint()
+                Every.last = time.monotonic()
+                print(f"{name}: {model.num_timesteps} steps", flush=True)
+            return True
+
+    args.checkpoints.mkdir(parents=True, exist_ok=True)
+    remaining = args.steps - int(model.num_timesteps)
+    if remaining > 0:
+        model.learn(remaining, callback=Every(), reset_num_timesteps=False)
+        checkpoint()
+    seconds = done_seconds + time.monotonic() - start
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / f"{name}.zip"
+    _save_model(model, path)
+    write_json(args.out / f"{name}.json", {
+        "env_id": args.env, "agent": args.agent, "seed": args.seed, "algorithm": "PPO",
+        "settings": {**PPO_CARTPOLE, "gamma": float(model.gamma), "n_envs": N_ENVS,
+                     "source": "rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"
+                     + ("" if model.gamma == PPO_CARTPOLE["gamma"] else
+                        f", gamma {model.gamma:g} (--gamma)")},
+        "steps": int(model.num_timesteps), "train_seconds": round(seconds, 1),
+        "cpu_note": "one torch thread, nice 15, on a 2-core machine shared with other jobs"})
+    venv.close()
+    print(f"{name}: {model.num_timesteps} steps in {seconds:.0f} s -> {path}", flush=True)
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--env", required=True, help="registered id, e.g. hgo_mj/FurutaBalance-v0")
+    ap.add_argument("--agent", default="estimate", help=f"one of {list(AGENTS)}")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "policies")
+    ap.add_argument("--checkpoints", type=Path, default=ROOT / "runs" / "rl_checkpoints")
+    ap.add_argument("--checkpoint-every", type=float, default=120.0, help="seconds")
+    ap.add_argument("--gamma", type=float, default=None,
+                    help="discount instead of RL Zoo's 0.98 (a new run only; a resumed run keeps "
+                         "its own)")
+    args = ap.parse_args(argv)
+    check_args(args)
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    train(args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,94 @@
+"""scripts/eval_rl.py without stable-baselines3: the solved criterion, the table and the
+refusals; with it (skipped otherwise), scripts/train_policy.py trains, stops, resumes and
+eval_rl.py evaluates what it wrote."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import hgo_mj.envs  # noqa: F401
+import pytest
+
+SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
+
+
+def _load(name: str):
+    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod  # its dataclasses look their module up
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_solved_is_balanced_to_the_time_limit():
+    ev = _load("eval_rl")
+    env = gym.make("hgo_mj/CartPoleBalance-v0")
+    assert ev.episode_solved(env, False, 500)
+    assert not ev.episode_solved(env, True, 500)
+    assert not ev.episode_solved(env, False, 499)
+    with pytest.raises(SystemExit, match="found SwingUpTask"):
+        ev.episode_solved(gym.make("hgo_mj/PendulumSwingUp-v0"), False, 250)
+
+
+def test_table_and_refusals(tmp_path):
+    ev = _load("eval_rl")
+    rows = [ev.Row("x", "hgo_mj/CartPoleBalance-v0", "estimate", 0, 100_000, 80.4,
+                   [500.0, 300.0], [True, False])]
+    assert ("| hgo_mj/CartPoleBalance-v0 | estimate | 0 | 0.98 | 100,000 | 80 | 400.0 ± 100.0 | "
+            "50% |" in ev.table(rows))
+    assert "Machine:" in ev.report(rows, 2, 3.0)
+    rows.append(ev.Row("y", "hgo_mj/CartPoleBalance-v0", "true", 0, 100_000, 50.0,
+                       [500.0, 500.0], [True, True]))
+    assert ("- hgo_mj/CartPoleBalance-v0: estimate 50%, true 100%; the estimate agent solves "
+            "50% as many episodes as the true-state agent (target 90%: not met).") in \
+        ev.findings(rows)
+    rows[1].solved = [False, False]
+    assert "the true-state agent solves none" in ev.findings(rows)
+    with pytest.raises(SystemExit, match="found 0 zip"):
+        ev.main(["--policies", str(tmp_path)])
+    (tmp_path / "a.zip").write_bytes(b"")
+    with pytest.raises(SystemExit, match=r"without json: \['a.zip'\]"):
+        ev.main(["--policies", str(tmp_path)])
+    with pytest.raises(SystemExit, match="--episodes must be >= 1; found 0"):
+        ev.main(["--episodes", "0"])
+
+
+def test_train_policy_refuses_bad_arguments():
+    tp = _load("train_policy")
+    with pytest.raises(SystemExit, match="--agent must be one of"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "lstm"])
+    with pytest.raises(SystemExit, match="registered hgo_mj id; found 'CartPole-v1'"):
+        tp.main(["--env", "CartPole-v1"])
+    with pytest.raises(SystemExit, match=r"--gamma must be in \(0, 1\); found 1.5"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--gamma", "1.5"])
+    with pytest.raises(SystemExit, match="--steps must be >= 1"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--steps", "0"])
+
+
+def test_train_stop_resume_and_evaluate(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    tp, ev = _load("train_policy"), _load("eval_rl")
+    args = ["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "true", "--out",
+            str(tmp_path / "pol"), "--checkpoints", str(tmp_path / "ck")]
+    assert tp.main([*args, "--steps", "256"]) == 0
+    ck = json.loads((tmp_path / "ck" / "CartPoleBalance-v0_true_seed0.json").read_text())
+    assert ck["steps"] == 256
+    assert tp.main([*args, "--steps", "512"]) == 0  # resumes from the checkpoint
+    assert "resuming CartPoleBalance-v0_true_seed0 at 256 steps" in capsys.readouterr().out
+    meta = json.loads((tmp_path / "pol" / "CartPoleBalance-v0_true_seed0.json").read_text())
+    assert meta["steps"] == 512 and meta["algorithm"] == "PPO"
+    assert meta["settings"]["gamma"] == 0.98
+    assert tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "estimate", "--steps", "256",
+                    "--gamma", "0.99", "--out", str(tmp_path / "g"), "--checkpoints",
+                    str(tmp_path / "ckg")]) == 0
+    meta = json.loads((tmp_path / "g" / "CartPoleBalance-v0_estimate_seed0.json").read_text())
+    assert meta["settings"]["gamma"] == 0.99 and "gamma 0.99 (--gamma)" in \
+        meta["settings"]["source"]
+    out = tmp_path / "rl_policies.md"
+    assert ev.main(["--policies", str(tmp_path / "pol"), "--episodes", "1", "--write",
+                    str(out)]) == 0
+    assert "| hgo_mj/CartPoleBalance-v0 | true | 0 | 0.98 | 512 |" in out.read_text()
