@@ -1520,9 +1520,16 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         if spec is not None:
             kwargs = {k: v for k, v in spec.kwargs.items() if k != "observer_kwargs"}
             obs = self.observer
-            kwargs["observer"] = (None if obs is None else self._observer_spec
-                                  if self._observer_spec is not None else
-                                  {"type": obs.name or type(obs).__name__, **obs.params()})
+            if obs is None:
+                kwargs["observer"] = None
+            elif self._observer_spec is not None:
+                kwargs["observer"] = self._observer_spec
+            elif obs.name in OBSERVERS or not isinstance(spec.kwargs.get("observer", "default"),
+                                                         str):
+                kwargs["observer"] = {"type": obs.name or type(obs).__name__, **obs.params()}
+            else:  # the task's fallback for a default that is not registered (a bank of
+                # chains): the name asked for, which makes the same environment again
+                kwargs["observer"] = spec.kwargs.get("observer", "default")
             kwargs["sensor"] = self.sensor.describe()
             spec = dataclasses.replace(spec, kwargs=kwargs)
         self._spec = spec
