@@ -898,6 +898,31 @@ class Recorder:
                     step=self._step_next, episode=int(episode), extra=extra)
 
     # ------------------------------------------------------------------ lifetime
+    @property
+    def file(self) -> Path | None:
+        """The file being written: a hidden temporary beside :attr:`path` until :meth:`close`
+        renames it onto :attr:`path` (then :attr:`path`); None for a stream without a file.
+
+        Returns
+        -------
+        Path or None
+            The recording's file as it is now.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     rec = Recorder(Path(tmp) / "run.rrd", state_names=["x"], output_names=["x"],
+        ...                    input_names=["u"])
+        ...     open_name = rec.file.name
+        ...     rec.close()
+        ...     closed = rec.file == rec.path
+        >>> open_name.startswith(".run.rrd."), closed
+        (True, True)
+        """
+        return self._sink.file if self._sink.file is not None else self.path
+
     def flush(self) -> None:
         """Send the queued poses and wait until everything recorded so far is written.
 
@@ -918,7 +943,7 @@ class Recorder:
         ...     rec.flush()
         ...     with warnings.catch_warnings():  # no footer yet: rerun warns
         ...         warnings.simplefilter("ignore")
-        ...         rows = len(read(Path(tmp) / "run.rrd"))
+        ...         rows = len(read(rec.file))  # the temporary, renamed onto path at close
         ...     rec.close()
         >>> rows
         3
