@@ -90,6 +90,13 @@ def sensor_channel(m: Any, name: str) -> tuple[str, int]:
     return name, 0
 
 
+def _sensor_names(outputs: Any) -> tuple[str, ...]:
+    """``outputs`` checked to be a list (or tuple) of sensor names."""
+    if not isinstance(outputs, (list, tuple)) or not all(isinstance(o, str) for o in outputs):
+        raise DesignError(f"outputs must be a list of sensor names; found {outputs!r:.60}")
+    return tuple(outputs)
+
+
 class MujocoPlant(Plant):
     """An MJCF model simulated by MuJoCo, with the state and outputs of a :class:`System`.
 
@@ -168,10 +175,8 @@ class MujocoPlant(Plant):
                             slice(int(self._vadr[0]), int(self._vadr[-1]) + 1))
         self._aid = [_id(mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator") for a in system.actuators]
         self._nq = len(jids)
-        if outputs is not None and (not isinstance(outputs, (list, tuple))
-                                    or not all(isinstance(o, str) for o in outputs)):
-            raise DesignError(f"outputs must be a list of sensor names; found {outputs!r:.60}")
-        self._output_names = tuple(outputs) if outputs is not None else system.output_names
+        self._output_names = (_sensor_names(outputs) if outputs is not None
+                              else system.output_names)
         self._sensor_src: list[tuple[str, int]] = []
         self._needs_forward = False
         for name in self._output_names:
