@@ -95,6 +95,18 @@ def chi2_band(dof: int | Array, confidence: float = 0.95) -> tuple[Array, Array]
     channels) lies with that probability (Bar-Shalom et al. 2001, sec. 5.4.2). ``dof`` 0
     gives the empty band ``(inf, -inf)``.
 
+    Parameters
+    ----------
+    dof : int or ndarray
+        Degrees of freedom (an array gives a band per entry).
+    confidence : float
+        The probability inside the band.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(low, high)``, shaped as ``dof``.
+
     Examples
     --------
     >>> lo, hi = chi2_band(1)

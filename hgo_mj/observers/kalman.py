@@ -1760,7 +1760,7 @@ class ExtendedKalmanFilter(_KalmanFilter):
         Time-update steps per sample.
     jacobian : {"auto", "analytic", "fd"}
         How :math:`F` is obtained (see :class:`SystemModel`).
-    model : None
+    model, model_fields : None
         Only for the MuJoCo filters (:class:`MujocoExtendedKalmanFilter`); must be None here.
     on_unstable : {"raise", "warn", "ignore"}
         Kept for the contract: the filter is stable at every period.
@@ -1875,7 +1875,7 @@ class UnscentedKalmanFilter(_KalmanFilter):
     **kw
         As :class:`ExtendedKalmanFilter` (``jacobian`` is not used).
     system, estimate, Q, Q_theta, R, sensor, P0, P0_theta, x_hat0, theta_hat0, outputs, \
-method, substeps, jacobian, model, on_unstable
+method, substeps, jacobian, model, model_fields, on_unstable
         The keywords of :class:`ExtendedKalmanFilter`, the same meaning.
 
     References

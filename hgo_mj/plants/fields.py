@@ -82,7 +82,26 @@ def resolve(model: Any, spec: str, what: str = "field") -> tuple[str, int]:
 
 
 def get_field(model: Any, field: str, i: int) -> Any:
-    """The value at a resolved place (a float, or an array for a vector field)."""
+    """The value at a resolved place.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    field, i
+        As :func:`resolve` returns them.
+
+    Returns
+    -------
+    float or ndarray
+        An array for a vector field (``body_inertia``).
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> m = Pendulum.load_model()
+    >>> get_field(m, *resolve(m, "body_mass[pole]"))
+    0.25
+    """
     if field == "gravity":
         return float(np.linalg.norm(model.opt.gravity))
     if field == "actuator_gear":
@@ -92,7 +111,24 @@ def get_field(model: Any, field: str, i: int) -> Any:
 
 
 def set_field(model: Any, field: str, i: int, value: Any) -> None:
-    """Write ``value`` at a resolved place (unchecked: the hot path of the filters)."""
+    """Write ``value`` at a resolved place, unchecked (the filters' hot path; :func:`set_fields`
+    checks).
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    field, i
+        As :func:`resolve` returns them.
+    value : float or array_like
+
+    Examples
+    --------
+    >>> from hgo_mj.systems import Pendulum
+    >>> m = Pendulum.load_model()
+    >>> set_field(m, *resolve(m, "dof_damping[hinge]"), 0.05)
+    >>> float(m.dof_damping[0])
+    0.05
+    """
     if field == "gravity":
         g = np.asarray(model.opt.gravity, dtype=float)
         g = g / np.linalg.norm(g) * value

@@ -90,13 +90,6 @@ def sensor_channel(m: Any, name: str) -> tuple[str, int]:
     return name, 0
 
 
-def _sensor_names(outputs: Any) -> tuple[str, ...]:
-    """``outputs`` checked to be a list (or tuple) of sensor names."""
-    if not isinstance(outputs, (list, tuple)) or not all(isinstance(o, str) for o in outputs):
-        raise DesignError(f"outputs must be a list of sensor names; found {outputs!r:.60}")
-    return tuple(outputs)
-
-
 class MujocoPlant(Plant):
     """An MJCF model simulated by MuJoCo, with the state and outputs of a :class:`System`.
 
@@ -175,21 +168,7 @@ class MujocoPlant(Plant):
                             slice(int(self._vadr[0]), int(self._vadr[-1]) + 1))
         self._aid = [_id(mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator") for a in system.actuators]
         self._nq = len(jids)
-        self._output_names = (_sensor_names(outputs) if outputs is not None
-                              else system.output_names)
-        self._sensor_src: list[tuple[str, int]] = []
-        self._needs_forward = False
-        for name in self._output_names:
-            base, k = sensor_channel(m, name)
-            s = _id(mujoco.mjtObj.mjOBJ_SENSOR, base, "sensor")
-            kind = _DIRECT_SENSORS.get(int(m.sensor_type[s]))
-            if kind is not None and m.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_JOINT:
-                j = m.sensor_objid[s]
-                adr = m.jnt_qposadr[j] if kind == "qpos" else m.jnt_dofadr[j]
-                self._sensor_src.append((kind, int(adr)))
-            else:
-                self._sensor_src.append(("sensordata", int(m.sensor_adr[s]) + k))
-                self._needs_forward = True
+        self._read_outputs(outputs, system, _id)
         self._x0 = vector("system.default_x0", system.default_x0, 2 * self._nq)
         if nthread is None:
             nthread = min(2, os.cpu_count() or 1)
@@ -205,6 +184,28 @@ class MujocoPlant(Plant):
         self._mjbatch: Any = None
         self._cache()
         self.reset()
+
+    def _read_outputs(self, outputs: Any, system: type[System], _id: Any) -> None:
+        """Where each output is read: ``qpos``/``qvel`` straight for a joint sensor, else
+        ``sensordata`` (after ``mj_forward``)."""
+        m = self.model
+        if outputs is not None and (not isinstance(outputs, (list, tuple))
+                                    or not all(isinstance(o, str) for o in outputs)):
+            raise DesignError(f"outputs must be a list of sensor names; found {outputs!r:.60}")
+        self._output_names = tuple(outputs) if outputs is not None else system.output_names
+        self._sensor_src: list[tuple[str, int]] = []
+        self._needs_forward = False
+        for name in self._output_names:
+            base, k = sensor_channel(m, name)
+            s = _id(mujoco.mjtObj.mjOBJ_SENSOR, base, "sensor")
+            kind = _DIRECT_SENSORS.get(int(m.sensor_type[s]))
+            if kind is not None and m.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_JOINT:
+                j = m.sensor_objid[s]
+                adr = m.jnt_qposadr[j] if kind == "qpos" else m.jnt_dofadr[j]
+                self._sensor_src.append((kind, int(adr)))
+            else:
+                self._sensor_src.append(("sensordata", int(m.sensor_adr[s]) + k))
+                self._needs_forward = True
 
     def _batch_layout(self) -> None:
         """The batched paths' addresses, looked up once: in the full physics state (time

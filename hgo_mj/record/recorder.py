@@ -899,36 +899,19 @@ class Recorder:
 
     # ------------------------------------------------------------------ lifetime
     @property
-    def file(self) -> Path | None:
-        """The file being written: a hidden temporary beside :attr:`path` until :meth:`close`
-        renames it onto :attr:`path` (then :attr:`path`); None for a stream without a file.
-
-        Returns
-        -------
-        Path or None
-            The recording's file as it is now.
-
-        Examples
-        --------
-        >>> import tempfile
-        >>> from pathlib import Path
-        >>> with tempfile.TemporaryDirectory() as tmp:
-        ...     rec = Recorder(Path(tmp) / "run.rrd", state_names=["x"], output_names=["x"],
-        ...                    input_names=["u"])
-        ...     open_name = rec.file.name
-        ...     rec.close()
-        ...     closed = rec.file == rec.path
-        >>> open_name.startswith(".run.rrd."), closed
-        (True, True)
-        """
-        return self._sink.file if self._sink.file is not None else self.path
+    def writing(self) -> Path | None:
+        """The file being written: a temporary beside :attr:`path` until :meth:`close`
+        checks it and renames it onto :attr:`path` (an earlier recording there is kept until
+        then); None for a recorder without a path."""
+        return self._sink.file
 
     def flush(self) -> None:
-        """Send the queued poses and wait until everything recorded so far is written.
+        """Send the queued poses and wait until everything recorded so far is written (to
+        :attr:`writing` until the recorder is closed).
 
         Examples
         --------
-        A file readable while the recorder is still open:
+        The file readable while the recorder is still open:
 
         >>> import tempfile
         >>> import warnings
@@ -943,7 +926,7 @@ class Recorder:
         ...     rec.flush()
         ...     with warnings.catch_warnings():  # no footer yet: rerun warns
         ...         warnings.simplefilter("ignore")
-        ...         rows = len(read(rec.file))  # the temporary, renamed onto path at close
+        ...         rows = len(read(rec.writing))
         ...     rec.close()
         >>> rows
         3

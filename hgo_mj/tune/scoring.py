@@ -186,7 +186,27 @@ class Scores:
 
     @classmethod
     def concat(cls, parts: Sequence[Scores]) -> Scores:
-        """The scores of several rounds' trials as one, in order (the same seeds)."""
+        """The scores of several batches of trials as one, in order (the same seeds): what
+        the Ray backend gathers.
+
+        Parameters
+        ----------
+        parts : sequence of Scores
+
+        Returns
+        -------
+        Scores
+
+        Examples
+        --------
+        >>> sc = {"plant": {"name": "pendulum", "dt": 0.01, "x0": [0.3, 0.0]},
+        ...       "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0}],
+        ...       "input": {"type": "constant", "value": 0.0}, "run": {"duration": 1.0}}
+        >>> st = setup(sc, "hgo")
+        >>> both = Scores.concat([evaluate(st, [{"k": k}], [0]) for k in (5.0, 40.0)])
+        >>> both.rmse.shape, len(both.message)
+        ((2, 1, 2), 2)
+        """
         arrays = {f.name: np.concatenate([getattr(p, f.name) for p in parts])
                   for f in fields(cls) if f.name != "message"}
         return cls(**arrays, message=[m for p in parts for m in p.message])
