@@ -454,25 +454,28 @@ def run_study(sc: dict[str, Any], name: str = "run", rrd: str | Path | None = No
     table = Study(single, seeds=seeds[1:]).run(folder, jobs=jobs, quiet=quiet,
                                                resume=resume and folder.is_dir()).table
     done, runs, failed = seed_metrics(table, metrics)
-    if traj.diverged:  # the first seed counts as the others do: a diverged observer fails it
-        ob, d = next(iter(traj.diverged.items()))
-        failed = {seed: f"seed {seed}: observer {ob!r} diverged at t={d['t']:g}: {d['error']}",
-                  **failed}
-    else:
-        done, runs = [seed, *done], [metrics, *runs]
+    # the first seed counts as the others do: an observer that diverged in it is left out of
+    # that run's metrics only
+    first = {k: v for k, v in metrics.items() if k not in traj.diverged}
+    if traj.diverged:
+        failed = {seed: f"seed {seed}: " + "; ".join(
+            f"observer {ob!r} diverged at t={d['t']:g}: {d['error']}"
+            for ob, d in traj.diverged.items()), **failed}
+    if first:
+        done, runs = [seed, *done], [first, *runs]
     if not runs:
         raise DivergenceError(f"every seed diverged ({n} of {n}): {failed[seed]}; nothing to "
                               f"aggregate (the first seed's run is in {out}, every seed's rows "
                               f"in {folder}/results.parquet)")
     mc = MonteCarloResult.from_runs(done, runs, failed)
-    first = manifest.listed(out)  # the first seed's files; the seeds/ study has its own
+    listed = manifest.listed(out)  # the first seed's files; the seeds/ study has its own
     manifest.begin(out)
     write_json(out / "metrics_mc.json", mc.to_json())
     units, t_unit = units_of(traj)
     write_text(out / "summary_mc.txt", mc.table(units, t_unit) + "\n")
     save_figure(plot_monte_carlo(mc, title=f"{sc.get('name', name)}: {plant_label(sc['plant'])}, "
                                  f"seeds {seeds[0]}..{seeds[-1]}", units=units), out / "mc.png")
-    manifest.finish(out, [*first, "metrics_mc.json", "summary_mc.txt", "mc.png"])
+    manifest.finish(out, [*listed, "metrics_mc.json", "summary_mc.txt", "mc.png"])
     return traj, metrics, out, mc
 
 

@@ -372,14 +372,15 @@ def _mc_panel(ax: Any, runs: list[Any], agg: dict[str, Any], observers: list[str
             ax.text(pos, 0.5, "not\nestimated", transform=ax.get_xaxis_transform(), ha="center",
                     va="center", color="0.4", fontsize=7)
             continue
-        v = np.array([r[oname]["rmse"][i] for r in runs], dtype=float)
+        # the runs this observer finished (one that diverged in a run is not in it)
+        v = np.array([r[oname]["rmse"][i] for r in runs if oname in r], dtype=float)
         ok = np.isfinite(v)
         if ok.any():
             ax.boxplot(v[ok], positions=[pos], showmeans=True, widths=0.5, showfliers=False,
                        medianprops={"color": "black"},
                        meanprops={"marker": "^", "markerfacecolor": "white",
                                   "markeredgecolor": "black", "markersize": 5})
-            ax.plot(pos + jitter[ok], v[ok], "o", ms=3, color=colors[j % len(colors)], alpha=0.6,
+            ax.plot(pos + jitter[:v.size][ok], v[ok], "o", ms=3, color=colors[j % len(colors)], alpha=0.6,
                     zorder=3)
             finite.append(v[ok])
         if not ok.all():

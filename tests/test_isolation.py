@@ -160,12 +160,18 @@ def test_run_writes_the_healthy_observer_beside_an_overflowing_one(tmp_path, cap
 
 
 def test_seeds_count_the_overflowing_observer_as_diverged_in_every_seed(tmp_path, capsys):
-    """Every seed has a diverged observer (the first one included): said so, the rows of
-    every seed and the first seed's run written."""
+    """Every seed has a diverged observer (the first one included): it is left out of each
+    run's statistics, the healthy observer keeps all three runs; said so, the rows of every
+    seed and the first seed's run written."""
     assert main(["run", *RUNAWAY, "--seed", "1", "--seeds", "3",
-                 "--out", str(tmp_path / "mc")]) == 2
-    err = capsys.readouterr().err
-    assert "every seed diverged (3 of 3): seed 1: observer 'unstable' diverged" in err
+                 "--out", str(tmp_path / "mc")]) == 0
+    data = json.loads((tmp_path / "mc" / "metrics_mc.json").read_text())
+    assert list(data["aggregate"]) == ["ok"] and data["aggregate"]["ok"]["runs"] == 3
+    assert [f["seed"] for f in data["failed"]] == [1, 2, 3]
+    assert all("observer 'unstable'" in f["error"] for f in data["failed"])
+    summary = (tmp_path / "mc" / "summary_mc.txt").read_text()
+    assert "3 of 3 run(s) had an observer diverge" in summary
+    assert "seed 1: observer 'unstable' diverged" in summary
     metrics = json.loads((tmp_path / "mc" / "metrics.json").read_text())
     assert all(np.isfinite(v) for v in metrics["ok"]["rmse"])
     rows = __import__("pandas").read_parquet(tmp_path / "mc" / "seeds" / "results.parquet")
@@ -237,9 +243,11 @@ def test_a_diverging_first_seed_is_counted_and_nan_has_no_spread(tmp_path, monke
     finally:
         sys.modules.pop("hgo_picky_mod", None)
     data = json.loads((tmp_path / "mc" / "metrics_mc.json").read_text())
-    assert data["seeds"] == [7, 8] and [f["seed"] for f in data["failed"]] == [6]
+    assert data["seeds"] == [6, 7, 8] and [f["seed"] for f in data["failed"]] == [6]
+    assert data["aggregate"]["picky"]["runs"] == 2 and data["aggregate"]["ok"]["runs"] == 3
     summary = (tmp_path / "mc" / "summary_mc.txt").read_text()
-    assert "1 of 3 run(s) diverged" in summary and "seeds [6]" in summary
+    assert "1 of 3 run(s) had an observer diverge" in summary and "seeds [6]" in summary
+    assert "runs per observer: picky 2, ok 3" in summary
     assert "± 0 " not in summary and "nan" not in summary
     assert _stats([float("nan")])["std"] != _stats([float("nan")])["std"]  # NaN
     assert _stats([0.5])["std"] == 0.0

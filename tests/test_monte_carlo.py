@@ -252,7 +252,7 @@ def test_a_diverging_seed_is_listed_and_left_out_not_fatal():
     assert res.seeds == [s for s in seeds if s not in expected_failed]
     assert res.aggregate["fragile"]["runs"] == len(res.seeds)
     assert all("jump of" in msg for msg in res.failed.values())
-    assert f"{len(expected_failed)} of {len(seeds)} run(s) diverged" in res.table()
+    assert f"{len(expected_failed)} of {len(seeds)} run(s) had an observer diverge" in res.table()
     assert json.loads(json.dumps(res.to_json(), allow_nan=False))["failed"][0]["seed"] == min(
         expected_failed)
     with pytest.raises(DivergenceError, match=r"every run diverged \(2 of 2\); seed"):

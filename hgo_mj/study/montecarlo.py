@@ -279,7 +279,8 @@ class MonteCarloResult:
         Returns
         -------
         str
-            The table, followed by a line naming the diverged seeds where there are any.
+            The table, followed by the seeds where an observer diverged, each with its
+            message, where there are any.
 
         Examples
         --------
@@ -297,13 +298,15 @@ class MonteCarloResult:
         observer state            unit  rmse mean  rmse std  rmse med ...
         hgo      angle            ? ...
         hgo      angular_velocity ? ...
-        1 of 3 run(s) diverged and are left out of the statistics: seeds [7]
+        1 of 3 run(s) had an observer diverge, left out of that observer's statistics: seeds [7]
+          seed 7: diverged
         """
         text = format_mc_table(self.aggregate, units, time_unit)
         if self.failed:
-            total = len(self.seeds) + len(self.failed)
-            text += (f"\n{len(self.failed)} of {total} run(s) diverged and are left out of the "
-                     f"statistics: seeds {sorted(self.failed)}")
+            total = len(set(self.seeds) | set(self.failed))
+            text += (f"\n{len(self.failed)} of {total} run(s) had an observer diverge, left out "
+                     f"of that observer's statistics: seeds {sorted(self.failed)}")
+            text += "".join(f"\n  {msg}" for _, msg in sorted(self.failed.items()))
         return text
 
 
@@ -330,7 +333,8 @@ def _settling(vals: Sequence[float]) -> dict[str, float]:
 def aggregate(runs: Sequence[Mapping[str, Mapping[str, Any]]]) -> dict[str, dict[str, Any]]:
     """Statistics over runs of :func:`hgo_mj.metrics.all_metrics`, per observer and state.
 
-    Returns, per observer, ``states``, ``estimated``, ``runs`` (their number), ``rmse``,
+    Returns, per observer, ``states``, ``estimated``, ``runs`` (the number of runs it finished:
+    a run holds only the observers that did not diverge in it), ``rmse``,
     ``peak``, ``final`` (each ``{"mean": [...], "std": [...], "min": ..., "median": ...,
     "max": ...}``, lists over the plant's states, ``None`` where not estimated),
     ``settling_time`` (``{"settled_fraction", "median", "min", "max"}``, the last three over
@@ -339,8 +343,8 @@ def aggregate(runs: Sequence[Mapping[str, Mapping[str, Any]]]) -> dict[str, dict
     Parameters
     ----------
     runs : sequence of dict
-        :func:`hgo_mj.metrics.all_metrics` of each run; every run has the same observers,
-        and each observer the same states and estimated flags.
+        :func:`hgo_mj.metrics.all_metrics` of each run (of the observers that finished it);
+        each observer has the same states and estimated flags in every run.
 
     Returns
     -------
@@ -350,7 +354,7 @@ def aggregate(runs: Sequence[Mapping[str, Mapping[str, Any]]]) -> dict[str, dict
     Raises
     ------
     DesignError
-        No runs, or runs whose observers or states differ.
+        No runs, or an observer whose states differ between runs.
 
     Examples
     --------
@@ -367,36 +371,36 @@ def aggregate(runs: Sequence[Mapping[str, Mapping[str, Any]]]) -> dict[str, dict
     >>> agg["runs"], sorted(agg["rmse"]), agg["settling_time"]["settled_fraction"]
     (2, ['max', 'mean', 'median', 'min', 'std'], [0.0, 0.0])
     """
-    if not runs:
+    if not runs or not any(runs):
         raise DesignError("aggregate needs at least one run; found none")
-    first = runs[0]
-    for i, r in enumerate(runs):
-        if list(r) != list(first):
-            raise DesignError(f"run #{i + 1} has observers {list(r)}; expected {list(first)}")
+    # the observers in the order of a run that has them all (the first of the fullest runs)
+    names = list(dict.fromkeys(name for r in sorted(runs, key=len, reverse=True) for name in r))
     out: dict[str, dict[str, Any]] = {}
-    for name, m0 in first.items():
+    for name in names:  # each observer over the runs it finished (it may diverge in others)
+        mine = [r for r in runs if name in r]
+        m0 = mine[0][name]
         states, est = list(m0["states"]), list(m0["estimated"])
-        for i, r in enumerate(runs):
+        for i, r in enumerate(mine):
             if list(r[name]["states"]) != states or list(r[name]["estimated"]) != est:
                 raise DesignError(f"run #{i + 1}: observer {name!r} has states "
                                   f"{r[name]['states']}; expected {states}")
-        agg: dict[str, Any] = {"states": states, "estimated": est, "runs": len(runs)}
+        agg: dict[str, Any] = {"states": states, "estimated": est, "runs": len(mine)}
         for key in SPREAD_METRICS:
             cols: dict[str, list[float | None]] = {s: [] for s in STATS}
             for j, ok in enumerate(est):
-                st = _stats([r[name][key][j] for r in runs]) if ok else dict.fromkeys(STATS)
+                st = _stats([r[name][key][j] for r in mine]) if ok else dict.fromkeys(STATS)
                 for s in STATS:
                     cols[s].append(st[s])
             agg[key] = cols
         settle: dict[str, list[float | None]] = {
             s: [] for s in ("settled_fraction", "median", "min", "max")}
         for j, ok in enumerate(est):
-            st = (_settling([r[name]["settling_time"][j] for r in runs]) if ok
+            st = (_settling([r[name]["settling_time"][j] for r in mine]) if ok
                   else dict.fromkeys(settle))
             for s in settle:
                 settle[s].append(st[s])
         agg["settling_time"] = settle
-        agg["update_time"] = float(np.mean([r[name]["update_time"] for r in runs]))
+        agg["update_time"] = float(np.mean([r[name]["update_time"] for r in mine]))
         out[name] = agg
     return out
 
@@ -575,7 +579,7 @@ def format_mc_table(agg: Mapping[str, Mapping[str, Any]], units: Mapping[str, st
     from ..units import bracket
 
     units = units or {}
-    n = max((a["runs"] for a in agg.values()), default=0)
+    counts = {name: a["runs"] for name, a in agg.items()}
     settle = f"settle med {bracket(time_unit)}"
     rows, missing = [], False
     for name, a in agg.items():
@@ -593,7 +597,10 @@ def format_mc_table(agg: Mapping[str, Mapping[str, Any]], units: Mapping[str, st
     frame = pd.DataFrame(rows, columns=["observer", "state", "unit", "rmse mean", "rmse std",
                                         "rmse med", "rmse max", "peak med", "settled", settle],
                          dtype=object)
-    lines = [f"{n} run(s) per observer", text_table(frame, ["observer", "state", "unit"])]
+    head = (f"{next(iter(counts.values()), 0)} run(s) per observer"
+            if len(set(counts.values())) <= 1 else
+            "runs per observer: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+    lines = [head, text_table(frame, ["observer", "state", "unit"])]
     if missing:
         lines.append("- : not estimated (the observer has no estimate of that plant state)")
     return "\n".join(lines)

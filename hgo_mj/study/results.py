@@ -155,17 +155,22 @@ class ResultsDir:
 def seed_metrics(table: Any, template: Mapping[str, Mapping[str, Any]]
                  ) -> tuple[list[int], list[dict[str, dict[str, Any]]], dict[int, str]]:
     """The rows of a seeds-only study as :func:`hgo_mj.metrics.all_metrics` of each run:
-    ``(seeds that finished, their metrics, {seed: message} of those where an observer
-    diverged)``, in seed order. ``template`` is ``all_metrics`` of one run of the same scenario
-    (the states, what each observer estimates, its extra states and the metric settings)."""
+    ``(seeds that an observer finished, their metrics, {seed: message} of those where an
+    observer diverged)``, in seed order. A run's metrics hold the observers that finished it:
+    one that diverged is left out of that run only, so the others keep their statistics.
+    ``template`` is ``all_metrics`` of one run of the same scenario (the states, what each
+    observer estimates, its extra states and the metric settings)."""
     done, runs, failed = [], [], {}
     for seed, g in table.groupby("seed", sort=True):
         bad = g[g["diverged"]]
-        if len(bad):
-            failed[int(seed)] = f"seed {int(seed)}: {bad['message'].iloc[0]}"
-            continue
+        lost = list(dict.fromkeys(bad["observer"]))
+        if lost:
+            failed[int(seed)] = f"seed {int(seed)}: " + "; ".join(
+                str(bad[bad["observer"] == ob]["message"].iloc[0]) for ob in lost)
         run: dict[str, dict[str, Any]] = {}
         for name, t in template.items():
+            if name in lost:
+                continue
             rows = g[g["observer"] == name].set_index("state")
             m = {k: v for k, v in t.items()}
             for key in ("rmse", "peak", "settling_time", "final"):
@@ -175,8 +180,9 @@ def seed_metrics(table: Any, template: Mapping[str, Mapping[str, Any]]
                                       for s, est in zip(t["states"], t["estimated"])]
             m["update_time"] = float(rows["update_time"].max())
             run[name] = m
-        done.append(int(seed))
-        runs.append(run)
+        if run:
+            done.append(int(seed))
+            runs.append(run)
     return done, runs, failed
 
 
