@@ -3,6 +3,7 @@ extra is missing fails with one line naming it (``hgo_mj._extras.require``)."""
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 from pathlib import Path
@@ -95,8 +96,11 @@ def _dry_run(target: str, tmp_path: Path) -> list[str]:
 
     for name in ("Makefile", "pyproject.toml", "constraints.txt"):
         shutil.copy(ROOT / name, tmp_path / name)
-    res = subprocess.run(["make", "-n", target], cwd=tmp_path, capture_output=True, text=True,
-                         timeout=60, check=True)
+    # run as its own make, not a sub-make of the `make test` that runs this test (which would
+    # print "make[1]: Entering directory" lines): no inherited MAKEFLAGS / MAKELEVEL
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MAKELEVEL", "MFLAGS")}
+    res = subprocess.run(["make", "--no-print-directory", "-n", target], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=60, check=True, env=env)
     return res.stdout.splitlines()
 
 
