@@ -5,7 +5,7 @@ use."""
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Iterator, Mapping, MutableMapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
 from typing import Generic, TypeVar
 
 T = TypeVar("T")
@@ -103,3 +103,51 @@ class LazyRegistry(MutableMapping[str, T], Generic[T]):
         """The class registered under ``name`` if its module is imported already, else None
         (imports nothing)."""
         return self._loaded.get(name)
+
+
+def lazy_module(module: str, targets: Iterable[str]
+                ) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
+    """A package's ``__getattr__`` and ``__dir__`` (PEP 562) for classes imported from their
+    modules on first use: ``targets`` are ``"module:Class"`` (the values of a
+    :class:`LazyRegistry`'s families); a name found is kept in the package's namespace, so it
+    is imported once.
+
+    Parameters
+    ----------
+    module : str
+        The package (``__name__``).
+    targets : iterable of str
+        ``"module:Class"``.
+
+    Returns
+    -------
+    tuple of callable
+        ``(__getattr__, __dir__)``: ``__dir__`` lists the package's names and its ``__all__``
+        (so ``dir`` and Sphinx's autodoc see the lazy ones).
+
+    Examples
+    --------
+    >>> import sys, types
+    >>> pkg = types.ModuleType("lazy_demo")
+    >>> sys.modules["lazy_demo"] = pkg
+    >>> pkg.__getattr__, pkg.__dir__ = lazy_module("lazy_demo", ["collections:OrderedDict"])
+    >>> pkg.OrderedDict.__name__, "OrderedDict" in vars(pkg)
+    ('OrderedDict', True)
+    >>> del sys.modules["lazy_demo"]
+    """
+    import sys
+
+    homes = {t.split(":")[1]: t.split(":")[0] for t in targets}
+
+    def __getattr__(name: str) -> object:
+        if name not in homes:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(homes[name]), name)
+        setattr(sys.modules[module], name, value)
+        return value
+
+    def __dir__() -> list[str]:
+        mod = sys.modules[module]
+        return sorted(set(vars(mod)) | set(getattr(mod, "__all__", ())))
+
+    return __getattr__, __dir__

@@ -4,10 +4,10 @@ here), so ``import hgo_mj.observers`` loads no family."""
 
 from __future__ import annotations
 
-import importlib
 import inspect
 from typing import TYPE_CHECKING, Any
 
+from .._registry import lazy_module
 from .._validate import check_call, import_class
 from ..exceptions import DesignError
 from .base import FAMILIES, OBSERVERS, Observer, register, registered
@@ -32,26 +32,13 @@ if TYPE_CHECKING:  # imported on first use (module __getattr__), so a run loads 
     from .riccati import RiccatiObserver
     from .super_twisting import SuperTwistingObserver
 
-#: the names this package exports that are not observer families: name -> module
-_OTHER_HOMES = {"AOCF": "hgo_mj.observers.bastin_gevers", "AffineForm": "hgo_mj.observers.besancon",
-                "JoSonForm": "hgo_mj.observers.jo_son", "ObserverBank": "hgo_mj.observers.bank"}
+#: the classes this package exports that are not observer families
+_OTHERS = ("hgo_mj.observers.bastin_gevers:AOCF", "hgo_mj.observers.besancon:AffineForm",
+           "hgo_mj.observers.jo_son:JoSonForm", "hgo_mj.observers.bank:ObserverBank")
 
 
-def __getattr__(name: str) -> Any:
-    """A family's class (``HighGainObserver``, ...), imported from its module on first use
-    (PEP 562)."""
-    homes = {**{h.split(":")[1]: h.split(":")[0] for h in FAMILIES.values()}, **_OTHER_HOMES}
-    if name not in homes:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(homes[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """The module's names and the lazily imported ones (so ``dir`` and Sphinx's autodoc list
-    them)."""
-    return sorted(set(globals()) | set(__all__))
+#: a class (``HighGainObserver``, ...) imported from its module on first use (PEP 562)
+__getattr__, __dir__ = lazy_module(__name__, [*FAMILIES.values(), *_OTHERS])
 
 
 def make_observer(kind: str, system: Any = None, **params: Any) -> Observer:

@@ -5,10 +5,9 @@ imported from here), so ``import hgo_mj.systems`` loads no family."""
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from .._registry import LazyRegistry
+from .._registry import LazyRegistry, lazy_module
 from .base import System
 
 if TYPE_CHECKING:  # imported on first use (module __getattr__)
@@ -41,20 +40,8 @@ FAMILIES = {
 SYSTEMS: LazyRegistry[type[System]] = LazyRegistry("system", FAMILIES)
 
 
-def __getattr__(name: str) -> Any:
-    """A system class (``Pendulum``, ...), imported from its module on first use (PEP 562)."""
-    homes = {h.split(":")[1]: h.split(":")[0] for h in FAMILIES.values()}
-    if name not in homes:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(homes[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """The module's names and the lazily imported ones (so ``dir`` and Sphinx's autodoc list
-    them)."""
-    return sorted(set(globals()) | set(__all__))
+#: a class (``Pendulum``, ...) imported from its module on first use (PEP 562)
+__getattr__, __dir__ = lazy_module(__name__, FAMILIES.values())
 
 
 __all__ = ["FAMILIES", "SYSTEMS", "System", "Pendulum", "CartPendulum", "ElasticJoint",
