@@ -141,8 +141,11 @@ def _local(chunks: list[Any], jobs: int,
 #: the workers and this driver listen on 127.0.0.1 only (Ray otherwise replaces 127.0.0.1 by
 #: the address of the interface its route to a public DNS server, 8.8.8.8, leaves from, and
 #: its gRPC servers listen on every interface); no usage statistics (sent to Ray's servers
-#: after probing the cloud metadata address 169.254.169.254)
-LOCAL_RAY_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
+#: after probing the cloud metadata address 169.254.169.254); ``SPT_NOENV``: Ray's process
+#: titles (``ray::DashboardAgent``) do not overwrite /proc/PID/environ, where :data:`_REAPER`
+#: finds the instance's processes (without it the agents were missed and outlived the driver)
+LOCAL_RAY_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0",
+                 "SPT_NOENV": "1"}
 #: names the processes of one local Ray instance (in their environment), for :data:`_REAPER`
 _INSTANCE_VAR = "HGO_MJ_RAY_INSTANCE"
 #: the write end of the pipe the reaper of the local instance reads (``None``: none started)

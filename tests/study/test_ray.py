@@ -114,6 +114,16 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _marked(pid: int) -> bool:
+    """Whether /proc/PID/environ holds the instance marker the reaper looks for (gone
+    processes count as marked)."""
+    try:
+        with open(f"/proc/{pid}/environ", "rb") as fh:
+            return any(e.startswith(b"HGO_MJ_RAY_INSTANCE=") for e in fh.read().split(b"\0"))
+    except OSError:
+        return True
+
+
 def test_a_killed_driver_leaves_no_ray_processes(tmp_path):
     """SIGKILL of the process that started the local Ray instance (ray_init): within 60 s its
     GCS, raylet, workers and both agents have exited (Ray's agents alone would wait a minute on
@@ -139,6 +149,8 @@ def test_a_killed_driver_leaves_no_ray_processes(tmp_path):
                 break
             time.sleep(0.5)
         assert names.count("ray::slow") >= 2, ray_procs
+        unmarked = {p: c[:60] for p, c in ray_procs.items() if not _marked(p)}
+        assert not unmarked, f"the reaper cannot find these (environ overwritten): {unmarked}"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
         end = time.monotonic() + 60  # ~10 s idle; 30 s was short on a loaded 2-core machine
