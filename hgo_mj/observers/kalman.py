@@ -808,15 +808,18 @@ def _taylor4(A: Array) -> Array:
 
 def _central_differences(f: Callable[[Array], Array], X: Array, cols: int) -> Array:
     """Central-difference Jacobians ``(K, rows, cols)`` of the row map ``f`` ``(K, N) -> (K,
-    rows)`` at the rows ``X`` in their first ``cols`` components (relative step ``1e-6``)."""
-    columns = []
+    rows)`` at the rows ``X`` in their first ``cols`` components (relative step ``1e-6``):
+    ``f`` is called once, on the ``2 cols K`` perturbed rows stacked (a row's value does not
+    depend on the others)."""
+    K = X.shape[0]
+    e = 1e-6 * np.maximum(1.0, np.abs(X[:, :cols]))  # (K, cols)
+    Xs = np.repeat(X[None], 2 * cols, axis=0)  # (2 cols, K, N): +e_j then -e_j
     for j in range(cols):
-        e = 1e-6 * np.maximum(1.0, np.abs(X[:, j]))
-        Xp, Xm = X.copy(), X.copy()
-        Xp[:, j] += e
-        Xm[:, j] -= e
-        columns.append((f(Xp) - f(Xm)) / (2.0 * e)[:, None])
-    return np.stack(columns, axis=2)
+        Xs[j, :, j] += e[:, j]
+        Xs[cols + j, :, j] -= e[:, j]
+    F = f(Xs.reshape(2 * cols * K, -1)).reshape(2 * cols, K, -1)
+    return np.stack([(F[j] - F[cols + j]) / (2.0 * e[:, j])[:, None] for j in range(cols)],
+                    axis=2)
 
 
 def _rows_output(out: Callable[[Array], Array], chans: list[int], Z: Array) -> Array:
@@ -900,6 +903,10 @@ class SystemModel:
         #: the system's ODE compiled for the kernels (:class:`CompiledModel`), where it has
         #: one with the Jacobians this filter asks for; ``None``: its Python ``dynamics``
         self.compiled = self._compiled(system)
+        #: the system's ``dynamics_batch(X, U)`` (its own parameters, all rows in one call:
+        #: the MJCF systems) where no parameter is estimated, else ``None``
+        rows = getattr(system, "dynamics_batch", None)
+        self._rows = rows if callable(rows) and not self.q else None
         self._c0 = system.param_vector(self.base)
         self._pidx = np.array([system.param_names.index(nm) for nm in self.names],
                               dtype=np.int64)
@@ -925,7 +932,11 @@ class SystemModel:
     # --------------------------------------------------------------------- dynamics
     def _f(self, Z: Array, U: Array, ps: Sequence[Mapping[str, float]]) -> Array:
         """The Python ``dynamics`` of the rows ``Z`` ``(K, n)`` (row ``k`` with the input
-        ``U[k]`` and the parameters ``ps[k]``), ``(K, n)``: one call per row."""
+        ``U[k]`` and the parameters ``ps[k]``), ``(K, n)``: one call per row, or one call of
+        the system's ``dynamics_batch`` for all rows where it has one and nothing is
+        estimated (then ``ps`` are the system's own parameters)."""
+        if self._rows is not None:
+            return np.asarray(self._rows(Z, U), dtype=float)
         dyn = self.system.dynamics
         out = np.empty(Z.shape)
         for k in range(Z.shape[0]):
@@ -940,7 +951,8 @@ class SystemModel:
             _model_deriv(self.compiled, np.ascontiguousarray(X, dtype=float),
                          np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, out)
             return out
-        out[:, :n] = self._f(X[:, :n], U, [self.params(x) for x in X])
+        ps = [] if self._rows is not None else [self.params(x) for x in X]
+        out[:, :n] = self._f(X[:, :n], U, ps)
         return out
 
     def jac(self, X: Array, U: Array) -> Array:
@@ -953,7 +965,8 @@ class SystemModel:
                             self.analytic, A)
             return A
         if not self.analytic:
-            A[:, :n] = _central_differences(lambda Z: self.deriv(Z, U)[:, :n], X, N)
+            Ucols = np.tile(np.asarray(U, dtype=float), (2 * N, 1))
+            A[:, :n] = _central_differences(lambda Z: self.deriv(Z, Ucols)[:, :n], X, N)
             return A
         jx = self.system.jacobian  # type: ignore[attr-defined]
         jp = getattr(self.system, "param_jacobian", None)
@@ -978,7 +991,7 @@ class SystemModel:
                         np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, h,
                         method == "rk4", out)
             return out
-        ps = [self.params(x) for x in X]
+        ps = [] if self._rows is not None else [self.params(x) for x in X]
         scheme = _integrate.rk4 if method == "rk4" else _integrate.euler
         out[:, :n] = scheme(lambda Z: self._f(Z, U, ps), out[:, :n], h)
         return out
