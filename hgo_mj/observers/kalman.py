@@ -109,6 +109,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import mujoco
+import mujoco.batch
 import numpy as np
 from numba import njit
 from numba.extending import overload
@@ -1031,7 +1032,7 @@ def _check_model_matches(system: System, m: Any, estimate: Sequence[str]) -> Non
 
 
 #: MuJoCo's warnings of a reset to the reference pose (an unstable qpos, qvel or qacc)
-_RESET_WARNINGS = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS,
+_RESET_WARNINGS = list(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS,
                                          mujoco.mjtWarning.mjWARN_BADQVEL,
                                          mujoco.mjtWarning.mjWARN_BADQACC))
 
@@ -1167,6 +1168,8 @@ class MujocoModel:
             self._A = np.zeros((2 * nv, 2 * nv))
             self._M = np.zeros((nv, nv))
         self._last: list[tuple[float, ...] | None] = [None, None]  # stepping model, twin
+        #: row count -> (mujoco.batch.Batch of the model, its bound fields): :meth:`_step_batch`
+        self._batches: dict[int, tuple[Any, ...]] = {}
         # our joint order -> MuJoCo's (the model has exactly these joints, checked above)
         self._sorted = bool(np.all(self.qadr == np.arange(nv)) and np.all(self.vadr == np.arange(nv)))
         self._inv_q = np.argsort(self.qadr)
@@ -1177,6 +1180,11 @@ class MujocoModel:
         g = np.array(m.opt.gravity, dtype=float)
         if np.linalg.norm(g) > 0:
             self._down = g / np.linalg.norm(g)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle and copy without the batches (MuJoCo's ``Batch`` does not pickle; they are
+        made again on the next :meth:`step`)."""
+        return {**self.__dict__, "_batches": {}}
 
     def _resolve(self, spec: str, name: str, aliases: dict[str, str]) -> tuple[str, int]:
         field, i = resolve(self.m, spec, f"cannot estimate {name!r} (or one of the aliases "
@@ -1254,10 +1262,43 @@ class MujocoModel:
     def step(self, X: Array, U: Array, h: float, method: str = "",
              members: Array | None = None) -> Array:
         """MuJoCo's own step(s) over ``h`` of every row ``X`` ``(K, N)`` with ``U`` held (the
-        model's integrator; ``method`` is not used)."""
+        model's integrator; ``method`` is not used): all rows in one call of MuJoCo's batch
+        where no parameter is estimated (one model for every row; the same bits as
+        :meth:`_step_row`, tested), else row by row."""
+        if not self.q:
+            return self._step_batch(np.asarray(X, dtype=float), np.asarray(U, dtype=float), h)
         out = np.empty_like(X)
         for k in range(X.shape[0]):
             out[k] = self._step_row(X[k], U[k], h)
+        return out
+
+    def _step_batch(self, X: Array, U: Array, h: float) -> Array:
+        """:meth:`_step_row` of every row on a ``mujoco.batch.Batch`` of the model (one thread,
+        kept per row count): each row loaded as :meth:`_load` does (time 0, no warm start),
+        a reset warning counted in a row's step is the same :class:`DivergenceError`."""
+        K, nj = X.shape[0], self.n // 2
+        if K not in self._batches:
+            bt = mujoco.batch.Batch(self.m, K, nthread=1)
+            self._batches[K] = (bt, *(bt.bind(f) for f in (
+                "qpos", "qvel", "ctrl", "qacc_warmstart", "time")))
+        bt, qpos, qvel, ctrl, warm, time = self._batches[K]
+        qpos[:, self.qadr] = X[:, :nj]
+        qvel[:, self.vadr] = X[:, nj:self.n]
+        ctrl[:] = 0.0
+        if self.aid:
+            ctrl[:, self.aid] = U
+        warm[:] = 0.0
+        time[:] = 0.0
+        before = bt.warning[:, _RESET_WARNINGS, 1].sum(axis=1)
+        bt.step(nstep=self._steps(h))
+        bad = np.flatnonzero(bt.warning[:, _RESET_WARNINGS, 1].sum(axis=1) != before)
+        if bad.size:
+            raise DivergenceError(f"MuJoCo reset the filter's model: the row "
+                                  f"{X[bad[0]].tolist()} is unstable (NaN or beyond mjMAXVAL in "
+                                  f"qpos, qvel or qacc)")
+        out = X.copy()
+        out[:, :nj] = qpos[:, self.qadr]
+        out[:, nj:self.n] = qvel[:, self.vadr]
         return out
 
     def transition(self, X: Array, U: Array, h: float) -> tuple[Array, Array]:

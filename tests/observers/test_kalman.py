@@ -445,3 +445,26 @@ def test_filtered_is_the_measurement_update_and_leaves_the_filter_alone():
     hgo.reset([0.1, 0.0])
     assert not hgo.measurement_update and ours.measurement_update
     np.testing.assert_array_equal(hgo.filtered([0.5]), hgo.x_hat)
+
+
+def test_mujoco_batch_step_equals_the_row_steps_and_reports_an_unstable_row():
+    """Without estimated parameters, the MuJoCo model steps all rows in one MuJoCo batch call:
+    the same bits as row by row (the furuta pendulum; the elastic joint, RK4), an
+    unstable row (MuJoCo resets it) is the same DivergenceError naming the row, and the model
+    still pickles after the batch was made."""
+    import pickle
+
+    rng = np.random.default_rng(3)
+    for system in (make_plant("furuta", 0.001).system, ElasticJoint()):
+        mm = MujocoModel(system)
+        X = rng.uniform(-0.5, 0.5, (6, mm.n))
+        U = rng.uniform(-1.0, 1.0, (6, mm.n_inputs))
+        rows = np.array([mm._step_row(x, u, 0.002) for x, u in zip(X, U)])
+        np.testing.assert_array_equal(mm.step(X, U, 0.002), rows)
+        np.testing.assert_array_equal(mm.step(X[:2], U[:2], 0.002), rows[:2])
+        X[4, 0] = 1e300
+        with pytest.raises(DivergenceError, match=r"MuJoCo reset the filter's model: the row "
+                                                  r"\[1e\+300"):
+            mm.step(X, U, 0.002)
+        again = pickle.loads(pickle.dumps(mm))
+        np.testing.assert_array_equal(again.step(X[:2], U[:2], 0.002), rows[:2])
