@@ -800,13 +800,6 @@ def _ekf_block(model: Any, X: Array, P: Array, nis: Array, Y: Array, U: Array, s
     return -1
 
 
-def _taylor4(A: Array) -> Array:
-    """``I + A + A^2/2 + A^3/6 + A^4/24`` of one matrix (the kernel :func:`_transition`)."""
-    Phi = np.empty((1, *A.shape))
-    _transition(np.ascontiguousarray(A, dtype=float)[None], 1.0, True, Phi)
-    return Phi[0]
-
-
 def _central_differences(f: Callable[[Array], Array], X: Array, cols: int) -> Array:
     """Central-difference Jacobians ``(K, rows, cols)`` of the row map ``f`` ``(K, N) -> (K,
     rows)`` at the rows ``X`` in their first ``cols`` components (relative step ``1e-6``):
@@ -1095,7 +1088,7 @@ class MujocoModel:
         supported`` in MuJoCo 4.0), so for an RK4 model it is evaluated on a twin model with
         the Euler integrator at the same timestep (the mean is still the RK4 step), and the
         continuous Jacobian recovered from its velocity rows gives RK4's transition
-        :math:`T_4(hF)` (:meth:`_rk4_transition`; using the Euler twin's matrix as is was
+        :math:`T_4(hF)` (:meth:`_rk4_transitions`; using the Euler twin's matrix as is was
         :math:`O(h^2 K/J)` off, enough to wreck the two-link arm's stiffness estimates).
         ``fd``: central differences of the model's own step (:math:`2N` steps). Parameter
         columns are always finite differences of the step.
@@ -1302,7 +1295,11 @@ class MujocoModel:
         return out
 
     def transition(self, X: Array, U: Array, h: float) -> tuple[Array, Array]:
-        """``(x(t + h), Phi)`` of every row: ``(K, N)`` and ``(K, N, N)``."""
+        """``(x(t + h), Phi)`` of every row: ``(K, N)`` and ``(K, N, N)``; without estimated
+        parameters and with ``mjd_transitionFD``, the steps in one batch call and the RK4
+        conversion over all rows at once (:meth:`_transition_rows`), else row by row."""
+        if not self.q and self.twin is not None:
+            return self._transition_rows(np.asarray(X, dtype=float), np.asarray(U, dtype=float), h)
         Xn = np.empty_like(X)
         Phi = np.empty((X.shape[0], self.N, self.N))
         for k in range(X.shape[0]):
@@ -1325,7 +1322,8 @@ class MujocoModel:
                 mujoco.mjd_transitionFD(self.twin, self.dt_, 1e-6, False, self._A, None, None, None)
                 Ax = self._A if self._rk4 else self._A[self._pix]
                 if self._rk4:
-                    Ax = self._rk4_transition(Ax, ts)[self._pix]
+                    mujoco.mj_fullM(self.twin, self.dt_, self._M)  # after mj_forward
+                    Ax = self._rk4_transitions(Ax[None], self._M[None], ts)[0][self._pix]
             else:
                 Ax = _central_differences(lambda Z: np.array([self._step_row(z, u, ts)[:n]
                                                               for z in Z]), x[None], n)[0]
@@ -1343,8 +1341,33 @@ class MujocoModel:
             x = x1
         return x, Phi
 
-    def _rk4_transition(self, AE: Array, h: float) -> Array:
-        """RK4's transition from the Euler twin's (MuJoCo's order, tangent space).
+    def _transition_rows(self, X: Array, U: Array, h: float) -> tuple[Array, Array]:
+        """:meth:`_transition_row` of every row (no estimated parameters, the twin's
+        ``mjd_transitionFD``): per substep, ``mjd_transitionFD`` (and the mass matrix) row by
+        row, the RK4 conversion (:meth:`_rk4_transitions`) over all rows in array operations,
+        the mean by :meth:`_step_batch`; the same arithmetic per row (tested bit for bit)."""
+        K, n, nv = X.shape[0], self.n, self.n // 2
+        ts, d, tw = self.ts, self.dt_, self.twin
+        AE = np.empty((K, n, n))
+        M = np.empty((K, nv, nv))
+        Phi: Array = np.broadcast_to(self._eyeN, (K, n, n))
+        x = X
+        for _ in range(self._steps(h)):
+            for r in range(K):
+                self._load(d, x[r], U[r])
+                if self._rk4:
+                    mujoco.mj_forward(tw, d)  # the mass matrix at x
+                mujoco.mjd_transitionFD(tw, d, 1e-6, False, AE[r], None, None, None)
+                if self._rk4:
+                    mujoco.mj_fullM(tw, d, M[r])
+            Ax = self._rk4_transitions(AE, M, ts) if self._rk4 else AE
+            Phi = Ax[:, self.perm][:, :, self.perm] @ Phi
+            x = self._step_batch(x, U, ts)
+        return x, np.ascontiguousarray(Phi)
+
+    def _rk4_transitions(self, AE: Array, M: Array, h: float) -> Array:
+        """RK4's transitions from the Euler twin's ``AE`` ``(K, 2 nv, 2 nv)`` (MuJoCo's order,
+        tangent space) with the mass matrices ``M`` ``(K, nv, nv)`` at the rows.
 
         MuJoCo's Euler step is semi-implicit and implicit in the joint damping :math:`D`:
         :math:`v^+ = v + h (M + hD)^{-1} f`, :math:`q^+ = q + h v^+`. Its velocity rows are
@@ -1353,17 +1376,17 @@ class MujocoModel:
         :math:`F = [[0, I], [a_q, a_v]]` and :math:`\\Phi = T_4(hF)`, RK4's linearization (the
         twin's own position rows differ from RK4's by :math:`h^2 a_q / 2`, which matters for
         stiff springs)."""
-        k = AE.shape[0] // 2
-        d = self.dt_
-        M = self._M
-        mujoco.mj_fullM(self.twin, d, M)  # MuJoCo 4: mj_fullM(m, d, dst), after mj_forward
-        G = AE[k:].copy()
-        G[:, k:] -= np.eye(k)
-        ax = (np.eye(k) + h * np.linalg.solve(M, np.diag(self.twin.dof_damping))) @ G / h  # type: ignore[union-attr]
+        K, k = AE.shape[0], AE.shape[1] // 2
+        G = AE[:, k:].copy()
+        G[:, :, k:] -= np.eye(k)
+        D = np.broadcast_to(np.diag(self.twin.dof_damping), (K, k, k))  # type: ignore[union-attr]
+        ax = (np.eye(k) + h * np.linalg.solve(M, D)) @ G / h
         F = np.zeros_like(AE)
-        F[:k, k:] = np.eye(k)
-        F[k:] = ax
-        return _taylor4(h * F)
+        F[:, :k, k:] = np.eye(k)
+        F[:, k:] = ax
+        Phi = np.empty_like(AE)
+        _transition(np.ascontiguousarray(h * F), 1.0, True, Phi)
+        return Phi
 
     def output(self, xa: Array) -> Array:
         return np.asarray(self.system.output(xa[:self.n], self.system.params), dtype=float).reshape(-1)

@@ -468,3 +468,24 @@ def test_mujoco_batch_step_equals_the_row_steps_and_reports_an_unstable_row():
             mm.step(X, U, 0.002)
         again = pickle.loads(pickle.dumps(mm))
         np.testing.assert_array_equal(again.step(X[:2], U[:2], 0.002), rows[:2])
+
+
+@pytest.mark.parametrize("h", [0.001, 0.002])
+def test_mujoco_transition_of_all_rows_equals_the_row_by_row_one(h):
+    """The transition without estimated parameters (one batch call for the steps, the RK4
+    conversion over all rows) equals the row-by-row computation bit for bit, over one and
+    two substeps, on the RK4 models (elastic joint, furuta pendulum) and a semi-implicit
+    Euler copy of the elastic joint."""
+    rng = np.random.default_rng(8)
+    euler = ElasticJoint.load_model()
+    euler.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    for system, model in ((ElasticJoint(), None), (make_plant("furuta", 0.001).system, None),
+                          (ElasticJoint(), euler)):
+        mm = MujocoModel(system, model=model)
+        assert mm._rk4 == (model is None)
+        X = rng.uniform(-0.5, 0.5, (5, mm.n))
+        U = rng.uniform(-1.0, 1.0, (5, mm.n_inputs))
+        Xn, Phi = mm.transition(X, U, h)
+        rows = [mm._transition_row(x, u, h) for x, u in zip(X, U)]
+        np.testing.assert_array_equal(Xn, np.array([r[0] for r in rows]))
+        np.testing.assert_array_equal(Phi, np.array([r[1] for r in rows]))
