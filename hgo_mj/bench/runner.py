@@ -278,15 +278,31 @@ def _json(v: Any) -> Any:
 def parts_of(tasks: Sequence[Task], observers: Sequence[str], budget: int, *,
              out: Path | None, resume: bool, backend: str = "local", jobs: int = 1,
              progress: bool = True) -> list[dict[str, Any]]:
-    """Every (task, observer) part, in order, resuming those already kept."""
-    parts = []
-    n = len(tasks) * len(observers)
-    for i, task in enumerate(tasks):
-        for j, kind in enumerate(observers):
-            parts.append(run_task_observer(task, kind, budget, out=out, resume=resume,
-                                           backend=backend, jobs=jobs))
-            if progress:
-                done = i * len(observers) + j + 1
-                print(f"bench: {done}/{n} {task.name} {kind}: {parts[-1]['status']}",
-                      file=sys.stderr, flush=True)
-    return parts
+    """Every (task, observer) part, in order, resuming those already kept. Locally with
+    ``jobs > 1``, the parts run on ``jobs`` processes (this one and ``jobs - 1`` workers,
+    :func:`hgo_mj.study.backends` ``_local``); a part is the same whichever process runs it
+    (its seeds are its own), so the results equal the serial ones. On Ray, ``jobs`` splits each
+    tuning round instead."""
+    from ..study.backends import _local
+
+    chunks = [(i, task, kind, budget, out, resume)
+              for i, (task, kind) in enumerate((t, k) for t in tasks for k in observers)]
+    found: dict[int, dict[str, Any]] = {}
+    if backend == "local":
+        done: Any = _local(chunks, jobs, run=_part_of_chunk)
+    else:
+        done = ((c, [run_task_observer(c[1], c[2], budget, out=out, resume=resume,
+                                       backend=backend, jobs=jobs)]) for c in chunks)
+    for c, (part,) in done:
+        found[c[0]] = part
+        if progress:
+            print(f"bench: {len(found)}/{len(chunks)} {c[1].name} {c[2]}: {part['status']}",
+                  file=sys.stderr, flush=True)
+    return [found[i] for i in range(len(chunks))]
+
+
+def _part_of_chunk(chunk: tuple[int, Task, str, int, Path | None, bool]) -> list[dict[str, Any]]:
+    """``[run_task_observer(...)]`` of one ``(index, task, observer, budget, out, resume)``
+    (a worker's unit of :func:`parts_of`, as the rows of a study's chunk)."""
+    _, task, kind, budget, out, resume = chunk
+    return [run_task_observer(task, kind, budget, out=out, resume=resume)]
