@@ -263,6 +263,8 @@ class ReachTask(Task):
     default_sensor = ({"stage": "gaussian", "std": 0.001},
                       {"stage": "quantize", "counts_per_rev": 16384})
     goal_names = ("target_link_angle",)
+    #: the start is at rest with the spring relaxed: the motor at the link's angle
+    start_ties = (("motor_angle", "link_angle"),)
 
     def __init__(self, max_torque: float = 2.0, target_range: float = 1.0,
                  start_noise: float = 0.1, max_cost: float = 10.0) -> None:
@@ -351,6 +353,8 @@ class Reach2LinkTask(Task):
     default_sensor = ({"stage": "gaussian", "std": 0.001},
                       {"stage": "quantize", "counts_per_rev": 16384})
     goal_names = ("target_link1_angle", "target_link2_angle")
+    #: the start is at rest with the springs relaxed: each motor at its link's angle
+    start_ties = (("motor1_angle", "link1_angle"), ("motor2_angle", "link2_angle"))
     #: gain of the fallback per-link observers
     fallback_k: ClassVar[float] = 150.0
 

@@ -12,8 +12,9 @@ Member ``i`` is the single environment (``gymnasium.make(id, **kwargs)``) reset 
 ``seed + i`` (or the ``i``-th of a list of seeds), step for step and bit for bit, across
 autoresets too: a member's reset draws its state and goal from its own ``np_random``, reseeds
 its sensor stream from the same derived seed (:func:`hgo_mj.envs.core.chain_seed`) or lets it go on
-(a reset without a seed, as an autoreset), and restarts its observer copy from the initial
-estimate; the plant member keeps the batch's MuJoCo clock (no shipped model reads it).
+(a reset without a seed, as an autoreset), and restarts its observer copy from its first
+measurement (:func:`hgo_mj.envs.core.measurement_start`); the plant member keeps the batch's
+MuJoCo clock (no shipped model reads it).
 
 Autoreset is Gymnasium 1.x's ``AutoresetMode.NEXT_STEP`` (``metadata["autoreset_mode"]``): the
 step after a member terminated or was truncated resets it, ignores its action and returns its
@@ -49,7 +50,7 @@ from hgo_mj._validate import numbers_only
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, LoopFailure
 
-from .core import Array, HgoEnv, chain_seed
+from .core import Array, HgoEnv, chain_seed, measurement_start
 
 
 def check_num_envs(num_envs: Any) -> int:
@@ -222,8 +223,18 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         else:
             self.loop.reset_members(idx, X0, [CONTINUE if seeds[i] is None else
                                               chain_seed(seeds[i]) for i in idx.tolist()])
+        self._start_observer(idx)
         obs, info, _ = self._observe(np.zeros((self.num_envs, self._nu)), None)
         return obs, info
+
+    def _start_observer(self, idx: NDArray[np.intp]) -> None:
+        """Restart the members ``idx`` of the observer from their first measurement
+        (:func:`hgo_mj.envs.core.measurement_start`), as the single environment's reset does."""
+        ob = self.env.observer
+        if ob is not None:
+            Y = self.loop.sample()[2][idx, 0]
+            self.loop.start_observers(idx, {"observer": measurement_start(
+                ob, Y, self.task.start_ties)})
 
     # ------------------------------------------------------------------ step
     def _actions(self, actions: Any) -> Array:
@@ -281,6 +292,7 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         if idle.size:
             X0 = self._draw(idle, [None] * self.num_envs)
             self.loop.reset_members(idle, X0, [CONTINUE] * idle.size)
+            self._start_observer(idle)
         obs, info, X = self._observe(U, idle)
         rewards, terms = self.task.rewards(X, U, self._goals)
         terminated = self.task.terminations(X)

@@ -492,6 +492,50 @@ class Loop:
             fresh[rows] = Ym[rows]
             self._pending = (self.k, fresh)
 
+    def start_observers(self, idx: Any, x_hat0: Mapping[str, Any]) -> None:
+        """Restart the members ``idx`` of the named observers from the initial estimates
+        ``x_hat0[name]`` (:meth:`Observer.init`'s ``x_hat0``, ``(len(idx), n_x)``): an
+        environment's start from its first measurement, after :meth:`reset` or
+        :meth:`reset_members` and :meth:`sample`. The plant, the sensor streams, the clock and
+        the other observers and members are untouched.
+
+        Parameters
+        ----------
+        idx : sequence of int
+            The members to restart (rows of the batch).
+        x_hat0 : mapping of str to array_like
+            Per observer name, the members' initial estimates in the layout of its
+            ``state_names``, ``(len(idx), n_x)`` or ``(n_x,)`` for every one.
+
+        Raises
+        ------
+        DesignError
+            An observer name the loop does not hold, a member outside the batch or a
+            non-finite initial estimate.
+        DimensionError
+            An initial estimate of the wrong shape.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([[0.2, 0.0], [0.1, 0.0]], batch=2)
+        >>> loop.start_observers([1], {"hgo": [[0.1, 0.0]]})
+        >>> loop.current("hgo")[0].tolist()
+        [[0.0, 0.0], [0.1, 0.0]]
+        """
+        unknown = sorted(set(x_hat0) - set(self.observers))
+        if unknown:
+            raise DesignError(f"start_observers: unknown observer(s) {unknown}; the loop holds "
+                              f"{sorted(self.observers)}")
+        rows = [int(b) for b in idx]
+        for name, x0 in x_hat0.items():
+            self.observers[name]._restart(self.params[name], self.states[name], rows,
+                                          np.asarray(x0, dtype=np.float64))
+
     def estimates(self) -> dict[str, tuple[Array, Array, Array]]:
         """Each observer's current ``(x_hat, z_hat, diagnostics)``, ``(B, ...)`` arrays.
 

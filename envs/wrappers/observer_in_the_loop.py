@@ -22,7 +22,7 @@ from hgo_mj.observers import OBSERVERS, Observer, make_observer
 from hgo_mj.observers.bank import ObserverBank
 from hgo_mj.observers.base import Dimension, Params
 
-from ..core import sensor_chain
+from ..core import measurement_start, sensor_chain
 from ._common import box_indices, cache_key, cache_path, cache_read, cache_write, env_dt, reset_chain
 
 Array = NDArray[np.float64]
@@ -112,16 +112,6 @@ def default_estimate(observer: Observer) -> str:
     modelled = any(not o.measurement_update and (getattr(o, "model", None) is True or callable(
         getattr(o, "phi", None))) for o in members)
     return "prediction" if modelled else "current"
-
-
-def chain_start(bank: ObserverBank, y: Array) -> list[float]:
-    """The initial ``z_hat`` of a bank of model-free chains: each chain at its channel's
-    measurement (0 for a dropout), zero derivatives."""
-    z0: list[float] = []
-    for o in bank.members:
-        yi = float(y[o.outputs[0]])
-        z0 += [yi if yi == yi else 0.0] + [0.0] * (len(o.state_names) - 1)
-    return z0
 
 
 def record_rollout(env: gymnasium.Env, steps: int, seed: int,
@@ -430,9 +420,12 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     input : callable, optional
         ``input(action) -> u`` fed to the observer (default: the action as a float array).
     init : {"measurement", "zero"}
-        Initial estimate of the per-channel chains built from a name: the first measurement
-        with zero derivatives (default), or zero. Observer instances start from their own
-        initial estimate.
+        Initial estimate at ``reset``: from the first measurement (default;
+        :func:`hgo_mj.envs.core.measurement_start`: each estimated coordinate a channel
+        measures at its value, the derivatives and the others at zero), or the observer's own
+        initial estimate (zero for the chains built from a name; an instance's constructor
+        ``x_hat0``). With ``joints=`` the observer always starts from the first measurement
+        of the joints (the model's ``qpos0`` for the others).
     dt : float, optional
         Time between observations; default ``env.unwrapped.dt`` (MuJoCo environments).
     bound : float
@@ -561,7 +554,6 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
             self._idx = np.array(idx, dtype=np.intp)
             probe = len(idx)
         self.dt = env_dt(env, dt)
-        self._built = observer is None or isinstance(observer, str)
         if auto:
             fn: Any = measure if hasattr(measure, "__qualname__") else type(measure)
             key = (f"{fn.__module__}.{fn.__qualname__}" if callable(measure)
@@ -651,7 +643,6 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
                                  f"state {list(system.state_names)}")
         #: the observer's estimate in the MJCF's state order (chains are per joint)
         self._perm = np.array([names.index(n) for n in system.state_names], dtype=np.intp)
-        self._built = False
         self.observer.check_period(self.dt)
 
     # ------------------------------------------------------------ observer="auto"
@@ -815,8 +806,8 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         sq, n = np.zeros((B, len(cols))), 0
         for ep in episodes:
             Y = ep["ym"]
-            start = ({"x_hat0": self._joint_start(Y[0])} if self.tap is not None else
-                     {"z_hat0": chain_start(ob, Y[0])})  # type: ignore[arg-type]
+            start = {"x_hat0": self._joint_start(Y[0]) if self.tap is not None else
+                     measurement_start(ob, Y[0])[0]}
             X = estimates(ob, params, start, Y, ep["u"], self.dt, mode)
             err = X[:, :, cols] - ep["v"][None, 1:]
             sq += np.sum(np.square(err), axis=1)
@@ -915,8 +906,8 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
             n_u = self._u(self.env.action_space.sample() * 0).size
             check_fits("observer", ob, [f"y{i + 1}" for i in range(y.size)],
                        [f"u{i + 1}" for i in range(n_u)])
-        if self._built and self._init == "measurement" and isinstance(ob, ObserverBank):
-            ob.reset(z_hat0=chain_start(ob, y))
+        if self._init == "measurement":
+            ob.reset(x_hat0=measurement_start(ob, y)[0])
         else:
             ob.reset()
         self._ready = True

@@ -1434,9 +1434,11 @@ class Observer(ABC):
         params, state = self._own()
         self._restart(params, state, rows)
 
-    def _restart(self, params: Params, state: State, rows: list[int]) -> None:
-        """Write a fresh :meth:`init` of the members ``rows`` (with their own parameters) into
-        ``state``: the loop's and :meth:`reset_members`' restart."""
+    def _restart(self, params: Params, state: State, rows: list[int],
+                 x_hat0: Array | None = None) -> None:
+        """Write a fresh :meth:`init` of the members ``rows`` (with their own parameters; from
+        ``x_hat0`` ``(len(rows), n_x)`` where given, else the constructor's initial estimate)
+        into ``state``: the loop's and :meth:`reset_members`' restart."""
         B = state.batch
         bad = [b for b in rows if not 0 <= b < B]
         if bad:
@@ -1444,7 +1446,7 @@ class Observer(ABC):
         if not rows:
             return
         sub = params.take(rows) if params.fields else self.parameters(len(rows))
-        state.put(rows, self.init(len(rows), params=sub))  # type: ignore[arg-type]
+        state.put(rows, self.init(len(rows), x_hat0, params=sub))  # type: ignore[arg-type]
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """One sample of the observer's own state: ``y`` ``(p,)`` and ``u`` ``(m,)`` when

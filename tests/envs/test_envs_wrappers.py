@@ -88,10 +88,15 @@ def test_observer_in_the_loop_takes_instances_and_a_measure_function():
     obs = [HighGainObserver(order=2, k=30.0, outputs=(i,)) for i in range(2)]
     env = ObserverInTheLoop(_ip(), measure=lambda e, o: e.unwrapped.data.qpos[:2].copy(),
                             observer=obs)
-    first, _ = env.reset(seed=0)
-    assert first.shape == (4,) and np.all(first == 0.0)  # instances start from their own zero
+    first, info = env.reset(seed=0)
+    # instances start from the first measurement (exact here), zero derivatives
+    np.testing.assert_array_equal(first, [info["measurement"][0], 0.0, info["measurement"][1], 0.0])
+    assert np.all(info["measurement"] != 0.0)
     out = env.step(np.zeros(1, dtype=np.float32))
     assert np.all(np.isfinite(out[0]))
+    own = ObserverInTheLoop(_ip(), measure=lambda e, o: e.unwrapped.data.qpos[:2].copy(),
+                            observer=obs, init="zero")
+    assert np.all(own.reset(seed=0)[0] == 0.0)  # init="zero": their own initial estimate
 
 
 def test_observer_in_the_loop_copies_an_observer_instance():

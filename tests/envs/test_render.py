@@ -29,10 +29,11 @@ def test_every_environment_renders_a_frame_with_its_ghost(env_id):
 
 
 def test_the_ghost_shows_where_the_estimate_is_off():
-    """At reset the pendulum is at 0.5 rad and the estimate at the observer's initial 0: the
-    frame differs from one whose ghost sits at the truth; a ghost 1 rad off likewise, in
-    green pixels where the true pendulum is not."""
-    env = envs.PendulumSwingUpEnv(render_mode="rgb_array")
+    """At reset the pendulum is at 0.5 rad and the estimate at the first measurement, which a
+    sensor bias of -0.5 rad puts at 0: the frame differs from one whose ghost sits at the
+    truth; a ghost 1 rad off likewise, in green pixels where the true pendulum is not."""
+    env = envs.PendulumSwingUpEnv(render_mode="rgb_array",
+                                  sensor=[{"stage": "bias", "offset": -0.5}])
     env.reset(seed=0, options={"x0": [0.5, 0.0]})
     assert env.current_row()["x_hat"][0] != pytest.approx(0.5, abs=0.1)
     frame = env.render()
