@@ -169,9 +169,11 @@ def signal_velocities(episodes: list[dict[str, Array]], model: Any, dt: float) -
     instant (``"q"``, ``"qd"`` recorded on a MuJoCo environment), else the central difference
     of the clean signal (``numpy.gradient``)."""
     p = episodes[0]["y"].shape[1]
+    # ints: ``numpy.int32(3) in (mujoco.mjtJoint.mjJNT_HINGE,)`` is False (the enum's __eq__)
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     joints = [] if model is None else [
         (int(model.jnt_qposadr[i]), int(model.jnt_dofadr[i])) for i in range(model.njnt)
-        if model.jnt_type[i] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
+        if int(model.jnt_type[i]) in kinds]
     match: list[int | None] = []
     for c in range(p):
         same = [dof for adr, dof in joints

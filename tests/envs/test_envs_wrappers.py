@@ -489,3 +489,20 @@ def test_auto_bad_input(tmp_path):
     with pytest.raises(DesignError, match="observer='auto' needs an environment made by "
                                           "gymnasium.make"):
         ObserverInTheLoop(InvertedPendulumEnv(), measure=(0,), observer="auto", tuning=c)
+
+
+def test_the_tuning_truth_of_a_joint_position_is_its_qvel():
+    """The tuning's true velocity of a measured signal that is a hinge or slide joint's
+    position is that joint's qvel (not the central difference of the signal): on
+    HalfCheetah-v5, whose observation holds qpos[1:] then qvel, every measured entry's."""
+    from hgo_mj.envs.wrappers.observer_in_the_loop import record_rollout, signal_velocities
+
+    env = gym.make("HalfCheetah-v5")
+    d = env.unwrapped.data
+
+    def read(e, obs):
+        return {"y": np.array(obs[:8], dtype=float), "q": np.array(d.qpos),
+                "qd": np.array(d.qvel)}
+    eps = record_rollout(env, 20, 0, read, lambda e, a: np.asarray(a, dtype=float))
+    signal_velocities(eps, env.unwrapped.model, env.unwrapped.dt)
+    np.testing.assert_array_equal(eps[0]["v"], eps[0]["qd"][:, 1:9])
