@@ -146,7 +146,9 @@ CONFIGS = {**{f"{label}, {est}": {**cfg, "estimate": est}
 #: measure= configurations
 MEASURE_CONFIGS = {**{f"high_gain chains, k = 1/dt, {est}": {"measure": True, "estimate": est}
                       for est in ("current", "prediction")},
-                   "auto (tuned high_gain chains, current)": {"measure": True,
+                   "auto:high_gain (tuned high_gain chains, current)": {
+                       "measure": True, "observer": "auto:high_gain"},
+                   "auto (tuned kinematic_kalman, current)": {"measure": True,
                                                               "observer": "auto"}}
 
 

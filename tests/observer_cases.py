@@ -91,6 +91,10 @@ CASES: list[Case] = [
      lambda: make_observer("super_twisting", Pendulum(), L=20.0, model=True, substeps=2), 1, 1),
     ("extended_luenberger", "pendulum",
      lambda: make_observer("extended_luenberger", Pendulum(), omega=15.0), 1, 1),
+    ("kinematic_kalman", "pendulum",
+     lambda: make_observer("kinematic_kalman", Pendulum(), q=100.0, r=1e-6), 1, 1),
+    ("kinematic_kalman", "model-free-order-3",
+     lambda: make_observer("kinematic_kalman", None, order=3, q=10.0, r=1e-6), 1, 1),
     ("mhe", "pendulum",
      lambda: make_observer("mhe", Pendulum(), q=5.0, r=1e-4, p0=0.5, horizon=6), 1, 1),
 ]

@@ -32,9 +32,10 @@ Array = NDArray[np.float64]
 ESTIMATES = ("current", "prediction")
 
 
-#: what ``observer="auto"`` tunes: model-free high-gain chains (one per measured signal) with
-#: ``measure=``, the MuJoCo EKF on the environment's MJCF with ``joints=``
-AUTO_KINDS = {"measure": "high_gain", "joints": "ekf_mujoco"}
+#: what ``observer="auto"`` tunes: model-free kinematic Kalman filters (one per measured
+#: signal, :class:`~hgo_mj.observers.KinematicKalmanFilter`) with ``measure=``, the MuJoCo EKF on
+#: the environment's MJCF with ``joints=``
+AUTO_KINDS = {"measure": "kinematic_kalman", "joints": "ekf_mujoco"}
 #: the tuning options (``tuning=``) and their defaults: environment steps of the recorded
 #: rollout, trials per study, trials per round (one batch), the seed of the rollout, the
 #: sensor noise and the samplers, and the cache file (None: the user cache; False: none)
@@ -75,11 +76,15 @@ def tuning_options(tuning: Mapping[str, Any] | None, auto: bool) -> dict[str, An
 
 def auto_defaults(kind: str, dt: float) -> dict[str, Any]:
     """The constructor parameters a tuning of ``kind`` starts from (its tuning space spans a
-    factor of 10 or 100 around them): model-free chains of order 2 with ``k = 1 / dt``; the
-    MuJoCo Kalman filters with ``Q = 1`` (per environment step); ``high_gain_multi`` with
+    factor of 10 to 10^5 around them): model-free chains of order 2 with ``k = 1 / dt``; the
+    model-free kinematic Kalman filters of order 2 at the tracking index
+    ``sqrt(q / r) dt^2 = 30`` (``r = 1``: the estimate depends on ``q / r`` alone); the MuJoCo
+    Kalman filters with ``Q = 1`` (per environment step); ``high_gain_multi`` with
     ``k = 1 / dt``."""
-    return {"high_gain": {"order": 2, "k": 1.0 / dt}, "ekf_mujoco": {"Q": 1.0},
-            "ukf_mujoco": {"Q": 1.0}, "high_gain_multi": {"k": 1.0 / dt}}.get(kind, {})
+    return {"high_gain": {"order": 2, "k": 1.0 / dt},
+            "kinematic_kalman": {"order": 2, "r": 1.0, "q": (30.0 / dt ** 2) ** 2},
+            "ekf_mujoco": {"Q": 1.0}, "ukf_mujoco": {"Q": 1.0},
+            "high_gain_multi": {"k": 1.0 / dt}}.get(kind, {})
 
 
 def default_estimate(observer: Observer) -> str:
@@ -154,9 +159,11 @@ def signal_velocities(episodes: list[dict[str, Array]], model: Any, dt: float) -
     instant (``"q"``, ``"qd"`` recorded on a MuJoCo environment), else the central difference
     of the clean signal (``numpy.gradient``)."""
     p = episodes[0]["y"].shape[1]
+    # ints: ``numpy.int32(3) in (mujoco.mjtJoint.mjJNT_HINGE,)`` is False (the enum's __eq__)
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     joints = [] if model is None else [
         (int(model.jnt_qposadr[i]), int(model.jnt_dofadr[i])) for i in range(model.njnt)
-        if model.jnt_type[i] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
+        if int(model.jnt_type[i]) in kinds]
     match: list[int | None] = []
     for c in range(p):
         same = [dof for adr, dof in joints
@@ -356,7 +363,9 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     with ``model=True``). The agent's observation is that estimate, rearranged by ``layout``.
 
     **Tuned observers.** ``observer="auto"`` tunes the observer for this environment and
-    sensor: model-free high-gain chains of order 2, one per measured signal, with ``measure=``;
+    sensor: model-free kinematic Kalman filters of order 2
+    (:class:`~hgo_mj.observers.KinematicKalmanFilter`, the alpha-beta filter in steady state),
+    one per measured signal, with ``measure=``;
     the MuJoCo EKF on the environment's MJCF with ``joints=`` (:data:`AUTO_KINDS`).
     ``observer="auto:<kind>"`` tunes a named kind instead (e.g. ``"auto:high_gain_multi"``),
     ``observer_kwargs`` fixing what is not searched and the point the search starts from
@@ -402,7 +411,10 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
         A registered observer name: one observer per measured channel, built without a system
         (model-free) as ``make_observer(name, None, outputs=(i,), **observer_kwargs)``, e.g.
         ``"high_gain"`` with ``observer_kwargs={"order": 2, "k": 30}``: a chain of order 2 per
-        signal estimates it and its velocity. Or an observer instance (e.g. one designed
+        signal estimates it and its velocity; ``"kinematic_kalman"`` with
+        ``{"order": 2, "q": ..., "r": ...}``: a discrete Kalman filter per signal, which beats
+        the backward difference where the high-gain chains only reach it
+        (``docs/results/wrappers.md``). Or an observer instance (e.g. one designed
         against an hgo_mj system), or several, each reading its own channel; their estimates
         are concatenated. Instances are deep-copied: the wrapper (and each copy of it in a
         vector environment) runs an observer of its own; read it as ``wrapper.observer``.
@@ -488,7 +500,7 @@ class ObserverInTheLoop(gymnasium.Wrapper[Array, Any, Any, Any],
     ...                         observer="auto", sensor=[{"stage": "gaussian", "std": 1e-3}],
     ...                         tuning={"steps": 60, "budget": 4, "cache": False})
     >>> env.tuned["kind"], len(env.tuned["values"]), env.estimate
-    ('high_gain', 2, 'current')
+    ('kinematic_kalman', 2, 'current')
     """
 
     def __init__(self, env: gymnasium.Env,

@@ -27,6 +27,7 @@ if TYPE_CHECKING:  # imported on first use (module __getattr__), so a run loads 
         MujocoUnscentedKalmanFilter,
         UnscentedKalmanFilter,
     )
+    from .kinematic_kalman import KinematicKalmanFilter
     from .mhe import MovingHorizonEstimator
     from .q_integral import QIntegralObserver
     from .riccati import RiccatiObserver
@@ -101,5 +102,5 @@ __all__ = ["AOCF", "AffineForm", "BesanconObserver", "ExtendedKalmanFilter",
            "MultiOutputHighGainObserver", "Observer", "ObserverBank", "QIntegralObserver", "RiccatiObserver",
            "make_observer", "register", "registered",
            # baselines outside the papers (the benchmark issue, item 4)
-           "ExtendedLuenbergerObserver", "FiniteDifferenceObserver",
+           "ExtendedLuenbergerObserver", "FiniteDifferenceObserver", "KinematicKalmanFilter",
            "MovingHorizonEstimator", "SuperTwistingObserver"]

@@ -1810,6 +1810,7 @@ FAMILIES = {
     "finite_difference": "hgo_mj.observers.finite_difference:FiniteDifferenceObserver",
     "extended_luenberger": "hgo_mj.observers.extended_luenberger:ExtendedLuenbergerObserver",
     "jo_son": "hgo_mj.observers.jo_son:JoSonObserver",
+    "kinematic_kalman": "hgo_mj.observers.kinematic_kalman:KinematicKalmanFilter",
     "ekf": "hgo_mj.observers.kalman:ExtendedKalmanFilter",
     "ukf": "hgo_mj.observers.kalman:UnscentedKalmanFilter",
     "ekf_mujoco": "hgo_mj.observers.kalman:MujocoExtendedKalmanFilter",

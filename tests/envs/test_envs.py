@@ -30,7 +30,8 @@ MODES = list(envs.OBSERVATION_MODES)
 #: the observers that cannot run on an environment's plant, with the key phrase of the clear
 #: error that constructing the environment with them raises (every other pair must run)
 #: the benchmark's baselines on a single-output normal form (paper 000, eq. 1)
-SINGLE_OUTPUT_BASELINES = ("finite_difference", "super_twisting", "extended_luenberger", "mhe")
+SINGLE_OUTPUT_BASELINES = ("finite_difference", "super_twisting", "extended_luenberger", "mhe",
+                           "kinematic_kalman")
 _INCOMPATIBLE: dict[tuple[str, str], tuple[type[Exception], str]] = {
     ("hgo_mj/CartPendulumBalance-v0", "besancon"): (DesignError, "is not in the form of paper 001"),
     ("hgo_mj/CartPendulumBalance-v0", "ekf_mujoco"): (
