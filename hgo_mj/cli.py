@@ -805,8 +805,6 @@ def sweep_summary(result: Any) -> str:
     """What ``hgo-mj sweep`` prints: per observer and state the best cell (least median RMSE
     over the seeds) with its swept values and units, and, for a gain x noise study, the fitted
     power law of the best gain (:func:`hgo_mj.study.figures.best_gains`)."""
-    import pandas as pd
-
     from .metrics import text_table
     from .study.figures import _units_of, best_gains, gain_noise_axes
 
@@ -820,7 +818,8 @@ def sweep_summary(result: Any) -> str:
                  f"{a} = {r[a]:g}" if isinstance(r[a], float) else f"{a} = {r[a]}"
                  for a in result.axes)} for _, r in best.iterrows()]
     text = (f"{result.study.name}: the best cell per observer and state (least median RMSE "
-            f"over the seeds)\n" + text_table(pd.DataFrame(rows, dtype=object),
+            f"over the seeds)\n" + text_table(rows, ["observer", "state", "unit", "rmse median", "rmse iqr",
+                                                      "best cell"],
                                                ["observer", "state", "unit", "best cell"]))
     if gain_noise_axes(list(result.axes)) is not None:
         per = ["sigma", "k_star", "interior", "rmse_min"]

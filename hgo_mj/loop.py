@@ -315,8 +315,9 @@ class Loop:
         self.params: dict[str, Params] = {}
         #: the observers whose kernels a throw-away sample has warmed (:meth:`_warm_up`)
         self._warm: set[str] = set()
-        #: per observer, the last reset's (B, constructor values, checked Params)
-        self._checked: dict[str, tuple[int, Any, Params]] = {}
+        #: per observer, the last reset's (B, constructor values, checked Params, initial
+        #: State: a template, copied at each reset)
+        self._checked: dict[str, tuple[int, Any, Params, State]] = {}
         self.exact = bool(exact)
         if not isinstance(isolate, bool):
             raise DesignError(f"isolate must be true or false; found {isolate!r}")
@@ -387,8 +388,8 @@ class Loop:
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
         for name, ob in self.observers.items():  # as many members as plants
-            p = self._checked_params(name, ob, B)
-            self.params[name], self.states[name] = p, ob.init(B, params=p)
+            p, self.states[name] = self._checked_start(name, ob, B)
+            self.params[name] = p
             ob._hold(p, self.states[name], batched)
             if name not in self._warm:
                 self._warm_up(ob, p, self.states[name])
@@ -398,22 +399,26 @@ class Loop:
         self._pending = None
         self.failed = {}
 
-    def _checked_params(self, name: str, ob: Observer, B: int) -> Params:
+    def _checked_start(self, name: str, ob: Observer, B: int) -> tuple[Params, State]:
         """The parameters of ``B`` members of the observer ``name``, checked against the plant
-        (:func:`check_fits`) and the sample period (:meth:`Observer.check_period`). Validate
-        once: they are made and checked again only where ``B`` or the observer's constructor
-        values (:meth:`Observer.params`, JSON: compared as they are) differ from the last
-        reset's; else the last reset's read-only :class:`Params` serve again (an
-        environment's reset then pays no parameter construction, grouping or period check)."""
+        (:func:`check_fits`) and the sample period (:meth:`Observer.check_period`), and a new
+        initial state (:meth:`Observer.init`). Validate once: both are made and checked again
+        only where ``B`` or the observer's constructor values (:meth:`Observer.params`, JSON:
+        compared as they are) differ from the last reset's; else the last reset's read-only
+        :class:`Params` serve again and the state is a copy of the last reset's initial one
+        (an environment's reset then pays no parameter construction, grouping, period check
+        or ``init``: the initial state depends on ``B``, the parameters and the constructor's
+        initial estimate only)."""
         mark = ob.params()
         found = self._checked.get(name)
         if found is not None and found[0] == B and found[1] == mark:
-            return found[2]
+            return found[2], found[3].copy()
         check_fits(name, ob, self.plant.output_names, self.plant.input_names)
         p = ob.parameters(B, **self._values.get(name, {}))
         ob.check_period(self.periods.sample, p)
-        self._checked[name] = (B, mark, p)
-        return p
+        s0 = ob.init(B, params=p)
+        self._checked[name] = (B, mark, p, s0.copy())
+        return p, s0
 
     def _warm_up(self, ob: Observer, p: Params, state: State) -> None:
         """One throw-away sample of a copy of member 0 (the plant's clean output, zero

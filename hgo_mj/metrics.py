@@ -30,7 +30,7 @@ NaN (``final`` when the last estimate is undefined). No metric warns.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -694,17 +694,21 @@ def metrics_frame(metrics: dict[str, dict[str, Any]],
     return pd.DataFrame(rows, columns=columns)
 
 
-def text_table(frame: Any, left: Sequence[str]) -> str:
-    """A DataFrame as plain text, its columns sized by pandas to their longest cell: the
-    ``left`` (text) columns left-aligned, the others right-aligned, numbers to 4 significant
-    digits, ``None`` as ``-``.
+def text_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str],
+               left: Sequence[str]) -> str:
+    """Rows as a plain-text table, without pandas: each column sized to its longest cell
+    (or its name), two spaces between columns, the ``left`` (text) columns left-aligned, the
+    others right-aligned, numbers to 4 significant digits, ``None`` (or a missing key) as
+    ``-``; no trailing blanks.
 
     Parameters
     ----------
-    frame : pandas.DataFrame
-        The table (no index shown).
+    rows : sequence of mapping
+        One mapping per row, from column name to value.
+    columns : sequence of str
+        The columns, in order.
     left : sequence of str
-        Its text columns, left-aligned under a left-aligned name.
+        The text columns, left-aligned under a left-aligned name.
 
     Returns
     -------
@@ -712,9 +716,8 @@ def text_table(frame: Any, left: Sequence[str]) -> str:
 
     Examples
     --------
-    >>> import pandas as pd
-    >>> print(text_table(pd.DataFrame({"observer": ["high_gain_multi_1", "a"],
-    ...                                "rmse": [0.012345, None]}, dtype=object), ["observer"]))
+    >>> print(text_table([{"observer": "high_gain_multi_1", "rmse": 0.012345},
+    ...                   {"observer": "a", "rmse": None}], ["observer", "rmse"], ["observer"]))
     observer              rmse
     high_gain_multi_1  0.01235
     a                        -
@@ -726,18 +729,12 @@ def text_table(frame: Any, left: Sequence[str]) -> str:
             return f"{v:.4g}"
         return str(v)
 
-    cols = {}
-    for c in frame.columns:
-        text = [cell(v) for v in frame[c]]
-        if c in left:
-            w = max([len(str(c)), *map(len, text)])
-            cols[str(c).ljust(w)] = [t.ljust(w) for t in text]
-        else:
-            cols[str(c)] = text
-    import pandas as pd
-
-    table = str(pd.DataFrame(cols).to_string(index=False))
-    return "\n".join(line.rstrip() for line in table.splitlines())
+    cols = []
+    for c in columns:
+        text = [str(c)] + [cell(r.get(c)) for r in rows]
+        w = max(map(len, text))
+        cols.append([t.ljust(w) if c in left else t.rjust(w) for t in text])
+    return "\n".join("  ".join(line).rstrip() for line in zip(*cols))
 
 
 def format_table(metrics: dict[str, dict[str, Any]], units: dict[str, str] | None = None,
@@ -767,11 +764,9 @@ def format_table(metrics: dict[str, dict[str, Any]], units: dict[str, str] | Non
     >>> m = {"hgo": {"states": ["angle"], "estimated": [True], "rmse": [0.1], "peak": [0.5],
     ...              "settling_time": [1.0], "final": [0.01], "update_time": 2e-6}}
     >>> print(format_table(m, {"angle": "rad"}))
-    observer state unit  rmse  peak  final  settle [s]  update [us]
-    hgo      angle rad    0.1   0.5   0.01           1            2
+    observer  state  unit  rmse  peak  final  settle [s]  update [us]
+    hgo       angle  rad    0.1   0.5   0.01           1            2
     """
-    import pandas as pd
-
     from .units import bracket
 
     units = units or {}
@@ -784,9 +779,8 @@ def format_table(metrics: dict[str, dict[str, Any]], units: dict[str, str] | Non
                          **{k: m[k][i] for k in ("rmse", "peak", "final")},
                          settle: m["settling_time"][i],
                          "update [us]": m["update_time"] * 1e6})
-    frame = pd.DataFrame(rows, columns=["observer", "state", "unit", "rmse", "peak", "final",
-                                        settle, "update [us]"], dtype=object)
-    lines = [text_table(frame, ["observer", "state", "unit"])]
+    lines = [text_table(rows, ["observer", "state", "unit", "rmse", "peak", "final", settle,
+                               "update [us]"], ["observer", "state", "unit"])]
     if missing:
         lines.append("- : not estimated (the observer has no estimate of that plant state)")
     for name, m in metrics.items():

@@ -322,6 +322,21 @@ def test_bare_words_inside_lists():
         parse_value("[1,,2]")
 
 
+def test_text_table_aligns_without_pandas():
+    """The one table writer (summary.txt, the Monte Carlo and sweep tables): text columns
+    left-aligned, the others right-aligned, each as wide as its longest cell or name, None and
+    missing keys as '-', no trailing blanks; no rows gives the header alone."""
+    from hgo_mj.metrics import text_table
+
+    rows = [{"observer": "hgo", "rmse": 0.0123456, "cell": "k = 20"},
+            {"observer": "high_gain_long", "rmse": None}]
+    assert text_table(rows, ["observer", "rmse", "cell"], ["observer", "cell"]).splitlines() == [
+        "observer           rmse  cell",
+        "hgo             0.01235  k = 20",
+        "high_gain_long        -  -"]
+    assert text_table([], ["a", "bb"], ["a"]) == "a  bb"
+
+
 def test_printed_tables_have_units_and_columns_sized_to_their_longest_cell():
     """format_table and the Monte Carlo table: a unit column and the settling time's unit;
     a name longer than 16 characters keeps every column aligned."""

@@ -53,14 +53,14 @@ def test_a_run_loads_only_the_families_it_uses(tmp_path):
 
 def test_npz_run_loads_only_the_figure_package(tmp_path):
     # `hgo-mj run` always writes figure.png (there is no flag to turn it off), so matplotlib
-    # is what the run truly needs, and it prints its metrics table, whose columns pandas sizes
-    # (issue 28: hgo_mj.metrics.text_table); no recording, optimisation or symbolic
-    # package
+    # is what the run truly needs; its metrics table (summary.txt, hgo_mj.metrics.text_table)
+    # is plain Python, not pandas (69 MB of the peak RSS: issue 24); no table, recording,
+    # optimisation or symbolic package
     code = ("from hgo_mj.cli import main\n"
             "assert main(['run', '--plant', 'pendulum', '--duration', '1', '--out', 'x', "
             "'--format', 'npz']) == 0")
     got = _loaded(code, tmp_path)
-    assert got["heavy"] == ["matplotlib", "pandas", "pyarrow"]  # pandas loads pyarrow
+    assert got["heavy"] == ["matplotlib"]
     assert (tmp_path / "x" / "trajectory.npz").exists() and (tmp_path / "x" / "figure.png").exists()
 
 

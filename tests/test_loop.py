@@ -182,3 +182,25 @@ def test_reset_validates_once_and_again_only_when_something_changed():
     ob.k_ = 30.0  # the constructor's value changed in place
     loop.reset(batch=2)
     assert loop.params["hgo"] is not two and loop.params["hgo"].k.tolist() == [30.0, 30.0]
+
+
+def test_reset_restarts_each_observer_from_a_fresh_initial_state():
+    """While nothing changed, a reset's initial state is a copy of the last reset's: the
+    observer's ``init`` bit for bit, new arrays each time (a run does not write into the next
+    reset's start), and a new one where B or a constructor value changed."""
+    from hgo_mj.loop import Loop, Periods
+
+    plant = make_plant("pendulum", dt=0.01)
+    ob = HighGainObserver(plant.system, k=10.0, x_hat0=[0.4, -0.2])
+    # exact=False: an environment's loop, each observer's state stepped in place
+    loop = Loop(plant, None, {"hgo": ob}, Periods.of(plant), exact=False)
+    for batch in (None, None, None, 3, 3, 3):
+        loop.reset([0.1, 0.0], batch=batch)
+        s = loop.states["hgo"]
+        fresh = ob.init(loop.batch, params=loop.params["hgo"])
+        assert s.fields.keys() == fresh.fields.keys()
+        for k, v in fresh.fields.items():
+            np.testing.assert_array_equal(s.fields[k], v)
+        for _ in range(3):
+            loop.segment(np.full((loop.batch, 1, 1), 0.3))
+        assert not np.array_equal(loop.states["hgo"].z, fresh.z)

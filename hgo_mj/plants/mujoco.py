@@ -253,6 +253,8 @@ class MujocoPlant(Plant):
             A state MuJoCo cannot take (an entry beyond its ``mjMAXVAL`` = 1e10, or one its
             ``mj_forward`` flags as a bad position, velocity or acceleration, which it would
             silently replace by its reset state): the entry is named with its value."""
+        if batch is None and type(x0) is list and self._reset_floats(x0):
+            return
         if x0 is not None and batch is None and np.ndim(x0) <= 1:
             # one state for one unbatched member, checked (a fresh finite (n,) array) once
             X0, self.batched = vector("x0", x0, 2 * self._nq).reshape(1, -1), False
@@ -286,6 +288,28 @@ class MujocoPlant(Plant):
             self._C = np.zeros((B, m.nu))
             self._W = np.zeros((B, m.nv))
             self._mjbatch = None  # made again on the model as it is now
+
+    def _reset_floats(self, x0: list[Any]) -> bool:
+        """:meth:`reset` of one unbatched member from a list of Python floats (an
+        environment's initial state), without arrays: each entry written into MjData's
+        ``qpos``/``qvel`` where the state is short (:attr:`_xsrc`). False, with nothing done,
+        where that does not apply or an entry is not a float within MuJoCo's ``mjMAXVAL``
+        (NaN included): the checked path then gives the error."""
+        src = self._xsrc
+        if src is None or len(x0) != len(src):
+            return False
+        for v in x0:
+            if type(v) is not float or not -_MAX_CTRL <= v <= _MAX_CTRL:
+                return False
+        m, d, _, bad = self._hot
+        mujoco.mj_resetData(m, d)
+        for (arr, a), v in zip(src, x0):
+            arr[a] = v
+        mujoco.mj_forward(m, d)
+        if any(bad):
+            return False  # the checked path resets again and names the bad state
+        self.batch, self.batched = 1, False
+        return True
 
     def reset_members(self, idx: Any, X0: Any) -> None:
         """Restart the members ``idx`` of a batch (B > 1) from the states ``X0``

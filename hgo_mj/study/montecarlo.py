@@ -573,8 +573,6 @@ def format_mc_table(agg: Mapping[str, Mapping[str, Any]], units: Mapping[str, st
     hgo      angle            rad ...
     hgo      angular_velocity ?   ...
     """
-    import pandas as pd
-
     from ..metrics import text_table
     from ..units import bracket
 
@@ -594,13 +592,12 @@ def format_mc_table(agg: Mapping[str, Mapping[str, Any]], units: Mapping[str, st
                          "settled": ("-" if st["settled_fraction"][i] is None
                                      else f"{st['settled_fraction'][i]:.0%}"),
                          settle: st["median"][i]})
-    frame = pd.DataFrame(rows, columns=["observer", "state", "unit", "rmse mean", "rmse std",
-                                        "rmse med", "rmse max", "peak med", "settled", settle],
-                         dtype=object)
+    columns = ["observer", "state", "unit", "rmse mean", "rmse std", "rmse med", "rmse max",
+               "peak med", "settled", settle]
     head = (f"{next(iter(counts.values()), 0)} run(s) per observer"
             if len(set(counts.values())) <= 1 else
             "runs per observer: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
-    lines = [head, text_table(frame, ["observer", "state", "unit"])]
+    lines = [head, text_table(rows, columns, ["observer", "state", "unit"])]
     if missing:
         lines.append("- : not estimated (the observer has no estimate of that plant state)")
     return "\n".join(lines)

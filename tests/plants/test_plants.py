@@ -69,6 +69,34 @@ def test_bad_reset_and_input():
         model_path("nope.xml")
 
 
+def test_reset_from_a_list_of_floats_is_the_checked_reset():
+    """An environment's reset hands a list of Python floats: written into MjData entry by
+    entry, it gives the full physics state of the checked reset from an array, bit for bit;
+    a list the short path cannot take gives the checked path's error."""
+    a, b = make_plant("pendulum"), make_plant("pendulum")
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    for x0 in ([0.3, -1.25], [-3.0, 1e9], [0.0, 0.0]):
+        a.step([0.4])  # a reset from a running state
+        a.reset(x0)
+        b.reset(np.array(x0))
+        sa, sb = (np.empty(mujoco.mj_stateSize(p.model, full)) for p in (a, b))
+        mujoco.mj_getState(a.model, a.data, sa, full)
+        mujoco.mj_getState(b.model, b.data, sb, full)
+        np.testing.assert_array_equal(sa, sb)
+        for field in ("qacc", "xpos", "xquat", "sensordata"):  # mj_forward's results
+            np.testing.assert_array_equal(getattr(a.data, field), getattr(b.data, field))
+        assert (a.batch, a.batched, a.state.tolist()) == (1, False, x0)
+    for bad, exc, match in (([0.1, np.nan], DesignError, "x0 must be finite"),
+                            ([0.1, np.inf], DesignError, "x0 must be finite"),
+                            ([0.1, 1e12], DesignError, "angular_velocity = 1e\\+12 is a state"),
+                            ([True, 0.0], DimensionError, "1-D array of numbers"),
+                            ([0.1], DimensionError, "must have length 2")):
+        with pytest.raises(exc, match=match):
+            a.reset(bad)
+    a.reset([1, 0])  # integers: the checked path takes them
+    assert a.state.tolist() == [1.0, 0.0]
+
+
 def test_huge_input_is_an_error_with_the_partial_run():
     """MuJoCo would silently zero a huge control; hgo_mj refuses it, keeping the run so far."""
     plant = make_plant("pendulum")
