@@ -50,6 +50,7 @@ class Row:
     returns: list[float]
     solved: list[bool]
     gamma: float = 0.98
+    algorithm: str = "PPO"
 
     @property
     def solved_share(self) -> float:
@@ -77,10 +78,10 @@ def evaluate(zip_path: Path, episodes: int) -> Row:
     """Run one committed policy for ``episodes`` episodes."""
     import gymnasium as gym
     import hgo_mj.envs  # noqa: F401  (registers the environments)
-    from stable_baselines3 import PPO
+    from stable_baselines3 import PPO, SAC
 
     meta = json.loads(zip_path.with_suffix(".json").read_text())
-    model = PPO.load(zip_path, device="cpu")
+    model = {"PPO": PPO, "SAC": SAC}[meta["algorithm"]].load(zip_path, device="cpu")
     env = gym.make(meta["env_id"], observation=meta["agent"])
     returns, solved = [], []
     for k in range(episodes):
@@ -95,15 +96,17 @@ def evaluate(zip_path: Path, episodes: int) -> Row:
     env.close()
     return Row(zip_path.stem, meta["env_id"], meta["agent"], int(meta["seed"]),
                int(meta["steps"]), float(meta["train_seconds"]), returns, solved,
-               float(meta["settings"].get("gamma", 0.98)))
+               float(meta["settings"].get("gamma", 0.98)), meta["algorithm"])
 
 
 def table(rows: list[Row]) -> str:
     """The markdown table of the rows."""
-    lines = ["| task | agent | seed | gamma | training steps | train time [s] | return | solved |",
-             "|---|---|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| task | agent | algorithm | seed | gamma | training steps | train time [s] | "
+             "return | solved |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r.env_id} | {r.agent} | {r.seed} | {r.gamma:g} | {r.steps:,} | "
+        lines.append(f"| {r.env_id} | {r.agent} | {r.algorithm} | {r.seed} | {r.gamma:g} | "
+                     f"{r.steps:,} | "
                      f"{r.train_seconds:.0f} | {np.mean(r.returns):.1f} ± "
                      f"{np.std(r.returns):.1f} | {100 * r.solved_share:.0f}% |")
     return "\n".join(lines)

@@ -7,9 +7,17 @@ The policies a reviewer loads (``docs/results/policies/``, evaluated by
 ``CartPole-v1`` (``hyperparams/ppo.yml`` of rl-baselines3-zoo: 8 environments, n_steps 32,
 batch 256, 20 epochs, gamma 0.98, GAE 0.8, learning rate and clip range decaying linearly
 from 1e-3 and 0.2, no entropy bonus), the nearest balance task RL Zoo tunes; the
-continuous action gets SB3's Gaussian policy. PPO rather than SAC: a balance task is solved
+continuous action gets SB3's Gaussian policy. PPO by default: a balance task is solved
 within RL Zoo's 1e5 steps by PPO, and PPO's batched rollouts use the native vector
 environment (:func:`hgo_mj.envs.sb3.sb3_vec_env`, one loop at B = 8).
+
+``--algorithm SAC`` trains stable-baselines3's SAC instead (its defaults: two layers of 256,
+automatic entropy coefficient, tau 0.005; with gamma 0.99, learning rate 1e-3, a buffer of
+3e5, batch 256, 4000 warm-up steps and two gradient steps per step of the 8 members), on the
+same vector environment: the acrobot's balance, which PPO with these settings did not learn
+(its policy stays near zero torque and the elbow falls in about 2 s;
+``docs/results/rl_policies.md``). A SAC checkpoint keeps its replay buffer
+(``<name>.replay.pkl``), so that a resumed run goes on with the samples it had.
 
 Checkpoints: the model is saved every ``--checkpoint-every`` seconds (and at the end) to
 ``<checkpoints>/<name>.zip`` with ``<name>.json`` (steps done, training seconds so far); a
@@ -48,6 +56,10 @@ N_ENVS = 8
 PPO_CARTPOLE = {"n_steps": 32, "batch_size": 256, "gae_lambda": 0.8, "gamma": 0.98,
                 "n_epochs": 20, "ent_coef": 0.0, "learning_rate": "lin_0.001",
                 "clip_range": "lin_0.2"}
+#: SAC for the acrobot's balance: stable-baselines3's defaults but these
+SAC_BALANCE = {"gamma": 0.99, "learning_rate": 1e-3, "buffer_size": 300_000, "batch_size": 256,
+               "learning_starts": 4000, "train_freq": 1, "gradient_steps": 2}
+ALGORITHMS = ("PPO", "SAC")
 #: the steps of RL Zoo's CartPole-v1 budget
 DEFAULT_STEPS = 100_000
 
@@ -77,6 +89,9 @@ def check_args(args: argparse.Namespace) -> None:
         raise SystemExit(f"--env must be a registered hgo_mj id; found {args.env!r}")
     if args.agent not in AGENTS:
         raise SystemExit(f"--agent must be one of {list(AGENTS)}; found {args.agent!r}")
+    if args.algorithm not in ALGORITHMS:
+        raise SystemExit(f"--algorithm must be one of {list(ALGORITHMS)}; found "
+                         f"{args.algorithm!r}")
     if args.gamma is not None and not 0.0 < args.gamma < 1.0:
         raise SystemExit(f"--gamma must be in (0, 1); found {args.gamma}")
     if args.steps < 1 or args.checkpoint_every <= 0:
@@ -94,28 +109,35 @@ def train(args: argparse.Namespace) -> Path:
     """Train (or resume) one policy and write it to ``args.out``; returns the policy path."""
     import torch
     from hgo_mj.envs.sb3 import sb3_vec_env
-    from stable_baselines3 import PPO
+    from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.callbacks import BaseCallback
 
     torch.set_num_threads(1)
     name = policy_name(args.env, args.agent, args.seed)
     ckpt, ckpt_meta = args.checkpoints / f"{name}.zip", args.checkpoints / f"{name}.json"
+    replay = args.checkpoints / f"{name}.replay.pkl"
     venv = sb3_vec_env(args.env, num_envs=N_ENVS, observation=args.agent, nthread=1)
     venv.seed(args.seed)
+    algo, base = (SAC, SAC_BALANCE) if args.algorithm == "SAC" else (PPO, PPO_CARTPOLE)
     done_seconds = 0.0
     if ckpt.exists() and ckpt_meta.exists():
-        model = PPO.load(ckpt, env=venv, device="cpu")
+        model = algo.load(ckpt, env=venv, device="cpu")
+        if args.algorithm == "SAC" and replay.exists():
+            model.load_replay_buffer(replay)
         done_seconds = float(json.loads(ckpt_meta.read_text())["train_seconds"])
         print(f"resuming {name} at {model.num_timesteps} steps", flush=True)
     else:
-        settings = {k: _schedule(v) for k, v in PPO_CARTPOLE.items()}
+        settings = {k: _schedule(v) for k, v in base.items()}
         if args.gamma is not None:
             settings["gamma"] = args.gamma
-        model = PPO("MlpPolicy", venv, seed=args.seed, device="cpu", verbose=0, **settings)
+        model = algo("MlpPolicy", venv, seed=args.seed, device="cpu", verbose=0, **settings)
     start = time.monotonic()
 
     def checkpoint() -> None:
         _save_model(model, ckpt)
+        if args.algorithm == "SAC":
+            with atomic_path(replay) as tmp, open(tmp, "wb") as fh:
+                model.save_replay_buffer(fh)
         write_json(ckpt_meta, {"steps": int(model.num_timesteps),
                                "train_seconds": done_seconds + time.monotonic() - start})
 
@@ -139,10 +161,13 @@ def train(args: argparse.Namespace) -> Path:
     path = args.out / f"{name}.zip"
     _save_model(model, path)
     write_json(args.out / f"{name}.json", {
-        "env_id": args.env, "agent": args.agent, "seed": args.seed, "algorithm": "PPO",
-        "settings": {**PPO_CARTPOLE, "gamma": float(model.gamma), "n_envs": N_ENVS,
-                     "source": "rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"
-                     + ("" if model.gamma == PPO_CARTPOLE["gamma"] else
+        "env_id": args.env, "agent": args.agent, "seed": args.seed,
+        "algorithm": args.algorithm,
+        "settings": {**base, "gamma": float(model.gamma), "n_envs": N_ENVS,
+                     "source": ("rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"
+                                if algo is PPO else "stable-baselines3 SAC defaults, "
+                                "SAC_BALANCE of scripts/train_policy.py")
+                     + ("" if model.gamma == base["gamma"] else
                         f", gamma {model.gamma:g} (--gamma)")},
         "steps": int(model.num_timesteps), "train_seconds": round(seconds, 1),
         "cpu_note": "one torch thread, nice 15, on a 2-core machine shared with other jobs"})
@@ -160,9 +185,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "policies")
     ap.add_argument("--checkpoints", type=Path, default=ROOT / "runs" / "rl_checkpoints")
     ap.add_argument("--checkpoint-every", type=float, default=120.0, help="seconds")
+    ap.add_argument("--algorithm", default="PPO", help=f"one of {list(ALGORITHMS)}")
     ap.add_argument("--gamma", type=float, default=None,
-                    help="discount instead of RL Zoo's 0.98 (a new run only; a resumed run keeps "
-                         "its own)")
+                    help="discount instead of the algorithm's settings' (a new run only; a "
+                         "resumed run keeps its own)")
     args = ap.parse_args(argv)
     check_args(args)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

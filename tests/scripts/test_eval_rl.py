@@ -38,8 +38,8 @@ def test_table_and_refusals(tmp_path):
     ev = _load("eval_rl")
     rows = [ev.Row("x", "hgo_mj/CartPoleBalance-v0", "estimate", 0, 100_000, 80.4,
                    [500.0, 300.0], [True, False])]
-    assert ("| hgo_mj/CartPoleBalance-v0 | estimate | 0 | 0.98 | 100,000 | 80 | 400.0 ± 100.0 | "
-            "50% |" in ev.table(rows))
+    assert ("| hgo_mj/CartPoleBalance-v0 | estimate | PPO | 0 | 0.98 | 100,000 | 80 | "
+            "400.0 ± 100.0 | 50% |" in ev.table(rows))
     assert "Machine:" in ev.report(rows, 2, 3.0)
     rows.append(ev.Row("y", "hgo_mj/CartPoleBalance-v0", "true", 0, 100_000, 50.0,
                        [500.0, 500.0], [True, True]))
@@ -67,6 +67,9 @@ def test_train_policy_refuses_bad_arguments():
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--gamma", "1.5"])
     with pytest.raises(SystemExit, match="--steps must be >= 1"):
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--steps", "0"])
+    with pytest.raises(SystemExit, match=r"--algorithm must be one of \['PPO', 'SAC'\]; found "
+                                         r"'TD3'"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--algorithm", "TD3"])
 
 
 def test_train_stop_resume_and_evaluate(tmp_path, capsys):
@@ -91,4 +94,25 @@ def test_train_stop_resume_and_evaluate(tmp_path, capsys):
     out = tmp_path / "rl_policies.md"
     assert ev.main(["--policies", str(tmp_path / "pol"), "--episodes", "1", "--write",
                     str(out)]) == 0
-    assert "| hgo_mj/CartPoleBalance-v0 | true | 0 | 0.98 | 512 |" in out.read_text()
+    assert "| hgo_mj/CartPoleBalance-v0 | true | PPO | 0 | 0.98 | 512 |" in out.read_text()
+
+
+def test_sac_keeps_its_replay_buffer_across_a_resume(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    tp, ev = _load("train_policy"), _load("eval_rl")
+    args = ["--env", "hgo_mj/AcrobotBalance-v0", "--agent", "estimate", "--algorithm", "SAC",
+            "--out", str(tmp_path / "pol"), "--checkpoints", str(tmp_path / "ck")]
+    assert tp.main([*args, "--steps", "64"]) == 0
+    assert (tmp_path / "ck" / "AcrobotBalance-v0_estimate_seed0.replay.pkl").exists()
+    assert tp.main([*args, "--steps", "128"]) == 0
+    out = capsys.readouterr().out
+    assert "resuming AcrobotBalance-v0_estimate_seed0 at 64 steps" in out
+    from stable_baselines3 import SAC
+
+    model = SAC.load(tmp_path / "ck" / "AcrobotBalance-v0_estimate_seed0.zip")
+    model.load_replay_buffer(tmp_path / "ck" / "AcrobotBalance-v0_estimate_seed0.replay.pkl")
+    assert model.replay_buffer.size() == 128 // 8  # every step's 8 members, both sessions
+    meta = json.loads((tmp_path / "pol" / "AcrobotBalance-v0_estimate_seed0.json").read_text())
+    assert meta["algorithm"] == "SAC" and meta["settings"]["gradient_steps"] == 2
+    row = ev.evaluate(tmp_path / "pol" / "AcrobotBalance-v0_estimate_seed0.zip", 1)
+    assert row.algorithm == "SAC" and len(row.returns) == 1
