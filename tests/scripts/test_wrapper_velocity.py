@@ -17,6 +17,8 @@ def test_writes_the_table(tmp_path):
     assert module.main(["--steps", "5", "--envs", "InvertedPendulum-v5", "--out",
                         str(out)]) == 0
     text = out.read_text()
-    # joints=: three observers, current and prediction; measure=: the chains, both
-    assert text.count("| InvertedPendulum-v5 | 2 |") == 2 and text.count("x, ") == 6 + 2
+    # a ratio cell per configuration: joints= five (two observers, current and prediction,
+    # and the tuned EKF); measure= four (the chains, both, tuned; the tuned Kalman filters)
+    assert text.count("| InvertedPendulum-v5 | 2 |") == 2 and text.count("x, ") == 5 + 4
+    assert "auto (tuned kinematic_kalman, current)" in text
     assert module.main(["--steps", "1"]) == 2
