@@ -12,8 +12,10 @@ by name):
   having settled);
 * ``final``: ``|e|`` at the last sample;
 * ``update_time``: mean wall time of one observer update, seconds, warm: the loop spends the
-  kernels' compilation or cache load on a throw-away sample before it starts timing
-  (:class:`~hgo_mj.loop.Loop`), so an observer's cost is the same listed first or second.
+  kernels' compilation or cache load on a throw-away sample before it starts timing, and in
+  each segment the observers take turns at running first after the plant, whose run leaves
+  the caches cold for the next one (:class:`~hgo_mj.loop.Loop`), so an observer's cost is
+  the same listed first or second.
 
 A plant state the observer does not estimate (an order-only observer's ``z1, z2, ...``, a
 model-free multi-output observer without the motor states, ...) is **not estimated**: its
