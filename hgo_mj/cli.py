@@ -41,7 +41,7 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
 from . import manifest
-from ._io import atomic_path, check_disk, check_writable, save_figure, write_text
+from ._io import check_disk, check_writable, save_figure, write_text
 from ._json import write_json
 from ._validate import positive_int
 from .exceptions import DesignError, DivergenceError, HgoError, RecordingError
@@ -207,20 +207,19 @@ def write_results(traj: Any, metrics: dict[str, Any], out: Path,
     written.append("metrics.json")
     if not {"parquet", "csv"} & set(formats):
         return written  # pandas is not loaded for an npz run
-    from .metrics import metrics_frame
-    from .tidy import write_table
+    from .metrics import metrics_frame, metrics_rows
+    from .tidy import write_rows_parquet, write_table
     from .units import units_of
 
-    frame = metrics_frame(metrics, units_of(traj)[0])
+    units = units_of(traj)[0]
     for fmt in ("parquet", "csv"):
         if fmt in formats:
             if table:
                 write_table(traj, out / f"trajectory.{fmt}", fmt)
-            if fmt == "parquet":
-                with atomic_path(out / "metrics.parquet") as tmp:
-                    frame.to_parquet(tmp, index=False)
+            if fmt == "parquet":  # without pandas (a streamed run loads none)
+                write_rows_parquet(*metrics_rows(metrics, units), out / "metrics.parquet")
             else:
-                write_text(out / "metrics.csv", frame.to_csv(index=False))
+                write_text(out / "metrics.csv", metrics_frame(metrics, units).to_csv(index=False))
             written += [f"trajectory.{fmt}", f"metrics.{fmt}"]
     return written
 

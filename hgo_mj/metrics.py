@@ -12,8 +12,10 @@ by name):
   having settled);
 * ``final``: ``|e|`` at the last sample;
 * ``update_time``: mean wall time of one observer update, seconds, warm: the loop spends the
-  kernels' compilation or cache load on a throw-away sample before it starts timing
-  (:class:`~hgo_mj.loop.Loop`), so an observer's cost is the same listed first or second.
+  kernels' compilation or cache load on a throw-away sample before it starts timing, and in
+  each segment the observers take turns at running first after the plant, whose run leaves
+  the caches cold for the next one (:class:`~hgo_mj.loop.Loop`), so an observer's cost is
+  the same listed first or second.
 
 A plant state the observer does not estimate (an order-only observer's ``z1, z2, ...``, a
 model-free multi-output observer without the motor states, ...) is **not estimated**: its
@@ -43,7 +45,7 @@ from .exceptions import DesignError
 Array = NDArray[np.float64]
 
 __all__ = ["PER_STATE", "RunningMetrics", "all_metrics", "chi2_band", "format_table",
-           "metrics_frame", "nees", "observer_metrics", "settling_time", "text_table"]
+           "metrics_frame", "metrics_rows", "nees", "observer_metrics", "settling_time", "text_table"]
 
 
 def nees(err: Array, P: Array) -> Array:
@@ -679,6 +681,36 @@ def metrics_frame(metrics: dict[str, dict[str, Any]],
     """
     import pandas as pd
 
+    rows, columns = metrics_rows(metrics, units)
+    return pd.DataFrame(rows, columns=columns)
+
+
+def metrics_rows(metrics: dict[str, dict[str, Any]], units: dict[str, str] | None = None
+                 ) -> tuple[list[dict[str, Any]], list[str]]:
+    """The rows of :func:`metrics_frame` (one mapping each) and its columns, without pandas
+    (``metrics.parquet`` is written from them: :func:`hgo_mj.tidy.write_rows_parquet`).
+
+    Parameters
+    ----------
+    metrics : dict
+        What :func:`all_metrics` returns.
+    units : dict of str to str, optional
+        ``{state: unit}`` for the ``unit`` column.
+
+    Returns
+    -------
+    rows : list of dict
+    columns : list of str
+
+    Examples
+    --------
+    >>> m = {"hgo": {"states": ["angle"], "estimated": [True], "rmse": [None], "peak": [0.5],
+    ...              "settling_time": [1.0], "final": [0.01], "undefined_samples": [0],
+    ...              "update_time": 1e-6, "t_transient": 2.0, "band": 0.05}}
+    >>> rows, columns = metrics_rows(m, {"angle": "rad"})
+    >>> rows[0]["unit"], rows[0]["rmse"], columns[:4]
+    ('rad', nan, ['observer', 'state', 'unit', 'estimated'])
+    """
     units = units or {}
     rows = []
     for name, m in metrics.items():
@@ -690,8 +722,7 @@ def metrics_frame(metrics: dict[str, dict[str, Any]],
             for key in ("update_time", "t_transient", "band"):
                 row[key] = m.get(key, math.nan)
             rows.append(row)
-    columns = ["observer", "state", "unit", *PER_STATE, "update_time", "t_transient", "band"]
-    return pd.DataFrame(rows, columns=columns)
+    return rows, ["observer", "state", "unit", *PER_STATE, "update_time", "t_transient", "band"]
 
 
 def text_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str],

@@ -157,7 +157,7 @@ class ParquetChunks:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        from .tidy import wide_columns
+        from .tidy import arrow_array, wide_columns
 
         cols, units = wide_columns(chunk)
         if self.schema is None:
@@ -167,7 +167,10 @@ class ParquetChunks:
             self.units = units
         # a closed file per chunk: a kill leaves every chunk before it readable
         with atomic_path(self.parts / f"part-{self.row_groups:06d}.parquet") as tmp:
-            pq.write_table(pa.table(cols, schema=self.schema), str(tmp))
+            # from the columns' buffers: pa.table would import pandas (arrow_array)
+            pq.write_table(pa.Table.from_arrays([arrow_array(np.asarray(v, dtype=np.float64))
+                                                 for v in cols.values()], schema=self.schema),
+                           str(tmp))
         self.row_groups += 1
 
     def close(self, traj: Any) -> Path:
@@ -219,9 +222,11 @@ class ParquetChunks:
         schema = self.schema.with_metadata({"hgo_mj": json.dumps(strict_json(meta),
                                                                  allow_nan=False)})
         with atomic_path(self.path) as tmp, pq.ParquetWriter(str(tmp), schema) as writer:
-            for i in range(self.row_groups):  # one part in memory at a time
-                writer.write_table(pq.read_table(self.parts / f"part-{i:06d}.parquet")
-                                   .replace_schema_metadata(schema.metadata))
+            for i in range(self.row_groups):  # one part in memory at a time; ParquetFile,
+                # not read_table: that imports pyarrow.dataset (46 MB of resident memory)
+                part = pq.ParquetFile(self.parts / f"part-{i:06d}.parquet")
+                writer.write_table(part.read().replace_schema_metadata(schema.metadata))
+                part.close()
         shutil.rmtree(self.parts)
         return self.path
 
@@ -294,17 +299,19 @@ def _settle_from_file(path: Path, acc: Any, traj: Any) -> None:
     groups from the last one back (only the columns it needs are read)."""
     import pyarrow.parquet as pq
 
+    from .tidy import float_column
+
     pf = pq.ParquetFile(str(path))
     for i in reversed(range(pf.num_row_groups)):
         group = pf.read_row_group(i)
-        t = group.column("t").to_numpy()
+        t = float_column(group.column("t"))  # from the buffers: to_numpy imports pandas
         errors = {}
         for name in acc.est:
             e = np.full((len(t), len(traj.state_names)), np.nan)
             for j, s in enumerate(traj.state_names):
                 if acc.est[name][j]:
-                    e[:, j] = (group.column(f"true/{s}").to_numpy()
-                               - group.column(f"{name}/{s}").to_numpy())
+                    e[:, j] = (float_column(group.column(f"true/{s}"))
+                               - float_column(group.column(f"{name}/{s}")))
             errors[name] = e
         if acc.settle(t, errors):
             return

@@ -104,6 +104,125 @@ def wide_columns(traj: Any) -> tuple[dict[str, Any], dict[str, str | None]]:
     return cols, unit
 
 
+def arrow_array(values: Any) -> Any:
+    """A column as a ``pyarrow.Array`` built from its buffers, without pandas: ``pa.array``
+    and ``pa.table`` of numpy or Python data import pandas (pyarrow's pandas shim checks
+    their types; 69 MB of resident memory), ``Array.from_buffers`` does not.
+
+    Parameters
+    ----------
+    values : ndarray or sequence
+        A numeric array (float64, or int64 where every entry is an integer), or a sequence of
+        bools, of ``str``/``None`` (a string column, ``None`` null), or of numbers and ``None``
+        (float64, ``None`` as NaN; int64 where every entry is an integer): the types pandas
+        gives the same values.
+
+    Returns
+    -------
+    pyarrow.Array
+
+    Examples
+    --------
+    >>> from hgo_mj.tidy import arrow_array
+    >>> arrow_array(["rad", None]).to_pylist(), arrow_array([1, 2]).type
+    (['rad', None], DataType(int64))
+    >>> arrow_array([0.5, None]).to_pylist(), arrow_array([True, False]).to_pylist()
+    ([0.5, nan], [True, False])
+    """
+    import pyarrow as pa
+
+    if not isinstance(values, np.ndarray):
+        vals = list(values)
+        if vals and all(isinstance(v, (bool, np.bool_)) for v in vals):
+            bits = np.packbits(np.array(vals, dtype=bool), bitorder="little")
+            return pa.Array.from_buffers(pa.bool_(), len(vals), [None, pa.py_buffer(bits)])
+        if any(isinstance(v, str) for v in vals) or (vals and all(v is None for v in vals)):
+            data = [b"" if v is None else str(v).encode() for v in vals]
+            offsets = np.zeros(len(data) + 1, dtype=np.int32)
+            offsets[1:] = np.cumsum([len(b) for b in data])
+            valid = np.packbits(np.array([v is not None for v in vals], dtype=bool),
+                                bitorder="little")
+            return pa.Array.from_buffers(
+                pa.string(), len(vals), [pa.py_buffer(valid), pa.py_buffer(offsets),
+                                         pa.py_buffer(b"".join(data))],
+                null_count=sum(v is None for v in vals))
+        ints = vals and all(isinstance(v, (int, np.integer)) for v in vals)
+        values = np.array([np.nan if v is None else v for v in vals],
+                          dtype=np.int64 if ints else np.float64)
+    kind = np.int64 if values.dtype.kind in "iu" else np.float64
+    arr = np.ascontiguousarray(values, dtype=kind)
+    return pa.Array.from_buffers(pa.int64() if kind is np.int64 else pa.float64(), arr.size,
+                                 [None, pa.py_buffer(arr)])
+
+
+def float_column(column: Any) -> Any:
+    """A float64 Arrow column (``Array`` or ``ChunkedArray``) as a new numpy array, null as
+    NaN, read from its buffers: ``to_numpy`` imports pandas (see :func:`arrow_array`).
+
+    Parameters
+    ----------
+    column : pyarrow.Array or pyarrow.ChunkedArray
+        Of type float64.
+
+    Returns
+    -------
+    ndarray, shape (len(column),)
+
+    Examples
+    --------
+    >>> import pyarrow as pa
+    >>> from hgo_mj.tidy import arrow_array, float_column
+    >>> col = pa.chunked_array([arrow_array([0.5, 1.5]), arrow_array([2.5])])
+    >>> float_column(col).tolist(), float_column(col.chunk(0).slice(1)).tolist()
+    ([0.5, 1.5, 2.5], [1.5])
+    """
+    chunks = getattr(column, "chunks", [column])
+    out = np.empty(sum(len(a) for a in chunks))
+    i = 0
+    for a in chunks:
+        n = len(a)
+        valid, data = a.buffers()
+        out[i:i + n] = np.frombuffer(data, dtype=np.float64, count=n, offset=a.offset * 8)
+        if a.null_count:
+            bits = np.unpackbits(np.frombuffer(valid, dtype=np.uint8), bitorder="little")
+            out[i:i + n][~bits[a.offset:a.offset + n].astype(bool)] = np.nan
+        i += n
+    return out
+
+
+def write_rows_parquet(rows: list[dict[str, Any]], columns: list[str], path: str | Path) -> None:
+    """Write rows (one mapping each) as a Parquet table of ``columns``, atomically, without
+    pandas (:func:`arrow_array`): ``metrics.parquet``.
+
+    Parameters
+    ----------
+    rows : list of dict
+        One mapping per row, from column name to value.
+    columns : list of str
+        The columns, in order.
+    path : str or Path
+        The file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import pyarrow.parquet as pq
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     write_rows_parquet([{"state": "angle", "rmse": 0.1}], ["state", "rmse"],
+    ...                        Path(tmp) / "m.parquet")
+    ...     pq.read_table(Path(tmp) / "m.parquet").to_pylist()
+    [{'state': 'angle', 'rmse': 0.1}]
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_arrays([arrow_array([r.get(c) for r in rows]) for c in columns],
+                                 names=list(columns))
+    with atomic_path(Path(path)) as tmp:
+        pq.write_table(table, str(tmp))
+
+
 def schema_metadata(traj: Any, form: str, units: dict[str, str | None]) -> dict[str, Any]:
     """What the Arrow schema's ``hgo_mj`` metadata holds (strict JSON data)."""
     return strict_json({
@@ -342,5 +461,5 @@ def read_units(path: str | Path) -> dict[str, str | None]:
     return dict(json.loads(meta[b"hgo_mj"])["units"])
 
 
-__all__ = ["FILE_FORMATS", "FORMS", "RESERVED", "read_units", "to_arrow", "to_pandas",
-           "write_table"]
+__all__ = ["FILE_FORMATS", "FORMS", "RESERVED", "arrow_array", "float_column", "read_units",
+           "to_arrow", "to_pandas", "write_rows_parquet", "write_table"]

@@ -101,3 +101,18 @@ def test_dir_lists_the_lazy_names_before_their_import(tmp_path):
                   "assert set(o.__all__) <= set(dir(o)), set(o.__all__) - set(dir(o))\n"
                   "assert set(s.__all__) <= set(dir(s)), set(s.__all__) - set(dir(s))", tmp_path)
     assert got["families"] == []
+
+
+def test_streamed_run_loads_neither_pandas_nor_pyarrow_dataset(tmp_path):
+    # the parts are read back by ParquetFile: pq.read_table would import pyarrow.dataset
+    # (46 MB of the streamed run's peak RSS, issue 24); the chunks and metrics.parquet are
+    # written from buffers (hgo_mj.tidy.arrow_array): pa.table would import pandas
+    code = ("import sys\nfrom hgo_mj.cli import main\n"
+            "assert main(['run', '--plant', 'pendulum', '--duration', '0.5', '--out', 'x', "
+            "'--stream']) == 0\n"
+            "print('DATASET', 'pyarrow.dataset' in sys.modules, 'pandas' in sys.modules)")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True,
+                         text=True, timeout=300, check=True).stdout
+    assert "DATASET False False" in out
+    assert (tmp_path / "x" / "trajectory.parquet").exists()

@@ -204,3 +204,94 @@ def test_reset_restarts_each_observer_from_a_fresh_initial_state():
         for _ in range(3):
             loop.segment(np.full((loop.batch, 1, 1), 0.3))
         assert not np.array_equal(loop.states["hgo"].z, fresh.z)
+
+
+class _FailsAt(HighGainObserver):
+    """Fails in its update once it has consumed more than ``limit`` samples in all."""
+
+    limit = 7
+
+    def _init(self, p, x0, z0, u0):
+        return {**super()._init(p, x0, z0, u0), "count": np.zeros(u0.shape[0], dtype=int)}
+
+    def _step(self, p, s, Y, U, dt, X, Z, D):
+        s.count += Y.shape[1]
+        if s.count.max() > self.limit:
+            raise DivergenceError("the observer state left the finite numbers: [inf]")
+        super()._step(p, s, Y, U, dt, X, Z, D)
+
+
+def _three(exact: bool = True):
+    from hgo_mj.loop import Loop, Periods
+
+    plant = make_plant("pendulum", dt=0.01)
+    obs = {n: HighGainObserver(plant.system, k=k) for n, k in (("a", 10.0), ("b", 20.0),
+                                                                ("c", 40.0))}
+    return Loop(plant, None, obs, Periods.of(plant), exact=exact), obs
+
+
+def test_observers_take_turns_at_running_first_after_the_plant(monkeypatch):
+    """Issue 24: the observer that runs right after the plant's run meets cold caches (its
+    wall time was 2x the same observer's listed second). In a segment of several samples the
+    observers take turns at running first, so each pays that equally, whatever the listed
+    order; the blocks keep the listed order, and each observer's rows equal its run alone,
+    bit for bit. One-sample segments (an environment's step) keep the listed order."""
+    from hgo_mj.loop import Loop, Periods
+
+    loop, obs = _three()
+    calls: list[str] = []
+    for name, ob in obs.items():
+        step = ob._step_checked
+        monkeypatch.setattr(ob, "_step_checked", lambda *a, _s=step, _n=name, **k:
+                            (calls.append(_n), _s(*a, **k))[1])
+    loop.reset([0.3, 0.0])
+    U = np.full((1, 5, 1), 0.2)
+    segs = []
+    for _ in range(4):
+        calls.clear()
+        segs.append(loop.segment(U))
+        assert list(segs[-1].blocks) == ["a", "b", "c"]
+        assert sorted(calls) == ["a", "b", "c"]
+        segs[-1] = (segs[-1], calls[0])
+    assert [first for _, first in segs] == ["a", "b", "c", "a"]
+    calls.clear()
+    loop.segment(U[:, :1])
+    assert calls == ["a", "b", "c"]
+    for name in obs:  # the same rows as the observer alone
+        plant = make_plant("pendulum", dt=0.01)
+        alone = Loop(plant, None, {name: HighGainObserver(plant.system, k=obs[name].k_)},
+                     Periods.of(plant))
+        alone.reset([0.3, 0.0])
+        for seg, _ in segs:
+            np.testing.assert_array_equal(alone.segment(U).blocks[name].x_hat,
+                                          seg.blocks[name].x_hat)
+
+
+def test_a_failure_among_turns_is_the_listed_order_one(monkeypatch):
+    """Where an observer fails in a segment whose turn started with another, the segment is
+    run again in the listed order from the states before it: the same failure, rows, states
+    and wall times as a loop that never takes turns."""
+    from hgo_mj.loop import Loop, LoopFailure, Periods
+
+    def run(turns: bool):
+        plant = make_plant("pendulum", dt=0.01)
+        obs = {"bad": _FailsAt(plant.system, k=20.0),
+               "ok": HighGainObserver(plant.system, k=10.0)}
+        loop = Loop(plant, None, obs, Periods.of(plant), isolate=False)
+        if not turns:
+            monkeypatch.setattr(loop, "_rotates", lambda T: False)
+        loop.reset([0.3, 0.0])
+        loop.segment(np.full((1, 5, 1), 0.2))  # turn 0: "bad" first
+        with pytest.raises(LoopFailure) as info:  # turn 1: "ok" first, then "bad" fails
+            loop.segment(np.full((1, 5, 1), 0.2))
+        return loop, info.value
+
+    (a, fa), (b, fb) = run(True), run(False)
+    assert (fa.observer, fa.row, fa.t) == (fb.observer, fb.row, fb.t) == ("bad", 7, 0.07)
+    for name in ("ok", "bad"):
+        np.testing.assert_array_equal(fa.segment.blocks[name].x_hat,
+                                      fb.segment.blocks[name].x_hat)
+        for k, v in b.states[name].fields.items():
+            np.testing.assert_array_equal(a.states[name].fields[k], v)
+        assert a.observers[name].x_hat.tolist() == b.observers[name].x_hat.tolist()
+    assert a.k == b.k

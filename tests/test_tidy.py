@@ -156,3 +156,23 @@ def test_cli_format_chooses_the_files(tmp_path):
     with pytest.raises(SystemExit) as exc:  # argparse: one line, exit status 2
         main([*RUN, "--out", str(tmp_path / "x"), "--format", "xlsx"])
     assert exc.value.code == 2
+
+
+def test_metrics_parquet_without_pandas_reads_back_as_pandas_writes_it(tmp_path):
+    """metrics.parquet is written from buffers (no pandas import): read with pandas it is the
+    frame pandas' own to_parquet writes, column types included (an integer column stays
+    int64, None is NaN in a number column and null in the unit column)."""
+    from hgo_mj.metrics import metrics_frame, metrics_rows
+    from hgo_mj.tidy import write_rows_parquet
+
+    one = {"states": ["angle", "v"], "estimated": [True, False], "rmse": [0.1, None],
+           "peak": [0.5, None], "settling_time": [1.0, None], "final": [0.01, None],
+           "undefined_samples": [0, None], "update_time": 1e-6, "t_transient": 2.0,
+           "band": 0.05}
+    two = {**one, "estimated": [True, True], "rmse": [0.1, 0.2], "peak": [0.5, 1.0],
+           "settling_time": [1.0, 2.0], "final": [0.01, 3.0], "undefined_samples": [0, 2]}
+    for metrics in ({"hgo": one, "b": two}, {"b": two}):
+        metrics_frame(metrics, {"angle": "rad"}).to_parquet(tmp_path / "a.parquet", index=False)
+        write_rows_parquet(*metrics_rows(metrics, {"angle": "rad"}), tmp_path / "b.parquet")
+        pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "a.parquet"),
+                                      pd.read_parquet(tmp_path / "b.parquet"))
