@@ -706,7 +706,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="reuse the finished (task, observer) parts in OUT")
     b.add_argument("--backend", choices=["local", "ray"], default="local",
                    help="where the tunings' rounds run (default local)")
-    b.add_argument("--jobs", default="1", metavar="N", help="Ray workers")
+    b.add_argument("--jobs", default="1", metavar="N",
+                   help="local: processes the (task, observer) parts run in; ray: workers "
+                        "(default 1)")
     b.add_argument("--no-rrd", dest="no_rrd", action="store_true",
                    help="no rerun recordings of each task's best and worst observer")
     b.add_argument("--quiet", action="store_true", help="no progress on stderr")

@@ -121,6 +121,8 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
         Reuse the finished parts in ``out``.
     backend : {"local", "ray"}
     jobs : int
+        Local: the (task, observer) parts run in this process and ``jobs - 1`` workers; Ray:
+        the workers of each tuning round. The results do not depend on it.
     record : bool
         Write each task's rerun recording of its best and worst observer.
     progress : bool
@@ -146,7 +148,7 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
     chosen = tasks_of(suite, tasks, task_files)
     obs = (list(observers) if observers else
            list(SUITE_OBSERVERS.get(suite or "", ())) or default_observers())
-    _check(obs, budget, backend)
+    _check(obs, budget, backend, jobs)
     folder = None
     if out is not None:
         from .._io import check_writable
@@ -176,7 +178,7 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
     return BenchResult(board, scores, table, time.perf_counter() - t0)
 
 
-def _check(observers: Sequence[str], budget: Any, backend: Any) -> None:
+def _check(observers: Sequence[str], budget: Any, backend: Any, jobs: Any) -> None:
     from ..observers import registered
 
     known = registered()
@@ -193,6 +195,8 @@ def _check(observers: Sequence[str], budget: Any, backend: Any) -> None:
         raise DesignError(f"budget must be an integer >= 2; found {budget!r}")
     if backend not in ("local", "ray"):
         raise DesignError(f"backend must be 'local' or 'ray'; found {backend!r}")
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise DesignError(f"jobs must be an integer >= 1; found {jobs!r}")
 
 
 def _cell(m: Any, lo: Any, hi: Any, inf: str = "diverged") -> str:

@@ -263,6 +263,20 @@ def test_the_quick_suite_scores_tuned_observers_better_than_their_defaults():
     assert r.scores.loc[r.scores["observer"] == "ekf", "nees"].notna().all()
 
 
+def test_parts_in_worker_processes_give_the_same_scores(tmp_path):
+    """``jobs=2`` (local): the (task, observer) parts run in this process and a spawned
+    worker, in completion order; the leaderboard and scores are those of one process."""
+    kw = {"tasks": ["pendulum/encoder-v1"], "observers": ["finite_difference", "high_gain"],
+          "budget": 2, "record": False, "progress": False}
+    one = bench(None, **kw)
+    two = bench(None, jobs=2, out=tmp_path, **kw)
+    timing = ["update_time", "tune_seconds"]
+    for a, b in ((one.scores, two.scores), (one.leaderboard, two.leaderboard)):
+        keep = [c for c in a.columns if c not in timing]
+        pd.testing.assert_frame_equal(a[keep], b[keep])
+    assert len(list((tmp_path / "parts").iterdir())) == 2
+
+
 @pytest.mark.parametrize("text,match", [
     ('name = "x"\nsensor = "encoder"\n[plant]\nname = "pendulum"\n[input]\n',
      r"name must end in -v<N>"),
@@ -291,6 +305,7 @@ def test_bad_task_files_are_one_line(tmp_path, text, match):
     ({"tasks": ["pendulum/encoder-v9"]}, r"unknown task 'pendulum/encoder-v9'"),
     ({"budget": 1}, r"budget must be an integer >= 2"),
     ({"backend": "dask"}, r"backend must be 'local' or 'ray'"),
+    ({"jobs": 0}, r"jobs must be an integer >= 1; found 0"),
 ])
 def test_bad_benchmark_arguments_are_one_line_before_any_work(kw, match, monkeypatch):
     import hgo_mj.bench.report as report
