@@ -27,7 +27,7 @@ $(STAMP): pyproject.toml | $(PY)
 # the benchmark's quick suite: leaderboard, figures, recordings -> runs/demo/
 demo: $(STAMP)
 	@echo "[3/3] running the benchmark's quick suite: hgo-mj bench --suite quick -> runs/demo/"
-	$(VENV)/bin/hgo-mj bench --suite quick --budget 8 --out runs/demo
+	$(VENV)/bin/hgo-mj bench --suite quick --budget 8 --jobs 2 --out runs/demo
 	@echo "done: open $(CURDIR)/runs/demo/leaderboard.md and $(CURDIR)/runs/demo/score_matrix.png"
 
 $(DEV_STAMP): pyproject.toml constraints.txt $(STAMP)

@@ -706,8 +706,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--backend", choices=["local", "ray"], default="local",
                    help="where the tunings' rounds run (default local)")
     b.add_argument("--jobs", default="1", metavar="N",
-                   help="processes running the (task, observer) parts side by side; with "
-                        "--backend ray, Ray workers each tuning round is split over")
+                   help="local: processes the (task, observer) parts run in; ray: workers "
+                        "(default 1)")
     b.add_argument("--no-rrd", dest="no_rrd", action="store_true",
                    help="no rerun recordings of each task's best and worst observer")
     b.add_argument("--quiet", action="store_true", help="no progress on stderr")

@@ -424,15 +424,23 @@ class Loop:
         return p, s0
 
     def _warm_up(self, ob: Observer, p: Params, state: State) -> None:
-        """One throw-away sample of a copy of member 0 (the plant's clean output, zero
+        """Two throw-away samples of copies of member 0 (the plant's clean output, zero
         input): it compiles or loads the family's kernels (numba's dispatch and cache), so
         that the wall time the loop reports per update (:attr:`wall`) is the warm cost, the
         same whichever observer runs first. Its outcome is discarded; a failure here is not
-        the run's (the run meets it again where it is real)."""
+        the run's (the run meets it again where it is real).
+
+        As many members as the run, up to two, and two samples: the views a family hands its
+        kernels (a sample's column ``Z[:, j]``, the family's diagnostics ``D[..., :nd]``) then
+        have the layout of a segment's (numba compiles a kernel once per layout; one member
+        and one sample made them C-contiguous where a segment's are strided, and every such
+        kernel compiled twice, issue 28)."""
         y = np.asarray(self.plant.outputs(), dtype=np.float64).reshape(self.plant.batch, 1, -1)
-        U = np.zeros((1, 1, len(self.plant.input_names)))
+        rows = [0] * min(self.plant.batch, 2)
+        Y = np.repeat(y[rows], 2, axis=1)
+        U = np.zeros((len(rows), 2, len(self.plant.input_names)))
         try:
-            ob._step_checked(p.take([0]), state.take([0]), y[:1], U, self.periods.sample)
+            ob._step_checked(p.take(rows), state.take(rows), Y, U, self.periods.sample)
         except Exception:  # noqa: BLE001, S110 - a warm-up only; its result is discarded
             pass
 

@@ -539,6 +539,9 @@ class MetricsBatch:
         """Rows at times ``t`` ``(T,)``: true states ``X`` ``(B, T, n)``; the estimate of the
         first row ``prev`` (``x_hat``, ``z_hat``, ``(B, .)``) and of the others ``BX``, ``BZ``
         ``(B, T - 1 or more, .)`` (row ``j`` is the block's row ``j - 1``)."""
+        # one layout of X whatever its source (a replay's read-only broadcast, a segment's
+        # rows, a state reshaped): numba compiles the kernel once per layout (issue 28)
+        X = np.require(X, np.float64, ["C", "W"])
         _accumulate(np.ascontiguousarray(t, dtype=np.float64), X, prev[0], prev[1], BX, BZ,
                     self.idx, self.cols, self.t_transient, self.band, self.sumsq, self.comp,
                     self.count, self.peak, self.undefined, self.settle_t, self.final, self.bad,

@@ -120,10 +120,10 @@ def bench(suite: str | None = "quick", *, tasks: Sequence[str] = (),
     resume : bool
         Reuse the finished parts in ``out``.
     backend : {"local", "ray"}
-        Where the work runs: locally, ``jobs`` processes run the (task, observer) parts side
-        by side; on Ray, each tuning round is split over ``jobs`` workers.
+        Where the work runs (see ``jobs``).
     jobs : int
-        Processes (local) or Ray workers (>= 1). The results do not depend on it.
+        Local: the (task, observer) parts run in this process and ``jobs - 1`` workers; Ray:
+        the workers of each tuning round. The results do not depend on it.
     record : bool
         Write each task's rerun recording of its best and worst observer.
     progress : bool
@@ -197,7 +197,7 @@ def _check(observers: Sequence[str], budget: Any, backend: Any, jobs: Any) -> No
     if backend not in ("local", "ray"):
         raise DesignError(f"backend must be 'local' or 'ray'; found {backend!r}")
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise DesignError(f"jobs must be a positive integer; found {jobs!r}")
+        raise DesignError(f"jobs must be an integer >= 1; found {jobs!r}")
 
 
 def _cell(m: Any, lo: Any, hi: Any, inf: str = "diverged") -> str:

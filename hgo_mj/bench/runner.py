@@ -27,6 +27,7 @@ import math
 import sys
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -278,31 +279,41 @@ def _json(v: Any) -> Any:
 def parts_of(tasks: Sequence[Task], observers: Sequence[str], budget: int, *,
              out: Path | None, resume: bool, backend: str = "local", jobs: int = 1,
              progress: bool = True) -> list[dict[str, Any]]:
-    """Every (task, observer) part, in order, resuming those already kept. Locally with
-    ``jobs > 1``, the parts run on ``jobs`` processes (this one and ``jobs - 1`` workers,
-    :func:`hgo_mj.study.backends` ``_local``); a part is the same whichever process runs it
-    (its seeds are its own), so the results equal the serial ones. On Ray, ``jobs`` splits each
-    tuning round instead."""
+    """Every (task, observer) part, in order, resuming those already kept. With the local
+    backend and ``jobs > 1``, the parts run in this process and ``jobs - 1`` worker
+    processes (:func:`hgo_mj.study.backends._local`: spawned, they die with this one); a
+    part does not depend on where it ran, so neither does the result (with Ray, ``jobs`` are
+    the workers of each tuning round instead)."""
+    specs = [_PartSpec(task, kind, budget, out, resume, backend, jobs)
+             for task in tasks for kind in observers]
+    local_workers = jobs if backend == "local" else 1
+    done: dict[int, dict[str, Any]] = {}
     from ..study.backends import _local
 
-    chunks = [(i, task, kind, budget, out, resume)
-              for i, (task, kind) in enumerate((t, k) for t in tasks for k in observers)]
-    found: dict[int, dict[str, Any]] = {}
-    if backend == "local":
-        done: Any = _local(chunks, jobs, run=_part_of_chunk)
-    else:
-        done = ((c, [run_task_observer(c[1], c[2], budget, out=out, resume=resume,
-                                       backend=backend, jobs=jobs)]) for c in chunks)
-    for c, (part,) in done:
-        found[c[0]] = part
+    for spec, (part,) in _local(specs, local_workers, run=_run_part):
+        done[specs.index(spec)] = part
         if progress:
-            print(f"bench: {len(found)}/{len(chunks)} {c[1].name} {c[2]}: {part['status']}",
-                  file=sys.stderr, flush=True)
-    return [found[i] for i in range(len(chunks))]
+            print(f"bench: {len(done)}/{len(specs)} {spec.task.name} {spec.kind}: "
+                  f"{part['status']}", file=sys.stderr, flush=True)
+    return [done[i] for i in range(len(specs))]
 
 
-def _part_of_chunk(chunk: tuple[int, Task, str, int, Path | None, bool]) -> list[dict[str, Any]]:
-    """``[run_task_observer(...)]`` of one ``(index, task, observer, budget, out, resume)``
-    (a worker's unit of :func:`parts_of`, as the rows of a study's chunk)."""
-    _, task, kind, budget, out, resume = chunk
-    return [run_task_observer(task, kind, budget, out=out, resume=resume)]
+@dataclass(frozen=True, eq=False)
+class _PartSpec:
+    """One (task, observer) of :func:`parts_of`, as plain data for a worker process."""
+
+    task: Task
+    kind: str
+    budget: int
+    out: Path | None
+    resume: bool
+    backend: str
+    jobs: int
+
+
+def _run_part(spec: _PartSpec) -> list[dict[str, Any]]:
+    """:func:`run_task_observer` of ``spec``, as the one row a local backend's ``run`` returns
+    (module-level: a worker process calls it)."""
+    return [run_task_observer(spec.task, spec.kind, spec.budget, out=spec.out,
+                             resume=spec.resume, backend=spec.backend,
+                             jobs=spec.jobs if spec.backend == "ray" else 1)]

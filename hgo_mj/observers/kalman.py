@@ -105,8 +105,9 @@ from __future__ import annotations
 import copy
 import functools
 import math
+from collections import namedtuple
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import mujoco
 import mujoco.batch
@@ -716,9 +717,102 @@ def _ekf_scratch(n: int, N: int, nc: int) -> tuple[Any, Any]:  # pragma: no cove
     return vs, ms
 
 
+class _EkfSwitches(namedtuple("EkfSwitches", ())):
+    """The EKF time update's two switches as a type (:func:`_ekf_switches`): RK4 or Euler,
+    analytic Jacobians or central differences. A kernel that takes one is compiled for that
+    pair only (its numba type names the subclass, as a :class:`CompiledModel`'s does), so a
+    filter compiles the one loop it runs, not all four.
+
+    Parameters
+    ----------
+    *args, **kwargs
+        None accepted: made by :func:`_ekf_switches`.
+
+    Examples
+    --------
+    >>> _ekf_switches(rk4=True, analytic=False).rk4
+    True
+    """
+
+    __slots__ = ()
+    #: the mean and the transition by RK4 (else Euler)
+    rk4: ClassVar[bool] = True
+    #: the model's Jacobians (else central differences)
+    analytic: ClassVar[bool] = True
+
+
+class _RK4Analytic(_EkfSwitches):
+    __slots__ = ()
+
+
+class _RK4Differences(_EkfSwitches):
+    __slots__ = ()
+    analytic = False
+
+
+class _EulerAnalytic(_EkfSwitches):
+    __slots__ = ()
+    rk4 = False
+
+
+class _EulerDifferences(_EkfSwitches):
+    __slots__ = ()
+    rk4, analytic = False, False
+
+
+_SWITCHES = {(c.rk4, c.analytic): c() for c in (_RK4Analytic, _RK4Differences, _EulerAnalytic,
+                                                  _EulerDifferences)}
+
+
+def _ekf_switches(rk4: bool, analytic: bool) -> _EkfSwitches:
+    """The switches of :func:`_ekf_predict` and :func:`_ekf_block` as a type.
+
+    Parameters
+    ----------
+    rk4 : bool
+        RK4 (else Euler) for the mean and the transition.
+    analytic : bool
+        The model's Jacobians (else central differences).
+
+    Returns
+    -------
+    _EkfSwitches
+        One of four shared instances, one class per pair.
+
+    Examples
+    --------
+    >>> type(_ekf_switches(False, True)).__name__
+    '_EulerAnalytic'
+    """
+    return _SWITCHES[(bool(rk4), bool(analytic))]
+
+
+def _predict_rows(switches: _EkfSwitches, model: Any, X: Array, U: Array, P: Array, c0: Array,
+                  pidx: IntArray, h: float, Qh: Array, vs: Any, ms: Any) -> None:
+    """:func:`_ekf_predict_rows` with the switches' two flags (from numba kernels only)."""
+    raise NotImplementedError("called from numba kernels only")  # pragma: no cover
+
+
+@overload(_predict_rows)
+def _predict_rows_overload(switches, model, X, U, P, c0, pidx, h, Qh, vs, ms):  # type: ignore[no-untyped-def]
+    """At typing, the loop for the switches' class: the flags become constants of one
+    :func:`_ekf_predict_rows` (inlined into this implementation, itself a call: inlining it
+    too into the caller costs twice the compile), and the other three pairs are never typed
+    nor compiled."""
+    cls = getattr(switches, "instance_class", None)
+    if cls is None or not issubclass(cls, _EkfSwitches):
+        return None
+    rk4, analytic = cls.rk4, cls.analytic
+
+    def impl(switches, model, X, U, P, c0, pidx, h, Qh, vs, ms):  # type: ignore[no-untyped-def]
+        _ekf_predict_rows(model, X, U, P, c0, pidx, analytic, h, rk4, Qh, vs, ms)
+
+    return impl
+
+
 @njit(cache=True, error_model="numpy")
 def _ekf_predict(model: Any, X: Array, U: Array, P: Array, c0: Array, pidx: IntArray,
-                 analytic: bool, h: float, rk4: bool, Qh: Array, vs: Any,
+                 switches: _EkfSwitches, h: float, Qh: Array, vs: Any,
                  ms: Any) -> None:  # pragma: no cover - numba
     """The EKF's time update of every member over one substep ``h`` with a compiled model, in
     place: :math:`F` at the row, the mean by :func:`_rk4_row`, then
@@ -726,17 +820,12 @@ def _ekf_predict(model: Any, X: Array, U: Array, P: Array, c0: Array, pidx: IntA
     :func:`_sandwich`): the operations of ``jac``, ``step`` and :func:`_ekf_covariance`
     (``vs``, ``ms``: :func:`_ekf_scratch`).
 
-    The flags are branched on once, here, and the loop (:func:`_ekf_predict_rows`, inlined)
-    compiled with them constant: a run-time branch inside the loop keeps numba's reference
-    counting of the row views, which made a member 3-4x slower."""
-    if rk4 and analytic:
-        _ekf_predict_rows(model, X, U, P, c0, pidx, True, h, True, Qh, vs, ms)
-    elif rk4:
-        _ekf_predict_rows(model, X, U, P, c0, pidx, False, h, True, Qh, vs, ms)
-    elif analytic:
-        _ekf_predict_rows(model, X, U, P, c0, pidx, True, h, False, Qh, vs, ms)
-    else:
-        _ekf_predict_rows(model, X, U, P, c0, pidx, False, h, False, Qh, vs, ms)
+    The flags come as a type (``switches``, :func:`_ekf_switches`) and the loop
+    (:func:`_ekf_predict_rows`) is compiled with them constant: a run-time branch inside
+    the loop keeps numba's reference counting of the row views, which made a member 3-4x
+    slower; a branch on two booleans here, outside the loop, compiled all four loops (a first
+    call cost 18 s of CPU instead of 10 s per system, issue 28), where a filter runs one."""
+    _predict_rows(switches, model, X, U, P, c0, pidx, h, Qh, vs, ms)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -763,8 +852,8 @@ def _ekf_predict_rows(model: Any, X: Array, U: Array, P: Array, c0: Array, pidx:
 
 @njit(cache=True)
 def _ekf_block(model: Any, X: Array, P: Array, nis: Array, Y: Array, U: Array, sel: IntArray,
-               R: Array, diagonal: bool, c0: Array, pidx: IntArray, analytic: bool, h: float,
-               substeps: int, rk4: bool, Qh: Array, Xs: Array, Zs: Array,
+               R: Array, diagonal: bool, c0: Array, pidx: IntArray, switches: _EkfSwitches,
+               h: float, substeps: int, Qh: Array, Xs: Array, Zs: Array,
                Ds: Array) -> int:  # pragma: no cover - numba
     """The EKF over a block of samples ``Y`` ``(B, T, p)``, ``U`` ``(B, T, m)`` with a compiled
     model and a selection output, in place: per sample :func:`_condition_selection` (its NIS
@@ -787,7 +876,7 @@ def _ekf_block(model: Any, X: Array, P: Array, nis: Array, Y: Array, U: Array, s
                 u[b, c] = U[b, j, c]
         _condition_selection(X, P, y, sel, R, diagonal, nis)
         for _ in range(substeps):
-            _ekf_predict(model, X, u, P, c0, pidx, analytic, h, rk4, Qh, vs, ms)
+            _ekf_predict(model, X, u, P, c0, pidx, switches, h, Qh, vs, ms)
         if _first_nonfinite(X) >= 0:
             return j
         for b in range(B):
@@ -1839,8 +1928,8 @@ class ExtendedKalmanFilter(_KalmanFilter):
             s.x, Phi = mdl.transition(s.x, U, h)
         elif mdl.compiled is not None:
             vs, ms = _ekf_scratch(self.n, self.N, mdl._c0.shape[0])
-            _ekf_predict(mdl.compiled, s.x, U, s.P, mdl._c0, mdl._pidx, mdl.analytic, h,
-                         self.method == "rk4", Qh, vs, ms)
+            _ekf_predict(mdl.compiled, s.x, U, s.P, mdl._c0, mdl._pidx,
+                         _ekf_switches(self.method == "rk4", mdl.analytic), h, Qh, vs, ms)
             return
         else:
             F = mdl.jac(s.x, U)
@@ -1855,8 +1944,9 @@ class ExtendedKalmanFilter(_KalmanFilter):
         if not isinstance(mdl, SystemModel) or mdl.compiled is None or self.sel is None:
             return None
         return _ekf_block(mdl.compiled, s.x, s.P, s.nis, Y, U, self._sel, t.R,  # type: ignore[no-any-return]
-                          t.diag_R, mdl._c0, mdl._pidx, mdl.analytic, h, self.substeps,
-                          self.method == "rk4", Qh, X, Z, D)
+                          t.diag_R, mdl._c0, mdl._pidx,
+                          _ekf_switches(self.method == "rk4", mdl.analytic), h, self.substeps,
+                          Qh, X, Z, D)
 
     def _condition_general(self, t: _Tuning, x: Array, P: Array, Y: Array, nis: Array) -> None:
         """Linearize ``h`` by central differences at each member's prediction, then update

@@ -332,3 +332,29 @@ def test_parameters_refuse_what_the_constructor_refuses():
         ukf.parameters(2, beta=[1.0, np.inf])
     with pytest.raises(DesignError, match=r"unknown parameter\(s\) \['Q_theta'\]"):
         ukf.parameters(2, Q_theta=1e-6)
+
+
+@pytest.mark.parametrize("method", ["rk4", "euler"])
+@pytest.mark.parametrize("jacobian", ["analytic", "fd"])
+def test_each_switch_pair_compiles_its_own_loop_and_equals_the_python_model(method, jacobian):
+    """The EKF's block kernel takes RK4/Euler and analytic/differences as a type (one class
+    per pair), so a filter compiles the one loop it runs (issue 28: the four were compiled
+    for every system); each pair gives the Python model's bits."""
+    from hgo_mj.observers import kalman
+
+    fast, slow = (make_observer("ekf", Pendulum(), R=1e-4, method=method, jacobian=jacobian,
+                                estimate=["damping"], theta_hat0=[0.05]) for _ in range(2))
+    slow.model.compiled = None
+    rng = np.random.default_rng(5)
+    Y = 0.2 + 0.01 * rng.standard_normal((3, 30, 1))
+    U = 0.1 * rng.standard_normal((3, 30, 1))
+    for ob in (fast, slow):
+        ob.reset(np.array([[0.2, 0.0], [0.1, 0.1], [0.3, -0.1]]))
+    a, b = advance(fast, Y, U, 0.01), advance(slow, Y, U, 0.01)
+    np.testing.assert_array_equal(a.x_hat, b.x_hat)
+    np.testing.assert_array_equal(fast.P_, slow.P_)
+    want = type(kalman._ekf_switches(method == "rk4", jacobian == "analytic"))
+    assert want.rk4 == (method == "rk4") and want.analytic == (jacobian == "analytic")
+    switches = {getattr(sig[11], "instance_class", None) for sig in kalman._ekf_block.signatures
+                if getattr(sig[0], "instance_class", None) is type(Pendulum.compiled)}
+    assert want in switches and None not in switches

@@ -273,3 +273,27 @@ def test_a_kalman_filter_tuned_without_truth_finds_the_sensor_variance():
     assert rmse[0] <= 1.05 * rmse[1], rmse
     # and the mean NIS of the tuned filter is its expected value, one per output
     assert abs(np.mean(both.nis[0]) - 1.0) < 0.1
+
+
+def test_a_plant_run_is_set_up_once_for_every_observer_and_sensor(monkeypatch):
+    """setup keeps the plant's run (read-only) for the next setup of the same plant, input,
+    run and initial state, whatever its observers and sensor (the benchmark sets up each task
+    twice per observer, issue 28); another initial state or input runs again."""
+    import hgo_mj.tune.scoring as scoring
+
+    calls = []
+    real = scoring.plant_rows
+    monkeypatch.setattr(scoring, "_PLANT_RUNS", type(scoring._PLANT_RUNS)())
+    monkeypatch.setattr(scoring, "plant_rows", lambda *a: calls.append(1) or real(*a))
+    other = {**SC, "observers": [{"type": "finite_difference", "name": "fd"}],
+             "sensor": {"stages": [{"stage": "gaussian", "std": 1e-2}]}}
+    a, b = setup(SC, "hgo"), setup(other, "fd")
+    assert len(calls) == 1 and a.X is b.X and not a.X.flags.writeable
+    fresh = real(*[a.plant, scenario_run(dict(SC))["inputs"], a.periods, a.N,
+                   np.array([[0.5, 0.0]])])
+    np.testing.assert_array_equal(a.X, fresh[0])
+    np.testing.assert_array_equal(a.Yc, fresh[1])
+    assert evaluate(a, [{}], [1]).rmse.tolist() == evaluate(setup(SC, "hgo"), [{}], [1]).rmse.tolist()
+    setup({**SC, "plant": {**SC["plant"], "x0": [0.4, 0.0]}}, "hgo")
+    setup({**SC, "input": {**SC["input"], "amplitudes": [0.2]}}, "hgo")
+    assert len(calls) == 3

@@ -1,0 +1,31 @@
+"""scripts/bench_quick.py: a cold and a warm run of a part of the quick suite, each in a fresh
+process with its own numba cache; the report holds both and whether their scores agree (no
+timing asserted)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_quick.py"
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("bench_quick", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_cold_and_warm_side_by_side_with_the_same_scores(tmp_path):
+    bench = _load()
+    out = tmp_path / "B.md"
+    assert bench.main(["--jobs", "1", "--budget", "2", "--tasks", "pendulum/encoder-v1",
+                       "--observers", "finite_difference", "--write", str(out)]) == 0
+    text = out.read_text()
+    assert "<!-- bench_quick: begin -->" in text
+    row = next(ln for ln in text.splitlines() if ln.startswith("| 1 |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    cold_cpu, warm_cpu = float(cells[2]), float(cells[4])
+    assert cold_cpu > 0 and warm_cpu > 0 and cells[-1] == "yes"
+    assert bench.main(["--jobs", "0"]) == 2
