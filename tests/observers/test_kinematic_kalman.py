@@ -143,3 +143,19 @@ def test_bad_parameters_are_refused(kw, match):
 def test_the_tuning_space_is_q_alone():
     sp = KinematicKalmanFilter(order=2, q=4.0, r=1e-6).tuning_space()
     assert list(sp) == ["q"] and sp["q"].log and (sp["q"].low, sp["q"].high) == (4e-5, 4e5)
+
+
+def test_the_current_estimate_is_mapped_to_physical_coordinates():
+    """With a system whose normal form is not its state (the elastic joint: the link angle's
+    derivatives), filtered(y) is from_normal of the updated z with the newest input."""
+    from hgo_mj.systems import ElasticJoint
+
+    system = ElasticJoint()
+    ob = make_observer("kinematic_kalman", system, q=1e4, r=1e-6)
+    assert ob.covariance(ob.init(1)) is None  # P is of z, not of the physical state
+    for k in range(20):
+        ob.update([0.01 * k], [0.1], 0.01)
+    P = ob.state.P[0]
+    z = ob.z_hat + P[:, 0] / (P[0, 0] + 1e-6) * (0.2 - ob.z_hat[0])
+    np.testing.assert_allclose(ob.filtered([0.2]), system.from_normal(z, np.array([0.1])),
+                               rtol=1e-12)
