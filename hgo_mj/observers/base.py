@@ -754,7 +754,8 @@ class Observer(ABC):
     @abstractmethod
     def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:
         """The current ``(x_hat (B, n_x), z_hat (B, n), family diagnostics (B, d))`` of the
-        state ``s`` (new arrays)."""
+        state ``s``: new arrays, none a view of ``s`` (:meth:`current` hands float64 ones out
+        as they are, without another copy)."""
 
     def _filtered(self, p: Params, s: State, Y: Array) -> Array:
         """The estimate ``(B, n_x)`` given also ``Y`` ``(B, p)`` (every measured channel) at
@@ -1312,7 +1313,9 @@ class Observer(ABC):
         D = np.empty((B, nd + 1))
         D[:, :nd] = d
         D[:, nd] = state.dropouts
-        return np.array(x, dtype=np.float64), np.array(z, dtype=np.float64), D
+        # the family's new arrays (_current) as they are where float64: no second copy
+        return (x if x.dtype is _F64 else np.array(x, dtype=np.float64),
+                z if z.dtype is _F64 else np.array(z, dtype=np.float64), D)
 
     # ------------------------------------------- the observer's own state (convenience)
     @property

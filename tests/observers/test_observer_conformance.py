@@ -34,6 +34,15 @@ def _run(ob, p: int, m: int) -> list[np.ndarray]:
     return [ob.update(*signals(k, p, m), DT) for k in range(STEPS)]
 
 
+def _arrays(state) -> list[np.ndarray]:
+    """Every array of a state (its fields, nested states and tuples of them)."""
+    out: list[np.ndarray] = []
+    for v in state.fields.values():
+        for item in (v if isinstance(v, tuple) else (v,)):
+            out += [item] if isinstance(item, np.ndarray) else _arrays(item)
+    return out
+
+
 @pytest.mark.parametrize("kind,make,p,m", PARAMS)
 def test_update_contract(kind, make, p, m):
     ob = make()
@@ -56,6 +65,10 @@ def test_update_contract(kind, make, p, m):
     before = out[-1].copy()
     ob.x_hat[...] = 123.0
     np.testing.assert_array_equal(ob.x_hat, before)
+    # current() hands the family's arrays out without another copy: none is a view of the state
+    params, state = ob._own()
+    for arr in ob.current(params, state):
+        assert not any(np.shares_memory(arr, v) for v in _arrays(state)), kind
     # the dropout at sample 7 is counted once, not propagated
     assert ob.diagnostics()["dropouts"] == 1.0
     json.dumps(ob.params())
