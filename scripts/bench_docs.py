@@ -41,6 +41,13 @@ definition is frozen by its SHA-256 (`hgo_mj.bench.task_hash`; `tests/bench` hol
 version's hash): a change is a new version. The **quick suite** (`make demo`) has four tasks,
 the **full suite** all {n} below.
 
+`make demo` runs the quick suite as `hgo-mj bench --suite quick --budget 8 --jobs 2`: its ten
+cheaper families (`SUITE_OBSERVERS`: the MuJoCo filters and the moving-horizon estimator, 10-100x
+the cost of the others, are left out) with 8 tuning trials each, the (task, observer) parts in
+two processes (`--jobs J`: this one and J - 1 workers; no score depends on it). Its first run
+also compiles the observers' numba kernels, once per kernel and system, and caches them; the
+cold and the warm time side by side: BENCHMARKS.md (`scripts/bench_quick.py`).
+
 ## Fairness
 
 Every observer is tuned on a task's tuning seeds with the **same budget** of trials

@@ -646,15 +646,12 @@ def _jacobian_row(model: Any, xa: Array, u: Array, c: Array, pidx: IntArray, ana
 
 
 @njit(cache=True, error_model="numpy")
-def _model_step(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray, h: float, rk4: bool,
-                out: Array) -> None:  # pragma: no cover - numba
+def _model_step(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray, h: float,
+                switches: _EkfSwitches, out: Array) -> None:  # pragma: no cover - numba
     """:meth:`SystemModel.step` of the rows ``X`` ``(K, N)`` with a compiled model (``out``
-    holds ``X``: the parameters are kept). One branch on the flag, outside the loop (see
-    :func:`_ekf_predict`)."""
-    if rk4:
-        _model_step_rows(model, X, U, c0, pidx, h, True, out)
-    else:
-        _model_step_rows(model, X, U, c0, pidx, h, False, out)
+    holds ``X``: the parameters are kept), RK4 or Euler by the type ``switches``: the loop
+    compiled with the flag constant, only the one used (see :func:`_ekf_predict`)."""
+    _step_rows(switches, model, X, U, c0, pidx, h, out)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -670,14 +667,12 @@ def _model_step_rows(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray, 
 
 
 @njit(cache=True, error_model="numpy")
-def _model_jacobian(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray, analytic: bool,
-                    A: Array) -> None:  # pragma: no cover - numba
-    """:meth:`SystemModel.jac` of the rows ``X`` ``(K, N)`` with a compiled model (one branch
-    on the flag, outside the loop, see :func:`_ekf_predict`)."""
-    if analytic:
-        _model_jacobian_rows(model, X, U, c0, pidx, True, A)
-    else:
-        _model_jacobian_rows(model, X, U, c0, pidx, False, A)
+def _model_jacobian(model: Any, X: Array, U: Array, c0: Array, pidx: IntArray,
+                    switches: _EkfSwitches, A: Array) -> None:  # pragma: no cover - numba
+    """:meth:`SystemModel.jac` of the rows ``X`` ``(K, N)`` with a compiled model, analytic or
+    by differences by the type ``switches`` (the loop compiled with the flag constant, only
+    the one used, see :func:`_ekf_predict`)."""
+    _jacobian_rows(switches, model, X, U, c0, pidx, A)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -719,8 +714,9 @@ def _ekf_scratch(n: int, N: int, nc: int) -> tuple[Any, Any]:  # pragma: no cove
 
 class _EkfSwitches(namedtuple("EkfSwitches", ())):
     """The EKF time update's two switches as a type (:func:`_ekf_switches`): RK4 or Euler,
-    analytic Jacobians or central differences. A kernel that takes one is compiled for that
-    pair only (its numba type names the subclass, as a :class:`CompiledModel`'s does), so a
+    analytic Jacobians or central differences (also of :func:`_model_step`, which reads the
+    first, and :func:`_model_jacobian`, the second). A kernel that takes one is compiled for
+    that pair only (its numba type names the subclass, as a :class:`CompiledModel`'s does), so a
     filter compiles the one loop it runs, not all four.
 
     Parameters
@@ -806,6 +802,46 @@ def _predict_rows_overload(switches, model, X, U, P, c0, pidx, h, Qh, vs, ms):  
 
     def impl(switches, model, X, U, P, c0, pidx, h, Qh, vs, ms):  # type: ignore[no-untyped-def]
         _ekf_predict_rows(model, X, U, P, c0, pidx, analytic, h, rk4, Qh, vs, ms)
+
+    return impl
+
+
+def _step_rows(switches: _EkfSwitches, model: Any, X: Array, U: Array, c0: Array,
+               pidx: IntArray, h: float, out: Array) -> None:
+    """:func:`_model_step_rows` with the switches' ``rk4`` (from numba kernels only)."""
+    raise NotImplementedError("called from numba kernels only")  # pragma: no cover
+
+
+@overload(_step_rows)
+def _step_rows_overload(switches, model, X, U, c0, pidx, h, out):  # type: ignore[no-untyped-def]
+    """At typing, the loop with the switches' ``rk4`` constant (:func:`_predict_rows_overload`)."""
+    cls = getattr(switches, "instance_class", None)
+    if cls is None or not issubclass(cls, _EkfSwitches):
+        return None
+    rk4 = cls.rk4
+
+    def impl(switches, model, X, U, c0, pidx, h, out):  # type: ignore[no-untyped-def]
+        _model_step_rows(model, X, U, c0, pidx, h, rk4, out)
+
+    return impl
+
+
+def _jacobian_rows(switches: _EkfSwitches, model: Any, X: Array, U: Array, c0: Array,
+                   pidx: IntArray, A: Array) -> None:
+    """:func:`_model_jacobian_rows` with the switches' ``analytic`` (from numba kernels only)."""
+    raise NotImplementedError("called from numba kernels only")  # pragma: no cover
+
+
+@overload(_jacobian_rows)
+def _jacobian_rows_overload(switches, model, X, U, c0, pidx, A):  # type: ignore[no-untyped-def]
+    """At typing, the loop with the switches' ``analytic`` constant."""
+    cls = getattr(switches, "instance_class", None)
+    if cls is None or not issubclass(cls, _EkfSwitches):
+        return None
+    analytic = cls.analytic
+
+    def impl(switches, model, X, U, c0, pidx, A):  # type: ignore[no-untyped-def]
+        _model_jacobian_rows(model, X, U, c0, pidx, analytic, A)
 
     return impl
 
@@ -1045,7 +1081,7 @@ class SystemModel:
         if self.compiled is not None:
             _model_jacobian(self.compiled, np.ascontiguousarray(X, dtype=float),
                             np.ascontiguousarray(U, dtype=float), self._c0, self._pidx,
-                            self.analytic, A)
+                            _ekf_switches(True, self.analytic), A)
             return A
         if not self.analytic:
             Ucols = np.tile(np.asarray(U, dtype=float), (2 * N, 1))
@@ -1072,7 +1108,7 @@ class SystemModel:
         if self.compiled is not None:
             _model_step(self.compiled, np.ascontiguousarray(X, dtype=float),
                         np.ascontiguousarray(U, dtype=float), self._c0, self._pidx, h,
-                        method == "rk4", out)
+                        _ekf_switches(method == "rk4", self.analytic), out)
             return out
         ps = [] if self._rows is not None else [self.params(x) for x in X]
         scheme = _integrate.rk4 if method == "rk4" else _integrate.euler

@@ -353,6 +353,11 @@ def test_each_switch_pair_compiles_its_own_loop_and_equals_the_python_model(meth
     a, b = advance(fast, Y, U, 0.01), advance(slow, Y, U, 0.01)
     np.testing.assert_array_equal(a.x_hat, b.x_hat)
     np.testing.assert_array_equal(fast.P_, slow.P_)
+    X = np.array([[0.2, 0.0, 0.05], [0.1, 0.1, 0.04]])
+    for m in ("rk4", "euler"):  # the model's kernels: the flag they read, constant
+        np.testing.assert_array_equal(fast.model.step(X, U[:2, 0], 0.01, m),
+                                      slow.model.step(X, U[:2, 0], 0.01, m))
+    np.testing.assert_array_equal(fast.model.jac(X, U[:2, 0]), slow.model.jac(X, U[:2, 0]))
     want = type(kalman._ekf_switches(method == "rk4", jacobian == "analytic"))
     assert want.rk4 == (method == "rk4") and want.analytic == (jacobian == "analytic")
     switches = {getattr(sig[11], "instance_class", None) for sig in kalman._ekf_block.signatures
