@@ -164,15 +164,16 @@ true-state agent balanced 194 ± 26 steps after 400,128 steps (0 %), and short p
 the same settings) changed nothing: gamma 0.99 with a smaller initial exploration noise (log
 standard deviation -1) for 290k steps, and observations and rewards normalised
 (stable-baselines3's `VecNormalize`) for 350k steps, each left a policy of nearly zero torque
-under which the elbow falls in about 2 s (episodes of 127-252 steps). SAC (`train_policy.py --algorithm SAC --steps 100000`,
-seed 0, 1,645 s each, both agents at once) lengthened the episodes within 20k steps (136-344
-steps) but solved none at 100k: true state 233.0 ± 44.7, estimate 189.3 ± 28.8 (0 % each, the
-same 10 seeds); those policies are not committed (the rows above stay PPO's). How hard the task is (a one-off computation, not a script of the
-repository): an LQR of the linearisation about upright (Q = diag(10, 10, 1, 1) on the angles and velocities,
-R = 0.1), saturated at the 20 N m of the elbow, on the true state keeps 14 of 30 episodes
-(seeds 10000-10029) upright for 5 s, and 29 of 30 from a start within 0.02 instead of 0.05
-of upright: from the task's start distribution a saturated linear controller fails half the
-time, so the 20 N m elbow torque, not only the learning, limits the share solved.
+under which the elbow falls in about 2 s (episodes of 127-252 steps). SAC (`train_policy.py
+--algorithm SAC --steps 100000`, seed 0, 1,645 s each, both agents at once) lengthened the
+episodes within 20k steps (136-344 steps) but solved none at 100k: true state 233.0 ± 44.7,
+estimate 189.3 ± 28.8 (0 % each, the same 10 seeds); those policies are not committed (the rows
+above stay PPO's). How hard the task is (a one-off computation, not a script of the
+repository): an LQR of the linearisation about upright (Q = diag(10, 10, 1, 1) on the angles
+and velocities, R = 0.1), saturated at the 20 N m of the elbow, on the true state keeps 14 of
+30 episodes (seeds 10000-10029) upright for 5 s, and 29 of 30 from a start within 0.02 instead
+of 0.05 of upright: from the task's start distribution a saturated linear controller fails half
+the time, so the 20 N m elbow torque, not only the learning, limits the share solved.
 
 Left (issue 29): the swing-up tasks with SAC, the `measurement`, `measurement+stack` and
 `measurement+lstm` agents and the tuned observers on these tasks (`docs/results/rl.md` has
