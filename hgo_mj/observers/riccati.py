@@ -108,27 +108,33 @@ def bounds_rows(z_bounds: tuple[Array, Array] | None, n: int) -> tuple[Array, bo
 
 # ---------------------------------------------------------------------------------- kernels
 @njit(cache=True)
+def _clip_row(s, off, lo, hi, sat, a):  # pragma: no cover - compiled
+    """``a = sat(s[off:])`` for one member's rows (C-contiguous 1-D views, so that
+    :func:`saturated` and :func:`report` share one specialisation)."""
+    for r in range(a.shape[0]):
+        v = s[off + r]
+        if sat:
+            if v < lo[r]:
+                v = lo[r]
+            elif v > hi[r]:
+                v = hi[r]
+        a[r] = v
+
+
+@njit(cache=True)
 def saturated(S, off, bounds, sat, A):  # pragma: no cover - compiled
     """``A = sat(S[:, off:])``: the reported estimate and the model term's argument, clipped
     to ``bounds = (lower, upper)`` when ``sat`` (Khalil, sec. 14.5); NaN stays NaN as in
     ``np.clip``."""
-    B, n = A.shape
-    lo, hi = bounds[0], bounds[1]
-    for i in range(B):
-        for r in range(n):
-            v = S[i, off + r]
-            if sat:
-                if v < lo[r]:
-                    v = lo[r]
-                elif v > hi[r]:
-                    v = hi[r]
-            A[i, r] = v
+    for i in range(A.shape[0]):
+        _clip_row(S[i], off, bounds[0], bounds[1], sat, A[i])
 
 
 @njit(cache=True)
 def report(S, off, bounds, sat, j, Z):  # pragma: no cover - compiled
     """Write ``sat(S[:, off:])`` into the rows ``Z[:, j]`` (:func:`saturated`)."""
-    saturated(S, off, bounds, sat, Z[:, j])
+    for i in range(Z.shape[0]):
+        _clip_row(S[i], off, bounds[0], bounds[1], sat, Z[i, j])
 
 
 @njit(cache=True)
