@@ -240,6 +240,12 @@ TASKS: dict[str, Task] = {t.name: t for t in (
        model_fields={"tendon_stiffness[spring]": 9.0},
        description="The elastic joint with the observers' stiffness 10 % low, the MJCF "
                    "filters' too (v1 gave them the true MJCF)."),
+    _t("elastic_joint_2link/encoder-v2", _EJ2, "encoder",
+       sensor_params={"counts_per_rev": 16384}, duration=8.0,
+       input=[{"type": "multisine", "amplitudes": [0.3], "frequencies": [0.5]},
+              {"type": "multisine", "amplitudes": [0.3], "frequencies": [0.8]}],
+       description="The two-link elastic arm, both link angles measured, both motors driven "
+                   "(v1 gave the two-input arm a one-channel input: no run could start)."),
     _t("pendulum/encoder-friction-v1", {**_PEND, "model_fields": {
         "dof_frictionloss[hinge]": 0.02}}, "encoder",
        description="The encoder task on a pendulum with 0.02 N m of Coulomb friction in its "
@@ -272,6 +278,7 @@ TASKS.update(LAB_TASKS)
 SUPERSEDED: dict[str, str] = {
     "pendulum/encoder-mismatch-v1": "pendulum/encoder-mismatch-v2",
     "elastic_joint/encoder-mismatch-v1": "elastic_joint/encoder-mismatch-v2",
+    "elastic_joint_2link/encoder-v1": "elastic_joint_2link/encoder-v2",
 }
 
 #: suite -> task names

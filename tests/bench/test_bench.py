@@ -13,7 +13,7 @@ from hgo_mj.bench import SUITES, TASKS, bench, bootstrap_ci, load_task, preset, 
 from hgo_mj.bench.scores import leaderboard, score_rows
 from hgo_mj.bench.tasks import SUPERSEDED
 from hgo_mj.cli import main
-from hgo_mj.exceptions import DesignError
+from hgo_mj.exceptions import DesignError, DimensionError
 
 #: every task version's hash: a change of a task's definition must be a new version
 FROZEN = {
@@ -53,6 +53,8 @@ FROZEN = {
         "1d3c423607d0b149d29c66428c91dda5e0a8cf4807ee4c01c40a7848c6e2cd19",
     "elastic_joint/encoder-mismatch-v2":
         "56e3e8b9b37efd4ba4daa63301bc608be5bf4fcd51c3a4214ef4b8e613493453",
+    "elastic_joint_2link/encoder-v2":
+        "03ef3ae9aae45b04e03c90268ef1d7f08e59ed7fc60853cd74b3c1c196bbc264",
     "pendulum/encoder-friction-v1":
         "af9ac561f061bc840c816c24ac0f25468f87bac2a439cbe62a3aca0063e48848",
     "furuta/encoder-v1":
@@ -86,6 +88,21 @@ def test_the_full_suite_spans_the_plants_sensors_and_tiers():
     # the mismatch tier reaches the MJCF filters, the friction tier is in the plant
     assert all(t.model_fields for t in full if t.mismatch)
     assert any("dof_frictionloss" in str(t.plant.get("model_fields")) for t in full)
+
+
+def test_every_task_of_the_full_suite_runs_its_plant():
+    """Each task's plant, input and sensor run together (elastic_joint_2link/encoder-v1 gave
+    the two-input arm a one-channel input, so every observer of it failed: superseded)."""
+    from hgo_mj.scenario import scenario_run
+    from hgo_mj.simulate import simulate
+
+    for name in SUITES["full"]:
+        r = scenario_run({**TASKS[name].scenario(), "observers": []})
+        res = simulate(r["plant"], r["sensor"], {}, r["inputs"], duration=0.01)
+        assert np.isfinite(res.x).all(), name
+    r = scenario_run({**TASKS["elastic_joint_2link/encoder-v1"].scenario(), "observers": []})
+    with pytest.raises(DimensionError, match="2 channel"):
+        simulate(r["plant"], r["sensor"], {}, r["inputs"], duration=0.01)
 
 
 def test_a_field_added_later_leaves_the_old_hashes_alone():
