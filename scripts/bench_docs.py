@@ -19,7 +19,8 @@ import sys
 from pathlib import Path
 
 from hgo_mj._io import write_text
-from hgo_mj.bench import PRESETS, TASKS, task_hash
+from hgo_mj.bench import PRESETS, SUITES, TASKS, task_hash
+from hgo_mj.bench.tasks import SUPERSEDED
 
 INTRO = """# The nonlinear observer benchmark
 
@@ -149,9 +150,12 @@ def main(argv: list[str] | None = None) -> int:
     if ran.is_file():
         import json
 
-        n = len(json.loads(ran.read_text()))
-        board = (f"The run committed in `{args.results}` covers {n} of the {len(TASKS)} tasks"
-                 + (" (the quick suite)." if n < len(TASKS) else ".") + "\n\n" + board)
+        ran_tasks = set(json.loads(ran.read_text()))
+        suite = next((s for s in ("full", "quick") if ran_tasks == set(SUITES[s])), None)
+        what = (f"the {suite} suite, {len(ran_tasks)} tasks" if suite else
+                f"{len(ran_tasks)} of the {len(SUITES['full'])} tasks of the full suite")
+        board = (f"The run committed in `{args.results}` covers {what} (the superseded "
+                 f"versions, {', '.join(SUPERSEDED)}, are left out).\n\n" + board)
     for name in TASKS:
         write_text(args.docs / "tasks" / (name.replace("/", "__") + ".md"),
                    task_page(name, args.results, args.docs))
