@@ -12,6 +12,11 @@ in one process, interleaved, ``--repeats`` times each:
 * ``after``: the same, then :func:`hgo_mj.record.record_trajectory` with those metrics;
 * ``live_nofooter``: ``live`` without rerun's footer (``Recorder(footer=False)``), to show
   what the footer costs at ``close`` (not a target variant);
+* ``replay``: the recorder alone, ``live``'s chunks replayed from one precomputed run;
+* ``floor``: rerun alone, the floor of any recorder on rerun's public API: the same
+  per-sample entities and values as ``replay`` (:func:`hgo_mj.record.rows.signal_series`,
+  one ``rr.send_columns`` per entity and chunk) sent to a bare stream with a file sink and
+  its footer, without styles, diagnostics, poses, blueprint, documents or the closing check;
 * ``command`` and ``command_rrd``: the same scenario as a user runs it, ``hgo-mj run ...``
   end to end (simulation, metrics, ``trajectory.npz``, ``metrics.json``, the figure), without
   and with ``--rrd``;
@@ -46,6 +51,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import hgo_mj.record
 from hgo_mj._bench import header, write_section
 from hgo_mj.cli import RRD_CHUNK_SECONDS
 from hgo_mj.inputs import make_signal
@@ -146,6 +152,41 @@ def replay_with(mod: object):
     return replay
 
 
+def run_floor(path: Path) -> None:
+    """rerun alone: ``replay``'s per-sample rows, nothing else (see the module docstring)."""
+    import numpy as np
+    import rerun as rr
+
+    from hgo_mj.record.layout import estimate_layout
+    from hgo_mj.record.rows import Block, signal_series
+    from hgo_mj.record.sink import BATCHER, time_columns
+
+    if not _RUN:
+        replay_with(hgo_mj.record)(path)
+    plant, traj = _RUN["plant"], _RUN["traj"]
+    lay = estimate_layout(plant.state_names, _RUN["obs"],
+                          {o: traj.observers[o].state_names for o in _RUN["obs"]})
+    stream = rr.RecordingStream("hgo_mj", make_default=False, make_thread_default=False,
+                                batcher_config=BATCHER)
+    stream.save(path)
+    rows, block = len(traj), int(round(RRD_CHUNK_SECONDS / float(traj.t[1] - traj.t[0])))
+    k0 = 0
+    while k0 < rows:
+        k1 = rows if rows - (k0 + block) < block // 2 else k0 + block
+        r = slice(k0, k1)
+        b = Block(traj.t[r], np.arange(k0, k1, dtype=np.int64), None, traj.x[r],
+                  traj.y_clean[r], traj.y_meas[r], traj.u[r],
+                  {o: traj.observers[o].x_hat[r] for o in _RUN["obs"]}, {}, {})
+        clock = time_columns(b.t, b.steps, None)
+        for entity, values, on_clock in signal_series(lay, b, plant.output_names,
+                                                      plant.input_names, {}):
+            rr.send_columns(entity, indexes=clock if on_clock else clock[:1],
+                            columns=rr.Scalars.columns(scalars=values), recording=stream)
+        k0 = k1
+    stream.flush()
+    stream.disconnect()
+
+
 def variants_of(mod: object) -> tuple:
     """``live`` and ``after`` with the recorder module ``mod``."""
     def live(path: Path) -> None:
@@ -205,10 +246,9 @@ def main() -> int:
                     help="also time the hgo_mj/record.py of this git revision (live, after)")
     ap.add_argument("--write", help="replace the bench_record block of this markdown file")
     args = ap.parse_args()
-    import hgo_mj.record
-
     variants = {"plain": run_plain, "live": run_live, "after": run_after,
                 "live_nofooter": run_live_nofooter, "replay": replay_with(hgo_mj.record),
+                "floor": run_floor,
                 "command": run_command, "command_rrd": run_command_rrd}
     times: dict[str, list[float]] = {k: [] for k in variants}
     cpu: dict[str, list[float]] = {k: [] for k in variants}
@@ -253,19 +293,20 @@ def main() -> int:
               "command": "`hgo-mj run ...` end to end (npz, metrics.json, figure)",
               "command_rrd": "`hgo-mj run ... --rrd` end to end",
               "replay": "the recorder alone: `live`'s chunks replayed from a precomputed run",
+              "floor": "rerun alone: `replay`'s per-sample rows to a bare file stream (the floor)",
               "replay_rev": f"the recorder alone, `record.py` of {args.against}",
               "live_rev": f"recorded during the run, `record.py` of {args.against} (private Arrow path)",
               "after_rev": f"`simulate`, then `record_trajectory` of {args.against} (private Arrow path)"}
     base_of = {k: ("command" if k.startswith("command") else "plain") for k in variants}
     if args.against:  # next to the variants they compare with
         order = ["plain", "live", "live_rev", "after", "after_rev", "live_nofooter", "replay",
-                 "replay_rev", "command", "command_rrd"]
+                 "replay_rev", "floor", "command", "command_rrd"]
         variants = {k: variants[k] for k in order}
     for k in variants:
         b = base_of[k]
         added = "" if k == b else f"{100 * (best[k] / best[b] - 1):+.1f}%"
         added_cpu = "" if k == b else f"{100 * (best_cpu[k] / best_cpu[b] - 1):+.1f}%"
-        if k.startswith("replay"):  # its whole time is what it adds
+        if k.startswith(("replay", "floor")):  # its whole time is what it adds
             added = f"+{100 * best[k] / best[b]:.1f}%"
             added_cpu = f"+{100 * best_cpu[k] / best_cpu[b]:.1f}%"
         size = f"{sizes[k] / 1e6:.2f}" if k in sizes else ""

@@ -7,6 +7,7 @@ trajectories) and ``test_envs.py`` (recordings of environment episodes).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,15 @@ class Entity:
     @property
     def rows(self) -> int:
         return sum(rb.num_rows for rb in self._batches)
+
+    @property
+    def series(self) -> list[str]:
+        """The names of the entity's series (its ``SeriesLines`` style), without their units."""
+        return [re.sub(r" \[[^\]]*\]$", "", n) for n in self.static.get("SeriesLines:names", [])]
+
+    def scalars(self, name: str) -> np.ndarray:
+        """The values of the series ``name`` (:attr:`series`), one a row."""
+        return self["Scalars:scalars"][:, self.series.index(name)]
 
 
 def read_rrd(path: Path) -> tuple[dict[str, Entity], int]:

@@ -3,18 +3,21 @@
 Pure functions: names in, entity paths and rerun archetype or blueprint objects out. Nothing
 here writes to a stream, so the layout is tested without a file.
 
-Entities (names escaped with :func:`rerun.escape_entity_path_part`), one scalar series each,
-so that a reviewer can show, hide and query each on its own::
+Entities (names escaped with :func:`rerun.escape_entity_path_part`). The truth and the
+estimates of one plant state share an entity, one scalar series each (instances of one
+``Scalars`` row, each named by the entity's ``SeriesLines`` style), so that a state's plot
+compares them and a reviewer can still show, hide and query each series on its own::
 
-    /state/<state>/true         the true state, one row a sample
-    /state/<state>/<obs>        each observer's estimate of it (the observers that estimate
-                                that plant state, by name)
-    /error/<state>/<obs>        x - x_hat, for those observers
+    /state/<state>              series [<state> true, <state> <obs 1>, <state> <obs 2>, ...]:
+                                the true state and each observer's estimate of it (the
+                                observers that estimate that plant state, in order)
+    /error/<state>              series [<state> error <obs 1>, ...]: x - x_hat, for those observers
     /observer/<obs>/estimate/<name>   an estimate that is not a plant state (the observer's
                                 own state names: an order-only observer's z1, z2, ..., the
                                 derivatives of a multi-output observer, ...)
-    /sensor/<output>/clean      the plant's output before the sensor chain
-    /sensor/<output>/measured   what the observers saw (a dropout is NaN)
+    /sensor/<output>            series [<output> clean, <output> measured]: the plant's output
+                                before the sensor chain, and what the observers saw (a
+                                dropout is NaN)
     /input/<input>              scalar u
     /observer/<obs>/gain        the gain diagnostic (``k``, ``gain``, ``gamma``; ``k_<x>`` -> gain/<x>)
     /observer/<obs>/theta/<p>   parameter estimates (diagnostics ``theta...``), next to
@@ -31,8 +34,9 @@ Units: every series is named with its unit in brackets (``angle fast [rad]``, ``
 states, errors, inputs and outputs (``angle [rad]: true vs estimated``). A quantity whose unit
 no system declares (an observer's gain, a parameter estimate) has no bracket.
 
-One entity per observer and state costs about 20 bytes of row id and time per row on top of
-its values (BENCHMARKS.md, ``scripts/bench_record.py``).
+Each entity row costs about 20 bytes of row id and time on top of its values: sharing an
+entity per state (rather than one per observer and state) keeps the 10 s, 1 kHz pendulum
+recording with two observers under 2.35 MB (BENCHMARKS.md, ``scripts/bench_record.py``).
 
 Estimates are matched to the plant's states by name (:func:`estimate_layout`): each observer's
 columns are named by its ``state_names``; an observer given none names the plant's states when
@@ -100,10 +104,11 @@ def observer_color(i: int) -> tuple[int, int, int]:
     return OBSERVER_COLORS[i % len(OBSERVER_COLORS)]
 
 
-#: the name of the true state's entity under ``/state/<state>`` (no observer may take it)
+#: the roots of the entities holding one series per source (truth, observers, clean and
+#: measured), whatever their number (:func:`hgo_mj.record.read` names their columns so)
+SERIES_ROOTS = ("/state/", "/error/", "/sensor/")
+#: the truth's series under ``/state/<state>`` (``<state> true``: no observer may take the name)
 TRUE = "true"
-#: the clean and measured outputs' entities under ``/sensor/<output>``
-CLEAN, MEASURED = "clean", "measured"
 
 
 def label(name: str, unit: str | None) -> str:
@@ -112,61 +117,48 @@ def label(name: str, unit: str | None) -> str:
     return name if unit is None else f"{name} [{unit or '-'}]"
 
 
-def state_root(state: str) -> str:
-    """The entity of a plant state, above its truth and estimates (a view's origin)."""
-    return f"/state/{part(state)}"
-
-
-def state_path(state: str, who: str = TRUE) -> str:
-    """The truth (``who="true"``) or one observer's estimate of a plant state.
+def state_path(state: str) -> str:
+    """The entity of a plant state: its truth and every observer's estimate of it.
 
     Parameters
     ----------
     state : str
         A plant state's name (escaped as one path part).
-    who : str
-        ``"true"`` (:data:`TRUE`), or an observer's name.
 
     Returns
     -------
     str
-        ``/state/<state>/<who>``: a column of :func:`hgo_mj.record.read`'s DataFrame.
+        ``/state/<state>``.
 
     Examples
     --------
-    >>> state_path("angle"), state_path("angle", "k40")
-    ('/state/angle/true', '/state/angle/k40')
+    >>> state_path("angle")
+    '/state/angle'
     >>> print(state_path("x/y"))  # escaped: one part
-    /state/x\\/y/true
+    /state/x\\/y
     """
-    return f"{state_root(state)}/{part(who)}"
+    return f"/state/{part(state)}"
 
 
-def error_root(state: str) -> str:
-    return f"/error/{part(state)}"
-
-
-def error_path(state: str, observer: str) -> str:
-    """``x - x_hat`` of one observer for one plant state.
+def error_path(state: str) -> str:
+    """``x - x_hat`` of every observer that estimates a plant state.
 
     Parameters
     ----------
     state : str
         A plant state's name.
-    observer : str
-        An observer that estimates it.
 
     Returns
     -------
     str
-        ``/error/<state>/<observer>``.
+        ``/error/<state>``.
 
     Examples
     --------
-    >>> error_path("angle", "k40")
-    '/error/angle/k40'
+    >>> error_path("angle")
+    '/error/angle'
     """
-    return f"{error_root(state)}/{part(observer)}"
+    return f"/error/{part(state)}"
 
 
 def own_estimate_path(observer: str, name: str) -> str:
@@ -192,28 +184,26 @@ def own_estimate_path(observer: str, name: str) -> str:
     return f"/observer/{part(observer)}/estimate/{part(name)}"
 
 
-def sensor_path(output: str, which: str = MEASURED) -> str:
-    """The clean (``which="clean"``) or measured output.
+def sensor_path(output: str) -> str:
+    """The clean and measured values of an output.
 
     Parameters
     ----------
     output : str
         An output's name (``plant.output_names``).
-    which : str
-        ``"measured"`` (:data:`MEASURED`, what the observers saw) or ``"clean"``
-        (:data:`CLEAN`, before the sensor chain).
 
     Returns
     -------
     str
-        ``/sensor/<output>/<which>``.
+        ``/sensor/<output>``: the series ``<output> clean`` (before the sensor chain) and
+        ``<output> measured`` (what the observers saw).
 
     Examples
     --------
-    >>> sensor_path("angle"), sensor_path("angle", CLEAN)
-    ('/sensor/angle/measured', '/sensor/angle/clean')
+    >>> sensor_path("angle")
+    '/sensor/angle'
     """
-    return f"/sensor/{part(output)}/{which}"
+    return f"/sensor/{part(output)}"
 
 
 def input_path(name: str) -> str:
@@ -416,20 +406,21 @@ def signal_styles(layout: EstimateLayout, output_names: Sequence[str],
     color = {o: observer_color(i) for i, o in enumerate(layout.observers)}
     for s, ests in zip(layout.state_names, layout.est_of):
         u = units.get(s)
-        out.append((state_path(s), series_lines([label(f"{s} true", u)], [TRUE_COLOR], [2.0])))
-        for o, _ in ests:
-            out.append((state_path(s, o), series_lines([label(f"{s} {o}", u)], [color[o]])))
-            out.append((error_path(s, o), series_lines([label(f"{s} error {o}", u)], [color[o]])))
+        obs = [o for o, _ in ests]
+        out.append((state_path(s), series_lines(
+            [label(f"{s} {TRUE}", u)] + [label(f"{s} {o}", u) for o in obs],
+            [TRUE_COLOR] + [color[o] for o in obs], [2.0] + [1.0] * len(obs))))
+        if obs:
+            out.append((error_path(s), series_lines([label(f"{s} error {o}", u) for o in obs],
+                                                    [color[o] for o in obs])))
     for o, own in layout.own.items():
         out += [(own_estimate_path(o, name),
                  series_lines([label(f"{name} {o}", units.get(name))], [color[o]]))
                 for name, _ in own]
-    for y in output_names:
-        u = units.get(y)
-        out.append((sensor_path(y, CLEAN), series_lines([label(f"{y} clean", u)], [TRUE_COLOR],
-                                                        [1.5])))
-        out.append((sensor_path(y, MEASURED), series_lines([label(f"{y} measured", u)],
-                                                           [MEASURED_COLOR])))
+    out += [(sensor_path(y), series_lines([label(f"{y} clean", units.get(y)),
+                                           label(f"{y} measured", units.get(y))],
+                                          [TRUE_COLOR, MEASURED_COLOR], [1.5, 1.0]))
+            for y in output_names]
     out += [(input_path(u), series_lines([label(u, units.get(u))], [INPUT_COLOR]))
             for u in input_names]
     return out
@@ -495,13 +486,13 @@ def blueprint(layout: EstimateLayout, diagnostics: Sequence[tuple[str, str]] = (
     :func:`diagnostic_path`), inputs, measurements and the environment's ``extras``; the
     views of quantities with a unit (``units``) name it."""
     units = units or {}
-    states = [rrb.TimeSeriesView(origin=state_root(s),
+    states = [rrb.TimeSeriesView(origin=state_path(s),
                                  name=f"{label(s, units.get(s))}: true vs estimated")
               for s in layout.state_names]
     states += [rrb.TimeSeriesView(origin=f"/observer/{part(o)}/estimate",
                                   name=f"{o}: estimates that are not plant states")
                for o, own in layout.own.items() if own]
-    errors = [rrb.TimeSeriesView(origin=error_root(s),
+    errors = [rrb.TimeSeriesView(origin=error_path(s),
                                  name=f"{label(s, units.get(s))}: error x - x_hat")
               for s, ests in zip(layout.state_names, layout.est_of) if ests]
     side: list[rrb.TimeSeriesView] = _adaptive_views(diagnostics, params)
@@ -527,6 +518,6 @@ def blueprint(layout: EstimateLayout, diagnostics: Sequence[tuple[str, str]] = (
     return rrb.Blueprint(rrb.Horizontal(*columns), rrb.TimePanel(timeline=SIM_TIME))
 
 
-__all__ = ["CLEAN", "EPISODE", "MEASURED", "SIM_TIME", "STEP", "TRUE", "diagnostic_path",
+__all__ = ["EPISODE", "SERIES_ROOTS", "SIM_TIME", "STEP", "TRUE", "diagnostic_path",
            "error_path", "input_path", "observer_color", "own_estimate_path", "sensor_path",
            "state_path"]

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import DesignError
-from .layout import EPISODE, SIM_TIME, STEP
+from .layout import EPISODE, SERIES_ROOTS, SIM_TIME, STEP
 
 __all__ = ["read"]
 
@@ -29,11 +29,14 @@ def read(path: str | Path) -> Any:
     One row per ``step`` (the index, the recording's ``step`` timeline; a series logged on
     ``sim_time`` alone takes the step of the true state's row at its time), the ``sim_time``
     timeline in seconds as a column (and ``episode`` where episodes were recorded), and one
-    column per series: the entity path (``/state/angle``, ``/input/torque``,
-    ``/observer/fast/gain``) where the entity holds one value per step, else
-    ``<entity>[<name>]`` with the series' name from its style (``/state/angle[angle true]``,
-    ``/state/angle[angle fast]``), or ``<entity>[<i>]`` where it has none. A series not logged
-    at a step is NaN there (a diagnostic logged only when it changes, decimated poses).
+    column per series: ``<entity>[<name>]`` with the series' name from its style without its
+    unit for the entities of a state, an error or an output, which hold one series per source
+    whatever their number (``/state/angle[angle true]``, ``/state/angle[angle fast]``,
+    ``/error/angle[angle error fast]``, ``/sensor/angle[angle measured]``), and for any other
+    entity of several series; the entity path where it holds one (``/input/torque``,
+    ``/observer/fast/gain``); ``<entity>[<i>]`` where its series have no distinct names. A
+    series not logged at a step is NaN there (a diagnostic logged only when it changes,
+    decimated poses).
     ``df.attrs["static"]`` holds every entity's static components
     (``df.attrs["static"]["/scenario"]["TextDocument:text"][0]`` is the scenario document);
     ``df.attrs["units"]`` maps each series to the unit in its name (``angle true [rad]``:
@@ -75,11 +78,11 @@ def read(path: str | Path) -> Any:
     ...                 x0=[0.5, 0.0], seed=0)
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     df = read(record_trajectory(traj, Path(tmp) / "pendulum.rrd"))
-    >>> df[["sim_time", "/state/angle/true", "/state/angle/k40"]].shape
+    >>> df[["sim_time", "/state/angle[angle true]", "/state/angle[angle k40]"]].shape
     (11, 3)
     >>> float(df["sim_time"].iloc[-1])
     0.1
-    >>> df.attrs["units"]["/state/angle/k40"]
+    >>> df.attrs["units"]["/state/angle[angle k40]"]
     'rad'
     >>> "/scenario" in df.attrs["static"]
     True
@@ -119,34 +122,32 @@ def read(path: str | Path) -> Any:
     clock = clock[~clock.index.duplicated(keep="last")]
     _place(loose, clock, parts)
     clock = clock.drop(columns="ns")
-    columns = {}
+    columns, units = {}, {}
     for entity, got in parts.items():
         steps = np.concatenate([s for s, _ in got])
         values = _stack([v for _, v in got])
         labels = _labels(entity, values.shape[1], static.get(entity, {}))
-        frame = pd.DataFrame(values, index=pd.Index(steps, name=STEP), columns=labels)
+        frame = pd.DataFrame(values, index=pd.Index(steps, name=STEP),
+                             columns=[c for c, _ in labels])
         frame = frame[~frame.index.duplicated(keep="last")]
-        for label in labels:
-            columns[label] = frame[label]
+        for column, unit in labels:
+            columns[column] = frame[column]
+            if unit is not None:
+                units[column] = unit
     df = pd.concat([clock, pd.DataFrame(columns)], axis=1).sort_index()
     df.index.name = STEP
     df.attrs["static"] = static
-    df.attrs["units"] = {c: u for c, u in ((c, _unit(c, static)) for c in columns)
-                         if u is not None}
+    df.attrs["units"] = units
     return df
 
 
-def _unit(column: str, static: dict[str, Any]) -> str | None:
-    """The unit at the end of a one-series entity's name (``"angle true [rad]"``), or
-    ``None``."""
-    names = next((static.get(column, {}).get(k) for k in _NAMES
-                  if static.get(column, {}).get(k)), None)
-    if not names or len(names) != 1:
-        return None
-    m = re.search(r" \[([^\]]*)\]$", str(names[0]))
+def _named(name: object) -> tuple[str, str | None]:
+    """A series' name without its unit, and the unit (``"angle true [rad]"``:
+    ``("angle true", "rad")``; ``[-]``: ``""``; no bracket: ``None``)."""
+    m = re.fullmatch(r"(.*) \[([^\]]*)\]", str(name))
     if m is None:
-        return None
-    return "" if m.group(1) == "-" else m.group(1)
+        return str(name), None
+    return m.group(1), "" if m.group(2) == "-" else m.group(2)
 
 
 def _nanoseconds(rb: Any) -> np.ndarray:
@@ -207,11 +208,15 @@ def _stack(blocks: list[np.ndarray]) -> np.ndarray:
                            for b in blocks])
 
 
-def _labels(entity: str, width: int, static: dict[str, Any]) -> list[str]:
-    if width == 1:
-        return [entity]
-    for key in _NAMES:
-        names = static.get(key)
-        if names is not None and len(names) == width and len(set(names)) == width:
-            return [f"{entity}[{n}]" for n in names]
-    return [f"{entity}[{i}]" for i in range(width)]
+def _labels(entity: str, width: int, static: dict[str, Any]) -> list[tuple[str, str | None]]:
+    """The column and unit of each of an entity's ``width`` series: from the names of its
+    style (``SeriesLines`` or ``SeriesPoints``) when they are ``width`` distinct names."""
+    names = next((static[k] for k in _NAMES if static.get(k)), None)
+    named = [_named(n) for n in names] if names is not None and len(names) == width else None
+    if named is not None and len({n for n, _ in named}) != width:
+        named = None
+    if width == 1 and not (named and entity.startswith(SERIES_ROOTS)):
+        return [(entity, named[0][1] if named else None)]
+    if named is None:
+        return [(f"{entity}[{i}]", None) for i in range(width)]
+    return [(f"{entity}[{n}]", u) for n, u in named]

@@ -15,13 +15,13 @@ per-step ``rr.log`` would cost 36 to 120 microseconds a step), static styles and
 chunks, so two recordings written in one process share no chunk id.
 
 Timelines: ``sim_time`` (simulated time, a duration), ``step`` (the sample index) and, for
-environments, ``episode``. ``step`` is carried by the true states (``/state/<s>/true``), the
-diagnostics and the 3D poses; the other per-sample series (estimates, errors, outputs,
-inputs, extras) carry ``sim_time`` (and ``episode``) only: their step is the truth's at the
-same ``sim_time``, and :func:`hgo_mj.record.read` indexes them so. This saves 4 bytes a row
-and entity (12% of a pendulum recording with two observers); the viewer's time panel shows
-``sim_time`` (the blueprint's timeline), where every series is drawn, while the ``step``
-timeline draws the truth, diagnostics and poses only. Where each signal goes and how it is styled:
+environments, ``episode``. ``step`` is carried by the states (``/state/<s>``: the truth and
+the estimates), the diagnostics and the 3D poses; the other per-sample series (errors,
+outputs, inputs, extras) carry ``sim_time`` (and ``episode``) only: their step is the
+states' at the same ``sim_time``, and :func:`hgo_mj.record.read` indexes them so (one index
+column less per row and entity); the viewer's time panel shows ``sim_time`` (the blueprint's
+timeline), where every series is drawn, while the ``step`` timeline draws the states,
+diagnostics and poses only. Where each signal goes and how it is styled:
 :mod:`hgo_mj.record.layout`; the documents: :mod:`hgo_mj.record.documents`; the 3D view:
 :mod:`hgo_mj.record.poses`.
 
@@ -148,9 +148,9 @@ class Recorder:
     ...     df = read(Path(tmp) / "run.rrd")
     >>> df.shape
     (11, 11)
-    >>> round(float(df["/error/angle/hgo"].iloc[-1]), 3)
+    >>> round(float(df["/error/angle[angle error hgo]"].iloc[-1]), 3)
     -0.01
-    >>> df.attrs["units"]["/state/angular_velocity/hgo"]
+    >>> df.attrs["units"]["/state/angular_velocity[angular_velocity hgo]"]
     'rad/s'
     """
 
@@ -172,7 +172,7 @@ class Recorder:
             raise DesignError(f"observer names must be distinct; found {list(self.observers)}")
         if layout.TRUE in self.observers:
             raise DesignError(f"an observer cannot be named {layout.TRUE!r} in a recording "
-                              f"(/state/<state>/true is the true state); found "
+                              f"(the series '<state> true' is the true state); found "
                               f"{list(self.observers)}")
         self.units = {str(k): str(v) for k, v in (units or {}).items()}
         self.dropouts = dropouts
@@ -483,7 +483,7 @@ class Recorder:
         ...             rec.record(t[rows], x[rows], None, x[rows, :1], u[rows],
         ...                        {"hgo": x[rows]})
         ...     df = read(Path(tmp) / "run.rrd")
-        >>> df.index[[0, -1]].tolist(), float(df["/error/angle/hgo"].abs().max())
+        >>> df.index[[0, -1]].tolist(), float(df["/error/angle[angle error hgo]"].abs().max())
         ([0, 20], 0.0)
         """
         t = np.asarray(t, dtype=float).reshape(-1)

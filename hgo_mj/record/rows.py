@@ -255,11 +255,12 @@ def signal_series(lay: EstimateLayout, b: Block, output_names: Sequence[str],
                   ) -> list[tuple[str, Array, bool]]:
     """Every per-sample entity a block fills: ``(path, values, clock)``, one row a sample.
 
-    The true states, each observer's estimate of each (NaN where the observer gave no
-    estimate in this block) and its error ``x - x_hat``, the observers' own estimates, the
-    clean (NaN without one) and measured outputs, the inputs and the extras. ``clock`` is True
-    for the true states, the entities that carry the ``step`` timeline besides ``sim_time``
-    (the others carry ``sim_time`` alone; :mod:`hgo_mj.record.recorder`).
+    Each plant state's truth and every observer's estimate of it, as the columns of one
+    entity (an observer that gave no estimate in this block: NaN), its errors ``x - x_hat``
+    likewise, the observers' own estimates, each output's clean (NaN without one) and
+    measured values, the inputs and the extras. ``clock`` is True for the states, the
+    entities that carry the ``step`` timeline besides ``sim_time`` (the others carry
+    ``sim_time`` alone; :mod:`hgo_mj.record.recorder`).
 
     Parameters
     ----------
@@ -275,8 +276,9 @@ def signal_series(lay: EstimateLayout, b: Block, output_names: Sequence[str],
     Returns
     -------
     list of (str, ndarray, bool)
-        Entity path, values (shape ``(T,)``, or ``(T, k)`` for an extra of ``k`` columns)
-        and whether it carries the ``step`` timeline, in the order they are sent.
+        Entity path, values (shape ``(T,)``, or ``(T, k)`` for an entity of ``k`` series: a
+        state with its estimates, errors, an output, an extra of ``k`` columns) and whether
+        it carries the ``step`` timeline, in the order they are sent.
 
     Examples
     --------
@@ -287,30 +289,26 @@ def signal_series(lay: EstimateLayout, b: Block, output_names: Sequence[str],
     ...           np.zeros((2, 1)), {"hgo": np.full((2, 1), 0.75)}, {}, {})
     >>> for path, v, clock in signal_series(lay, b, ["angle"], ["torque"], {}):
     ...     print(path, v.tolist(), clock)
-    /state/angle/true [1.0, 1.0] True
-    /state/angle/hgo [0.75, 0.75] False
-    /error/angle/hgo [0.25, 0.25] False
-    /sensor/angle/clean [nan, nan] False
-    /sensor/angle/measured [1.0, 1.0] False
+    /state/angle [[1.0, 0.75], [1.0, 0.75]] True
+    /error/angle [[0.25], [0.25]] False
+    /sensor/angle [[nan, 1.0], [nan, 1.0]] False
     /input/torque [0.0, 0.0] False
     """
     out: list[tuple[str, Array, bool]] = []
     nan = np.full(b.t.size, np.nan)
     for i, (s, ests) in enumerate(zip(lay.state_names, lay.est_of)):
-        out.append((layout.state_path(s), b.x[:, i], True))
-        for o, j in ests:
-            # an observer without an estimate in this block: NaN (and no ghost pose)
-            est = b.est[o][:, j] if o in b.est else nan
-            out.append((layout.state_path(s, o), est, False))
-            out.append((layout.error_path(s, o), b.x[:, i] - est, False))
+        # an observer without an estimate in this block: NaN (and no ghost pose)
+        est = [b.est[o][:, j] if o in b.est else nan for o, j in ests]
+        out.append((layout.state_path(s), np.column_stack([b.x[:, i], *est]), True))
+        if est:
+            out.append((layout.error_path(s), b.x[:, i, None] - np.column_stack(est), False))
     for o, own in lay.own.items():
         if o in b.est:  # estimates that are not plant states: under the observer's names
             out += [(layout.own_estimate_path(o, name), b.est[o][:, j], False)
                     for name, j in own]
     for j, name in enumerate(output_names):
         clean = b.y_clean[:, j] if b.y_clean is not None else nan
-        out.append((layout.sensor_path(name, layout.CLEAN), clean, False))
-        out.append((layout.sensor_path(name, layout.MEASURED), b.y_meas[:, j], False))
+        out.append((layout.sensor_path(name), np.column_stack((clean, b.y_meas[:, j])), False))
     out += [(layout.input_path(name), b.u[:, j], False) for j, name in enumerate(input_names)]
     out += [(extra_paths[name], v, False) for name, v in b.extra.items()]
     return out

@@ -639,18 +639,19 @@ def test_record_episodes_holds_every_episode(tmp_path, env_id):
     est = {name: k for k, name in enumerate(u.estimate_names)}
     df = read(path)
     for j, s in enumerate(u.state_names):
-        e = ents[f"/state/{s}/true"]
+        e = ents[f"/state/{s}"]
         assert e.rows == rows, s
         np.testing.assert_array_equal(e["episode"], np.repeat([0, 1], [n + 1 for n in lengths]))
         np.testing.assert_array_equal(e["step"], np.arange(rows))
         assert np.all(np.diff(e["sim_time"]) > 0)  # the second episode follows the first
-        np.testing.assert_array_equal(df[f"/state/{s}/true"], X[:, j])
-        if s in est:  # one entity per observer and state
-            np.testing.assert_array_equal(df[f"/state/{s}/{obs_name}"], XH[:, est[s]])
-            np.testing.assert_array_equal(df[f"/error/{s}/{obs_name}"],
+        np.testing.assert_array_equal(df[f"/state/{s}[{s} true]"], X[:, j])
+        if s in est:  # one entity per state: the truth and the estimate, named
+            assert e.series == [f"{s} true", f"{s} {obs_name}"]
+            np.testing.assert_array_equal(df[f"/state/{s}[{s} {obs_name}]"], XH[:, est[s]])
+            np.testing.assert_array_equal(df[f"/error/{s}[{s} error {obs_name}]"],
                                           E[:, u.error_names.index(s)])
         else:  # a state the observer does not estimate: the truth only, no error
-            assert f"/state/{s}/{obs_name}" not in ents and f"/error/{s}/{obs_name}" not in ents
+            assert e.series == [f"{s} true"] and f"/error/{s}" not in ents
     assert set(u.error_names) == {s for s in u.state_names if s in est}
     for name, k in est.items():  # estimates that are not plant states: the observer's names
         if name not in u.state_names:
@@ -662,7 +663,7 @@ def test_record_episodes_holds_every_episode(tmp_path, env_id):
         np.testing.assert_allclose(df[f"/input/{name}"], inputs[:, j], rtol=1e-6)
         assert df.attrs["units"][f"/input/{name}"] == "N m"
     for name in u.output_names:  # the clean output is the true state's
-        clean, measured = df[f"/sensor/{name}/clean"], df[f"/sensor/{name}/measured"]
+        clean, measured = df[f"/sensor/{name}[{name} clean]"], df[f"/sensor/{name}[{name} measured]"]
         if name in u.state_names:
             np.testing.assert_allclose(clean, X[:, u.state_names.index(name)], atol=1e-12)
         assert np.all(np.abs(measured - clean) < 0.05)  # noise, quantization
@@ -719,8 +720,7 @@ def test_record_episodes_without_observer(tmp_path):
         env.step(np.zeros(1, dtype=np.float32))
     env.close()
     ents, _ = read_rrd(path)
-    assert ents["/state/angle/true"].rows == 4
-    assert [e for e in ents if e.startswith("/state/angle/")] == ["/state/angle/true"]
+    assert ents["/state/angle"].rows == 4 and ents["/state/angle"].series == ["angle true"]
     assert not any(e.startswith(("/error", "/observer", "/world/estimate")) for e in ents)
     table = _json_blocks(ents["/metrics"].static["TextDocument:text"][0])[0]
     assert table == [{"episode": 0, "seed": 4, "steps": 3, "return": table[0]["return"],

@@ -38,18 +38,23 @@ def test_read_gives_every_series_of_the_trajectory(run_and_file):
     assert isinstance(df, pd.DataFrame) and df.index.name == "step"
     np.testing.assert_array_equal(df.index, np.arange(len(traj)))
     np.testing.assert_allclose(df["sim_time"], traj.t, atol=1e-9)
-    for i, s in enumerate(traj.state_names):  # one column per observer and state
-        np.testing.assert_array_equal(df[f"/state/{s}/true"], traj.x[:, i])
+    for i, s in enumerate(traj.state_names):  # one column per series: truth, each observer
+        np.testing.assert_array_equal(df[f"/state/{s}[{s} true]"], traj.x[:, i])
         for name in traj.observers:
-            np.testing.assert_array_equal(df[f"/state/{s}/{name}"], traj.estimate(name)[:, i])
-            np.testing.assert_array_equal(df[f"/error/{s}/{name}"], traj.error(name)[:, i])
-    np.testing.assert_array_equal(df["/sensor/angle/clean"], traj.y_clean[:, 0])
-    np.testing.assert_array_equal(df["/sensor/angle/measured"], traj.y_meas[:, 0])
-    assert df["/sensor/angle/measured"].isna().sum() == np.isnan(traj.y_meas).sum() > 0
+            np.testing.assert_array_equal(df[f"/state/{s}[{s} {name}]"],
+                                          traj.estimate(name)[:, i])
+            np.testing.assert_array_equal(df[f"/error/{s}[{s} error {name}]"],
+                                          traj.error(name)[:, i])
+    np.testing.assert_array_equal(df["/sensor/angle[angle clean]"], traj.y_clean[:, 0])
+    np.testing.assert_array_equal(df["/sensor/angle[angle measured]"], traj.y_meas[:, 0])
+    assert df["/sensor/angle[angle measured]"].isna().sum() == np.isnan(traj.y_meas).sum() > 0
     np.testing.assert_array_equal(df["/input/torque"], traj.u[:, 0])
-    # the units, from the series' names
+    # the units, from the series' names: every series of the states, errors and outputs
     units = df.attrs["units"]
-    assert units["/state/angular_velocity/fast"] == "rad/s" and units["/input/torque"] == "N m"
+    assert units["/state/angular_velocity[angular_velocity fast]"] == "rad/s"
+    assert units["/error/angle[angle error slow]"] == "rad" and units["/input/torque"] == "N m"
+    assert units["/sensor/angle[angle clean]"] == units["/sensor/angle[angle measured]"] == "rad"
+    assert {c for c in df.columns if c.startswith(("/state", "/error", "/sensor"))} <= set(units)
     assert units["/observer/slow/diagnostics/dropouts"] == ""  # a dropout stage: recorded
     assert "/observer/fast/gain" not in units  # the gain's unit is not declared
     # the adaptive gain, a series of its own
@@ -77,7 +82,10 @@ def test_read_of_episodes_and_of_chunked_recordings(tmp_path, run_and_file):
                                estimates={"hgo": 2 * x})
     df = read(ep)
     assert len(df) == 8 and df["episode"].tolist() == [0] * 4 + [1] * 4
-    assert df["/state/angle/true"].tolist() == [1.0] * 4 + [2.0] * 4
+    assert df["/state/angle[angle true]"].tolist() == [1.0] * 4 + [2.0] * 4
+    # one observer: its error is named as with several (one entity per state, whatever the
+    # number of observers)
+    assert df["/error/angle[angle error hgo]"].tolist() == [-1.0] * 4 + [0.0] * 4
 
 
 def test_read_refuses_what_is_no_recording(tmp_path):

@@ -46,28 +46,42 @@ def test_as_steps():
 
 
 # ----------------------------------------------------------------------------- series
-def test_signal_series_one_entity_per_observer_and_state():
+def test_signal_series_one_entity_per_state_with_its_estimates():
+    """A state's truth and its observers' estimates are the columns of one entity (in observer
+    order), its errors likewise; an output's clean and measured values share one."""
     lay = estimate_layout(["a", "va"], ["o1", "o2"], {"o1": ["a", "va"], "o2": ["a", "z"]})
     est = {"o1": np.full((4, 2), 1.0), "o2": np.full((4, 2), 2.0)}
     out = rows.signal_series(lay, block(est=est, extra={"r": np.ones(4)}), ["a"], ["tau"],
                              {"r": "/env/r"})
     paths = [p for p, _, _ in out]
-    assert paths == ["/state/a/true", "/state/a/o1", "/error/a/o1", "/state/a/o2",
-                     "/error/a/o2", "/state/va/true", "/state/va/o1", "/error/va/o1",
-                     "/observer/o2/estimate/z", "/sensor/a/clean", "/sensor/a/measured",
-                     "/input/tau", "/env/r"]
+    assert paths == ["/state/a", "/error/a", "/state/va", "/error/va", "/observer/o2/estimate/z",
+                     "/sensor/a", "/input/tau", "/env/r"]
     got = {p: v for p, v, _ in out}
-    np.testing.assert_array_equal(got["/error/va/o1"], 10.0 + np.arange(4) - 1.0)
+    x = block().x
+    np.testing.assert_array_equal(got["/state/a"], np.c_[x[:, 0], np.ones(4), np.full(4, 2.0)])
+    np.testing.assert_array_equal(got["/error/a"], np.c_[x[:, 0] - 1.0, x[:, 0] - 2.0])
+    np.testing.assert_array_equal(got["/state/va"], np.c_[x[:, 1], np.ones(4)])
+    np.testing.assert_array_equal(got["/error/va"], (10.0 + np.arange(4) - 1.0)[:, None])
+    np.testing.assert_array_equal(got["/sensor/a"], np.c_[x[:, 0], x[:, 0] + 0.5])
     np.testing.assert_array_equal(got["/input/tau"], -np.arange(4.0))
-    assert [p for p, _, clock in out if clock] == ["/state/a/true", "/state/va/true"]
+    assert [p for p, _, clock in out if clock] == ["/state/a", "/state/va"]
 
 
 def test_signal_series_missing_estimate_and_clean_output_are_nan():
     lay = estimate_layout(["a", "va"], ["o"], {"o": ["a", "va"]})
     got = {p: v for p, v, _ in rows.signal_series(lay, block(y_clean=False), ["a"], [], {})}
-    assert np.isnan(got["/state/a/o"]).all() and np.isnan(got["/error/a/o"]).all()
-    assert np.isnan(got["/sensor/a/clean"]).all()
+    assert got["/state/a"].shape == (4, 2) and not np.isnan(got["/state/a"][:, 0]).any()
+    assert np.isnan(got["/state/a"][:, 1]).all() and np.isnan(got["/error/a"]).all()
+    assert np.isnan(got["/sensor/a"][:, 0]).all() and not np.isnan(got["/sensor/a"][:, 1]).any()
     assert "/observer/o/estimate/a" not in got
+
+
+def test_signal_series_a_state_no_observer_estimates_has_the_truth_alone():
+    lay = estimate_layout(["a", "va"], ["o"], {"o": ["a"]})
+    got = {p: v for p, v, _ in rows.signal_series(lay, block(est={"o": np.ones((4, 1))}), [],
+                                                   [], {})}
+    assert got["/state/va"].shape == (4, 1) and "/error/va" not in got
+    assert got["/error/a"].shape == (4, 1)
 
 
 def test_diagnostic_series_adds_the_true_parameter_once():

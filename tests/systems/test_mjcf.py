@@ -161,7 +161,7 @@ def test_command_line_runs_any_mjcf_and_refuses_bad_names(tmp_path):
     from hgo_mj.record import read
 
     df = read(out / "run.rrd")
-    assert "/state/hinge2_velocity/ekf_mujoco_0" in df.columns
+    assert "/state/hinge2_velocity[hinge2_velocity ekf_mujoco_0]" in df.columns
     bad = subprocess.run([sys.executable, "-m", "hgo_mj.cli", "run", "--model", str(REACHER),
                           "--outputs", "joint0", "nope", "--duration", "1", "--out",
                           str(tmp_path / "o2")], capture_output=True, text=True, timeout=300)
