@@ -670,3 +670,68 @@ def test_study_figures_answer_the_gain_noise_question(tmp_path):
     assert axis_figure(result, "observers.hgo.k", axes=grid) is mine
     with pytest.raises(DesignError, match="axis must be one of"):
         axis_figure(result, "plant.name")
+
+
+def test_sweep_of_the_shipped_gain_noise_study_draws_the_best_gain_of_its_table(
+        tmp_path, monkeypatch, capsys):
+    """`hgo-mj sweep studies/gain_noise.toml --seeds 1` writes best_gain.png, whose points are
+    the best gain per noise level of the written summary (the grid minimum of the median RMSE
+    refined by the parabola through it and its neighbours in log-log; hollow at the grid's
+    edge) and whose fitted line is the least-squares power law of the filled points, as
+    printed."""
+    from pathlib import Path
+
+    import hgo_mj.study.figures as figures
+
+    saved = {}
+    original = figures.save_figure
+
+    def spy(fig, path):
+        saved[Path(path).name] = fig
+        return original(fig, path)
+
+    monkeypatch.setattr(figures, "save_figure", spy)
+    study = Path(__file__).resolve().parents[2] / "studies" / "gain_noise.toml"
+    out = tmp_path / "gn"
+    assert main(["sweep", str(study), "--seeds", "1", "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert (out / "best_gain.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    fig = saved["best_gain.png"]
+    s = pd.read_parquet(out / "summary.parquet")
+    s = s[(s["observer"] == "hgo") & s["estimated"]]
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(panels) == 2 + 4  # the states of the pendulum and of the elastic joint
+    for ax in panels:
+        plant, state = ax.get_title().removeprefix("plant = ").split(", ")
+        lines = {ln.get_label(): ln for ln in ax.get_lines()}
+        drawn = {}
+        for label, interior in (("k* inside the grid", True), ("k* at the grid's edge", False)):
+            if label in lines:
+                for x, y in zip(*lines[label].get_data()):
+                    drawn[float(x)] = (float(y), interior)
+        g = s[(s["plant.name"] == plant) & (s["state"] == state)]
+        expected = {}
+        for sigma, h in g.groupby("sensor.stages.0.std"):
+            h = h.sort_values("observers.hgo.k")
+            k, e = h["observers.hgo.k"].to_numpy(), h["rmse_median"].to_numpy()
+            i = int(np.argmin(e))
+            if i in (0, len(k) - 1):
+                expected[float(sigma)] = (k[i], False)
+                continue
+            x, y = np.log(k[i - 1:i + 2]), np.log(e[i - 1:i + 2])
+            # the vertex of the parabola through three points (Lagrange form)
+            num = (x[0] ** 2 * (y[1] - y[2]) + x[1] ** 2 * (y[2] - y[0])
+                   + x[2] ** 2 * (y[0] - y[1]))
+            den = x[0] * (y[1] - y[2]) + x[1] * (y[2] - y[0]) + x[2] * (y[0] - y[1])
+            expected[float(sigma)] = (np.exp(np.clip(num / (2 * den), x[0], x[2])), True)
+        assert sorted(drawn) == sorted(expected) == [1e-5, 1e-4, 1e-3, 1e-2]
+        for sigma, (k_star, interior) in expected.items():
+            assert drawn[sigma][1] == interior, (plant, state, sigma)
+            assert drawn[sigma][0] == pytest.approx(k_star, rel=1e-9), (plant, state, sigma)
+        inner = [(sg, k) for sg, (k, ok) in drawn.items() if ok]
+        slope = np.polyfit(np.log([a for a, _ in inner]), np.log([b for _, b in inner]), 1)[0]
+        fit = next(ln for label, ln in lines.items() if label.startswith("fit k* ~ sigma^"))
+        fx, fy = (np.log(np.asarray(v, dtype=float)) for v in fit.get_data())
+        assert (fy[-1] - fy[0]) / (fx[-1] - fx[0]) == pytest.approx(slope, rel=1e-9)
+        assert f"hgo, plant.name = {plant}, {state}: k* ~ sigma^{slope:.2f}" in printed
+
