@@ -735,3 +735,77 @@ def test_sweep_of_the_shipped_gain_noise_study_draws_the_best_gain_of_its_table(
         assert (fy[-1] - fy[0]) / (fx[-1] - fx[0]) == pytest.approx(slope, rel=1e-9)
         assert f"hgo, plant.name = {plant}, {state}: k* ~ sigma^{slope:.2f}" in printed
 
+
+def _drawn_texts(fig):
+    """``(text, its extent in pixels)`` of every text a draw of ``fig`` puts on the canvas
+    (visible and not empty; ticks outside the view and hidden axes' texts are not drawn)."""
+    import matplotlib.text as mtext
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    drawn = []
+    original = mtext.Text.draw
+
+    def draw(self, renderer):
+        if self.get_visible() and self.get_text():
+            drawn.append(self)
+        return original(self, renderer)
+
+    FigureCanvasAgg(fig)
+    mtext.Text.draw = draw
+    try:
+        fig.canvas.draw()
+    finally:
+        mtext.Text.draw = original
+    renderer = fig.canvas.get_renderer()
+    return [(t, t.get_window_extent(renderer)) for t in drawn]
+
+
+def _text_faults(fig):
+    """The drawn texts that reach outside the figure, and the pairs that overlap (by more
+    than a pixel each way)."""
+    texts = _drawn_texts(fig)
+    box = fig.bbox
+    faults = [("outside", t.get_text()) for t, b in texts
+              if b.x0 < box.x0 - 1 or b.y0 < box.y0 - 1 or b.x1 > box.x1 + 1 or b.y1 > box.y1 + 1]
+    for i, (t, b) in enumerate(texts):
+        for u, c in texts[i + 1:]:
+            if min(b.x1, c.x1) - max(b.x0, c.x0) > 1 and min(b.y1, c.y1) - max(b.y0, c.y0) > 1:
+                faults.append(("overlap", t.get_text(), u.get_text()))
+    return faults
+
+
+@pytest.fixture(scope="module")
+def gain_noise_figures(tmp_path_factory):
+    """The figures of a two-axis gain x noise study of two observers: the axis figures, the
+    heatmap (four panels, three a row, logarithmic colour bars) and the best gain."""
+    sc = {"name": "gn2", "plant": {"name": "pendulum", "dt": 0.002},
+          "sensor": {"stages": [{"stage": "gaussian", "std": 1e-3}]},
+          "observers": [{"type": "high_gain", "name": "hgo", "k": 20.0},
+                        {"type": "adaptive_gain", "name": "adaptive", "lam": 1e-3,
+                         "lam_hat": 5e-3, "gamma": 1e7, "k0": 5.0, "k_max": 5000.0}],
+          "input": {"type": "multisine", "amplitudes": [0.8, 0.3], "frequencies": [0.4, 1.5]},
+          "run": {"duration": 2.0, "t_transient": 1.0}}
+    axes = {"observers.hgo.k": [5.0, 20.0, 80.0, 320.0, 1280.0],
+            "sensor.stages.0.std": [1e-5, 1e-3, 1e-2]}
+    import hgo_mj.study.figures as figures
+
+    out = tmp_path_factory.mktemp("gn2")
+    result = Study(sc, axes).run(out / "run", quiet=True)
+    saved = {}
+    original = figures.save_figure
+    with pytest.MonkeyPatch.context() as mp:  # each figure by the name it is saved under
+        mp.setattr(figures, "save_figure", lambda fig, path: (
+            saved.__setitem__(path.name, fig), original(fig, path))[1])
+        result.plot(out)
+    return saved
+
+
+def test_study_figure_texts_stay_inside_the_figure_and_apart(gain_noise_figures):
+    """Titles, axis and colour-bar labels, tick labels and legends: none reaches outside the
+    figure (the heatmap's colour-bar label was cut at the right edge), none overlaps another."""
+    names = sorted(gain_noise_figures)
+    assert names == ["axis_observers.hgo.k.png", "axis_sensor.stages.0.std.png",
+                     "best_gain.png", "heatmap_observers.hgo.k__sensor.stages.0.std.png"]
+    for name, fig in gain_noise_figures.items():
+        assert _text_faults(fig) == [], name
+
