@@ -602,7 +602,7 @@ def best_gain_figure(result: Any, *, axes: Any = None) -> Any:
             ax.set_title(", ".join([*(f"{_short(k)} = {_value(v)}" for k, v in zip(others, o)),
                                     state]), fontsize=8)
             ax.grid(True, which="both", alpha=0.3)
-            ax.tick_params(labelsize=7)
+            ax.tick_params(which="both", labelsize=7)  # the minor labels too (2, 5 x 10^i)
             ax.legend(fontsize=6, loc="best")
     if own:
         fig.suptitle(f"{result.study.name}: the best gain of {gain.split('.')[1]} per noise "

@@ -809,3 +809,15 @@ def test_study_figure_texts_stay_inside_the_figure_and_apart(gain_noise_figures)
     for name, fig in gain_noise_figures.items():
         assert _text_faults(fig) == [], name
 
+
+def test_best_gain_tick_labels_are_the_size_of_the_other_figures(gain_noise_figures):
+    """Every drawn tick label of best_gain.png, the minor ones (200, 500) too, is the size of
+    the axis figures' tick labels."""
+    def sizes(fig):
+        ticks = {id(t) for ax in fig.axes for axis in (ax.xaxis, ax.yaxis)
+                 for t in axis.get_ticklabels(which="both")}
+        return {t.get_fontsize() for t, _ in _drawn_texts(fig) if id(t) in ticks}
+
+    reference = sizes(gain_noise_figures["axis_observers.hgo.k.png"])
+    assert reference == {7.0}
+    assert sizes(gain_noise_figures["best_gain.png"]) == reference
