@@ -12,6 +12,7 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from figure_texts import drawn_texts, text_faults
 
 from hgo_mj.cli import main
 from hgo_mj.exceptions import DesignError, DivergenceError
@@ -744,44 +745,6 @@ def test_sweep_of_the_shipped_gain_noise_study_draws_the_best_gain_of_its_table(
         assert f"hgo, plant.name = {plant}, {state}: k* ~ sigma^{slope:.2f}" in printed
 
 
-def _drawn_texts(fig):
-    """``(text, its extent in pixels)`` of every text a draw of ``fig`` puts on the canvas
-    (visible and not empty; ticks outside the view and hidden axes' texts are not drawn)."""
-    import matplotlib.text as mtext
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    drawn = []
-    original = mtext.Text.draw
-
-    def draw(self, renderer):
-        if self.get_visible() and self.get_text():
-            drawn.append(self)
-        return original(self, renderer)
-
-    FigureCanvasAgg(fig)
-    mtext.Text.draw = draw
-    try:
-        fig.canvas.draw()
-    finally:
-        mtext.Text.draw = original
-    renderer = fig.canvas.get_renderer()
-    return [(t, t.get_window_extent(renderer)) for t in drawn]
-
-
-def _text_faults(fig):
-    """The drawn texts that reach outside the figure, and the pairs that overlap (by more
-    than a pixel each way)."""
-    texts = _drawn_texts(fig)
-    box = fig.bbox
-    faults = [("outside", t.get_text()) for t, b in texts
-              if b.x0 < box.x0 - 1 or b.y0 < box.y0 - 1 or b.x1 > box.x1 + 1 or b.y1 > box.y1 + 1]
-    for i, (t, b) in enumerate(texts):
-        for u, c in texts[i + 1:]:
-            if min(b.x1, c.x1) - max(b.x0, c.x0) > 1 and min(b.y1, c.y1) - max(b.y0, c.y0) > 1:
-                faults.append(("overlap", t.get_text(), u.get_text()))
-    return faults
-
-
 @pytest.fixture(scope="module")
 def gain_noise_figures(tmp_path_factory):
     """The figures of a two-axis gain x noise study of two observers: the axis figures, the
@@ -815,7 +778,7 @@ def test_study_figure_texts_stay_inside_the_figure_and_apart(gain_noise_figures)
     assert names == ["axis_observers.hgo.k.png", "axis_sensor.stages.0.std.png",
                      "best_gain.png", "heatmap_observers.hgo.k__sensor.stages.0.std.png"]
     for name, fig in gain_noise_figures.items():
-        assert _text_faults(fig) == [], name
+        assert text_faults(fig) == [], name
 
 
 def test_best_gain_tick_labels_are_the_size_of_the_other_figures(gain_noise_figures):
@@ -824,7 +787,7 @@ def test_best_gain_tick_labels_are_the_size_of_the_other_figures(gain_noise_figu
     def sizes(fig):
         ticks = {id(t) for ax in fig.axes for axis in (ax.xaxis, ax.yaxis)
                  for t in axis.get_ticklabels(which="both")}
-        return {t.get_fontsize() for t, _ in _drawn_texts(fig) if id(t) in ticks}
+        return {t.get_fontsize() for t, _ in drawn_texts(fig) if id(t) in ticks}
 
     reference = sizes(gain_noise_figures["axis_observers.hgo.k.png"])
     assert reference == {7.0}
