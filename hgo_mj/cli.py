@@ -647,6 +647,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "and seeds (see hgo_mj.study)")
     sw.add_argument("study", help="study TOML file (a scenario with a [sweep] table)")
     sw.add_argument("--out", help="results folder (default runs/STUDY-FILE-NAME)")
+    sw.add_argument("--seeds", metavar="N",
+                    help="N seeds (SEED..SEED+N-1 of [run] seed) in place of the file's [sweep] "
+                    "seeds: a quick look at a study")
     sw.add_argument("--jobs", metavar="N", default="1",
                     help="worker processes, or CPUs of a local Ray instance (default 1; the "
                     "results do not depend on it)")
@@ -785,7 +788,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .study import Study
     from .study.spec import MAX_RUNS
 
-    study = Study.from_toml(args.study, max_runs=None if args.yes else MAX_RUNS)
+    seeds = None if args.seeds is None else _flag_int(args.seeds, "--seeds")
+    study = Study.from_toml(args.study, max_runs=None if args.yes else MAX_RUNS, seeds=seeds)
     out = check_writable("--out", args.out or f"runs/{Path(args.study).stem}", folder=True)
     jobs = _flag_int(args.jobs, "--jobs")
     result = study.run(out, jobs=jobs, backend=args.backend, address=args.address,

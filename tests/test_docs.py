@@ -145,6 +145,30 @@ def test_gallery_has_eight_examples_each_ending_in_a_figure():
         assert re.search(r"^fig\b[^=\n]* = ", text, re.M), f"{path.name} makes no figure"
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("example", sorted(p.name for p in (DOCS / "gallery").glob("plot_*.py")))
+def test_gallery_figure_texts_stay_inside_the_figure_and_apart(example, tmp_path, monkeypatch):
+    """Every figure a gallery example makes, drawn: no title, label, tick label or legend
+    text reaches outside the figure (issue 28: an x-axis label was cut off) or overlaps
+    another (tests/figure_texts.py)."""
+    from figure_texts import text_faults
+    from matplotlib.figure import Figure
+
+    made = []
+    original = Figure.__init__
+
+    def init(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        made.append(self)
+
+    monkeypatch.setattr(Figure, "__init__", init)
+    monkeypatch.chdir(tmp_path)
+    runpy.run_path(str(DOCS / "gallery" / example), run_name="__main__")
+    monkeypatch.undo()
+    assert made
+    for i, fig in enumerate(made):
+        assert text_faults(fig) == [], (example, i)
+
 def test_every_reproduction_has_a_page():
     from hgo_mj.reproduce import REPRODUCTIONS
 

@@ -383,7 +383,7 @@ def heatmap_figure(result: Any, a: str, b: str, *, axes: Any = None) -> Any:
         fig.suptitle(f"{result.study.name}: median RMSE over the seeds", fontsize=10)
     if fig.get_layout_engine() is None:
         h, w = fig.get_figheight(), fig.get_figwidth()
-        fig.subplots_adjust(left=0.9 / w, right=1 - 0.3 / w, bottom=0.85 / h,
+        fig.subplots_adjust(left=0.9 / w, right=1 - 0.9 / w, bottom=0.85 / h,
                             top=1 - 0.65 / h, wspace=0.55, hspace=0.6 * 3.9 / max(h / rows, 1))
     return fig
 
@@ -602,7 +602,7 @@ def best_gain_figure(result: Any, *, axes: Any = None) -> Any:
             ax.set_title(", ".join([*(f"{_short(k)} = {_value(v)}" for k, v in zip(others, o)),
                                     state]), fontsize=8)
             ax.grid(True, which="both", alpha=0.3)
-            ax.tick_params(labelsize=7)
+            ax.tick_params(which="both", labelsize=7)  # the minor labels too (2, 5 x 10^i)
             ax.legend(fontsize=6, loc="best")
     if own:
         fig.suptitle(f"{result.study.name}: the best gain of {gain.split('.')[1]} per noise "

@@ -281,7 +281,8 @@ class Study:
         self._cell_cost: dict[int, float] = {}
 
     @classmethod
-    def from_toml(cls, path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Study:
+    def from_toml(cls, path: str | Path, *, max_runs: int | None = MAX_RUNS,
+                  seeds: int | None = None) -> Study:
         """A study from a file: a scenario with a ``[sweep]`` table.
 
         Parameters
@@ -290,6 +291,9 @@ class Study:
             The study file (TOML); its stem names the study unless it sets ``name``.
         max_runs : int or None
             Refuse a study with more runs (default 10 million; None: no limit).
+        seeds : int, optional
+            In place of the file's ``[sweep] seeds`` (``hgo-mj sweep --seeds N``: a quick
+            look at a study with fewer seeds).
 
         Returns
         -------
@@ -335,7 +339,8 @@ class Study:
         if not isinstance(sweep, Mapping):
             raise DesignError(f"[sweep] must be a table; found {sweep!r}")
         sweep = dict(sweep)
-        seeds = sweep.pop("seeds", 1)
+        in_file = sweep.pop("seeds", 1)
+        seeds = in_file if seeds is None else seeds
         mode = sweep.pop("mode", "product")
         store = sweep.pop("store", [])
         together = sweep.pop("together", [])
