@@ -118,7 +118,8 @@ def write_text(path: str | Path, text: str) -> Path:
 
 #: points per piece in which Agg draws a long line (matplotlib's ``agg.path.chunksize``): a
 #: streamed run's figure of 20,000 rows peaked 17 MB above its drawing in one piece, 6 MB in
-#: pieces of 1,000 points
+#: pieces of 1,000 points. The price: a line drawn with alpha shows a one-pixel gap at a few
+#: joins of pieces (3 % of a 120 s run's figure's pixels differ, none by a visible shape)
 FIGURE_PATH_CHUNK = 1_000
 
 
