@@ -1448,7 +1448,10 @@ class Observer(ABC):
             raise DesignError(f"{self.name}: member(s) {bad} outside the batch of {B}")
         if not rows:
             return
-        sub = params.take(rows) if params.fields else self.parameters(len(rows))
+        if rows == list(range(B)):  # every member: the parameters as they are (their
+            sub = params  # groups found once, Params.groups)
+        else:
+            sub = params.take(rows) if params.fields else self.parameters(len(rows))
         state.put(rows, self.init(len(rows), x_hat0, params=sub))  # type: ignore[arg-type]
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
