@@ -116,11 +116,22 @@ def write_text(path: str | Path, text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
+#: points per piece in which Agg draws a long line (matplotlib's ``agg.path.chunksize``): a
+#: streamed run's figure of 20,000 rows peaked 17 MB above its drawing in one piece, 6 MB in
+#: pieces of 1,000 points. The price: a line drawn with alpha shows a one-pixel gap at a few
+#: joins of pieces (3 % of a 120 s run's figure's pixels differ, none by a visible shape)
+FIGURE_PATH_CHUNK = 1_000
+
+
 def save_figure(fig: Any, path: str | Path, dpi: int = 110) -> Path:
     """Save a matplotlib figure atomically, in the format of ``path``'s suffix (PNG when it
-    has none), and close it if pyplot manages it; returns ``path``."""
+    has none), its lines drawn in pieces of :data:`FIGURE_PATH_CHUNK` points, and close it if
+    pyplot manages it; returns ``path``."""
+    import matplotlib
+
     fmt = Path(path).suffix.lstrip(".") or "png"
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, matplotlib.rc_context({"agg.path.chunksize":
+                                                          FIGURE_PATH_CHUNK}):
         fig.savefig(tmp, format=fmt, dpi=dpi)
     if getattr(fig.canvas, "manager", None) is not None:  # pyplot's (plotting.new_figure):
         import matplotlib.pyplot as plt  # written, so released (no pile of open figures)

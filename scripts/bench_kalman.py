@@ -39,11 +39,19 @@ import numpy as np
 from hgo_mj._bench import header, write_section
 from hgo_mj.observers import HighGainObserver
 from hgo_mj.observers.besancon import BesanconObserver
-from hgo_mj.observers.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter, _taylor4
+from hgo_mj.observers.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter, _transition
 from hgo_mj.systems import BioreactorBullinger
 from hgo_mj.systems.pendulum import Pendulum
 
 DT = 1e-3
+
+
+def taylor4(A):
+    """``I + A + A^2/2 + A^3/6 + A^4/24`` of one matrix, by the filters' own kernel
+    (:func:`~hgo_mj.observers.kalman._transition`): filterpy's ``F`` is RK4's transition."""
+    Phi = np.empty((1, *A.shape))
+    _transition(np.ascontiguousarray(A, dtype=float)[None], 1.0, True, Phi)
+    return Phi[0]
 
 
 def advance(ob, Y, U, dt):
@@ -93,7 +101,7 @@ def candidates() -> dict[str, object]:
     def filterpy_ekf(n):
         for _ in range(n):
             fe.update(z, hj, hx)
-            fe.F = _taylor4(DT * s.jacobian(0.0, fe.x, u, p))
+            fe.F = taylor4(DT * s.jacobian(0.0, fe.x, u, p))
             fe.predict(u)
 
     pts = MerweScaledSigmaPoints(2, alpha=1.0, beta=2.0, kappa=0.0)

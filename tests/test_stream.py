@@ -10,6 +10,7 @@ import tracemalloc
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 
 from hgo_mj.cli import main
@@ -21,7 +22,7 @@ from hgo_mj.observers import HighGainObserver, make_observer
 from hgo_mj.plants import make_plant
 from hgo_mj.sensors import GaussianNoise, SensorChain
 from hgo_mj.simulate import simulate
-from hgo_mj.stream import ParquetChunks, stream_run
+from hgo_mj.stream import ROW_GROUP_ROWS, ParquetChunks, stream_run
 
 
 class Runaway(HighGainObserver):
@@ -183,6 +184,14 @@ def test_stream_run_writes_the_table_and_the_metrics_of_the_kept_run(tmp_path):
     assert len(thin) == 15_001 and thin.metadata["figure_every"] == 2
     np.testing.assert_array_equal(thin.x, kept.x[::2])
     assert [p.name for p in tmp_path.iterdir()] == ["t.parquet"]
+    # 15 chunks of 2,000 rows joined into row groups of at least ROW_GROUP_ROWS (the last
+    # excepted: its metadata is what a writer keeps), the floats plainly encoded
+    meta = pq.ParquetFile(tmp_path / "t.parquet").metadata
+    assert [meta.row_group(i).num_rows for i in range(meta.num_row_groups)] == [18_000, 12_001]
+    assert ROW_GROUP_ROWS == 16_384
+    encodings = {e for i in range(meta.num_row_groups) for j in range(meta.num_columns)
+                 for e in meta.row_group(i).column(j).encodings}
+    assert not any("DICTIONARY" in e for e in encodings), encodings
 
 
 def test_a_stopped_stream_leaves_the_earlier_file_and_its_chunks(tmp_path):

@@ -1448,8 +1448,12 @@ class Observer(ABC):
             raise DesignError(f"{self.name}: member(s) {bad} outside the batch of {B}")
         if not rows:
             return
-        sub = params.take(rows) if params.fields else self.parameters(len(rows))
-        state.put(rows, self.init(len(rows), x_hat0, params=sub))  # type: ignore[arg-type]
+        where: Any = rows
+        if rows == list(range(B)):  # every member: the parameters as they are (their
+            sub, where = params, slice(None)  # groups found once), the rows as a slice
+        else:
+            sub = params.take(rows) if params.fields else self.parameters(len(rows))
+        state.put(where, self.init(len(rows), x_hat0, params=sub))  # type: ignore[arg-type]
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """One sample of the observer's own state: ``y`` ``(p,)`` and ``u`` ``(m,)`` when
