@@ -117,13 +117,17 @@ def _difference_rows(Z: Array, U: Array, step: Array, rows: Array,
     (``i = 1..n``), ``Z - step_i e_i``; ``Ur`` ``((2 n + 1) B, m)`` the inputs ``U`` ``(B, m)``
     in every block."""
     B, n = Z.shape
+    m = U.shape[1]
     for b in range(B):
         for i in range(n):
-            step[b, i] = 1e-6 * np.maximum(1.0, np.abs(Z[b, i]))
+            a = abs(Z[b, i])
+            step[b, i] = 1e-6 * (a if a > 1.0 or a != a else 1.0)  # np.maximum: NaN stays
     for k in range(2 * n + 1):
         for b in range(B):
-            rows[k * B + b] = Z[b]
-            Ur[k * B + b] = U[b]
+            for i in range(n):
+                rows[k * B + b, i] = Z[b, i]
+            for i in range(m):
+                Ur[k * B + b, i] = U[b, i]
     for i in range(n):
         for b in range(B):
             rows[(1 + i) * B + b, i] += step[b, i]
