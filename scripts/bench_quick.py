@@ -6,11 +6,13 @@ Usage: ``python scripts/bench_quick.py [--jobs J ...] [--budget N] [--write BENC
 
 For each ``J`` (default 2, what ``make demo`` uses), ``hgo-mj bench --suite quick --budget N
 --jobs J`` runs twice in a fresh process, with numba's cache in a new empty folder
-(``NUMBA_CACHE_DIR``):
+(``NUMBA_CACHE_DIR``) and Python's bytecode in another (``PYTHONPYCACHEPREFIX``; written, also
+where the environment sets ``PYTHONDONTWRITEBYTECODE``):
 
-* **cold**: the cache empty, as after ``pip install`` in a fresh clone: every kernel the suite
-  runs is compiled (and written to the cache);
-* **warm**: the same command again: every kernel loaded from the cache.
+* **cold**: both caches empty, as after ``make demo``'s ``pip install --no-compile -e .`` in a
+  fresh clone: every module the suite imports is compiled to bytecode and every kernel it runs
+  by numba (both written to their cache);
+* **warm**: the same command again: the bytecode and every kernel loaded from the caches.
 
 Reported per run: the wall time, the CPU time of the command and its workers (user + sys),
 the load average before and after (other work on the machine lengthens the wall time, not
@@ -45,13 +47,16 @@ def _hgo_mj() -> list[str]:
 
 def run_once(out: Path, cache: Path, jobs: int, budget: int, tasks: list[str],
              observers: list[str]) -> dict[str, float]:
-    """One ``hgo-mj bench`` into ``out`` with numba's cache in ``cache``: ``wall``, ``cpu``
-    (user + sys of the command and its workers) [s], ``load_before``, ``load_after``."""
+    """One ``hgo-mj bench`` into ``out`` with numba's cache in ``cache/numba`` and the
+    bytecode in ``cache/pycache``: ``wall``, ``cpu`` (user + sys of the command and its
+    workers) [s], ``load_before``, ``load_after``."""
     cmd = [*_hgo_mj(), "bench", "--budget", str(budget), "--jobs", str(jobs), "--out", str(out),
            "--no-rrd", "--quiet"]
     cmd += ["--suite", "quick"] if not tasks else ["--suite", "none", "--tasks", *tasks]
     cmd += ["--observers", *observers] if observers else []
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "OPENBLAS_NUM_THREADS": "1"}
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env.update(NUMBA_CACHE_DIR=str(cache / "numba"), PYTHONPYCACHEPREFIX=str(cache / "pycache"),
+               OPENBLAS_NUM_THREADS="1")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
@@ -79,8 +84,8 @@ def measure(jobs: list[int], budget: int, tasks: list[str] = (),  # type: ignore
     for j in jobs:
         with tempfile.TemporaryDirectory(prefix="bench_quick_") as tmp:
             root = Path(tmp)
-            cold = run_once(root / "cold", root / "numba", j, budget, list(tasks), list(observers))
-            warm = run_once(root / "warm", root / "numba", j, budget, list(tasks), list(observers))
+            cold = run_once(root / "cold", root / "cache", j, budget, list(tasks), list(observers))
+            warm = run_once(root / "warm", root / "cache", j, budget, list(tasks), list(observers))
             rows.append({"jobs": j, "cold": cold, "warm": warm,
                          "same": same_scores(root / "cold", root / "warm")})
     return rows
@@ -90,8 +95,9 @@ def report(rows: list[dict], command: str, budget: int) -> str:
     lines = ["## Issues 26 and 28: the quick suite, cold and warm (`scripts/bench_quick.py`)", "",
              *header(command),
              f"`hgo-mj bench --suite quick --budget {budget} --jobs J --no-rrd --quiet`, each "
-             "run in a fresh process; cold: numba's cache empty (a fresh clone after `pip "
-             "install`), warm: the same command again (every kernel from the cache). CPU: user + "
+             "run in a fresh process; cold: numba's cache and the bytecode cache empty (a fresh "
+             "clone after `pip install --no-compile -e .`, as `make demo` installs), warm: the "
+             "same command again (the bytecode and every kernel from the caches). CPU: user + "
              "sys of the command and its workers.", "",
              "| J (processes) | cold wall [s] | cold CPU [s] | warm wall [s] | warm CPU [s] | "
              "compile (cold - warm CPU) [s] | load before / after | scores cold = warm |",

@@ -279,23 +279,34 @@ def _json(v: Any) -> Any:
 def parts_of(tasks: Sequence[Task], observers: Sequence[str], budget: int, *,
              out: Path | None, resume: bool, backend: str = "local", jobs: int = 1,
              progress: bool = True) -> list[dict[str, Any]]:
-    """Every (task, observer) part, in order, resuming those already kept. With the local
-    backend and ``jobs > 1``, the parts run in this process and ``jobs - 1`` worker
-    processes (:func:`hgo_mj.study.backends._local`: spawned, they die with this one); a
-    part does not depend on where it ran, so neither does the result (with Ray, ``jobs`` are
-    the workers of each tuning round instead)."""
+    """Every (task, observer) part, in order (task by task), resuming those already kept.
+    With the local backend and ``jobs > 1``, the parts run in this process and ``jobs - 1``
+    worker processes (:func:`hgo_mj.study.backends._local`: spawned, they die with this one),
+    handed out observer by observer (:func:`_run_order`); a part does not depend on where or
+    when it ran, so neither does the result (with Ray, ``jobs`` are the workers of each tuning
+    round instead)."""
     specs = [_PartSpec(task, kind, budget, out, resume, backend, jobs)
              for task in tasks for kind in observers]
     local_workers = jobs if backend == "local" else 1
+    index = {id(s): i for i, s in enumerate(specs)}
     done: dict[int, dict[str, Any]] = {}
     from ..study.backends import _local
 
-    for spec, (part,) in _local(specs, local_workers, run=_run_part):
-        done[specs.index(spec)] = part
+    for spec, (part,) in _local(_run_order(specs, observers), local_workers, run=_run_part):
+        done[index[id(spec)]] = part
         if progress:
             print(f"bench: {len(done)}/{len(specs)} {spec.task.name} {spec.kind}: "
                   f"{part['status']}", file=sys.stderr, flush=True)
     return [done[i] for i in range(len(specs))]
+
+
+def _run_order(specs: Sequence[_PartSpec], observers: Sequence[str]) -> list[_PartSpec]:
+    """``specs`` observer by observer (each observer's tasks in their order): a process of the
+    local backend takes its parts from one end of this list, so it compiles an observer's
+    kernels once (per system) and reuses them over the tasks, and the two ends compile
+    different observers (not every process every family)."""
+    rank = {kind: i for i, kind in enumerate(observers)}
+    return sorted(specs, key=lambda s: rank[s.kind])  # stable: the tasks keep their order
 
 
 @dataclass(frozen=True, eq=False)

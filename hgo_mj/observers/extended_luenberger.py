@@ -84,12 +84,14 @@ def _gain_row(a: Array, c: Array, out: Array) -> None:  # pragma: no cover
 
 @njit(cache=True)
 def luenberger_advance(Z: Array, y: Array, W: Array, J: Array, c: Array, h: float,
-                       Zout: Array) -> None:  # pragma: no cover
+                       Zout: Array) -> int:  # pragma: no cover
     """One forward-Euler step of ``h`` of every member: ``Z`` ``(B, n)`` in place (and into
     ``Zout`` ``(B, n)``), ``y`` ``(B,)`` (NaN: no correction), ``W`` ``(B,)`` the model term and
-    ``J`` ``(B, n)`` its Jacobian at ``Z``."""
+    ``J`` ``(B, n)`` its Jacobian at ``Z``. Returns the first member whose new state is not
+    finite, or -1."""
     B, n = Z.shape
     L = np.empty(n)
+    bad = -1
     for b in range(B):
         e = y[b] - Z[b, 0]
         if e == e:
@@ -102,6 +104,64 @@ def luenberger_advance(Z: Array, y: Array, W: Array, J: Array, c: Array, h: floa
         Zout[b, n - 1] = Z[b, n - 1] + h * (W[b] + L[n - 1] * e)
         for i in range(n):
             Z[b, i] = Zout[b, i]
+            if bad < 0 and not np.isfinite(Z[b, i]):
+                bad = b
+    return bad
+
+
+@njit(cache=True)
+def _difference_rows(Z: Array, U: Array, step: Array, rows: Array,
+                     Ur: Array) -> None:  # pragma: no cover
+    """The rows of :func:`phi_and_jacobian`'s central differences: ``step`` ``(B, n)`` ``=
+    1e-6 max(1, |Z|)``; ``rows`` ``((2 n + 1) B, n)`` the blocks ``Z``, ``Z + step_i e_i``
+    (``i = 1..n``), ``Z - step_i e_i``; ``Ur`` ``((2 n + 1) B, m)`` the inputs ``U`` ``(B, m)``
+    in every block."""
+    B, n = Z.shape
+    m = U.shape[1]
+    for b in range(B):
+        for i in range(n):
+            a = abs(Z[b, i])
+            step[b, i] = 1e-6 * (a if a > 1.0 or a != a else 1.0)  # np.maximum: NaN stays
+    for k in range(2 * n + 1):
+        for b in range(B):
+            for i in range(n):
+                rows[k * B + b, i] = Z[b, i]
+            for i in range(m):
+                Ur[k * B + b, i] = U[b, i]
+    for i in range(n):
+        for b in range(B):
+            rows[(1 + i) * B + b, i] += step[b, i]
+            rows[(1 + n + i) * B + b, i] -= step[b, i]
+
+
+@njit(cache=True)
+def _central_gradient(F: Array, step: Array, J: Array) -> None:  # pragma: no cover
+    """``J`` ``(B, n)``: the central differences of ``phi`` at the rows of
+    :func:`_difference_rows` (``F`` ``((2 n + 1) B,)``)."""
+    B, n = J.shape
+    for i in range(n):
+        for b in range(B):
+            J[b, i] = (F[(1 + i) * B + b] - F[(1 + n + i) * B + b]) / (2.0 * step[b, i])
+
+
+class _Differences:
+    """:func:`phi_and_jacobian`'s buffers for ``B`` rows of ``n`` coordinates and ``m``
+    inputs, kept over an observer's samples (one compiled call builds the difference rows,
+    one takes the gradient: no numpy temporaries per sample)."""
+
+    def __init__(self, B: int, n: int, m: int) -> None:
+        self.step = np.empty((B, n))
+        self.rows = np.empty(((2 * n + 1) * B, n))
+        self.Ur = np.empty(((2 * n + 1) * B, m))
+        self.J = np.empty((B, n))
+
+    def __call__(self, system: System, Z: Array, U: Array) -> tuple[Array, Array]:
+        """``phi`` at the rows ``Z`` (C-contiguous) with inputs ``U`` and its gradient (views
+        of this object's buffers, overwritten by the next call)."""
+        _difference_rows(Z, U, self.step, self.rows, self.Ur)
+        F = np.asarray(system.phi_batch(self.rows, self.Ur), dtype=np.float64).reshape(-1)
+        _central_gradient(F, self.step, self.J)
+        return F[:Z.shape[0]], self.J
 
 
 def zeitz_gain(a: Any, omega: float) -> Array:
@@ -174,20 +234,10 @@ def phi_and_jacobian(system: System, Z: Array, U: Array) -> tuple[Array, Array]:
     >>> J.round(3)      # (-m g l_c / J, -d / J)
     array([[-20.356,  -0.184]])
     """
-    B, n = Z.shape
-    step = 1e-6 * np.maximum(1.0, np.abs(Z))
-    rows = np.empty((2 * n + 1, B, n))
-    rows[:] = Z
-    for i in range(n):
-        rows[1 + i, :, i] += step[:, i]
-        rows[1 + n + i, :, i] -= step[:, i]
-    Ur = np.broadcast_to(U, (2 * n + 1, *U.shape)).reshape((2 * n + 1) * B, -1)
-    F = np.asarray(system.phi_batch(rows.reshape(-1, n), np.ascontiguousarray(Ur)),
-                   dtype=np.float64).reshape(2 * n + 1, B)
-    J = np.empty((B, n))
-    for i in range(n):
-        J[:, i] = (F[1 + i] - F[1 + n + i]) / (2.0 * step[:, i])
-    return F[0].copy(), J
+    Z = np.ascontiguousarray(Z, dtype=np.float64)
+    U = np.ascontiguousarray(U, dtype=np.float64)
+    W, J = _Differences(Z.shape[0], Z.shape[1], U.shape[1])(system, Z, U)
+    return W.copy(), J
 
 
 @register
@@ -313,19 +363,18 @@ class ExtendedLuenbergerObserver(_NormalFormEstimate, Observer):
         B, T = Y.shape[0], Y.shape[1]
         h = dt / self.substeps
         zero_w, zero_j = np.zeros(B), np.zeros((B, self.n))
-        for j in range(T):
-            y = np.ascontiguousarray(Y[:, j, 0])
-            for _ in range(self.substeps):
-                if self.system is None:
-                    W, J = zero_w, zero_j
-                else:
-                    with np.errstate(over="ignore", invalid="ignore"):
-                        W, J = phi_and_jacobian(self.system, s.z, U[:, j])
-                luenberger_advance(s.z, y, W, J, c, h, Z[:, j])
-            if not np.isfinite(s.z).all():  # a gain too high for the period: blown up
-                b = int(np.flatnonzero(~np.isfinite(s.z).all(axis=1))[0])
-                raise DivergenceError(f"the observer state left the finite numbers at sample "
-                                      f"{j} (member {b}): {s.z[b].tolist()}")
+        differences = _Differences(B, self.n, U.shape[2])
+        with np.errstate(over="ignore", invalid="ignore"):  # phi far out: caught below
+            for j in range(T):
+                y = np.ascontiguousarray(Y[:, j, 0])
+                u = np.ascontiguousarray(U[:, j])
+                for _ in range(self.substeps):
+                    W, J = (zero_w, zero_j) if self.system is None else \
+                        differences(self.system, s.z, u)
+                    bad = luenberger_advance(s.z, y, W, J, c, h, Z[:, j])
+                if bad >= 0:  # a gain too high for the period: blown up
+                    raise DivergenceError(f"the observer state left the finite numbers at "
+                                          f"sample {j} (member {bad}): {s.z[bad].tolist()}")
         self._write_x(s, Z, U, X)
 
     def _current(self, p: Params, s: State) -> tuple[Array, Array, Array]:

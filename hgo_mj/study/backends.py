@@ -24,14 +24,18 @@ results do not depend on the backend or on the number of workers.
 from __future__ import annotations
 
 import contextlib
+import functools
 import multiprocessing
 import os
 import subprocess
 import sys
+import threading
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterator
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from queue import SimpleQueue
 from typing import Any
 
 from .._extras import require
@@ -100,11 +104,16 @@ def worker_init(parent: int) -> None:
 def _local(chunks: list[Any], jobs: int,
            run: Callable[[Any], Rows] | None = None) -> Iterator[tuple[Any, Rows]]:
     """The chunks on ``jobs`` processes: this one and ``jobs - 1`` workers (started with
-    :func:`worker_init`). This process takes chunks from the front of the queue while the
-    workers (which start in about a second: an interpreter, hgo_mj, the compiled kernels from
-    their cache) are fed from the back, one chunk ahead each. ``run`` (a module-level function;
-    default :func:`~hgo_mj.study.engine.run_chunk`, looked up at the call) computes a chunk's
-    rows."""
+    :func:`worker_init`), each chunk yielded with its rows as it finishes.
+
+    One queue feeds them all: this process takes chunks from its front, the workers (which
+    start in about a second: an interpreter, hgo_mj, the compiled kernels from their cache)
+    from its back, each worker its next chunk the moment it finishes one (the finished
+    future's callback submits it, also while this process is busy with a chunk of its own).
+    A caller that orders its chunks by what they share (the benchmark: one observer family
+    after another) so has each process compile its own kernels and reuse them. ``run`` (a
+    module-level function; default :func:`~hgo_mj.study.engine.run_chunk`, looked up at the
+    call) computes a chunk's rows."""
     if run is None:
         run = run_chunk
     if jobs == 1 or len(chunks) <= 1:
@@ -112,23 +121,55 @@ def _local(chunks: list[Any], jobs: int,
             yield c, run(c)
         return
     queue = deque(chunks)
+    lock = threading.Lock()  # guards queue and running
+    finished: SimpleQueue[tuple[Future[Rows], Any]] = SimpleQueue()
+    running = 0  # chunks submitted to a worker and not yet yielded here
     workers = min(jobs - 1, len(chunks) - 1)
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                initializer=worker_init, initargs=(os.getpid(),))
-    pending: dict[Future[Rows], Any] = {}
-    try:
-        while queue or pending:
-            while queue and len(pending) < workers:
-                c = queue.pop()
-                pending[pool.submit(run, c)] = c
-            for f in [f for f in pending if f.done()]:
-                yield pending.pop(f), f.result()
+
+    def feed() -> None:
+        """Submit the chunk at the back of the queue, if any, to the next free worker."""
+        nonlocal running
+        with lock:
             if queue:
-                c = queue.popleft()
+                c = queue.pop()
+                pool.submit(run, c).add_done_callback(functools.partial(done, c=c))
+                running += 1
+
+    def done(f: Future[Rows], c: Any) -> None:
+        """A worker finished ``c``: hand it the next chunk and ``f`` to this process."""
+        try:
+            feed()
+        except (RuntimeError, BrokenProcessPool):  # stopped, or broken: f tells which
+            pass
+        finished.put((f, c))
+
+    def take() -> tuple[Any, Rows]:
+        nonlocal running
+        f, c = finished.get()
+        with lock:
+            running -= 1
+        return c, f.result()
+
+    try:
+        for _ in range(workers):
+            feed()
+        while True:
+            while not finished.empty():
+                yield take()
+            with lock:
+                c = queue.popleft() if queue else None
+                left = running
+            if c is not None:
                 yield c, run(c)
-            elif pending:
-                wait(pending, return_when=FIRST_COMPLETED)
+            elif left:
+                yield take()
+            else:
+                break
     except BaseException:  # Ctrl-C or an error: stop the workers now, not after their chunks
+        with lock:
+            queue.clear()
         for proc in list(getattr(pool, "_processes", {}).values()):
             proc.kill()
         pool.shutdown(wait=False, cancel_futures=True)

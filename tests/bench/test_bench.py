@@ -294,6 +294,31 @@ def test_parts_in_worker_processes_give_the_same_scores(tmp_path):
     assert len(list((tmp_path / "parts").iterdir())) == 2
 
 
+
+def test_parts_are_handed_out_observer_by_observer_and_returned_task_by_task(monkeypatch):
+    """A local process takes its parts from one end of the list: one observer's tasks after
+    another (its kernels compiled once); the parts come back in task order whatever the order
+    they finished in."""
+    from hgo_mj.bench.runner import parts_of
+    from hgo_mj.study import backends
+
+    handed: list[tuple[str, str]] = []
+
+    def fake_local(specs, jobs, run):
+        handed.extend((s.task.name, s.kind) for s in specs)
+        for s in reversed(specs):  # finished in another order
+            yield s, [{"task": s.task.name, "observer": s.kind, "status": "scored"}]
+
+    monkeypatch.setattr(backends, "_local", fake_local)
+    tasks = [TASKS["pendulum/encoder-v1"], TASKS["elastic_joint/encoder-v1"]]
+    parts = parts_of(tasks, ["high_gain", "ekf", "riccati"], 2, out=None, resume=False,
+                     jobs=2, progress=False)
+    names = [t.name for t in tasks]
+    assert handed == [(t, o) for o in ("high_gain", "ekf", "riccati") for t in names]
+    assert [(p["task"], p["observer"]) for p in parts] == \
+        [(t, o) for t in names for o in ("high_gain", "ekf", "riccati")]
+
+
 @pytest.mark.parametrize("text,match", [
     ('name = "x"\nsensor = "encoder"\n[plant]\nname = "pendulum"\n[input]\n',
      r"name must end in -v<N>"),

@@ -45,6 +45,29 @@ def test_jacobian_of_the_pendulum_phi():
     np.testing.assert_allclose(J[:, 1], -p["damping"] / p["inertia"], rtol=1e-6)
 
 
+
+def test_the_compiled_differences_are_numpys_bit_for_bit():
+    """The steps ``1e-6 max(1, |z|)``, the rows and the quotient, built by compiled kernels
+    into buffers kept over the samples, equal the plain numpy computation exactly (a NaN row
+    and a huge one included): the benchmark's scores do not move."""
+    sys = ElasticJoint()
+    rng = np.random.default_rng(3)
+    Z = rng.normal(0.0, 3.0, (6, 4))
+    Z[1, 2], Z[4, 0] = np.nan, 1e200
+    U = rng.normal(0.0, 1.0, (6, 1))
+    step = 1e-6 * np.maximum(1.0, np.abs(Z))
+    with np.errstate(all="ignore"):
+        W, J = phi_and_jacobian(sys, Z, U)
+        want_J = np.empty_like(Z)
+        for i in range(4):
+            e = np.zeros(4)
+            e[i] = 1.0
+            plus, minus = sys.phi_batch(Z + step * e, U), sys.phi_batch(Z - step * e, U)
+            want_J[:, i] = (plus - minus) / (2.0 * step[:, i])
+    np.testing.assert_array_equal(W, sys.phi_batch(Z, U))
+    np.testing.assert_array_equal(J, want_J)
+
+
 def test_one_euler_step_by_hand():
     """Order 2 without a system (phi = 0): L = (2 w, w^2); z = 0, y = 1, h = 0.01, w = 10:
     z+ = h (0 + 20, 100) = (0.2, 1.0)."""

@@ -1,9 +1,10 @@
 """scripts/bench_quick.py: a cold and a warm run of a part of the quick suite, each in a fresh
-process with its own numba cache; the report holds both and whether their scores agree (no
+process with its own numba and bytecode caches; the report holds both and whether their scores agree (no
 timing asserted)."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 from pathlib import Path
 
@@ -17,8 +18,13 @@ def _load():
     return module
 
 
-def test_cold_and_warm_side_by_side_with_the_same_scores(tmp_path):
+def test_cold_and_warm_side_by_side_with_the_same_scores(tmp_path, monkeypatch):
     bench = _load()
+    kept = tmp_path / "runs"
+    kept.mkdir()
+    monkeypatch.setattr(bench.tempfile, "TemporaryDirectory",
+                        lambda **kw: contextlib.nullcontext(str(kept)))
+    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")  # as on the test machine
     out = tmp_path / "B.md"
     assert bench.main(["--jobs", "1", "--budget", "2", "--tasks", "pendulum/encoder-v1",
                        "--observers", "finite_difference", "--write", str(out)]) == 0
@@ -28,4 +34,11 @@ def test_cold_and_warm_side_by_side_with_the_same_scores(tmp_path):
     cells = [c.strip() for c in row.strip("|").split("|")]
     cold_cpu, warm_cpu = float(cells[2]), float(cells[4])
     assert cold_cpu > 0 and warm_cpu > 0 and cells[-1] == "yes"
+    # cold started from empty caches of its own, which it filled for the warm run: numba's
+    # kernels and the bytecode of the modules it imported (hgo_mj's and its dependencies')
+    cache = kept / "cache"
+    assert list((cache / "numba").rglob("*.nbi"))
+    pycs = [p.relative_to(cache / "pycache").as_posix()
+            for p in (cache / "pycache").rglob("*.pyc")]
+    assert any("hgo_mj/scenario." in p for p in pycs) and any("/numpy/" in p for p in pycs)
     assert bench.main(["--jobs", "0"]) == 2
