@@ -179,6 +179,20 @@ def test_tuning_on_ray_gives_the_local_result(local_ray):
     assert local.best == on_ray.best
 
 
+def test_the_benchmark_on_ray_gives_the_local_scores(local_ray):
+    """``bench(backend="ray")``: each tuning round's trials as Ray tasks on the local instance;
+    the scores (all but the timing columns) equal the local backend's bit for bit."""
+    from hgo_mj.bench import bench
+
+    kw = dict(tasks=["pendulum/encoder-v1"], observers=["high_gain", "finite_difference"],
+              budget=4, record=False, progress=False)
+    local = bench(None, **kw).scores
+    on_ray = bench(None, backend="ray", jobs=2, **kw).scores
+    timing = [c for c in local.columns if c in ("update_time", "tune_seconds")]
+    assert timing and len(local) > 0
+    pd.testing.assert_frame_equal(local.drop(columns=timing), on_ray.drop(columns=timing))
+
+
 NS_DRIVER = """
 import os, subprocess, ray
 from hgo_mj.study.backends import ray_init
