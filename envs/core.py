@@ -869,6 +869,9 @@ class EnvConfig:
             multiple as required (``control_period`` of ``sample_period`` and of
             ``physics_dt``, ``sample_period`` of ``physics_dt``); a ``task`` that is not a
             Task, task arguments beside it, unknown task arguments, or no task at all.
+        hgo_mj.exceptions.MissingExtraError
+            A render mode without the ``render`` extra
+            (:func:`hgo_mj.envs.render.require_render`).
 
         Examples
         --------
@@ -894,10 +897,12 @@ class EnvConfig:
         if render_mode is not None and render_mode not in env_cls.metadata["render_modes"]:
             raise DesignError(f"unknown render mode {render_mode!r} for {env_cls.__name__}; "
                               f"valid: {[None, *env_cls.metadata['render_modes']]}")
-        if render_mode == "human":
-            from .render import check_display
+        if render_mode is not None:
+            from .render import check_display, require_render
 
-            check_display()
+            require_render(render_mode)
+            if render_mode == "human":
+                check_display()
         integ = task.integrator if integrator is None else integrator
         if integ is not None and integ not in _INTEGRATORS:
             raise DesignError(f"unknown integrator {integ!r}; valid: {sorted(_INTEGRATORS)}")

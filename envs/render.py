@@ -13,6 +13,11 @@ headless machine without setting anything (``make test`` installs Debian's ``lib
 ``libegl-mesa0``, ``libopengl0`` and ``libgl1-mesa-dri``). When none can be made,
 :class:`RenderError` says which were tried, why each failed, and what to install.
 
+**Bindings.** The backends' Python modules import PyOpenGL (EGL, OSMesa) or ``glfw`` (GLFW
+and the viewer), which the runtime install leaves out (it needs only ``mujoco-core``); the
+``render`` extra installs them. Without them :func:`require_render` stops rendering, before any
+work, with one line naming that extra.
+
 **On screen** (``render_mode="human"``), :class:`HumanViewer` shows the same scene in MuJoCo's
 own interactive viewer (``mujoco.viewer.launch_passive``: GLFW on the X or Wayland display),
 the ghost in the viewer's user scene, one frame per environment step at ``render_fps``. It
@@ -34,10 +39,13 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from hgo_mj._extras import require
 from hgo_mj.exceptions import HgoError
 
 #: MUJOCO_GL value -> the mujoco module holding its GLContext
 _BACKENDS = {"egl": "mujoco.egl", "osmesa": "mujoco.osmesa", "glfw": "mujoco.glfw"}
+#: MUJOCO_GL value -> the Python binding its module imports (the ``render`` extra has both)
+_BINDINGS = {"egl": "OpenGL", "osmesa": "OpenGL", "glfw": "glfw"}
 #: the ghost's colour: a translucent green
 GHOST_RGBA = (0.1, 0.9, 0.5, 0.45)
 #: the task's target pose: a translucent yellow
@@ -65,6 +73,44 @@ class RenderError(HgoError, RuntimeError):
     """
 
 
+def require_render(render_mode: str) -> None:
+    """Raise the one-line error naming the ``render`` extra unless the Python binding that
+    ``render_mode`` first needs is installed: ``glfw`` for ``"human"`` (MuJoCo's viewer); for
+    ``"rgb_array"`` the binding of the backend ``MUJOCO_GL`` names, else of EGL, the first
+    one tried (PyOpenGL).
+
+    Parameters
+    ----------
+    render_mode : {"rgb_array", "human"}
+        The environment's render mode.
+
+    Raises
+    ------
+    hgo_mj.exceptions.MissingExtraError
+        The binding is not installed (an ``ImportError``): ``pip install 'hgo_mj[render]'``.
+
+    Examples
+    --------
+    >>> import sys
+    >>> from hgo_mj.envs.render import require_render
+    >>> saved = sys.modules.get("glfw")
+    >>> sys.modules["glfw"] = None  # as if glfw were not installed
+    >>> try:
+    ...     require_render("human")
+    ... except ImportError as exc:
+    ...     print(exc)
+    render_mode="human" needs the optional dependency glfw: pip install 'hgo_mj[render]'
+    >>> if saved is None:
+    ...     del sys.modules["glfw"]
+    ... else:
+    ...     sys.modules["glfw"] = saved
+    """
+    backend = "glfw" if render_mode == "human" else (
+        os.environ.get("MUJOCO_GL", "").strip().lower() or "egl")
+    if backend in _BINDINGS:  # another name: gl_context says it is not a backend
+        require(_BINDINGS[backend], "render", f'render_mode="{render_mode}"')
+
+
 #: the process's one OpenGL context and its backend (made on first use, never freed: freeing
 #: an EGL context tore down the display under the others, whose frames then came out black)
 _CONTEXT: list[tuple[Any, str]] = []
@@ -85,6 +131,8 @@ def gl_context() -> tuple[Any, str]:
     ------
     RenderError
         No backend could be made: the message lists each one tried with its error.
+    hgo_mj.exceptions.MissingExtraError
+        The ``render`` extra is not installed (:func:`require_render`).
 
     Examples
     --------
@@ -98,6 +146,7 @@ def gl_context() -> tuple[Any, str]:
     if _CONTEXT:
         _CONTEXT[0][0].make_current()
         return _CONTEXT[0]
+    require_render("rgb_array")
     wanted = os.environ.get("MUJOCO_GL", "").strip().lower()
     order = [wanted] if wanted else ["egl", "osmesa", "glfw"]
     tried = []
@@ -386,6 +435,8 @@ class HumanViewer:
     ------
     RenderError
         No display (:func:`check_display`), or the viewer's window could not be opened.
+    hgo_mj.exceptions.MissingExtraError
+        The ``render`` extra is not installed (:func:`require_render`).
 
     Examples
     --------
@@ -400,6 +451,7 @@ class HumanViewer:
 
     def __init__(self, model: Any, qpos_adr: Sequence[int] | NDArray[np.intp], *,
                  fps: float) -> None:
+        require_render("human")
         check_display()
         import mujoco.viewer
 
@@ -495,4 +547,5 @@ class HumanViewer:
 
 
 __all__ = ["FLOOR_RGBA", "GHOST_RGBA", "TARGET_RGBA", "GhostRenderer", "HumanViewer",
-           "RenderError", "check_display", "floor_height", "framing_camera", "gl_context"]
+           "RenderError", "check_display", "floor_height", "framing_camera", "gl_context",
+           "require_render"]

@@ -12,11 +12,13 @@ from .exceptions import MissingExtraError
 EXTRAS = {
     "lmi": "the LMI designs (cvxpy, Clarabel): hgo_mj.design's LMI gain bounds, paper 004's reproduction",
     "symbolic": "ODE plants given as text (sympy): [plant] f = [...], hgo_mj.systems.symbolic",
+    "render": "rendering (render_mode \"rgb_array\" / \"human\", GhostRenderer, RecordVideo): "
+              "MuJoCo's Python OpenGL bindings (PyOpenGL, glfw)",
     "gym": "Gymnasium's own MuJoCo environments and RecordVideo (gymnasium[mujoco], imageio, moviepy)",
     "ray": "the Ray backend of studies and tuning (--backend ray)",
     "rl": "scripts/train_rl.py (stable-baselines3, sb3-contrib)",
     "docs": "make docs (Sphinx, numpydoc, sphinx-gallery, furo, myst-parser)",
-    "dev": "make test: every extra above but docs, plus the test and lint tools",
+    "dev": "make test: every extra above but rl and docs, plus the test and lint tools",
 }
 
 

@@ -33,9 +33,13 @@ def test_the_extras_are_those_of_pyproject_and_the_runtime_holds_none_of_them():
     assert set(EXTRAS) == set(extras)
     runtime = _names(PROJECT["dependencies"])
     assert not runtime & {"cvxpy", "clarabel", "sympy", "ray", "moviepy", "imageio", "pytest"}
-    assert {"mujoco", "numba", "rerun-sdk", "optuna", "cmaes", "pyarrow"} <= runtime
+    # MuJoCo's bindings alone: its metapackage `mujoco` adds glfw, PyOpenGL and MuJoCo Studio,
+    # which only rendering needs (the render extra)
+    assert not runtime & {"mujoco", "glfw", "pyopengl"}
+    assert {"mujoco-core", "numba", "rerun-sdk", "optuna", "cmaes", "pyarrow"} <= runtime
+    assert extras["render"] == ["mujoco-core[rendering]>=4,<5"]
     # make test installs dev: every extra the tests import but docs and rl
-    assert "hgo_mj[lmi,symbolic,gym,ray]" in extras["dev"]
+    assert "hgo_mj[lmi,symbolic,render,gym,ray]" in extras["dev"]
     readme = (ROOT / "README.md").read_text()
     install = readme[readme.index("## Install"):readme.index("\n## ", readme.index("## Install") + 3)]
     assert re.findall(r"^\| `(\w+)` \|", install, re.M) == list(extras)  # a row per extra
@@ -130,7 +134,7 @@ def test_constraints_pin_every_distribution_of_the_test_environment():
             pins[re.sub(r"[-_.]+", "-", name).lower()] = ver
     assert "hgo-mj" not in pins
     wanted = _names(PROJECT["dependencies"]) | {
-        n for extra in ("lmi", "symbolic", "gym", "ray", "docs") for n in
+        n for extra in ("lmi", "symbolic", "render", "gym", "ray", "docs") for n in
         _names(PROJECT["optional-dependencies"][extra])} | _names(
         [r for r in PROJECT["optional-dependencies"]["dev"] if not r.startswith("hgo_mj")])
     wanted = {re.sub(r"[-_.]+", "-", n) for n in wanted} - {"tomli"}  # tomli: Python 3.10 only

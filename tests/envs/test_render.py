@@ -128,6 +128,45 @@ def test_no_usable_backend_is_one_clear_error(monkeypatch):
         env.render()
 
 
+@pytest.mark.parametrize("mujoco_gl,binding", [(None, "OpenGL"), ("osmesa", "OpenGL"),
+                                               ("glfw", "glfw")])
+def test_rendering_without_the_render_extra_is_one_line_naming_it(monkeypatch, mujoco_gl,
+                                                                  binding):
+    """The runtime install has mujoco-core without its Python OpenGL bindings (PyOpenGL,
+    glfw): a render mode stops at gym.make, before any work, and a renderer made directly
+    (the wrapper's) before any backend is tried, with one line naming the render extra."""
+    import sys
+
+    from hgo_mj.envs import render
+
+    from hgo_mj.exceptions import MissingExtraError
+
+    if mujoco_gl is None:
+        monkeypatch.delenv("MUJOCO_GL", raising=False)
+    else:
+        monkeypatch.setenv("MUJOCO_GL", mujoco_gl)
+    monkeypatch.setitem(sys.modules, binding, None)  # `import OpenGL` raises ImportError
+    monkeypatch.setattr(render, "_CONTEXT", [])  # no context made yet in this process
+    line = (f'render_mode="rgb_array" needs the optional dependency {binding}: '
+            f"pip install 'hgo_mj[render]'")
+    with pytest.raises(MissingExtraError) as err:
+        gym.make("hgo_mj/PendulumSwingUp-v0", render_mode="rgb_array")
+    assert str(err.value) == line and err.value.extra == "render"
+    with pytest.raises(MissingExtraError) as err:
+        gym.make_vec("hgo_mj/PendulumSwingUp-v0", num_envs=2,
+                     vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    assert str(err.value) == line
+    env = envs.PendulumSwingUpEnv()
+    with pytest.raises(MissingExtraError) as err:
+        render.GhostRenderer(env.plant.model, env.plant._qadr)
+    assert str(err.value) == line
+    assert not render._CONTEXT
+    monkeypatch.setitem(sys.modules, "glfw", None)
+    with pytest.raises(MissingExtraError, match=r'^render_mode="human" needs the optional '
+                                                r"dependency glfw: pip install 'hgo_mj\[render\]'$"):
+        gym.make("hgo_mj/PendulumSwingUp-v0", render_mode="human")
+
+
 def test_the_native_vector_environment_renders_each_member_as_the_single_one():
     """make_vec(..., render_mode="rgb_array"): one frame per member, each equal to the single
     environment's frame at the same seed after the same actions; the errors as the single's."""
