@@ -3,7 +3,9 @@
 Every ``<name>.zip`` there has a ``<name>.json`` beside it (written by
 ``scripts/train_policy.py``: environment, agent, seed, steps, training seconds). Each policy
 runs ``--episodes`` episodes with deterministic actions on its environment and its own
-observation (``gymnasium.make(env_id, observation=agent)``, default sensor and observer), the
+observation (``gymnasium.make(env_id, observation=mode)``, default sensor and observer; the
+stacked agent's last 4 in ``FrameStackObservation``, the recurrent agent's LSTM state carried
+through the episode), the
 environment reset with seeds 10000, 10001, ... (the same in every row). An episode of a
 balance task is *solved* when it runs to the time limit without termination (the pole never
 left its band, the cart never left its track: a return of 500); the "solved" column is the
@@ -74,21 +76,34 @@ def episode_solved(env: Any, terminated: bool, length: int) -> bool:
     return not terminated and length >= env.spec.max_episode_steps
 
 
+def load(zip_path: Path, meta: dict[str, Any]) -> Any:
+    """The policy of ``zip_path`` by its json's ``algorithm`` (PPO, SAC, RecurrentPPO)."""
+    from sb3_contrib import RecurrentPPO
+    from stable_baselines3 import PPO, SAC
+
+    algos = {"PPO": PPO, "SAC": SAC, "RecurrentPPO": RecurrentPPO}
+    return algos[meta["algorithm"]].load(zip_path, device="cpu")
+
+
 def evaluate(zip_path: Path, episodes: int) -> Row:
     """Run one committed policy for ``episodes`` episodes."""
     import gymnasium as gym
     import hgo_mj.envs  # noqa: F401  (registers the environments)
-    from stable_baselines3 import PPO, SAC
 
     meta = json.loads(zip_path.with_suffix(".json").read_text())
-    model = {"PPO": PPO, "SAC": SAC}[meta["algorithm"]].load(zip_path, device="cpu")
-    env = gym.make(meta["env_id"], observation=meta["agent"])
+    model = load(zip_path, meta)
+    env = gym.make(meta["env_id"], observation=meta.get("observation", meta["agent"]))
+    if meta.get("stack"):
+        env = gym.wrappers.FrameStackObservation(env, int(meta["stack"]))
     returns, solved = [], []
     for k in range(episodes):
         obs, _ = env.reset(seed=EVAL_SEED + k)
         total, n, terminated, truncated = 0.0, 0, False, False
+        state, start = None, np.ones((1,), dtype=bool)  # the recurrent policy's memory
         while not (terminated or truncated):
-            action, _ = model.predict(obs, deterministic=True)
+            action, state = model.predict(obs, state=state, episode_start=start,
+                                          deterministic=True)
+            start = np.zeros((1,), dtype=bool)
             obs, reward, terminated, truncated, _ = env.step(action)
             total, n = total + float(reward), n + 1
         returns.append(total)
