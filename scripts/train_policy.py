@@ -200,7 +200,8 @@ def train(args: argparse.Namespace) -> Path:
                      + ("" if model.gamma == base["gamma"] else
                         f", gamma {model.gamma:g} (--gamma)")},
         "steps": int(model.num_timesteps), "train_seconds": round(seconds, 1),
-        "cpu_note": "one torch thread, nice 15, on a 2-core machine shared with other jobs"})
+        "cpu_note": f"one torch thread, nice {os.nice(0)}, on a 2-core machine shared with "
+                    "other jobs"})
     venv.close()
     print(f"{name}: {model.num_timesteps} steps in {seconds:.0f} s -> {path}", flush=True)
     return path
