@@ -127,7 +127,8 @@ def test_sac_keeps_its_replay_buffer_across_a_resume(tmp_path, capsys):
 def test_measurement_agents_train_and_evaluate_on_their_own_observation(
         tmp_path, agent, algorithm, stack, shape):
     """The raw-measurement agents of rl.md: the cart-pole's two encoders (the position, the
-    angle as cosine and sine), stacked 4 deep, or through an LSTM (its state carried through the evaluation episode)."""
+    angle as cosine and sine), stacked 4 deep, or through an LSTM (its state carried through
+    the evaluation episode)."""
     pytest.importorskip("sb3_contrib")
     tp, ev = _load("train_policy"), _load("eval_rl")
     assert tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", agent, "--steps", "256",
