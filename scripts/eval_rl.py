@@ -202,11 +202,10 @@ At 118k steps neither had solved any of 10 (episodes of 253 and 269 steps on ave
 
 The raw-measurement agents (PPO, or RecurrentPPO for the LSTM, RL Zoo's 1e5 steps, seed 0): on
 the cart-pole the measurement agent solves half of its episodes, the 4-frame stack and the
-LSTM none; on the Furuta pendulum the measurement agent none and the stack 3 of 10. The
-observer's estimate agents solve every episode on both.
+LSTM none; on the Furuta pendulum the measurement agent none, the stack 3 of 10 and the LSTM
+all 10. The observer's estimate agents solve every episode on both.
 
-Left (issue 29): the swing-up tasks with SAC; the Furuta pendulum's `measurement+lstm` agent;
-the estimate agents on observers tuned by `hgo-mj tune` for these tasks (the tuner takes an
+Left (issue 29): the swing-up tasks with SAC; the estimate agents on observers tuned by `hgo-mj tune` for these tasks (the tuner takes an
 open-loop scenario, and an open-loop run of a balance task is a fall, not the states a
 balancing policy sees); more seeds of the LSTM (its 0 % on the cart-pole is one seed at RL
 Zoo's budget without RL Zoo's observation normalisation). `docs/results/rl.md` has the
