@@ -205,7 +205,8 @@ the cart-pole the measurement agent solves half of its episodes, the 4-frame sta
 LSTM none; on the Furuta pendulum the measurement agent none, the stack 3 of 10 and the LSTM
 all 10. The observer's estimate agents solve every episode on both.
 
-Left (issue 29): the swing-up tasks with SAC; the estimate agents on observers tuned by `hgo-mj tune` for these tasks (the tuner takes an
+Left (issue 29): the swing-up tasks with SAC; the estimate agents on observers tuned by
+`hgo-mj tune` for these tasks (the tuner takes an
 open-loop scenario, and an open-loop run of a balance task is a fall, not the states a
 balancing policy sees); more seeds of the LSTM (its 0 % on the cart-pole is one seed at RL
 Zoo's budget without RL Zoo's observation normalisation). `docs/results/rl.md` has the
