@@ -12,6 +12,7 @@ id                                            class
 ``hgo_mj/CartPoleSwingUp-v0``                 :class:`CartPoleSwingUpEnv`
 ``hgo_mj/FurutaBalance-v0``                   :class:`FurutaBalanceEnv`
 ``hgo_mj/AcrobotBalance-v0``                  :class:`AcrobotBalanceEnv`
+``hgo_mj/AcrobotBalance-v1``                  :class:`AcrobotBalanceEnv`, ``start_noise=0.02``
 ``hgo_mj/CartPoleBalance-v0``                 :class:`CartPoleBalanceEnv`
 ============================================  ==========================================
 
@@ -56,6 +57,12 @@ ENVIRONMENTS: dict[str, type[HgoEnv]] = {str(cls.env_id): cls for cls in (
     FurutaSwingUpEnv, AcrobotSwingUpEnv, CartPoleSwingUpEnv, FurutaBalanceEnv, AcrobotBalanceEnv,
     CartPoleBalanceEnv)}
 
+#: registered id of a variant -> (its environment's id in :data:`ENVIRONMENTS`, the
+#: registration keywords it differs by)
+VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "hgo_mj/AcrobotBalance-v1": ("hgo_mj/AcrobotBalance-v0", {"start_noise": 0.02}),
+}
+
 
 def register_all() -> None:
     """Register every environment with Gymnasium (done on import; idempotent).
@@ -64,7 +71,8 @@ def register_all() -> None:
     ``max_episode_steps`` (Gymnasium's ``TimeLimit``) and :func:`vector_entry_point` by name
     (``"hgo_mj.envs:make_<EnvClass>_vector"``: the native :class:`HgoVectorEnv` of
     ``gymnasium.make_vec``) and the task's
-    ``reward_threshold``; an id already registered is left as it is.
+    ``reward_threshold``; each id of :data:`VARIANTS` the same as its environment's with its
+    keywords as the spec's ``kwargs``. An id already registered is left as it is.
 
     Examples
     --------
@@ -75,14 +83,20 @@ def register_all() -> None:
     True
     >>> gymnasium.spec("hgo_mj/PendulumSwingUp-v0").max_episode_steps
     250
+    >>> gymnasium.spec("hgo_mj/AcrobotBalance-v1").kwargs
+    {'start_noise': 0.02}
     """
-    for env_id, cls in ENVIRONMENTS.items():
+    ids: dict[str, tuple[str, dict[str, Any]]] = {
+        env_id: (env_id, {}) for env_id in ENVIRONMENTS} | VARIANTS
+    for env_id, (base, kwargs) in ids.items():
         if env_id in gymnasium.registry:
             continue
+        cls = ENVIRONMENTS[base]
         gymnasium.register(id=env_id, entry_point=f"{__name__}.environments:{cls.__name__}",
                            max_episode_steps=cls.task_class.max_episode_steps,  # type: ignore[union-attr]
                            reward_threshold=cls.task_class.reward_threshold,  # type: ignore[union-attr]
-                           vector_entry_point=f"{__name__}:make_{cls.__name__}_vector")
+                           vector_entry_point=f"{__name__}:make_{cls.__name__}_vector",
+                           kwargs=dict(kwargs))
 
 
 def __getattr__(name: str) -> Any:
@@ -96,7 +110,7 @@ def __getattr__(name: str) -> Any:
 
 register_all()
 
-__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "AcrobotBalanceEnv",
+__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "VARIANTS", "AcrobotBalanceEnv",
            "AcrobotSwingUpEnv", "CartPendulumBalanceEnv", "CartPoleBalanceEnv",
            "CartPoleSwingUpEnv", "FurutaBalanceEnv", "FurutaSwingUpEnv",
            "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "HgoVectorEnv",

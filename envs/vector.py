@@ -9,8 +9,10 @@ seeded sensor streams, each observer's N copies in one kernel call), then the ob
 :meth:`hgo_mj.envs.core.Task.terminations`) as arrays.
 
 Member ``i`` is the single environment (``gymnasium.make(id, **kwargs)``) reset with the seed
-``seed + i`` (or the ``i``-th of a list of seeds), step for step and bit for bit, across
-autoresets too: a member's reset draws its state and goal from its own ``np_random``, reseeds
+``seed + i`` (or the ``i``-th of a list of seeds), step for step and bit for bit (the
+observation, reward, flags and ``info``), on any number of MuJoCo threads (``nthread``; 1 and 2
+tested for every environment), across autoresets too: a member's reset draws its state and
+goal from its own ``np_random``, reseeds
 its sensor stream from the same derived seed (:func:`hgo_mj.envs.core.chain_seed`) or lets it go on
 (a reset without a seed, as an autoreset), and restarts its observer copy from its first
 measurement (:func:`hgo_mj.envs.core.measurement_start`); the plant member keeps the batch's
@@ -222,7 +224,8 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
             self._started = True
         else:
             self.loop.reset_members(idx, X0, [CONTINUE if seeds[i] is None else
-                                              chain_seed(seeds[i]) for i in idx.tolist()])
+                                              chain_seed(seeds[i]) for i in idx.tolist()],
+                                    restart_observers=False)
         self._start_observer(idx)
         obs, info, _ = self._observe(np.zeros((self.num_envs, self._nu)), None)
         return obs, info
@@ -291,7 +294,9 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         self._steps += 1
         if idle.size:
             X0 = self._draw(idle, [None] * self.num_envs)
-            self.loop.reset_members(idle, X0, [CONTINUE] * idle.size)
+            # the observer restarts from the measurement next (_start_observer), not twice
+            self.loop.reset_members(idle, X0, [CONTINUE] * idle.size,
+                                    restart_observers=False)
             self._start_observer(idle)
         obs, info, X = self._observe(U, idle)
         rewards, terms = self.task.rewards(X, U, self._goals)

@@ -444,12 +444,15 @@ class Loop:
         except Exception:  # noqa: BLE001, S110 - a warm-up only; its result is discarded
             pass
 
-    def reset_members(self, idx: Any, X0: Any, seeds: Any) -> None:
+    def reset_members(self, idx: Any, X0: Any, seeds: Any, *,
+                      restart_observers: bool = True) -> None:
         """Restart the members ``idx`` of a batch only (a vector environment's autoreset): the
         plant's members from the states ``X0`` ``(len(idx), n)``, their sensor streams
         (``seeds``: per member an int to reseed it, or :data:`CONTINUE` to let its generators
         go on, the stages' state cleared either way), each observer's members from its initial
-        estimate. The loop's clock goes on; the others are untouched. A measurement already
+        estimate (``restart_observers=False``: not here, for a caller that restarts them from
+        its own estimates by :meth:`start_observers` next). The loop's clock goes on; the
+        others are untouched. A measurement already
         drawn for the current instant (:meth:`sample`) is drawn again for these members only,
         from their streams (the others' streams do not advance).
 
@@ -462,6 +465,8 @@ class Loop:
         seeds : sequence
             Per member in ``idx``: an int to reseed its sensor streams, ``None``, or
             :data:`CONTINUE` (ignored without a sensor chain).
+        restart_observers : bool, default True
+            Restart the observers' members from their initial estimates.
 
         Raises
         ------
@@ -490,7 +495,7 @@ class Loop:
         reset_members(rows, X0)
         if self.sensor is not None:
             self.sensor.reset_members(rows, [None if sd is CONTINUE else sd for sd in seeds])
-        for name, ob in self.observers.items():
+        for name, ob in self.observers.items() if restart_observers else ():
             ob._restart(self.params[name], self.states[name], rows)
         pending, self._pending = self._pending, None
         if pending is not None and pending[0] == self.k and rows:

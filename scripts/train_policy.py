@@ -1,8 +1,14 @@
 """Train one policy (stable-baselines3 PPO) on an hgo_mj task, with checkpoints and resume.
 
 The policies a reviewer loads (``docs/results/policies/``, evaluated by
-``scripts/eval_rl.py``) come from here: one task, one agent (the observation it sees:
-``true`` state or the observer's ``estimate``), one seed. The balance tasks
+``scripts/eval_rl.py``) come from here: one task, one agent, one seed. The agents are those of
+``scripts/train_rl.py`` (``docs/results/rl.md``): the observation the policy sees is the
+``true`` state, the observer's ``estimate`` or the raw ``measurement``; ``measurement+stack``
+sees the last 4 measurements (Gymnasium's ``FrameStackObservation`` over single environments
+in stable-baselines3's ``DummyVecEnv``), ``measurement+lstm`` the measurement through a
+recurrent policy (sb3-contrib's ``RecurrentPPO``, ``MlpLstmPolicy``, with the PPO settings
+below: RL Zoo's ``ppo_lstm.yml`` gives ``CartPoleNoVel-v1`` the same ones, with observation
+normalisation, which is not used here). The balance tasks
 (``hgo_mj/{Furuta,Acrobot,CartPole}Balance-v0``) train with RL Zoo's tuned PPO settings of
 ``CartPole-v1`` (``hyperparams/ppo.yml`` of rl-baselines3-zoo: 8 environments, n_steps 32,
 batch 256, 20 epochs, gamma 0.98, GAE 0.8, learning rate and clip range decaying linearly
@@ -49,7 +55,9 @@ from hgo_mj._io import atomic_path
 from hgo_mj._json import write_json
 
 ROOT = Path(__file__).resolve().parents[1]
-AGENTS = ("true", "estimate")
+AGENTS = ("true", "estimate", "measurement", "measurement+stack", "measurement+lstm")
+#: measurements the stacked agent sees
+STACK = 4
 #: members of the native vector environment a policy trains on (RL Zoo's n_envs)
 N_ENVS = 8
 #: RL Zoo's tuned PPO for CartPole-v1 (``lin_x``: decaying linearly from x to 0)
@@ -92,11 +100,29 @@ def check_args(args: argparse.Namespace) -> None:
     if args.algorithm not in ALGORITHMS:
         raise SystemExit(f"--algorithm must be one of {list(ALGORITHMS)}; found "
                          f"{args.algorithm!r}")
+    if args.agent.endswith("+lstm") and args.algorithm != "PPO":
+        raise SystemExit(f"--agent {args.agent} trains RecurrentPPO: --algorithm must be PPO; "
+                         f"found {args.algorithm!r}")
     if args.gamma is not None and not 0.0 < args.gamma < 1.0:
         raise SystemExit(f"--gamma must be in (0, 1); found {args.gamma}")
     if args.steps < 1 or args.checkpoint_every <= 0:
         raise SystemExit(f"--steps must be >= 1 and --checkpoint-every > 0; found "
                          f"{args.steps} and {args.checkpoint_every}")
+
+
+def train_env(env_id: str, agent: str) -> Any:
+    """The stable-baselines3 ``VecEnv`` of :data:`N_ENVS` members an agent trains on: the
+    native vector environment on the agent's observation, or (``+stack``) a ``DummyVecEnv``
+    of single environments in ``FrameStackObservation``."""
+    import gymnasium as gym
+    from hgo_mj.envs.sb3 import sb3_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    mode = agent.split("+")[0]
+    if agent.endswith("+stack"):
+        return DummyVecEnv([lambda: gym.wrappers.FrameStackObservation(
+            gym.make(env_id, observation=mode), STACK)] * N_ENVS)
+    return sb3_vec_env(env_id, num_envs=N_ENVS, observation=mode, nthread=1)
 
 
 def _save_model(model: Any, path: Path) -> None:
@@ -108,7 +134,7 @@ def _save_model(model: Any, path: Path) -> None:
 def train(args: argparse.Namespace) -> Path:
     """Train (or resume) one policy and write it to ``args.out``; returns the policy path."""
     import torch
-    from hgo_mj.envs.sb3 import sb3_vec_env
+    from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -116,9 +142,12 @@ def train(args: argparse.Namespace) -> Path:
     name = policy_name(args.env, args.agent, args.seed)
     ckpt, ckpt_meta = args.checkpoints / f"{name}.zip", args.checkpoints / f"{name}.json"
     replay = args.checkpoints / f"{name}.replay.pkl"
-    venv = sb3_vec_env(args.env, num_envs=N_ENVS, observation=args.agent, nthread=1)
+    venv = train_env(args.env, args.agent)
     venv.seed(args.seed)
     algo, base = (SAC, SAC_BALANCE) if args.algorithm == "SAC" else (PPO, PPO_CARTPOLE)
+    policy = "MlpPolicy"
+    if args.agent.endswith("+lstm"):
+        algo, policy = RecurrentPPO, "MlpLstmPolicy"
     done_seconds = 0.0
     if ckpt.exists() and ckpt_meta.exists():
         model = algo.load(ckpt, env=venv, device="cpu")
@@ -130,7 +159,7 @@ def train(args: argparse.Namespace) -> Path:
         settings = {k: _schedule(v) for k, v in base.items()}
         if args.gamma is not None:
             settings["gamma"] = args.gamma
-        model = algo("MlpPolicy", venv, seed=args.seed, device="cpu", verbose=0, **settings)
+        model = algo(policy, venv, seed=args.seed, device="cpu", verbose=0, **settings)
     start = time.monotonic()
 
     def checkpoint() -> None:
@@ -162,15 +191,17 @@ def train(args: argparse.Namespace) -> Path:
     _save_model(model, path)
     write_json(args.out / f"{name}.json", {
         "env_id": args.env, "agent": args.agent, "seed": args.seed,
-        "algorithm": args.algorithm,
+        "algorithm": algo.__name__, "observation": args.agent.split("+")[0],
+        "stack": STACK if args.agent.endswith("+stack") else 0,
         "settings": {**base, "gamma": float(model.gamma), "n_envs": N_ENVS,
                      "source": ("rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"
-                                if algo is PPO else "stable-baselines3 SAC defaults, "
+                                if algo is not SAC else "stable-baselines3 SAC defaults, "
                                 "SAC_BALANCE of scripts/train_policy.py")
                      + ("" if model.gamma == base["gamma"] else
                         f", gamma {model.gamma:g} (--gamma)")},
         "steps": int(model.num_timesteps), "train_seconds": round(seconds, 1),
-        "cpu_note": "one torch thread, nice 15, on a 2-core machine shared with other jobs"})
+        "cpu_note": f"one torch thread, nice {os.nice(0)}, on a 2-core machine shared with "
+                    "other jobs"})
     venv.close()
     print(f"{name}: {model.num_timesteps} steps in {seconds:.0f} s -> {path}", flush=True)
     return path

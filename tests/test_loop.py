@@ -295,3 +295,23 @@ def test_a_failure_among_turns_is_the_listed_order_one(monkeypatch):
             np.testing.assert_array_equal(a.states[name].fields[k], v)
         assert a.observers[name].x_hat.tolist() == b.observers[name].x_hat.tolist()
     assert a.k == b.k
+
+
+def test_reset_members_restarts_the_observers_unless_told_not_to():
+    """A vector environment's autoreset restarts its observer from the measurement itself
+    (``start_observers``): ``restart_observers=False`` leaves the observer's members as
+    they were, the plant's restarted."""
+    from hgo_mj.loop import Loop, Periods
+
+    plant = make_plant("pendulum", dt=0.01)
+    loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)}, Periods.of(plant))
+    loop.reset([[0.2, 0.0], [0.1, 0.0]], batch=2)
+    loop.segment(np.zeros((2, 3, 1)))
+    before = np.array(loop.current("hgo")[0])
+    loop.reset_members([1], [[0.3, 0.0]], [None], restart_observers=False)
+    np.testing.assert_array_equal(loop.current("hgo")[0], before)
+    assert plant.state[1].tolist() == [0.3, 0.0]
+    loop.reset_members([1], [[0.3, 0.0]], [None])
+    after = np.array(loop.current("hgo")[0])
+    np.testing.assert_array_equal(after[0], before[0])
+    assert not np.array_equal(after[1], before[1])

@@ -422,6 +422,26 @@ def test_the_acrobot_balance_bounds_the_elbow_too():
     assert task.terminated([np.pi, -0.4, 0.0, 0.0])
 
 
+def test_acrobot_balance_v1_starts_within_0_02_in_the_single_and_the_vector_env():
+    """v1 is v0 with the start spread 0.02 (registration keywords), v0 unchanged: the vector
+    env's members draw the same starts as the single env."""
+    up = np.array([np.pi, 0.0, 0.0, 0.0])
+    v0, v1 = (gym.make(f"hgo_mj/AcrobotBalance-v{k}", observation="true", info_level="full")
+              for k in (0, 1))
+    spread = {0: [], 1: []}
+    for seed in range(20):
+        for k, env in ((0, v0), (1, v1)):
+            spread[k].append(np.max(np.abs(env.reset(seed=seed)[1]["state"] - up)))
+    assert max(spread[1]) <= 0.02 < max(spread[0]) <= 0.05
+    assert gym.spec("hgo_mj/AcrobotBalance-v1").kwargs == {"start_noise": 0.02}
+    assert v1.spec.kwargs["start_noise"] == 0.02 and v1.spec.to_json()
+    venv = gym.make_vec("hgo_mj/AcrobotBalance-v1", num_envs=2, observation="true",
+                        info_level="full")
+    _, info = venv.reset(seed=3)
+    for i in range(2):
+        np.testing.assert_array_equal(info["state"][i], v1.reset(seed=3 + i)[1]["state"])
+
+
 def test_a_balance_start_noise_beyond_the_band_is_refused():
     with pytest.raises(DesignError, match="start_noise must be at most 0.2"):
         gym.make("hgo_mj/CartPoleBalance-v0", start_noise=0.3, max_angle=0.2)

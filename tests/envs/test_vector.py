@@ -20,9 +20,9 @@ IDS = list(ENVIRONMENTS)
 INFO_KEYS = ("state", "estimate", "error", "measurement", "time", "goal")
 
 
-def _pair(env_id: str, n: int, limit: int, **kw):
+def _pair(env_id: str, n: int, limit: int, native_kw=None, **kw):
     native = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
-                          max_episode_steps=limit, **kw)
+                          max_episode_steps=limit, **(native_kw or {}), **kw)
     sync = gym.vector.SyncVectorEnv(
         [lambda: gym.make(env_id, max_episode_steps=limit, **kw)] * n)
     return native, sync
@@ -32,10 +32,10 @@ def _same(a, b) -> bool:
     return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
 
 
-def _run_equal(env_id: str, n: int, limit: int, steps: int, **kw) -> int:
+def _run_equal(env_id: str, n: int, limit: int, steps: int, native_kw=None, **kw) -> int:
     """Step both with the same random actions; assert bit-equal results; return the number
-    of autoresets seen."""
-    native, sync = _pair(env_id, n, limit, **kw)
+    of autoresets seen. ``native_kw``: arguments of the native vector environment only."""
+    native, sync = _pair(env_id, n, limit, native_kw, **kw)
     o1, i1 = native.reset(seed=7)
     o2, i2 = sync.reset(seed=7)
     assert _same(o1, o2)
@@ -61,9 +61,12 @@ def _run_equal(env_id: str, n: int, limit: int, steps: int, **kw) -> int:
     return resets
 
 
+@pytest.mark.parametrize("nthread", [1, 2])
 @pytest.mark.parametrize("env_id", IDS)
-def test_members_equal_single_environments_across_autoresets(env_id):
-    resets = _run_equal(env_id, 3, 12, 40, info_level="full")
+def test_members_equal_single_environments_across_autoresets(env_id, nthread):
+    """Bit for bit on MuJoCo's batched step on one thread and on two (the members split over
+    the threads), the rewards included."""
+    resets = _run_equal(env_id, 3, 12, 40, native_kw={"nthread": nthread}, info_level="full")
     assert resets >= 6  # truncated every 12 steps: autoresets were exercised
 
 

@@ -70,6 +70,9 @@ def test_train_policy_refuses_bad_arguments():
     with pytest.raises(SystemExit, match=r"--algorithm must be one of \['PPO', 'SAC'\]; found "
                                          r"'TD3'"):
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--algorithm", "TD3"])
+    with pytest.raises(SystemExit, match="trains RecurrentPPO: --algorithm must be PPO"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "measurement+lstm",
+                 "--algorithm", "SAC"])
 
 
 def test_train_stop_resume_and_evaluate(tmp_path, capsys):
@@ -116,3 +119,25 @@ def test_sac_keeps_its_replay_buffer_across_a_resume(tmp_path, capsys):
     assert meta["algorithm"] == "SAC" and meta["settings"]["gradient_steps"] == 2
     row = ev.evaluate(tmp_path / "pol" / "AcrobotBalance-v0_estimate_seed0.zip", 1)
     assert row.algorithm == "SAC" and len(row.returns) == 1
+
+
+@pytest.mark.parametrize("agent,algorithm,stack,shape", [
+    ("measurement", "PPO", 0, (3,)), ("measurement+stack", "PPO", 4, (4, 3)),
+    ("measurement+lstm", "RecurrentPPO", 0, (3,))])
+def test_measurement_agents_train_and_evaluate_on_their_own_observation(
+        tmp_path, agent, algorithm, stack, shape):
+    """The raw-measurement agents of rl.md: the cart-pole's two encoders (the position, the
+    angle as cosine and sine), stacked 4 deep, or through an LSTM (its state carried through
+    the evaluation episode)."""
+    pytest.importorskip("sb3_contrib")
+    tp, ev = _load("train_policy"), _load("eval_rl")
+    assert tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", agent, "--steps", "256",
+                    "--out", str(tmp_path), "--checkpoints", str(tmp_path / "ck")]) == 0
+    name = f"CartPoleBalance-v0_{agent}_seed0"
+    meta = json.loads((tmp_path / f"{name}.json").read_text())
+    assert (meta["algorithm"], meta["observation"], meta["stack"]) == (
+        algorithm, "measurement", stack)
+    model = ev.load(tmp_path / f"{name}.zip", meta)
+    assert model.observation_space.shape == shape
+    row = ev.evaluate(tmp_path / f"{name}.zip", 1)
+    assert (row.agent, row.algorithm, len(row.returns)) == (agent, algorithm, 1)
