@@ -35,10 +35,11 @@ def test_bare_physics_steps_the_environments_model():
 
 def test_vector_table_has_the_physics_limit_of_every_environment():
     bench = _load()
-    res = {f"{bench.VEC_REFERENCE} SyncVectorEnv": (1000.0, 1000.0),
-           f"{bench.TARGET_ID} native, nthread=1": (5000.0, 5000.0)}
+    res = {f"{bench.VEC_REFERENCE} SyncVectorEnv": (1000.0, 1000.0)}
     for i, env_id in enumerate(bench.VEC_IDS):
-        res[f"{env_id} native"] = (10_000.0, 12_000.0)
+        res[f"{env_id} native"] = (20_000.0, 12_000.0)
+        # the target's like-for-like ratio: both on one thread (the 2-thread native is faster)
+        res[f"{env_id} native, nthread=1"] = (10_000.0, 12_000.0)
         res[f"{env_id} SyncVectorEnv"] = (1000.0, 1000.0)
         res[f"{env_id} bare mj_step"] = (12_000.0 + 2000.0 * i, 0.0)
     text = bench.vector_table(res, 2, 40)
