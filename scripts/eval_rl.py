@@ -53,6 +53,8 @@ class Row:
     solved: list[bool]
     gamma: float = 0.98
     algorithm: str = "PPO"
+    #: an estimate policy's solved flags with the tuned observer instead of the default
+    on_tuned: list[bool] | None = None
 
     @property
     def solved_share(self) -> float:
@@ -85,14 +87,33 @@ def load(zip_path: Path, meta: dict[str, Any]) -> Any:
     return algos[meta["algorithm"]].load(zip_path, device="cpu")
 
 
-def evaluate(zip_path: Path, episodes: int) -> Row:
-    """Run one committed policy for ``episodes`` episodes."""
+def tuned_observer(env_id: str, scenarios: Path) -> dict[str, Any] | None:
+    """The observer ``hgo-mj tune`` tuned for ``env_id`` on a balancing episode
+    (``<scenarios>/<Env>.best.toml``, the tuning's ``best.toml``: its observer labelled
+    ``default``, ``scripts/rl_tuning_scenario.py``), as ``gymnasium.make``'s ``observer``;
+    ``None`` where there is none."""
+    from hgo_mj.study.study import load_toml
+
+    path = scenarios / f"{env_id.split('/')[-1]}.best.toml"
+    if not path.exists():
+        return None
+    specs = [o for o in load_toml(path).get("observers", [])
+             if o.get("name") == "default"]
+    if len(specs) != 1:
+        raise SystemExit(f"{path} must hold one observer named 'default' (the tuned one); "
+                         f"found {len(specs)}")
+    return {k: v for k, v in specs[0].items() if k != "name"}
+
+
+def episodes_of(model: Any, meta: dict[str, Any], episodes: int,
+                observer: dict[str, Any] | None) -> tuple[list[float], list[bool]]:
+    """The returns and the solved flags of ``episodes`` deterministic episodes of ``model``
+    on its environment and observation (with ``observer`` instead of the default one)."""
     import gymnasium as gym
     import hgo_mj.envs  # noqa: F401  (registers the environments)
 
-    meta = json.loads(zip_path.with_suffix(".json").read_text())
-    model = load(zip_path, meta)
-    env = gym.make(meta["env_id"], observation=meta.get("observation", meta["agent"]))
+    kw = {} if observer is None else {"observer": observer}
+    env = gym.make(meta["env_id"], observation=meta.get("observation", meta["agent"]), **kw)
     if meta.get("stack"):
         env = gym.wrappers.FrameStackObservation(env, int(meta["stack"]))
     returns, solved = [], []
@@ -109,21 +130,38 @@ def evaluate(zip_path: Path, episodes: int) -> Row:
         returns.append(total)
         solved.append(episode_solved(env, terminated, n))
     env.close()
-    return Row(zip_path.stem, meta["env_id"], meta["agent"], int(meta["seed"]),
+    return returns, solved
+
+
+def evaluate(zip_path: Path, episodes: int, scenarios: Path = ROOT / "scenarios" / "rl_balance"
+             ) -> Row:
+    """Run one committed policy for ``episodes`` episodes; an estimate policy trained on the
+    default observer also with the tuned one (:func:`tuned_observer`), where there is one."""
+    meta = json.loads(zip_path.with_suffix(".json").read_text())
+    model = load(zip_path, meta)
+    returns, solved = episodes_of(model, meta, episodes, meta.get("observer"))
+    tuned = tuned_observer(meta["env_id"], scenarios)
+    on_tuned = None
+    if tuned is not None and "observer" not in meta and \
+            meta.get("observation", meta["agent"]).startswith("estimate"):
+        on_tuned = episodes_of(model, meta, episodes, tuned)[1]
+    agent = f"tuned {meta['agent']}" if "observer" in meta else meta["agent"]
+    return Row(zip_path.stem, meta["env_id"], agent, int(meta["seed"]),
                int(meta["steps"]), float(meta["train_seconds"]), returns, solved,
-               float(meta["settings"].get("gamma", 0.98)), meta["algorithm"])
+               float(meta["settings"].get("gamma", 0.98)), meta["algorithm"], on_tuned)
 
 
 def table(rows: list[Row]) -> str:
     """The markdown table of the rows."""
     lines = ["| task | agent | algorithm | seed | gamma | training steps | train time [s] | "
-             "return | solved |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|"]
+             "return | solved | solved, tuned observer |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r.env_id} | {r.agent} | {r.algorithm} | {r.seed} | {r.gamma:g} | "
                      f"{r.steps:,} | "
                      f"{r.train_seconds:.0f} | {np.mean(r.returns):.1f} ± "
-                     f"{np.std(r.returns):.1f} | {100 * r.solved_share:.0f}% |")
+                     f"{np.std(r.returns):.1f} | {100 * r.solved_share:.0f}% | "
+                     f"{'-' if r.on_tuned is None else f'{100 * np.mean(r.on_tuned):.0f}%'} |")
     return "\n".join(lines)
 
 

@@ -39,7 +39,9 @@ def test_table_and_refusals(tmp_path):
     rows = [ev.Row("x", "hgo_mj/CartPoleBalance-v0", "estimate", 0, 100_000, 80.4,
                    [500.0, 300.0], [True, False])]
     assert ("| hgo_mj/CartPoleBalance-v0 | estimate | PPO | 0 | 0.98 | 100,000 | 80 | "
-            "400.0 ± 100.0 | 50% |" in ev.table(rows))
+            "400.0 ± 100.0 | 50% | - |" in ev.table(rows))
+    rows[0].on_tuned = [True, True]
+    assert "400.0 ± 100.0 | 50% | 100% |" in ev.table(rows)
     assert "Machine:" in ev.report(rows, 2, 3.0)
     rows.append(ev.Row("y", "hgo_mj/CartPoleBalance-v0", "true", 0, 100_000, 50.0,
                        [500.0, 500.0], [True, True]))
@@ -55,6 +57,21 @@ def test_table_and_refusals(tmp_path):
         ev.main(["--policies", str(tmp_path)])
     with pytest.raises(SystemExit, match="--episodes must be >= 1; found 0"):
         ev.main(["--episodes", "0"])
+
+
+def test_tuned_observer_is_the_tunings_best(tmp_path):
+    ev = _load("eval_rl")
+    assert ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path) is None
+    path = tmp_path / "CartPoleBalance-v0.best.toml"
+    path.write_text('[[observers]]\nname = "default"\ntype = "high_gain_multi"\n'
+                    'k = [12.5, 40.0]\nmodel = true\n')
+    spec = ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path)
+    assert spec == {"type": "high_gain_multi", "k": [12.5, 40.0], "model": True}
+    env = gym.make("hgo_mj/CartPoleBalance-v0", observer=spec)
+    assert env.unwrapped.observer.params()["k"] == [12.5, 40.0]
+    path.write_text('[[observers]]\nname = "other"\ntype = "high_gain_multi"\n')
+    with pytest.raises(SystemExit, match="one observer named 'default'"):
+        ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path)
 
 
 def test_train_policy_refuses_bad_arguments():
