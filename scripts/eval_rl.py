@@ -269,32 +269,34 @@ sessions on a 2-core machine shared with other jobs, one torch thread, `nice 15`
 {findings(rows)}
 
 **The tuned observers.** `scripts/rl_tuning_scenario.py` records one episode of each
-balance task's committed true-state policy (reset seed {EVAL_SEED}) as an open-loop tuning
-scenario, `scenarios/rl_balance/<Env>.toml`: the environment's plant, encoders, periods and
-default observer (`high_gain_multi`), the recorded actions as a `schedule` input; the plant
-replays the episode bit for bit (`tests/scripts/test_rl_tuning_scenario.py`). `hgo-mj tune
-scenarios/rl_balance/<Env>.toml --observer default --budget 64 --seeds 4` tuned the observer's
-two chain gains on it; `scenarios/rl_balance/<Env>.best.toml` is the tuning's `best.toml`, its
-summary (default against tuned RMSE on the recorded episode, each state) in its header. The
-column *solved, tuned observer* runs each estimate policy trained on the default observer on
-the tuned one instead; the `tuned estimate` rows trained on it (`train_policy.py --tuned`,
-the same settings). The RMS estimation error of the estimate agents' episodes:
+balance task's committed estimate agent (on the default observer, reset seed {EVAL_SEED}) as an
+open-loop tuning scenario, `scenarios/rl_balance/<Env>.toml`: the environment's plant,
+encoders, periods and default observer (`high_gain_multi`), the recorded actions as a
+`schedule` input; the plant replays the episode bit for bit
+(`tests/scripts/test_rl_tuning_scenario.py`). `hgo-mj tune scenarios/rl_balance/<Env>.toml
+--observer default --budget 64 --seeds 4` tuned the observer's two chain gains on it;
+`scenarios/rl_balance/<Env>.best.toml` is the tuning's `best.toml`, its summary (default
+against tuned RMSE on the recorded episode, each state) in its header. The column *solved,
+tuned observer* runs each estimate policy trained on the default observer on the tuned one
+instead; the `tuned estimate` rows trained on it (`train_policy.py --tuned`, the same
+settings). The RMS estimation error of the estimate agents' episodes (the first of the 10 is
+the tuning's episode, the other 9 are not):
 
 {error_table(rows)}
 
 {tuned_findings(rows)}
 
-Tuned on the true-state policy's episode, the gains fit that motion: on the recorded episode
-the tuned observer's error is lower in every velocity (the tuning's summary), but the estimate
-agent closes the loop through the estimate, and there the tuned observer is worse in most
-states (the ratios above), far worse in the Furuta pendulum's velocity: its pendulum chain's
-gain (about 2700, against 40) amplifies the 2048-count encoder's steps into the velocity
-estimate, which the policy feeds back into the motor (a one-off run of the first 3 of these
-episodes: the action's standard deviation 0.58-0.61 on the tuned observer against 0.02-0.04 on
-the default), so the pendulum keeps crossing encoder counts, which in the recorded episode it
-hardly did. Every agent still solves every episode. A
-tuning scenario for a closed loop would replay the estimate agent with each trial's observer,
-which an open-loop tuning cannot.
+Why the estimate agent's episode: the observer's error depends on the motion, and the motion
+depends on the observer through the policy. A first tuning on the committed true-state agent's
+episode (`rl_tuning_scenario.py --agent true`, the same tuning; measured on 6 December 2026,
+not kept) lowered every velocity's error on that episode, but in the estimate agent's loop on
+these 10 episodes its observers were worse in most states: cart-pole gains (7.9, 13.7) gave
+27 times the cart position's RMS error and 9.9 times the cart velocity's; on the Furuta
+pendulum, which the true-state agent holds within about one encoder count, the tuner raised
+the pendulum chain's gain to about 2700 (against 40), which amplified the 2048-count encoder's
+steps into the actions (their standard deviation 0.58-0.61 against 0.02-0.04 on the first 3
+episodes) and gave 59 times the pendulum velocity's RMS error; every agent still solved every
+episode.
 
 **The acrobot.** PPO did not learn its balance: with RL Zoo's `CartPole-v1` settings its
 true-state agent balanced 194 ± 26 steps after 400,128 steps (0 %), and short probes (seed 0,
@@ -323,8 +325,9 @@ the cart-pole the measurement agent solves half of its episodes, the 4-frame sta
 LSTM none; on the Furuta pendulum the measurement agent none, the stack 3 of 10 and the LSTM
 all 10. The observer's estimate agents solve every episode on both.
 
-Left (issue 29): the swing-up tasks with SAC; observers tuned in the closed loop (above);
-tuned observers for the acrobot; more seeds of the LSTM (its 0 % on the cart-pole is one seed at RL
+Left (issue 29): the swing-up tasks with SAC; a tuning whose trials close the loop with their
+own observer (each trial here replays one recorded episode); tuned observers for the acrobot;
+more seeds of the LSTM (its 0 % on the cart-pole is one seed at RL
 Zoo's budget without RL Zoo's observation normalisation). `docs/results/rl.md` has the
 five-agent comparison on PendulumSwingUp and ElasticJointReach.
 

@@ -2,10 +2,16 @@
 
 ``hgo-mj tune`` tunes an observer on an open-loop scenario, and the open-loop run of a balance
 task is a fall: gains tuned on it fit a motion the balancing policy never produces. This script
-records a balancing episode instead: the committed ``true`` policy of the environment
-(``docs/results/policies/<Env>_true_seed0.zip``) runs one episode with deterministic actions
-from the reset seeded ``--seed`` (default :data:`EVAL_SEED`, the first episode of
-``scripts/eval_rl.py``), and the scenario replays it open loop. MuJoCo is deterministic, so
+records a balancing episode instead: a committed policy of the environment
+(``docs/results/policies/<Env>_<agent>_seed0.zip``; by default the ``estimate`` agent on the
+default observer) runs one episode with deterministic actions from the reset seeded ``--seed``
+(default :data:`EVAL_SEED`, the first episode of ``scripts/eval_rl.py``), and the scenario
+replays it open loop. The estimate agent's episode, not the true-state agent's: the motion an
+observer sees under the estimate agent is what the tuning should fit, and it differs. The
+true-state agent holds the Furuta pendulum within an encoder count or so, and on its episode
+the tuner raised the pendulum chain's gain to about 2700 (against the default 40), which in the
+estimate agent's loop amplified the encoder's steps into the actions and raised the pendulum
+velocity's RMS error 59-fold (``docs/results/rl_policies.md``). MuJoCo is deterministic, so
 the environment's plant, started from the episode's initial state with the recorded inputs
 ``u = action * max_action`` held over each control period (a ``schedule`` input switching
 half a control period before each control instant, so that no instant sits on a switching
@@ -53,19 +59,21 @@ class Episode:
     u: np.ndarray
 
 
-def record(env_id: str, seed: int, policies: Path) -> tuple[Any, Episode]:
-    """Run the committed true-state policy of ``env_id`` for one deterministic episode from
-    the reset seeded ``seed``; returns the (closed) environment and the episode."""
+def record(env_id: str, seed: int, policies: Path, agent: str = "estimate"
+           ) -> tuple[Any, Episode]:
+    """Run the committed ``agent`` policy (``true`` or ``estimate``, on the default observer)
+    of ``env_id`` for one deterministic episode from the reset seeded ``seed``; returns the
+    (closed) environment and the episode."""
     import json
 
     import gymnasium as gym
     import hgo_mj.envs  # noqa: F401  (registers the environments)
 
-    zip_path = policies / f"{env_id.split('/')[-1]}_true_seed0.zip"
+    zip_path = policies / f"{env_id.split('/')[-1]}_{agent}_seed0.zip"
     if not zip_path.exists():
-        raise SystemExit(f"no committed true-state policy for {env_id}: {zip_path} is missing")
+        raise SystemExit(f"no committed {agent} policy for {env_id}: {zip_path} is missing")
     model = load(zip_path, json.loads(zip_path.with_suffix(".json").read_text()))
-    env = gym.make(env_id, observation="true")
+    env = gym.make(env_id, observation=agent)
     obs, info = env.reset(seed=seed)
     xs, us = [info["state"]], []
     terminated = truncated = False
@@ -125,17 +133,20 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--env", action="append", choices=ENVS, help="default: both")
     ap.add_argument("--seed", type=int, default=EVAL_SEED, help="the episode's reset seed")
+    ap.add_argument("--agent", choices=("true", "estimate"), default="estimate",
+                    help="the committed policy that balances (default: the estimate agent on "
+                         "the default observer)")
     ap.add_argument("--policies", type=Path, default=ROOT / "docs" / "results" / "policies")
     ap.add_argument("--out", type=Path, default=ROOT / "scenarios" / "rl_balance")
     args = ap.parse_args(argv)
     for env_id in args.env or ENVS:
-        env, episode = record(env_id, args.seed, args.policies)
+        env, episode = record(env_id, args.seed, args.policies, args.agent)
         sc = scenario(env, episode)
         err = replay_error(sc, episode)
         if err > 1e-12:
             raise SystemExit(f"{env_id}: the replay differs from the episode by {err:.3g}")
         path = args.out / f"{env_id.split('/')[-1]}.toml"
-        head = (f"# {env_id}: one episode of its committed true-state policy (reset seed "
+        head = (f"# {env_id}: one episode of its committed {args.agent} policy (reset seed "
                 f"{args.seed}, {len(episode.u)} steps),\n# replayed open loop; written by "
                 f"scripts/rl_tuning_scenario.py (the replay's largest state error {err:.3g}).\n"
                 f"#   hgo-mj tune {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}"
