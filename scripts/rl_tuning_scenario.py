@@ -23,7 +23,7 @@ environment's observer on the states a balancing policy sees.
 
 Usage::
 
-    python scripts/rl_tuning_scenario.py                 # both balance tasks
+    python scripts/rl_tuning_scenario.py                 # the solved balance tasks
     python scripts/rl_tuning_scenario.py --env hgo_mj/CartPoleBalance-v0 --out /tmp/sc
 
 Install the ``rl`` extra (stable-baselines3 and torch).
@@ -45,7 +45,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
 from eval_rl import EVAL_SEED, load  # noqa: E402
 
-ENVS = ("hgo_mj/CartPoleBalance-v0", "hgo_mj/FurutaBalance-v0")
+ENVS = ("hgo_mj/CartPoleBalance-v0", "hgo_mj/FurutaBalance-v0",
+        "hgo_mj/AcrobotBalance-v1")
 #: the observer's label in the scenario (``hgo-mj tune --observer default``)
 LABEL = "default"
 

@@ -52,7 +52,8 @@ def test_scenario_replays_the_episode_bit_for_bit(env_id):
     assert rl.replay_error(sc, ep) > 1e-9
 
 
-@pytest.mark.parametrize("name", ["CartPoleBalance-v0", "FurutaBalance-v0"])
+@pytest.mark.parametrize("name", ["CartPoleBalance-v0", "FurutaBalance-v0",
+                                  "AcrobotBalance-v1"])
 def test_committed_scenario_is_a_balancing_episode(name):
     sc = load_toml(ROOT / "scenarios" / "rl_balance" / f"{name}.toml")
     u = np.array(sc["input"]["values"])
