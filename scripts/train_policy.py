@@ -72,9 +72,23 @@ ALGORITHMS = ("PPO", "SAC")
 DEFAULT_STEPS = 100_000
 
 
-def policy_name(env_id: str, agent: str, seed: int) -> str:
-    """File stem of a policy: ``FurutaBalance-v0_estimate_seed0``."""
-    return f"{env_id.split('/')[-1]}_{agent}_seed{seed}"
+def policy_name(env_id: str, agent: str, seed: int, tuned: bool = False) -> str:
+    """File stem of a policy: ``FurutaBalance-v0_estimate_seed0`` (on the tuned observer
+    ``FurutaBalance-v0_tuned-estimate_seed0``)."""
+    return f"{env_id.split('/')[-1]}_{'tuned-' if tuned else ''}{agent}_seed{seed}"
+
+
+def tuned_spec(env_id: str) -> dict[str, Any]:
+    """The observer ``hgo-mj tune`` tuned for ``env_id`` on a balancing episode
+    (``scenarios/rl_balance/<Env>.best.toml``; ``eval_rl.tuned_observer``)."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from eval_rl import tuned_observer
+
+    spec = tuned_observer(env_id, ROOT / "scenarios" / "rl_balance")
+    if spec is None:
+        raise SystemExit(f"--tuned: no tuned observer for {env_id} (scenarios/rl_balance/"
+                         f"{env_id.split('/')[-1]}.best.toml, from hgo-mj tune)")
+    return spec
 
 
 def _schedule(value: Any) -> Any:
@@ -105,24 +119,29 @@ def check_args(args: argparse.Namespace) -> None:
                          f"found {args.algorithm!r}")
     if args.gamma is not None and not 0.0 < args.gamma < 1.0:
         raise SystemExit(f"--gamma must be in (0, 1); found {args.gamma}")
+    if args.tuned and args.agent != "estimate":
+        raise SystemExit(f"--tuned swaps the estimate's observer: --agent must be estimate; "
+                         f"found {args.agent!r}")
     if args.steps < 1 or args.checkpoint_every <= 0:
         raise SystemExit(f"--steps must be >= 1 and --checkpoint-every > 0; found "
                          f"{args.steps} and {args.checkpoint_every}")
 
 
-def train_env(env_id: str, agent: str) -> Any:
+def train_env(env_id: str, agent: str, observer: dict[str, Any] | None = None) -> Any:
     """The stable-baselines3 ``VecEnv`` of :data:`N_ENVS` members an agent trains on: the
     native vector environment on the agent's observation, or (``+stack``) a ``DummyVecEnv``
-    of single environments in ``FrameStackObservation``."""
+    of single environments in ``FrameStackObservation``; ``observer`` instead of the
+    environment's default one."""
     import gymnasium as gym
     from hgo_mj.envs.sb3 import sb3_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     mode = agent.split("+")[0]
+    kw = {} if observer is None else {"observer": observer}
     if agent.endswith("+stack"):
         return DummyVecEnv([lambda: gym.wrappers.FrameStackObservation(
-            gym.make(env_id, observation=mode), STACK)] * N_ENVS)
-    return sb3_vec_env(env_id, num_envs=N_ENVS, observation=mode, nthread=1)
+            gym.make(env_id, observation=mode, **kw), STACK)] * N_ENVS)
+    return sb3_vec_env(env_id, num_envs=N_ENVS, observation=mode, nthread=1, **kw)
 
 
 def _save_model(model: Any, path: Path) -> None:
@@ -139,10 +158,11 @@ def train(args: argparse.Namespace) -> Path:
     from stable_baselines3.common.callbacks import BaseCallback
 
     torch.set_num_threads(1)
-    name = policy_name(args.env, args.agent, args.seed)
+    name = policy_name(args.env, args.agent, args.seed, args.tuned)
+    observer = tuned_spec(args.env) if args.tuned else None
     ckpt, ckpt_meta = args.checkpoints / f"{name}.zip", args.checkpoints / f"{name}.json"
     replay = args.checkpoints / f"{name}.replay.pkl"
-    venv = train_env(args.env, args.agent)
+    venv = train_env(args.env, args.agent, observer)
     venv.seed(args.seed)
     algo, base = (SAC, SAC_BALANCE) if args.algorithm == "SAC" else (PPO, PPO_CARTPOLE)
     policy = "MlpPolicy"
@@ -193,6 +213,7 @@ def train(args: argparse.Namespace) -> Path:
         "env_id": args.env, "agent": args.agent, "seed": args.seed,
         "algorithm": algo.__name__, "observation": args.agent.split("+")[0],
         "stack": STACK if args.agent.endswith("+stack") else 0,
+        **({} if observer is None else {"observer": observer}),
         "settings": {**base, "gamma": float(model.gamma), "n_envs": N_ENVS,
                      "source": ("rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"
                                 if algo is not SAC else "stable-baselines3 SAC defaults, "
@@ -220,6 +241,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--gamma", type=float, default=None,
                     help="discount instead of the algorithm's settings' (a new run only; a "
                          "resumed run keeps its own)")
+    ap.add_argument("--tuned", action="store_true",
+                    help="the estimate of the observer hgo-mj tune tuned on a balancing episode "
+                         "(scenarios/rl_balance/<Env>.best.toml) instead of the default one")
     args = ap.parse_args(argv)
     check_args(args)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

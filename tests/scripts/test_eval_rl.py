@@ -39,7 +39,15 @@ def test_table_and_refusals(tmp_path):
     rows = [ev.Row("x", "hgo_mj/CartPoleBalance-v0", "estimate", 0, 100_000, 80.4,
                    [500.0, 300.0], [True, False])]
     assert ("| hgo_mj/CartPoleBalance-v0 | estimate | PPO | 0 | 0.98 | 100,000 | 80 | "
-            "400.0 ± 100.0 | 50% |" in ev.table(rows))
+            "400.0 ± 100.0 | 50% | - |" in ev.table(rows))
+    rows[0].error_rms = {"pole_angle": 1e-3, "pole_velocity": 2e-2}
+    rows[0].on_tuned = ev.Run([500.0] * 2, [True, True], {"pole_angle": 5e-4,
+                                                         "pole_velocity": 0.2})
+    assert "400.0 ± 100.0 | 50% | 100% |" in ev.table(rows)
+    assert ("| hgo_mj/CartPoleBalance-v0 | estimate | tuned | pole_angle 5.00e-04, "
+            "pole_velocity 2.00e-01 |") in ev.error_table(rows)
+    assert "tuned / default RMS error pole_angle 0.5x, pole_velocity 10x." in \
+        ev.tuned_findings(rows)
     assert "Machine:" in ev.report(rows, 2, 3.0)
     rows.append(ev.Row("y", "hgo_mj/CartPoleBalance-v0", "true", 0, 100_000, 50.0,
                        [500.0, 500.0], [True, True]))
@@ -57,6 +65,21 @@ def test_table_and_refusals(tmp_path):
         ev.main(["--episodes", "0"])
 
 
+def test_tuned_observer_is_the_tunings_best(tmp_path):
+    ev = _load("eval_rl")
+    assert ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path) is None
+    path = tmp_path / "CartPoleBalance-v0.best.toml"
+    path.write_text('[[observers]]\nname = "default"\ntype = "high_gain_multi"\n'
+                    'k = [12.5, 40.0]\nmodel = true\n')
+    spec = ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path)
+    assert spec == {"type": "high_gain_multi", "k": [12.5, 40.0], "model": True}
+    env = gym.make("hgo_mj/CartPoleBalance-v0", observer=spec)
+    assert env.unwrapped.observer.params()["k"] == [12.5, 40.0]
+    path.write_text('[[observers]]\nname = "other"\ntype = "high_gain_multi"\n')
+    with pytest.raises(SystemExit, match="one observer named 'default'"):
+        ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path)
+
+
 def test_train_policy_refuses_bad_arguments():
     tp = _load("train_policy")
     with pytest.raises(SystemExit, match="--agent must be one of"):
@@ -65,6 +88,8 @@ def test_train_policy_refuses_bad_arguments():
         tp.main(["--env", "CartPole-v1"])
     with pytest.raises(SystemExit, match=r"--gamma must be in \(0, 1\); found 1.5"):
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--gamma", "1.5"])
+    with pytest.raises(SystemExit, match="--tuned swaps the estimate's observer"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "true", "--tuned"])
     with pytest.raises(SystemExit, match="--steps must be >= 1"):
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--steps", "0"])
     with pytest.raises(SystemExit, match=r"--algorithm must be one of \['PPO', 'SAC'\]; found "
@@ -141,3 +166,18 @@ def test_measurement_agents_train_and_evaluate_on_their_own_observation(
     assert model.observation_space.shape == shape
     row = ev.evaluate(tmp_path / f"{name}.zip", 1)
     assert (row.agent, row.algorithm, len(row.returns)) == (agent, algorithm, 1)
+
+
+def test_train_and_evaluate_on_the_tuned_observer(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    tp, ev = _load("train_policy"), _load("eval_rl")
+    assert tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--tuned", "--steps", "256", "--out",
+                    str(tmp_path / "pol"), "--checkpoints", str(tmp_path / "ck")]) == 0
+    zip_path = tmp_path / "pol" / "CartPoleBalance-v0_tuned-estimate_seed0.zip"
+    meta = json.loads(zip_path.with_suffix(".json").read_text())
+    tuned = ev.tuned_observer("hgo_mj/CartPoleBalance-v0", ev.ROOT / "scenarios" / "rl_balance")
+    assert meta["observer"] == tuned and meta["agent"] == "estimate"
+    row = ev.evaluate(zip_path, 1)
+    assert row.agent == "tuned estimate" and row.on_tuned is None
+    assert set(row.error_rms) == {"cart_position", "cart_velocity", "pole_angle",
+                                  "pole_velocity"}
