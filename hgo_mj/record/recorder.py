@@ -664,8 +664,8 @@ class Recorder:
             self._send_poses()
 
     def _send_poses(self) -> None:
-        """Pose the queued rows (every set of joint positions in one pass of
-        ``mj_kinematics``) and send the moving bodies' transforms."""
+        """Pose the queued rows (every set of joint positions in one call of
+        :meth:`~hgo_mj.record.poses.Poses.poses`) and send the moving bodies' transforms."""
         if not self._poses or self.scene is None:
             return
         queued, self._poses, self._pose_rows = self._poses, [], 0
