@@ -20,11 +20,12 @@ in one process, interleaved, ``--repeats`` times each:
 * ``command`` and ``command_rrd``: the same scenario as a user runs it, ``hgo-mj run ...``
   end to end (simulation, metrics, ``trajectory.npz``, ``metrics.json``, the figure), without
   and with ``--rrd``;
-* with ``--against REV``: ``live`` and ``after`` with the single-module recorder of git
-  revision ``REV`` (``git show REV:hgo_mj/record.py``, loaded as ``hgo_mj._record_REV``), e.g.
-  ``3ced465``, whose rows, styles and geometry went to rerun as hand-built Arrow record
-  batches carrying rerun's private field metadata (``Chunk.from_record_batch`` and
-  ``send_chunks``, static chunks cached and re-sent): what that private path still buys.
+* with ``--against REV``: ``live``, ``after`` and ``replay`` with the recorder of git
+  revision ``REV`` (its ``hgo_mj/record/`` package, or the single module
+  ``hgo_mj/record.py`` of older revisions, loaded as ``hgo_mj._record_REV`` beside this
+  tree's): e.g. ``main`` before a change to the recorder, or ``3ced465``, whose rows, styles
+  and geometry went to rerun as hand-built Arrow record batches carrying rerun's private
+  field metadata.
 
 The target is read two ways, both reported: against the bare computation (``plain``, the
 strict reading) and against the command a user runs (``command``).
@@ -43,10 +44,14 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import inspect
+import io
 import os
+import re
 import statistics
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -110,13 +115,27 @@ def run_after(path: Path) -> None:
 
 
 def recorder_of(rev: str, tmp: Path) -> object:
-    """The module ``hgo_mj/record.py`` of git revision ``rev``, imported inside ``hgo_mj``."""
+    """The recorder of git revision ``rev`` imported inside ``hgo_mj`` as
+    ``hgo_mj._record_<rev>``: its package ``hgo_mj/record/`` (exported with ``git archive``),
+    or the single module ``hgo_mj/record.py`` of revisions before the package; its relative
+    imports find this tree's ``hgo_mj``."""
     root = Path(__file__).resolve().parent.parent
-    src = subprocess.run(["git", "-C", str(root), "show", f"{rev}:hgo_mj/record.py"],
-                         capture_output=True, text=True, check=True).stdout
-    name = f"hgo_mj._record_{rev}"
-    (tmp / f"record_{rev}.py").write_text(src)
-    spec = importlib.util.spec_from_file_location(name, tmp / f"record_{rev}.py")
+    name = "hgo_mj._record_" + re.sub(r"\W", "_", rev)
+    tree = subprocess.run(["git", "-C", str(root), "ls-tree", "--name-only", rev, "hgo_mj/"],
+                          capture_output=True, text=True, check=True).stdout.split()
+    if "hgo_mj/record" in tree:
+        archive = subprocess.run(["git", "-C", str(root), "archive", rev, "hgo_mj/record"],
+                                 capture_output=True, check=True).stdout
+        with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+            tar.extractall(tmp / name, filter="data")
+        init = tmp / name / "hgo_mj" / "record" / "__init__.py"
+        spec = importlib.util.spec_from_file_location(
+            name, init, submodule_search_locations=[str(init.parent)])
+    else:
+        src = subprocess.run(["git", "-C", str(root), "show", f"{rev}:hgo_mj/record.py"],
+                             capture_output=True, text=True, check=True).stdout
+        (tmp / f"{name}.py").write_text(src)
+        spec = importlib.util.spec_from_file_location(name, tmp / f"{name}.py")
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
@@ -191,7 +210,9 @@ def variants_of(mod: object) -> tuple:
     """``live`` and ``after`` with the recorder module ``mod``."""
     def live(path: Path) -> None:
         plant, sensor, obs, inputs = setup()
-        rec = mod.Recorder.for_plant(path, plant, list(obs), recording_name="bench_record")
+        kw = ({"dropouts": sensor.has_dropouts}  # as run_live, where the recorder takes it
+              if "dropouts" in inspect.signature(mod.Recorder).parameters else {})
+        rec = mod.Recorder.for_plant(path, plant, list(obs), recording_name="bench_record", **kw)
         traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
                         on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
         rec.log_metadata(traj.metadata)
@@ -243,7 +264,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--against", metavar="REV",
-                    help="also time the hgo_mj/record.py of this git revision (live, after)")
+                    help="also time the recorder of this git revision (live, after, replay)")
     ap.add_argument("--write", help="replace the bench_record block of this markdown file")
     args = ap.parse_args()
     variants = {"plain": run_plain, "live": run_live, "after": run_after,
@@ -294,9 +315,9 @@ def main() -> int:
               "command_rrd": "`hgo-mj run ... --rrd` end to end",
               "replay": "the recorder alone: `live`'s chunks replayed from a precomputed run",
               "floor": "rerun alone: `replay`'s per-sample rows to a bare file stream (the floor)",
-              "replay_rev": f"the recorder alone, `record.py` of {args.against}",
-              "live_rev": f"recorded during the run, `record.py` of {args.against} (private Arrow path)",
-              "after_rev": f"`simulate`, then `record_trajectory` of {args.against} (private Arrow path)"}
+              "replay_rev": f"the recorder alone, the recorder of `{args.against}`",
+              "live_rev": f"recorded during the run, the recorder of `{args.against}`",
+              "after_rev": f"`simulate`, then `record_trajectory` of `{args.against}`"}
     base_of = {k: ("command" if k.startswith("command") else "plain") for k in variants}
     if args.against:  # next to the variants they compare with
         order = ["plain", "live", "live_rev", "after", "after_rev", "live_nofooter", "replay",

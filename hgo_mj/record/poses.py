@@ -396,8 +396,8 @@ class Poses:
         fill = (rr.components.FillMode.TransparentFillMajorWireframe if ghost
                 else rr.components.FillMode.Solid)
         if not ghost:
-            pos0, quat0 = self.poses(np.zeros((1, self.njoints)))
-            out += [(body_path(root, self.body_names[b]), [transform(pos0[0, b], quat0[0, b])])
+            pos0, quat0 = self._pos0[0], self._quat0[0]  # at qpos0: where they stay
+            out += [(body_path(root, self.body_names[b]), [transform(pos0[b], quat0[b])])
                     for b in np.flatnonzero(self.drawn & ~self.moving)]
         for geom in self.geoms:
             if ghost and not self.moving[geom.body]:
