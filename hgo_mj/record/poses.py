@@ -1,11 +1,11 @@
 """The 3D view of a MuJoCo plant: its geometry as rerun archetypes, posed as MuJoCo poses it.
 
 :class:`Poses` poses every body for the recorded joint positions (every other joint at the
-model's ``qpos0``): the bodies the joints do not move keep MuJoCo's own ``xpos``/``xquat``
-at ``qpos0``, and the moving ones are posed for all rows at once by the steps of
-``mujoco.mj_kinematics`` in numpy (equal to MuJoCo's poses to rounding, tested on every
-shipped model), for the true state and for each observer's estimate (its translucent ghost).
-A row costs about 0.1 us (pendulum; a loop over ``mj_kinematics`` cost 1 us); poses are
+model's ``qpos0``) by the steps of ``mujoco.mj_kinematics`` in numpy, all rows at once: the
+bodies the joints do not move once, at ``qpos0``, the moving ones per row, for the true
+state and for each observer's estimate (its translucent ghost). The poses are MuJoCo's
+``xpos``/``xquat`` to rounding (tested against ``mj_kinematics`` on every shipped model). A
+row costs about 0.2 us (pendulum; a loop over ``mj_kinematics`` cost 1 us); poses are
 logged at ``pose_rate`` (50 Hz by default), so a 10 s run poses about 500 rows per set.
 
 Each drawn geom is one entity below its body: a static ``Transform3D`` (its pose in the body
@@ -304,8 +304,8 @@ class Poses:
         (a hinge turns by ``q - qpos0`` about its axis, a slide moves along it; a joint not
         in ``joints``, a ball or free joint stays at ``qpos0``); the bodies the joints do not
         move are posed once, when the scene is made. About 0.2 us a row (pendulum) where a
-        loop over ``mj_kinematics`` took 1 us; the result equals MuJoCo's to rounding
-        (1e-16, tested on every shipped model).
+        loop over ``mj_kinematics`` took 1 us; the result equals MuJoCo's to rounding (tested
+        to 1e-14 against ``mj_kinematics``).
 
         Parameters
         ----------
