@@ -426,11 +426,11 @@ def stream_run(kw: dict[str, Any], path: str | Path, *, seed: Any, chunk_seconds
     metrics = acc.result(traj)
     for name, d in traj.diverged.items():
         metrics[name]["diverged_at"] = d["t"]
-    release_freed_memory()  # the join's and the settling pass's, before the figure is drawn
+    _release_freed_memory()  # the join's and the settling pass's, before the figure is drawn
     return thin.trajectory(traj), metrics
 
 
-def release_freed_memory() -> bool:
+def _release_freed_memory() -> bool:
     """Hand the memory the process has freed back to the system where the C library keeps it
     (glibc's ``malloc_trim(0)``; elsewhere nothing). After a streamed run's join and
     settling pass (Arrow's buffers come from the C library's allocator, see
@@ -445,7 +445,7 @@ def release_freed_memory() -> bool:
     Examples
     --------
     >>> import sys
-    >>> release_freed_memory() == (sys.platform == "linux" and _malloc_trim() is not None)
+    >>> _release_freed_memory() == (sys.platform == "linux" and _malloc_trim() is not None)
     True
     """
     trim = _malloc_trim()
