@@ -326,11 +326,12 @@ def main() -> int:
     med = {k: statistics.median(v) for k, v in times.items()}
     best_cpu = {k: min(v) for k, v in cpu.items()}
     best_main = {k: min(v) for k, v in main_cpu.items()}
+    chunks = (" --chunks " + " ".join(f"{c:g}" for c in args.chunks)) if args.chunks else ""
     lines = [
         "## Issue 6 and 10: rerun recordings",
         "",
         *header(f"`python scripts/bench_record.py --repeats {args.repeats}"
-                f"{f' --against {args.against}' if args.against else ''}` (each variant run "
+                f"{f' --against {args.against}' if args.against else ''}{chunks}` (each variant run "
                 f"{args.repeats} times, interleaved, after one warm-up; best and median)"),
         f"Run: pendulum.xml, {DURATION:g} s at 1 kHz ({int(DURATION * 1000) + 1} samples), sensor "
         "gaussian + quantize, two high-gain observers (k = 15, 60), multisine input.",
