@@ -10,7 +10,7 @@ headless study and writes ``trajectory.npz``, ``trajectory.parquet`` and ``metri
 (tidy tables with units in the schema, :mod:`hgo_mj.tidy`; ``--format npz|parquet|csv``,
 repeatable, chooses), ``metrics.json``, ``figure.png`` and ``summary.txt`` into ``--out``;
 ``--rrd FILE.rrd`` also records it to that rerun file (the name must end in ``.rrd``),
-written in chunks of ``RRD_CHUNK_SECONDS`` (2) simulated seconds as the run
+written in chunks of ``RRD_CHUNK_SECONDS`` (5) simulated seconds as the run
 goes, so a run stopped with Ctrl-C (exit status 130) leaves a readable recording up to its last
 chunk. ``--seeds N`` (or ``seeds = N`` in the scenario's ``[run]``) repeats the run at the seeds
 ``SEED ... SEED+N-1`` (the seeds after the first as a study, :mod:`hgo_mj.study`, ``--jobs J``)
@@ -161,9 +161,11 @@ def scenario_from_args(args: argparse.Namespace) -> dict[str, Any]:
     return sc
 
 
-#: simulated seconds per chunk of a recording made during a run (at least 200 samples a chunk);
-#: each chunk costs about 2 ms (BENCHMARKS.md), so 1 s chunks would add 7% to a 1 kHz run
-RRD_CHUNK_SECONDS = 2.0
+#: simulated seconds per chunk of a recording made during a run (at least 200 samples a chunk)
+#: and of a streamed run's Parquet parts; a chunk of a recording costs about 1-2 ms of CPU
+#: while the run goes on (BENCHMARKS.md, the bench_record notes: a 10 s, 1 kHz run recorded in
+#: 1, 2, 5 and 10 s chunks added 53, 38, 33 and 31%), and a run cut short keeps its whole chunks
+RRD_CHUNK_SECONDS = 5.0
 
 
 def plant_label(pl: dict[str, Any]) -> str:

@@ -1,6 +1,7 @@
 """What a rerun recording adds to a run: a 10 s, 1 kHz pendulum run with two observers.
 
-Usage: ``python scripts/bench_record.py [--repeats N] [--against REV] [--write BENCHMARKS.md]``.
+Usage: ``python scripts/bench_record.py [--repeats N] [--against REV] [--chunks S ...]
+[--write BENCHMARKS.md]``.
 
 Three variants of the same run (same seed, bit-identical trajectories) are timed side by side
 in one process, interleaved, ``--repeats`` times each:
@@ -20,11 +21,15 @@ in one process, interleaved, ``--repeats`` times each:
 * ``command`` and ``command_rrd``: the same scenario as a user runs it, ``hgo-mj run ...``
   end to end (simulation, metrics, ``trajectory.npz``, ``metrics.json``, the figure), without
   and with ``--rrd``;
-* with ``--against REV``: ``live`` and ``after`` with the single-module recorder of git
-  revision ``REV`` (``git show REV:hgo_mj/record.py``, loaded as ``hgo_mj._record_REV``), e.g.
-  ``3ced465``, whose rows, styles and geometry went to rerun as hand-built Arrow record
-  batches carrying rerun's private field metadata (``Chunk.from_record_batch`` and
-  ``send_chunks``, static chunks cached and re-sent): what that private path still buys.
+* with ``--against REV``: ``live``, ``after`` and ``replay`` with the recorder of git
+  revision ``REV`` (its ``hgo_mj/record/`` package, or the single module
+  ``hgo_mj/record.py`` of older revisions, loaded as ``hgo_mj._record_REV`` beside this
+  tree's), ``live`` and ``replay`` in the chunks of that revision's ``RRD_CHUNK_SECONDS``:
+  e.g. ``main`` before a change to the recorder, or ``3ced465``, whose rows, styles and
+  geometry went to rerun as hand-built Arrow record batches carrying rerun's private field
+  metadata;
+* with ``--chunks S ...``: ``live`` in chunks of ``S`` simulated seconds, for each ``S``
+  (what a chunk costs while the run goes on).
 
 The target is read two ways, both reported: against the bare computation (``plain``, the
 strict reading) and against the command a user runs (``command``).
@@ -43,10 +48,14 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import inspect
+import io
 import os
+import re
 import statistics
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -81,17 +90,6 @@ def run_plain(path: Path) -> None:
     all_metrics(traj)
 
 
-def run_live(path: Path) -> None:
-    plant, sensor, obs, inputs = setup()
-    rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record",
-                             dropouts=sensor.has_dropouts)
-    traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
-                    on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
-    rec.log_metadata(traj.metadata)
-    rec.log_metrics(all_metrics(traj))
-    rec.close()
-
-
 def run_live_nofooter(path: Path) -> None:
     plant, sensor, obs, inputs = setup()
     rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record", footer=False,
@@ -110,13 +108,27 @@ def run_after(path: Path) -> None:
 
 
 def recorder_of(rev: str, tmp: Path) -> object:
-    """The module ``hgo_mj/record.py`` of git revision ``rev``, imported inside ``hgo_mj``."""
+    """The recorder of git revision ``rev`` imported inside ``hgo_mj`` as
+    ``hgo_mj._record_<rev>``: its package ``hgo_mj/record/`` (exported with ``git archive``),
+    or the single module ``hgo_mj/record.py`` of revisions before the package; its relative
+    imports find this tree's ``hgo_mj``."""
     root = Path(__file__).resolve().parent.parent
-    src = subprocess.run(["git", "-C", str(root), "show", f"{rev}:hgo_mj/record.py"],
-                         capture_output=True, text=True, check=True).stdout
-    name = f"hgo_mj._record_{rev}"
-    (tmp / f"record_{rev}.py").write_text(src)
-    spec = importlib.util.spec_from_file_location(name, tmp / f"record_{rev}.py")
+    name = "hgo_mj._record_" + re.sub(r"\W", "_", rev)
+    tree = subprocess.run(["git", "-C", str(root), "ls-tree", "--name-only", rev, "hgo_mj/"],
+                          capture_output=True, text=True, check=True).stdout.split()
+    if "hgo_mj/record" in tree:
+        archive = subprocess.run(["git", "-C", str(root), "archive", rev, "hgo_mj/record"],
+                                 capture_output=True, check=True).stdout
+        with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+            tar.extractall(tmp / name, filter="data")
+        init = tmp / name / "hgo_mj" / "record" / "__init__.py"
+        spec = importlib.util.spec_from_file_location(
+            name, init, submodule_search_locations=[str(init.parent)])
+    else:
+        src = subprocess.run(["git", "-C", str(root), "show", f"{rev}:hgo_mj/record.py"],
+                             capture_output=True, text=True, check=True).stdout
+        (tmp / f"{name}.py").write_text(src)
+        spec = importlib.util.spec_from_file_location(name, tmp / f"{name}.py")
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
@@ -124,10 +136,22 @@ def recorder_of(rev: str, tmp: Path) -> object:
     return mod
 
 
+def chunk_seconds_of(rev: str) -> float:
+    """``RRD_CHUNK_SECONDS`` of ``hgo_mj/cli.py`` at git revision ``rev``: the chunks its
+    ``hgo-mj run --rrd`` recorded in."""
+    root = Path(__file__).resolve().parent.parent
+    src = subprocess.run(["git", "-C", str(root), "show", f"{rev}:hgo_mj/cli.py"],
+                         capture_output=True, text=True, check=True).stdout
+    found = re.search(r"^RRD_CHUNK_SECONDS = ([0-9.]+)", src, re.MULTILINE)
+    if found is None:
+        raise SystemExit(f"{rev}:hgo_mj/cli.py defines no RRD_CHUNK_SECONDS")
+    return float(found.group(1))
+
+
 _RUN: dict[str, object] = {}
 
 
-def replay_with(mod: object):
+def replay_with(mod: object, chunk_seconds: float = RRD_CHUNK_SECONDS):
     """The recorder alone: the chunks ``simulate(on_chunk=...)`` hands ``live``, replayed from
     one precomputed run, then metadata, metrics and ``close`` (no simulation in the time)."""
     def replay(path: Path) -> None:
@@ -137,7 +161,7 @@ def replay_with(mod: object):
             _RUN.update(plant=plant, obs=list(obs), traj=traj, metrics=all_metrics(traj),
                         dropouts=sensor.has_dropouts)
         traj, rows = _RUN["traj"], len(_RUN["traj"])
-        block = int(round(RRD_CHUNK_SECONDS / float(traj.t[1] - traj.t[0])))
+        block = int(round(chunk_seconds / float(traj.t[1] - traj.t[0])))
         rec = mod.Recorder.for_plant(path, _RUN["plant"], _RUN["obs"], recording_name="bench_record",
                                      dropouts=_RUN["dropouts"])
         k0 = 0
@@ -187,13 +211,30 @@ def run_floor(path: Path) -> None:
     stream.disconnect()
 
 
-def variants_of(mod: object) -> tuple:
-    """``live`` and ``after`` with the recorder module ``mod``."""
+def live_in(chunk_seconds: float):
+    """``live`` in chunks of ``chunk_seconds``."""
     def live(path: Path) -> None:
         plant, sensor, obs, inputs = setup()
-        rec = mod.Recorder.for_plant(path, plant, list(obs), recording_name="bench_record")
+        rec = Recorder.for_plant(path, plant, list(obs), recording_name="bench_record",
+                                 dropouts=sensor.has_dropouts)
         traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
-                        on_chunk=(RRD_CHUNK_SECONDS, rec.write_chunk))
+                        on_chunk=(chunk_seconds, rec.write_chunk))
+        rec.log_metadata(traj.metadata)
+        rec.log_metrics(all_metrics(traj))
+        rec.close()
+
+    return live
+
+
+def variants_of(mod: object, chunk_seconds: float) -> tuple:
+    """``live`` (chunks of ``chunk_seconds``) and ``after`` with the recorder module ``mod``."""
+    def live(path: Path) -> None:
+        plant, sensor, obs, inputs = setup()
+        kw = ({"dropouts": sensor.has_dropouts}  # as run_live, where the recorder takes it
+              if "dropouts" in inspect.signature(mod.Recorder).parameters else {})
+        rec = mod.Recorder.for_plant(path, plant, list(obs), recording_name="bench_record", **kw)
+        traj = simulate(plant, sensor, obs, inputs, DURATION, x0=[0.5, 0.0], seed=1,
+                        on_chunk=(chunk_seconds, rec.write_chunk))
         rec.log_metadata(traj.metadata)
         rec.log_metrics(all_metrics(traj))
         rec.close()
@@ -232,59 +273,73 @@ def run_command_rrd(path: Path) -> None:
     _command([*COMMAND, "--out", str(path.with_suffix("")), "--rrd", str(path)])
 
 
-def timed(fn, path: Path) -> tuple[float, float]:
-    """Wall time and CPU time of the whole process (every thread, rerun's included)."""
-    w0, c0 = time.perf_counter(), time.process_time()
+def timed(fn, path: Path) -> tuple[float, float, float]:
+    """Wall time, CPU time of the whole process (every thread, rerun's included) and CPU
+    time of the calling thread (the run and the recorder's calls; rerun encodes and writes
+    on its own threads)."""
+    w0, c0, t0 = time.perf_counter(), time.process_time(), time.thread_time()
     fn(path)
-    return time.perf_counter() - w0, time.process_time() - c0
+    return time.perf_counter() - w0, time.process_time() - c0, time.thread_time() - t0
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--against", metavar="REV",
-                    help="also time the hgo_mj/record.py of this git revision (live, after)")
+                    help="also time the recorder of this git revision (live, after, replay)")
+    ap.add_argument("--chunks", type=float, nargs="*", default=[], metavar="S",
+                    help="also record live in chunks of S simulated seconds")
     ap.add_argument("--write", help="replace the bench_record block of this markdown file")
     args = ap.parse_args()
-    variants = {"plain": run_plain, "live": run_live, "after": run_after,
+    variants = {"plain": run_plain, "live": live_in(RRD_CHUNK_SECONDS), "after": run_after,
                 "live_nofooter": run_live_nofooter, "replay": replay_with(hgo_mj.record),
                 "floor": run_floor,
                 "command": run_command, "command_rrd": run_command_rrd}
+    for sec in args.chunks:
+        variants[f"live_{sec:g}"] = live_in(sec)
     times: dict[str, list[float]] = {k: [] for k in variants}
     cpu: dict[str, list[float]] = {k: [] for k in variants}
+    main_cpu: dict[str, list[float]] = {k: [] for k in variants}
     sizes: dict[str, int] = {}
+    rev_chunk = RRD_CHUNK_SECONDS
     with tempfile.TemporaryDirectory() as tmp:
         if args.against:
             mod = recorder_of(args.against, Path(tmp))
-            live, after = variants_of(mod)
-            variants.update({"live_rev": live, "after_rev": after, "replay_rev": replay_with(mod)})
-            times.update(live_rev=[], after_rev=[], replay_rev=[])
-            cpu.update(live_rev=[], after_rev=[], replay_rev=[])
+            rev_chunk = chunk_seconds_of(args.against)
+            live, after = variants_of(mod, rev_chunk)
+            variants.update({"live_rev": live, "after_rev": after,
+                             "replay_rev": replay_with(mod, rev_chunk)})
+            for d in (times, cpu, main_cpu):
+                d.update(live_rev=[], after_rev=[], replay_rev=[])
         for name, fn in variants.items():  # warm-up: imports, first MjModel, rerun's threads
             fn(Path(tmp) / f"warm_{name}.rrd")
         for r in range(args.repeats):
             for name, fn in variants.items():
                 path = Path(tmp) / f"{name}_{r}.rrd"
-                wall, used = timed(fn, path)
+                wall, used, own = timed(fn, path)
                 times[name].append(wall)
                 cpu[name].append(used)
+                main_cpu[name].append(own)
                 if path.exists():
                     sizes[name] = path.stat().st_size
     best = {k: min(v) for k, v in times.items()}
     med = {k: statistics.median(v) for k, v in times.items()}
     best_cpu = {k: min(v) for k, v in cpu.items()}
+    best_main = {k: min(v) for k, v in main_cpu.items()}
+    chunks = (" --chunks " + " ".join(f"{c:g}" for c in args.chunks)) if args.chunks else ""
     lines = [
         "## Issue 6 and 10: rerun recordings",
         "",
         *header(f"`python scripts/bench_record.py --repeats {args.repeats}"
-                f"{f' --against {args.against}' if args.against else ''}` (each variant run "
+                f"{f' --against {args.against}' if args.against else ''}{chunks}` (each variant run "
                 f"{args.repeats} times, interleaved, after one warm-up; best and median)"),
         f"Run: pendulum.xml, {DURATION:g} s at 1 kHz ({int(DURATION * 1000) + 1} samples), sensor "
         "gaussian + quantize, two high-gain observers (k = 15, 60), multisine input.",
         "",
         "| variant | wall, best [ms] | wall, median [ms] | added to the run (wall, best) "
-        "| CPU, all threads, best [ms] | added (CPU) | file [MB] |",
-        "|---|---:|---:|---:|---:|---:|---:|",
+        "| CPU, all threads, best [ms] | added (CPU) | CPU, calling thread, best [ms] "
+        "| file [MB] |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     labels = {"plain": "`simulate` and `all_metrics` (the run)",
               "live": f"recorded during the run ({RRD_CHUNK_SECONDS:g} s chunks, as `hgo-mj run --rrd`)",
@@ -294,14 +349,18 @@ def main() -> int:
               "command_rrd": "`hgo-mj run ... --rrd` end to end",
               "replay": "the recorder alone: `live`'s chunks replayed from a precomputed run",
               "floor": "rerun alone: `replay`'s per-sample rows to a bare file stream (the floor)",
-              "replay_rev": f"the recorder alone, `record.py` of {args.against}",
-              "live_rev": f"recorded during the run, `record.py` of {args.against} (private Arrow path)",
-              "after_rev": f"`simulate`, then `record_trajectory` of {args.against} (private Arrow path)"}
+              "replay_rev": (f"the recorder alone, the recorder of `{args.against}` "
+                             f"({rev_chunk:g} s chunks)"),
+              "live_rev": (f"recorded during the run, the recorder of `{args.against}` "
+                           f"({rev_chunk:g} s chunks, as its `hgo-mj run --rrd`)"),
+              "after_rev": f"`simulate`, then `record_trajectory` of `{args.against}`"}
+    labels.update({f"live_{sec:g}": f"recorded during the run, {sec:g} s chunks"
+                   for sec in args.chunks})
     base_of = {k: ("command" if k.startswith("command") else "plain") for k in variants}
-    if args.against:  # next to the variants they compare with
-        order = ["plain", "live", "live_rev", "after", "after_rev", "live_nofooter", "replay",
-                 "replay_rev", "floor", "command", "command_rrd"]
-        variants = {k: variants[k] for k in order}
+    order = ["plain", "live", "live_rev", *(f"live_{sec:g}" for sec in args.chunks), "after",
+             "after_rev", "live_nofooter", "replay", "replay_rev", "floor", "command",
+             "command_rrd"]  # each next to the variants it compares with
+    variants = {k: variants[k] for k in order if k in variants}
     for k in variants:
         b = base_of[k]
         added = "" if k == b else f"{100 * (best[k] / best[b] - 1):+.1f}%"
@@ -311,7 +370,8 @@ def main() -> int:
             added_cpu = f"+{100 * best_cpu[k] / best_cpu[b]:.1f}%"
         size = f"{sizes[k] / 1e6:.2f}" if k in sizes else ""
         lines.append(f"| {labels[k]} | {1e3 * best[k]:.1f} | {1e3 * med[k]:.1f} | {added} | "
-                     f"{1e3 * best_cpu[k]:.1f} | {added_cpu} | {size} |")
+                     f"{1e3 * best_cpu[k]:.1f} | {added_cpu} | {1e3 * best_main[k]:.1f} | "
+                     f"{size} |")
     ok_t = all(best[k] <= 1.10 * best["plain"] for k in ("live", "after"))
     ok_cpu = all(best_cpu[k] <= 1.10 * best_cpu["plain"] for k in ("live", "after"))
     ok_c = best["command_rrd"] <= 1.10 * best["command"]

@@ -194,6 +194,21 @@ def test_stream_run_writes_the_table_and_the_metrics_of_the_kept_run(tmp_path):
     assert not any("DICTIONARY" in e for e in encodings), encodings
 
 
+def test_stream_run_releases_the_freed_memory_after_the_join(tmp_path, monkeypatch):
+    """The memory the join and the settling pass freed is handed back (glibc's
+    ``malloc_trim``) once, after the table is joined and read, before the figure is drawn."""
+    import hgo_mj.stream as stream
+
+    seen = []
+    monkeypatch.setattr(stream, "_release_freed_memory", lambda: seen.append(
+        sorted(p.name for p in tmp_path.iterdir())) or True)
+    plant = make_plant("pendulum", dt=0.01)
+    kw = {"plant": plant, "sensor": None, "inputs": Constant([0.0]), "duration": 3.0,
+          "observers": {"hgo": HighGainObserver(plant.system, k=20.0)}}
+    stream_run(kw, tmp_path / "t.parquet", seed=0, chunk_seconds=1.0)
+    assert seen == [["t.parquet"]]  # once, the parts joined
+
+
 def test_a_stopped_stream_leaves_the_earlier_file_and_its_chunks(tmp_path):
     path = tmp_path / "t.parquet"
     path.write_bytes(b"the earlier result")

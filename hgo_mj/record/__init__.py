@@ -2,7 +2,8 @@
 
 - :mod:`~hgo_mj.record.layout`: entity paths, series styles and the default blueprint (pure);
 - :mod:`~hgo_mj.record.documents`: the ``/scenario`` and ``/metrics`` text documents;
-- :mod:`~hgo_mj.record.poses`: the MuJoCo geometry and its poses by ``mujoco.mj_kinematics``;
+- :mod:`~hgo_mj.record.poses`: the MuJoCo geometry and its poses (``mj_kinematics``'s steps
+  in numpy);
 - :mod:`~hgo_mj.record.recorder`: :class:`Recorder`, on rerun's public API;
 - :mod:`~hgo_mj.record.read`: :func:`read`, a recording's series as a pandas DataFrame.
 """

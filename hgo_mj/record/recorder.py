@@ -63,8 +63,9 @@ from .sink import RowSink, time_columns
 
 _T = TypeVar("_T")
 
-#: pose rows queued before they are posed and sent (a 2 s block at 50 Hz has 101)
-_POSE_ROWS = 250
+#: pose rows queued before they are posed and sent (a 2 s block at 50 Hz has 101; a 10 s
+#: run's poses are sent at close, in one call per body and set)
+_POSE_ROWS = 1000
 #: seconds :meth:`Recorder.close` waits for the file sink to write what is queued (a healthy
 #: sink writes a block within milliseconds; one that failed never finishes)
 CLOSE_TIMEOUT_S = 20.0
@@ -103,7 +104,7 @@ class Recorder:
         Name of the recording shown in the viewer.
     pose_rate : float or None
         Samples per unit of simulated time of the 3D poses (``None``: every sample). Pose
-        rows are queued and sent 250 at a time (and by :meth:`flush` and :meth:`close`).
+        rows are queued and sent 1,000 at a time (and by :meth:`flush` and :meth:`close`).
     units : mapping, optional
         ``{name: unit}`` of the states, outputs, inputs and output derivatives
         (:func:`hgo_mj.units.system_units`): each series and view is named with its unit.
@@ -664,8 +665,8 @@ class Recorder:
             self._send_poses()
 
     def _send_poses(self) -> None:
-        """Pose the queued rows (every set of joint positions in one pass of
-        ``mj_kinematics``) and send the moving bodies' transforms."""
+        """Pose the queued rows (every set of joint positions in one call of
+        :meth:`~hgo_mj.record.poses.Poses.poses`) and send the moving bodies' transforms."""
         if not self._poses or self.scene is None:
             return
         queued, self._poses, self._pose_rows = self._poses, [], 0

@@ -297,25 +297,30 @@ def _mj_poses(m, joints, q):
 
 
 def test_poses_match_mj_kinematics():
-    """Slide and hinge joints with anchors on two nested bodies, all driven or one only: the
-    rows posed together equal MuJoCo's poses of each row alone, and ``moving`` marks the
-    bodies the driven joints move."""
+    """Slide and hinge joints with anchors (and springrefs: ``qpos0`` not 0) on nested
+    bodies, a ball joint at ``qpos0`` on a moving body, a free body beside them; all driven
+    or some only: the rows posed together equal MuJoCo's poses of each row alone (to
+    rounding), and ``moving`` marks the bodies the driven joints move."""
     xml = """<mujoco><worldbody>
       <geom name="floor" type="plane" size="1 1 .1"/>
+      <body name="free" pos="1 0 1" euler="0.1 0.2 0.3"><joint type="free"/>
+        <geom size=".1"/></body>
       <body name="a" pos="0.1 0.2 0.3" euler="0.3 0.2 0.1">
-        <joint name="s" type="slide" axis="1 1 0"/>
-        <joint name="h1" type="hinge" axis="0 0 1" pos="0.05 0 0"/>
+        <joint name="s" type="slide" axis="1 1 0" ref="0.2"/>
+        <joint name="h1" type="hinge" axis="0 0 1" pos="0.05 0 0" ref="30"/>
         <geom type="box" size=".1 .1 .1"/>
         <body name="b" pos="0 0 -0.4" quat="0.9 0.1 0.3 0.2">
           <joint name="h2" type="hinge" axis="0.3 1 0" pos="0 0.1 0.2"/>
           <joint name="h3" type="hinge" axis="1 0 0"/>
+          <joint name="ball" type="ball" pos="0.1 0 0"/>
           <geom type="capsule" size=".02 .2"/>
         </body>
       </body></worldbody></mujoco>"""
     m = mujoco.MjModel.from_xml_string(xml)
     rng = np.random.default_rng(1)
-    for joints, moving in ((("s", "h1", "h2", "h3"), [False, True, True]),
-                           (("h2",), [False, False, True])):
+    for joints, moving in ((("s", "h1", "h2", "h3"), [False, False, True, True]),
+                           (("h3", "s"), [False, False, True, True]),
+                           (("h2",), [False, False, False, True])):
         poses = Poses(m, joints)
         assert poses.moving.tolist() == moving
         q = rng.uniform(-2, 2, size=(6, len(joints)))
@@ -323,8 +328,8 @@ def test_poses_match_mj_kinematics():
         assert pos.shape == (6, m.nbody, 3) and quat.shape == (6, m.nbody, 4)
         for k in range(6):
             xpos, xquat = _mj_poses(m, joints, q[k])
-            np.testing.assert_array_equal(pos[k], xpos)
-            np.testing.assert_array_equal(quat[k], xquat)
+            np.testing.assert_allclose(pos[k], xpos, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(quat[k], xquat, rtol=0, atol=1e-14)
     with pytest.raises(DesignError, match="joint 'free' must be a hinge or slide joint"):
         Poses(mujoco.MjModel.from_xml_string(
             '<mujoco><worldbody><body><joint name="free" type="free"/><geom size=".1"/>'
