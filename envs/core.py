@@ -223,19 +223,37 @@ def measurement_start(observer: Observer, Y: Any,
     >>> measurement_start(ej, [0.2], ties=[("motor_angle", "link_angle")]).tolist()
     [[0.2, 0.2, 0.0, 0.0]]
     """
-    Ya = np.asarray(Y, dtype=np.float64)
-    Ya = Ya.reshape(1, -1) if Ya.ndim == 1 else Ya
-    out = np.zeros((Ya.shape[0], len(observer.state_names)))
+    return _start_map(observer, ties)(Y)
+
+
+class _StartMap:
+    """:func:`measurement_start` of one observer and ties, its indices found once (an
+    environment builds it with its observer and calls it at every reset)."""
+
+    def __init__(self, n: int, measured: list[tuple[int, int]],
+                 tied: list[tuple[int, int]]) -> None:
+        self.n, self.measured, self.tied = n, measured, tied
+
+    def __call__(self, Y: Any) -> Array:
+        Ya = np.asarray(Y, dtype=np.float64)
+        Ya = Ya.reshape(1, -1) if Ya.ndim == 1 else Ya
+        out = np.zeros((Ya.shape[0], self.n))
+        for col, ch in self.measured:
+            out[:, col] = Ya[:, ch]
+        if not np.isfinite(out).all():  # a dropout gives 0 (the rare case: checked once)
+            np.nan_to_num(out, copy=False, nan=0.0)
+        for col, source in self.tied:
+            out[:, col] = out[:, source]
+        return out
+
+
+def _start_map(observer: Observer, ties: Sequence[tuple[str, str]]) -> _StartMap:
+    """The :class:`_StartMap` of ``observer`` and ``ties`` (see :func:`measurement_start`)."""
     measured = _measured_coordinates(observer)
-    for col, ch in measured:
-        out[:, col] = Ya[:, ch]
-    if not np.isfinite(out).all():  # a dropout gives 0 (the rare case: checked once)
-        np.nan_to_num(out, copy=False, nan=0.0)
     names, done = list(observer.state_names), {col for col, _ in measured}
-    for name, source in ties:
-        if name in names and source in names and names.index(name) not in done:
-            out[:, names.index(name)] = out[:, names.index(source)]
-    return out
+    tied = [(names.index(name), names.index(source)) for name, source in ties
+            if name in names and source in names and names.index(name) not in done]
+    return _StartMap(len(names), measured, tied)
 
 
 def _measured_coordinates(observer: Observer, offset: int = 0) -> list[tuple[int, int]]:
@@ -1083,6 +1101,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                          {} if self.observer is None else {_OB: self.observer}, periods,
                          exact=False)
         self._names()
+        #: the observer's start from the first measurement (:func:`measurement_start`)
+        self._start_map = (None if self.observer is None else
+                           _start_map(self.observer, cfg.task.start_ties))
         source = {"true": self.state_names, "measurement": self.output_names}.get(
             cfg.observation, self.estimate_names)
         self.encoder = Encoder(cfg.task, source, self.diagnostic_names
@@ -1306,15 +1327,18 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         if options:
             x0, goal = self._options(options, x0, goal)
         self._goal = goal
-        self.loop.reset(x0, seed=env_seed(seed))
-        if self.observer is not None:  # the estimate starts from the first measurement
-            self.loop.start_observers([0], {_OB: measurement_start(
-                self.observer, self.loop.sample()[2][:, 0], self.task.start_ties)})
+        # the estimate starts from the first measurement
+        self.loop.reset(x0, seed=env_seed(seed), start=self._start)
         self._y_held = [0.0] * len(self.output_names)
         obs, info, _ = self._observe([0.0] * self._nu, 0.0)
         if self.render_mode == "human":
             self.render()
         return obs, info
+
+    def _start(self, observer: Observer, Y: Array) -> Array:
+        """The observer's initial estimate from the first measurement ``Y`` ``(1, p)``
+        (:func:`measurement_start`, the task's ties: their indices found at construction)."""
+        return cast(_StartMap, self._start_map)(Y)
 
     def _options(self, options: Mapping[str, Any], x0: list[float], goal: tuple[float, ...]
                  ) -> tuple[list[float], tuple[float, ...]]:

@@ -25,7 +25,7 @@ the cause, and carries the rows that are valid.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -343,7 +343,8 @@ class Loop:
         """The current sample instant."""
         return self.k * self.periods.sample
 
-    def reset(self, x0: Any = None, *, seed: Any = None, batch: int | None = None) -> None:
+    def reset(self, x0: Any = None, *, seed: Any = None, batch: int | None = None,
+              start: Callable[[Observer, Array], Array] | None = None) -> None:
         """Restart every part: the plant from ``x0`` (``(n,)`` or ``(B, n)``; default the
         system's), the sensor streams from ``seed`` (an int or None for one stream, a sequence
         of B seeds for B), each observer from its own initial estimate; check each observer's
@@ -360,6 +361,12 @@ class Loop:
             members; :data:`CONTINUE` restarts the stages and lets their generators go on.
         batch : int, optional
             Number of members B (default: one unbatched member, or as many as ``x0`` rows).
+        start : callable, optional
+            ``start(observer, Y)``: each observer's initial estimate ``(B, n_x)`` made from the
+            first measurement ``Y`` ``(B, p)`` (drawn here, as :meth:`sample` draws it, and
+            consumed by the first segment): an environment's start from its first measurement.
+            The state is made from it directly (:meth:`start_observers` after a reset does the
+            same, the state made twice). Default: each observer's own initial estimate.
 
         Raises
         ------
@@ -390,38 +397,42 @@ class Loop:
                 raise DimensionError(f"the sensor chain has {self.sensor.batch} stream(s) for "
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
+        self.batch, self.k, self._turn = B, 0, 0
+        self._pending = None
+        Y = None if start is None or not self.observers else self.sample()[2][:, 0]
         for name, ob in self.observers.items():  # as many members as plants
-            p, self.states[name] = self._checked_start(name, ob, B)
+            p, self.states[name] = self._checked_start(
+                name, ob, B, None if Y is None else start(ob, Y))  # type: ignore[misc]
             self.params[name] = p
             ob._hold(p, self.states[name], batched)
             if name not in self._warm:
                 self._warm_up(ob, p, self.states[name])
                 self._warm.add(name)
-        self.batch, self.k, self._turn = B, 0, 0
         self.wall = dict.fromkeys(self.observers, 0.0)
-        self._pending = None
         self.failed = {}
 
-    def _checked_start(self, name: str, ob: Observer, B: int) -> tuple[Params, State]:
+    def _checked_start(self, name: str, ob: Observer, B: int,
+                       x_hat0: Array | None = None) -> tuple[Params, State]:
         """The parameters of ``B`` members of the observer ``name``, checked against the plant
         (:func:`check_fits`) and the sample period (:meth:`Observer.check_period`), and a new
-        initial state (:meth:`Observer.init`). Validate once: both are made and checked again
-        only where ``B`` or the observer's constructor values (:meth:`Observer.params`, JSON:
-        compared as they are) differ from the last reset's; else the last reset's read-only
-        :class:`Params` serve again and the state is a copy of the last reset's initial one
-        (an environment's reset then pays no parameter construction, grouping, period check
-        or ``init``: the initial state depends on ``B``, the parameters and the constructor's
-        initial estimate only)."""
+        initial state: from ``x_hat0`` ``(B, n_x)`` where given (:meth:`Observer._start_from`, the
+        rows' checks only), else the constructor's initial estimate (:meth:`Observer.init`).
+        Validate once: the parameters are made and checked again only where ``B`` or the
+        observer's constructor values (:meth:`Observer.params`, JSON: compared as they are)
+        differ from the last reset's; else the last reset's read-only :class:`Params` serve
+        again and the state is a copy of the last reset's initial one (an environment's reset
+        then pays no parameter construction, grouping, period check or ``init``: the initial
+        state depends on ``B``, the parameters and the constructor's initial estimate only)."""
         mark = ob.params()
         found = self._checked.get(name)
         if found is not None and found[0] == B and found[1] == mark:
-            return found[2], found[3].copy()
+            return found[2], (found[3].copy() if x_hat0 is None else ob._start_from(found[2], x_hat0))
         check_fits(name, ob, self.plant.output_names, self.plant.input_names)
         p = ob.parameters(B, **self._values.get(name, {}))
         ob.check_period(self.periods.sample, p)
         s0 = ob.init(B, params=p)
         self._checked[name] = (B, mark, p, s0.copy())
-        return p, s0
+        return p, (s0 if x_hat0 is None else ob._start_from(p, x_hat0))
 
     def _warm_up(self, ob: Observer, p: Params, state: State) -> None:
         """Two throw-away samples of copies of member 0 (the plant's clean output, zero

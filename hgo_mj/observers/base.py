@@ -1093,6 +1093,25 @@ class Observer(ABC):
         if not isinstance(params, Params) or _batch_of(params) not in (None, B):
             raise DesignError(f"{self.name}: params must be this observer's Params of {B} "
                               f"member(s) (Observer.parameters); found {params!r}")
+        return self._fresh(B, params, x0, z0, u)
+
+    def _start_from(self, params: Params, x_hat0: Array) -> State:
+        """A new state of every member of ``params`` from ``x_hat0`` ``(B, n_x)``, float64, at
+        zero input: :meth:`init` without its checks, for the loop, whose caller built the rows
+        (an environment's start from its first measurement) and whose ``params`` are checked
+        (validate once). A family that extends :meth:`init` (an initial parameter estimate
+        written after the base's), or rows that are not finite, take :meth:`init`, which
+        refuses what it must."""
+        B = x_hat0.shape[0]
+        if (type(self).init is not Observer.init or x_hat0.shape[1:] != (len(self.state_names),)
+                or not math.isfinite(x_hat0.sum())):
+            return self.init(B, x_hat0, params=params)
+        return self._fresh(B, params, x_hat0, None, np.zeros((B, self.n_inputs or 0)))
+
+    def _fresh(self, B: int, params: Params, x0: Array | None, z0: Array | None,
+               u: Array) -> State:
+        """The state of :meth:`init` from checked rows (``x0``/``z0`` ``(B, ...)`` or None,
+        ``u`` ``(B, m)``): the family's :meth:`_init`, group by group of equal parameters."""
         groups = self._groups(params)
         if len(groups) == 1:
             return State(**{**self._core(B), **self._init(groups[0][1], x0, z0, u)})
@@ -1705,7 +1724,9 @@ class Observer(ABC):
             return np.zeros((u0.shape[0], self.n))
         if self.system is None:
             return x0
-        return np.array([self.system.to_normal(x, u) for x, u in zip(x0, u0)], dtype=float)
+        # the rows are checked (init's batch_rows): the map without its checks
+        to_normal = self.system.to_normal_unchecked
+        return np.array([to_normal(x, u) for x, u in zip(x0, u0)], dtype=float)
 
     def _to_physical(self, s: State, Z: Array, U: Array, X: Array) -> None:
         """Write ``system.from_normal`` of the rows ``Z`` ``(B, T, n)`` (inputs ``U``) into ``X``.

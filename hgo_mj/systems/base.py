@@ -509,6 +509,32 @@ class System:
         self._require_normal_form()
         raise NotImplementedError
 
+    def to_normal_unchecked(self, x: Array, u: Array) -> Array:
+        """:meth:`to_normal` without validation, for an observer's start from rows it has
+        checked (``x`` a float array of length ``n_x``). Subclasses override it with a fast
+        path.
+
+        Parameters
+        ----------
+        x : (n_x,) ndarray of float
+            Physical state, not checked.
+        u : (m,) ndarray of float
+            Input, not checked.
+
+        Returns
+        -------
+        (n,) ndarray of float
+            ``z``, a new array.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import Pendulum
+        >>> Pendulum().to_normal_unchecked(np.array([0.5, 0.0]), np.array([0.0]))
+        array([0.5, 0. ])
+        """
+        return self.to_normal(x, u)
+
     def from_normal_unchecked(self, z: Array, u: Array) -> Array:
         """:meth:`from_normal` without validation, for an observer's per-sample use (``z`` a
         float array of length ``n``). Subclasses override it with a fast path.

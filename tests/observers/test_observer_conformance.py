@@ -16,6 +16,7 @@ rely on.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -313,3 +314,28 @@ def test_members_with_different_parameters_equal_their_single_runs(kind, make, p
         ob.parameters(B, not_a_parameter=1.0)
     with pytest.raises(DimensionError, match="per member"):
         ob.parameters(B, **{names[0]: np.stack([values[names[0]][0]] * (B + 1))})
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_start_from_checked_rows_equals_init(kind, make, p, m):
+    """The loop's start from rows it checked (``_start_from``, an environment's start from its
+    first measurement) is ``init`` from them, bit for bit, for every family (those that extend
+    ``init`` go through it); a row that is not finite is refused as ``init`` refuses it."""
+    ob = make()
+    params = ob.parameters(2)
+    x0 = np.linspace(0.1, 0.4, 2 * len(ob.state_names)).reshape(2, -1)
+    try:
+        b = ob.init(2, x0, params=params)
+    except DesignError as exc:  # a family that starts only in its own coordinates
+        with pytest.raises(DesignError, match="^" + re.escape(str(exc)) + "$"):
+            ob._start_from(params, x0)
+        return
+    a = ob._start_from(params, x0)
+    assert list(a.fields) == list(b.fields)
+    for u, v in zip(_arrays(a), _arrays(b)):
+        assert u.dtype == v.dtype and u.shape == v.shape
+        np.testing.assert_array_equal(u, v)
+    assert not any(np.shares_memory(u, x0) for u in _arrays(a))
+    x0[1, 0] = np.nan
+    with pytest.raises(DesignError, match="finite"):
+        ob._start_from(params, x0)
