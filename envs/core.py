@@ -1056,6 +1056,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
     task_class: ClassVar[type[Task] | None] = None
     #: the id the class is registered under (:data:`hgo_mj.envs.ENVIRONMENTS`); None: none
     env_id: ClassVar[str | None] = None
+    #: step through the loop's step bound at each reset (:meth:`Loop.bind_step`: the same
+    #: results as :meth:`Loop.segment` bit for bit); False: every step through
+    #: :meth:`Loop.segment` (set before a reset)
+    bound_step: bool = True
 
     def __init__(self, *, task: Task | None = None, observer: Any = "default",
                  observer_kwargs: Mapping[str, Any] | None = None, sensor: Any = "default",
@@ -1121,6 +1125,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         self._ashape = (nu,)
         self._last: tuple[Any, ...] = ()
         self._reward = 0.0
+        #: the loop's step bound at the last reset (:meth:`Loop.bind_step`), or None
+        self._bound: Any = None
 
     # ------------------------------------------------------------------ construction
     def _make_plant(self, cfg: EnvConfig) -> MujocoPlant:
@@ -1329,6 +1335,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         self._goal = goal
         # the estimate starts from the first measurement
         self.loop.reset(x0, seed=env_seed(seed), start=self._start)
+        self._bound = self.loop.bind_step(self._n_samples) if self.bound_step else None
         self._y_held = [0.0] * len(self.output_names)
         obs, info, _ = self._observe([0.0] * self._nu, 0.0)
         if self.render_mode == "human":
@@ -1384,7 +1391,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             raise ResetNeeded(f"{type(self).__name__}: call reset() before step()")
         u = self._action(action)
         try:  # u held over the control period's samples, (1, T, m)
-            self.loop.segment(np.array([[u] * self._n_samples]))
+            if self._bound is not None:
+                self._bound(u)
+            else:
+                self.loop.segment(np.array([[u] * self._n_samples]))
         except LoopFailure as exc:
             raise DivergenceError(f"{exc}") from exc.cause
         obs, info, x = self._observe(u, None)

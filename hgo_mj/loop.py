@@ -337,6 +337,9 @@ class Loop:
         self._blocks: dict[str, Block] = {}
         #: the segments since the reset whose observers took turns (:meth:`_rotated`)
         self._turn = 0
+        #: resets and member restarts so far: a bound step (:meth:`bind_step`) holds until the
+        #: next one
+        self._epoch = 0
 
     @property
     def t(self) -> float:
@@ -398,6 +401,7 @@ class Loop:
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
         self.batch, self.k, self._turn = B, 0, 0
+        self._epoch += 1
         self._pending = None
         Y = None if start is None or not self.observers else self.sample()[2][:, 0]
         for name, ob in self.observers.items():  # as many members as plants
@@ -500,6 +504,7 @@ class Loop:
         (3, [0.3, 0.0])
         """
         rows = [int(b) for b in idx]
+        self._epoch += 1
         reset_members = getattr(self.plant, "reset_members", None)
         if reset_members is None:
             raise DesignError(f"{type(self.plant).__name__} cannot restart single members")
@@ -655,18 +660,12 @@ class Loop:
         ([0.0, 0.01, 0.02, 0.03], 4)
         """
         T = U.shape[1]
-        Ts = self.periods.sample
-        t = (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
-             np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64))
+        t = self._times(T)
         before = self.estimates() if self.exact else {}
         try:
             X, Yc = self.plant.run(U, self.periods.steps)
-        except DivergenceError as exc:  # the plant's: rows valid for every member, partial rows
-            j = int(getattr(exc, "rows", 0))
-            X, Yc = exc.X[:, :j], exc.Yc[:, :j]  # type: ignore[attr-defined]
-            Ym = self._measure(t[:j], Yc) if j else Yc.copy()
-            seg = Segment(t[:j], X, Yc, Ym, U[:, :j], self._partial(Ym, U, j), before)
-            raise LoopFailure(None, self.k + j - 1, float(t[max(j - 1, 0)]), exc, seg) from exc
+        except DivergenceError as exc:
+            raise self._plant_failure(exc, t, U, before) from exc
         Ym = self._measure(t, Yc)
         blocks = self._rotated(Ym, U) if self._rotates(T) else None
         if blocks is not None:
@@ -690,11 +689,117 @@ class Loop:
                 blocks[name] = found.head
                 for later, ob2 in items[i + 1:]:  # the others consume the samples before j
                     blocks[later] = self._advance(later, ob2, Ym[:, :j], U[:, :j])
-                seg = Segment(t[:j + 1], X[:, :j + 1], Yc[:, :j + 1], Ym[:, :j + 1],
-                              U[:, :j + 1], blocks, before)
-                raise LoopFailure(name, self.k + j, float(t[j]), found.cause, seg) from found.cause
+                raise self._observer_failure(name, found, t, X, Yc, Ym, U, blocks,
+                                             before) from found.cause
         self.k += T
         return Segment(t, X, Yc, Ym, U, blocks, before)
+
+    def bind_step(self, T: int) -> Callable[[Sequence[float]], None] | None:
+        """A step of one member (B = 1) bound once: ``step(u)`` advances ``T`` samples with
+        the input ``u`` (``m`` floats) held, as :meth:`segment` of ``[[u] * T]`` does, bit
+        for bit, and returns nothing (the caller reads :meth:`sample` and :meth:`current`
+        next). Validate once, run unchecked: the input, state and output buffers, the
+        plant's run of one member (:meth:`Plant.bind_run`) and the observer's step
+        (:meth:`Observer._bind_step`: its groups, channels and rows) are bound here; each
+        call runs the same pieces as :meth:`segment` (the plant's run, :meth:`_measure`, the
+        observer's :meth:`Observer._advance_block`, their failures as :class:`LoopFailure`)
+        without its per-call arrays, checks and :class:`Segment`. An input the bound run
+        cannot take goes through :meth:`segment`, which raises its error. The binding holds
+        until the next :meth:`reset` or :meth:`reset_members` (a later call goes through
+        :meth:`segment`): an environment binds it at each reset.
+
+        Parameters
+        ----------
+        T : int
+            Samples per call (an environment's samples per control period), at least 1.
+
+        Returns
+        -------
+        callable or None
+            ``step(u)``; None where the binding does not apply (use :meth:`segment`):
+            several members, a loop that keeps the states before a segment (``exact``),
+            ``isolate``, more than one observer, or a plant without a bound run.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant), exact=False)
+        >>> loop.reset([0.2, 0.0])
+        >>> step = loop.bind_step(2)
+        >>> step([0.5]); loop.k, round(loop.t, 6)
+        (2, 0.02)
+        """
+        if (self.batch != 1 or self.exact or self.isolate or len(self.observers) > 1
+                or T < 1):
+            return None
+        U = np.zeros((1, T, len(self.plant.input_names)))
+        X = np.empty((1, T, len(self.plant.state_names)))
+        Yc = np.empty((1, T, len(self.plant.output_names)))
+        run = self.plant.bind_run(U, self.periods.steps, X, Yc)
+        if run is None:
+            return None
+        name, ob = next(iter(self.observers.items()), ("", None))
+        advance = None if ob is None else ob._bind_step(
+            self.params[name], self.states[name], T, self.periods.sample)
+        rows, epoch = U[0], self._epoch
+
+        def step(u: Sequence[float]) -> None:
+            rows[:] = u
+            if self._epoch != epoch:  # a reset since the binding: the loop's own path
+                self.segment(U.copy())
+                return
+            t = self._times(T)
+            try:
+                if not run():  # an input the bound run cannot take: the checked path
+                    self.segment(U.copy())
+                    return
+            except DivergenceError as exc:
+                raise self._plant_failure(exc, t, U, {}) from exc
+            Ym = self._measure(t, Yc)
+            if advance is not None:
+                t0 = time.perf_counter()
+                try:
+                    advance(Ym, U)
+                except DimensionError:
+                    raise
+                except _FAILURES as exc:
+                    found = _Found(0, exc, _head(_empty(ob, 1), 0))  # type: ignore[arg-type]
+                    raise self._observer_failure(name, found, t, X, Yc, Ym, U, {name: found.head},
+                                                 {}) from exc
+                self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
+            self.k += T
+
+        return step
+
+    def _times(self, T: int) -> Array:
+        """The instants of the next ``T`` samples."""
+        Ts = self.periods.sample
+        return (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
+                np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64))
+
+    def _plant_failure(self, exc: DivergenceError, t: Array, U: Array,
+                       before: dict[str, tuple[Array, Array, Array]]) -> LoopFailure:
+        """The :class:`LoopFailure` of the plant's ``exc`` inside a segment: its rows valid for
+        every member, each observer over them (:meth:`_partial`)."""
+        j = int(getattr(exc, "rows", 0))
+        X, Yc = exc.X[:, :j], exc.Yc[:, :j]  # type: ignore[attr-defined]
+        Ym = self._measure(t[:j], Yc) if j else Yc.copy()
+        seg = Segment(t[:j], X, Yc, Ym, U[:, :j], self._partial(Ym, U, j), before)
+        return LoopFailure(None, self.k + j - 1, float(t[max(j - 1, 0)]), exc, seg)
+
+    def _observer_failure(self, name: str, found: _Found, t: Array, X: Array, Yc: Array,
+                          Ym: Array, U: Array, blocks: dict[str, Block],
+                          before: dict[str, tuple[Array, Array, Array]]) -> LoopFailure:
+        """The :class:`LoopFailure` of the observer ``name`` at the segment's row ``found.row``:
+        the rows up to it (copies: a bound step's buffers are written again)."""
+        j = found.row + 1
+        seg = Segment(t[:j], X[:, :j].copy(), Yc[:, :j].copy(), Ym[:, :j].copy(),
+                      U[:, :j].copy(), blocks, before)
+        return LoopFailure(name, self.k + found.row, float(t[found.row]), found.cause, seg)
 
     def _rotates(self, T: int) -> bool:
         """Whether the observers take turns at running first (:meth:`_rotated`): a segment

@@ -177,6 +177,14 @@ def _one_buffer(B: int, T: int, nx: int, n: int, nd: int) -> Block:
     return Block(buf[:a].reshape(B, T, nx), buf[a:b].reshape(B, T, n), buf[b:].reshape(B, T, nd))
 
 
+def _new_block(B: int, T: int, nx: int, n: int, nd: int) -> Block:
+    """A new :class:`Block` of these shapes: three arrays, or from :data:`ONE_BUFFER`
+    member-samples on one allocation (:func:`_one_buffer`)."""
+    if B * T >= ONE_BUFFER:
+        return _one_buffer(B, T, nx, n, nd)
+    return Block(np.empty((B, T, nx)), np.empty((B, T, n)), np.empty((B, T, nd)))
+
+
 def check_outputs(outputs: Any, where: str = "outputs") -> tuple[int, ...]:
     """``outputs`` as a tuple of distinct non-negative channel indices (a sequence of ints:
     one output is a 1-tuple; an int, a bool or a float is refused, not coerced)."""
@@ -1224,22 +1232,65 @@ class Observer(ABC):
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
         nx = s.x_held.shape[1]
-        if out is not None and out.z_hat.shape[:2] == (B, T):
-            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        elif B * T < ONE_BUFFER:
-            X = np.empty((B, T, nx))
-            Z = np.empty((B, T, self.n))
-            D = np.empty((B, T, nd + 1))
-            out = Block(X, Z, D)
-        else:
-            out = _one_buffer(B, T, nx, self.n, nd + 1)
-            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        lost = self._lost(Yo)
+        if out is None or out.z_hat.shape[:2] != (B, T):
+            out = _new_block(B, T, nx, self.n, nd + 1)
+        X, Z, D = out.x_hat, out.z_hat, out.diagnostics
         if not U.flags.c_contiguous:
             U = np.ascontiguousarray(U)
+        groups = params.groups() if self.grouped else [(slice(None), params)]  # (_groups)
+        self._advance_block(groups, s, Yo, U, dt, X, Z, D)
+        return out
+
+    def _bind_step(self, params: Params, s: State, T: int,
+                   dt: float) -> Callable[[Array, Array], Block]:
+        """:meth:`_step_checked` of the state ``s`` over blocks of ``T`` samples, bound once:
+        ``step(Y, U)`` advances ``s`` in place over ``Y`` ``(B, T, p)`` and ``U`` ``(B, T, m)``
+        (C-contiguous float64, the shapes of the binding: the caller's, unchecked) and
+        returns the rows, written into the one :class:`Block` of the binding at every call.
+        What :meth:`_step_checked` finds per call (the groups, the buffers, the observer's
+        channels' index) is found here; the measurement rule, the family's :meth:`_step` and
+        the dropout count run as they do there (:meth:`_advance_block`), bit for bit.
+
+        Parameters
+        ----------
+        params, s : Params, State
+            The members' parameters (checked: :meth:`check_period`) and the state advanced.
+        T : int
+            Samples per block.
+        dt : float
+            Sample period, seconds (positive).
+
+        Returns
+        -------
+        callable
+            ``step(Y, U) -> Block``.
+        """
+        B, dt = s.batch, _positive_dt(dt)
+        cols = self._cols_index
+        width = (cols.stop - cols.start) if isinstance(cols, slice) else len(cols)
+        Yo = np.empty((B, T, width))
+        out = _new_block(B, T, s.x_held.shape[1], self.n, len(self.family_diagnostics) + 1)
+        X, Z, D = out.x_hat, out.z_hat, out.diagnostics
+        groups = self._groups(params)
+        advance = self._advance_block
+
+        def step(Y: Array, U: Array) -> Block:
+            Yo[...] = Y[..., cols]
+            advance(groups, s, Yo, U, dt, X, Z, D)
+            return out
+
+        return step
+
+    def _advance_block(self, groups: list[tuple[Any, Params]], s: State, Yo: Array, U: Array,
+                       dt: float, X: Array, Z: Array, D: Array) -> None:
+        """The measurement rule on the observer's channels ``Yo`` (:meth:`_lost`), the family's
+        :meth:`_step` group by group of equal parameters, the dropout count: the work of
+        :meth:`_step_checked` and of a bound step (:meth:`_bind_step`) on their buffers."""
+        nd = len(self.family_diagnostics)
+        B = Yo.shape[0]
+        lost = self._lost(Yo)
         if self._prepares:
             self._prepare(s, dt)
-        groups = params.groups() if self.grouped else [(slice(None), params)]  # (_groups)
         if len(groups) == 1:
             self._step(groups[0][1], s, Yo, U, dt, X, Z, D[..., :nd])
         else:
@@ -1260,7 +1311,6 @@ class Observer(ABC):
         else:
             D[:, :, nd] = dropouts[:, None] + lost
             dropouts += lost[:, -1]
-        return out
 
     def _lost(self, Yo: Array) -> NDArray[np.int64] | None:
         """The measurement rule (module docstring) on the observer's channels ``Yo``
