@@ -337,9 +337,8 @@ class Loop:
         self._blocks: dict[str, Block] = {}
         #: the segments since the reset whose observers took turns (:meth:`_rotated`)
         self._turn = 0
-        #: resets and member restarts so far: a bound step (:meth:`bind_step`) holds until the
-        #: next one
-        self._epoch = 0
+        #: the last :meth:`bind_step`: (T, the observer's Params, the step)
+        self._binding: tuple[int, Params | None, Callable[[Sequence[float]], None]] | None = None
 
     @property
     def t(self) -> float:
@@ -401,7 +400,6 @@ class Loop:
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
         self.batch, self.k, self._turn = B, 0, 0
-        self._epoch += 1
         self._pending = None
         Y = None if start is None or not self.observers else self.sample()[2][:, 0]
         for name, ob in self.observers.items():  # as many members as plants
@@ -504,7 +502,6 @@ class Loop:
         (3, [0.3, 0.0])
         """
         rows = [int(b) for b in idx]
-        self._epoch += 1
         reset_members = getattr(self.plant, "reset_members", None)
         if reset_members is None:
             raise DesignError(f"{type(self.plant).__name__} cannot restart single members")
@@ -703,10 +700,13 @@ class Loop:
         (:meth:`Observer._bind_step`: its groups, channels and rows) are bound here; each
         call runs the same pieces as :meth:`segment` (the plant's run, :meth:`_measure`, the
         observer's :meth:`Observer._advance_block`, their failures as :class:`LoopFailure`)
-        without its per-call arrays, checks and :class:`Segment`. An input the bound run
-        cannot take goes through :meth:`segment`, which raises its error. The binding holds
-        until the next :meth:`reset` or :meth:`reset_members` (a later call goes through
-        :meth:`segment`): an environment binds it at each reset.
+        without its per-call arrays, checks and :class:`Segment`; the observer's state is the
+        loop's at each call (a reset or a member's restart makes a new one). An input the
+        bound run cannot take goes through :meth:`segment`, which raises its error. The
+        binding holds while the loop has one member and the observer's parameters are the
+        same :class:`Params` (a reset keeps them while B and the observer's values stay:
+        :meth:`reset`); else a call goes through :meth:`segment`. An environment asks for
+        it at each reset: the same T and parameters give the last binding again.
 
         Parameters
         ----------
@@ -736,21 +736,24 @@ class Loop:
         if (self.batch != 1 or self.exact or self.isolate or len(self.observers) > 1
                 or T < 1):
             return None
+        name, ob = next(iter(self.observers.items()), ("", None))
+        p = self.params.get(name)
+        if self._binding is not None and self._binding[:2] == (T, p):
+            return self._binding[2]  # the last binding: the same T and parameters
         U = np.zeros((1, T, len(self.plant.input_names)))
         X = np.empty((1, T, len(self.plant.state_names)))
         Yc = np.empty((1, T, len(self.plant.output_names)))
         run = self.plant.bind_run(U, self.periods.steps, X, Yc)
         if run is None:
             return None
-        name, ob = next(iter(self.observers.items()), ("", None))
-        advance = None if ob is None else ob._bind_step(
-            self.params[name], self.states[name], T, self.periods.sample)
-        rows, epoch = U[0], self._epoch
+        advance = None if ob is None else ob._bind_step(p, 1, T,  # type: ignore[arg-type]
+                                                        self.periods.sample)
+        rows, states, params = U[0], self.states, self.params
 
         def step(u: Sequence[float]) -> None:
             rows[:] = u
-            if self._epoch != epoch:  # a reset since the binding: the loop's own path
-                self.segment(U.copy())
+            if self.batch != 1 or params.get(name) is not p:  # a reset to other members or
+                self.segment(U.copy())                        # parameters: the loop's path
                 return
             t = self._times(T)
             try:
@@ -763,7 +766,7 @@ class Loop:
             if advance is not None:
                 t0 = time.perf_counter()
                 try:
-                    advance(Ym, U)
+                    advance(states[name], Ym, U)
                 except DimensionError:
                     raise
                 except _FAILURES as exc:
@@ -773,6 +776,7 @@ class Loop:
                 self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
             self.k += T
 
+        self._binding = (T, p, step)
         return step
 
     def _times(self, T: int) -> Array:

@@ -1139,9 +1139,10 @@ class Observer(ABC):
         """The fields every state has, fresh for ``B`` members: ``dropouts``,
         ``inverse_failures`` and ``x_held`` (the last valid estimate, NaN before any). A
         family's :meth:`_init` may return its own ``x_held`` (an estimate mapped at the start)."""
+        held = np.empty((B, len(self.state_names)))
+        held.fill(np.nan)  # np.full's values, without its Python-level wrapper
         return {"dropouts": np.zeros(B, dtype=np.int64),
-                "inverse_failures": np.zeros(B, dtype=np.int64),
-                "x_held": np.full((B, len(self.state_names)), np.nan)}
+                "inverse_failures": np.zeros(B, dtype=np.int64), "x_held": held}
 
     def step(self, params: Params, state: State, Y: Any, U: Any,
              dt: float) -> tuple[State, Block]:
@@ -1241,40 +1242,41 @@ class Observer(ABC):
         self._advance_block(groups, s, Yo, U, dt, X, Z, D)
         return out
 
-    def _bind_step(self, params: Params, s: State, T: int,
-                   dt: float) -> Callable[[Array, Array], Block]:
-        """:meth:`_step_checked` of the state ``s`` over blocks of ``T`` samples, bound once:
-        ``step(Y, U)`` advances ``s`` in place over ``Y`` ``(B, T, p)`` and ``U`` ``(B, T, m)``
-        (C-contiguous float64, the shapes of the binding: the caller's, unchecked) and
-        returns the rows, written into the one :class:`Block` of the binding at every call.
-        What :meth:`_step_checked` finds per call (the groups, the buffers, the observer's
-        channels' index) is found here; the measurement rule, the family's :meth:`_step` and
-        the dropout count run as they do there (:meth:`_advance_block`), bit for bit.
+    def _bind_step(self, params: Params, B: int, T: int,
+                   dt: float) -> Callable[[State, Array, Array], Block]:
+        """:meth:`_step_checked` of ``B`` members over blocks of ``T`` samples, bound once:
+        ``step(s, Y, U)`` advances the state ``s`` in place over ``Y`` ``(B, T, p)`` and ``U``
+        ``(B, T, m)`` (C-contiguous float64, the shapes of the binding: the caller's,
+        unchecked) and returns the rows, written into the one :class:`Block` of the binding
+        at every call. What :meth:`_step_checked` finds per call (the groups, the buffers,
+        the observer's channels' index) is found here; the measurement rule, the family's
+        :meth:`_step` and the dropout count run as they do there (:meth:`_advance_block`), bit
+        for bit.
 
         Parameters
         ----------
-        params, s : Params, State
-            The members' parameters (checked: :meth:`check_period`) and the state advanced.
-        T : int
-            Samples per block.
+        params : Params
+            The members' parameters (checked: :meth:`check_period`).
+        B, T : int
+            Members and samples per block.
         dt : float
             Sample period, seconds (positive).
 
         Returns
         -------
         callable
-            ``step(Y, U) -> Block``.
+            ``step(s, Y, U) -> Block``.
         """
-        B, dt = s.batch, _positive_dt(dt)
+        dt = _positive_dt(dt)
         cols = self._cols_index
         width = (cols.stop - cols.start) if isinstance(cols, slice) else len(cols)
         Yo = np.empty((B, T, width))
-        out = _new_block(B, T, s.x_held.shape[1], self.n, len(self.family_diagnostics) + 1)
+        out = _new_block(B, T, len(self.state_names), self.n, len(self.family_diagnostics) + 1)
         X, Z, D = out.x_hat, out.z_hat, out.diagnostics
         groups = self._groups(params)
         advance = self._advance_block
 
-        def step(Y: Array, U: Array) -> Block:
+        def step(s: State, Y: Array, U: Array) -> Block:
             Yo[...] = Y[..., cols]
             advance(groups, s, Yo, U, dt, X, Z, D)
             return out
@@ -1370,7 +1372,8 @@ class Observer(ABC):
         ([[0.3, 0.0]], [[10.0, 0.0]])
         """
         nd = len(self.family_diagnostics)
-        B = state.batch
+        dropouts = state.dropouts  # every state's (_core): its length is the batch
+        B = dropouts.shape[0]
         groups = self._groups(params)
         if len(groups) == 1:
             x, z, d = self._current(groups[0][1], state)
@@ -1381,7 +1384,7 @@ class Observer(ABC):
                 x[rows], z[rows], d[rows] = self._current(p, state.take(rows))
         D = np.empty((B, nd + 1))
         D[:, :nd] = d
-        D[:, nd] = state.dropouts
+        D[:, nd] = dropouts
         # the family's new arrays (_current) as they are where float64: no second copy
         return (x if x.dtype is _F64 else np.array(x, dtype=np.float64),
                 z if z.dtype is _F64 else np.array(z, dtype=np.float64), D)
@@ -1775,8 +1778,7 @@ class Observer(ABC):
         if self.system is None:
             return x0
         # the rows are checked (init's batch_rows): the map without its checks
-        to_normal = self.system.to_normal_unchecked
-        return np.array([to_normal(x, u) for x, u in zip(x0, u0)], dtype=float)
+        return self.system.to_normal_rows(x0, u0)
 
     def _to_physical(self, s: State, Z: Array, U: Array, X: Array) -> None:
         """Write ``system.from_normal`` of the rows ``Z`` ``(B, T, n)`` (inputs ``U``) into ``X``.

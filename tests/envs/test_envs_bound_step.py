@@ -97,22 +97,32 @@ def test_bound_step_observer_failure_same_error() -> None:
                         "ValueError", 1)
 
 
-def test_binding_holds_until_the_next_reset() -> None:
-    """After a reset the old binding goes through the segment path: it still steps the loop
-    (the same rows as a fresh binding), never a state the reset replaced."""
+@pytest.mark.parametrize("new_gain", [False, True])
+def test_a_binding_after_a_reset(new_gain: bool) -> None:
+    """After a reset an old binding steps the new state (the same parameters) or goes through
+    the segment path (new parameters: the observer's gain changed): the same rows as a fresh
+    binding and as the segment path, never the state or parameters the reset replaced."""
     rows = []
-    for rebind in (True, False):
+    for how in ("old binding", "new binding", "segment"):
         plant = make_plant("pendulum", dt=0.01)
-        loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
-                    Periods.of(plant), exact=False)
+        ob = HighGainObserver(plant.system, k=10.0)
+        loop = Loop(plant, None, {"hgo": ob}, Periods.of(plant), exact=False)
         loop.reset([0.2, 0.0])
         step = loop.bind_step(2)
+        assert step is not None
         step([0.3])
+        if new_gain:
+            ob.k_ = 20.0
         loop.reset([0.1, 0.0])
-        step = loop.bind_step(2) if rebind else step
+        if how == "new binding":
+            step = loop.bind_step(2)
+        elif how == "segment":
+            step = lambda u: loop.segment(np.array([[u] * 2]))  # noqa: E731, B023
+        assert step is not None
         step([0.3])
         rows.append((plant.state.tolist(), loop.current("hgo")[0].tolist(), loop.k))
-    assert rows[0] == rows[1]
+    assert rows[0] == rows[1] == rows[2]
+    assert rows[0][1][0][0] != 0.1  # the observer moved
 
 
 def test_no_binding_where_it_does_not_apply() -> None:

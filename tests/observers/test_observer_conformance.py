@@ -351,13 +351,13 @@ def test_bound_step_equals_the_checked_step(kind, make, p, m):
     names = () if ob.name == "bank" else ob.parameter_names
     params = ob.parameters(B, **{name: np.stack(_member_values(ob, name)[:B]) for name in names})
     a, b = ob.init(B, params=params), ob.init(B, params=params)
-    step = ob._bind_step(params, a, T, DT)
+    step = ob._bind_step(params, B, T, DT)
     for block in range(4):
         rows = [signals(block * T + j, p, m) for j in range(T)]
         Y = np.ascontiguousarray(np.broadcast_to(np.array([r[0] for r in rows]), (B, T, p)))
         U = np.ascontiguousarray(np.broadcast_to(np.array([r[1] for r in rows]).reshape(T, m),
                                                  (B, T, m)))
-        got, want = step(Y, U), ob._step_checked(params, b, Y, U, DT)
+        got, want = step(a, Y, U), ob._step_checked(params, b, Y, U, DT)
         for f in ("x_hat", "z_hat", "diagnostics"):
             np.testing.assert_array_equal(getattr(got, f), getattr(want, f), err_msg=f)
         for u, v in zip(_arrays(a), _arrays(b)):
