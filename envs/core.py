@@ -240,8 +240,8 @@ class _StartMap:
         out = np.zeros((Ya.shape[0], self.n))
         for col, ch in self.measured:
             out[:, col] = Ya[:, ch]
-        if not np.isfinite(out).all():  # a dropout gives 0 (the rare case: checked once)
-            np.nan_to_num(out, copy=False, nan=0.0)
+        if not math.isfinite(out.sum()):  # a dropout gives 0 (the rare case: checked once;
+            np.nan_to_num(out, copy=False, nan=0.0)  # a sum that overflows changes nothing)
         for col, source in self.tied:
             out[:, col] = out[:, source]
         return out
@@ -1334,10 +1334,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             x0, goal = self._options(options, x0, goal)
         self._goal = goal
         # the estimate starts from the first measurement
-        self.loop.reset(x0, seed=env_seed(seed), start=self._start)
+        first = self.loop.reset(x0, seed=env_seed(seed), start=self._start)
         self._bound = self.loop.bind_step(self._n_samples) if self.bound_step else None
         self._y_held = [0.0] * len(self.output_names)
-        obs, info, _ = self._observe([0.0] * self._nu, 0.0)
+        obs, info, _ = self._observe([0.0] * self._nu, 0.0, first)
         if self.render_mode == "human":
             self.render()
         return obs, info
@@ -1431,12 +1431,13 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                 a[i] = -1.0 if v < -1.0 else 1.0
         return [v * s for v, s in zip(a, self._scale)]
 
-    def _observe(self, u: list[float], reward: float | None
+    def _observe(self, u: list[float], reward: float | None,
+                 sampled: tuple[Array, Array, Array] | None = None
                  ) -> tuple[Array, dict[str, Any], list[float]]:
         """The observation, ``info`` and the true state at the current instant: the true
         state, the newest measurement and the observer's estimate (from the measurements
-        before it)."""
-        X, Yc, Ym = self.loop.sample()
+        before it); ``sampled``: this instant's :meth:`Loop.sample` already made (a reset's)."""
+        X, Yc, Ym = self.loop.sample() if sampled is None else sampled
         x, y = X[0, 0].tolist(), Ym[0, 0].tolist()
         obs = self.observer
         x_hat = diag = None

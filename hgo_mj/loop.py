@@ -346,7 +346,8 @@ class Loop:
         return self.k * self.periods.sample
 
     def reset(self, x0: Any = None, *, seed: Any = None, batch: int | None = None,
-              start: Callable[[Observer, Array], Array] | None = None) -> None:
+              start: Callable[[Observer, Array], Array] | None = None
+              ) -> tuple[Array, Array, Array] | None:
         """Restart every part: the plant from ``x0`` (``(n,)`` or ``(B, n)``; default the
         system's), the sensor streams from ``seed`` (an int or None for one stream, a sequence
         of B seeds for B), each observer from its own initial estimate; check each observer's
@@ -369,6 +370,13 @@ class Loop:
             consumed by the first segment): an environment's start from its first measurement.
             The state is made from it directly (:meth:`start_observers` after a reset does the
             same, the state made twice). Default: each observer's own initial estimate.
+
+        Returns
+        -------
+        tuple of ndarray or None
+            With ``start`` and at least one observer: the first sample, ``(X, Yc, Ym)`` as
+            :meth:`sample` gives it (the caller's own arrays: an environment's first
+            observation is made from them, not from a second :meth:`sample`); else None.
 
         Raises
         ------
@@ -401,10 +409,10 @@ class Loop:
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
         self.batch, self.k, self._turn = B, 0, 0
         self._pending = None
-        Y = None if start is None or not self.observers else self.sample()[2][:, 0]
+        first = None if start is None or not self.observers else self.sample()
         for name, ob in self.observers.items():  # as many members as plants
             p, self.states[name] = self._checked_start(
-                name, ob, B, None if Y is None else start(ob, Y))  # type: ignore[misc]
+                name, ob, B, None if first is None else start(ob, first[2][:, 0]))  # type: ignore[misc]
             self.params[name] = p
             ob._hold(p, self.states[name], batched)
             if name not in self._warm:
@@ -412,6 +420,7 @@ class Loop:
                 self._warm.add(name)
         self.wall = dict.fromkeys(self.observers, 0.0)
         self.failed = {}
+        return first
 
     def _checked_start(self, name: str, ob: Observer, B: int,
                        x_hat0: Array | None = None) -> tuple[Params, State]:
