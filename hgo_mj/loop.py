@@ -10,7 +10,8 @@ outputs at each sample instant while the plant holds ``U[:, j]`` for one sample 
 (``plant.run``), passes the clean outputs through the sensor chain (``sensor.apply``, B seeded
 streams) and advances every observer over the T measurements (``Observer.step``). The
 callers choose T: :func:`hgo_mj.simulate.simulate` runs an open-loop input in long segments and
-a feedback law one control period at a time, an environment one control period per ``step``.
+a feedback law one control period at a time, an environment one control period per ``step``
+(one member: the same pieces, bound once at its reset, :meth:`Loop.bind_step`).
 
 The loop holds each observer's state and parameters as data (:attr:`Loop.states`,
 :attr:`Loop.params`; :meth:`Observer.init`, :meth:`Observer.parameters`): one batch may hold
