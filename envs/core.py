@@ -223,19 +223,37 @@ def measurement_start(observer: Observer, Y: Any,
     >>> measurement_start(ej, [0.2], ties=[("motor_angle", "link_angle")]).tolist()
     [[0.2, 0.2, 0.0, 0.0]]
     """
-    Ya = np.asarray(Y, dtype=np.float64)
-    Ya = Ya.reshape(1, -1) if Ya.ndim == 1 else Ya
-    out = np.zeros((Ya.shape[0], len(observer.state_names)))
+    return _start_map(observer, ties)(Y)
+
+
+class _StartMap:
+    """:func:`measurement_start` of one observer and ties, its indices found once (an
+    environment builds it with its observer and calls it at every reset)."""
+
+    def __init__(self, n: int, measured: list[tuple[int, int]],
+                 tied: list[tuple[int, int]]) -> None:
+        self.n, self.measured, self.tied = n, measured, tied
+
+    def __call__(self, Y: Any) -> Array:
+        Ya = np.asarray(Y, dtype=np.float64)
+        Ya = Ya.reshape(1, -1) if Ya.ndim == 1 else Ya
+        out = np.zeros((Ya.shape[0], self.n))
+        for col, ch in self.measured:
+            out[:, col] = Ya[:, ch]
+        if not math.isfinite(out.sum()):  # a dropout gives 0 (the rare case: checked once;
+            np.nan_to_num(out, copy=False, nan=0.0)  # a sum that overflows changes nothing)
+        for col, source in self.tied:
+            out[:, col] = out[:, source]
+        return out
+
+
+def _start_map(observer: Observer, ties: Sequence[tuple[str, str]]) -> _StartMap:
+    """The :class:`_StartMap` of ``observer`` and ``ties`` (see :func:`measurement_start`)."""
     measured = _measured_coordinates(observer)
-    for col, ch in measured:
-        out[:, col] = Ya[:, ch]
-    if not np.isfinite(out).all():  # a dropout gives 0 (the rare case: checked once)
-        np.nan_to_num(out, copy=False, nan=0.0)
     names, done = list(observer.state_names), {col for col, _ in measured}
-    for name, source in ties:
-        if name in names and source in names and names.index(name) not in done:
-            out[:, names.index(name)] = out[:, names.index(source)]
-    return out
+    tied = [(names.index(name), names.index(source)) for name, source in ties
+            if name in names and source in names and names.index(name) not in done]
+    return _StartMap(len(names), measured, tied)
 
 
 def _measured_coordinates(observer: Observer, offset: int = 0) -> list[tuple[int, int]]:
@@ -1038,6 +1056,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
     task_class: ClassVar[type[Task] | None] = None
     #: the id the class is registered under (:data:`hgo_mj.envs.ENVIRONMENTS`); None: none
     env_id: ClassVar[str | None] = None
+    #: step through the loop's step bound at each reset (:meth:`Loop.bind_step`: the same
+    #: results as :meth:`Loop.segment` bit for bit); False: every step through
+    #: :meth:`Loop.segment` (set before a reset)
+    bound_step: bool = True
 
     def __init__(self, *, task: Task | None = None, observer: Any = "default",
                  observer_kwargs: Mapping[str, Any] | None = None, sensor: Any = "default",
@@ -1083,6 +1105,9 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                          {} if self.observer is None else {_OB: self.observer}, periods,
                          exact=False)
         self._names()
+        #: the observer's start from the first measurement (:func:`measurement_start`)
+        self._start_map = (None if self.observer is None else
+                           _start_map(self.observer, cfg.task.start_ties))
         source = {"true": self.state_names, "measurement": self.output_names}.get(
             cfg.observation, self.estimate_names)
         self.encoder = Encoder(cfg.task, source, self.diagnostic_names
@@ -1100,6 +1125,8 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         self._ashape = (nu,)
         self._last: tuple[Any, ...] = ()
         self._reward = 0.0
+        #: the loop's step bound at the last reset (:meth:`Loop.bind_step`), or None
+        self._bound: Any = None
 
     # ------------------------------------------------------------------ construction
     def _make_plant(self, cfg: EnvConfig) -> MujocoPlant:
@@ -1306,15 +1333,19 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         if options:
             x0, goal = self._options(options, x0, goal)
         self._goal = goal
-        self.loop.reset(x0, seed=env_seed(seed))
-        if self.observer is not None:  # the estimate starts from the first measurement
-            self.loop.start_observers([0], {_OB: measurement_start(
-                self.observer, self.loop.sample()[2][:, 0], self.task.start_ties)})
+        # the estimate starts from the first measurement
+        first = self.loop.reset(x0, seed=env_seed(seed), start=self._start)
+        self._bound = self.loop.bind_step(self._n_samples) if self.bound_step else None
         self._y_held = [0.0] * len(self.output_names)
-        obs, info, _ = self._observe([0.0] * self._nu, 0.0)
+        obs, info, _ = self._observe([0.0] * self._nu, 0.0, first)
         if self.render_mode == "human":
             self.render()
         return obs, info
+
+    def _start(self, observer: Observer, Y: Array) -> Array:
+        """The observer's initial estimate from the first measurement ``Y`` ``(1, p)``
+        (:func:`measurement_start`, the task's ties: their indices found at construction)."""
+        return cast(_StartMap, self._start_map)(Y)
 
     def _options(self, options: Mapping[str, Any], x0: list[float], goal: tuple[float, ...]
                  ) -> tuple[list[float], tuple[float, ...]]:
@@ -1360,7 +1391,10 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
             raise ResetNeeded(f"{type(self).__name__}: call reset() before step()")
         u = self._action(action)
         try:  # u held over the control period's samples, (1, T, m)
-            self.loop.segment(np.array([[u] * self._n_samples]))
+            if self._bound is not None:
+                self._bound(u)
+            else:
+                self.loop.segment(np.array([[u] * self._n_samples]))
         except LoopFailure as exc:
             raise DivergenceError(f"{exc}") from exc.cause
         obs, info, x = self._observe(u, None)
@@ -1397,12 +1431,13 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
                 a[i] = -1.0 if v < -1.0 else 1.0
         return [v * s for v, s in zip(a, self._scale)]
 
-    def _observe(self, u: list[float], reward: float | None
+    def _observe(self, u: list[float], reward: float | None,
+                 sampled: tuple[Array, Array, Array] | None = None
                  ) -> tuple[Array, dict[str, Any], list[float]]:
         """The observation, ``info`` and the true state at the current instant: the true
         state, the newest measurement and the observer's estimate (from the measurements
-        before it)."""
-        X, Yc, Ym = self.loop.sample()
+        before it); ``sampled``: this instant's :meth:`Loop.sample` already made (a reset's)."""
+        X, Yc, Ym = self.loop.sample() if sampled is None else sampled
         x, y = X[0, 0].tolist(), Ym[0, 0].tolist()
         obs = self.observer
         x_hat = diag = None

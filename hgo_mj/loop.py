@@ -10,7 +10,8 @@ outputs at each sample instant while the plant holds ``U[:, j]`` for one sample 
 (``plant.run``), passes the clean outputs through the sensor chain (``sensor.apply``, B seeded
 streams) and advances every observer over the T measurements (``Observer.step``). The
 callers choose T: :func:`hgo_mj.simulate.simulate` runs an open-loop input in long segments and
-a feedback law one control period at a time, an environment one control period per ``step``.
+a feedback law one control period at a time, an environment one control period per ``step``
+(one member: the same pieces, bound once at its reset, :meth:`Loop.bind_step`).
 
 The loop holds each observer's state and parameters as data (:attr:`Loop.states`,
 :attr:`Loop.params`; :meth:`Observer.init`, :meth:`Observer.parameters`): one batch may hold
@@ -25,7 +26,7 @@ the cause, and carries the rows that are valid.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -337,13 +338,17 @@ class Loop:
         self._blocks: dict[str, Block] = {}
         #: the segments since the reset whose observers took turns (:meth:`_rotated`)
         self._turn = 0
+        #: the last :meth:`bind_step`: (T, the observer's Params, the step)
+        self._binding: tuple[int, Params | None, Callable[[Sequence[float]], None]] | None = None
 
     @property
     def t(self) -> float:
         """The current sample instant."""
         return self.k * self.periods.sample
 
-    def reset(self, x0: Any = None, *, seed: Any = None, batch: int | None = None) -> None:
+    def reset(self, x0: Any = None, *, seed: Any = None, batch: int | None = None,
+              start: Callable[[Observer, Array], Array] | None = None
+              ) -> tuple[Array, Array, Array] | None:
         """Restart every part: the plant from ``x0`` (``(n,)`` or ``(B, n)``; default the
         system's), the sensor streams from ``seed`` (an int or None for one stream, a sequence
         of B seeds for B), each observer from its own initial estimate; check each observer's
@@ -360,6 +365,19 @@ class Loop:
             members; :data:`CONTINUE` restarts the stages and lets their generators go on.
         batch : int, optional
             Number of members B (default: one unbatched member, or as many as ``x0`` rows).
+        start : callable, optional
+            ``start(observer, Y)``: each observer's initial estimate ``(B, n_x)`` made from the
+            first measurement ``Y`` ``(B, p)`` (drawn here, as :meth:`sample` draws it, and
+            consumed by the first segment): an environment's start from its first measurement.
+            The state is made from it directly (:meth:`start_observers` after a reset does the
+            same, the state made twice). Default: each observer's own initial estimate.
+
+        Returns
+        -------
+        tuple of ndarray or None
+            With ``start`` and at least one observer: the first sample, ``(X, Yc, Ym)`` as
+            :meth:`sample` gives it (the caller's own arrays: an environment's first
+            observation is made from them, not from a second :meth:`sample`); else None.
 
         Raises
         ------
@@ -390,38 +408,43 @@ class Loop:
                 raise DimensionError(f"the sensor chain has {self.sensor.batch} stream(s) for "
                                      f"{B} plant(s): give one seed per member")
         batched = batch is not None or bool(getattr(self.plant, "batched", False))
+        self.batch, self.k, self._turn = B, 0, 0
+        self._pending = None
+        first = None if start is None or not self.observers else self.sample()
         for name, ob in self.observers.items():  # as many members as plants
-            p, self.states[name] = self._checked_start(name, ob, B)
+            p, self.states[name] = self._checked_start(
+                name, ob, B, None if first is None else start(ob, first[2][:, 0]))  # type: ignore[misc]
             self.params[name] = p
             ob._hold(p, self.states[name], batched)
             if name not in self._warm:
                 self._warm_up(ob, p, self.states[name])
                 self._warm.add(name)
-        self.batch, self.k, self._turn = B, 0, 0
         self.wall = dict.fromkeys(self.observers, 0.0)
-        self._pending = None
         self.failed = {}
+        return first
 
-    def _checked_start(self, name: str, ob: Observer, B: int) -> tuple[Params, State]:
+    def _checked_start(self, name: str, ob: Observer, B: int,
+                       x_hat0: Array | None = None) -> tuple[Params, State]:
         """The parameters of ``B`` members of the observer ``name``, checked against the plant
         (:func:`check_fits`) and the sample period (:meth:`Observer.check_period`), and a new
-        initial state (:meth:`Observer.init`). Validate once: both are made and checked again
-        only where ``B`` or the observer's constructor values (:meth:`Observer.params`, JSON:
-        compared as they are) differ from the last reset's; else the last reset's read-only
-        :class:`Params` serve again and the state is a copy of the last reset's initial one
-        (an environment's reset then pays no parameter construction, grouping, period check
-        or ``init``: the initial state depends on ``B``, the parameters and the constructor's
-        initial estimate only)."""
+        initial state: from ``x_hat0`` ``(B, n_x)`` where given (:meth:`Observer._start_from`, the
+        rows' checks only), else the constructor's initial estimate (:meth:`Observer.init`).
+        Validate once: the parameters are made and checked again only where ``B`` or the
+        observer's constructor values (:meth:`Observer.params`, JSON: compared as they are)
+        differ from the last reset's; else the last reset's read-only :class:`Params` serve
+        again and the state is a copy of the last reset's initial one (an environment's reset
+        then pays no parameter construction, grouping, period check or ``init``: the initial
+        state depends on ``B``, the parameters and the constructor's initial estimate only)."""
         mark = ob.params()
         found = self._checked.get(name)
         if found is not None and found[0] == B and found[1] == mark:
-            return found[2], found[3].copy()
+            return found[2], (found[3].copy() if x_hat0 is None else ob._start_from(found[2], x_hat0))
         check_fits(name, ob, self.plant.output_names, self.plant.input_names)
         p = ob.parameters(B, **self._values.get(name, {}))
         ob.check_period(self.periods.sample, p)
         s0 = ob.init(B, params=p)
         self._checked[name] = (B, mark, p, s0.copy())
-        return p, s0
+        return p, (s0 if x_hat0 is None else ob._start_from(p, x_hat0))
 
     def _warm_up(self, ob: Observer, p: Params, state: State) -> None:
         """Two throw-away samples of copies of member 0 (the plant's clean output, zero
@@ -644,18 +667,12 @@ class Loop:
         ([0.0, 0.01, 0.02, 0.03], 4)
         """
         T = U.shape[1]
-        Ts = self.periods.sample
-        t = (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
-             np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64))
+        t = self._times(T)
         before = self.estimates() if self.exact else {}
         try:
             X, Yc = self.plant.run(U, self.periods.steps)
-        except DivergenceError as exc:  # the plant's: rows valid for every member, partial rows
-            j = int(getattr(exc, "rows", 0))
-            X, Yc = exc.X[:, :j], exc.Yc[:, :j]  # type: ignore[attr-defined]
-            Ym = self._measure(t[:j], Yc) if j else Yc.copy()
-            seg = Segment(t[:j], X, Yc, Ym, U[:, :j], self._partial(Ym, U, j), before)
-            raise LoopFailure(None, self.k + j - 1, float(t[max(j - 1, 0)]), exc, seg) from exc
+        except DivergenceError as exc:
+            raise self._plant_failure(exc, t, U, before) from exc
         Ym = self._measure(t, Yc)
         blocks = self._rotated(Ym, U) if self._rotates(T) else None
         if blocks is not None:
@@ -679,11 +696,124 @@ class Loop:
                 blocks[name] = found.head
                 for later, ob2 in items[i + 1:]:  # the others consume the samples before j
                     blocks[later] = self._advance(later, ob2, Ym[:, :j], U[:, :j])
-                seg = Segment(t[:j + 1], X[:, :j + 1], Yc[:, :j + 1], Ym[:, :j + 1],
-                              U[:, :j + 1], blocks, before)
-                raise LoopFailure(name, self.k + j, float(t[j]), found.cause, seg) from found.cause
+                raise self._observer_failure(name, found, t, X, Yc, Ym, U, blocks,
+                                             before) from found.cause
         self.k += T
         return Segment(t, X, Yc, Ym, U, blocks, before)
+
+    def bind_step(self, T: int) -> Callable[[Sequence[float]], None] | None:
+        """A step of one member (B = 1) bound once: ``step(u)`` advances ``T`` samples with
+        the input ``u`` (``m`` floats) held, as :meth:`segment` of ``[[u] * T]`` does, bit
+        for bit, and returns nothing (the caller reads :meth:`sample` and :meth:`current`
+        next). Validate once, run unchecked: the input, state and output buffers, the
+        plant's run of one member (:meth:`Plant.bind_run`) and the observer's step
+        (:meth:`Observer._bind_step`: its groups, channels and rows) are bound here; each
+        call runs the same pieces as :meth:`segment` (the plant's run, :meth:`_measure`, the
+        observer's :meth:`Observer._advance_block`, their failures as :class:`LoopFailure`)
+        without its per-call arrays, checks and :class:`Segment`; the observer's state is the
+        loop's at each call (a reset or a member's restart makes a new one). An input the
+        bound run cannot take goes through :meth:`segment`, which raises its error. The
+        binding holds while the loop has one member and the observer's parameters are the
+        same :class:`Params` (a reset keeps them while B and the observer's values stay:
+        :meth:`reset`); else a call goes through :meth:`segment`. An environment asks for
+        it at each reset: the same T and parameters give the last binding again.
+
+        Parameters
+        ----------
+        T : int
+            Samples per call (an environment's samples per control period), at least 1.
+
+        Returns
+        -------
+        callable or None
+            ``step(u)``; None where the binding does not apply (use :meth:`segment`):
+            several members, a loop that keeps the states before a segment (``exact``),
+            ``isolate``, more than one observer, or a plant without a bound run.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant), exact=False)
+        >>> loop.reset([0.2, 0.0])
+        >>> step = loop.bind_step(2)
+        >>> step([0.5]); loop.k, round(loop.t, 6)
+        (2, 0.02)
+        """
+        if (self.batch != 1 or self.exact or self.isolate or len(self.observers) > 1
+                or T < 1):
+            return None
+        name, ob = next(iter(self.observers.items()), ("", None))
+        p = self.params.get(name)
+        if self._binding is not None and self._binding[:2] == (T, p):
+            return self._binding[2]  # the last binding: the same T and parameters
+        U = np.zeros((1, T, len(self.plant.input_names)))
+        X = np.empty((1, T, len(self.plant.state_names)))
+        Yc = np.empty((1, T, len(self.plant.output_names)))
+        run = self.plant.bind_run(U, self.periods.steps, X, Yc)
+        if run is None:
+            return None
+        advance = None if ob is None else ob._bind_step(p, 1, T,  # type: ignore[arg-type]
+                                                        self.periods.sample)
+        rows, states, params = U[0], self.states, self.params
+
+        def step(u: Sequence[float]) -> None:
+            rows[:] = u
+            if self.batch != 1 or params.get(name) is not p:  # a reset to other members or
+                self.segment(U.copy())                        # parameters: the loop's path
+                return
+            t = self._times(T)
+            try:
+                if not run():  # an input the bound run cannot take: the checked path
+                    self.segment(U.copy())
+                    return
+            except DivergenceError as exc:
+                raise self._plant_failure(exc, t, U, {}) from exc
+            Ym = self._measure(t, Yc)
+            if advance is not None:
+                t0 = time.perf_counter()
+                try:
+                    advance(states[name], Ym, U)
+                except DimensionError:
+                    raise
+                except _FAILURES as exc:
+                    found = _Found(0, exc, _head(_empty(ob, 1), 0))  # type: ignore[arg-type]
+                    raise self._observer_failure(name, found, t, X, Yc, Ym, U, {name: found.head},
+                                                 {}) from exc
+                self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
+            self.k += T
+
+        self._binding = (T, p, step)
+        return step
+
+    def _times(self, T: int) -> Array:
+        """The instants of the next ``T`` samples."""
+        Ts = self.periods.sample
+        return (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
+                np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64))
+
+    def _plant_failure(self, exc: DivergenceError, t: Array, U: Array,
+                       before: dict[str, tuple[Array, Array, Array]]) -> LoopFailure:
+        """The :class:`LoopFailure` of the plant's ``exc`` inside a segment: its rows valid for
+        every member, each observer over them (:meth:`_partial`)."""
+        j = int(getattr(exc, "rows", 0))
+        X, Yc = exc.X[:, :j], exc.Yc[:, :j]  # type: ignore[attr-defined]
+        Ym = self._measure(t[:j], Yc) if j else Yc.copy()
+        seg = Segment(t[:j], X, Yc, Ym, U[:, :j], self._partial(Ym, U, j), before)
+        return LoopFailure(None, self.k + j - 1, float(t[max(j - 1, 0)]), exc, seg)
+
+    def _observer_failure(self, name: str, found: _Found, t: Array, X: Array, Yc: Array,
+                          Ym: Array, U: Array, blocks: dict[str, Block],
+                          before: dict[str, tuple[Array, Array, Array]]) -> LoopFailure:
+        """The :class:`LoopFailure` of the observer ``name`` at the segment's row ``found.row``:
+        the rows up to it (copies: a bound step's buffers are written again)."""
+        j = found.row + 1
+        seg = Segment(t[:j], X[:, :j].copy(), Yc[:, :j].copy(), Ym[:, :j].copy(),
+                      U[:, :j].copy(), blocks, before)
+        return LoopFailure(name, self.k + found.row, float(t[found.row]), found.cause, seg)
 
     def _rotates(self, T: int) -> bool:
         """Whether the observers take turns at running first (:meth:`_rotated`): a segment

@@ -118,10 +118,11 @@ def _interleaved(fns: dict[str, Callable[[], float]], rounds: int, best: Callabl
 def _parts(rounds: int, n: int) -> dict[str, float]:
     """CPU seconds of the parts of one step of PendulumSwingUp as registered, each alone and
     as the environment's loop calls it, on an environment of its own (interleaved, best
-    burst): the whole unwrapped ``step``; ``Loop.segment`` of the control period (one sample,
-    the measurement drawn before); in it ``MujocoPlant.run`` (and the bare ``mj_step`` of the
-    same physics steps) and the observer's advance (``Loop._advance``: the timed call of
-    ``Observer._advance_checked``); the action's check; the observation and ``info``
+    burst): the whole unwrapped ``step``; the loop's bound step of the control period
+    (``Loop.bind_step``: one sample, the measurement drawn before); in it the plant's bound
+    run (``MujocoPlant.bind_run``, and the bare ``mj_step`` of the same physics steps) and the
+    observer's bound step (``Observer._bind_step``); the action's check; the observation and
+    ``info``
     (``HgoEnv._observe`` with the measurement drawn already: ``Loop.sample``'s reads of the
     state and clean outputs, the estimate, the encoder, ``info``); the sensor chain's draw
     for one sample (``SensorChain._apply``); the task's reward."""
@@ -139,9 +140,14 @@ def _parts(rounds: int, n: int) -> dict[str, float]:
     chain = copy.deepcopy(env.sensor)
     m, d = plant.model, plant.data
 
+    bound = env._bound  # the step bound at the reset (one sample per step, as registered)
+    run = plant.bind_run(np.zeros_like(U), steps, np.empty((1, 1, len(plant.state_names))),
+                         np.empty((1, 1, len(plant.output_names))))
+    advance = ob._bind_step(loop.params["observer"], 1, 1, loop.periods.sample)
+
     def segment() -> None:
         loop._pending = (loop.k, Ym)
-        loop.segment(U)
+        bound([0.0])
 
     def observe() -> None:
         loop._pending = (loop.k, Ym)  # the measurement drawn already: no sensor draw
@@ -160,9 +166,9 @@ def _parts(rounds: int, n: int) -> dict[str, float]:
     return _interleaved({
         "step": burst(lambda: env.step(a)),
         "segment": burst(segment),
-        "plant_run": burst(lambda: plant.run(U, steps)),
+        "plant_run": burst(run),
         "mj_step": burst(lambda: mujoco.mj_step(m, d, nstep)),
-        "observer": burst(lambda: loop._advance("observer", ob, Ym, U)),
+        "observer": burst(lambda: advance(loop.states["observer"], Ym, U)),
         "action": burst(lambda: env._action(a)),
         "observe": burst(observe),
         "sensor": burst(lambda: chain._apply(t1, Yc)),
@@ -176,7 +182,7 @@ IN_STEP = ("action", "segment", "sample", "observe", "reward")
 
 def _in_step(rounds: int, n: int) -> dict[str, float]:
     """Seconds of each call one step of PendulumSwingUp makes, timed inside running steps
-    (``perf_counter_ns`` around the calls: the action, ``Loop.segment``, ``HgoEnv._observe``
+    (``perf_counter_ns`` around the calls: the action, the bound step, ``HgoEnv._observe``
     and, inside it, ``Loop.sample``, the reward), and the same calls alone right after with the
     same clock (``alone_<name>``); best burst of each. On an environment of its own."""
     env = gym.make(TARGET_ID).unwrapped
@@ -194,19 +200,19 @@ def _in_step(rounds: int, n: int) -> dict[str, float]:
             return out
         return g
 
-    calls = {"action": env._action, "segment": loop.segment, "sample": loop.sample,
+    calls = {"action": env._action, "segment": env._bound, "sample": loop.sample,
              "observe": env._observe, "reward": env.task.reward}
-    env._action, loop.segment, loop.sample = (timed(k, calls[k]) for k in IN_STEP[:3])
+    env._action, env._bound, loop.sample = (timed(k, calls[k]) for k in IN_STEP[:3])
     env._observe, env.task.reward = timed("observe", calls["observe"]), timed("reward",
                                                                              calls["reward"])
     for _ in range(200):
         env.step(a)
     _, _, Ym = calls["sample"]()
-    x, U = env.plant.state.tolist(), np.zeros((1, 1, len(env.plant.input_names)))
+    x = env.plant.state.tolist()
 
     def segment() -> None:
         loop._pending = (loop.k, Ym)  # as in a step: the measurement drawn by the last sample
-        calls["segment"](U)
+        calls["segment"]([0.0])
 
     def sample() -> None:
         loop._pending = None
@@ -419,20 +425,21 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
         "|---|---:|",
         f"| `env.step` without Gymnasium's wrappers | {us['step']:.2f} |",
         f"| - the action checked and scaled (`HgoEnv._action`) | {us['action']:.2f} |",
-        f"| - `Loop.segment` (one sample; the measurement drawn before) | {us['segment']:.2f} |",
-        f"| - - `MujocoPlant.run` (one sample of {plant_steps()} physics steps) | "
-        f"{us['plant_run']:.2f} |",
+        f"| - the loop's bound step (`Loop.bind_step`: one sample; the measurement drawn "
+        f"before) | {us['segment']:.2f} |",
+        f"| - - the plant's bound run (`MujocoPlant.bind_run`: one sample of {plant_steps()} "
+        f"physics steps) | {us['plant_run']:.2f} |",
         f"| - - - of which the bare `mj_step(m, d, {plant_steps()})` | {us['mj_step']:.2f} |",
-        f"| - - the observer's advance (`Loop._advance`: `Observer._advance_checked`, "
-        f"`HighGainObserver._advance` with the model term) | {us['observer']:.2f} |",
-        f"| - - the segment's own bookkeeping (sample time, measurement, `Segment`) | "
+        f"| - - the observer's bound step (`Observer._bind_step`: `_advance_block`, "
+        f"`HighGainObserver._step` with the model term) | {us['observer']:.2f} |",
+        f"| - - the bound step's own bookkeeping (sample time, measurement, timing) | "
         f"{seg_rest:.2f} |",
         f"| - observation and `info` (`HgoEnv._observe`: the state and clean outputs read by "
         f"`Loop.sample`, the estimate, the encoder, `info`) | {us['observe']:.2f} |",
         f"| - the sensor chain's draw for the new instant (`SensorChain._apply`, Gaussian) | "
         f"{us['sensor']:.2f} |",
         f"| - the task's reward | {us['reward']:.2f} |",
-        f"| - not accounted for by the parts alone (the held input's array, the calls between "
+        f"| - not accounted for by the parts alone (the calls between "
         f"the parts, caches shared by the whole step) | {rest:.2f} |",
         f"| Gymnasium's wrappers (the registered step in the first table less the unwrapped "
         f"one) | {tgt['step'] * 1e6 - us['step']:.2f} |",
@@ -448,7 +455,7 @@ def table(res: dict[str, dict[str, float]], rounds: int, steps: int) -> str:
         *(f"| {label} | {us['in_' + k]:.2f} | {us['in_alone_' + k]:.2f} | "
           f"{us['in_' + k] / us['in_alone_' + k]:.2f} |" for k, label in (
               ("action", "the action (`HgoEnv._action`)"),
-              ("segment", "`Loop.segment`"),
+              ("segment", "the loop's bound step (`Loop.bind_step`)"),
               ("observe", "`HgoEnv._observe`, observation and `info`"),
               ("sample", "- of which `Loop.sample` (state, outputs, the sensor's draw)"),
               ("reward", "the task's reward"))),

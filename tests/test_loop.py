@@ -315,3 +315,35 @@ def test_reset_members_restarts_the_observers_unless_told_not_to():
     after = np.array(loop.current("hgo")[0])
     np.testing.assert_array_equal(after[0], before[0])
     assert not np.array_equal(after[1], before[1])
+
+
+def test_reset_with_start_equals_reset_then_start_observers():
+    """``Loop.reset(start=...)`` makes each observer's state from the first measurement
+    directly; the same states, measurement and segment as a reset, ``sample`` and
+    ``start_observers`` (the two-step start it replaces in an environment)."""
+    from hgo_mj.loop import Loop, Periods
+
+    def start(ob, Y):
+        return np.column_stack([Y[:, 0], np.full(len(Y), 0.5)])
+
+    runs = []
+    for direct in (True, False):
+        plant, sensor, obs = _parts()
+        loop = Loop(plant, sensor, obs, Periods.of(plant), exact=False)
+        if direct:
+            loop.reset([0.3, 0.1], seed=5, start=start)
+        else:
+            loop.reset([0.3, 0.1], seed=5)
+            Y = loop.sample()[2][:, 0]
+            loop.start_observers([0], {name: start(ob, Y) for name, ob in obs.items()})
+        first = {name: [a.copy() for a in loop.current(name)] for name in obs}
+        seg = loop.segment(np.full((1, 3, 1), 0.2))
+        runs.append((first, seg.y_meas.copy(),
+                     {name: b.x_hat.copy() for name, b in seg.blocks.items()}))
+    (fa, ya, ba), (fb, yb, bb) = runs
+    np.testing.assert_array_equal(ya, yb)
+    for name in fa:
+        for u, v in zip(fa[name], fb[name]):
+            np.testing.assert_array_equal(u, v)
+        np.testing.assert_array_equal(ba[name], bb[name])
+    assert fa["hgo"][0][0, 1] == 0.5

@@ -177,6 +177,14 @@ def _one_buffer(B: int, T: int, nx: int, n: int, nd: int) -> Block:
     return Block(buf[:a].reshape(B, T, nx), buf[a:b].reshape(B, T, n), buf[b:].reshape(B, T, nd))
 
 
+def _new_block(B: int, T: int, nx: int, n: int, nd: int) -> Block:
+    """A new :class:`Block` of these shapes: three arrays, or from :data:`ONE_BUFFER`
+    member-samples on one allocation (:func:`_one_buffer`)."""
+    if B * T >= ONE_BUFFER:
+        return _one_buffer(B, T, nx, n, nd)
+    return Block(np.empty((B, T, nx)), np.empty((B, T, n)), np.empty((B, T, nd)))
+
+
 def check_outputs(outputs: Any, where: str = "outputs") -> tuple[int, ...]:
     """``outputs`` as a tuple of distinct non-negative channel indices (a sequence of ints:
     one output is a 1-tuple; an int, a bool or a float is refused, not coerced)."""
@@ -1093,6 +1101,25 @@ class Observer(ABC):
         if not isinstance(params, Params) or _batch_of(params) not in (None, B):
             raise DesignError(f"{self.name}: params must be this observer's Params of {B} "
                               f"member(s) (Observer.parameters); found {params!r}")
+        return self._fresh(B, params, x0, z0, u)
+
+    def _start_from(self, params: Params, x_hat0: Array) -> State:
+        """A new state of every member of ``params`` from ``x_hat0`` ``(B, n_x)``, float64, at
+        zero input: :meth:`init` without its checks, for the loop, whose caller built the rows
+        (an environment's start from its first measurement) and whose ``params`` are checked
+        (validate once). A family that extends :meth:`init` (an initial parameter estimate
+        written after the base's), or rows that are not finite, take :meth:`init`, which
+        refuses what it must."""
+        B = x_hat0.shape[0]
+        if (type(self).init is not Observer.init or x_hat0.shape[1:] != (len(self.state_names),)
+                or not math.isfinite(x_hat0.sum())):
+            return self.init(B, x_hat0, params=params)
+        return self._fresh(B, params, x_hat0, None, np.zeros((B, self.n_inputs or 0)))
+
+    def _fresh(self, B: int, params: Params, x0: Array | None, z0: Array | None,
+               u: Array) -> State:
+        """The state of :meth:`init` from checked rows (``x0``/``z0`` ``(B, ...)`` or None,
+        ``u`` ``(B, m)``): the family's :meth:`_init`, group by group of equal parameters."""
         groups = self._groups(params)
         if len(groups) == 1:
             return State(**{**self._core(B), **self._init(groups[0][1], x0, z0, u)})
@@ -1112,9 +1139,10 @@ class Observer(ABC):
         """The fields every state has, fresh for ``B`` members: ``dropouts``,
         ``inverse_failures`` and ``x_held`` (the last valid estimate, NaN before any). A
         family's :meth:`_init` may return its own ``x_held`` (an estimate mapped at the start)."""
+        held = np.empty((B, len(self.state_names)))
+        held.fill(np.nan)  # np.full's values, without its Python-level wrapper
         return {"dropouts": np.zeros(B, dtype=np.int64),
-                "inverse_failures": np.zeros(B, dtype=np.int64),
-                "x_held": np.full((B, len(self.state_names)), np.nan)}
+                "inverse_failures": np.zeros(B, dtype=np.int64), "x_held": held}
 
     def step(self, params: Params, state: State, Y: Any, U: Any,
              dt: float) -> tuple[State, Block]:
@@ -1205,22 +1233,66 @@ class Observer(ABC):
         B, T = Yo.shape[0], Yo.shape[1]
         nd = len(self.family_diagnostics)
         nx = s.x_held.shape[1]
-        if out is not None and out.z_hat.shape[:2] == (B, T):
-            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        elif B * T < ONE_BUFFER:
-            X = np.empty((B, T, nx))
-            Z = np.empty((B, T, self.n))
-            D = np.empty((B, T, nd + 1))
-            out = Block(X, Z, D)
-        else:
-            out = _one_buffer(B, T, nx, self.n, nd + 1)
-            X, Z, D = out.x_hat, out.z_hat, out.diagnostics
-        lost = self._lost(Yo)
+        if out is None or out.z_hat.shape[:2] != (B, T):
+            out = _new_block(B, T, nx, self.n, nd + 1)
+        X, Z, D = out.x_hat, out.z_hat, out.diagnostics
         if not U.flags.c_contiguous:
             U = np.ascontiguousarray(U)
+        groups = params.groups() if self.grouped else [(slice(None), params)]  # (_groups)
+        self._advance_block(groups, s, Yo, U, dt, X, Z, D)
+        return out
+
+    def _bind_step(self, params: Params, B: int, T: int,
+                   dt: float) -> Callable[[State, Array, Array], Block]:
+        """:meth:`_step_checked` of ``B`` members over blocks of ``T`` samples, bound once:
+        ``step(s, Y, U)`` advances the state ``s`` in place over ``Y`` ``(B, T, p)`` and ``U``
+        ``(B, T, m)`` (C-contiguous float64, the shapes of the binding: the caller's,
+        unchecked) and returns the rows, written into the one :class:`Block` of the binding
+        at every call. What :meth:`_step_checked` finds per call (the groups, the buffers,
+        the observer's channels' index) is found here; the measurement rule, the family's
+        :meth:`_step` and the dropout count run as they do there (:meth:`_advance_block`), bit
+        for bit.
+
+        Parameters
+        ----------
+        params : Params
+            The members' parameters (checked: :meth:`check_period`).
+        B, T : int
+            Members and samples per block.
+        dt : float
+            Sample period, seconds (positive).
+
+        Returns
+        -------
+        callable
+            ``step(s, Y, U) -> Block``.
+        """
+        dt = _positive_dt(dt)
+        cols = self._cols_index
+        width = (cols.stop - cols.start) if isinstance(cols, slice) else len(cols)
+        Yo = np.empty((B, T, width))
+        out = _new_block(B, T, len(self.state_names), self.n, len(self.family_diagnostics) + 1)
+        X, Z, D = out.x_hat, out.z_hat, out.diagnostics
+        groups = self._groups(params)
+        advance = self._advance_block
+
+        def step(s: State, Y: Array, U: Array) -> Block:
+            Yo[...] = Y[..., cols]
+            advance(groups, s, Yo, U, dt, X, Z, D)
+            return out
+
+        return step
+
+    def _advance_block(self, groups: list[tuple[Any, Params]], s: State, Yo: Array, U: Array,
+                       dt: float, X: Array, Z: Array, D: Array) -> None:
+        """The measurement rule on the observer's channels ``Yo`` (:meth:`_lost`), the family's
+        :meth:`_step` group by group of equal parameters, the dropout count: the work of
+        :meth:`_step_checked` and of a bound step (:meth:`_bind_step`) on their buffers."""
+        nd = len(self.family_diagnostics)
+        B = Yo.shape[0]
+        lost = self._lost(Yo)
         if self._prepares:
             self._prepare(s, dt)
-        groups = params.groups() if self.grouped else [(slice(None), params)]  # (_groups)
         if len(groups) == 1:
             self._step(groups[0][1], s, Yo, U, dt, X, Z, D[..., :nd])
         else:
@@ -1241,7 +1313,6 @@ class Observer(ABC):
         else:
             D[:, :, nd] = dropouts[:, None] + lost
             dropouts += lost[:, -1]
-        return out
 
     def _lost(self, Yo: Array) -> NDArray[np.int64] | None:
         """The measurement rule (module docstring) on the observer's channels ``Yo``
@@ -1301,7 +1372,8 @@ class Observer(ABC):
         ([[0.3, 0.0]], [[10.0, 0.0]])
         """
         nd = len(self.family_diagnostics)
-        B = state.batch
+        dropouts = state.dropouts  # every state's (_core): its length is the batch
+        B = dropouts.shape[0]
         groups = self._groups(params)
         if len(groups) == 1:
             x, z, d = self._current(groups[0][1], state)
@@ -1312,7 +1384,7 @@ class Observer(ABC):
                 x[rows], z[rows], d[rows] = self._current(p, state.take(rows))
         D = np.empty((B, nd + 1))
         D[:, :nd] = d
-        D[:, nd] = state.dropouts
+        D[:, nd] = dropouts
         # the family's new arrays (_current) as they are where float64: no second copy
         return (x if x.dtype is _F64 else np.array(x, dtype=np.float64),
                 z if z.dtype is _F64 else np.array(z, dtype=np.float64), D)
@@ -1705,7 +1777,8 @@ class Observer(ABC):
             return np.zeros((u0.shape[0], self.n))
         if self.system is None:
             return x0
-        return np.array([self.system.to_normal(x, u) for x, u in zip(x0, u0)], dtype=float)
+        # the rows are checked (init's batch_rows): the map without its checks
+        return self.system.to_normal_rows(x0, u0)
 
     def _to_physical(self, s: State, Z: Array, U: Array, X: Array) -> None:
         """Write ``system.from_normal`` of the rows ``Z`` ``(B, T, n)`` (inputs ``U``) into ``X``.

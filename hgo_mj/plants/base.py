@@ -234,6 +234,41 @@ class Plant(ABC):
         ((2, 4, 3), [[0.5, 1.0, -1.0], [0.0, 0.0, 0.0]], 0.04)
         """
 
+    def bind_run(self, U: Array, steps: int, X: Array, Yc: Array) -> Any:
+        """A bound run of one member (B = 1) over its own buffers, for a caller that steps
+        the same block shapes many times (:meth:`hgo_mj.loop.Loop.bind_step`): ``run()``
+        advances the samples of ``U`` ``(1, T, m)`` as :meth:`run` does, writes the rows
+        into ``X`` ``(1, T, n)`` and ``Yc`` ``(1, T, p)``, and returns True; False, with
+        nothing changed, where an input is one :meth:`run` refuses (the caller then calls
+        :meth:`run`, which raises its error). It raises :meth:`run`'s
+        :class:`DivergenceError` for a state that leaves the allowed numbers.
+
+        Parameters
+        ----------
+        U, X, Yc : ndarray
+            The caller's buffers, float64, C-contiguous, of one member; ``U`` is read at
+            every call.
+        steps : int
+            Plant steps per sample.
+
+        Returns
+        -------
+        callable or None
+            ``run()``; None here (a plant without a bound run: the caller uses :meth:`run`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.plants import make_plant
+        >>> a, b = make_plant("pendulum", dt=0.01), make_plant("pendulum", dt=0.01)
+        >>> a.reset([0.2, 0.0]); b.reset([0.2, 0.0])
+        >>> U, X, Yc = np.full((1, 3, 1), 0.5), np.empty((1, 3, 2)), np.empty((1, 3, 1))
+        >>> run = a.bind_run(U, 1, X, Yc)  # a MuJoCo plant's (this base class gives None)
+        >>> run(), X.tolist() == b.run(U, 1)[0].tolist(), a.state.tolist() == b.state.tolist()
+        (True, True, True)
+        """
+        return None
+
     @property
     @abstractmethod
     def state(self) -> Array:

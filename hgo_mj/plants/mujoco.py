@@ -79,6 +79,22 @@ def _constraint_free(m: Any) -> bool:
     return not (limits or equality or friction or contact)
 
 
+def _usable(U: Array) -> bool:
+    """Whether every input of ``U`` ``(B, T, m)`` is finite and below ``mjMAXVAL`` (MuJoCo
+    zeroes any other)."""
+    return bool(-_MAX_CTRL < U.item() < _MAX_CTRL if U.size == 1 else  # one input, one sample
+                U.size == 0 or float(np.abs(U).max()) < _MAX_CTRL)
+
+
+def _earliest(fails: list[tuple[int, int, float, str]], X: Array, Yc: Array) -> DivergenceError:
+    """The :class:`DivergenceError` of the earliest of ``fails`` ((sample, member, time,
+    message) each), the rows of ``X`` and ``Yc`` after it NaN."""
+    j, b, t, msg = min(fails)
+    X[:, j + 1:] = np.nan  # nothing recorded after the earliest failure
+    Yc[:, j + 1:] = np.nan
+    return divergence(f"member {b} at t={t:g}: {msg}", b, t, j + 1, X, Yc)
+
+
 class MujocoPlant(Plant):
     """An MJCF model simulated by MuJoCo, with the state and outputs of a :class:`System`.
 
@@ -493,8 +509,7 @@ class MujocoPlant(Plant):
         B, T, _ = U.shape
         X = np.empty((B, T, 2 * self._nq))
         Yc = np.empty((B, T, len(self._output_names)))
-        if (-_MAX_CTRL < U.item() < _MAX_CTRL if U.size == 1 else  # one input, one sample
-                T == 0 or float(np.abs(U).max()) < _MAX_CTRL):  # every input usable (usual)
+        if _usable(U):  # every input usable (usual)
             jbad, ok, bad = T, None, None
         else:                                             # NaN, inf or too large somewhere
             ok = np.abs(U) < _MAX_CTRL                    # False for NaN
@@ -522,11 +537,29 @@ class MujocoPlant(Plant):
             t = self.t
             fails.append((jbad, b, t, str(self._bad_input(i, float(U[b, jbad, i])))))
         if fails:
-            j, b, t, msg = min(fails)
-            X[:, j + 1:] = np.nan  # nothing recorded after the earliest failure
-            Yc[:, j + 1:] = np.nan
-            raise divergence(f"member {b} at t={t:g}: {msg}", b, t, j + 1, X, Yc)
+            raise _earliest(fails, X, Yc)
         return X, Yc
+
+    def bind_run(self, U: Array, steps: int, X: Array, Yc: Array) -> Any:
+        """See :meth:`Plant.bind_run`: the one member in :attr:`data` through
+        :meth:`_run_loop`, the path :meth:`run` takes for it; None where :meth:`run` would take
+        another (several members, or a block long enough for ``mujoco.rollout``)."""
+        T = U.shape[1]
+        nstep = steps * self.substeps
+        if self.batch != 1 or (self._rollout_ok and T * nstep >= _ROLLOUT_MIN_STEPS):
+            return None
+        U0, X0, Y0 = U[0], X[0], Yc[0]
+
+        def run() -> bool:
+            if not _usable(U):
+                return False
+            fails: list[tuple[int, int, float, str]] = []
+            self._run_loop(0, U0, nstep, X0, Y0, fails)
+            if fails:
+                raise _earliest(fails, X.copy(), Yc.copy())
+            return True
+
+        return run
 
     def _record_now(self, X: Array, Yc: Array, j: int) -> None:
         """Record every member's current state and outputs as sample ``j``."""

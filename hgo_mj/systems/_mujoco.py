@@ -231,6 +231,10 @@ class _SecondOrderMujocoSystem(_MujocoSystem):
         u = self._u(u, required=True)
         return float(self.dynamics(0.0, z, u, self.params)[1])
 
+    def to_normal_rows(self, X: Array, U: Array) -> Array:
+        """:meth:`to_normal` of the rows ``X`` without validation: a copy of ``X``."""
+        return np.array(X, dtype=float)
+
     def from_normal_unchecked(self, z: Array, u: Array) -> Array:
         return z
 

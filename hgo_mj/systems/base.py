@@ -509,6 +509,34 @@ class System:
         self._require_normal_form()
         raise NotImplementedError
 
+    def to_normal_rows(self, X: Array, U: Array) -> Array:
+        """:meth:`to_normal` of the rows ``X`` ``(N, n_x)`` with inputs ``U`` ``(N, m)``,
+        without validation: an observer's start from rows it has checked. Subclasses override
+        it with a fast path.
+
+        Parameters
+        ----------
+        X : (N, n_x) ndarray of float
+            Physical states, not checked.
+        U : (N, m) ndarray of float
+            Inputs, not checked.
+
+        Returns
+        -------
+        (N, n) ndarray of float
+            ``z`` of each row, a new array.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hgo_mj.systems import ElasticJoint, Pendulum
+        >>> Pendulum().to_normal_rows(np.array([[0.5, 0.0]]), np.zeros((1, 1)))
+        array([[0.5, 0. ]])
+        >>> ElasticJoint().to_normal_rows(np.array([[0.1, 0.2, 0.0, 0.0]]), np.zeros((1, 1))).round(3)
+        array([[ 0.1  ,  0.   , 29.336, -1.95 ]])
+        """
+        return np.array([self.to_normal(x, u) for x, u in zip(X, U)], dtype=float)
+
     def from_normal_unchecked(self, z: Array, u: Array) -> Array:
         """:meth:`from_normal` without validation, for an observer's per-sample use (``z`` a
         float array of length ``n``). Subclasses override it with a fast path.

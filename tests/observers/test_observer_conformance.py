@@ -16,6 +16,7 @@ rely on.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -313,3 +314,51 @@ def test_members_with_different_parameters_equal_their_single_runs(kind, make, p
         ob.parameters(B, not_a_parameter=1.0)
     with pytest.raises(DimensionError, match="per member"):
         ob.parameters(B, **{names[0]: np.stack([values[names[0]][0]] * (B + 1))})
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_start_from_checked_rows_equals_init(kind, make, p, m):
+    """The loop's start from rows it checked (``_start_from``, an environment's start from its
+    first measurement) is ``init`` from them, bit for bit, for every family (those that extend
+    ``init`` go through it); a row that is not finite is refused as ``init`` refuses it."""
+    ob = make()
+    params = ob.parameters(2)
+    x0 = np.linspace(0.1, 0.4, 2 * len(ob.state_names)).reshape(2, -1)
+    try:
+        b = ob.init(2, x0, params=params)
+    except DesignError as exc:  # a family that starts only in its own coordinates
+        with pytest.raises(DesignError, match="^" + re.escape(str(exc)) + "$"):
+            ob._start_from(params, x0)
+        return
+    a = ob._start_from(params, x0)
+    assert list(a.fields) == list(b.fields)
+    for u, v in zip(_arrays(a), _arrays(b)):
+        assert u.dtype == v.dtype and u.shape == v.shape
+        np.testing.assert_array_equal(u, v)
+    assert not any(np.shares_memory(u, x0) for u in _arrays(a))
+    x0[1, 0] = np.nan
+    with pytest.raises(DesignError, match="finite"):
+        ob._start_from(params, x0)
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_bound_step_equals_the_checked_step(kind, make, p, m):
+    """A step bound once (``_bind_step``: the environments' step) gives the rows and states
+    of ``_step_checked`` bit for bit over blocks with a dropout, for every family, members
+    with different parameters included where the family has a tunable one."""
+    ob = make()
+    B, T = 2, 3
+    names = () if ob.name == "bank" else ob.parameter_names
+    params = ob.parameters(B, **{name: np.stack(_member_values(ob, name)[:B]) for name in names})
+    a, b = ob.init(B, params=params), ob.init(B, params=params)
+    step = ob._bind_step(params, B, T, DT)
+    for block in range(4):
+        rows = [signals(block * T + j, p, m) for j in range(T)]
+        Y = np.ascontiguousarray(np.broadcast_to(np.array([r[0] for r in rows]), (B, T, p)))
+        U = np.ascontiguousarray(np.broadcast_to(np.array([r[1] for r in rows]).reshape(T, m),
+                                                 (B, T, m)))
+        got, want = step(a, Y, U), ob._step_checked(params, b, Y, U, DT)
+        for f in ("x_hat", "z_hat", "diagnostics"):
+            np.testing.assert_array_equal(getattr(got, f), getattr(want, f), err_msg=f)
+        for u, v in zip(_arrays(a), _arrays(b)):
+            np.testing.assert_array_equal(u, v)
