@@ -44,7 +44,17 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
 def versions() -> dict[str, str]:
     """What the hashes depend on besides the code."""
     return {"numpy": np.__version__, "mujoco": mujoco.__version__, "numba": numba.__version__,
-            "machine": platform.machine()}
+            "machine": platform.machine(), "simd": _simd()}
+
+
+def _simd() -> str:
+    """The widest x86 vector extension the CPU has: numpy's and numba's kernels pick their
+    code paths by it, and their float results may differ in the last bit between paths."""
+    try:
+        flags = Path("/proc/cpuinfo").read_text().split()
+    except OSError:
+        return "unknown"
+    return next((f for f in ("avx512f", "avx2", "sse4_2") if f in flags), "other")
 
 
 def episode_hash(env_id: str, episodes: int = 3, steps: int = 60, **kw: Any) -> str:
