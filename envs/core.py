@@ -1443,7 +1443,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         x_hat = diag = None
         mode = self.observation_mode
         if obs is not None:
-            x_hat = self.loop.current(_OB)[0][0].tolist()
+            x_hat = self.loop.estimate(_OB)[0].tolist()
             if self._full_info or mode == "estimate+diagnostics":  # else read when asked
                 diag = obs.diagnostics()
         # the row a recording reads (current_row), kept as it is and built when asked

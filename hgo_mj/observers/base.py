@@ -1389,6 +1389,38 @@ class Observer(ABC):
         return (x if x.dtype is _F64 else np.array(x, dtype=np.float64),
                 z if z.dtype is _F64 else np.array(z, dtype=np.float64), D)
 
+    def current_estimate(self, params: Params, state: State) -> Array:
+        """The estimate ``x_hat`` ``(B, n_x)`` of ``state`` now, float64: :meth:`current`'s
+        first array, the family's :meth:`_current` alone (an environment's observation reads
+        no ``z_hat`` or diagnostics).
+
+        Parameters
+        ----------
+        params : Params
+            The members' parameters.
+        state : State
+            The state to read.
+
+        Returns
+        -------
+        ndarray
+            ``x_hat`` ``(B, n_x)``, a new array.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> p = obs.parameters(1)
+        >>> obs.current_estimate(p, obs.init(1, [0.3, 0.0], params=p)).tolist()
+        [[0.3, 0.0]]
+        """
+        groups = self._groups(params)
+        if len(groups) > 1:
+            return self.current(params, state)[0]
+        x = self._current(groups[0][1], state)[0]
+        return x if x.dtype is _F64 else np.array(x, dtype=np.float64)
+
     # ------------------------------------------- the observer's own state (convenience)
     @property
     def batch(self) -> int:
