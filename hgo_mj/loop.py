@@ -820,9 +820,10 @@ class Loop:
 
     def _times(self, T: int) -> Array:
         """The instants of the next ``T`` samples."""
-        Ts = self.periods.sample
-        return (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
-                np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64))
+        k, Ts = self.k, self.periods.sample
+        if T <= 8:  # the same products as Python floats (exact int to float): cheaper for a few
+            return np.array([(k + j) * Ts for j in range(T)])
+        return np.asarray((k + np.arange(T)) * Ts, dtype=np.float64)
 
     def _plant_failure(self, exc: DivergenceError, t: Array, U: Array,
                        before: dict[str, tuple[Array, Array, Array]]) -> LoopFailure:
