@@ -86,7 +86,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._registry import LazyRegistry
-from .._validate import one_of
+from .._validate import one_of, sum_is_finite
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 
@@ -1112,7 +1112,7 @@ class Observer(ABC):
         refuses what it must."""
         B = x_hat0.shape[0]
         if (type(self).init is not Observer.init or x_hat0.shape[1:] != (len(self.state_names),)
-                or not math.isfinite(x_hat0.sum())):
+                or not sum_is_finite(x_hat0)):
             return self.init(B, x_hat0, params=params)
         return self._fresh(B, params, x_hat0, None, np.zeros((B, self.n_inputs or 0)))
 
