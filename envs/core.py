@@ -55,7 +55,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.utils import EzPickle
 from numpy.typing import NDArray
 
-from hgo_mj._validate import finite_scalar, integer_multiple, numbers_only, vector
+from hgo_mj._validate import finite_scalar, integer_multiple, numbers_only, sum_is_finite, vector
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, Loop, LoopFailure, Periods
 from hgo_mj.observers import OBSERVERS, Observer, make_observer
@@ -240,7 +240,7 @@ class _StartMap:
         out = np.zeros((Ya.shape[0], self.n))
         for col, ch in self.measured:
             out[:, col] = Ya[:, ch]
-        if not math.isfinite(out.sum()):  # a dropout gives 0 (the rare case: checked once;
+        if not sum_is_finite(out):  # a dropout gives 0 (the rare case: checked once;
             np.nan_to_num(out, copy=False, nan=0.0)  # a sum that overflows changes nothing)
         for col, source in self.tied:
             out[:, col] = out[:, source]
@@ -1443,7 +1443,7 @@ class HgoEnv(gymnasium.Env[NDArray[np.float64], NDArray[np.float32]], EzPickle):
         x_hat = diag = None
         mode = self.observation_mode
         if obs is not None:
-            x_hat = self.loop.current(_OB)[0][0].tolist()
+            x_hat = self.loop.estimate(_OB)[0].tolist()
             if self._full_info or mode == "estimate+diagnostics":  # else read when asked
                 diag = obs.diagnostics()
         # the row a recording reads (current_row), kept as it is and built when asked

@@ -324,7 +324,7 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         ob = env.observer
         x_hat = D = None
         if ob is not None:
-            x_hat = self.loop.current("observer")[0]
+            x_hat = self.loop.estimate("observer")
         extra = None
         if mode in ("estimate", "estimate+diagnostics"):
             x_hat = np.asarray(x_hat)

@@ -632,6 +632,35 @@ class Loop:
             return _nan_current(self.observers[name], self.batch)
         return self.observers[name].current(self.params[name], self.states[name])
 
+    def estimate(self, name: str) -> Array:
+        """The observer ``name``'s current estimate ``x_hat`` ``(B, n_x)``: :meth:`current`'s
+        first array (:meth:`Observer.current_estimate`), NaN for a stopped observer.
+
+        Parameters
+        ----------
+        name : str
+            One of the loop's observers.
+
+        Returns
+        -------
+        ndarray
+            A copy of ``x_hat`` ``(B, n_x)``.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.plants import make_plant
+        >>> plant = make_plant("pendulum", dt=0.01)
+        >>> loop = Loop(plant, None, {"hgo": HighGainObserver(plant.system, k=10.0)},
+        ...             Periods.of(plant))
+        >>> loop.reset([0.2, 0.0])
+        >>> loop.estimate("hgo").tolist()  # the observer's own initial estimate
+        [[0.0, 0.0]]
+        """
+        if name in self.failed:
+            return _nan_current(self.observers[name], self.batch)[0]
+        return self.observers[name].current_estimate(self.params[name], self.states[name])
+
     def segment(self, U: Array) -> Segment:
         """Advance T samples with the inputs ``U`` ``(B, T, m)`` (the kernel; see the module
         docstring). Raises :class:`LoopFailure` on a failure inside it.
@@ -791,9 +820,10 @@ class Loop:
 
     def _times(self, T: int) -> Array:
         """The instants of the next ``T`` samples."""
-        Ts = self.periods.sample
-        return (np.array([self.k * Ts]) if T == 1 else  # the same products, one sample: cheaper
-                np.asarray((self.k + np.arange(T)) * Ts, dtype=np.float64))
+        k, Ts = self.k, self.periods.sample
+        if T <= 8:  # the same products as Python floats (exact int to float): cheaper for a few
+            return np.array([(k + j) * Ts for j in range(T)])
+        return np.asarray((k + np.arange(T)) * Ts, dtype=np.float64)
 
     def _plant_failure(self, exc: DivergenceError, t: Array, U: Array,
                        before: dict[str, tuple[Array, Array, Array]]) -> LoopFailure:

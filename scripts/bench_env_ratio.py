@@ -138,7 +138,7 @@ def parts(repeat: int = 7, n: int = 4000) -> dict[str, float]:
     t("  _observe", observe)
     t("    Loop.sample", sample)
     t("      sensor chain draw", lambda: e.sensor._apply(np.array([0.1]), Yc))
-    t("    Loop.current", lambda: loop.current("observer"))
+    t("    Loop.estimate", lambda: loop.estimate("observer"))
     t("    encoder", lambda: e.encoder([0.1, 0.2], (), ()))
     t("    _info", lambda: e._info(plant.state, [0.1, 0.2], [0.1], [0.1, 0.2], None))
     t("  action", lambda: e._action(a))

@@ -347,3 +347,19 @@ def test_reset_with_start_equals_reset_then_start_observers():
             np.testing.assert_array_equal(u, v)
         np.testing.assert_array_equal(ba[name], bb[name])
     assert fa["hgo"][0][0, 1] == 0.5
+
+
+@pytest.mark.parametrize("Ts", [0.01, 0.001, 0.003, 0.007])
+def test_sample_times_of_a_few_samples_are_numpys_products(Ts):
+    """The instants of a few samples (Python products, the bound step's) are the bits of
+    the numpy products of many, at large sample indices too."""
+    from hgo_mj.loop import Loop, Periods
+
+    plant = make_plant("pendulum", dt=Ts)
+    loop = Loop(plant, None, {}, Periods.of(plant))
+    for k in (0, 7, 123_457, 2**40 + 3):
+        loop.k = k
+        for T in (1, 2, 3, 8, 9, 20):
+            got = loop._times(T)
+            want = np.asarray((k + np.arange(T)) * Ts, dtype=np.float64)
+            assert got.dtype == np.float64 and got.tobytes() == want.tobytes(), (k, T)

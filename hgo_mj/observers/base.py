@@ -86,7 +86,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._registry import LazyRegistry
-from .._validate import one_of
+from .._validate import one_of, sum_is_finite
 from ..exceptions import DesignError, DimensionError, DivergenceError
 from ..systems.base import System
 
@@ -1112,7 +1112,7 @@ class Observer(ABC):
         refuses what it must."""
         B = x_hat0.shape[0]
         if (type(self).init is not Observer.init or x_hat0.shape[1:] != (len(self.state_names),)
-                or not math.isfinite(x_hat0.sum())):
+                or not sum_is_finite(x_hat0)):
             return self.init(B, x_hat0, params=params)
         return self._fresh(B, params, x_hat0, None, np.zeros((B, self.n_inputs or 0)))
 
@@ -1388,6 +1388,38 @@ class Observer(ABC):
         # the family's new arrays (_current) as they are where float64: no second copy
         return (x if x.dtype is _F64 else np.array(x, dtype=np.float64),
                 z if z.dtype is _F64 else np.array(z, dtype=np.float64), D)
+
+    def current_estimate(self, params: Params, state: State) -> Array:
+        """The estimate ``x_hat`` ``(B, n_x)`` of ``state`` now, float64: :meth:`current`'s
+        first array, the family's :meth:`_current` alone (an environment's observation reads
+        no ``z_hat`` or diagnostics).
+
+        Parameters
+        ----------
+        params : Params
+            The members' parameters.
+        state : State
+            The state to read.
+
+        Returns
+        -------
+        ndarray
+            ``x_hat`` ``(B, n_x)``, a new array.
+
+        Examples
+        --------
+        >>> from hgo_mj.observers import HighGainObserver
+        >>> from hgo_mj.systems import SYSTEMS
+        >>> obs = HighGainObserver(SYSTEMS["pendulum"](), k=10.0)
+        >>> p = obs.parameters(1)
+        >>> obs.current_estimate(p, obs.init(1, [0.3, 0.0], params=p)).tolist()
+        [[0.3, 0.0]]
+        """
+        groups = self._groups(params)
+        if len(groups) > 1:
+            return self.current(params, state)[0]
+        x = self._current(groups[0][1], state)[0]
+        return x if x.dtype is _F64 else np.array(x, dtype=np.float64)
 
     # ------------------------------------------- the observer's own state (convenience)
     @property

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -197,11 +198,16 @@ class CartPendulum(_SecondOrderMujocoSystem):
     def phi_batch(self, Z: Array, U: Array) -> Array:
         """:meth:`phi_unchecked` of the rows ``Z`` ``(N, 2)``, ``U`` ``(N, 1)``, compiled (equal
         to the scalar path bit for bit)."""
-        p = self.params
-        c = np.array([p["mass"], p["length"], p["g"], p["accel_gain"], p["damping"],
-                      p["inertia"]])
         return _phi_rows(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
-                         np.ascontiguousarray(U, dtype=float), c)
+                         np.ascontiguousarray(U, dtype=float), self._phi_constants)
+
+    @cached_property
+    def _phi_constants(self) -> Array:
+        """The parameters of :func:`_phi_rows`, made once (a system's parameters are fixed at
+        construction)."""
+        p = self.params
+        return np.array([p["mass"], p["length"], p["g"], p["accel_gain"], p["damping"],
+                         p["inertia"]])
 
     @staticmethod
     def dynamics(t: float, x: Array, u: Array, p: Mapping[str, float]) -> Array:

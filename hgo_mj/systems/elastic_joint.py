@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -605,8 +606,10 @@ class ElasticJoint(_MujocoSystem):
                           true_physical={"stiffness": k_true, "MgL": mgl_true}
                           )._made_by(ElasticJoint._form_affine, self, unknown)
 
+    @cached_property
     def _row_constants(self) -> Array:
-        """The parameters of :func:`_phi_rows` (the first six: of :func:`_from_normal_rows`)."""
+        """The parameters of :func:`_phi_rows` (the first six: of :func:`_from_normal_rows`),
+        made once (a system's parameters are fixed at construction)."""
         p = self.params
         return np.array([p["link_inertia"], p["stiffness"], p["link_damping"], p["mass"], p["g"],
                          p["com_distance"], p["motor_damping"], p["gear"], p["motor_inertia"]])
@@ -637,13 +640,13 @@ class ElasticJoint(_MujocoSystem):
                [0. , 0. , 0. , 0. ]])
         """
         return _from_normal_rows(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
-                                 self._row_constants()[:6])
+                                 self._row_constants[:6])
 
     def phi_batch(self, Z: Array, U: Array) -> Array:
         """:meth:`phi_unchecked` of the rows ``Z`` ``(N, 4)``, ``U`` ``(N, 1)``, compiled (equal
         to the scalar path bit for bit)."""
         return _phi_rows(np.ascontiguousarray(Z, dtype=float),  # type: ignore[no-any-return]
-                         np.ascontiguousarray(U, dtype=float), self._row_constants())
+                         np.ascontiguousarray(U, dtype=float), self._row_constants)
 
 
 # ----------------------------------------------------------------------------------------

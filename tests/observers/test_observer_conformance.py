@@ -362,3 +362,18 @@ def test_bound_step_equals_the_checked_step(kind, make, p, m):
             np.testing.assert_array_equal(getattr(got, f), getattr(want, f), err_msg=f)
         for u, v in zip(_arrays(a), _arrays(b)):
             np.testing.assert_array_equal(u, v)
+
+
+@pytest.mark.parametrize("kind,make,p,m", PARAMS)
+def test_current_estimate_is_the_current_x_hat(kind, make, p, m):
+    """``current_estimate`` (an environment's observation) is ``current``'s ``x_hat``, float64,
+    for every family, one group of parameters and members with different ones."""
+    ob = make()
+    names = () if ob.name == "bank" else ob.parameter_names
+    for params in (ob.parameters(2),
+                   ob.parameters(2, **{n: np.stack(_member_values(ob, n)[:2]) for n in names})):
+        s = ob.init(2, params=params)
+        ob._step_checked(params, s, np.full((2, 3, p), 0.3), np.full((2, 3, m), 0.1), DT)
+        got = ob.current_estimate(params, s)
+        assert got.dtype == np.float64
+        np.testing.assert_array_equal(got, ob.current(params, s)[0])
