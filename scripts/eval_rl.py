@@ -8,9 +8,12 @@ stacked agent's last 4 in ``FrameStackObservation``, the recurrent agent's LSTM 
 through the episode), the
 environment reset with seeds 10000, 10001, ... (the same in every row). An episode of a
 balance task is *solved* when it runs to the time limit without termination (the pole never
-left its band, the cart never left its track: a return of 500); the "solved" column is the
-share of solved episodes, and a task counts as solved by an agent when most of its episodes
-are.
+left its band, the cart never left its track: a return of 500); an episode of a lab swing-up
+(``hgo_mj/{CartPole,Furuta,Acrobot}SwingUp``) when it runs to the time limit without
+termination and its last second (100 steps) is upright (``LabSwingUpTask.at_target``: every
+target angle within the task's band, 12 degrees for the cart-pole's pole, 20 for the Furuta
+pendulum and the acrobot's two joints); the "solved" column is the share of solved
+episodes, and a task counts as solved by an agent when most of its episodes are.
 
 Usage::
 
@@ -76,21 +79,24 @@ class Row:
         return float(np.mean(self.solved))
 
 
-def episode_solved(env: Any, terminated: bool, length: int) -> bool:
-    """A balance task's criterion: the episode ran to the time limit, never terminated.
+def episode_solved(env: Any, terminated: bool, length: int, held: int = 0) -> bool:
+    """A balance task's criterion: the episode ran to the time limit, never terminated; a
+    lab swing-up's: that, and its last ``hold_steps`` (1 s) states all upright (``held``: the
+    episode's last steps in a row at the target, ``LabSwingUpTask.at_target``).
 
     Raises
     ------
     SystemExit
-        The environment's task has no criterion here (not a balance task).
+        The environment's task has no criterion here (not a lab balance or swing-up task).
     """
-    from hgo_mj.envs.tasks import LabBalanceTask
+    from hgo_mj.envs.tasks import LabBalanceTask, LabSwingUpTask
 
     task = env.unwrapped.task
-    if not isinstance(task, LabBalanceTask):
-        raise SystemExit(f"eval_rl.py knows the solved criterion of the balance tasks "
-                         f"(LabBalanceTask); found {type(task).__name__}")
-    return not terminated and length >= env.spec.max_episode_steps
+    if not isinstance(task, LabSwingUpTask):
+        raise SystemExit(f"eval_rl.py knows the solved criterion of the lab balance and "
+                         f"swing-up tasks (LabSwingUpTask); found {type(task).__name__}")
+    ran = not terminated and length >= env.spec.max_episode_steps
+    return ran if isinstance(task, LabBalanceTask) else ran and held >= task.hold_steps
 
 
 def load(zip_path: Path, meta: dict[str, Any]) -> Any:
@@ -132,9 +138,10 @@ def episodes_of(model: Any, meta: dict[str, Any], episodes: int,
     if meta.get("stack"):
         env = gym.wrappers.FrameStackObservation(env, int(meta["stack"]))
     returns, solved, errors = [], [], []
+    at_target = getattr(env.unwrapped.task, "at_target", lambda x: False)
     for k in range(episodes):
         obs, _ = env.reset(seed=EVAL_SEED + k)
-        total, n, terminated, truncated = 0.0, 0, False, False
+        total, n, held, terminated, truncated = 0.0, 0, 0, False, False
         state, start = None, np.ones((1,), dtype=bool)  # the recurrent policy's memory
         while not (terminated or truncated):
             action, state = model.predict(obs, state=state, episode_start=start,
@@ -142,10 +149,11 @@ def episodes_of(model: Any, meta: dict[str, Any], episodes: int,
             start = np.zeros((1,), dtype=bool)
             obs, reward, terminated, truncated, info = env.step(action)
             total, n = total + float(reward), n + 1
+            held = held + 1 if at_target(info["state"]) else 0
             if n > TRANSIENT_STEPS and "error" in info:
                 errors.append(info["error"])
         returns.append(total)
-        solved.append(episode_solved(env, terminated, n))
+        solved.append(episode_solved(env, terminated, n, held))
     names = env.unwrapped.error_names
     env.close()
     rms = np.sqrt(np.mean(np.square(errors), axis=0)) if errors else []
