@@ -799,6 +799,10 @@ def test_lab_swing_up_v1_rewards_are_their_literatures_and_v0_is_kept():
         assert v0.reward(down, [0.0], ())[0] < -9.0
         assert v1.at_target(up) and not v1.at_target(down)
         assert "reward" not in v0.params() and v1.params()["reward"] != "quadratic"
+    cart_pole = gym.make("hgo_mj/CartPoleSwingUp-v1").unwrapped.task
+    assert not cart_pole.terminated([3.0, 0.0, 0.0, 0.0])  # dm_control's: no track end
+    assert gym.make("hgo_mj/CartPoleSwingUp-v0").unwrapped.task.terminated([3.0, 0, 0, 0])
+    assert not cart_pole.at_target([3.0, np.pi, 0.0, 0.0])  # upright off the track
     furuta = gym.make("hgo_mj/FurutaSwingUp-v1").unwrapped.task
     assert furuta.terminated([1.6, np.pi, 0.0, 0.0])
     assert not gym.make("hgo_mj/FurutaSwingUp-v0").unwrapped.task.terminated([1.6, 0, 0, 0])
