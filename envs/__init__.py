@@ -61,7 +61,8 @@ ENVIRONMENTS: dict[str, type[HgoEnv]] = {str(cls.env_id): cls for cls in (
 #: registration keywords it differs by)
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "hgo_mj/AcrobotBalance-v1": ("hgo_mj/AcrobotBalance-v0", {"start_noise": 0.02}),
-    "hgo_mj/CartPoleSwingUp-v1": ("hgo_mj/CartPoleSwingUp-v0", {"reward": "dm_control"}),
+    "hgo_mj/CartPoleSwingUp-v1": ("hgo_mj/CartPoleSwingUp-v0", {"reward": "dm_control",
+                                                                "end_stops": True}),
     "hgo_mj/FurutaSwingUp-v1": ("hgo_mj/FurutaSwingUp-v0", {"reward": "quanser"}),
     "hgo_mj/AcrobotSwingUp-v1": ("hgo_mj/AcrobotSwingUp-v0", {"reward": "dm_control"}),
 }

@@ -599,9 +599,9 @@ class CartPoleSwingUpEnv(HgoEnv):
 
     ## Episode End
     Terminated when the cart leaves its track (`|x| > 2.4` m); truncated after 500 steps
-    (5 s) by `TimeLimit` (registration). v1: never terminated, as dm_control's swing-up (its
-    slider's range, +-1.8 m, holds the cart; here the `centered` factor halves the reward far
-    out).
+    (5 s) by `TimeLimit` (registration). v1 (`end_stops=True`): never terminated; end stops
+    hold the cart on its track (`models/cart_pole_track.xml`: a soft joint limit at +-2.4 m,
+    as dm_control's cart-pole has at +-1.8 m).
 
     An episode is *solved* (`scripts/eval_rl.py`) when it runs to the time limit without
     termination and at each of its last 100 steps (1 s) the pole is within 12 degrees of
@@ -613,6 +613,7 @@ class CartPoleSwingUpEnv(HgoEnv):
     | `max_input`   | `10.0`  | force per unit action [N]                |
     | `start_noise` | `0.05`  | half width of the initial state draw     |
     | `reward`      | `"quadratic"` | `"dm_control"`: v1's reward        |
+    | `end_stops`   | `False` | v1: end stops, no episode end at the track's end |
 """ + _ARGUMENTS + """
     Defaults here: `physics_dt=0.001` (the MJCF's RK4), `sample_period=0.002`,
     `control_period=0.01`; observer `high_gain_multi` with `k=30, model=True`; sensor
@@ -620,14 +621,15 @@ class CartPoleSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
-    * v1 (`hgo_mj/CartPoleSwingUp-v1`, registered with `reward="dm_control"`): dm_control's
-      reward (Rewards) and no termination (Episode End), `reward_threshold` 250. v0's
-      reward is negative at every step and the track's end terminates: leaving the track
-      pays. Running off it at full force returns about -550 in 0.76 s, an energy-based
-      swing-up that balances from 3.7 s on about -1950 (`docs/results/rl_policies.md`).
-      dm_control's reward with the track's end kept still paid it (0 hanging, about 8 for
-      the pole's rise while the cart runs off): PPO and SAC both learned to run off. v0 is
-      kept as it was.
+    * v1 (`hgo_mj/CartPoleSwingUp-v1`, registered with `reward="dm_control"` and
+      `end_stops=True`): dm_control's reward (Rewards) and end stops instead of the
+      episode's end (Episode End), `reward_threshold` 250. v0's reward is negative at every
+      step and the track's end terminates: leaving the track pays. Running off it at full
+      force returns about -550 in 0.76 s, an energy-based swing-up that balances from 3.7 s
+      on about -1950 (`docs/results/rl_policies.md`). dm_control's reward with the track's
+      end kept still paid it (0 hanging, about 8 for the pole's rise while the cart runs
+      off): PPO and SAC both learned to run off; without an end, PPO swung the pole up with
+      the cart out to 2.6 m. v0 is kept as it was.
 """ + _sections(
         "hgo_mj/CartPoleSwingUp-v0", """\
     max_input : float, default 10.0
@@ -635,7 +637,10 @@ class CartPoleSwingUpEnv(HgoEnv):
     start_noise : float, default 0.05
         Half width of the initial state draw.
     reward : {"quadratic", "dm_control"}, default "quadratic"
-        v0's reward, or dm_control's smooth ``cartpole.swingup`` reward (v1).""", "(5,)", "-9.72")
+        v0's reward, or dm_control's smooth ``cartpole.swingup`` reward (v1).
+    end_stops : bool, default False
+        End stops at the track's ends instead of the episode's end there (v1).""", "(5,)",
+        "-9.72")
     task_class = CartPoleSwingUpTask
     env_id = "hgo_mj/CartPoleSwingUp-v0"
 

@@ -723,12 +723,16 @@ class CartPoleSwingUpTask(LabSwingUpTask):
     reward : {"quadratic", "dm_control"}, default "quadratic"
         :class:`LabSwingUpTask`'s quadratic reward (v0), or dm_control's smooth
         ``cartpole.swingup`` reward (v1).
+    end_stops : bool, default False
+        The track's ends stop the cart (``models/cart_pole_track.xml``, a soft joint limit at
+        +-2.4 m, as dm_control's) and the episode does not end there (v1); else the episode
+        ends when the cart leaves its track (v0).
 
     Raises
     ------
     DesignError
-        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
-        finite.
+        A limit that is not positive and finite, a ``start_noise`` that is negative or not
+        finite, or an ``end_stops`` that is not a bool.
 
     Examples
     --------
@@ -755,8 +759,13 @@ class CartPoleSwingUpTask(LabSwingUpTask):
     reward_names = ("quadratic", "dm_control")
 
     def __init__(self, max_input: float = 10.0, start_noise: float = 0.05,
-                 reward: str = "quadratic") -> None:
+                 reward: str = "quadratic", end_stops: bool = False) -> None:
         super().__init__(max_input, start_noise, reward)
+        if not isinstance(end_stops, bool):
+            raise DesignError(f"end_stops must be True or False; found {end_stops!r}")
+        self.end_stops = end_stops
+        if end_stops:  # this instance's plant: the one with the track's end stops
+            self.plant = "cart_pole_track.xml"  # type: ignore[misc]
 
     def literature_reward(self, x: Any, a: Any) -> tuple[Any, dict[str, Any]]:
         """dm_control's smooth ``cartpole.swingup`` reward (Tassa et al. 2018, ``cartpole.py``
@@ -774,13 +783,16 @@ class CartPoleSwingUpTask(LabSwingUpTask):
                    "reward_small_control": small_control, "reward_small_velocity": small_velocity}
 
     def termination(self, x: Any) -> Any:
-        """v0: the cart off its track (``|x| > 2.4`` m). With ``reward="dm_control"`` none, as
-        dm_control's (whose slider's range, +-1.8 m, holds the cart): with a reward in [0, 1]
+        """v0: the cart off its track (``|x| > 2.4`` m). With ``end_stops`` none: the stops
+        hold the cart, as dm_control's slider range (+-1.8 m) does. With a reward in [0, 1]
         and 0 hanging, ending the episode at the track's end paid the cart to run off it (PPO
         and SAC both learned that, returns of about 8 in 0.8 s)."""
-        if self.reward_name == "dm_control":
+        if self.end_stops:
             return np.zeros(np.shape(x[0]), dtype=bool)
         return super().termination(x)
+
+    def params(self) -> dict[str, Any]:
+        return {**super().params(), **({"end_stops": True} if self.end_stops else {})}
 
     def at_target(self, x: Any) -> Any:
         """The pole within :attr:`upright_band` of upright and the cart on its track."""

@@ -800,7 +800,12 @@ def test_lab_swing_up_v1_rewards_are_their_literatures_and_v0_is_kept():
         assert v1.at_target(up) and not v1.at_target(down)
         assert "reward" not in v0.params() and v1.params()["reward"] != "quadratic"
     cart_pole = gym.make("hgo_mj/CartPoleSwingUp-v1").unwrapped.task
-    assert not cart_pole.terminated([3.0, 0.0, 0.0, 0.0])  # dm_control's: no track end
+    assert not cart_pole.terminated([3.0, 0.0, 0.0, 0.0])  # end stops, no episode end
+    stops = gym.make("hgo_mj/CartPoleSwingUp-v1", observation="true")
+    stops.reset(seed=0)
+    for _ in range(300):  # pushed at full force, the cart rests against the stop at 2.4 m
+        _, _, terminated, _, info = stops.step(np.array([1.0], dtype=np.float32))
+    assert not terminated and 2.4 < info["state"][0] < 2.41
     assert gym.make("hgo_mj/CartPoleSwingUp-v0").unwrapped.task.terminated([3.0, 0, 0, 0])
     assert not cart_pole.at_target([3.0, np.pi, 0.0, 0.0])  # upright off the track
     furuta = gym.make("hgo_mj/FurutaSwingUp-v1").unwrapped.task
