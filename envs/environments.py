@@ -459,7 +459,9 @@ class FurutaSwingUpEnv(HgoEnv):
       arm limit (Rewards, Episode End), `reward_threshold` 250. v0's reward pays nothing for
       the way up (`-d^2` is -9.87 per step hanging and still -2.5 at a quarter turn) and
       charges 0.01 (w_arm^2 + w_pend^2) for the speed a swing needs, 2-4 per step
-      (`docs/results/rl_policies.md`). v0 is kept as it was.
+      (`docs/results/rl_policies.md`). v0 is kept as it was. Not solved here: with the
+      MJCF's pendulum damping (0.0005 N m s/rad) a bang-bang energy pump at 10 V lifts the
+      pendulum to at most 1.78 rad, and PPO's policy to 1.75 rad (`rl_policies.md`).
 """ + _sections(
         "hgo_mj/FurutaSwingUp-v0", """\
     max_input : float, default 10.0
