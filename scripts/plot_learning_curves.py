@@ -62,6 +62,7 @@ def plot(paths: list[Path], out: Path) -> None:
                    label="reward_threshold")
         ax.set_title(env_id, fontsize=9)
         ax.set_xlabel("environment steps")
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
         ax.set_ylabel("mean training return (last 100 episodes)")
         ax.legend(fontsize=7)
     with atomic_path(out) as tmp:
