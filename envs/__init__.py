@@ -61,6 +61,19 @@ ENVIRONMENTS: dict[str, type[HgoEnv]] = {str(cls.env_id): cls for cls in (
 #: registration keywords it differs by)
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "hgo_mj/AcrobotBalance-v1": ("hgo_mj/AcrobotBalance-v0", {"start_noise": 0.02}),
+    "hgo_mj/CartPoleSwingUp-v1": ("hgo_mj/CartPoleSwingUp-v0", {"reward": "dm_control",
+                                                                "end_stops": True}),
+    "hgo_mj/FurutaSwingUp-v1": ("hgo_mj/FurutaSwingUp-v0", {"reward": "quanser"}),
+    "hgo_mj/AcrobotSwingUp-v1": ("hgo_mj/AcrobotSwingUp-v0", {"reward": "dm_control"}),
+}
+
+#: registered id of a variant -> its ``reward_threshold`` where it differs from its
+#: environment's: the swing-ups' literature rewards lie in [0, 1] per step, and half the
+#: 500 steps' maximum, 250, is the threshold
+VARIANT_THRESHOLDS: dict[str, float] = {
+    "hgo_mj/CartPoleSwingUp-v1": 250.0,
+    "hgo_mj/FurutaSwingUp-v1": 250.0,
+    "hgo_mj/AcrobotSwingUp-v1": 250.0,
 }
 
 
@@ -72,7 +85,8 @@ def register_all() -> None:
     (``"hgo_mj.envs:make_<EnvClass>_vector"``: the native :class:`HgoVectorEnv` of
     ``gymnasium.make_vec``) and the task's
     ``reward_threshold``; each id of :data:`VARIANTS` the same as its environment's with its
-    keywords as the spec's ``kwargs``. An id already registered is left as it is.
+    keywords as the spec's ``kwargs`` (and its :data:`VARIANT_THRESHOLDS` entry, if any).
+    An id already registered is left as it is.
 
     Examples
     --------
@@ -94,7 +108,8 @@ def register_all() -> None:
         cls = ENVIRONMENTS[base]
         gymnasium.register(id=env_id, entry_point=f"{__name__}.environments:{cls.__name__}",
                            max_episode_steps=cls.task_class.max_episode_steps,  # type: ignore[union-attr]
-                           reward_threshold=cls.task_class.reward_threshold,  # type: ignore[union-attr]
+                           reward_threshold=VARIANT_THRESHOLDS.get(
+                               env_id, cls.task_class.reward_threshold),  # type: ignore[union-attr]
                            vector_entry_point=f"{__name__}:make_{cls.__name__}_vector",
                            kwargs=dict(kwargs))
 
@@ -110,7 +125,8 @@ def __getattr__(name: str) -> Any:
 
 register_all()
 
-__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "VARIANTS", "AcrobotBalanceEnv",
+__all__ = ["ENVIRONMENTS", "INFO_LEVELS", "OBSERVATION_MODES", "VARIANTS", "VARIANT_THRESHOLDS",
+           "AcrobotBalanceEnv",
            "AcrobotSwingUpEnv", "CartPendulumBalanceEnv", "CartPoleBalanceEnv",
            "CartPoleSwingUpEnv", "FurutaBalanceEnv", "FurutaSwingUpEnv",
            "ElasticJoint2LinkReachEnv", "ElasticJointReachEnv", "HgoEnv", "HgoVectorEnv",

@@ -427,17 +427,27 @@ class FurutaSwingUpEnv(HgoEnv):
     wrapped to [-pi, pi) [rad], `w` the true velocities [rad/s], `a` the action; terms
     `reward_target`, `reward_velocity`, `reward_control` in `info` with `info_level="full"`.
 
+    v1 (`reward="quanser"`): Quanser's Qube swing-up reward (quanser-openai-driver,
+    `QubeSwingupEnv`), `max(1 - (0.8 |d| + 0.2 |arm|) / pi, 0)` [rad], in [0, 1]: 0.2 per step
+    hanging, 1 upright with the arm centred; term `reward_upright`.
+
     ## Starting State
     Every state uniform in [-`start_noise`, `start_noise`]: hanging nearly still.
 
     ## Episode End
-    No termination; truncated after 500 steps (5 s) by `TimeLimit` (registration).
+    No termination; truncated after 500 steps (5 s) by `TimeLimit` (registration). v1: also
+    terminated when the arm is beyond 90 degrees (`QubeSwingupEnv`'s end).
+
+    An episode is *solved* (`scripts/eval_rl.py`) when it runs to the time limit without
+    termination and the pendulum is within 20 degrees of upright at each of its last 100
+    steps (1 s).
 
     ## Arguments
     | Parameter     | Default | Description                              |
     |---------------|---------|------------------------------------------|
     | `max_input`   | `10.0`  | motor voltage per unit action [V]        |
     | `start_noise` | `0.05`  | half width of the initial state draw     |
+    | `reward`      | `"quadratic"` | `"quanser"`: v1's reward and end   |
 """ + _ARGUMENTS + """
     Defaults here: `physics_dt=0.001` (the MJCF's RK4), `sample_period=0.002`,
     `control_period=0.01`; observer `high_gain_multi` with `k=40, model=True`; sensor
@@ -445,12 +455,21 @@ class FurutaSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
+    * v1 (`hgo_mj/FurutaSwingUp-v1`, registered with `reward="quanser"`): Quanser's reward and
+      arm limit (Rewards, Episode End), `reward_threshold` 250. v0's reward pays nothing for
+      the way up (`-d^2` is -9.87 per step hanging and still -2.5 at a quarter turn) and
+      charges 0.01 (w_arm^2 + w_pend^2) for the speed a swing needs, 2-4 per step
+      (`docs/results/rl_policies.md`). v0 is kept as it was. Not solved here: with the
+      MJCF's pendulum damping (0.0005 N m s/rad) a bang-bang energy pump at 10 V lifts the
+      pendulum to at most 1.78 rad, and PPO's policy to 1.75 rad (`rl_policies.md`).
 """ + _sections(
         "hgo_mj/FurutaSwingUp-v0", """\
     max_input : float, default 10.0
         Motor voltage per unit action [V].
     start_noise : float, default 0.05
-        Half width of the initial state draw.""", "(6,)", "-9.72")
+        Half width of the initial state draw.
+    reward : {"quadratic", "quanser"}, default "quadratic"
+        v0's reward, or Quanser's Qube swing-up reward and arm limit (v1).""", "(6,)", "-9.72")
     task_class = FurutaSwingUpTask
     env_id = "hgo_mj/FurutaSwingUp-v0"
 
@@ -491,17 +510,26 @@ class AcrobotSwingUpEnv(HgoEnv):
     and `d2` the elbow angle, both wrapped to [-pi, pi) [rad], `w` the true velocities
     [rad/s], `a` the action; terms `reward_target`, `reward_velocity`, `reward_control`.
 
+    v1 (`reward="dm_control"`): dm_control's `acrobot.swingup` reward, `tolerance(|tip -
+    target|, bounds=(0, r), margin=m)`, the target the tip's upright position, its radius
+    0.2 m and margin 1 m for dm_control's 2 m arm scaled to this 3 m arm (r = 0.3, m = 1.5):
+    1 within r, a Gaussian falling to 0.1 at m beyond it, in [0, 1]; term `reward_reach`.
+
     ## Starting State
     Every state uniform in [-`start_noise`, `start_noise`]: hanging nearly still.
 
     ## Episode End
     No termination; truncated after 500 steps (5 s) by `TimeLimit` (registration).
 
+    An episode is *solved* (`scripts/eval_rl.py`) when the shoulder is within 20 degrees of
+    upright and the elbow within 20 degrees of straight at each of its last 100 steps (1 s).
+
     ## Arguments
     | Parameter     | Default | Description                              |
     |---------------|---------|------------------------------------------|
     | `max_input`   | `20.0`  | elbow torque per unit action [N m]       |
     | `start_noise` | `0.05`  | half width of the initial state draw     |
+    | `reward`      | `"quadratic"` | `"dm_control"`: v1's reward        |
 """ + _ARGUMENTS + """
     Defaults here: `physics_dt=0.001` (the MJCF's RK4), `sample_period=0.002`,
     `control_period=0.01`; observer `high_gain_multi` with `k=30, model=True`; sensor
@@ -509,12 +537,17 @@ class AcrobotSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
+    * v1 (`hgo_mj/AcrobotSwingUp-v1`, registered with `reward="dm_control"`): dm_control's
+      reward (Rewards), `reward_threshold` 250. v0's quadratic reward charges the velocity
+      of a swing as v0 of :class:`FurutaSwingUpEnv` does. v0 is kept as it was.
 """ + _sections(
         "hgo_mj/AcrobotSwingUp-v0", """\
     max_input : float, default 20.0
         Elbow torque per unit action [N m].
     start_noise : float, default 0.05
-        Half width of the initial state draw.""", "(6,)", "-9.79")
+        Half width of the initial state draw.
+    reward : {"quadratic", "dm_control"}, default "quadratic"
+        v0's reward, or dm_control's ``acrobot.swingup`` reward (v1).""", "(6,)", "-9.79")
     task_class = AcrobotSwingUpTask
     env_id = "hgo_mj/AcrobotSwingUp-v0"
 
@@ -556,18 +589,33 @@ class CartPoleSwingUpEnv(HgoEnv):
     to [-pi, pi) [rad], `x` the cart position [m], `v`, `w` the true velocities, `a` the
     action; terms `reward_target`, `reward_velocity`, `reward_control`.
 
+    v1 (`reward="dm_control"`): dm_control's smooth `cartpole.swingup` reward (Tassa et al.
+    2018), in [0, 1]: `upright * centered * small_control * small_velocity`, `upright = (1 +
+    cos d) / 2`, `centered = (1 + tol(x, 2)) / 2`, `small_control = (4 + 1 - a^2) / 5`,
+    `small_velocity = (1 + tol(w, 5)) / 2`, `tol(z, m)` a Gaussian of 1 at 0 and 0.1 at `m`;
+    the four factors are the terms `reward_upright`, `reward_centered`,
+    `reward_small_control`, `reward_small_velocity`.
+
     ## Starting State
     Every state uniform in [-`start_noise`, `start_noise`]: centred, hanging nearly still.
 
     ## Episode End
     Terminated when the cart leaves its track (`|x| > 2.4` m); truncated after 500 steps
-    (5 s) by `TimeLimit` (registration).
+    (5 s) by `TimeLimit` (registration). v1 (`end_stops=True`): never terminated; end stops
+    hold the cart on its track (`models/cart_pole_track.xml`: a soft joint limit at +-2.4 m,
+    as dm_control's cart-pole has at +-1.8 m).
+
+    An episode is *solved* (`scripts/eval_rl.py`) when it runs to the time limit without
+    termination and at each of its last 100 steps (1 s) the pole is within 12 degrees of
+    upright (`CartPole-v1`'s band) and the cart on its track (`|x| <= 2.4` m).
 
     ## Arguments
     | Parameter     | Default | Description                              |
     |---------------|---------|------------------------------------------|
     | `max_input`   | `10.0`  | force per unit action [N]                |
     | `start_noise` | `0.05`  | half width of the initial state draw     |
+    | `reward`      | `"quadratic"` | `"dm_control"`: v1's reward        |
+    | `end_stops`   | `False` | v1: end stops, no episode end at the track's end |
 """ + _ARGUMENTS + """
     Defaults here: `physics_dt=0.001` (the MJCF's RK4), `sample_period=0.002`,
     `control_period=0.01`; observer `high_gain_multi` with `k=30, model=True`; sensor
@@ -575,12 +623,26 @@ class CartPoleSwingUpEnv(HgoEnv):
 
     ## Version History
     * v0: initial version.
+    * v1 (`hgo_mj/CartPoleSwingUp-v1`, registered with `reward="dm_control"` and
+      `end_stops=True`): dm_control's reward (Rewards) and end stops instead of the
+      episode's end (Episode End), `reward_threshold` 250. v0's reward is negative at every
+      step and the track's end terminates: leaving the track pays. Running off it at full
+      force returns about -550 in 0.76 s, an energy-based swing-up that balances from 3.7 s
+      on about -1950 (`docs/results/rl_policies.md`). dm_control's reward with the track's
+      end kept still paid it (0 hanging, about 8 for the pole's rise while the cart runs
+      off): PPO and SAC both learned to run off; without an end, PPO swung the pole up with
+      the cart out to 2.6 m. v0 is kept as it was.
 """ + _sections(
         "hgo_mj/CartPoleSwingUp-v0", """\
     max_input : float, default 10.0
         Force per unit action [N].
     start_noise : float, default 0.05
-        Half width of the initial state draw.""", "(5,)", "-9.72")
+        Half width of the initial state draw.
+    reward : {"quadratic", "dm_control"}, default "quadratic"
+        v0's reward, or dm_control's smooth ``cartpole.swingup`` reward (v1).
+    end_stops : bool, default False
+        End stops at the track's ends instead of the episode's end there (v1).""", "(5,)",
+        "-9.72")
     task_class = CartPoleSwingUpTask
     env_id = "hgo_mj/CartPoleSwingUp-v0"
 

@@ -415,12 +415,15 @@ class LabSwingUpTask(Task):
         Input per unit action (plant units: V, N m or N), positive.
     start_noise : float, default 0.05
         Half width of the uniform draw of every initial state entry.
+    reward : str, default "quadratic"
+        The reward above (v0), or one of the plant's literature's (:attr:`reward_names`,
+        :meth:`literature_reward`; v1).
 
     Raises
     ------
     DesignError
-        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
-        finite.
+        A limit that is not positive and finite, a ``start_noise`` that is negative or not
+        finite, or a ``reward`` that is not one of :attr:`reward_names`.
 
     Examples
     --------
@@ -457,16 +460,92 @@ class LabSwingUpTask(Task):
         "besancon": {"lam": 30.0},
     }
 
-    def __init__(self, max_input: float, start_noise: float = 0.05) -> None:
+    #: the rewards a plant offers: ``"quadratic"`` (v0's, above) and its literature's (v1)
+    reward_names: ClassVar[tuple[str, ...]] = ("quadratic",)
+    #: band around each wrapped target angle [rad] that counts as upright (:meth:`at_target`)
+    upright_band: ClassVar[float] = math.radians(12.0)
+    #: the last steps of an episode that must all be upright for it to be *solved* (1 s)
+    hold_steps: ClassVar[int] = 100
+
+    def __init__(self, max_input: float, start_noise: float = 0.05,
+                 reward: str = "quadratic") -> None:
         super().__init__((max_input,))
         self.max_input = self.max_action[0]
         self.start_noise = _range("start_noise", start_noise)
+        if reward not in self.reward_names:
+            raise DesignError(f"reward must be one of {list(self.reward_names)}; found {reward!r}")
+        self.reward_name = reward
 
     def initial_state(self, rng: np.random.Generator) -> list[float]:
         n = 2 * len(self.plant_outputs)
         return rng.uniform(-self.start_noise, self.start_noise, n).tolist()
 
+    def at_target(self, x: Any) -> Any:
+        """Every target angle within :attr:`upright_band` of its target (wrapped): the state
+        of a *solved* episode's last :attr:`hold_steps` steps (``scripts/eval_rl.py``), the
+        episode not terminated.
+
+        Parameters
+        ----------
+        x : sequence of float or (n, B) array
+            A true state, or a batch's columns.
+
+        Returns
+        -------
+        bool or (B,) bool array
+
+        Examples
+        --------
+        >>> import math
+        >>> from hgo_mj.envs.tasks import CartPoleSwingUpTask
+        >>> task = CartPoleSwingUpTask()
+        >>> bool(task.at_target([1.0, math.pi + 0.2, 0.0, 0.0]))
+        True
+        >>> bool(task.at_target([0.0, math.pi + 0.3, 0.0, 0.0]))
+        False
+        """
+        out: Any = True
+        for i, value, wrapped in self.targets:
+            if wrapped:
+                out = out & ~_outside(_wrap(x[i] - value), self.upright_band)
+        return out
+
+    def literature_reward(self, x: Any, a: Any) -> tuple[Any, dict[str, Any]]:
+        """The reward of the plant's literature (``reward != "quadratic"``); the subclass
+        gives it.
+
+        Parameters
+        ----------
+        x : sequence of float or (n, B) array
+            The true state at the end of the step, or a batch's columns.
+        a : float or (B,) array
+            The action: the input over ``max_input``.
+
+        Returns
+        -------
+        reward : float or (B,) array
+        terms : dict of str to float or (B,) array
+            Its terms (or factors), keyed ``reward_<term>``.
+
+        Examples
+        --------
+        >>> import math
+        >>> from hgo_mj.envs.tasks import FurutaSwingUpTask
+        >>> task = FurutaSwingUpTask(reward="quanser")
+        >>> [round(float(task.literature_reward([0.0, q, 0.0, 0.0], 0.0)[0]), 2)
+        ...  for q in (0.0, math.pi / 2, math.pi)]
+        [0.2, 0.6, 1.0]
+
+        Raises
+        ------
+        NotImplementedError
+            The plant has none (only ``"quadratic"`` in :attr:`reward_names`).
+        """
+        raise NotImplementedError(f"{type(self).__name__} has no literature reward")
+
     def reward_terms(self, x: Any, u: Any, goal: Any) -> tuple[Any, dict[str, Any]]:
+        if self.reward_name != "quadratic":
+            return self.literature_reward(x, u[0] / self.max_input)
         target: Any = 0.0
         for i, value, wrapped in self.targets:
             e = x[i] - value
@@ -498,7 +577,15 @@ class LabSwingUpTask(Task):
         return t
 
     def params(self) -> dict[str, Any]:
-        return {"max_input": self.max_input, "start_noise": self.start_noise}
+        extra = {} if self.reward_name == "quadratic" else {"reward": self.reward_name}
+        return {"max_input": self.max_input, "start_noise": self.start_noise, **extra}
+
+
+def _tolerance_gaussian(d: Any, margin: float) -> Any:
+    """dm_control's ``rewards.tolerance(d, bounds=(0, 0), margin, sigmoid="gaussian",
+    value_at_margin=0.1)`` of a distance ``d`` outside the bounds: 1 at 0, 0.1 at ``margin``."""
+    z = d / margin
+    return np.exp(-0.5 * z * z * (-2.0 * math.log(0.1)))
 
 
 class FurutaSwingUpTask(LabSwingUpTask):
@@ -510,6 +597,8 @@ class FurutaSwingUpTask(LabSwingUpTask):
         Motor voltage per unit action [V], positive.
     start_noise : float, default 0.05
         Half width of the uniform draw of every initial state entry.
+    reward : {"quadratic", "quanser"}, default "quadratic"
+        :class:`LabSwingUpTask`'s quadratic reward (v0), or Quanser's Qube swing-up reward and arm limit (v1).
 
     Raises
     ------
@@ -536,9 +625,28 @@ class FurutaSwingUpTask(LabSwingUpTask):
         **LabSwingUpTask.single_output_defaults, "high_gain_multi": {"k": 40.0, "model": True}}
     default_sensor = ({"stage": "quantize", "counts_per_rev": [2048, 2048]},)
     periodic = frozenset({"arm_angle", "pendulum_angle"})
+    reward_names = ("quadratic", "quanser")
+    #: the Qube balance band (:class:`FurutaBalanceTask`)
+    upright_band = math.radians(20.0)
 
-    def __init__(self, max_input: float = 10.0, start_noise: float = 0.05) -> None:
-        super().__init__(max_input, start_noise)
+    def __init__(self, max_input: float = 10.0, start_noise: float = 0.05,
+                 reward: str = "quadratic") -> None:
+        super().__init__(max_input, start_noise, reward)
+
+    def literature_reward(self, x: Any, a: Any) -> tuple[Any, dict[str, Any]]:
+        """Quanser's Qube swing-up reward (quanser-openai-driver, ``QubeSwingupEnv``):
+        ``max(1 - (0.8 |alpha| + 0.2 |theta|) / pi, 0)``, ``alpha`` the pendulum's angle from
+        upright (wrapped), ``theta`` the arm's angle; no control term."""
+        alpha = _wrap(x[1] - math.pi)
+        r = np.maximum(1.0 - (0.8 * abs(alpha) + 0.2 * abs(x[0])) / math.pi, 0.0)
+        return r, {"reward_upright": r}
+
+    def termination(self, x: Any) -> Any:
+        """With ``reward="quanser"`` the Qube swing-up's end: the arm beyond 90 degrees."""
+        out: Any = super().termination(x)
+        if self.reward_name == "quanser":
+            out = out | _outside(x[0], math.pi / 2)
+        return out
 
 
 class AcrobotSwingUpTask(LabSwingUpTask):
@@ -550,6 +658,8 @@ class AcrobotSwingUpTask(LabSwingUpTask):
         Elbow torque per unit action [N m], positive.
     start_noise : float, default 0.05
         Half width of the uniform draw of every initial state entry.
+    reward : {"quadratic", "dm_control"}, default "quadratic"
+        :class:`LabSwingUpTask`'s quadratic reward (v0), or dm_control's ``acrobot.swingup`` reward (v1).
 
     Raises
     ------
@@ -576,9 +686,28 @@ class AcrobotSwingUpTask(LabSwingUpTask):
         **LabSwingUpTask.single_output_defaults, "high_gain_multi": {"k": 30.0, "model": True}}
     default_sensor = ({"stage": "quantize", "counts_per_rev": [4096, 4096]},)
     periodic = frozenset({"shoulder_angle", "elbow_angle"})
+    reward_names = ("quadratic", "dm_control")
+    #: the balance band (:class:`AcrobotBalanceTask`), on both joints
+    upright_band = math.radians(20.0)
+    #: link lengths [m] (``models/acrobot.xml``)
+    links = (1.0, 2.0)
 
-    def __init__(self, max_input: float = 20.0, start_noise: float = 0.05) -> None:
-        super().__init__(max_input, start_noise)
+    def __init__(self, max_input: float = 20.0, start_noise: float = 0.05,
+                 reward: str = "quadratic") -> None:
+        super().__init__(max_input, start_noise, reward)
+
+    def literature_reward(self, x: Any, a: Any) -> tuple[Any, dict[str, Any]]:
+        """dm_control's ``acrobot.swingup`` reward: ``tolerance(|tip - target|, bounds=(0,
+        0.2), margin=1)`` for its two 1 m links, the target the tip's upright position; here
+        radius and margin scaled by the arm's length (3 m against 2 m): 0.3 and 1.5 [m]. 1
+        within the radius, 0.1 at the margin beyond it (Gaussian), in ``[0, 1]``."""
+        l1, l2 = self.links
+        q12 = x[0] + x[1]
+        tip_x = -l1 * np.sin(x[0]) - l2 * np.sin(q12)
+        tip_z = -l1 * np.cos(x[0]) - l2 * np.cos(q12)
+        dist = np.sqrt(tip_x * tip_x + (tip_z - l1 - l2) ** 2)
+        r = _tolerance_gaussian(np.maximum(dist - 0.3, 0.0), 1.5)
+        return r, {"reward_reach": r}
 
 
 class CartPoleSwingUpTask(LabSwingUpTask):
@@ -591,12 +720,19 @@ class CartPoleSwingUpTask(LabSwingUpTask):
         Force on the cart per unit action [N], positive.
     start_noise : float, default 0.05
         Half width of the uniform draw of every initial state entry.
+    reward : {"quadratic", "dm_control"}, default "quadratic"
+        :class:`LabSwingUpTask`'s quadratic reward (v0), or dm_control's smooth
+        ``cartpole.swingup`` reward (v1).
+    end_stops : bool, default False
+        The track's ends stop the cart (``models/cart_pole_track.xml``, a soft joint limit at
+        +-2.4 m, as dm_control's) and the episode does not end there (v1); else the episode
+        ends when the cart leaves its track (v0).
 
     Raises
     ------
     DesignError
-        A limit that is not positive and finite, or a ``start_noise`` that is negative or not
-        finite.
+        A limit that is not positive and finite, a ``start_noise`` that is negative or not
+        finite, or an ``end_stops`` that is not a bool.
 
     Examples
     --------
@@ -620,9 +756,47 @@ class CartPoleSwingUpTask(LabSwingUpTask):
     default_sensor = ({"stage": "quantize",
                        "resolution": [_TWO_PI * 0.01482 / 4096, _TWO_PI / 4096]},)
     periodic = frozenset({"pole_angle"})
+    reward_names = ("quadratic", "dm_control")
 
-    def __init__(self, max_input: float = 10.0, start_noise: float = 0.05) -> None:
-        super().__init__(max_input, start_noise)
+    def __init__(self, max_input: float = 10.0, start_noise: float = 0.05,
+                 reward: str = "quadratic", end_stops: bool = False) -> None:
+        super().__init__(max_input, start_noise, reward)
+        if not isinstance(end_stops, bool):
+            raise DesignError(f"end_stops must be True or False; found {end_stops!r}")
+        self.end_stops = end_stops
+        if end_stops:  # this instance's plant: the one with the track's end stops
+            self.plant = "cart_pole_track.xml"  # type: ignore[misc]
+
+    def literature_reward(self, x: Any, a: Any) -> tuple[Any, dict[str, Any]]:
+        """dm_control's smooth ``cartpole.swingup`` reward (Tassa et al. 2018, ``cartpole.py``
+        ``_get_reward``), in ``[0, 1]``: ``upright * centered * small_control *
+        small_velocity`` with ``upright = (1 + cos(pole from upright)) / 2``, ``centered = (1 +
+        tolerance(x, margin=2)) / 2``, ``small_control = (4 + max(1 - a^2, 0)) / 5`` and
+        ``small_velocity = (1 + tolerance(w, margin=5)) / 2`` (Gaussian tolerances, 0.1 at
+        the margin)."""
+        upright = (1.0 - np.cos(x[1])) / 2.0  # the pole angle is 0 hanging, pi upright
+        centered = (1.0 + _tolerance_gaussian(x[0], 2.0)) / 2.0
+        small_control = (4.0 + np.maximum(1.0 - a * a, 0.0)) / 5.0
+        small_velocity = (1.0 + _tolerance_gaussian(x[3], 5.0)) / 2.0
+        r = upright * centered * small_control * small_velocity
+        return r, {"reward_upright": upright, "reward_centered": centered,
+                   "reward_small_control": small_control, "reward_small_velocity": small_velocity}
+
+    def termination(self, x: Any) -> Any:
+        """v0: the cart off its track (``|x| > 2.4`` m). With ``end_stops`` none: the stops
+        hold the cart, as dm_control's slider range (+-1.8 m) does. With a reward in [0, 1]
+        and 0 hanging, ending the episode at the track's end paid the cart to run off it (PPO
+        and SAC both learned that, returns of about 8 in 0.8 s)."""
+        if self.end_stops:
+            return np.zeros(np.shape(x[0]), dtype=bool)
+        return super().termination(x)
+
+    def params(self) -> dict[str, Any]:
+        return {**super().params(), **({"end_stops": True} if self.end_stops else {})}
+
+    def at_target(self, x: Any) -> Any:
+        """The pole within :attr:`upright_band` of upright and the cart on its track."""
+        return super().at_target(x) & ~_outside(x[0], self.limits[0][1])
 
 
 class LabBalanceTask(LabSwingUpTask):

@@ -15,7 +15,11 @@ batch 256, 20 epochs, gamma 0.98, GAE 0.8, learning rate and clip range decaying
 from 1e-3 and 0.2, no entropy bonus), the nearest balance task RL Zoo tunes; the
 continuous action gets SB3's Gaussian policy. PPO by default: a balance task is solved
 within RL Zoo's 1e5 steps by PPO, and PPO's batched rollouts use the native vector
-environment (:func:`hgo_mj.envs.sb3.sb3_vec_env`, one loop at B = 8).
+environment (:func:`hgo_mj.envs.sb3.sb3_vec_env`, one loop at B = 8). ``--ppo-settings
+mujoco`` takes the PPO paper's MuJoCo settings instead (:data:`PPO_MUJOCO`), the swing-ups':
+with ``CartPole-v1``'s (32 steps per member, GAE 0.8, 20 epochs) the policy's noise
+collapsed on ``CartPoleSwingUp-v1`` (log standard deviation -3 at 300k steps) with the cart
+running off its track in 0.78 s.
 
 ``--algorithm SAC`` trains stable-baselines3's SAC instead (its defaults: two layers of 256,
 automatic entropy coefficient, tau 0.005; with gamma 0.99, learning rate 1e-3, a buffer of
@@ -26,8 +30,10 @@ same vector environment: the acrobot's balance, which PPO with these settings di
 (``<name>.replay.pkl``), so that a resumed run goes on with the samples it had.
 
 Checkpoints: the model is saved every ``--checkpoint-every`` seconds (and at the end) to
-``<checkpoints>/<name>.zip`` with ``<name>.json`` (steps done, training seconds so far); a
-run started again with the same arguments loads them and trains the remaining steps, so a
+``<checkpoints>/<name>.zip`` with ``<name>.json`` (steps done, training seconds so far)
+and ``<name>.curve.json`` (the learning curve: steps, seconds and the mean return of the
+last 100 training episodes, stable-baselines3's ``VecMonitor``, at each checkpoint); a run
+started again with the same arguments loads them and trains the remaining steps, so a
 stop loses at most one interval. The finished policy goes to ``<out>/<name>.zip`` with
 ``<name>.json`` (environment, agent, seed, algorithm and settings, steps, training seconds).
 Every file is written atomically.
@@ -51,6 +57,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hgo_mj._io import atomic_path
 from hgo_mj._json import write_json
 
@@ -64,6 +72,14 @@ N_ENVS = 8
 PPO_CARTPOLE = {"n_steps": 32, "batch_size": 256, "gae_lambda": 0.8, "gamma": 0.98,
                 "n_epochs": 20, "ent_coef": 0.0, "learning_rate": "lin_0.001",
                 "clip_range": "lin_0.2"}
+#: the PPO paper's MuJoCo settings (Schulman et al. 2017, Table 3: horizon 2048, Adam 3e-4, 10
+#: epochs, minibatch 64, gamma 0.99, GAE 0.95; stable-baselines3's PPO defaults), the horizon
+#: split over the :data:`N_ENVS` members: ``--ppo-settings mujoco``, the swing-ups
+PPO_MUJOCO = {"n_steps": 256, "batch_size": 64, "gae_lambda": 0.95, "gamma": 0.99,
+              "n_epochs": 10, "ent_coef": 0.0, "learning_rate": 3e-4, "clip_range": 0.2}
+PPO_SETTINGS = {"cartpole": (PPO_CARTPOLE, "rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"),
+                "mujoco": (PPO_MUJOCO, "Schulman et al. 2017 Table 3 (MuJoCo), "
+                                       "stable-baselines3's PPO defaults")}
 #: SAC for the acrobot's balance: stable-baselines3's defaults but these
 SAC_BALANCE = {"gamma": 0.99, "learning_rate": 1e-3, "buffer_size": 300_000, "batch_size": 256,
                "learning_starts": 4000, "train_freq": 1, "gradient_steps": 2}
@@ -117,6 +133,9 @@ def check_args(args: argparse.Namespace) -> None:
     if args.agent.endswith("+lstm") and args.algorithm != "PPO":
         raise SystemExit(f"--agent {args.agent} trains RecurrentPPO: --algorithm must be PPO; "
                          f"found {args.algorithm!r}")
+    if args.ppo_settings not in PPO_SETTINGS:
+        raise SystemExit(f"--ppo-settings must be one of {list(PPO_SETTINGS)}; found "
+                         f"{args.ppo_settings!r}")
     if args.gamma is not None and not 0.0 < args.gamma < 1.0:
         raise SystemExit(f"--gamma must be in (0, 1); found {args.gamma}")
     if args.tuned and args.agent != "estimate":
@@ -156,15 +175,19 @@ def train(args: argparse.Namespace) -> Path:
     from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecMonitor
 
     torch.set_num_threads(1)
     name = policy_name(args.env, args.agent, args.seed, args.tuned)
     observer = tuned_spec(args.env) if args.tuned else None
     ckpt, ckpt_meta = args.checkpoints / f"{name}.zip", args.checkpoints / f"{name}.json"
+    curve_path = args.checkpoints / f"{name}.curve.json"
+    curve = json.loads(curve_path.read_text()) if curve_path.exists() else []
     replay = args.checkpoints / f"{name}.replay.pkl"
-    venv = train_env(args.env, args.agent, observer)
+    venv = VecMonitor(train_env(args.env, args.agent, observer))  # the episodes' returns
     venv.seed(args.seed)
-    algo, base = (SAC, SAC_BALANCE) if args.algorithm == "SAC" else (PPO, PPO_CARTPOLE)
+    ppo, ppo_source = PPO_SETTINGS[args.ppo_settings]
+    algo, base = (SAC, SAC_BALANCE) if args.algorithm == "SAC" else (PPO, ppo)
     policy = "MlpPolicy"
     if args.agent.endswith("+lstm"):
         algo, policy = RecurrentPPO, "MlpLstmPolicy"
@@ -187,8 +210,12 @@ def train(args: argparse.Namespace) -> Path:
         if args.algorithm == "SAC":
             with atomic_path(replay) as tmp, open(tmp, "wb") as fh:
                 model.save_replay_buffer(fh)
-        write_json(ckpt_meta, {"steps": int(model.num_timesteps),
-                               "train_seconds": done_seconds + time.monotonic() - start})
+        seconds = done_seconds + time.monotonic() - start
+        write_json(ckpt_meta, {"steps": int(model.num_timesteps), "train_seconds": seconds})
+        if model.ep_info_buffer:  # the learning curve: the last (up to 100) episodes' returns
+            curve.append([int(model.num_timesteps), round(seconds, 1),
+                          float(np.mean([e["r"] for e in model.ep_info_buffer]))])
+            write_json(curve_path, curve)
 
     class Every(BaseCallback):  # type: ignore[misc]
         last = time.monotonic()
@@ -197,7 +224,8 @@ def train(args: argparse.Namespace) -> Path:
             if time.monotonic() - self.last >= args.checkpoint_every:
                 checkpoint()
                 Every.last = time.monotonic()
-                print(f"{name}: {model.num_timesteps} steps", flush=True)
+                print(f"{name}: {model.num_timesteps} steps, mean return "
+                      f"{curve[-1][2] if curve else float('nan'):.1f}", flush=True)
             return True
 
     args.checkpoints.mkdir(parents=True, exist_ok=True)
@@ -215,8 +243,7 @@ def train(args: argparse.Namespace) -> Path:
         "stack": STACK if args.agent.endswith("+stack") else 0,
         **({} if observer is None else {"observer": observer}),
         "settings": {**base, "gamma": float(model.gamma), "n_envs": N_ENVS,
-                     "source": ("rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"
-                                if algo is not SAC else "stable-baselines3 SAC defaults, "
+                     "source": (ppo_source if algo is not SAC else "stable-baselines3 SAC defaults, "
                                 "SAC_BALANCE of scripts/train_policy.py")
                      + ("" if model.gamma == base["gamma"] else
                         f", gamma {model.gamma:g} (--gamma)")},
@@ -238,6 +265,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--checkpoints", type=Path, default=ROOT / "runs" / "rl_checkpoints")
     ap.add_argument("--checkpoint-every", type=float, default=120.0, help="seconds")
     ap.add_argument("--algorithm", default="PPO", help=f"one of {list(ALGORITHMS)}")
+    ap.add_argument("--ppo-settings", default="cartpole",
+                    help=f"PPO's settings, one of {list(PPO_SETTINGS)} (a new run only)")
     ap.add_argument("--gamma", type=float, default=None,
                     help="discount instead of the algorithm's settings' (a new run only; a "
                          "resumed run keeps its own)")

@@ -780,3 +780,47 @@ def test_a_task_in_the_loop_and_a_variant_by_partial():
         del gym.registry["hgo_mj_test/PendulumSwingUpTrue-v0"]
     with pytest.raises(DesignError, match="give task parameters"):
         envs.PendulumSwingUpEnv(task=SwingUpTask(), max_torque=0.2)
+
+
+def test_lab_swing_up_v1_rewards_are_their_literatures_and_v0_is_kept():
+    """v1 = v0 with the literature's reward (registration keywords): dm_control's cart-pole
+    and acrobot, Quanser's Qube; 1 upright and still, about 0 (0.2 for the Qube) hanging, in
+    [0, 1]; the Qube's episode ends with the arm beyond 90 degrees; the vector env gives the
+    single env's rewards; v0 keeps its quadratic reward."""
+    cases = {"CartPoleSwingUp": ([0.0, np.pi, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], 0.0),
+             "FurutaSwingUp": ([0.0, np.pi, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], 0.2),
+             "AcrobotSwingUp": ([np.pi, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], 0.0)}
+    for name, (up, down, hanging) in cases.items():
+        v0, v1 = (gym.make(f"hgo_mj/{name}-v{k}").unwrapped.task for k in (0, 1))
+        assert gym.spec(f"hgo_mj/{name}-v1").reward_threshold == 250.0
+        assert v1.reward(up, [0.0], ())[0] == pytest.approx(1.0)
+        assert v1.reward(down, [0.0], ())[0] == pytest.approx(hanging, abs=1e-3)
+        assert v0.reward(up, [0.0], ())[0] == pytest.approx(0.0)
+        assert v0.reward(down, [0.0], ())[0] < -9.0
+        assert v1.at_target(up) and not v1.at_target(down)
+        assert "reward" not in v0.params() and v1.params()["reward"] != "quadratic"
+    cart_pole = gym.make("hgo_mj/CartPoleSwingUp-v1").unwrapped.task
+    assert not cart_pole.terminated([3.0, 0.0, 0.0, 0.0])  # end stops, no episode end
+    stops = gym.make("hgo_mj/CartPoleSwingUp-v1", observation="true")
+    stops.reset(seed=0)
+    for _ in range(300):  # pushed at full force, the cart rests against the stop at 2.4 m
+        _, _, terminated, _, info = stops.step(np.array([1.0], dtype=np.float32))
+    assert not terminated and 2.4 < info["state"][0] < 2.41
+    assert gym.make("hgo_mj/CartPoleSwingUp-v0").unwrapped.task.terminated([3.0, 0, 0, 0])
+    assert not cart_pole.at_target([3.0, np.pi, 0.0, 0.0])  # upright off the track
+    furuta = gym.make("hgo_mj/FurutaSwingUp-v1").unwrapped.task
+    assert furuta.terminated([1.6, np.pi, 0.0, 0.0])
+    assert not gym.make("hgo_mj/FurutaSwingUp-v0").unwrapped.task.terminated([1.6, 0, 0, 0])
+    for name in cases:
+        env = gym.make(f"hgo_mj/{name}-v1", observation="true")
+        venv = gym.make_vec(f"hgo_mj/{name}-v1", num_envs=2, observation="true")
+        venv.reset(seed=5)
+        env.reset(seed=6)
+        a = np.array([[0.7], [0.7]], dtype=np.float32)
+        for _ in range(20):
+            r_vec = venv.step(a)[1]
+            r = env.step(a[1])[1]
+        assert r_vec[1] == pytest.approx(r, rel=1e-12, abs=1e-15)
+        assert env.spec.to_json()
+    with pytest.raises(DesignError, match=r"reward must be one of \['quadratic', 'dm_control'\]"):
+        gym.make("hgo_mj/CartPoleSwingUp-v0", reward="quanser")

@@ -34,6 +34,15 @@ def test_solved_is_balanced_to_the_time_limit():
         ev.episode_solved(gym.make("hgo_mj/PendulumSwingUp-v0"), False, 250)
 
 
+def test_a_lab_swing_up_is_solved_when_its_last_second_is_upright():
+    ev = _load("eval_rl")
+    env = gym.make("hgo_mj/CartPoleSwingUp-v1")
+    assert ev.episode_solved(env, False, 500, 100)
+    assert not ev.episode_solved(env, False, 500, 99)
+    assert not ev.episode_solved(env, True, 500, 100)
+    assert not ev.episode_solved(env, False, 499, 100)
+
+
 def test_table_and_refusals(tmp_path):
     ev = _load("eval_rl")
     rows = [ev.Row("x", "hgo_mj/CartPoleBalance-v0", "estimate", 0, 100_000, 80.4,
@@ -95,6 +104,9 @@ def test_train_policy_refuses_bad_arguments():
     with pytest.raises(SystemExit, match=r"--algorithm must be one of \['PPO', 'SAC'\]; found "
                                          r"'TD3'"):
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--algorithm", "TD3"])
+    with pytest.raises(SystemExit, match=r"--ppo-settings must be one of \['cartpole', "
+                                         r"'mujoco'\]; found 'atari'"):
+        tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--ppo-settings", "atari"])
     with pytest.raises(SystemExit, match="trains RecurrentPPO: --algorithm must be PPO"):
         tp.main(["--env", "hgo_mj/CartPoleBalance-v0", "--agent", "measurement+lstm",
                  "--algorithm", "SAC"])
