@@ -10,7 +10,9 @@ environment reset with seeds 10000, 10001, ... (the same in every row). An episo
 balance task is *solved* when it runs to the time limit without termination (the pole never
 left its band, the cart never left its track: a return of 500); the "solved" column is the
 share of solved episodes, and a task counts as solved by an agent when most of its episodes
-are.
+are. An episode of a task of ``docs/results/rl.md`` is solved by that page's criterion
+(``scripts/train_rl.py``'s ``solved``: over the last half of the episode, the pendulum within
+0.3 rad of upright, or the elastic joint's link within 0.05 rad of its target, at every step).
 
 Usage::
 
@@ -36,6 +38,9 @@ from hgo_mj._bench import machine_line, versions_line
 from hgo_mj._io import write_text
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))
+from train_rl import SOLVED_BAND, solved  # noqa: E402
+
 EVAL_SEED = 10_000
 #: control steps of an episode left out of its estimation error (the observer's transient)
 TRANSIENT_STEPS = 10
@@ -76,21 +81,26 @@ class Row:
         return float(np.mean(self.solved))
 
 
-def episode_solved(env: Any, terminated: bool, length: int) -> bool:
-    """A balance task's criterion: the episode ran to the time limit, never terminated.
+def episode_solved(env: Any, terminated: bool, length: int, states: Any = ()) -> bool:
+    """A balance task's criterion: the episode ran to the time limit, never terminated; a
+    task of ``docs/results/rl.md``'s (``train_rl.SOLVED_BAND``): its criterion on the
+    episode's true ``states`` (one per step, the reset's first; ``train_rl.solved``).
 
     Raises
     ------
     SystemExit
-        The environment's task has no criterion here (not a balance task).
+        The environment's task has no criterion here.
     """
     from hgo_mj.envs.tasks import LabBalanceTask
 
     task = env.unwrapped.task
-    if not isinstance(task, LabBalanceTask):
-        raise SystemExit(f"eval_rl.py knows the solved criterion of the balance tasks "
-                         f"(LabBalanceTask); found {type(task).__name__}")
-    return not terminated and length >= env.spec.max_episode_steps
+    if isinstance(task, LabBalanceTask):
+        return not terminated and length >= env.spec.max_episode_steps
+    if env.spec.id in SOLVED_BAND:
+        return solved(env.spec.id, states, getattr(env.unwrapped, "_goal", ()))
+    raise SystemExit(f"eval_rl.py knows the solved criterion of the balance tasks "
+                     f"(LabBalanceTask) and of {sorted(SOLVED_BAND)}; found "
+                     f"{type(task).__name__} ({env.spec.id})")
 
 
 def load(zip_path: Path, meta: dict[str, Any]) -> Any:
@@ -131,9 +141,10 @@ def episodes_of(model: Any, meta: dict[str, Any], episodes: int,
     env = gym.make(meta["env_id"], observation=meta.get("observation", meta["agent"]), **kw)
     if meta.get("stack"):
         env = gym.wrappers.FrameStackObservation(env, int(meta["stack"]))
-    returns, solved, errors = [], [], []
+    returns, won, errors = [], [], []
     for k in range(episodes):
-        obs, _ = env.reset(seed=EVAL_SEED + k)
+        obs, info = env.reset(seed=EVAL_SEED + k)
+        states = [info["state"]]
         total, n, terminated, truncated = 0.0, 0, False, False
         state, start = None, np.ones((1,), dtype=bool)  # the recurrent policy's memory
         while not (terminated or truncated):
@@ -142,14 +153,15 @@ def episodes_of(model: Any, meta: dict[str, Any], episodes: int,
             start = np.zeros((1,), dtype=bool)
             obs, reward, terminated, truncated, info = env.step(action)
             total, n = total + float(reward), n + 1
+            states.append(info["state"])
             if n > TRANSIENT_STEPS and "error" in info:
                 errors.append(info["error"])
         returns.append(total)
-        solved.append(episode_solved(env, terminated, n))
+        won.append(episode_solved(env, terminated, n, states))
     names = env.unwrapped.error_names
     env.close()
     rms = np.sqrt(np.mean(np.square(errors), axis=0)) if errors else []
-    return Run(returns, solved, dict(zip(names, map(float, rms))))
+    return Run(returns, won, dict(zip(names, map(float, rms))))
 
 
 def evaluate(zip_path: Path, episodes: int, scenarios: Path = ROOT / "scenarios" / "rl_balance"

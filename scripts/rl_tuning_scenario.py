@@ -46,7 +46,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from eval_rl import EVAL_SEED, load  # noqa: E402
 
 ENVS = ("hgo_mj/CartPoleBalance-v0", "hgo_mj/FurutaBalance-v0",
-        "hgo_mj/AcrobotBalance-v1")
+        "hgo_mj/AcrobotBalance-v1", "hgo_mj/ElasticJointReach-v0")
 #: the observer's label in the scenario (``hgo-mj tune --observer default``)
 LABEL = "default"
 
@@ -95,10 +95,11 @@ def scenario(env: Any, episode: Episode) -> dict[str, Any]:
     T = len(episode.u)
     times = [0.0] + [(j - 0.5) * tc for j in range(1, T)]
     spec = u._observer_spec
+    plant = ({"model": f"models/{u.task.plant}", "outputs": list(u.output_names)}
+             if u.task.plant.endswith(".xml") else {"name": u.task.plant})  # a registered one
     return {
         "name": f"{u.env_id.split('/')[-1]}_balance",
-        "plant": {"model": f"models/{u.task.plant}", "outputs": list(u.output_names),
-                  "dt": ts, "physics_dt": u.physics_dt, "x0": episode.x[0].tolist()},
+        "plant": {**plant, "dt": ts, "physics_dt": u.physics_dt, "x0": episode.x[0].tolist()},
         "sensor": {"stages": u.sensor.describe()},
         "observers": [{"name": LABEL, **spec}],
         "input": {"type": "schedule", "times": times, "values": episode.u.tolist()},

@@ -30,8 +30,20 @@ def test_solved_is_balanced_to_the_time_limit():
     assert ev.episode_solved(env, False, 500)
     assert not ev.episode_solved(env, True, 500)
     assert not ev.episode_solved(env, False, 499)
-    with pytest.raises(SystemExit, match="found SwingUpTask"):
-        ev.episode_solved(gym.make("hgo_mj/PendulumSwingUp-v0"), False, 250)
+    with pytest.raises(SystemExit, match="found Reach2LinkTask"):
+        ev.episode_solved(gym.make("hgo_mj/ElasticJoint2LinkReach-v0"), False, 250)
+
+
+def test_solved_reach_holds_the_link_near_its_target_over_the_last_half():
+    """rl.md's criterion on ElasticJointReach: the link within 0.05 rad of the target at
+    every step of the episode's last half, whatever the first half did."""
+    ev = _load("eval_rl")
+    env = gym.make("hgo_mj/ElasticJointReach-v0")
+    env.reset(seed=0)
+    goal = env.unwrapped._goal[0]
+    near, far = [[goal - 0.049, 0.0, 0.0, 0.0]], [[goal + 0.051, 0.0, 0.0, 0.0]]
+    assert ev.episode_solved(env, False, 9, far * 5 + near * 5)
+    assert not ev.episode_solved(env, False, 9, far * 4 + near + far + near * 4)
 
 
 def test_table_and_refusals(tmp_path):
@@ -181,3 +193,35 @@ def test_train_and_evaluate_on_the_tuned_observer(tmp_path):
     assert row.agent == "tuned estimate" and row.on_tuned is None
     assert set(row.error_rms) == {"cart_position", "cart_velocity", "pole_angle",
                                   "pole_velocity"}
+
+
+def test_rl_md_tasks_train_with_its_settings_and_save_small_policies(tmp_path):
+    """ElasticJointReach trains with rl.md's PPO (gSDE, two layers of 64, the LSTM's 64) and
+    budget; the committed zip drops the optimiser's moments, loads and acts as the
+    checkpoint."""
+    pytest.importorskip("sb3_contrib")
+    import numpy as np
+
+    tp, ev = _load("train_policy"), _load("eval_rl")
+    env_id = "hgo_mj/ElasticJointReach-v0"
+    assert (tp.default_steps(env_id), tp.default_steps("hgo_mj/CartPoleBalance-v0")) == (
+        409_600, 100_000)
+    for agent in ("true", "measurement+lstm"):
+        assert tp.main(["--env", env_id, "--agent", agent, "--steps", "256", "--out",
+                        str(tmp_path), "--checkpoints", str(tmp_path / "ck")]) == 0
+    zip_path = tmp_path / "ElasticJointReach-v0_true_seed0.zip"
+    meta = json.loads(zip_path.with_suffix(".json").read_text())
+    assert meta["settings"]["use_sde"] and meta["settings"]["n_steps"] == 256
+    assert meta["settings"]["policy_kwargs"] == {"net_arch": [64, 64]}
+    assert meta["settings"]["source"].startswith("docs/results/rl.md")
+    small, full = ev.load(zip_path, meta), ev.load(tmp_path / "ck" / zip_path.name, meta)
+    assert zip_path.stat().st_size < 0.6 * (tmp_path / "ck" / zip_path.name).stat().st_size
+    assert not small.policy.optimizer.state and full.policy.optimizer.state
+    obs = np.random.default_rng(0).normal(size=(16, 5))
+    assert np.array_equal(small.predict(obs, deterministic=True)[0],
+                          full.predict(obs, deterministic=True)[0])
+    lstm_path = tmp_path / "ElasticJointReach-v0_measurement+lstm_seed0.zip"
+    lstm = ev.load(lstm_path, json.loads(lstm_path.with_suffix(".json").read_text()))
+    assert lstm.policy.lstm_actor.hidden_size == 64
+    row = ev.evaluate(lstm_path, 1)
+    assert (row.algorithm, len(row.solved)) == ("RecurrentPPO", 1)
