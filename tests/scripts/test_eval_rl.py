@@ -66,8 +66,13 @@ def test_table_and_refusals(tmp_path):
     assert ("- hgo_mj/CartPoleBalance-v0: estimate 50%, true 100%; the estimate agent solves "
             "50% as many episodes as the true-state agent (target 90%: not met).") in \
         ev.findings(rows)
+    rows.append(ev.Row("z", "hgo_mj/CartPoleBalance-v0", "tuned estimate", 0, 100_000, 50.0,
+                       [500.0, 500.0], [True, True]))
+    assert ("the tuned estimate agent solves 100% as many episodes as the true-state agent "
+            "(target 90%: met).") in ev.findings(rows)
     rows[1].solved = [False, False]
     assert "the true-state agent solves none" in ev.findings(rows)
+    assert "tuned estimate agent solves" not in ev.findings(rows)
     with pytest.raises(SystemExit, match="found 0 zip"):
         ev.main(["--policies", str(tmp_path)])
     (tmp_path / "a.zip").write_bytes(b"")
@@ -90,6 +95,14 @@ def test_tuned_observer_is_the_tunings_best(tmp_path):
     path.write_text('[[observers]]\nname = "other"\ntype = "high_gain_multi"\n')
     with pytest.raises(SystemExit, match="one observer named 'default'"):
         ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path)
+    # ElasticJointReach: the extended Kalman filter beside the default is the tuned one
+    (tmp_path / "ElasticJointReach-v0.best.toml").write_text(
+        '[[observers]]\nname = "default"\ntype = "high_gain"\nk = 80.0\n\n'
+        '[[observers]]\nname = "ekf"\ntype = "ekf"\nQ = 1e-5\n')
+    spec = ev.tuned_observer("hgo_mj/ElasticJointReach-v0", tmp_path)
+    assert spec == {"type": "ekf", "Q": 1e-5}
+    env = gym.make("hgo_mj/ElasticJointReach-v0", observer=spec)
+    assert type(env.unwrapped.observer).__name__ == "ExtendedKalmanFilter"
 
 
 def test_train_policy_refuses_bad_arguments():

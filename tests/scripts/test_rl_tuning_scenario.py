@@ -48,6 +48,8 @@ def test_scenario_replays_the_episode_bit_for_bit(env_id):
     rl, env, ep = _episode(env_id, actions)
     sc = rl.scenario(env, ep)
     assert sc["observers"][0]["type"] == env.unwrapped.default_observer_kind()
+    assert [o["name"] for o in sc["observers"]] == (
+        ["default", "ekf"] if env_id == "hgo_mj/ElasticJointReach-v0" else ["default"])
     assert rl.replay_error(sc, ep) == 0.0
     sc["input"]["values"][10] = (ep.u[10] + 1e-3).tolist()  # another input: another motion
     assert rl.replay_error(sc, ep) > 1e-9
