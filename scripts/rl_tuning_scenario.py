@@ -19,7 +19,14 @@ time), reproduces the balancing trajectory; :func:`replay_error` checks it again
 episode's true states. The scenario has the environment's plant (its MJCF, outputs, sample
 and physics periods), sensor chain and default observer (label ``default``, the task's
 parameters), so ``hgo-mj tune scenarios/rl_balance/<Env>.toml --observer default`` tunes the
-environment's observer on the states a balancing policy sees.
+environment's observer on the states a balancing policy sees. The same for
+``hgo_mj/ElasticJointReach-v0`` (a registered plant, ``[plant] name``): an episode of its
+estimate agent bringing the link to its target. Not ``hgo_mj/PendulumSwingUp-v0``: its
+environment steps MuJoCo with the Euler integrator instead of its MJCF's, which a scenario's
+``[plant]`` cannot set, so the replay would not be its episode (it differed by 8.5 rad).
+Where ``eval_rl.TUNED`` names another observer for the environment (ElasticJointReach's
+extended Kalman filter), the scenario carries it too, and ``hgo-mj tune ... --observer ekf``
+tunes it.
 
 Usage::
 
@@ -43,10 +50,10 @@ from hgo_mj._io import write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
-from eval_rl import EVAL_SEED, load  # noqa: E402
+from eval_rl import EVAL_SEED, TUNED, load  # noqa: E402
 
 ENVS = ("hgo_mj/CartPoleBalance-v0", "hgo_mj/FurutaBalance-v0",
-        "hgo_mj/AcrobotBalance-v1")
+        "hgo_mj/AcrobotBalance-v1", "hgo_mj/ElasticJointReach-v0")
 #: the observer's label in the scenario (``hgo-mj tune --observer default``)
 LABEL = "default"
 
@@ -95,12 +102,14 @@ def scenario(env: Any, episode: Episode) -> dict[str, Any]:
     T = len(episode.u)
     times = [0.0] + [(j - 0.5) * tc for j in range(1, T)]
     spec = u._observer_spec
+    plant = ({"model": f"models/{u.task.plant}", "outputs": list(u.output_names)}
+             if u.task.plant.endswith(".xml") else {"name": u.task.plant})  # a registered one
     return {
         "name": f"{u.env_id.split('/')[-1]}_balance",
-        "plant": {"model": f"models/{u.task.plant}", "outputs": list(u.output_names),
-                  "dt": ts, "physics_dt": u.physics_dt, "x0": episode.x[0].tolist()},
+        "plant": {**plant, "dt": ts, "physics_dt": u.physics_dt, "x0": episode.x[0].tolist()},
         "sensor": {"stages": u.sensor.describe()},
-        "observers": [{"name": LABEL, **spec}],
+        "observers": [{"name": LABEL, **spec}, *([TUNED[u.env_id]] if u.env_id in TUNED
+                                                 else [])],
         "input": {"type": "schedule", "times": times, "values": episode.u.tolist()},
         "run": {"duration": T * tc, "sample_period": ts, "control_period": tc, "seed": 0},
     }
@@ -151,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{args.seed}, {len(episode.u)} steps),\n# replayed open loop; written by "
                 f"scripts/rl_tuning_scenario.py (the replay's largest state error {err:.3g}).\n"
                 f"#   hgo-mj tune {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}"
-                f" --observer {LABEL}\n")
+                f" --observer {TUNED.get(env_id, {'name': LABEL})['name']}\n")
         write_text(path, head + best_toml(sc, LABEL, {}))
         print(f"{path}: {len(episode.u)} steps, replay error {err:.3g}")
     return 0

@@ -21,6 +21,13 @@ with ``CartPole-v1``'s (32 steps per member, GAE 0.8, 20 epochs) the policy's no
 collapsed on ``CartPoleSwingUp-v1`` (log standard deviation -3 at 300k steps) with the cart
 running off its track in 0.78 s.
 
+The two tasks of ``docs/results/rl.md`` (``hgo_mj/PendulumSwingUp-v0`` and
+``hgo_mj/ElasticJointReach-v0``) train with that page's PPO settings instead
+(``scripts/train_rl.py``'s :data:`PPO_SETTINGS`: n_steps 256 on the 8 members, batch 512,
+10 epochs, gamma 0.98, GAE 0.95, learning rate 1e-3, gSDE resampled every 4 steps, two layers
+of 64; the LSTM's hidden size 64) and its budget of 409,600 steps by default, so that a
+committed policy is one of the runs that page reports, not a differently tuned one.
+
 ``--algorithm SAC`` trains stable-baselines3's SAC instead (its defaults: two layers of 256,
 automatic entropy coefficient, tau 0.005; with gamma 0.99, learning rate 1e-3, a buffer of
 3e5, batch 256, 4000 warm-up steps and two gradient steps per step of the 8 members), on the
@@ -77,15 +84,18 @@ PPO_CARTPOLE = {"n_steps": 32, "batch_size": 256, "gae_lambda": 0.8, "gamma": 0.
 #: split over the :data:`N_ENVS` members: ``--ppo-settings mujoco``, the swing-ups
 PPO_MUJOCO = {"n_steps": 256, "batch_size": 64, "gae_lambda": 0.95, "gamma": 0.99,
               "n_epochs": 10, "ent_coef": 0.0, "learning_rate": 3e-4, "clip_range": 0.2}
-PPO_SETTINGS = {"cartpole": (PPO_CARTPOLE, "rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"),
-                "mujoco": (PPO_MUJOCO, "Schulman et al. 2017 Table 3 (MuJoCo), "
-                                       "stable-baselines3's PPO defaults")}
+PPO_PRESETS = {"cartpole": (PPO_CARTPOLE, "rl-baselines3-zoo hyperparams/ppo.yml, CartPole-v1"),
+               "mujoco": (PPO_MUJOCO, "Schulman et al. 2017 Table 3 (MuJoCo), "
+                                      "stable-baselines3's PPO defaults")}
 #: SAC for the acrobot's balance: stable-baselines3's defaults but these
 SAC_BALANCE = {"gamma": 0.99, "learning_rate": 1e-3, "buffer_size": 300_000, "batch_size": 256,
                "learning_starts": 4000, "train_freq": 1, "gradient_steps": 2}
 ALGORITHMS = ("PPO", "SAC")
 #: the steps of RL Zoo's CartPole-v1 budget
 DEFAULT_STEPS = 100_000
+sys.path.insert(0, str(ROOT / "scripts"))
+from train_rl import ENVS as RL_MD_ENVS  # noqa: E402
+from train_rl import FULL, LSTM_HIDDEN, NET_ARCH, PPO_SETTINGS  # noqa: E402
 
 
 def policy_name(env_id: str, agent: str, seed: int, tuned: bool = False) -> str:
@@ -94,10 +104,29 @@ def policy_name(env_id: str, agent: str, seed: int, tuned: bool = False) -> str:
     return f"{env_id.split('/')[-1]}_{'tuned-' if tuned else ''}{agent}_seed{seed}"
 
 
+def ppo_settings(env_id: str, agent: str,
+                 preset: str = "cartpole") -> tuple[dict[str, Any], dict[str, Any], str]:
+    """The PPO settings of ``env_id`` (``preset`` of :data:`PPO_PRESETS`, or
+    ``docs/results/rl.md``'s for its tasks), the policy's ``policy_kwargs`` (``agent``'s LSTM
+    too) and their source."""
+    if env_id not in RL_MD_ENVS:
+        settings, source = PPO_PRESETS[preset]
+        return settings, {}, source
+    kwargs: dict[str, Any] = {"net_arch": NET_ARCH}
+    if agent.endswith("+lstm"):
+        kwargs["lstm_hidden_size"] = LSTM_HIDDEN
+    return PPO_SETTINGS, kwargs, "docs/results/rl.md (PPO_SETTINGS of scripts/train_rl.py)"
+
+
+def default_steps(env_id: str) -> int:
+    """The training budget of ``env_id``: RL Zoo's 1e5 of ``CartPole-v1``, or the 409,600 of
+    ``docs/results/rl.md`` for its tasks."""
+    return int(FULL["steps"]) if env_id in RL_MD_ENVS else DEFAULT_STEPS
+
+
 def tuned_spec(env_id: str) -> dict[str, Any]:
     """The observer ``hgo-mj tune`` tuned for ``env_id`` on a balancing episode
     (``scenarios/rl_balance/<Env>.best.toml``; ``eval_rl.tuned_observer``)."""
-    sys.path.insert(0, str(ROOT / "scripts"))
     from eval_rl import tuned_observer
 
     spec = tuned_observer(env_id, ROOT / "scenarios" / "rl_balance")
@@ -133,8 +162,8 @@ def check_args(args: argparse.Namespace) -> None:
     if args.agent.endswith("+lstm") and args.algorithm != "PPO":
         raise SystemExit(f"--agent {args.agent} trains RecurrentPPO: --algorithm must be PPO; "
                          f"found {args.algorithm!r}")
-    if args.ppo_settings not in PPO_SETTINGS:
-        raise SystemExit(f"--ppo-settings must be one of {list(PPO_SETTINGS)}; found "
+    if args.ppo_settings not in PPO_PRESETS:
+        raise SystemExit(f"--ppo-settings must be one of {list(PPO_PRESETS)}; found "
                          f"{args.ppo_settings!r}")
     if args.gamma is not None and not 0.0 < args.gamma < 1.0:
         raise SystemExit(f"--gamma must be in (0, 1); found {args.gamma}")
@@ -169,6 +198,25 @@ def _save_model(model: Any, path: Path) -> None:
             model.save(fh)
 
 
+def save_policy(model: Any, path: Path) -> None:
+    """Save ``model`` without its optimisers' state (Adam's two moments per parameter, two
+    thirds of a PPO zip): the zip loads with ``<Algorithm>.load`` as any other (each optimiser
+    keeps its settings and starts its moments afresh) and acts the same; a resumed training
+    reads the checkpoint, which keeps them."""
+    from torch.optim import Optimizer
+
+    kept = [(o, o.state) for o in dict.fromkeys(
+        o for holder in (model, *model.policy.modules()) for o in vars(holder).values()
+        if isinstance(o, Optimizer))]
+    try:
+        for o, _ in kept:
+            o.state = type(o.state)(dict)
+        _save_model(model, path)
+    finally:
+        for o, state in kept:
+            o.state = state
+
+
 def train(args: argparse.Namespace) -> Path:
     """Train (or resume) one policy and write it to ``args.out``; returns the policy path."""
     import torch
@@ -186,8 +234,12 @@ def train(args: argparse.Namespace) -> Path:
     replay = args.checkpoints / f"{name}.replay.pkl"
     venv = VecMonitor(train_env(args.env, args.agent, observer))  # the episodes' returns
     venv.seed(args.seed)
-    ppo, ppo_source = PPO_SETTINGS[args.ppo_settings]
-    algo, base = (SAC, SAC_BALANCE) if args.algorithm == "SAC" else (PPO, ppo)
+    base, policy_kwargs, source = ppo_settings(args.env, args.agent, args.ppo_settings)
+    if args.algorithm == "SAC":
+        algo, base, policy_kwargs = SAC, SAC_BALANCE, {}
+        source = "stable-baselines3 SAC defaults, SAC_BALANCE of scripts/train_policy.py"
+    else:
+        algo = PPO
     policy = "MlpPolicy"
     if args.agent.endswith("+lstm"):
         algo, policy = RecurrentPPO, "MlpLstmPolicy"
@@ -202,6 +254,8 @@ def train(args: argparse.Namespace) -> Path:
         settings = {k: _schedule(v) for k, v in base.items()}
         if args.gamma is not None:
             settings["gamma"] = args.gamma
+        if policy_kwargs:
+            settings["policy_kwargs"] = policy_kwargs
         model = algo(policy, venv, seed=args.seed, device="cpu", verbose=0, **settings)
     start = time.monotonic()
 
@@ -236,15 +290,15 @@ def train(args: argparse.Namespace) -> Path:
     seconds = done_seconds + time.monotonic() - start
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / f"{name}.zip"
-    _save_model(model, path)
+    save_policy(model, path)
     write_json(args.out / f"{name}.json", {
         "env_id": args.env, "agent": args.agent, "seed": args.seed,
         "algorithm": algo.__name__, "observation": args.agent.split("+")[0],
         "stack": STACK if args.agent.endswith("+stack") else 0,
         **({} if observer is None else {"observer": observer}),
         "settings": {**base, "gamma": float(model.gamma), "n_envs": N_ENVS,
-                     "source": (ppo_source if algo is not SAC else "stable-baselines3 SAC defaults, "
-                                "SAC_BALANCE of scripts/train_policy.py")
+                     **({"policy_kwargs": policy_kwargs} if policy_kwargs else {}),
+                     "source": source
                      + ("" if model.gamma == base["gamma"] else
                         f", gamma {model.gamma:g} (--gamma)")},
         "steps": int(model.num_timesteps), "train_seconds": round(seconds, 1),
@@ -260,13 +314,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env", required=True, help="registered id, e.g. hgo_mj/FurutaBalance-v0")
     ap.add_argument("--agent", default="estimate", help=f"one of {list(AGENTS)}")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
+    ap.add_argument("--steps", type=int, default=None,
+                    help=f"default {DEFAULT_STEPS:,} (RL Zoo's CartPole-v1), {FULL['steps']:,} "
+                         "for the tasks of docs/results/rl.md")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "policies")
     ap.add_argument("--checkpoints", type=Path, default=ROOT / "runs" / "rl_checkpoints")
     ap.add_argument("--checkpoint-every", type=float, default=120.0, help="seconds")
     ap.add_argument("--algorithm", default="PPO", help=f"one of {list(ALGORITHMS)}")
     ap.add_argument("--ppo-settings", default="cartpole",
-                    help=f"PPO's settings, one of {list(PPO_SETTINGS)} (a new run only)")
+                    help=f"PPO's settings, one of {list(PPO_PRESETS)} (a new run only; "
+                         "rl.md's tasks take rl.md's)")
     ap.add_argument("--gamma", type=float, default=None,
                     help="discount instead of the algorithm's settings' (a new run only; a "
                          "resumed run keeps its own)")
@@ -274,6 +331,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="the estimate of the observer hgo-mj tune tuned on a balancing episode "
                          "(scenarios/rl_balance/<Env>.best.toml) instead of the default one")
     args = ap.parse_args(argv)
+    if args.steps is None:
+        args.steps = default_steps(args.env)
     check_args(args)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     train(args)

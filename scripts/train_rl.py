@@ -243,20 +243,27 @@ def evaluate(model: Any, env_id: str, trained: str, deployed: str, episodes: int
     return total / episodes, wins / episodes
 
 
+#: the PPO settings of every agent (``scripts/train_policy.py`` trains this page's tasks with
+#: them too)
+PPO_SETTINGS = {"n_steps": 256, "batch_size": 512, "gamma": 0.98, "gae_lambda": 0.95,
+                "n_epochs": 10, "learning_rate": 1e-3, "use_sde": True, "sde_sample_freq": 4}
+#: the policy network of every agent, and the recurrent agent's LSTM
+NET_ARCH = [64, 64]
+LSTM_HIDDEN = 64
+
+
 def agent_model(agent: str, env: Any, seed: int) -> Any:
     """PPO (``MlpPolicy``; ``MlpLstmPolicy`` of sb3-contrib's ``RecurrentPPO`` for the
-    recurrent agent), the same settings for every agent."""
+    recurrent agent), the same settings (:data:`PPO_SETTINGS`) for every agent."""
     from stable_baselines3 import PPO
 
-    kw = {"n_steps": 256, "batch_size": 512, "gamma": 0.98, "gae_lambda": 0.95,
-          "n_epochs": 10, "learning_rate": 1e-3, "use_sde": True, "sde_sample_freq": 4,
-          "seed": seed, "device": "cpu", "verbose": 0}
+    kw = {**PPO_SETTINGS, "seed": seed, "device": "cpu", "verbose": 0}
     if agent.endswith("+lstm"):
         from sb3_contrib import RecurrentPPO
 
         return RecurrentPPO("MlpLstmPolicy", env, policy_kwargs={
-            "net_arch": [64, 64], "lstm_hidden_size": 64}, **kw)
-    return PPO("MlpPolicy", env, policy_kwargs={"net_arch": [64, 64]}, **kw)
+            "net_arch": NET_ARCH, "lstm_hidden_size": LSTM_HIDDEN}, **kw)
+    return PPO("MlpPolicy", env, policy_kwargs={"net_arch": NET_ARCH}, **kw)
 
 
 def train_one(run: Run, eval_episodes: int) -> Run:

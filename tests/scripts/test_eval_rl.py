@@ -30,8 +30,20 @@ def test_solved_is_balanced_to_the_time_limit():
     assert ev.episode_solved(env, False, 500)
     assert not ev.episode_solved(env, True, 500)
     assert not ev.episode_solved(env, False, 499)
-    with pytest.raises(SystemExit, match="found SwingUpTask"):
-        ev.episode_solved(gym.make("hgo_mj/PendulumSwingUp-v0"), False, 250)
+    with pytest.raises(SystemExit, match="found Reach2LinkTask"):
+        ev.episode_solved(gym.make("hgo_mj/ElasticJoint2LinkReach-v0"), False, 250)
+
+
+def test_solved_reach_holds_the_link_near_its_target_over_the_last_half():
+    """rl.md's criterion on ElasticJointReach: the link within 0.05 rad of the target at
+    every step of the episode's last half, whatever the first half did."""
+    ev = _load("eval_rl")
+    env = gym.make("hgo_mj/ElasticJointReach-v0")
+    env.reset(seed=0)
+    goal = env.unwrapped._goal[0]
+    near, far = [[goal - 0.049, 0.0, 0.0, 0.0]], [[goal + 0.051, 0.0, 0.0, 0.0]]
+    assert ev.episode_solved(env, False, 9, far * 5 + near * 5)
+    assert not ev.episode_solved(env, False, 9, far * 4 + near + far + near * 4)
 
 
 def test_a_lab_swing_up_is_solved_when_its_last_second_is_upright():
@@ -63,8 +75,13 @@ def test_table_and_refusals(tmp_path):
     assert ("- hgo_mj/CartPoleBalance-v0: estimate 50%, true 100%; the estimate agent solves "
             "50% as many episodes as the true-state agent (target 90%: not met).") in \
         ev.findings(rows)
+    rows.append(ev.Row("z", "hgo_mj/CartPoleBalance-v0", "tuned estimate", 0, 100_000, 50.0,
+                       [500.0, 500.0], [True, True]))
+    assert ("the tuned estimate agent solves 100% as many episodes as the true-state agent "
+            "(target 90%: met).") in ev.findings(rows)
     rows[1].solved = [False, False]
     assert "the true-state agent solves none" in ev.findings(rows)
+    assert "tuned estimate agent solves" not in ev.findings(rows)
     with pytest.raises(SystemExit, match="found 0 zip"):
         ev.main(["--policies", str(tmp_path)])
     (tmp_path / "a.zip").write_bytes(b"")
@@ -87,6 +104,14 @@ def test_tuned_observer_is_the_tunings_best(tmp_path):
     path.write_text('[[observers]]\nname = "other"\ntype = "high_gain_multi"\n')
     with pytest.raises(SystemExit, match="one observer named 'default'"):
         ev.tuned_observer("hgo_mj/CartPoleBalance-v0", tmp_path)
+    # ElasticJointReach: the extended Kalman filter beside the default is the tuned one
+    (tmp_path / "ElasticJointReach-v0.best.toml").write_text(
+        '[[observers]]\nname = "default"\ntype = "high_gain"\nk = 80.0\n\n'
+        '[[observers]]\nname = "ekf"\ntype = "ekf"\nQ = 1e-5\n')
+    spec = ev.tuned_observer("hgo_mj/ElasticJointReach-v0", tmp_path)
+    assert spec == {"type": "ekf", "Q": 1e-5}
+    env = gym.make("hgo_mj/ElasticJointReach-v0", observer=spec)
+    assert type(env.unwrapped.observer).__name__ == "ExtendedKalmanFilter"
 
 
 def test_train_policy_refuses_bad_arguments():
@@ -193,3 +218,35 @@ def test_train_and_evaluate_on_the_tuned_observer(tmp_path):
     assert row.agent == "tuned estimate" and row.on_tuned is None
     assert set(row.error_rms) == {"cart_position", "cart_velocity", "pole_angle",
                                   "pole_velocity"}
+
+
+def test_rl_md_tasks_train_with_its_settings_and_save_small_policies(tmp_path):
+    """ElasticJointReach trains with rl.md's PPO (gSDE, two layers of 64, the LSTM's 64) and
+    budget; the committed zip drops the optimiser's moments, loads and acts as the
+    checkpoint."""
+    pytest.importorskip("sb3_contrib")
+    import numpy as np
+
+    tp, ev = _load("train_policy"), _load("eval_rl")
+    env_id = "hgo_mj/ElasticJointReach-v0"
+    assert (tp.default_steps(env_id), tp.default_steps("hgo_mj/CartPoleBalance-v0")) == (
+        409_600, 100_000)
+    for agent in ("true", "measurement+lstm"):
+        assert tp.main(["--env", env_id, "--agent", agent, "--steps", "256", "--out",
+                        str(tmp_path), "--checkpoints", str(tmp_path / "ck")]) == 0
+    zip_path = tmp_path / "ElasticJointReach-v0_true_seed0.zip"
+    meta = json.loads(zip_path.with_suffix(".json").read_text())
+    assert meta["settings"]["use_sde"] and meta["settings"]["n_steps"] == 256
+    assert meta["settings"]["policy_kwargs"] == {"net_arch": [64, 64]}
+    assert meta["settings"]["source"].startswith("docs/results/rl.md")
+    small, full = ev.load(zip_path, meta), ev.load(tmp_path / "ck" / zip_path.name, meta)
+    assert zip_path.stat().st_size < 0.6 * (tmp_path / "ck" / zip_path.name).stat().st_size
+    assert not small.policy.optimizer.state and full.policy.optimizer.state
+    obs = np.random.default_rng(0).normal(size=(16, 5))
+    assert np.array_equal(small.predict(obs, deterministic=True)[0],
+                          full.predict(obs, deterministic=True)[0])
+    lstm_path = tmp_path / "ElasticJointReach-v0_measurement+lstm_seed0.zip"
+    lstm = ev.load(lstm_path, json.loads(lstm_path.with_suffix(".json").read_text()))
+    assert lstm.policy.lstm_actor.hidden_size == 64
+    row = ev.evaluate(lstm_path, 1)
+    assert (row.algorithm, len(row.solved)) == ("RecurrentPPO", 1)
