@@ -52,7 +52,7 @@ from hgo_mj._validate import numbers_only
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, LoopFailure
 
-from .core import Array, HgoEnv, chain_seed, measurement_start
+from .core import Array, HgoEnv, chain_seed
 
 
 def check_num_envs(num_envs: Any) -> int:
@@ -236,8 +236,7 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         ob = self.env.observer
         if ob is not None:
             Y = self.loop.sample()[2][idx, 0]
-            self.loop.start_observers(idx, {"observer": measurement_start(
-                ob, Y, self.task.start_ties)})
+            self.loop.start_observers(idx, {"observer": self.env._start(ob, Y)})
 
     # ------------------------------------------------------------------ step
     def _actions(self, actions: Any) -> Array:
