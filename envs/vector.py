@@ -48,11 +48,11 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from hgo_mj._validate import numbers_only
+from hgo_mj._validate import numbers_only, sum_is_finite
 from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 from hgo_mj.loop import CONTINUE, LoopFailure
 
-from .core import Array, HgoEnv, chain_seed, measurement_start
+from .core import Array, HgoEnv, chain_seed
 
 
 def check_num_envs(num_envs: Any) -> int:
@@ -63,6 +63,14 @@ def check_num_envs(num_envs: Any) -> int:
     if num_envs < 1:
         raise DesignError(f"num_envs must be an integer >= 1; found {num_envs}")
     return int(num_envs)
+
+
+def _columns(idx: list[int]) -> Any:
+    """Column indices as a slice where they are consecutive (a view, cheaper at every step),
+    else an index array."""
+    if idx and idx == list(range(idx[0], idx[0] + len(idx))):
+        return slice(idx[0], idx[0] + len(idx))
+    return np.array(idx, dtype=np.intp)
 
 
 class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
@@ -155,8 +163,8 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         self._started = False
         self._ones = np.ones(N, dtype=bool)
         err = env._err_pairs
-        self._err_state = np.array([j for j, _ in err], dtype=np.intp)
-        self._err_est = np.array([i for _, i in err], dtype=np.intp)
+        self._err_state = _columns([j for j, _ in err])
+        self._err_est = _columns([i for _, i in err])
 
     # ------------------------------------------------------------------ reset
     def _seeds(self, seed: Any) -> list[int | None]:
@@ -236,8 +244,7 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         ob = self.env.observer
         if ob is not None:
             Y = self.loop.sample()[2][idx, 0]
-            self.loop.start_observers(idx, {"observer": measurement_start(
-                ob, Y, self.task.start_ties)})
+            self.loop.start_observers(idx, {"observer": self.env._start(ob, Y)})
 
     # ------------------------------------------------------------------ step
     def _actions(self, actions: Any) -> Array:
@@ -251,7 +258,7 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         if a.shape != shape:
             raise DimensionError(f"actions must have shape {shape} (num_envs, action entries); "
                                  f"found {a.shape}")
-        if not (np.all(a >= -1.0) and np.all(a <= 1.0)):
+        if not (-1.0 <= a.min() and a.max() <= 1.0):  # False for NaN
             nan = np.argwhere(np.isnan(a))
             if nan.size:
                 raise DesignError(f"action[{nan[0, 0]}][{nan[0, 1]}] is NaN")
@@ -328,9 +335,8 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         extra = None
         if mode in ("estimate", "estimate+diagnostics"):
             x_hat = np.asarray(x_hat)
-            bad = ~np.isfinite(x_hat.sum(axis=1))
-            if bad.any():
-                b = int(np.argmax(bad))
+            if not sum_is_finite(x_hat):
+                b = int(np.argmax(~np.isfinite(x_hat.sum(axis=1))))
                 raise DivergenceError(f"member {b}: the observer's estimate left the finite "
                                       f"numbers at step {int(self._steps[b])}: "
                                       f"{x_hat[b].tolist()}")
@@ -347,10 +353,10 @@ class HgoVectorEnv(VectorEnv):  # type: ignore[type-arg]
         obs = env.encoder.batch(vals, self._goals, extra)
         if self.render_mode is not None:  # what render() draws: copies, the rows move on
             self._frame_state = (X.copy(), None if x_hat is None else np.array(x_hat))
-        info: dict[str, Any] = {"state": X.copy()}
+        info: dict[str, Any] = {"state": X}  # (the loop's sample and estimate are fresh)
         if x_hat is not None:
-            info["estimate"] = np.array(x_hat)
-            info["error"] = X[:, self._err_state] - info["estimate"][:, self._err_est]
+            info["estimate"] = x_hat
+            info["error"] = X[:, self._err_state] - x_hat[:, self._err_est]
         if env._full_info:
             info["time"] = self._steps * self._every * self.loop.periods.sample
             info["measurement"] = Y.copy()

@@ -427,6 +427,35 @@ class Params(State):
         keep are not fields)."""
         return {k: v for k, v in vars(self).items() if not k.startswith("_")}
 
+    def take(self, rows: Any) -> Params:
+        """The members ``rows`` as new parameters (:meth:`State.take`); where :meth:`groups`
+        found one group, the new parameters' single group is known without a search (an
+        environment's autoreset takes the members it restarts at nearly every step).
+
+        Parameters
+        ----------
+        rows : sequence of int or ndarray or slice
+            Member indices.
+
+        Returns
+        -------
+        Params
+            ``len(rows)`` members.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> p = Params(k=np.array([1.0, 1.0, 1.0]))
+        >>> _ = p.groups()
+        >>> [(r.tolist(), q.k.item()) for r, q in p.take([0, 2]).groups()]
+        [([0, 1], 1.0)]
+        """
+        out = super().take(rows)
+        found = vars(self).get("_groups")
+        if found is not None and len(found) == 1 and isinstance(found[0][0], np.ndarray):
+            vars(out)["_groups"] = [(np.arange(out.batch), found[0][1])]
+        return out
+
     def copy(self) -> Params:  # read-only arrays are shared, not copied
         """The same parameters (their arrays are read-only, so shared).
 
@@ -1557,7 +1586,11 @@ class Observer(ABC):
             sub, where = params, slice(None)  # groups found once), the rows as a slice
         else:
             sub = params.take(rows) if params.fields else self.parameters(len(rows))
-        state.put(where, self.init(len(rows), x_hat0, params=sub))  # type: ignore[arg-type]
+        if x_hat0 is not None and x_hat0.ndim == 2 and x_hat0.shape[0] == len(rows):
+            # the loop's parameters are checked: the rows' checks only (else init refuses)
+            state.put(where, self._start_from(sub, x_hat0))  # type: ignore[arg-type]
+        else:
+            state.put(where, self.init(len(rows), x_hat0, params=sub))  # type: ignore[arg-type]
 
     def update(self, y: Any, u: Any, dt: float) -> Array:
         """One sample of the observer's own state: ``y`` ``(p,)`` and ``u`` ``(m,)`` when

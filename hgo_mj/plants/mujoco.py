@@ -31,6 +31,7 @@ import mujoco
 import mujoco.batch
 import mujoco.rollout
 import numpy as np
+from numpy.typing import NDArray
 
 from .._binding import Binding
 from .._validate import finite_scalar, integer_multiple, vector
@@ -84,6 +85,21 @@ def _usable(U: Array) -> bool:
     zeroes any other)."""
     return bool(-_MAX_CTRL < U.item() < _MAX_CTRL if U.size == 1 else  # one input, one sample
                 U.size == 0 or float(np.abs(U).max()) < _MAX_CTRL)
+
+
+def _as_slice(idx: NDArray[np.intp]) -> Any:
+    """``idx`` as a slice where its entries are consecutive (a batch's state rows are read and
+    written at every short block: a slice's copies cost less than an index array's), else
+    ``idx``.
+
+    Examples
+    --------
+    >>> _as_slice(np.array([3, 4, 5])), _as_slice(np.array([1, 3])).tolist()
+    (slice(3, 6, None), [1, 3])
+    """
+    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0]) + idx.size)
+    return idx
 
 
 def _earliest(fails: list[tuple[int, int, float, str]], X: Array, Yc: Array) -> DivergenceError:
@@ -247,10 +263,11 @@ class MujocoPlant(Plant):
 
         F, C, W = where(full), where(np.array(d.ctrl)), where(np.array(d.qacc_warmstart))
         ys = np.array([a for _, a in self._batch_src], dtype=np.intp)
-        self._batch_cols = (F[self._sq], F[self._sv], F[ys], C[self._aid_arr])
+        self._batch_cols = tuple(_as_slice(c) for c in (F[self._sq], F[self._sv], F[ys],
+                                                         C[self._aid_arr]))
         w = mujoco.mjtWarning
         self._bad_lo, self._bad_hi = int(w.mjWARN_BADQPOS), int(w.mjWARN_BADQACC) + 1
-        return F, C, W
+        return _as_slice(F), _as_slice(C), _as_slice(W)
 
     @property
     def output_names(self) -> tuple[str, ...]:

@@ -14,7 +14,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 from hgo_mj.envs import ENVIRONMENTS, HgoVectorEnv, PendulumSwingUpEnv
 
-from hgo_mj.exceptions import DesignError, DimensionError
+from hgo_mj.exceptions import DesignError, DimensionError, DivergenceError
 
 IDS = list(ENVIRONMENTS)
 INFO_KEYS = ("state", "estimate", "error", "measurement", "time", "goal")
@@ -187,6 +187,16 @@ def test_bad_inputs():
         HgoVectorEnv(PendulumSwingUpEnv, 2, max_episode_steps=0)
     with pytest.raises(DesignError, match="HgoEnv subclass"):
         HgoVectorEnv(dict, 2)  # type: ignore[arg-type]
+
+
+def test_an_estimate_that_leaves_the_finite_numbers_names_its_member():
+    venv = HgoVectorEnv(PendulumSwingUpEnv, 4)
+    venv.reset(seed=0)
+    venv.loop.states["observer"].z[2, 1] = np.inf  # member 2's observer state breaks
+    with pytest.raises(DivergenceError, match=r"member 2: the observer's estimate left the "
+                                              r"finite numbers at step 1"):
+        venv.step(np.zeros((4, 1)))
+    venv.close()
 
 
 @pytest.mark.parametrize("env_id", IDS)
