@@ -175,7 +175,7 @@ def episodes_of(model: Any, meta: dict[str, Any], episodes: int,
             if n > TRANSIENT_STEPS and "error" in info:
                 errors.append(info["error"])
         returns.append(total)
-        won.append(episode_solved(env, terminated, n, held, states))
+        won.append(episode_solved(env, terminated, n, held=held, states=states))
     names = env.unwrapped.error_names
     env.close()
     rms = np.sqrt(np.mean(np.square(errors), axis=0)) if errors else []

@@ -42,8 +42,8 @@ def test_solved_reach_holds_the_link_near_its_target_over_the_last_half():
     env.reset(seed=0)
     goal = env.unwrapped._goal[0]
     near, far = [[goal - 0.049, 0.0, 0.0, 0.0]], [[goal + 0.051, 0.0, 0.0, 0.0]]
-    assert ev.episode_solved(env, False, 9, far * 5 + near * 5)
-    assert not ev.episode_solved(env, False, 9, far * 4 + near + far + near * 4)
+    assert ev.episode_solved(env, False, 9, states=far * 5 + near * 5)
+    assert not ev.episode_solved(env, False, 9, states=far * 4 + near + far + near * 4)
 
 
 def test_a_lab_swing_up_is_solved_when_its_last_second_is_upright():
