@@ -21,7 +21,9 @@ and physics periods), sensor chain and default observer (label ``default``, the 
 parameters), so ``hgo-mj tune scenarios/rl_balance/<Env>.toml --observer default`` tunes the
 environment's observer on the states a balancing policy sees. The same for
 ``hgo_mj/ElasticJointReach-v0`` (a registered plant, ``[plant] name``): an episode of its
-estimate agent bringing the link to its target. Not ``hgo_mj/PendulumSwingUp-v0``: its
+estimate agent bringing the link to its target, and for ``hgo_mj/CartPoleSwingUp-v1`` (the
+cart-pole's MJCF, its own integrator): an episode of its estimate agent swinging the pole up
+and balancing it. Not ``hgo_mj/PendulumSwingUp-v0``: its
 environment steps MuJoCo with the Euler integrator instead of its MJCF's, which a scenario's
 ``[plant]`` cannot set, so the replay would not be its episode (it differed by 8.5 rad).
 Where ``eval_rl.TUNED`` names another observer for the environment (ElasticJointReach's
@@ -53,7 +55,8 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from eval_rl import EVAL_SEED, TUNED, load  # noqa: E402
 
 ENVS = ("hgo_mj/CartPoleBalance-v0", "hgo_mj/FurutaBalance-v0",
-        "hgo_mj/AcrobotBalance-v1", "hgo_mj/ElasticJointReach-v0")
+        "hgo_mj/AcrobotBalance-v1", "hgo_mj/ElasticJointReach-v0",
+        "hgo_mj/CartPoleSwingUp-v1")
 #: the observer's label in the scenario (``hgo-mj tune --observer default``)
 LABEL = "default"
 
@@ -97,7 +100,7 @@ def record(env_id: str, seed: int, policies: Path, agent: str = "estimate"
 
 def scenario(env: Any, episode: Episode) -> dict[str, Any]:
     """The tuning scenario replaying ``episode`` on ``env``'s plant, sensor and observer."""
-    u = env.unwrapped
+    u, env_id = env.unwrapped, env.spec.id  # the registered id (a variant's, not its base's)
     tc, ts = u.control_period, u.sample_period
     T = len(episode.u)
     times = [0.0] + [(j - 0.5) * tc for j in range(1, T)]
@@ -105,10 +108,10 @@ def scenario(env: Any, episode: Episode) -> dict[str, Any]:
     plant = ({"model": f"models/{u.task.plant}", "outputs": list(u.output_names)}
              if u.task.plant.endswith(".xml") else {"name": u.task.plant})  # a registered one
     return {
-        "name": f"{u.env_id.split('/')[-1]}_balance",
+        "name": f"{env_id.split('/')[-1]}_balance",
         "plant": {**plant, "dt": ts, "physics_dt": u.physics_dt, "x0": episode.x[0].tolist()},
         "sensor": {"stages": u.sensor.describe()},
-        "observers": [{"name": LABEL, **spec}, *([TUNED[u.env_id]] if u.env_id in TUNED
+        "observers": [{"name": LABEL, **spec}, *([TUNED[env_id]] if env_id in TUNED
                                                  else [])],
         "input": {"type": "schedule", "times": times, "values": episode.u.tolist()},
         "run": {"duration": T * tc, "sample_period": ts, "control_period": tc, "seed": 0},
@@ -141,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     from hgo_mj.tune.tuner import best_toml
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--env", action="append", choices=ENVS, help="default: both")
+    ap.add_argument("--env", action="append", choices=ENVS, help="default: all of ENVS")
     ap.add_argument("--seed", type=int, default=EVAL_SEED, help="the episode's reset seed")
     ap.add_argument("--agent", choices=("true", "estimate"), default="estimate",
                     help="the committed policy that balances (default: the estimate agent on "

@@ -42,11 +42,13 @@ def _episode(env_id, actions, x0=None, seed=10_000):
 
 
 @pytest.mark.parametrize("env_id", ["hgo_mj/CartPoleBalance-v0", "hgo_mj/FurutaBalance-v0",
-                                    "hgo_mj/ElasticJointReach-v0"])  # an MJCF, a registered plant
+                                    "hgo_mj/ElasticJointReach-v0",  # an MJCF, a registered plant
+                                    "hgo_mj/CartPoleSwingUp-v1"])  # a variant of v0
 def test_scenario_replays_the_episode_bit_for_bit(env_id):
     actions = np.random.default_rng(0).uniform(-1, 1, size=(30, 1))
     rl, env, ep = _episode(env_id, actions)
     sc = rl.scenario(env, ep)
+    assert sc["name"] == f"{env_id.split('/')[-1]}_balance"  # the variant's id, not its base's
     assert sc["observers"][0]["type"] == env.unwrapped.default_observer_kind()
     assert [o["name"] for o in sc["observers"]] == (
         ["default", "ekf"] if env_id == "hgo_mj/ElasticJointReach-v0" else ["default"])
@@ -56,7 +58,8 @@ def test_scenario_replays_the_episode_bit_for_bit(env_id):
 
 
 @pytest.mark.parametrize("name", ["CartPoleBalance-v0", "FurutaBalance-v0",
-                                  "AcrobotBalance-v1", "ElasticJointReach-v0"])
+                                  "AcrobotBalance-v1", "ElasticJointReach-v0",
+                                  "CartPoleSwingUp-v1"])
 def test_committed_scenario_is_a_balancing_episode(name):
     sc = load_toml(ROOT / "scenarios" / "rl_balance" / f"{name}.toml")
     u = np.array(sc["input"]["values"])
