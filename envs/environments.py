@@ -459,9 +459,9 @@ class FurutaSwingUpEnv(HgoEnv):
       arm limit (Rewards, Episode End), `reward_threshold` 250. v0's reward pays nothing for
       the way up (`-d^2` is -9.87 per step hanging and still -2.5 at a quarter turn) and
       charges 0.01 (w_arm^2 + w_pend^2) for the speed a swing needs, 2-4 per step
-      (`docs/results/rl_policies.md`). v0 is kept as it was. Not solved here: with the
+      (`docs/results/rl.md`). v0 is kept as it was. Not solved here: with the
       MJCF's pendulum damping (0.0005 N m s/rad) a bang-bang energy pump at 10 V lifts the
-      pendulum to at most 1.78 rad, and PPO's policy to 1.75 rad (`rl_policies.md`).
+      pendulum to at most 1.78 rad, and PPO's policy to 1.75 rad (`rl.md`).
 """ + _sections(
         "hgo_mj/FurutaSwingUp-v0", """\
     max_input : float, default 10.0
@@ -628,7 +628,7 @@ class CartPoleSwingUpEnv(HgoEnv):
       episode's end (Episode End), `reward_threshold` 250. v0's reward is negative at every
       step and the track's end terminates: leaving the track pays. Running off it at full
       force returns about -550 in 0.76 s, an energy-based swing-up that balances from 3.7 s
-      on about -1950 (`docs/results/rl_policies.md`). dm_control's reward with the track's
+      on about -1950 (`docs/results/rl.md`). dm_control's reward with the track's
       end kept still paid it (0 hanging, about 8 for the pole's rise while the cart runs
       off): PPO and SAC both learned to run off; without an end, PPO swung the pole up with
       the cart out to 2.6 m. v0 is kept as it was.
@@ -720,7 +720,7 @@ class AcrobotBalanceEnv(HgoEnv):
       0.02 of upright instead of 0.05. From v0's start a saturated LQR of the linearisation
       about upright (Q = diag(10, 10, 1, 1), R = 0.1, clipped at the 20 N m of the elbow) on
       the true state keeps 14 of 30 episodes upright for 5 s, and 29 of 30 from v1's
-      (`docs/results/rl_policies.md`): with the elbow's 20 N m, half of v0's starts are
+      (`docs/results/rl.md`): with the elbow's 20 N m, half of v0's starts are
       beyond what a linear controller recovers. v0 is kept as it was.
 """)
     task_class = AcrobotBalanceTask

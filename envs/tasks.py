@@ -85,7 +85,7 @@ class SwingUpTask(Task):
     sample_period = None
     integrator = "Euler"
     max_episode_steps = 250
-    #: the 100 %-solved agents of docs/results/rl.md return -318 +- 25; hanging still -2467
+    #: the 100 %-solved agents of docs/results/rl_seeds.md return -318 +- 25; hanging still -2467
     reward_threshold = -400.0
     default_observer = "high_gain"
     observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {
@@ -248,7 +248,7 @@ class ReachTask(Task):
     sample_period = 0.002
     integrator = None
     max_episode_steps = 300
-    #: the true-state agent of docs/results/rl.md returns -6.8 and solves 80 %
+    #: the true-state agent of docs/results/rl_seeds.md returns -6.8 and solves 80 %
     reward_threshold = -10.0
     default_observer = "high_gain"
     observer_defaults: ClassVar[dict[str, dict[str, Any]]] = {

@@ -11,7 +11,7 @@ observer sees under the estimate agent is what the tuning should fit, and it dif
 true-state agent holds the Furuta pendulum within an encoder count or so, and on its episode
 the tuner raised the pendulum chain's gain to about 2700 (against the default 40), which in the
 estimate agent's loop amplified the encoder's steps into the actions and raised the pendulum
-velocity's RMS error 59-fold (``docs/results/rl_policies.md``). MuJoCo is deterministic, so
+velocity's RMS error 59-fold (``docs/results/rl.md``). MuJoCo is deterministic, so
 the environment's plant, started from the episode's initial state with the recorded inputs
 ``u = action * max_action`` held over each control period (a ``schedule`` input switching
 half a control period before each control instant, so that no instant sits on a switching

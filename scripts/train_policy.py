@@ -2,7 +2,7 @@
 
 The policies a reviewer loads (``docs/results/policies/``, evaluated by
 ``scripts/eval_rl.py``) come from here: one task, one agent, one seed. The agents are those of
-``scripts/train_rl.py`` (``docs/results/rl.md``): the observation the policy sees is the
+``scripts/train_rl.py`` (``docs/results/rl_seeds.md``): the observation the policy sees is the
 ``true`` state, the observer's ``estimate`` or the raw ``measurement``; ``measurement+stack``
 sees the last 4 measurements (Gymnasium's ``FrameStackObservation`` over single environments
 in stable-baselines3's ``DummyVecEnv``), ``measurement+lstm`` the measurement through a
@@ -21,7 +21,7 @@ with ``CartPole-v1``'s (32 steps per member, GAE 0.8, 20 epochs) the policy's no
 collapsed on ``CartPoleSwingUp-v1`` (log standard deviation -3 at 300k steps) with the cart
 running off its track in 0.78 s.
 
-The two tasks of ``docs/results/rl.md`` (``hgo_mj/PendulumSwingUp-v0`` and
+The two tasks of ``docs/results/rl_seeds.md`` (``hgo_mj/PendulumSwingUp-v0`` and
 ``hgo_mj/ElasticJointReach-v0``) train with that page's PPO settings instead
 (``scripts/train_rl.py``'s :data:`PPO_SETTINGS`: n_steps 256 on the 8 members, batch 512,
 10 epochs, gamma 0.98, GAE 0.95, learning rate 1e-3, gSDE resampled every 4 steps, two layers
@@ -33,7 +33,7 @@ automatic entropy coefficient, tau 0.005; with gamma 0.99, learning rate 1e-3, a
 3e5, batch 256, 4000 warm-up steps and two gradient steps per step of the 8 members), on the
 same vector environment: the acrobot's balance, which PPO with these settings did not learn
 (its policy stays near zero torque and the elbow falls in about 2 s;
-``docs/results/rl_policies.md``). A SAC checkpoint keeps its replay buffer
+``docs/results/rl.md``). A SAC checkpoint keeps its replay buffer
 (``<name>.replay.pkl``), so that a resumed run goes on with the samples it had.
 
 Checkpoints: the model is saved every ``--checkpoint-every`` seconds (and at the end) to
@@ -107,7 +107,7 @@ def policy_name(env_id: str, agent: str, seed: int, tuned: bool = False) -> str:
 def ppo_settings(env_id: str, agent: str,
                  preset: str = "cartpole") -> tuple[dict[str, Any], dict[str, Any], str]:
     """The PPO settings of ``env_id`` (``preset`` of :data:`PPO_PRESETS`, or
-    ``docs/results/rl.md``'s for its tasks), the policy's ``policy_kwargs`` (``agent``'s LSTM
+    ``docs/results/rl_seeds.md``'s for its tasks), the policy's ``policy_kwargs`` (``agent``'s LSTM
     too) and their source."""
     if env_id not in RL_MD_ENVS:
         settings, source = PPO_PRESETS[preset]
@@ -115,12 +115,12 @@ def ppo_settings(env_id: str, agent: str,
     kwargs: dict[str, Any] = {"net_arch": NET_ARCH}
     if agent.endswith("+lstm"):
         kwargs["lstm_hidden_size"] = LSTM_HIDDEN
-    return PPO_SETTINGS, kwargs, "docs/results/rl.md (PPO_SETTINGS of scripts/train_rl.py)"
+    return PPO_SETTINGS, kwargs, "docs/results/rl_seeds.md (PPO_SETTINGS of scripts/train_rl.py)"
 
 
 def default_steps(env_id: str) -> int:
     """The training budget of ``env_id``: RL Zoo's 1e5 of ``CartPole-v1``, or the 409,600 of
-    ``docs/results/rl.md`` for its tasks."""
+    ``docs/results/rl_seeds.md`` for its tasks."""
     return int(FULL["steps"]) if env_id in RL_MD_ENVS else DEFAULT_STEPS
 
 
@@ -316,14 +316,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--steps", type=int, default=None,
                     help=f"default {DEFAULT_STEPS:,} (RL Zoo's CartPole-v1), {FULL['steps']:,} "
-                         "for the tasks of docs/results/rl.md")
+                         "for the tasks of docs/results/rl_seeds.md")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "policies")
     ap.add_argument("--checkpoints", type=Path, default=ROOT / "runs" / "rl_checkpoints")
     ap.add_argument("--checkpoint-every", type=float, default=120.0, help="seconds")
     ap.add_argument("--algorithm", default="PPO", help=f"one of {list(ALGORITHMS)}")
     ap.add_argument("--ppo-settings", default="cartpole",
                     help=f"PPO's settings, one of {list(PPO_PRESETS)} (a new run only; "
-                         "rl.md's tasks take rl.md's)")
+                         "rl_seeds.md's tasks take rl_seeds.md's)")
     ap.add_argument("--gamma", type=float, default=None,
                     help="discount instead of the algorithm's settings' (a new run only; a "
                          "resumed run keeps its own)")

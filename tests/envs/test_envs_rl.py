@@ -90,7 +90,7 @@ def test_report_is_rewritten_from_raw_results(tmp_path):
                     "workers": 1},
            "wall": 20.0, "runs": [vars(r) for r in runs]}
     (tmp_path / "rl.json").write_text(json.dumps(raw))
-    out = tmp_path / "rl.md"
+    out = tmp_path / "rl_seeds.md"
     assert train_rl.main(["--report-from", str(tmp_path / "rl.json"), "--out", str(out)]) == 0
     assert "## hgo_mj/ElasticJointReach-v0" in out.read_text()
-    assert (tmp_path / "rl_curves.png").stat().st_size > 10_000
+    assert (tmp_path / "rl_seeds_curves.png").stat().st_size > 10_000

@@ -35,7 +35,7 @@ def test_solved_is_balanced_to_the_time_limit():
 
 
 def test_solved_reach_holds_the_link_near_its_target_over_the_last_half():
-    """rl.md's criterion on ElasticJointReach: the link within 0.05 rad of the target at
+    """rl_seeds.md's criterion on ElasticJointReach: the link within 0.05 rad of the target at
     every step of the episode's last half, whatever the first half did."""
     ev = _load("eval_rl")
     env = gym.make("hgo_mj/ElasticJointReach-v0")
@@ -156,7 +156,7 @@ def test_train_stop_resume_and_evaluate(tmp_path, capsys):
     meta = json.loads((tmp_path / "g" / "CartPoleBalance-v0_estimate_seed0.json").read_text())
     assert meta["settings"]["gamma"] == 0.99 and "gamma 0.99 (--gamma)" in \
         meta["settings"]["source"]
-    out = tmp_path / "rl_policies.md"
+    out = tmp_path / "rl.md"
     assert ev.main(["--policies", str(tmp_path / "pol"), "--episodes", "1", "--write",
                     str(out)]) == 0
     assert "| hgo_mj/CartPoleBalance-v0 | true | PPO | 0 | 0.98 | 512 |" in out.read_text()
@@ -188,7 +188,7 @@ def test_sac_keeps_its_replay_buffer_across_a_resume(tmp_path, capsys):
     ("measurement+lstm", "RecurrentPPO", 0, (3,))])
 def test_measurement_agents_train_and_evaluate_on_their_own_observation(
         tmp_path, agent, algorithm, stack, shape):
-    """The raw-measurement agents of rl.md: the cart-pole's two encoders (the position, the
+    """The raw-measurement agents of rl_seeds.md: the cart-pole's two encoders (the position, the
     angle as cosine and sine), stacked 4 deep, or through an LSTM (its state carried through
     the evaluation episode)."""
     pytest.importorskip("sb3_contrib")
@@ -221,7 +221,7 @@ def test_train_and_evaluate_on_the_tuned_observer(tmp_path):
 
 
 def test_rl_md_tasks_train_with_its_settings_and_save_small_policies(tmp_path):
-    """ElasticJointReach trains with rl.md's PPO (gSDE, two layers of 64, the LSTM's 64) and
+    """ElasticJointReach trains with rl_seeds.md's PPO (gSDE, two layers of 64, the LSTM's 64) and
     budget; the committed zip drops the optimiser's moments, loads and acts as the
     checkpoint."""
     pytest.importorskip("sb3_contrib")
@@ -238,7 +238,7 @@ def test_rl_md_tasks_train_with_its_settings_and_save_small_policies(tmp_path):
     meta = json.loads(zip_path.with_suffix(".json").read_text())
     assert meta["settings"]["use_sde"] and meta["settings"]["n_steps"] == 256
     assert meta["settings"]["policy_kwargs"] == {"net_arch": [64, 64]}
-    assert meta["settings"]["source"].startswith("docs/results/rl.md")
+    assert meta["settings"]["source"].startswith("docs/results/rl_seeds.md")
     small, full = ev.load(zip_path, meta), ev.load(tmp_path / "ck" / zip_path.name, meta)
     assert zip_path.stat().st_size < 0.6 * (tmp_path / "ck" / zip_path.name).stat().st_size
     assert not small.policy.optimizer.state and full.policy.optimizer.state

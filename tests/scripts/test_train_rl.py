@@ -46,8 +46,8 @@ def test_report_and_findings_from_raw_runs(tmp_path):
 def test_without_the_rl_extra_one_line_names_it(tmp_path, monkeypatch, capsys):
     rl = _load()
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)
-    assert rl.main(["--out", str(tmp_path / "rl.md")]) == 2
+    assert rl.main(["--out", str(tmp_path / "rl_seeds.md")]) == 2
     err = capsys.readouterr().err
     assert err == ("scripts/train_rl.py needs the optional dependency stable_baselines3: "
                    "pip install 'hgo_mj[rl]' (CPU torch first: pip install torch==2.13.0)\n")
-    assert not (tmp_path / "rl.md").exists()
+    assert not (tmp_path / "rl_seeds.md").exists()
